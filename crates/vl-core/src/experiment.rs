@@ -1,0 +1,171 @@
+//! Experiments: what the Host offers and what a user defines before a run
+//! (the thesis's "define" functionality), with the checks a definition must
+//! pass before the real robot moves.
+
+use serde::{Deserialize, Serialize};
+
+use crate::arena::{Arena, Obstacle};
+use crate::robot::{Point, RobotModel};
+
+/// An experiment the Host offers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExperimentInfo {
+    pub id: String,
+    pub title: String,
+}
+
+/// Where the robot should go, and how close counts as there.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Goal {
+    pub x_mm: f64,
+    pub y_mm: f64,
+    pub tolerance_mm: f64,
+}
+
+impl Goal {
+    pub fn point(&self) -> Point {
+        Point {
+            x_mm: self.x_mm,
+            y_mm: self.y_mm,
+        }
+    }
+}
+
+/// The user's settings for one experiment run (the thesis's "define").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct Definition {
+    /// The run ends with success when the robot is within tolerance of it.
+    pub goal: Option<Goal>,
+    /// A planned path, arena mm, for path-following experiments.
+    #[serde(default)]
+    pub path: Vec<Point>,
+    /// Obstacles that exist only in software; the Host keeps the robot out of them.
+    #[serde(default)]
+    pub virtual_obstacles: Vec<Obstacle>,
+    /// Cap on wheel speed for this run, below the robot's own limit.
+    pub max_speed_mm_s: Option<f64>,
+    /// The run is stopped when it lasts longer than this.
+    pub time_limit_s: Option<f64>,
+}
+
+impl Definition {
+    /// Checks the definition against the arena and robot it will run on,
+    /// saying what is wrong in words a user can act on.
+    pub fn validate(&self, arena: &Arena, robot: &RobotModel) -> Result<(), String> {
+        let positive = |what: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("{what} must be a positive number, got {v}"))
+            }
+        };
+        for (i, o) in self.virtual_obstacles.iter().enumerate() {
+            let what = format!("virtual obstacle {i}");
+            match *o {
+                Obstacle::Rect {
+                    x_mm,
+                    y_mm,
+                    width_mm,
+                    height_mm,
+                } => {
+                    if !(x_mm.is_finite() && y_mm.is_finite()) {
+                        return Err(format!("{what} has a non-finite corner"));
+                    }
+                    positive(&format!("{what}'s width"), width_mm)?;
+                    positive(&format!("{what}'s height"), height_mm)?;
+                }
+                Obstacle::Circle {
+                    x_mm,
+                    y_mm,
+                    radius_mm,
+                } => {
+                    if !(x_mm.is_finite() && y_mm.is_finite()) {
+                        return Err(format!("{what} has a non-finite centre"));
+                    }
+                    positive(&format!("{what}'s radius"), radius_mm)?;
+                }
+            }
+        }
+        if let Some(goal) = self.goal {
+            positive("the goal tolerance", goal.tolerance_mm)?;
+            let p = goal.point();
+            let inside = (0.0..=arena.width_mm).contains(&p.x_mm)
+                && (0.0..=arena.height_mm).contains(&p.y_mm);
+            if !inside {
+                return Err(format!(
+                    "the goal ({:.0}, {:.0}) mm is outside the {:.0} × {:.0} mm arena",
+                    p.x_mm, p.y_mm, arena.width_mm, arena.height_mm
+                ));
+            }
+            if !self.is_free(arena, p, robot.radius_mm) {
+                return Err(format!(
+                    "the robot cannot stand at the goal ({:.0}, {:.0}) mm: it overlaps an obstacle or wall",
+                    p.x_mm, p.y_mm
+                ));
+            }
+        }
+        for (i, p) in self.path.iter().enumerate() {
+            if !(p.x_mm.is_finite() && p.y_mm.is_finite()) {
+                return Err(format!("path point {i} is not a finite position"));
+            }
+        }
+        if let Some(v) = self.max_speed_mm_s {
+            positive("the speed limit", v)?;
+        }
+        if let Some(t) = self.time_limit_s {
+            positive("the time limit", t)?;
+        }
+        Ok(())
+    }
+
+    /// Whether a disc of `radius_mm` at `p` clears the arena and this
+    /// definition's virtual obstacles.
+    pub fn is_free(&self, arena: &Arena, p: Point, radius_mm: f64) -> bool {
+        arena.is_free(p, radius_mm)
+            && self
+                .virtual_obstacles
+                .iter()
+                .all(|o| o.distance(p) > radius_mm)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn goal(x_mm: f64, y_mm: f64) -> Definition {
+        Definition {
+            goal: Some(Goal {
+                x_mm,
+                y_mm,
+                tolerance_mm: 20.0,
+            }),
+            ..Definition::default()
+        }
+    }
+
+    #[test]
+    fn goals_must_be_reachable_places() {
+        let arena = Arena::navigation();
+        let robot = RobotModel::khepera_ii();
+        assert_eq!(goal(680.0, 470.0).validate(&arena, &robot), Ok(()));
+        let outside = goal(900.0, 100.0).validate(&arena, &robot).unwrap_err();
+        assert!(outside.contains("outside"), "{outside}");
+        let blocked = goal(280.0, 100.0).validate(&arena, &robot).unwrap_err();
+        assert!(blocked.contains("overlaps"), "{blocked}");
+        let mut virtual_block = goal(680.0, 470.0);
+        virtual_block.virtual_obstacles.push(Obstacle::Circle {
+            x_mm: 680.0,
+            y_mm: 470.0,
+            radius_mm: 10.0,
+        });
+        assert!(virtual_block.validate(&arena, &robot).is_err());
+        let mut slow = goal(680.0, 470.0);
+        slow.max_speed_mm_s = Some(-1.0);
+        assert!(
+            slow.validate(&arena, &robot)
+                .unwrap_err()
+                .contains("speed limit")
+        );
+    }
+}

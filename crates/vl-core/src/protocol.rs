@@ -1,0 +1,343 @@
+//! Protocol v1: the messages Guest and Host exchange over the Media.
+//!
+//! Each WebSocket text message is one JSON object whose `"type"` field names
+//! the message in snake_case; camera images travel as binary messages (see
+//! [`crate::frame`]). `docs/protocol.md` shows one example of each message.
+//! Every message that reports the lab's state carries the event number or
+//! time it refers to, so a receiver can always tell stale from fresh.
+
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::arena::Arena;
+use crate::camera::CameraModel;
+use crate::experiment::{Definition, ExperimentInfo};
+use crate::robot::{Pose, RobotModel, WheelSpeeds};
+
+/// The protocol version a `hello` must name.
+pub const PROTOCOL_VERSION: u32 = 1;
+
+/// The largest text message either side accepts.
+pub const MAX_TEXT_BYTES: usize = 1 << 20;
+
+/// Who a connection speaks for: one operator drives, observers watch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    Operator,
+    Observer,
+}
+
+/// How a command asks the robot to move.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Drive {
+    /// Wheel speeds, mm/s.
+    Wheels { left: f64, right: f64 },
+    /// Linear speed mm/s and turn rate rad/s.
+    Velocity { v: f64, w: f64 },
+}
+
+impl Drive {
+    /// The wheel speeds this asks of `robot`, within its limits.
+    pub fn wheels(&self, robot: &RobotModel) -> WheelSpeeds {
+        match *self {
+            Drive::Wheels { left, right } => robot.clamp(WheelSpeeds {
+                left_mm_s: left,
+                right_mm_s: right,
+            }),
+            Drive::Velocity { v, w } => robot.wheels_for(v, w),
+        }
+    }
+
+    pub fn is_finite(&self) -> bool {
+        match *self {
+            Drive::Wheels { left, right } => left.is_finite() && right.is_finite(),
+            Drive::Velocity { v, w } => v.is_finite() && w.is_finite(),
+        }
+    }
+}
+
+/// Why a run ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EndReason {
+    GoalReached,
+    Stopped,
+    TimeLimit,
+    OperatorLeft,
+    Fault,
+}
+
+/// What a finished run achieved.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    pub reason: EndReason,
+    pub reached_goal: bool,
+    /// Commands executed in the run (the last event number).
+    pub events: u64,
+    pub final_pose: Pose,
+    /// Duration of the run on the lab's clock (simulated seconds on the simulator).
+    pub seconds: f64,
+    /// Sum of distances driven, mm.
+    pub distance_mm: f64,
+    pub collisions: u64,
+}
+
+/// Machine-readable reason in an `error` message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ErrorCode {
+    /// Not JSON, not an object, or a field of the wrong shape.
+    BadMessage,
+    UnknownType,
+    TooLarge,
+    ProtocolMismatch,
+    /// Something other than `hello` arrived before `hello`.
+    HelloFirst,
+    Unauthorized,
+    OperatorTaken,
+    NotOperator,
+    UnknownExperiment,
+    InvalidDefinition,
+    /// The session supervisor does not allow this action now.
+    NotAllowedNow,
+    /// A command whose event number is not the next one.
+    StaleCommand,
+    RobotFault,
+}
+
+/// Messages the Guest sends.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum GuestMessage {
+    Hello {
+        protocol: u32,
+        role: Role,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        token: Option<String>,
+    },
+    /// `t` is the sender's clock, ms; the peer echoes it in `pong`.
+    Ping {
+        t: f64,
+    },
+    Pong {
+        t: f64,
+    },
+    Mount {
+        experiment: String,
+    },
+    Define {
+        #[serde(flatten)]
+        definition: Definition,
+    },
+    Start,
+    Stop,
+    /// Drive command number `event` (1, 2, …) of the current run.
+    Command {
+        event: u64,
+        #[serde(flatten)]
+        drive: Drive,
+    },
+    Bye,
+}
+
+/// Messages the Host sends.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum HostMessage {
+    Welcome {
+        session: u64,
+        role: Role,
+        experiments: Vec<ExperimentInfo>,
+    },
+    Error {
+        code: ErrorCode,
+        message: String,
+    },
+    Ping {
+        t: f64,
+    },
+    Pong {
+        t: f64,
+    },
+    Mounted {
+        experiment: String,
+        arena: Arena,
+        robot: RobotModel,
+        camera: CameraModel,
+    },
+    Defined {
+        #[serde(flatten)]
+        definition: Definition,
+    },
+    /// A run began; commands count from `event` + 1.
+    Started {
+        event: u64,
+    },
+    /// The robot's state after executing command `event`, at Host time `t_ms`
+    /// since the session began.
+    Feedback {
+        event: u64,
+        t_ms: f64,
+        pose: Pose,
+        wheels: WheelSpeeds,
+        proximity: Vec<u16>,
+        contact: bool,
+        /// Force to render on a haptic joystick, when the experiment has one.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        force: Option<[f64; 2]>,
+    },
+    Done {
+        summary: Summary,
+    },
+    Bye,
+}
+
+/// Why a text message could not be decoded.
+#[derive(Debug, Error, PartialEq, Eq)]
+pub enum DecodeError {
+    #[error("message of {len} bytes is over the {max}-byte limit")]
+    TooLarge { len: usize, max: usize },
+    #[error("not valid JSON: {0}")]
+    NotJson(String),
+    #[error("a message must be a JSON object")]
+    NotAnObject,
+    #[error("message has no string \"type\" field")]
+    MissingType,
+    #[error("unknown message type \"{0}\"")]
+    UnknownType(String),
+    #[error("bad \"{kind}\" message: {detail}")]
+    Invalid { kind: String, detail: String },
+}
+
+impl DecodeError {
+    /// The code an `error` reply carries for this failure.
+    pub fn code(&self) -> ErrorCode {
+        match self {
+            DecodeError::TooLarge { .. } => ErrorCode::TooLarge,
+            DecodeError::UnknownType(_) => ErrorCode::UnknownType,
+            _ => ErrorCode::BadMessage,
+        }
+    }
+}
+
+/// A message family that travels as JSON text frames.
+pub trait Wire: Serialize + DeserializeOwned {
+    /// The `"type"` values this family knows.
+    const TYPES: &'static [&'static str];
+
+    /// The JSON text of this message.
+    fn encode(&self) -> String {
+        // Every field is a plain number, string, list or map: serialising cannot fail.
+        serde_json::to_string(self).expect("protocol messages serialise")
+    }
+
+    /// Parses one text frame, telling apart every way it can be wrong.
+    fn decode(text: &str) -> Result<Self, DecodeError> {
+        if text.len() > MAX_TEXT_BYTES {
+            return Err(DecodeError::TooLarge {
+                len: text.len(),
+                max: MAX_TEXT_BYTES,
+            });
+        }
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| DecodeError::NotJson(e.to_string()))?;
+        let kind = value
+            .as_object()
+            .ok_or(DecodeError::NotAnObject)?
+            .get("type")
+            .ok_or(DecodeError::MissingType)?
+            .as_str()
+            .ok_or(DecodeError::MissingType)?
+            .to_owned();
+        if !Self::TYPES.contains(&kind.as_str()) {
+            return Err(DecodeError::UnknownType(kind));
+        }
+        serde_json::from_value(value).map_err(|e| DecodeError::Invalid {
+            kind,
+            detail: e.to_string(),
+        })
+    }
+}
+
+impl GuestMessage {
+    /// The `"type"` this message travels as.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            GuestMessage::Hello { .. } => "hello",
+            GuestMessage::Ping { .. } => "ping",
+            GuestMessage::Pong { .. } => "pong",
+            GuestMessage::Mount { .. } => "mount",
+            GuestMessage::Define { .. } => "define",
+            GuestMessage::Start => "start",
+            GuestMessage::Stop => "stop",
+            GuestMessage::Command { .. } => "command",
+            GuestMessage::Bye => "bye",
+        }
+    }
+}
+
+impl Wire for GuestMessage {
+    const TYPES: &'static [&'static str] = &[
+        "hello", "ping", "pong", "mount", "define", "start", "stop", "command", "bye",
+    ];
+}
+
+impl Wire for HostMessage {
+    const TYPES: &'static [&'static str] = &[
+        "welcome", "error", "ping", "pong", "mounted", "defined", "started", "feedback", "done",
+        "bye",
+    ];
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn commands_take_wheels_or_velocities() {
+        let wheels = GuestMessage::decode(r#"{"type":"command","event":3,"left":10,"right":-5}"#);
+        assert_eq!(
+            wheels,
+            Ok(GuestMessage::Command {
+                event: 3,
+                drive: Drive::Wheels {
+                    left: 10.0,
+                    right: -5.0
+                }
+            })
+        );
+        let velocity = GuestMessage::decode(r#"{"type":"command","event":4,"v":100,"w":0.5}"#);
+        assert_eq!(
+            velocity,
+            Ok(GuestMessage::Command {
+                event: 4,
+                drive: Drive::Velocity { v: 100.0, w: 0.5 }
+            })
+        );
+    }
+
+    #[test]
+    fn every_way_of_being_wrong_is_named() {
+        use DecodeError::*;
+        assert!(matches!(GuestMessage::decode("hello?"), Err(NotJson(_))));
+        assert_eq!(GuestMessage::decode("[1,2]"), Err(NotAnObject));
+        assert_eq!(GuestMessage::decode(r#"{"t":1}"#), Err(MissingType));
+        assert_eq!(GuestMessage::decode(r#"{"type":7}"#), Err(MissingType));
+        assert_eq!(
+            GuestMessage::decode(r#"{"type":"welcome"}"#),
+            Err(UnknownType("welcome".into()))
+        );
+        assert!(matches!(
+            GuestMessage::decode(r#"{"type":"command","event":"x","left":1,"right":1}"#),
+            Err(Invalid { kind, .. }) if kind == "command"
+        ));
+        let big = format!(
+            r#"{{"type":"ping","pad":"{}"}}"#,
+            "x".repeat(MAX_TEXT_BYTES)
+        );
+        assert!(matches!(GuestMessage::decode(&big), Err(TooLarge { .. })));
+    }
+}

@@ -1,0 +1,225 @@
+//! The robot model: geometry, limits and sensor layout the Guest needs to
+//! draw and predict the robot, and the differential-drive kinematics both
+//! the simulator and the Guest's predictor use.
+
+use serde::{Deserialize, Serialize};
+
+/// A planar pose in the arena frame: mm, origin at the arena's bottom-left
+/// corner, x right, y up, θ counter-clockwise from +x.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct Pose {
+    pub x_mm: f64,
+    pub y_mm: f64,
+    pub theta_rad: f64,
+}
+
+/// A point in the arena frame, in mm.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct Point {
+    pub x_mm: f64,
+    pub y_mm: f64,
+}
+
+/// Wheel surface speeds, mm/s, positive forward.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct WheelSpeeds {
+    pub left_mm_s: f64,
+    pub right_mm_s: f64,
+}
+
+/// Where a proximity sensor sits on the body (x forward, y left) and where it looks.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SensorMount {
+    pub x_mm: f64,
+    pub y_mm: f64,
+    pub angle_rad: f64,
+}
+
+/// A round differential-drive robot.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RobotModel {
+    pub name: String,
+    pub radius_mm: f64,
+    pub wheel_base_mm: f64,
+    /// Odometry resolution: wheel travel per encoder pulse.
+    pub mm_per_pulse: f64,
+    /// Largest wheel speed the on-board controller accepts.
+    pub max_wheel_speed_mm_s: f64,
+    /// Beyond this distance the proximity sensors read only noise.
+    pub sensor_range_mm: f64,
+    pub sensors: Vec<SensorMount>,
+}
+
+impl RobotModel {
+    /// K-Team Khepera II: 70 mm body, 8 IR sensors reaching ≈100 mm.
+    pub fn khepera_ii() -> Self {
+        Self::khepera("khepera-ii", 35.0, 100.0)
+    }
+
+    /// K-Team Khepera I: 55 mm body, IR reaching ≈50 mm.
+    pub fn khepera_i() -> Self {
+        Self::khepera("khepera-i", 27.5, 50.0)
+    }
+
+    fn khepera(name: &str, radius_mm: f64, sensor_range_mm: f64) -> Self {
+        // Sensor placement from K-Team's documentation (x forward, y left).
+        let layout = [
+            (10.0, 24.0, 90.0),
+            (19.0, 17.0, 45.0),
+            (25.0, 6.0, 0.0),
+            (25.0, -6.0, 0.0),
+            (19.0, -17.0, -45.0),
+            (10.0, -24.0, -90.0),
+            (-24.0, -10.0, 180.0),
+            (-24.0, 10.0, 180.0),
+        ];
+        let mm_per_pulse = 0.08;
+        Self {
+            name: name.to_owned(),
+            radius_mm,
+            wheel_base_mm: 53.0,
+            mm_per_pulse,
+            // 127 pulses per 10 ms is the firmware's speed limit.
+            max_wheel_speed_mm_s: 127.0 * mm_per_pulse * 100.0,
+            sensor_range_mm,
+            sensors: layout
+                .iter()
+                .map(|&(x_mm, y_mm, deg)| SensorMount {
+                    x_mm,
+                    y_mm,
+                    angle_rad: f64::to_radians(deg),
+                })
+                .collect(),
+        }
+    }
+
+    /// Scales `wheels` down (keeping their ratio, so the path's curvature)
+    /// until both are within the speed limit.
+    pub fn clamp(&self, wheels: WheelSpeeds) -> WheelSpeeds {
+        let peak = wheels.left_mm_s.abs().max(wheels.right_mm_s.abs());
+        if peak <= self.max_wheel_speed_mm_s || peak == 0.0 {
+            return wheels;
+        }
+        let k = self.max_wheel_speed_mm_s / peak;
+        WheelSpeeds {
+            left_mm_s: wheels.left_mm_s * k,
+            right_mm_s: wheels.right_mm_s * k,
+        }
+    }
+
+    /// Wheel speeds for a linear speed `v` (mm/s) and turn rate `w` (rad/s).
+    pub fn wheels_for(&self, v_mm_s: f64, w_rad_s: f64) -> WheelSpeeds {
+        let half = w_rad_s * self.wheel_base_mm / 2.0;
+        self.clamp(WheelSpeeds {
+            left_mm_s: v_mm_s - half,
+            right_mm_s: v_mm_s + half,
+        })
+    }
+}
+
+impl Pose {
+    /// Differential-drive forward kinematics: the pose after driving the
+    /// wheels at constant `wheels` for `dt_s`, integrated exactly along the arc.
+    pub fn advance(&self, wheels: WheelSpeeds, wheel_base_mm: f64, dt_s: f64) -> Pose {
+        let v = (wheels.left_mm_s + wheels.right_mm_s) / 2.0;
+        let w = (wheels.right_mm_s - wheels.left_mm_s) / wheel_base_mm;
+        let dtheta = w * dt_s;
+        let (dx, dy) = if dtheta.abs() < 1e-9 {
+            let d = v * dt_s;
+            (d * self.theta_rad.cos(), d * self.theta_rad.sin())
+        } else {
+            let r = v / w;
+            (
+                r * ((self.theta_rad + dtheta).sin() - self.theta_rad.sin()),
+                -r * ((self.theta_rad + dtheta).cos() - self.theta_rad.cos()),
+            )
+        };
+        Pose {
+            x_mm: self.x_mm + dx,
+            y_mm: self.y_mm + dy,
+            theta_rad: wrap_angle(self.theta_rad + dtheta),
+        }
+    }
+
+    /// The pose's position.
+    pub fn point(&self) -> Point {
+        Point {
+            x_mm: self.x_mm,
+            y_mm: self.y_mm,
+        }
+    }
+
+    /// A point given in the robot's body frame (x forward, y left), in the arena frame.
+    pub fn to_world(&self, x_mm: f64, y_mm: f64) -> Point {
+        let (s, c) = self.theta_rad.sin_cos();
+        Point {
+            x_mm: self.x_mm + c * x_mm - s * y_mm,
+            y_mm: self.y_mm + s * x_mm + c * y_mm,
+        }
+    }
+}
+
+impl Point {
+    /// Euclidean distance to `other`.
+    pub fn distance(&self, other: Point) -> f64 {
+        (self.x_mm - other.x_mm).hypot(self.y_mm - other.y_mm)
+    }
+}
+
+/// `a` folded into (−π, π].
+pub fn wrap_angle(a: f64) -> f64 {
+    let t = a.rem_euclid(std::f64::consts::TAU);
+    if t > std::f64::consts::PI {
+        t - std::f64::consts::TAU
+    } else {
+        t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use std::f64::consts::PI;
+
+    #[test]
+    fn spinning_in_place_keeps_position() {
+        let m = RobotModel::khepera_ii();
+        let p = Pose::default().advance(m.wheels_for(0.0, PI / 2.0), m.wheel_base_mm, 1.0);
+        assert!(p.x_mm.abs() < 1e-9 && p.y_mm.abs() < 1e-9);
+        assert!((p.theta_rad - PI / 2.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn half_circle_ends_two_radii_away() {
+        // v = 100 mm/s, w = π rad/s for 1 s: half a circle of radius 100/π.
+        let m = RobotModel::khepera_ii();
+        let p = Pose::default().advance(m.wheels_for(100.0, PI), m.wheel_base_mm, 1.0);
+        assert!(p.x_mm.abs() < 1e-9);
+        assert!((p.y_mm - 200.0 / PI).abs() < 1e-9);
+    }
+
+    proptest! {
+        /// Integrating in many small steps gives the same pose as one exact step.
+        #[test]
+        fn advance_composes(l in -500.0f64..500.0, r in -500.0f64..500.0, theta in -PI..PI) {
+            let wheels = WheelSpeeds { left_mm_s: l, right_mm_s: r };
+            let start = Pose { x_mm: 10.0, y_mm: -5.0, theta_rad: theta };
+            let once = start.advance(wheels, 53.0, 0.5);
+            let mut stepped = start;
+            for _ in 0..50 { stepped = stepped.advance(wheels, 53.0, 0.01); }
+            prop_assert!((once.x_mm - stepped.x_mm).abs() < 1e-6);
+            prop_assert!((once.y_mm - stepped.y_mm).abs() < 1e-6);
+            prop_assert!(wrap_angle(once.theta_rad - stepped.theta_rad).abs() < 1e-9);
+        }
+
+        #[test]
+        fn clamp_keeps_ratio_and_limit(l in -5000.0f64..5000.0, r in -5000.0f64..5000.0) {
+            let m = RobotModel::khepera_ii();
+            let c = m.clamp(WheelSpeeds { left_mm_s: l, right_mm_s: r });
+            prop_assert!(c.left_mm_s.abs() <= m.max_wheel_speed_mm_s + 1e-9);
+            prop_assert!(c.right_mm_s.abs() <= m.max_wheel_speed_mm_s + 1e-9);
+            prop_assert!((c.left_mm_s * r - c.right_mm_s * l).abs() < 1e-6 * (1.0 + l.abs() * r.abs()));
+        }
+    }
+}

@@ -1,0 +1,170 @@
+//! The session supervisor: the lab's mount → define → execute cycle as a
+//! Petri net that runs live. An action is allowed exactly when a transition
+//! carrying its label is enabled, so the Host never has to reason about
+//! "which messages are valid now" in ad-hoc code.
+
+use thiserror::Error;
+use vl_petri::{Marking, Net};
+
+/// What the operator (or the lab itself) asks the session to do.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Action {
+    Mount,
+    Define,
+    Start,
+    /// A run ends: stopped by the operator, goal reached, time limit or fault.
+    Finish,
+    /// The operator leaves; the lab returns to idle from wherever it was.
+    Release,
+}
+
+impl Action {
+    fn label(self) -> &'static str {
+        match self {
+            Action::Mount => "mount",
+            Action::Define => "define",
+            Action::Start => "start",
+            Action::Finish => "finish",
+            Action::Release => "release",
+        }
+    }
+}
+
+/// Which phase of the experiment the lab is in (the marked place).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    Idle,
+    Mounted,
+    Defined,
+    Running,
+}
+
+const PHASES: [(&str, Phase); 4] = [
+    ("idle", Phase::Idle),
+    ("mounted", Phase::Mounted),
+    ("defined", Phase::Defined),
+    ("running", Phase::Running),
+];
+
+#[derive(Debug, Error, PartialEq, Eq)]
+#[error("{action:?} is not allowed while the lab is {phase:?}")]
+pub struct NotAllowed {
+    pub action: Action,
+    pub phase: Phase,
+}
+
+/// The live session net and its current marking.
+#[derive(Debug, Clone)]
+pub struct Supervisor {
+    net: Net,
+    marking: Marking,
+}
+
+impl Default for Supervisor {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Supervisor {
+    /// The lab's session net: one place per phase, one transition per allowed move.
+    pub fn new() -> Self {
+        let mut net = Net::default();
+        for (name, phase) in PHASES {
+            net.add_place(name, u32::from(phase == Phase::Idle))
+                .expect("phase names are distinct");
+        }
+        let moves: [(&str, Action, &str, &str); 9] = [
+            ("mount", Action::Mount, "idle", "mounted"),
+            ("remount_mounted", Action::Mount, "mounted", "mounted"),
+            ("remount_defined", Action::Mount, "defined", "mounted"),
+            ("define", Action::Define, "mounted", "defined"),
+            ("redefine", Action::Define, "defined", "defined"),
+            ("start", Action::Start, "defined", "running"),
+            ("finish", Action::Finish, "running", "defined"),
+            ("release_mounted", Action::Release, "mounted", "idle"),
+            ("release_defined", Action::Release, "defined", "idle"),
+        ];
+        for (name, action, from, to) in moves {
+            net.add_transition(name, action.label(), &[(from, 1)], &[(to, 1)])
+                .expect("session net arcs name its own places");
+        }
+        net.add_transition(
+            "release_running",
+            "release",
+            &[("running", 1)],
+            &[("idle", 1)],
+        )
+        .expect("session net arcs name its own places");
+        let marking = net.initial_marking();
+        Supervisor { net, marking }
+    }
+
+    /// The net being run, for analysis and pictures.
+    pub fn net(&self) -> &Net {
+        &self.net
+    }
+
+    /// The current phase.
+    pub fn phase(&self) -> Phase {
+        PHASES
+            .iter()
+            .find(|(name, _)| {
+                let place = self.net.place(name).expect("every phase has a place");
+                self.marking.tokens(place) > 0
+            })
+            .map(|&(_, phase)| phase)
+            .expect("the session net always marks one phase")
+    }
+
+    /// Whether `action` may happen now.
+    pub fn allows(&self, action: Action) -> bool {
+        self.enabled_for(action).is_some()
+    }
+
+    /// Performs `action`, or says why it may not happen now.
+    pub fn fire(&mut self, action: Action) -> Result<Phase, NotAllowed> {
+        let t = self.enabled_for(action).ok_or(NotAllowed {
+            action,
+            phase: self.phase(),
+        })?;
+        self.marking = self
+            .net
+            .fire(&self.marking, t)
+            .expect("an enabled transition fires");
+        Ok(self.phase())
+    }
+
+    fn enabled_for(&self, action: Action) -> Option<vl_petri::TransitionId> {
+        self.net
+            .enabled(&self.marking)
+            .find(|t| self.net.transitions[t.0].label == action.label())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_experiment_cycle() {
+        let mut s = Supervisor::new();
+        assert_eq!(s.phase(), Phase::Idle);
+        assert_eq!(
+            s.fire(Action::Start),
+            Err(NotAllowed {
+                action: Action::Start,
+                phase: Phase::Idle
+            })
+        );
+        assert_eq!(s.fire(Action::Mount), Ok(Phase::Mounted));
+        assert!(!s.allows(Action::Start));
+        assert_eq!(s.fire(Action::Define), Ok(Phase::Defined));
+        assert_eq!(s.fire(Action::Start), Ok(Phase::Running));
+        assert!(!s.allows(Action::Define), "no redefinition mid-run");
+        assert!(!s.allows(Action::Mount), "no remount mid-run");
+        assert_eq!(s.fire(Action::Finish), Ok(Phase::Defined));
+        assert_eq!(s.fire(Action::Start), Ok(Phase::Running));
+        assert_eq!(s.fire(Action::Release), Ok(Phase::Idle));
+    }
+}

@@ -1,0 +1,416 @@
+//! The desktop Guest (egui): mount, define and execute an experiment while
+//! watching the camera with the robot's reported pose drawn over it, the
+//! proximity readings and the live round-trip time; drive with a
+//! mouse-dragged virtual joystick or the arrow keys.
+
+use std::time::Duration;
+
+use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Vec2};
+use vl_core::arena::Obstacle;
+use vl_core::experiment::{Definition, Goal};
+use vl_core::protocol::{Drive, GuestMessage, PROTOCOL_VERSION, Role};
+use vl_core::robot::Point;
+
+use crate::client::Connection;
+use crate::session::{Link, MountedLab, Session};
+
+/// Top speed the joystick and arrow keys ask for, mm/s.
+const DRIVE_MM_S: f64 = 300.0;
+/// Top turn rate the joystick and arrow keys ask for, rad/s.
+const TURN_RAD_S: f64 = 3.0;
+const JOYSTICK_PX: f32 = 140.0;
+const ROBOT_COLOUR: Color32 = Color32::from_rgb(40, 200, 255);
+const GOAL_COLOUR: Color32 = Color32::from_rgb(40, 190, 60);
+
+/// The Guest's window.
+pub struct GuestApp {
+    session: Session,
+    connection: Connection,
+    texture: Option<(u64, TextureHandle)>,
+    /// Virtual joystick deflection: x = turn right, y = forward, each in −1..1.
+    joystick: Vec2,
+    goal: Goal,
+}
+
+impl GuestApp {
+    /// A window on `connection`, which says hello as `role` straight away.
+    pub fn new(connection: Connection, role: Role, token: Option<String>) -> Self {
+        connection.send(GuestMessage::Hello {
+            protocol: PROTOCOL_VERSION,
+            role,
+            token,
+        });
+        GuestApp {
+            session: Session::default(),
+            connection,
+            texture: None,
+            joystick: Vec2::ZERO,
+            goal: Goal {
+                x_mm: 0.0,
+                y_mm: 0.0,
+                tolerance_mm: 15.0,
+            },
+        }
+    }
+
+    /// The session as the window knows it.
+    pub fn session(&self) -> &Session {
+        &self.session
+    }
+
+    /// Draws the whole window into `ui`.
+    pub fn show(&mut self, ui: &mut egui::Ui) {
+        self.pump();
+        let ctx = ui.ctx().clone();
+        self.drive(&ctx);
+        egui::Panel::top("status").show(ui, |ui| self.status_bar(ui));
+        egui::Panel::left("controls")
+            .default_size(270.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
+            });
+        egui::Panel::bottom("joystick").show(ui, |ui| self.joystick(ui));
+        egui::CentralPanel::default().show(ui, |ui| self.camera_view(ui));
+        ctx.request_repaint_after(Duration::from_millis(30));
+    }
+
+    /// Takes in everything that arrived since the last frame.
+    fn pump(&mut self) {
+        let was_mounted = self.session.lab.clone();
+        while let Ok(incoming) = self.connection.incoming.try_recv() {
+            self.session.apply(incoming);
+        }
+        if let Some(lab) = &self.session.lab
+            && Some(lab) != was_mounted.as_ref()
+            && let Some(goal) = lab.arena.goal
+        {
+            self.goal.x_mm = goal.x_mm;
+            self.goal.y_mm = goal.y_mm;
+        }
+    }
+
+    /// Sends the next event-paced command from the joystick or arrow keys.
+    fn drive(&mut self, ctx: &egui::Context) {
+        if !self.session.is_operator() {
+            return;
+        }
+        let (mut forward, mut turn) = (f64::from(self.joystick.y), f64::from(self.joystick.x));
+        ctx.input(|i| {
+            let key = |k| if i.key_down(k) { 1.0 } else { 0.0 };
+            forward += key(egui::Key::ArrowUp) - key(egui::Key::ArrowDown);
+            turn += key(egui::Key::ArrowRight) - key(egui::Key::ArrowLeft);
+        });
+        let drive = Drive::Velocity {
+            v: forward.clamp(-1.0, 1.0) * DRIVE_MM_S,
+            w: -turn.clamp(-1.0, 1.0) * TURN_RAD_S,
+        };
+        if let Some(command) = self.session.next_command(drive) {
+            self.connection.send(command);
+        }
+    }
+
+    fn status_bar(&self, ui: &mut egui::Ui) {
+        let s = &self.session;
+        ui.horizontal(|ui| {
+            let (text, colour) = match &s.link {
+                Link::Connecting => ("connecting…".to_owned(), Color32::YELLOW),
+                Link::Open => ("connected".to_owned(), Color32::GREEN),
+                Link::Closed(why) => (format!("disconnected: {why}"), Color32::RED),
+            };
+            ui.colored_label(colour, text);
+            if let (Some(role), Some(id)) = (s.role, s.session_id) {
+                ui.label(format!("{role:?} · session {id}"));
+            }
+            ui.separator();
+            let rtt = &s.round_trips;
+            match rtt.last() {
+                Some(last) => ui.label(format!(
+                    "RTT {last:.1} ms (p50 {:.1}, p99 {:.1}, n {})",
+                    rtt.quantile(0.5).unwrap_or(last),
+                    rtt.quantile(0.99).unwrap_or(last),
+                    rtt.count()
+                )),
+                None => ui.label("RTT –"),
+            };
+            ui.separator();
+            let acknowledged = s.robot.as_ref().map_or(0, |r| r.event);
+            ui.label(format!("event {acknowledged} (sent {})", s.sent_event));
+        });
+    }
+
+    fn controls(&mut self, ui: &mut egui::Ui) {
+        let operator = self.session.is_operator();
+        ui.heading("Mount");
+        for experiment in self.session.experiments.clone() {
+            let mounted = self
+                .session
+                .lab
+                .as_ref()
+                .is_some_and(|l| l.experiment == experiment.id);
+            let button = egui::Button::new(&experiment.title).selected(mounted);
+            if ui
+                .add_enabled(operator && !self.session.running, button)
+                .clicked()
+            {
+                self.connection.send(GuestMessage::Mount {
+                    experiment: experiment.id.clone(),
+                });
+            }
+        }
+        if self.session.lab.is_some() {
+            ui.separator();
+            ui.heading("Define");
+            ui.horizontal(|ui| {
+                ui.label("goal x");
+                ui.add(egui::DragValue::new(&mut self.goal.x_mm).suffix(" mm"));
+                ui.label("y");
+                ui.add(egui::DragValue::new(&mut self.goal.y_mm).suffix(" mm"));
+            });
+            ui.horizontal(|ui| {
+                ui.label("within");
+                ui.add(
+                    egui::DragValue::new(&mut self.goal.tolerance_mm)
+                        .range(1.0..=200.0)
+                        .suffix(" mm"),
+                );
+                if ui
+                    .add_enabled(
+                        operator && !self.session.running,
+                        egui::Button::new("Define"),
+                    )
+                    .clicked()
+                {
+                    self.connection.send(GuestMessage::Define {
+                        definition: Definition {
+                            goal: Some(self.goal),
+                            ..Definition::default()
+                        },
+                    });
+                }
+            });
+            ui.separator();
+            ui.heading("Execute");
+            ui.horizontal(|ui| {
+                let can_start =
+                    operator && self.session.definition.is_some() && !self.session.running;
+                if ui
+                    .add_enabled(can_start, egui::Button::new("▶ Start"))
+                    .clicked()
+                {
+                    self.connection.send(GuestMessage::Start);
+                }
+                if ui
+                    .add_enabled(
+                        operator && self.session.running,
+                        egui::Button::new("■ Stop"),
+                    )
+                    .clicked()
+                {
+                    self.connection.send(GuestMessage::Stop);
+                }
+            });
+            if let Some(done) = &self.session.done {
+                ui.label(format!(
+                    "last run: {:?}, {} events, {:.1} s, {:.0} mm driven",
+                    done.reason, done.events, done.seconds, done.distance_mm
+                ));
+            }
+        }
+        if let Some(robot) = &self.session.robot {
+            ui.separator();
+            ui.heading("Robot");
+            ui.label(format!(
+                "pose ({:.0}, {:.0}) mm, {:.0}°",
+                robot.pose.x_mm,
+                robot.pose.y_mm,
+                robot.pose.theta_rad.to_degrees()
+            ));
+            ui.label(format!(
+                "wheels {:.0} / {:.0} mm/s{}",
+                robot.wheels.left_mm_s,
+                robot.wheels.right_mm_s,
+                if robot.contact { " · CONTACT" } else { "" }
+            ));
+            ui.label("proximity");
+            for (i, &value) in robot.proximity.iter().enumerate() {
+                ui.add(
+                    egui::ProgressBar::new(f32::from(value) / 1023.0)
+                        .text(format!("IR{i} {value}"))
+                        .desired_height(12.0),
+                );
+            }
+        }
+        if !self.session.errors.is_empty() {
+            ui.separator();
+            ui.heading("Host said");
+            for (code, message) in self.session.errors.iter().rev() {
+                ui.colored_label(Color32::LIGHT_RED, format!("{code:?}: {message}"));
+            }
+        }
+    }
+
+    fn joystick(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            let (response, painter) =
+                ui.allocate_painter(Vec2::splat(JOYSTICK_PX), Sense::drag());
+            let centre = response.rect.center();
+            let radius = JOYSTICK_PX / 2.0 - 4.0;
+            if let Some(pointer) = response.interact_pointer_pos().filter(|_| response.dragged()) {
+                let offset = (pointer - centre) / radius;
+                let offset = if offset.length() > 1.0 { offset.normalized() } else { offset };
+                self.joystick = Vec2::new(offset.x, -offset.y);
+            } else {
+                self.joystick = Vec2::ZERO;
+            }
+            painter.circle_stroke(centre, radius, Stroke::new(2.0, Color32::GRAY));
+            let knob = centre + Vec2::new(self.joystick.x, -self.joystick.y) * radius;
+            painter.circle_filled(knob, 14.0, ROBOT_COLOUR);
+            ui.label("Drag the stick or hold the arrow keys to drive\n(commands flow while a run is started).");
+        });
+    }
+
+    fn camera_view(&mut self, ui: &mut egui::Ui) {
+        let Some(frame) = &self.session.frame else {
+            ui.centered_and_justified(|ui| ui.label("waiting for the camera…"));
+            return;
+        };
+        let seq = frame.header.seq;
+        if self.texture.as_ref().is_none_or(|(shown, _)| *shown != seq) {
+            let size = [frame.image.width() as usize, frame.image.height() as usize];
+            let image = egui::ColorImage::from_rgba_unmultiplied(size, frame.image.as_raw());
+            match &mut self.texture {
+                Some((shown, texture)) => {
+                    texture.set(image, TextureOptions::NEAREST);
+                    *shown = seq;
+                }
+                None => {
+                    let texture = ui
+                        .ctx()
+                        .load_texture("camera", image, TextureOptions::NEAREST);
+                    self.texture = Some((seq, texture));
+                }
+            }
+        }
+        let Some((_, texture)) = &self.texture else {
+            return;
+        };
+        let image_size = texture.size_vec2();
+        let available = ui.available_size() - Vec2::new(0.0, 20.0);
+        let scale = (available.x / image_size.x)
+            .min(available.y / image_size.y)
+            .max(0.1);
+        let (rect, _) = ui.allocate_exact_size(image_size * scale, Sense::hover());
+        let painter = ui.painter_at(rect);
+        painter.image(
+            texture.id(),
+            rect,
+            Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+            Color32::WHITE,
+        );
+        if let Some(lab) = &self.session.lab {
+            self.overlay(&painter, rect, lab);
+        }
+        ui.label(format!(
+            "frame {} · event {} · captured at {:.2} s",
+            frame.header.seq,
+            frame.header.event,
+            frame.header.capture_us as f64 / 1e6
+        ));
+    }
+
+    /// Draws what the Guest knows over the camera image: the robot's
+    /// reported pose, the goal and the virtual obstacles.
+    fn overlay(&self, painter: &egui::Painter, rect: Rect, lab: &MountedLab) {
+        let to_screen = |p: Point| {
+            let (c, r) = lab.camera.to_pixel(p);
+            rect.min
+                + Vec2::new(
+                    c as f32 / lab.camera.width_px as f32 * rect.width(),
+                    r as f32 / lab.camera.height_px as f32 * rect.height(),
+                )
+        };
+        let px_per_mm = rect.width() / (lab.camera.width_px as f32 * lab.camera.mm_per_px as f32);
+        if let Some(definition) = &self.session.definition {
+            if let Some(goal) = definition.goal {
+                let centre = to_screen(goal.point());
+                let r = (goal.tolerance_mm as f32 * px_per_mm).max(4.0);
+                painter.circle_stroke(centre, r, Stroke::new(2.0, GOAL_COLOUR));
+                painter.line_segment(
+                    [centre - Vec2::splat(r), centre + Vec2::splat(r)],
+                    Stroke::new(2.0, GOAL_COLOUR),
+                );
+                painter.line_segment(
+                    [centre + Vec2::new(-r, r), centre + Vec2::new(r, -r)],
+                    Stroke::new(2.0, GOAL_COLOUR),
+                );
+            }
+            for obstacle in &definition.virtual_obstacles {
+                let stroke = Stroke::new(2.0, Color32::from_rgb(255, 150, 0));
+                match *obstacle {
+                    Obstacle::Rect {
+                        x_mm,
+                        y_mm,
+                        width_mm,
+                        height_mm,
+                    } => {
+                        let a = to_screen(Point { x_mm, y_mm });
+                        let b = to_screen(Point {
+                            x_mm: x_mm + width_mm,
+                            y_mm: y_mm + height_mm,
+                        });
+                        painter.rect_stroke(
+                            Rect::from_two_pos(a, b),
+                            0.0,
+                            stroke,
+                            egui::StrokeKind::Middle,
+                        );
+                    }
+                    Obstacle::Circle {
+                        x_mm,
+                        y_mm,
+                        radius_mm,
+                    } => {
+                        painter.circle_stroke(
+                            to_screen(Point { x_mm, y_mm }),
+                            radius_mm as f32 * px_per_mm,
+                            stroke,
+                        );
+                    }
+                }
+            }
+        }
+        if let Some(robot) = &self.session.robot {
+            let centre = to_screen(robot.pose.point());
+            let r = lab.robot.radius_mm as f32 * px_per_mm;
+            painter.circle_stroke(centre, r, Stroke::new(2.0, ROBOT_COLOUR));
+            let nose = to_screen(robot.pose.to_world(lab.robot.radius_mm * 1.6, 0.0));
+            painter.line_segment([centre, nose], Stroke::new(2.0, ROBOT_COLOUR));
+        }
+    }
+}
+
+impl eframe::App for GuestApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        self.show(ui);
+    }
+}
+
+/// Opens the Guest window on `connection` and runs it until it is closed.
+/// Needs a tokio runtime alive on another thread for the connection.
+pub fn run_window(
+    connection: Connection,
+    role: Role,
+    token: Option<String>,
+) -> Result<(), eframe::Error> {
+    let options = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_title("vl guest")
+            .with_inner_size([1100.0, 720.0]),
+        ..Default::default()
+    };
+    eframe::run_native(
+        "vl guest",
+        options,
+        Box::new(move |_cc| Ok(Box::new(GuestApp::new(connection, role, token)))),
+    )
+}

@@ -1,0 +1,315 @@
+//! What the Guest knows of its session: one state type that the desktop app
+//! draws and the headless client scripts against, updated only by what
+//! arrives from the Host.
+
+use image::RgbaImage;
+use vl_core::arena::Arena;
+use vl_core::camera::CameraModel;
+use vl_core::experiment::{Definition, ExperimentInfo};
+use vl_core::frame::{FrameHeader, ImageFormat};
+use vl_core::protocol::{Drive, ErrorCode, GuestMessage, HostMessage, Role, Summary};
+use vl_core::robot::{Pose, RobotModel, WheelSpeeds};
+
+use crate::client::Incoming;
+
+/// Errors kept for display; older ones are dropped.
+const ERRORS_KEPT: usize = 8;
+/// Round-trip samples kept for the percentiles.
+const RTT_KEPT: usize = 10_000;
+
+/// The lab as mounted.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MountedLab {
+    pub experiment: String,
+    pub arena: Arena,
+    pub robot: RobotModel,
+    pub camera: CameraModel,
+}
+
+/// The robot's latest reported state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotState {
+    pub event: u64,
+    pub t_ms: f64,
+    pub pose: Pose,
+    pub wheels: WheelSpeeds,
+    pub proximity: Vec<u16>,
+    pub contact: bool,
+}
+
+/// The latest camera image, decoded.
+#[derive(Debug, Clone)]
+pub struct CameraFrame {
+    pub header: FrameHeader,
+    pub image: RgbaImage,
+}
+
+/// Round-trip times measured on this connection, ms.
+#[derive(Debug, Clone, Default)]
+pub struct RoundTrips {
+    samples: Vec<f64>,
+}
+
+impl RoundTrips {
+    pub fn push(&mut self, ms: f64) {
+        if self.samples.len() == RTT_KEPT {
+            self.samples.remove(0);
+        }
+        self.samples.push(ms);
+    }
+
+    pub fn last(&self) -> Option<f64> {
+        self.samples.last().copied()
+    }
+
+    pub fn count(&self) -> usize {
+        self.samples.len()
+    }
+
+    /// The `q`-quantile (0..=1), nearest rank.
+    pub fn quantile(&self, q: f64) -> Option<f64> {
+        if self.samples.is_empty() {
+            return None;
+        }
+        let mut sorted = self.samples.clone();
+        sorted.sort_by(f64::total_cmp);
+        let rank = ((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
+        Some(sorted[rank - 1])
+    }
+}
+
+/// Where the session stands.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Link {
+    Connecting,
+    Open,
+    Closed(String),
+}
+
+/// Everything the Guest knows of its session.
+#[derive(Debug, Clone)]
+pub struct Session {
+    pub link: Link,
+    pub role: Option<Role>,
+    pub session_id: Option<u64>,
+    pub experiments: Vec<ExperimentInfo>,
+    pub lab: Option<MountedLab>,
+    pub definition: Option<Definition>,
+    pub running: bool,
+    pub robot: Option<RobotState>,
+    pub frame: Option<CameraFrame>,
+    pub frames_received: u64,
+    pub round_trips: RoundTrips,
+    pub errors: Vec<(ErrorCode, String)>,
+    /// The last run's summary.
+    pub done: Option<Summary>,
+    /// Event number of the last command sent in this run.
+    pub sent_event: u64,
+}
+
+impl Default for Session {
+    fn default() -> Self {
+        Session {
+            link: Link::Connecting,
+            role: None,
+            session_id: None,
+            experiments: Vec::new(),
+            lab: None,
+            definition: None,
+            running: false,
+            robot: None,
+            frame: None,
+            frames_received: 0,
+            round_trips: RoundTrips::default(),
+            errors: Vec::new(),
+            done: None,
+            sent_event: 0,
+        }
+    }
+}
+
+impl Session {
+    /// Takes in one thing that arrived from the Host.
+    pub fn apply(&mut self, incoming: Incoming) {
+        match incoming {
+            Incoming::Message(message) => self.apply_message(message),
+            Incoming::Frame(header, bytes) => self.apply_frame(header, &bytes),
+            Incoming::RoundTrip(ms) => self.round_trips.push(ms),
+            Incoming::Closed(reason) => {
+                self.link = Link::Closed(reason);
+                self.running = false;
+            }
+        }
+    }
+
+    fn apply_message(&mut self, message: HostMessage) {
+        match message {
+            HostMessage::Welcome {
+                session,
+                role,
+                experiments,
+            } => {
+                self.link = Link::Open;
+                self.session_id = Some(session);
+                self.role = Some(role);
+                self.experiments = experiments;
+            }
+            HostMessage::Error { code, message } => {
+                if self.errors.len() == ERRORS_KEPT {
+                    self.errors.remove(0);
+                }
+                self.errors.push((code, message));
+            }
+            HostMessage::Mounted {
+                experiment,
+                arena,
+                robot,
+                camera,
+            } => {
+                self.lab = Some(MountedLab {
+                    experiment,
+                    arena,
+                    robot,
+                    camera,
+                });
+                self.definition = None;
+            }
+            HostMessage::Defined { definition } => self.definition = Some(definition),
+            HostMessage::Started { event } => {
+                self.running = true;
+                self.done = None;
+                self.sent_event = event;
+            }
+            HostMessage::Feedback {
+                event,
+                t_ms,
+                pose,
+                wheels,
+                proximity,
+                contact,
+                force: _,
+            } => {
+                // Feedback can only move forward in time; an older one is stale.
+                if self.robot.as_ref().is_some_and(|r| r.t_ms > t_ms) {
+                    return;
+                }
+                self.robot = Some(RobotState {
+                    event,
+                    t_ms,
+                    pose,
+                    wheels,
+                    proximity,
+                    contact,
+                });
+            }
+            HostMessage::Done { summary } => {
+                self.running = false;
+                self.done = Some(summary);
+            }
+            // The connection answers pings and bye itself.
+            HostMessage::Ping { .. } | HostMessage::Pong { .. } | HostMessage::Bye => {}
+        }
+    }
+
+    fn apply_frame(&mut self, header: FrameHeader, bytes: &[u8]) {
+        if self
+            .frame
+            .as_ref()
+            .is_some_and(|f| f.header.seq >= header.seq)
+        {
+            return;
+        }
+        let format = match header.format {
+            ImageFormat::Jpeg => image::ImageFormat::Jpeg,
+            ImageFormat::Png => image::ImageFormat::Png,
+        };
+        match image::load_from_memory_with_format(bytes, format) {
+            Ok(decoded) => {
+                self.frames_received += 1;
+                self.frame = Some(CameraFrame {
+                    header,
+                    image: decoded.to_rgba8(),
+                });
+            }
+            Err(e) => tracing::warn!("frame {} does not decode: {e}", header.seq),
+        }
+    }
+
+    /// The next command under event-based control: command s + 1 goes out
+    /// only once feedback for command s has come back, so Guest and Host
+    /// never drift more than one event apart whatever the delay.
+    pub fn next_command(&mut self, drive: Drive) -> Option<GuestMessage> {
+        let acknowledged = self.robot.as_ref().map_or(0, |r| r.event);
+        if !self.running || acknowledged < self.sent_event {
+            return None;
+        }
+        self.sent_event += 1;
+        Some(GuestMessage::Command {
+            event: self.sent_event,
+            drive,
+        })
+    }
+
+    /// Whether this Guest may drive.
+    pub fn is_operator(&self) -> bool {
+        self.role == Some(Role::Operator)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn feedback(event: u64, t_ms: f64) -> Incoming {
+        Incoming::Message(HostMessage::Feedback {
+            event,
+            t_ms,
+            pose: Pose::default(),
+            wheels: WheelSpeeds::default(),
+            proximity: vec![0; 8],
+            contact: false,
+            force: None,
+        })
+    }
+
+    #[test]
+    fn commands_wait_for_their_feedback() {
+        let mut s = Session::default();
+        let drive = Drive::Velocity { v: 100.0, w: 0.0 };
+        assert_eq!(s.next_command(drive), None, "no run, no command");
+        s.apply(Incoming::Message(HostMessage::Started { event: 0 }));
+        assert!(matches!(
+            s.next_command(drive),
+            Some(GuestMessage::Command { event: 1, .. })
+        ));
+        assert_eq!(
+            s.next_command(drive),
+            None,
+            "command 1 not yet acknowledged"
+        );
+        s.apply(feedback(1, 10.0));
+        assert!(matches!(
+            s.next_command(drive),
+            Some(GuestMessage::Command { event: 2, .. })
+        ));
+    }
+
+    #[test]
+    fn stale_feedback_is_ignored() {
+        let mut s = Session::default();
+        s.apply(feedback(3, 50.0));
+        s.apply(feedback(2, 40.0));
+        assert_eq!(s.robot.as_ref().unwrap().event, 3);
+    }
+
+    #[test]
+    fn quantiles_by_nearest_rank() {
+        let mut r = RoundTrips::default();
+        for ms in 1..=100 {
+            r.push(f64::from(ms));
+        }
+        assert_eq!(r.quantile(0.5), Some(50.0));
+        assert_eq!(r.quantile(0.99), Some(99.0));
+        assert_eq!(RoundTrips::default().quantile(0.5), None);
+    }
+}

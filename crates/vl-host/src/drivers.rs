@@ -1,0 +1,43 @@
+//! The hardware the Host drives, behind small traits (as OpenRR's `arci`
+//! does), so experiment control runs the same on a real robot and camera
+//! as on the simulator.
+
+use image::RgbImage;
+use thiserror::Error;
+use vl_core::camera::CameraModel;
+use vl_core::robot::{Pose, RobotModel, WheelSpeeds};
+
+/// A robot that stopped answering or answered nonsense.
+#[derive(Debug, Error)]
+#[error("robot: {0}")]
+pub struct RobotError(pub String);
+
+/// A camera that vanished or sent an unreadable frame.
+#[derive(Debug, Error)]
+#[error("camera: {0}")]
+pub struct CameraError(pub String);
+
+/// What one read of the robot tells.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotReading {
+    /// Best estimate of the pose (odometry on a real robot, truth on the simulator).
+    pub pose: Pose,
+    pub wheels: WheelSpeeds,
+    pub proximity: Vec<u16>,
+    /// Pressing against something.
+    pub contact: bool,
+}
+
+/// A differential-drive robot with proximity sensors.
+pub trait Robot: Send {
+    fn model(&self) -> &RobotModel;
+    /// Sets wheel speeds; they hold until the next call.
+    fn set_wheels(&mut self, wheels: WheelSpeeds) -> Result<(), RobotError>;
+    fn read(&mut self) -> Result<RobotReading, RobotError>;
+}
+
+/// An overhead camera.
+pub trait Camera: Send {
+    fn model(&self) -> CameraModel;
+    fn grab(&mut self) -> Result<RgbImage, CameraError>;
+}

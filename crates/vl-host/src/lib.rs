@@ -1,0 +1,80 @@
+//! The vl Host: the lab machine's side. It drives the robot and camera
+//! (behind the traits in [`drivers`], simulated in [`sim`]), runs the
+//! experiment control loop ([`lab`]) and serves Guests over WebSocket
+//! ([`server`]).
+
+pub mod drivers;
+pub mod lab;
+pub mod server;
+pub mod sim;
+
+use std::net::SocketAddr;
+
+use tokio::net::TcpListener;
+use vl_core::arena::Arena;
+use vl_core::robot::RobotModel;
+
+pub use server::HostConfig;
+
+/// Why a Host could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum HostError {
+    #[error("cannot listen on {0}: {1}")]
+    Bind(SocketAddr, std::io::Error),
+    #[error(transparent)]
+    Sim(#[from] vl_sim::SimError),
+}
+
+/// Camera frames per second on the simulated lab.
+const SIM_FPS: f64 = 15.0;
+/// Width of the simulated camera's image.
+const SIM_CAMERA_WIDTH_PX: u32 = 320;
+
+/// A Host on the simulated lab, bound and serving in the background.
+pub struct SimHost {
+    pub addr: SocketAddr,
+    task: tokio::task::JoinHandle<()>,
+}
+
+impl SimHost {
+    /// Binds `listen` and serves a simulated Khepera II on `arena`.
+    pub async fn start(
+        listen: SocketAddr,
+        arena: Arena,
+        seed: u64,
+        config: HostConfig,
+    ) -> Result<SimHost, HostError> {
+        let (robot, camera) = sim::sim_lab(
+            arena.clone(),
+            RobotModel::khepera_ii(),
+            seed,
+            SIM_CAMERA_WIDTH_PX,
+            SIM_FPS,
+        )?;
+        let lab = lab::Lab::spawn(Box::new(robot), Box::new(camera), arena);
+        let listener = TcpListener::bind(listen)
+            .await
+            .map_err(|e| HostError::Bind(listen, e))?;
+        let addr = listener
+            .local_addr()
+            .map_err(|e| HostError::Bind(listen, e))?;
+        let task = tokio::spawn(server::serve(listener, lab, config));
+        Ok(SimHost { addr, task })
+    }
+
+    /// The WebSocket URL Guests connect to.
+    pub fn url(&self) -> String {
+        format!("ws://{}", self.addr)
+    }
+
+    /// Serves until the process ends.
+    pub async fn wait(mut self) {
+        let _ = (&mut self.task).await;
+    }
+}
+
+impl Drop for SimHost {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}

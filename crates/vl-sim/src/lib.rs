@@ -1,0 +1,12 @@
+//! A deterministic simulator of the lab: the Khepera robot on its arena,
+//! its proximity sensors and the overhead camera. Everything advances on a
+//! virtual clock in fixed steps with a seeded random source, so the same
+//! seed and inputs give the same run on any machine.
+
+mod camera;
+mod proximity;
+mod world;
+
+pub use camera::camera_for;
+pub use proximity::proximity_value;
+pub use world::{SimError, World};

@@ -1,0 +1,259 @@
+//! The simulated robot in its arena, stepped on a virtual clock.
+
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+use thiserror::Error;
+use vl_core::arena::Arena;
+use vl_core::robot::{Pose, RobotModel, WheelSpeeds};
+
+use crate::proximity::proximity_value;
+
+/// The simulator's step: the Khepera's speed-control period.
+pub const STEP_S: f64 = 0.01;
+/// Time constant of the on-board speed controller's first-order response.
+const SPEED_TAU_S: f64 = 0.03;
+/// Largest wheel acceleration, mm/s².
+const MAX_ACCEL_MM_S2: f64 = 4000.0;
+/// Readings past the sensor's range are this noise floor, at most.
+const NOISE_FLOOR: f64 = 10.0;
+/// Relative noise on an in-range reading.
+const READING_NOISE: f64 = 0.03;
+
+#[derive(Debug, Error, PartialEq)]
+pub enum SimError {
+    #[error(
+        "the robot's start ({x_mm:.0}, {y_mm:.0}) mm overlaps a wall or obstacle of arena '{arena}'"
+    )]
+    StartBlocked { arena: String, x_mm: f64, y_mm: f64 },
+    #[error("arena '{0}' has a non-positive or non-finite size")]
+    BadArena(String),
+}
+
+/// The robot, its arena and the virtual clock.
+#[derive(Debug, Clone)]
+pub struct World {
+    arena: Arena,
+    robot: RobotModel,
+    pose: Pose,
+    wheels: WheelSpeeds,
+    target: WheelSpeeds,
+    steps: u64,
+    contact: bool,
+    collisions: u64,
+    odometer_mm: f64,
+    rng: Pcg64Mcg,
+}
+
+impl World {
+    /// The robot at the arena's start pose, at rest.
+    pub fn new(arena: Arena, robot: RobotModel, seed: u64) -> Result<Self, SimError> {
+        let sized = |v: f64| v.is_finite() && v > 0.0;
+        if !(sized(arena.width_mm) && sized(arena.height_mm)) {
+            return Err(SimError::BadArena(arena.name));
+        }
+        let start = arena.start;
+        if !arena.is_free(start.point(), robot.radius_mm) {
+            return Err(SimError::StartBlocked {
+                arena: arena.name,
+                x_mm: start.x_mm,
+                y_mm: start.y_mm,
+            });
+        }
+        Ok(World {
+            arena,
+            robot,
+            pose: start,
+            wheels: WheelSpeeds::default(),
+            target: WheelSpeeds::default(),
+            steps: 0,
+            contact: false,
+            collisions: 0,
+            odometer_mm: 0.0,
+            rng: Pcg64Mcg::seed_from_u64(seed),
+        })
+    }
+
+    pub fn arena(&self) -> &Arena {
+        &self.arena
+    }
+
+    pub fn robot(&self) -> &RobotModel {
+        &self.robot
+    }
+
+    /// True pose of the robot.
+    pub fn pose(&self) -> Pose {
+        self.pose
+    }
+
+    /// Wheel speeds the robot actually has now.
+    pub fn wheels(&self) -> WheelSpeeds {
+        self.wheels
+    }
+
+    /// Virtual time since the start, s.
+    pub fn time_s(&self) -> f64 {
+        self.steps as f64 * STEP_S
+    }
+
+    /// Whether the robot is pressing against something.
+    pub fn contact(&self) -> bool {
+        self.contact
+    }
+
+    /// How many times the robot has run into something.
+    pub fn collisions(&self) -> u64 {
+        self.collisions
+    }
+
+    /// Distance the robot's centre has travelled, mm.
+    pub fn odometer_mm(&self) -> f64 {
+        self.odometer_mm
+    }
+
+    /// Asks the speed controller for `target` (clamped to the robot's limits).
+    pub fn set_wheels(&mut self, target: WheelSpeeds) {
+        self.target = self.robot.clamp(target);
+    }
+
+    /// Advances the clock by one step.
+    pub fn step(&mut self) {
+        let respond = |now: f64, want: f64| {
+            let change = (want - now) * (1.0 - (-STEP_S / SPEED_TAU_S).exp());
+            now + change.clamp(-MAX_ACCEL_MM_S2 * STEP_S, MAX_ACCEL_MM_S2 * STEP_S)
+        };
+        self.wheels = WheelSpeeds {
+            left_mm_s: respond(self.wheels.left_mm_s, self.target.left_mm_s),
+            right_mm_s: respond(self.wheels.right_mm_s, self.target.right_mm_s),
+        };
+        let next = self
+            .pose
+            .advance(self.wheels, self.robot.wheel_base_mm, STEP_S);
+        let clearance = |p: Pose| self.arena.clearance(p.point());
+        // A move that does not bring the body closer to what it touches (sliding
+        // along or backing away from a wall) is allowed even in contact.
+        if self.arena.is_free(next.point(), self.robot.radius_mm)
+            || (self.contact && clearance(next) >= clearance(self.pose) && clearance(next) > 0.0)
+        {
+            self.odometer_mm += self.pose.point().distance(next.point());
+            self.pose = next;
+            self.contact = false;
+        } else {
+            // A round body turns in place against a wall but does not pass through it.
+            self.pose.theta_rad = next.theta_rad;
+            if !self.contact {
+                self.collisions += 1;
+            }
+            self.contact = true;
+        }
+        self.steps += 1;
+    }
+
+    /// Advances the clock by `seconds` (rounded to whole steps).
+    pub fn run_for(&mut self, seconds: f64) {
+        for _ in 0..(seconds / STEP_S).round() as u64 {
+            self.step();
+        }
+    }
+
+    /// The eight (or however many) proximity readings now, 0–1023.
+    pub fn proximity(&mut self) -> Vec<u16> {
+        let pose = self.pose;
+        let World {
+            arena, robot, rng, ..
+        } = self;
+        robot
+            .sensors
+            .iter()
+            .map(|mount| {
+                let origin = pose.to_world(mount.x_mm, mount.y_mm);
+                let distance = arena.ray(origin, pose.theta_rad + mount.angle_rad);
+                let value = if distance <= robot.sensor_range_mm {
+                    proximity_value(distance) * (1.0 + READING_NOISE * rng.random_range(-1.0..1.0))
+                } else {
+                    NOISE_FLOOR * rng.random::<f64>()
+                };
+                value.round().clamp(0.0, 1023.0) as u16
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vl_core::robot::Point;
+
+    fn world(seed: u64) -> World {
+        World::new(Arena::navigation(), RobotModel::khepera_ii(), seed).unwrap()
+    }
+
+    #[test]
+    fn drives_straight_and_stops_at_the_box() {
+        let mut w = world(1);
+        w.set_wheels(WheelSpeeds {
+            left_mm_s: 200.0,
+            right_mm_s: 200.0,
+        });
+        w.run_for(0.3);
+        assert!(
+            w.pose().x_mm > 140.0 && w.pose().x_mm < 160.0,
+            "{:?}",
+            w.pose()
+        );
+        let far = w.proximity();
+        w.run_for(2.0);
+        // The box's face is at x = 250; the body (r = 35) stops just short of it.
+        assert!(w.contact());
+        assert_eq!(w.collisions(), 1);
+        assert!(w.pose().x_mm < 250.0 - 35.0 && w.pose().x_mm > 250.0 - 35.0 - 3.0);
+        let near = w.proximity();
+        assert!(
+            near[2] > 750 && near[3] > 750,
+            "front sensors read {near:?}"
+        );
+        assert!(near[2] > far[2]);
+    }
+
+    #[test]
+    fn same_seed_same_run() {
+        let run = |seed| {
+            let mut w = world(seed);
+            w.set_wheels(WheelSpeeds {
+                left_mm_s: 150.0,
+                right_mm_s: 90.0,
+            });
+            let mut readings = Vec::new();
+            for _ in 0..50 {
+                w.run_for(0.1);
+                readings.push(w.proximity());
+            }
+            (w.pose(), readings)
+        };
+        assert_eq!(run(7), run(7));
+        assert_ne!(run(7).1, run(8).1);
+    }
+
+    #[test]
+    fn a_start_inside_an_obstacle_is_refused() {
+        let mut arena = Arena::navigation();
+        arena.start.x_mm = 280.0;
+        arena.start.y_mm = 100.0;
+        let err = World::new(arena, RobotModel::khepera_ii(), 0).unwrap_err();
+        assert!(err.to_string().contains("overlaps"), "{err}");
+    }
+
+    #[test]
+    fn never_passes_through_walls() {
+        let mut w = world(3);
+        w.set_wheels(WheelSpeeds {
+            left_mm_s: 800.0,
+            right_mm_s: 700.0,
+        });
+        for _ in 0..2000 {
+            w.step();
+            assert!(w.arena().is_free(w.pose().point(), w.robot().radius_mm));
+        }
+        let _ = Point::default();
+    }
+}

@@ -1,0 +1,262 @@
+//! `vl`: the virtual laboratory's one binary. `vl host` serves the lab,
+//! `vl guest` is the user's desktop app, `vl demo` runs both on the
+//! simulated lab.
+
+use std::net::SocketAddr;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand, ValueEnum};
+use vl_core::arena::Arena;
+use vl_core::protocol::Role;
+use vl_guest::headless::{Report, Script, drive_to_goal};
+use vl_host::{HostConfig, SimHost};
+
+#[derive(Parser)]
+#[command(
+    name = "vl",
+    version,
+    about = "A virtual laboratory for telerobotics over the Internet"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Serve the lab to Guests over WebSocket (on the lab machine).
+    Host(HostArgs),
+    /// Open the Guest window on a Host (on the user's desktop).
+    Guest(GuestArgs),
+    /// Run a Host on the simulated lab and a Guest against it, in one process.
+    Demo(DemoArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum RobotKind {
+    /// The simulated Khepera II.
+    Sim,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum CameraKind {
+    /// The simulated overhead camera.
+    Sim,
+}
+
+#[derive(clap::Args)]
+struct HostArgs {
+    /// Which robot to drive.
+    #[arg(long, value_enum, default_value = "sim")]
+    robot: RobotKind,
+    /// Which camera to watch the arena with.
+    #[arg(long, value_enum, default_value = "sim")]
+    camera: CameraKind,
+    /// Address to listen on; port 0 picks a free one.
+    #[arg(long, default_value = "127.0.0.1:7400")]
+    listen: SocketAddr,
+    /// Operators must present this token in their hello.
+    #[arg(long)]
+    token: Option<String>,
+    /// Seed for the simulator's noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+#[derive(clap::Args)]
+struct GuestArgs {
+    /// The Host's WebSocket URL.
+    #[arg(long, default_value = "ws://127.0.0.1:7400")]
+    connect: String,
+    /// Watch only; another person drives.
+    #[arg(long)]
+    observer: bool,
+    /// The operator token the Host asks for.
+    #[arg(long)]
+    token: Option<String>,
+    /// No window: drive the robot to the experiment's goal and report.
+    #[arg(long)]
+    headless: bool,
+    /// With --headless: print the report as JSON.
+    #[arg(long, requires = "headless")]
+    json: bool,
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+#[derive(clap::Args)]
+struct DemoArgs {
+    /// No window: a scripted Guest drives the robot to the goal and reports.
+    #[arg(long)]
+    headless: bool,
+    /// Print the headless report as JSON.
+    #[arg(long)]
+    json: bool,
+    /// Seed for the simulator's noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+#[derive(clap::Args)]
+struct RunArgs {
+    /// Experiment to mount for a headless run.
+    #[arg(long, default_value = "navigation")]
+    experiment: String,
+    /// Give up a headless run after this many seconds.
+    #[arg(long, default_value_t = 60.0)]
+    timeout: f64,
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    match run(Cli::parse()) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("vl: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<ExitCode> {
+    let runtime = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
+    match cli.command {
+        Command::Host(args) => runtime.block_on(host(args)).map(|()| ExitCode::SUCCESS),
+        Command::Guest(args) => guest(&runtime, args),
+        Command::Demo(args) => demo(&runtime, args),
+    }
+}
+
+async fn host(args: HostArgs) -> Result<()> {
+    let (RobotKind::Sim, CameraKind::Sim) = (args.robot, args.camera);
+    let config = HostConfig {
+        token: args.token,
+        ..HostConfig::default()
+    };
+    let host = SimHost::start(args.listen, Arena::navigation(), args.seed, config)
+        .await
+        .context("cannot start the Host")?;
+    // Scripts and tests read the bound address from this first line.
+    println!("vl host listening on {}", host.url());
+    tokio::select! {
+        () = host.wait() => bail!("the server stopped"),
+        signal = tokio::signal::ctrl_c() => {
+            signal.context("cannot wait for Ctrl-C")?;
+            eprintln!("vl host: stopping");
+            Ok(())
+        }
+    }
+}
+
+fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Result<ExitCode> {
+    if args.headless {
+        let script = script(&args.run, args.token, !args.json);
+        let report = runtime.block_on(drive_to_goal(&args.connect, &script))?;
+        return Ok(print_report(&report, args.json));
+    }
+    let role = if args.observer {
+        Role::Observer
+    } else {
+        Role::Operator
+    };
+    let connection = runtime.block_on(vl_guest::client::connect(&args.connect))?;
+    let _entered = runtime.enter();
+    vl_guest::app::run_window(connection, role, args.token)
+        .map_err(|e| anyhow::anyhow!("the Guest window failed: {e}"))?;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<ExitCode> {
+    let listen: SocketAddr = "127.0.0.1:0".parse().expect("a valid address");
+    let host = runtime
+        .block_on(SimHost::start(
+            listen,
+            Arena::navigation(),
+            args.seed,
+            HostConfig::default(),
+        ))
+        .context("cannot start the simulated Host")?;
+    let has_display =
+        std::env::var_os("DISPLAY").is_some() || std::env::var_os("WAYLAND_DISPLAY").is_some();
+    if !args.headless && !has_display {
+        eprintln!(
+            "vl demo: no display (neither DISPLAY nor WAYLAND_DISPLAY is set); running headless"
+        );
+    }
+    if args.headless || !has_display {
+        let script = script(&args.run, None, !args.json);
+        let report = runtime.block_on(drive_to_goal(&host.url(), &script))?;
+        return Ok(print_report(&report, args.json));
+    }
+    eprintln!("vl demo: simulated lab at {}", host.url());
+    let connection = runtime.block_on(vl_guest::client::connect(&host.url()))?;
+    let _entered = runtime.enter();
+    vl_guest::app::run_window(connection, Role::Operator, None)
+        .map_err(|e| anyhow::anyhow!("the Guest window failed: {e}"))?;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn script(run: &RunArgs, token: Option<String>, progress: bool) -> Script {
+    Script {
+        experiment: run.experiment.clone(),
+        token,
+        timeout: Duration::from_secs_f64(run.timeout.max(0.0)),
+        progress,
+        ..Script::default()
+    }
+}
+
+/// Prints the run's report; success means the robot reached its goal.
+fn print_report(report: &Report, json: bool) -> ExitCode {
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(report).expect("reports serialise")
+        );
+    } else {
+        let rows = [
+            ("reached goal", report.reached_goal.to_string()),
+            ("end", format!("{:?}", report.reason)),
+            ("events", report.events.to_string()),
+            (
+                "final pose",
+                format!(
+                    "({:.1}, {:.1}) mm, {:.1}°",
+                    report.final_pose.x_mm,
+                    report.final_pose.y_mm,
+                    report.final_pose.theta_rad.to_degrees()
+                ),
+            ),
+            ("lab time", format!("{:.2} s", report.sim_seconds)),
+            ("distance", format!("{:.0} mm", report.distance_mm)),
+            ("collisions", report.collisions.to_string()),
+            ("frames", report.frames.to_string()),
+            (
+                "round trip",
+                format!(
+                    "p50 {:.2} ms, p99 {:.2} ms",
+                    report.round_trip_ms.p50, report.round_trip_ms.p99
+                ),
+            ),
+        ];
+        for (name, value) in rows {
+            println!("{name:>12}  {value}");
+        }
+    }
+    if report.reached_goal {
+        ExitCode::SUCCESS
+    } else {
+        eprintln!("vl: the robot did not reach the goal ({:?})", report.reason);
+        ExitCode::FAILURE
+    }
+}
