@@ -19,7 +19,7 @@ pub struct Steering {
 impl Default for Steering {
     fn default() -> Self {
         Steering {
-            cruise_mm_s: 200.0,
+            cruise_mm_s: 300.0,
             turn_gain: 3.0,
             slow_radius_mm: 80.0,
             avoid_gain: 6.0,

@@ -194,16 +194,13 @@ impl GuestApp {
                 let can_start =
                     operator && self.session.definition.is_some() && !self.session.running;
                 if ui
-                    .add_enabled(can_start, egui::Button::new("▶ Start"))
+                    .add_enabled(can_start, egui::Button::new("Start"))
                     .clicked()
                 {
                     self.connection.send(GuestMessage::Start);
                 }
                 if ui
-                    .add_enabled(
-                        operator && self.session.running,
-                        egui::Button::new("■ Stop"),
-                    )
+                    .add_enabled(operator && self.session.running, egui::Button::new("Stop"))
                     .clicked()
                 {
                     self.connection.send(GuestMessage::Stop);

@@ -14,6 +14,8 @@ pub const STEP_S: f64 = 0.01;
 const SPEED_TAU_S: f64 = 0.03;
 /// Largest wheel acceleration, mm/s².
 const MAX_ACCEL_MM_S2: f64 = 4000.0;
+/// Below this difference the speed controller holds its target exactly.
+const SETTLED_MM_S: f64 = 1.0;
 /// Readings past the sensor's range are this noise floor, at most.
 const NOISE_FLOOR: f64 = 10.0;
 /// Relative noise on an in-range reading.
@@ -120,7 +122,13 @@ impl World {
     pub fn step(&mut self) {
         let respond = |now: f64, want: f64| {
             let change = (want - now) * (1.0 - (-STEP_S / SPEED_TAU_S).exp());
-            now + change.clamp(-MAX_ACCEL_MM_S2 * STEP_S, MAX_ACCEL_MM_S2 * STEP_S)
+            let next = now + change.clamp(-MAX_ACCEL_MM_S2 * STEP_S, MAX_ACCEL_MM_S2 * STEP_S);
+            // The controller settles on its target once within a pulse per 10 ms.
+            if (want - next).abs() < SETTLED_MM_S {
+                want
+            } else {
+                next
+            }
         };
         self.wheels = WheelSpeeds {
             left_mm_s: respond(self.wheels.left_mm_s, self.target.left_mm_s),

@@ -1,0 +1,98 @@
+//! The `vl` binary as a newcomer meets it: its help, the headless demo and
+//! its JSON report, and clear failures.
+
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn vl(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vl"))
+        .args(args)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("vl runs")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn help_lists_the_subcommands_and_each_has_its_own() {
+    let help = vl(&["--help"]);
+    assert!(help.status.success());
+    for sub in ["host", "guest", "demo"] {
+        assert!(stdout(&help).contains(sub), "vl --help lacks {sub}");
+        let own = vl(&[sub, "--help"]);
+        assert!(own.status.success(), "vl {sub} --help failed");
+        assert!(stdout(&own).contains("Usage: vl "), "{}", stdout(&own));
+    }
+}
+
+#[test]
+fn the_headless_demo_reaches_the_goal_and_reports_json() {
+    let out = vl(&["demo", "--headless", "--json"]);
+    assert!(
+        out.status.success(),
+        "exit {:?}: {}",
+        out.status,
+        stderr(&out)
+    );
+    let report: Value = serde_json::from_str(&stdout(&out)).expect("stdout is one JSON document");
+    assert_eq!(report["reached_goal"], true);
+    assert!(report["events"].as_u64().unwrap() > 10);
+    for key in ["x_mm", "y_mm", "theta_rad"] {
+        assert!(report["final_pose"][key].is_f64(), "final_pose.{key}");
+    }
+    let goal = (680.0, 470.0);
+    let (x, y) = (
+        report["final_pose"]["x_mm"].as_f64().unwrap(),
+        report["final_pose"]["y_mm"].as_f64().unwrap(),
+    );
+    assert!(
+        (x - goal.0).hypot(y - goal.1) <= 15.0,
+        "ended at ({x}, {y})"
+    );
+    assert!(report["sim_seconds"].as_f64().unwrap() > 0.0);
+    let (p50, p99) = (
+        &report["round_trip_ms"]["p50"],
+        &report["round_trip_ms"]["p99"],
+    );
+    assert!(p50.as_f64().unwrap() > 0.0 && p99.as_f64().unwrap() >= p50.as_f64().unwrap());
+}
+
+#[test]
+fn without_a_display_the_demo_says_so_and_runs_headless() {
+    let out = vl(&["demo", "--timeout", "0.5"]);
+    assert!(stderr(&out).contains("no display"), "{}", stderr(&out));
+    // Half a second is too short to reach the goal: a clear failure, not a hang.
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("gave up waiting"), "{}", stderr(&out));
+}
+
+#[test]
+fn an_unreachable_host_is_a_clear_error() {
+    let out = vl(&["guest", "--connect", "ws://127.0.0.1:9", "--headless"]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("cannot connect to ws://127.0.0.1:9"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
+fn an_unknown_experiment_is_refused_by_name() {
+    let out = vl(&["demo", "--headless", "--experiment", "juggling"]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("no experiment \"juggling\""),
+        "{}",
+        stderr(&out)
+    );
+}

@@ -1,0 +1,76 @@
+//! The Guest window, rendered for real (wgpu on the machine's Vulkan or GL
+//! driver, no display needed) against a live simulated Host: once connected
+//! and mounted it shows the camera image with the robot on it, the
+//! round-trip time and the proximity readings.
+
+use std::time::{Duration, Instant};
+
+use egui::Vec2;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use vl_core::arena::Arena;
+use vl_core::protocol::Role;
+use vl_guest::app::GuestApp;
+use vl_guest::client::connect;
+use vl_host::{HostConfig, SimHost};
+
+/// The simulated camera paints the robot's body this colour.
+const BODY: [u8; 3] = [196, 42, 38];
+
+fn step_until(harness: &mut Harness<'_, GuestApp>, what: &str, done: impl Fn(&GuestApp) -> bool) {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !done(harness.state()) {
+        assert!(Instant::now() < deadline, "the window never got to: {what}");
+        harness.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    harness.step();
+}
+
+#[test]
+fn the_connected_view_renders_camera_robot_and_rtt() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let host = runtime
+        .block_on(SimHost::start(
+            "127.0.0.1:0".parse().unwrap(),
+            Arena::navigation(),
+            1,
+            HostConfig::default(),
+        ))
+        .unwrap();
+    let connection = runtime.block_on(connect(&host.url())).unwrap();
+    let _entered = runtime.enter();
+    let app = GuestApp::new(connection, Role::Operator, None);
+    let mut harness = Harness::builder()
+        .with_size(Vec2::new(1100.0, 720.0))
+        .wgpu()
+        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
+
+    step_until(&mut harness, "be welcomed", |app| {
+        app.session().role.is_some()
+    });
+    harness
+        .get_by_label("Navigate to a goal among obstacles")
+        .click();
+    step_until(&mut harness, "show a frame and the robot", |app| {
+        let s = app.session();
+        s.lab.is_some() && s.frame.is_some() && s.robot.is_some() && s.round_trips.count() > 0
+    });
+
+    harness.get_by_label_contains("connected");
+    harness.get_by_label_contains("RTT ");
+    harness.get_by_label_contains("IR0 ");
+    harness.get_by_label("Start");
+
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(concat!(env!("CARGO_TARGET_TMPDIR"), "/guest-window.png"));
+    let robot_pixels = image
+        .pixels()
+        .filter(|p| p.0[..3].iter().zip(BODY).all(|(a, b)| a.abs_diff(b) <= 8))
+        .count();
+    // The robot's 70 mm body is ~28 px across on the 320-px camera, scaled up in the view.
+    assert!(
+        robot_pixels > 300,
+        "only {robot_pixels} robot-coloured pixels on screen"
+    );
+}

@@ -1,0 +1,305 @@
+//! `vl host` as a separate process, spoken to over real WebSockets as the
+//! protocol document describes: an operator drives, an observer watches,
+//! and malformed input is answered without disturbing anyone.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+use futures_util::{SinkExt, StreamExt};
+use serde_json::{Value, json};
+use tokio::net::TcpStream;
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::{MaybeTlsStream, WebSocketStream, connect_async};
+
+/// Kills the host when the test ends, pass or fail.
+struct HostProcess(Child);
+
+impl Drop for HostProcess {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Starts `vl host` on an ephemeral port and returns it with its URL.
+fn start_host() -> (HostProcess, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_vl"))
+        .args([
+            "host",
+            "--robot",
+            "sim",
+            "--camera",
+            "sim",
+            "--listen",
+            "127.0.0.1:0",
+        ])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("vl host starts");
+    let stdout = child.stdout.take().expect("piped stdout");
+    let mut line = String::new();
+    BufReader::new(stdout)
+        .read_line(&mut line)
+        .expect("vl host prints its address");
+    let url = line
+        .trim()
+        .strip_prefix("vl host listening on ")
+        .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
+        .to_owned();
+    (HostProcess(child), url)
+}
+
+type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
+
+struct Peer {
+    ws: Socket,
+    frames: usize,
+}
+
+impl Peer {
+    async fn connect(url: &str) -> Peer {
+        let (ws, _) = connect_async(url).await.expect("connects");
+        Peer { ws, frames: 0 }
+    }
+
+    async fn send(&mut self, message: Value) {
+        self.send_text(&message.to_string()).await;
+    }
+
+    async fn send_text(&mut self, text: &str) {
+        self.ws.send(Message::text(text)).await.expect("sends");
+    }
+
+    /// The next text message whose type is `kind`, skipping others; panics
+    /// after 5 s.
+    async fn expect(&mut self, kind: &str) -> Value {
+        tokio::time::timeout(Duration::from_secs(5), async {
+            loop {
+                match self.ws.next().await {
+                    Some(Ok(Message::Text(t))) => {
+                        let v: Value = serde_json::from_str(&t).expect("host sends JSON");
+                        if v["type"] == kind {
+                            return v;
+                        }
+                    }
+                    Some(Ok(Message::Binary(_))) => self.frames += 1,
+                    Some(Ok(_)) => {}
+                    other => panic!("connection ended waiting for {kind}: {other:?}"),
+                }
+            }
+        })
+        .await
+        .unwrap_or_else(|_| panic!("no {kind} within 5 s"))
+    }
+
+    /// The next `error`, which must carry `code`.
+    async fn expect_error(&mut self, code: &str) -> Value {
+        let e = self.expect("error").await;
+        assert_eq!(e["code"], code, "{e}");
+        assert!(!e["message"].as_str().unwrap_or("").is_empty());
+        e
+    }
+
+    /// The first feedback the Host produced at least `ms` after `since`.
+    async fn feedback_after(&mut self, since: &Value, ms: f64) -> Value {
+        let t0 = since["t_ms"].as_f64().expect("feedback has t_ms");
+        loop {
+            let f = self.expect("feedback").await;
+            if f["t_ms"].as_f64().unwrap() >= t0 + ms {
+                return f;
+            }
+        }
+    }
+
+    async fn hello(&mut self, role: &str) -> Value {
+        self.send(json!({"type": "hello", "protocol": 1, "role": role}))
+            .await;
+        self.expect("welcome").await
+    }
+}
+
+/// Drives the running robot with `n` event-paced commands and returns the
+/// last feedback.
+async fn drive(op: &mut Peer, first_event: u64, n: u64, left: f64, right: f64) -> Value {
+    let mut last = Value::Null;
+    for event in first_event..first_event + n {
+        op.send(json!({"type": "command", "event": event, "left": left, "right": right}))
+            .await;
+        loop {
+            let f = op.expect("feedback").await;
+            if f["event"].as_u64() == Some(event) {
+                last = f;
+                break;
+            }
+        }
+    }
+    last
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn operator_drives_observer_watches_garbage_is_refused() {
+    let (_host, url) = start_host();
+
+    let mut op = Peer::connect(&url).await;
+    let welcome = op.hello("operator").await;
+    assert_eq!(welcome["role"], "operator");
+    let experiments = welcome["experiments"].as_array().unwrap();
+    assert!(experiments.iter().any(|e| e["id"] == "navigation"));
+
+    // Nothing but hello is taken before hello.
+    let mut stranger = Peer::connect(&url).await;
+    stranger.send(json!({"type": "start"})).await;
+    stranger.expect_error("hello_first").await;
+
+    // A second operator is turned away but may watch instead.
+    let mut second = Peer::connect(&url).await;
+    second
+        .send(json!({"type": "hello", "protocol": 1, "role": "operator"}))
+        .await;
+    second.expect_error("operator_taken").await;
+
+    op.send(json!({"type": "mount", "experiment": "navigation"}))
+        .await;
+    let mounted = op.expect("mounted").await;
+    assert_eq!(mounted["arena"]["width_mm"], 800.0);
+    assert_eq!(mounted["robot"]["sensors"].as_array().unwrap().len(), 8);
+    assert_eq!(mounted["camera"]["width_px"], 320);
+
+    // An impossible goal is refused with the reason; a good one accepted.
+    op.send(json!({"type": "define", "goal": {"x_mm": 280, "y_mm": 100, "tolerance_mm": 10}}))
+        .await;
+    op.expect_error("invalid_definition").await;
+    op.send(json!({"type": "define", "goal": {"x_mm": 680, "y_mm": 470, "tolerance_mm": 15}}))
+        .await;
+    op.expect("defined").await;
+
+    // The observer, welcomed late, catches up and then sees the run.
+    let observer_welcome = second.hello("observer").await;
+    assert_eq!(observer_welcome["role"], "observer");
+    second.expect("mounted").await;
+
+    op.send(json!({"type": "start"})).await;
+    assert_eq!(op.expect("started").await["event"], 0);
+
+    let before = op.expect("feedback").await["pose"].clone();
+    let after = drive(&mut op, 1, 30, 200.0, 200.0).await;
+    let moved = after["pose"]["x_mm"].as_f64().unwrap() - before["x_mm"].as_f64().unwrap();
+    assert!(moved > 10.0, "the robot moved {moved} mm forward");
+    assert_eq!(after["proximity"].as_array().unwrap().len(), 8);
+
+    // The observer receives feedback and frames, but may not drive.
+    loop {
+        let seen = second.expect("feedback").await;
+        if seen["event"].as_u64().unwrap() >= 1 {
+            break;
+        }
+    }
+    second
+        .send(json!({"type": "command", "event": 99, "left": 100, "right": 100}))
+        .await;
+    second.expect_error("not_operator").await;
+    assert!(second.frames > 0 || op.frames > 0, "camera frames arrive");
+
+    // Garbage on the operator's own connection is answered, not fatal.
+    op.send_text("this is not json").await;
+    op.expect_error("bad_message").await;
+    op.send_text(r#"{"type": "command", "event": "#).await;
+    op.expect_error("bad_message").await;
+    op.send(json!({"type": "teleport", "x": 1})).await;
+    op.expect_error("unknown_type").await;
+    op.send(json!({"type": "command", "event": 1, "left": 1, "right": 1}))
+        .await;
+    op.expect_error("stale_command").await;
+
+    // A 10 MB message from someone else gets an error or a clean close.
+    let mut flooder = Peer::connect(&url).await;
+    let huge = "x".repeat(10 * 1024 * 1024);
+    let _ = flooder.ws.send(Message::text(huge)).await;
+    let outcome = tokio::time::timeout(Duration::from_secs(10), async {
+        loop {
+            match flooder.ws.next().await {
+                Some(Ok(Message::Text(t))) => {
+                    let v: Value = serde_json::from_str(&t).unwrap();
+                    if v["type"] == "error" {
+                        return format!("error {}", v["code"]);
+                    }
+                }
+                Some(Ok(Message::Close(_))) | None => return "closed".to_owned(),
+                Some(Err(e)) => return format!("failed: {e}"),
+                Some(Ok(_)) => {}
+            }
+        }
+    })
+    .await
+    .expect("the oversized message is answered");
+    assert!(
+        outcome == "error \"too_large\"" || outcome == "closed",
+        "oversized message: {outcome}"
+    );
+
+    // Through all of it, the operator's session keeps working.
+    let later = drive(&mut op, 31, 10, -150.0, 150.0).await;
+    assert_ne!(later["pose"]["theta_rad"], after["pose"]["theta_rad"]);
+    op.send(json!({"type": "stop"})).await;
+    let done = op.expect("done").await;
+    assert_eq!(done["summary"]["reason"], "stopped");
+    assert_eq!(done["summary"]["events"], 40);
+    // The observer hears that the run ended too.
+    second.expect("done").await;
+}
+
+/// Mounts the teleoperation experiment with an empty definition and starts a run.
+async fn start_teleoperation(op: &mut Peer) {
+    op.send(json!({"type": "mount", "experiment": "teleoperation"}))
+        .await;
+    op.expect("mounted").await;
+    op.send(json!({"type": "define"})).await;
+    op.expect("defined").await;
+    op.send(json!({"type": "start"})).await;
+    op.expect("started").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_robot_stops_when_the_operator_leaves() {
+    let (_host, url) = start_host();
+    let mut op = Peer::connect(&url).await;
+    op.hello("operator").await;
+    let mut watcher = Peer::connect(&url).await;
+    watcher.hello("observer").await;
+    start_teleoperation(&mut op).await;
+    drive(&mut op, 1, 20, 300.0, 300.0).await;
+    drop(op);
+
+    let done = watcher.expect("done").await;
+    assert_eq!(done["summary"]["reason"], "operator_left");
+    // Wheels come to rest and stay there.
+    let stopping = watcher.expect("feedback").await;
+    let rest = watcher.feedback_after(&stopping, 300.0).await;
+    assert!(
+        rest["wheels"]["left_mm_s"].as_f64().unwrap().abs() < 1.0,
+        "{rest}"
+    );
+    let later = watcher.feedback_after(&rest, 300.0).await;
+    assert_eq!(rest["pose"]["x_mm"], later["pose"]["x_mm"]);
+
+    // The lab is free for the next operator.
+    let mut next = Peer::connect(&url).await;
+    assert_eq!(next.hello("operator").await["role"], "operator");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_watchdog_stops_a_silent_operator() {
+    let (_host, url) = start_host();
+    let mut op = Peer::connect(&url).await;
+    op.hello("operator").await;
+    start_teleoperation(&mut op).await;
+    let moving = drive(&mut op, 1, 5, 300.0, 300.0).await;
+    assert!(moving["wheels"]["left_mm_s"].as_f64().unwrap() > 100.0);
+    // No further command: within the watchdog's 0.5 s the wheels stop.
+    let f = op.feedback_after(&moving, 800.0).await;
+    assert!(
+        f["wheels"]["left_mm_s"].as_f64().unwrap().abs() < 1.0,
+        "{f}"
+    );
+}

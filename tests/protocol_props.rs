@@ -1,0 +1,364 @@
+//! Property tests of protocol v1's wire form: every message survives
+//! encode → decode unchanged, and no input, however malformed, makes the
+//! decoder panic.
+
+use proptest::prelude::*;
+use serde_json::{Value, json};
+use vl_core::arena::{Arena, Obstacle};
+use vl_core::camera::CameraModel;
+use vl_core::experiment::{Definition, ExperimentInfo, Goal};
+use vl_core::protocol::{
+    Drive, EndReason, ErrorCode, GuestMessage, HostMessage, Role, Summary, Wire,
+};
+use vl_core::robot::{Point, Pose, RobotModel, SensorMount, WheelSpeeds};
+
+fn num() -> impl Strategy<Value = f64> {
+    prop_oneof![-1e6f64..1e6, Just(0.0), any::<i32>().prop_map(f64::from)]
+}
+
+fn text() -> impl Strategy<Value = String> {
+    "[ -~é→ω]{0,16}"
+}
+
+fn point() -> impl Strategy<Value = Point> {
+    (num(), num()).prop_map(|(x_mm, y_mm)| Point { x_mm, y_mm })
+}
+
+fn pose() -> impl Strategy<Value = Pose> {
+    (num(), num(), num()).prop_map(|(x_mm, y_mm, theta_rad)| Pose {
+        x_mm,
+        y_mm,
+        theta_rad,
+    })
+}
+
+fn wheels() -> impl Strategy<Value = WheelSpeeds> {
+    (num(), num()).prop_map(|(left_mm_s, right_mm_s)| WheelSpeeds {
+        left_mm_s,
+        right_mm_s,
+    })
+}
+
+fn obstacle() -> impl Strategy<Value = Obstacle> {
+    prop_oneof![
+        (num(), num(), num(), num()).prop_map(|(x_mm, y_mm, width_mm, height_mm)| Obstacle::Rect {
+            x_mm,
+            y_mm,
+            width_mm,
+            height_mm
+        }),
+        (num(), num(), num()).prop_map(|(x_mm, y_mm, radius_mm)| Obstacle::Circle {
+            x_mm,
+            y_mm,
+            radius_mm
+        }),
+    ]
+}
+
+fn goal() -> impl Strategy<Value = Goal> {
+    (num(), num(), num()).prop_map(|(x_mm, y_mm, tolerance_mm)| Goal {
+        x_mm,
+        y_mm,
+        tolerance_mm,
+    })
+}
+
+fn definition() -> impl Strategy<Value = Definition> {
+    (
+        proptest::option::of(goal()),
+        proptest::collection::vec(point(), 0..4),
+        proptest::collection::vec(obstacle(), 0..3),
+        proptest::option::of(num()),
+        proptest::option::of(num()),
+    )
+        .prop_map(
+            |(goal, path, virtual_obstacles, max_speed_mm_s, time_limit_s)| Definition {
+                goal,
+                path,
+                virtual_obstacles,
+                max_speed_mm_s,
+                time_limit_s,
+            },
+        )
+}
+
+fn arena() -> impl Strategy<Value = Arena> {
+    (
+        text(),
+        num(),
+        num(),
+        proptest::collection::vec(obstacle(), 0..4),
+        pose(),
+        proptest::option::of(point()),
+    )
+        .prop_map(
+            |(name, width_mm, height_mm, obstacles, start, goal)| Arena {
+                name,
+                width_mm,
+                height_mm,
+                obstacles,
+                start,
+                goal,
+            },
+        )
+}
+
+fn robot() -> impl Strategy<Value = RobotModel> {
+    (
+        text(),
+        num(),
+        num(),
+        num(),
+        num(),
+        num(),
+        proptest::collection::vec((num(), num(), num()), 0..9),
+    )
+        .prop_map(
+            |(
+                name,
+                radius_mm,
+                wheel_base_mm,
+                mm_per_pulse,
+                max_wheel_speed_mm_s,
+                sensor_range_mm,
+                sensors,
+            )| {
+                RobotModel {
+                    name,
+                    radius_mm,
+                    wheel_base_mm,
+                    mm_per_pulse,
+                    max_wheel_speed_mm_s,
+                    sensor_range_mm,
+                    sensors: sensors
+                        .into_iter()
+                        .map(|(x_mm, y_mm, angle_rad)| SensorMount {
+                            x_mm,
+                            y_mm,
+                            angle_rad,
+                        })
+                        .collect(),
+                }
+            },
+        )
+}
+
+fn camera() -> impl Strategy<Value = CameraModel> {
+    (any::<u32>(), any::<u32>(), num(), num()).prop_map(|(width_px, height_px, mm_per_px, fps)| {
+        CameraModel {
+            width_px,
+            height_px,
+            mm_per_px,
+            fps,
+        }
+    })
+}
+
+fn role() -> impl Strategy<Value = Role> {
+    prop_oneof![Just(Role::Operator), Just(Role::Observer)]
+}
+
+fn drive() -> impl Strategy<Value = Drive> {
+    prop_oneof![
+        (num(), num()).prop_map(|(left, right)| Drive::Wheels { left, right }),
+        (num(), num()).prop_map(|(v, w)| Drive::Velocity { v, w }),
+    ]
+}
+
+fn error_code() -> impl Strategy<Value = ErrorCode> {
+    use ErrorCode::*;
+    proptest::sample::select(vec![
+        BadMessage,
+        UnknownType,
+        TooLarge,
+        ProtocolMismatch,
+        HelloFirst,
+        Unauthorized,
+        OperatorTaken,
+        NotOperator,
+        UnknownExperiment,
+        InvalidDefinition,
+        NotAllowedNow,
+        StaleCommand,
+        RobotFault,
+    ])
+}
+
+fn summary() -> impl Strategy<Value = Summary> {
+    use EndReason::*;
+    (
+        proptest::sample::select(vec![GoalReached, Stopped, TimeLimit, OperatorLeft, Fault]),
+        any::<bool>(),
+        any::<u64>(),
+        pose(),
+        num(),
+        num(),
+        any::<u64>(),
+    )
+        .prop_map(
+            |(reason, reached_goal, events, final_pose, seconds, distance_mm, collisions)| {
+                Summary {
+                    reason,
+                    reached_goal,
+                    events,
+                    final_pose,
+                    seconds,
+                    distance_mm,
+                    collisions,
+                }
+            },
+        )
+}
+
+fn guest_message() -> impl Strategy<Value = GuestMessage> {
+    prop_oneof![
+        (any::<u32>(), role(), proptest::option::of(text())).prop_map(|(protocol, role, token)| {
+            GuestMessage::Hello {
+                protocol,
+                role,
+                token,
+            }
+        }),
+        num().prop_map(|t| GuestMessage::Ping { t }),
+        num().prop_map(|t| GuestMessage::Pong { t }),
+        text().prop_map(|experiment| GuestMessage::Mount { experiment }),
+        definition().prop_map(|definition| GuestMessage::Define { definition }),
+        Just(GuestMessage::Start),
+        Just(GuestMessage::Stop),
+        (any::<u64>(), drive()).prop_map(|(event, drive)| GuestMessage::Command { event, drive }),
+        Just(GuestMessage::Bye),
+    ]
+}
+
+fn host_message() -> impl Strategy<Value = HostMessage> {
+    let info = (text(), text()).prop_map(|(id, title)| ExperimentInfo { id, title });
+    prop_oneof![
+        (any::<u64>(), role(), proptest::collection::vec(info, 0..3)).prop_map(
+            |(session, role, experiments)| HostMessage::Welcome {
+                session,
+                role,
+                experiments
+            }
+        ),
+        (error_code(), text()).prop_map(|(code, message)| HostMessage::Error { code, message }),
+        num().prop_map(|t| HostMessage::Ping { t }),
+        num().prop_map(|t| HostMessage::Pong { t }),
+        (text(), arena(), robot(), camera()).prop_map(|(experiment, arena, robot, camera)| {
+            HostMessage::Mounted {
+                experiment,
+                arena,
+                robot,
+                camera,
+            }
+        }),
+        definition().prop_map(|definition| HostMessage::Defined { definition }),
+        any::<u64>().prop_map(|event| HostMessage::Started { event }),
+        (
+            any::<u64>(),
+            num(),
+            pose(),
+            wheels(),
+            proptest::collection::vec(any::<u16>(), 0..9),
+            any::<bool>(),
+            proptest::option::of((num(), num())),
+        )
+            .prop_map(|(event, t_ms, pose, wheels, proximity, contact, force)| {
+                HostMessage::Feedback {
+                    event,
+                    t_ms,
+                    pose,
+                    wheels,
+                    proximity,
+                    contact,
+                    force: force.map(|(x, y)| [x, y]),
+                }
+            }),
+        summary().prop_map(|summary| HostMessage::Done { summary }),
+        Just(HostMessage::Bye),
+    ]
+}
+
+/// Arbitrary JSON, often shaped like a message: an object with a known
+/// `type` and fields of any kind.
+fn json_value() -> impl Strategy<Value = Value> {
+    let leaf = prop_oneof![
+        Just(Value::Null),
+        any::<bool>().prop_map(Value::from),
+        any::<i64>().prop_map(Value::from),
+        num().prop_map(Value::from),
+        text().prop_map(Value::from),
+    ];
+    leaf.prop_recursive(4, 32, 6, |inner| {
+        prop_oneof![
+            proptest::collection::vec(inner.clone(), 0..6).prop_map(Value::Array),
+            proptest::collection::btree_map(
+                prop_oneof![
+                    text(),
+                    proptest::sample::select(vec![
+                        "type".to_owned(),
+                        "event".into(),
+                        "left".into(),
+                        "v".into(),
+                        "goal".into(),
+                        "role".into(),
+                        "protocol".into(),
+                        "pose".into(),
+                        "summary".into(),
+                    ]),
+                ],
+                inner,
+                0..6
+            )
+            .prop_map(|m| Value::Object(m.into_iter().collect())),
+        ]
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    #[test]
+    fn guest_messages_round_trip(message in guest_message()) {
+        let wire = message.encode();
+        prop_assert_eq!(GuestMessage::decode(&wire), Ok(message));
+    }
+
+    #[test]
+    fn host_messages_round_trip(message in host_message()) {
+        let wire = message.encode();
+        prop_assert_eq!(HostMessage::decode(&wire), Ok(message));
+    }
+
+    #[test]
+    fn decoding_arbitrary_text_never_panics(text in any::<String>()) {
+        let _ = GuestMessage::decode(&text);
+        let _ = HostMessage::decode(&text);
+    }
+
+    #[test]
+    fn decoding_arbitrary_bytes_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..256)) {
+        let text = String::from_utf8_lossy(&bytes);
+        let _ = GuestMessage::decode(&text);
+        let _ = HostMessage::decode(&text);
+        let _ = vl_core::frame::FrameHeader::decode(&bytes);
+    }
+
+    #[test]
+    fn decoding_arbitrary_json_never_panics(
+        mut value in json_value(),
+        kind in proptest::sample::select(
+            GuestMessage::TYPES.iter().chain(HostMessage::TYPES).copied().collect::<Vec<_>>()
+        ),
+        typed in any::<bool>(),
+    ) {
+        if typed && let Value::Object(map) = &mut value {
+            map.insert("type".into(), json!(kind));
+        }
+        let text = value.to_string();
+        let guest = GuestMessage::decode(&text);
+        let host = HostMessage::decode(&text);
+        // Whatever was decoded re-encodes and decodes to itself.
+        if let Ok(m) = guest { prop_assert_eq!(GuestMessage::decode(&m.encode()), Ok(m)); }
+        if let Ok(m) = host { prop_assert_eq!(HostMessage::decode(&m.encode()), Ok(m)); }
+    }
+}
