@@ -62,6 +62,23 @@ fn the_connected_view_renders_camera_robot_and_rtt() {
     harness.get_by_label_contains("IR0 ");
     harness.get_by_label("Start");
 
+    // Define the suggested goal, start, and drive forward with the arrow key.
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
+        .click();
+    step_until(&mut harness, "show the definition", |app| {
+        app.session().definition.is_some()
+    });
+    harness.get_by_label("Start").click();
+    step_until(&mut harness, "start the run", |app| app.session().running);
+    let start_x = harness.state().session().robot.as_ref().unwrap().pose.x_mm;
+    harness.key_down(egui::Key::ArrowUp);
+    step_until(&mut harness, "drive forward on the arrow key", |app| {
+        app.session().robot.as_ref().unwrap().pose.x_mm > start_x + 20.0
+    });
+    harness.key_up(egui::Key::ArrowUp);
+    assert!(harness.state().session().sent_event > 0);
+
     let image = harness.render().expect("the window renders");
     let _ = image.save(concat!(env!("CARGO_TARGET_TMPDIR"), "/guest-window.png"));
     let robot_pixels = image
