@@ -2,6 +2,9 @@
 //! `vl guest` is the user's desktop app, `vl demo` runs both on the
 //! simulated lab.
 
+mod alloc;
+mod petri;
+
 use std::net::SocketAddr;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -32,7 +35,25 @@ enum Command {
     Guest(GuestArgs),
     /// Run a Host on the simulated lab and a Guest against it, in one process.
     Demo(DemoArgs),
+    /// Analyse Petri nets (PNML).
+    #[command(subcommand)]
+    Petri(petri::PetriCommand),
 }
+
+#[global_allocator]
+static ALLOCATOR: alloc::Counting = alloc::Counting;
+
+/// A problem with what the user gave (a file, an argument): exit code 2.
+#[derive(Debug)]
+pub struct BadInput(pub String);
+
+impl std::fmt::Display for BadInput {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for BadInput {}
 
 #[derive(Clone, Copy, ValueEnum)]
 enum RobotKind {
@@ -123,17 +144,22 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             eprintln!("vl: {e:#}");
-            ExitCode::FAILURE
+            if e.downcast_ref::<BadInput>().is_some() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::FAILURE
+            }
         }
     }
 }
 
 fn run(cli: Cli) -> Result<ExitCode> {
-    let runtime = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
+    let runtime = || tokio::runtime::Runtime::new().context("cannot start the async runtime");
     match cli.command {
-        Command::Host(args) => runtime.block_on(host(args)).map(|()| ExitCode::SUCCESS),
-        Command::Guest(args) => guest(&runtime, args),
-        Command::Demo(args) => demo(&runtime, args),
+        Command::Host(args) => runtime()?.block_on(host(args)).map(|()| ExitCode::SUCCESS),
+        Command::Guest(args) => guest(&runtime()?, args),
+        Command::Demo(args) => demo(&runtime()?, args),
+        Command::Petri(command) => petri::run(command),
     }
 }
 

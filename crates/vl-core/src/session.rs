@@ -69,12 +69,12 @@ impl Default for Supervisor {
 impl Supervisor {
     /// The lab's session net: one place per phase, one transition per allowed move.
     pub fn new() -> Self {
-        let mut net = Net::default();
+        let mut net = Net::new("session");
         for (name, phase) in PHASES {
             net.add_place(name, u32::from(phase == Phase::Idle))
                 .expect("phase names are distinct");
         }
-        let moves: [(&str, Action, &str, &str); 9] = [
+        let moves: [(&str, Action, &str, &str); 10] = [
             ("mount", Action::Mount, "idle", "mounted"),
             ("remount_mounted", Action::Mount, "mounted", "mounted"),
             ("remount_defined", Action::Mount, "defined", "mounted"),
@@ -84,18 +84,12 @@ impl Supervisor {
             ("finish", Action::Finish, "running", "defined"),
             ("release_mounted", Action::Release, "mounted", "idle"),
             ("release_defined", Action::Release, "defined", "idle"),
+            ("release_running", Action::Release, "running", "idle"),
         ];
         for (name, action, from, to) in moves {
-            net.add_transition(name, action.label(), &[(from, 1)], &[(to, 1)])
+            net.add_transition_with(name, Some(action.label()), &[(from, 1)], &[(to, 1)])
                 .expect("session net arcs name its own places");
         }
-        net.add_transition(
-            "release_running",
-            "release",
-            &[("running", 1)],
-            &[("idle", 1)],
-        )
-        .expect("session net arcs name its own places");
         let marking = net.initial_marking();
         Supervisor { net, marking }
     }
@@ -138,7 +132,7 @@ impl Supervisor {
     fn enabled_for(&self, action: Action) -> Option<vl_petri::TransitionId> {
         self.net
             .enabled(&self.marking)
-            .find(|t| self.net.transitions[t.0].label == action.label())
+            .find(|t| self.net.transitions[t.0].label.as_deref() == Some(action.label()))
     }
 }
 

@@ -1,10 +1,18 @@
 //! Petri nets for `vl`: the formalism the thesis designs every lab in.
 //!
-//! Today this crate holds the net model and its firing rule, which the
-//! session supervisor in `vl-core` runs live. Analysis (reachability,
-//! coverability, invariants), composition, controller synthesis and PNML
-//! interchange grow here.
+//! [`net`] holds the model and its firing rule (the session supervisor in
+//! `vl-core` runs it live), [`pnml`] moves nets in and out, [`explore`]
+//! builds the reachability graph and [`analysis`] reads properties off it.
 
-mod net;
+pub mod analysis;
+pub mod explore;
+mod linalg;
+pub mod net;
+pub mod pnml;
 
-pub use net::{Arc, Marking, MarkingDisplay, Net, NetError, PlaceId, Transition, TransitionId};
+pub use analysis::{Analysis, Liveness, analyze};
+pub use explore::{ExploreError, Options, Progress, StateSpace, explore};
+pub use net::{
+    Arc, ArcKind, Marking, MarkingDisplay, Net, NetError, Place, PlaceId, Transition, TransitionId,
+};
+pub use pnml::{PnmlError, from_pnml, to_pnml};

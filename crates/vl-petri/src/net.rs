@@ -1,8 +1,8 @@
-//! Place/transition nets and their firing rule.
+//! Place/transition nets with arc weights, inhibitor arcs, place
+//! capacities and transition labels, and their firing rule.
 //!
-//! A net is kept as its pre- and post-incidence lists (arc weights per
-//! transition) because the firing rule only ever needs "what does t take and
-//! what does t give": enabling is a scan of `pre[t]`, firing adds `post[t]`.
+//! A net is kept as per-transition arc lists because the firing rule only
+//! ever asks "what does t take, what does t give, what inhibits t".
 
 use std::fmt;
 
@@ -34,25 +34,49 @@ pub struct Arc {
     pub weight: u32,
 }
 
-/// A transition: its name, the label it synchronises on, and its arcs.
+/// A place: its id (unique, used in files and constraints) and its name.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Place {
+    pub id: String,
+    pub name: String,
+    pub initial: u32,
+    /// At most this many tokens; a transition that would exceed it is disabled.
+    pub capacity: Option<u32>,
+}
+
+/// A transition: its id and name, the event label it synchronises on, and its arcs.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Transition {
+    pub id: String,
     pub name: String,
     /// The event this transition stands for; transitions of different nets
     /// with the same label fire together when nets are composed.
-    pub label: String,
+    pub label: Option<String>,
     /// Input arcs: tokens taken when it fires.
     pub pre: Vec<Arc>,
     /// Output arcs: tokens given when it fires.
     pub post: Vec<Arc>,
+    /// Inhibitor arcs: enabled only while the place holds fewer than the weight.
+    pub inhibit: Vec<Arc>,
 }
 
 /// A place/transition net with its initial marking.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Net {
-    pub places: Vec<String>,
+    pub id: String,
+    pub places: Vec<Place>,
     pub transitions: Vec<Transition>,
-    pub initial: Vec<u32>,
+}
+
+/// Which way an arc runs, as files and builders name it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ArcKind {
+    /// Place → transition.
+    Input,
+    /// Transition → place.
+    Output,
+    /// Place ⊸ transition.
+    Inhibitor,
 }
 
 /// Why a net could not be built or a transition could not fire.
@@ -62,8 +86,10 @@ pub enum NetError {
     DuplicatePlace(String),
     #[error("transition '{0}' is defined twice")]
     DuplicateTransition(String),
-    #[error("transition '{transition}' names unknown place '{place}'")]
+    #[error("an arc of transition '{transition}' names unknown place '{place}'")]
     UnknownPlace { transition: String, place: String },
+    #[error("unknown transition '{0}'")]
+    UnknownTransition(String),
     #[error("arc between '{place}' and '{transition}' has weight 0")]
     ZeroWeight { transition: String, place: String },
     #[error("transition '{0}' is not enabled")]
@@ -73,79 +99,144 @@ pub enum NetError {
 }
 
 impl Net {
-    /// Adds a place with `tokens` initial tokens.
-    pub fn add_place(&mut self, name: &str, tokens: u32) -> Result<PlaceId, NetError> {
-        if self.place(name).is_some() {
-            return Err(NetError::DuplicatePlace(name.to_owned()));
+    /// An empty net called `id`.
+    pub fn new(id: &str) -> Self {
+        Net {
+            id: id.to_owned(),
+            ..Net::default()
         }
-        self.places.push(name.to_owned());
-        self.initial.push(tokens);
+    }
+
+    /// Adds a place (named as its id) holding `tokens` initially.
+    pub fn add_place(&mut self, id: &str, tokens: u32) -> Result<PlaceId, NetError> {
+        if self.place(id).is_some() {
+            return Err(NetError::DuplicatePlace(id.to_owned()));
+        }
+        self.places.push(Place {
+            id: id.to_owned(),
+            name: id.to_owned(),
+            initial: tokens,
+            capacity: None,
+        });
         Ok(PlaceId(self.places.len() - 1))
     }
 
-    /// Adds a transition taking `pre` and giving `post`, each a list of
-    /// `(place name, weight)`.
+    /// Adds a transition (named as its id) with no arcs.
     pub fn add_transition(
         &mut self,
-        name: &str,
-        label: &str,
-        pre: &[(&str, u32)],
-        post: &[(&str, u32)],
+        id: &str,
+        label: Option<&str>,
     ) -> Result<TransitionId, NetError> {
-        if self.transition(name).is_some() {
-            return Err(NetError::DuplicateTransition(name.to_owned()));
+        if self.transition(id).is_some() {
+            return Err(NetError::DuplicateTransition(id.to_owned()));
         }
-        let arcs = |list: &[(&str, u32)]| -> Result<Vec<Arc>, NetError> {
-            list.iter()
-                .map(|&(place, weight)| {
-                    if weight == 0 {
-                        return Err(NetError::ZeroWeight {
-                            transition: name.to_owned(),
-                            place: place.to_owned(),
-                        });
-                    }
-                    let id = self.place(place).ok_or_else(|| NetError::UnknownPlace {
-                        transition: name.to_owned(),
-                        place: place.to_owned(),
-                    })?;
-                    Ok(Arc { place: id, weight })
-                })
-                .collect()
-        };
-        let transition = Transition {
-            name: name.to_owned(),
-            label: label.to_owned(),
-            pre: arcs(pre)?,
-            post: arcs(post)?,
-        };
-        self.transitions.push(transition);
+        self.transitions.push(Transition {
+            id: id.to_owned(),
+            name: id.to_owned(),
+            label: label.map(str::to_owned),
+            pre: Vec::new(),
+            post: Vec::new(),
+            inhibit: Vec::new(),
+        });
         Ok(TransitionId(self.transitions.len() - 1))
     }
 
-    /// The place called `name`.
-    pub fn place(&self, name: &str) -> Option<PlaceId> {
-        self.places.iter().position(|p| p == name).map(PlaceId)
+    /// Adds an arc of `kind` between place `place` and transition `t`. Two
+    /// arcs of the same kind between the same nodes add their weights.
+    pub fn add_arc(
+        &mut self,
+        kind: ArcKind,
+        place: &str,
+        t: TransitionId,
+        weight: u32,
+    ) -> Result<(), NetError> {
+        let transition = self.transitions[t.0].id.clone();
+        if weight == 0 {
+            return Err(NetError::ZeroWeight {
+                transition,
+                place: place.to_owned(),
+            });
+        }
+        let p = self.place(place).ok_or_else(|| NetError::UnknownPlace {
+            transition,
+            place: place.to_owned(),
+        })?;
+        let tr = &mut self.transitions[t.0];
+        let arcs = match kind {
+            ArcKind::Input => &mut tr.pre,
+            ArcKind::Output => &mut tr.post,
+            ArcKind::Inhibitor => &mut tr.inhibit,
+        };
+        match arcs.iter_mut().find(|a| a.place == p) {
+            Some(a) => a.weight = a.weight.saturating_add(weight),
+            None => arcs.push(Arc { place: p, weight }),
+        }
+        Ok(())
     }
 
-    /// The transition called `name`.
-    pub fn transition(&self, name: &str) -> Option<TransitionId> {
+    /// Adds a transition with its input and output arcs, each `(place id, weight)`.
+    pub fn add_transition_with(
+        &mut self,
+        id: &str,
+        label: Option<&str>,
+        pre: &[(&str, u32)],
+        post: &[(&str, u32)],
+    ) -> Result<TransitionId, NetError> {
+        let t = self.add_transition(id, label)?;
+        let arcs = pre
+            .iter()
+            .map(|a| (ArcKind::Input, a))
+            .chain(post.iter().map(|a| (ArcKind::Output, a)));
+        for (kind, &(place, weight)) in arcs {
+            if let Err(e) = self.add_arc(kind, place, t, weight) {
+                self.transitions.pop();
+                return Err(e);
+            }
+        }
+        Ok(t)
+    }
+
+    /// The place with id `id`.
+    pub fn place(&self, id: &str) -> Option<PlaceId> {
+        self.places.iter().position(|p| p.id == id).map(PlaceId)
+    }
+
+    /// The transition with id `id`.
+    pub fn transition(&self, id: &str) -> Option<TransitionId> {
         self.transitions
             .iter()
-            .position(|t| t.name == name)
+            .position(|t| t.id == id)
             .map(TransitionId)
     }
 
     /// The initial marking m0.
     pub fn initial_marking(&self) -> Marking {
-        Marking(self.initial.clone())
+        Marking(self.places.iter().map(|p| p.initial).collect())
     }
 
-    /// Whether `t` may fire at `m`: every input place holds at least the arc weight.
+    /// Whether the net has inhibitor arcs (some analyses are unsound with them).
+    pub fn has_inhibitors(&self) -> bool {
+        self.transitions.iter().any(|t| !t.inhibit.is_empty())
+    }
+
+    /// Whether `t` may fire at `m`: every input place holds the arc weight,
+    /// every inhibiting place holds less than its weight, and no capacity
+    /// would be exceeded.
     pub fn is_enabled(&self, m: &Marking, t: TransitionId) -> bool {
-        self.transitions[t.0]
-            .pre
-            .iter()
-            .all(|a| m.0[a.place.0] >= a.weight)
+        let tr = &self.transitions[t.0];
+        tr.pre.iter().all(|a| m.0[a.place.0] >= a.weight)
+            && tr.inhibit.iter().all(|a| m.0[a.place.0] < a.weight)
+            && tr.post.iter().all(|a| {
+                let Some(cap) = self.places[a.place.0].capacity else {
+                    return true;
+                };
+                let taken = tr
+                    .pre
+                    .iter()
+                    .find(|b| b.place == a.place)
+                    .map_or(0, |b| b.weight);
+                u64::from(m.0[a.place.0]) - u64::from(taken) + u64::from(a.weight) <= u64::from(cap)
+            })
     }
 
     /// Transitions enabled at `m`, in index order.
@@ -159,7 +250,7 @@ impl Net {
     pub fn fire(&self, m: &Marking, t: TransitionId) -> Result<Marking, NetError> {
         let tr = &self.transitions[t.0];
         if !self.is_enabled(m, t) {
-            return Err(NetError::NotEnabled(tr.name.clone()));
+            return Err(NetError::NotEnabled(tr.id.clone()));
         }
         let mut next = m.clone();
         for a in &tr.pre {
@@ -169,7 +260,7 @@ impl Net {
             let slot = &mut next.0[a.place.0];
             *slot = slot
                 .checked_add(a.weight)
-                .ok_or_else(|| NetError::Overflow(tr.name.clone()))?;
+                .ok_or_else(|| NetError::Overflow(tr.id.clone()))?;
         }
         Ok(next)
     }
@@ -188,11 +279,11 @@ impl Net {
         c
     }
 
-    /// The marked places of `m`, by name, for messages people read.
-    pub fn describe(&self, m: &Marking) -> MarkingDisplay<'_> {
+    /// The marked places of `m`, by id, for messages people read.
+    pub fn describe<'a>(&'a self, m: &'a Marking) -> MarkingDisplay<'a> {
         MarkingDisplay {
             net: self,
-            marking: m.clone(),
+            marking: m,
         }
     }
 }
@@ -200,7 +291,7 @@ impl Net {
 /// A marking printed as `{place, place×2}`.
 pub struct MarkingDisplay<'a> {
     net: &'a Net,
-    marking: Marking,
+    marking: &'a Marking,
 }
 
 impl fmt::Display for MarkingDisplay<'_> {
@@ -213,9 +304,9 @@ impl fmt::Display for MarkingDisplay<'_> {
             .filter(|(n, _)| **n > 0)
             .map(|(n, p)| {
                 if *n == 1 {
-                    p.clone()
+                    p.id.clone()
                 } else {
-                    format!("{p}×{n}")
+                    format!("{}×{n}", p.id)
                 }
             })
             .collect();
@@ -229,36 +320,42 @@ mod tests {
     use proptest::prelude::*;
 
     fn mutex() -> Net {
-        let mut n = Net::default();
-        n.add_place("idle_a", 1).unwrap();
-        n.add_place("busy_a", 0).unwrap();
-        n.add_place("idle_b", 1).unwrap();
-        n.add_place("busy_b", 0).unwrap();
-        n.add_place("free", 1).unwrap();
-        n.add_transition(
+        let mut n = Net::new("mutex");
+        for (p, m) in [
+            ("idle_a", 1),
+            ("busy_a", 0),
+            ("idle_b", 1),
+            ("busy_b", 0),
+            ("free", 1),
+        ] {
+            n.add_place(p, m).unwrap();
+        }
+        let take = Some("take");
+        let give = Some("give");
+        n.add_transition_with(
             "take_a",
-            "take",
+            take,
             &[("idle_a", 1), ("free", 1)],
             &[("busy_a", 1)],
         )
         .unwrap();
-        n.add_transition(
+        n.add_transition_with(
             "give_a",
-            "give",
+            give,
             &[("busy_a", 1)],
             &[("idle_a", 1), ("free", 1)],
         )
         .unwrap();
-        n.add_transition(
+        n.add_transition_with(
             "take_b",
-            "take",
+            take,
             &[("idle_b", 1), ("free", 1)],
             &[("busy_b", 1)],
         )
         .unwrap();
-        n.add_transition(
+        n.add_transition_with(
             "give_b",
-            "give",
+            give,
             &[("busy_b", 1)],
             &[("idle_b", 1), ("free", 1)],
         )
@@ -282,17 +379,34 @@ mod tests {
     }
 
     #[test]
+    fn inhibitors_and_capacities_disable() {
+        let mut n = Net::new("guarded");
+        n.add_place("p", 1).unwrap();
+        n.add_place("q", 0).unwrap();
+        let t = n.add_transition_with("t", None, &[], &[("q", 1)]).unwrap();
+        n.add_arc(ArcKind::Inhibitor, "p", t, 1).unwrap();
+        let m0 = n.initial_marking();
+        assert!(!n.is_enabled(&m0, t), "p is marked, so t is inhibited");
+        let free = Marking(vec![0, 0]);
+        assert!(n.is_enabled(&free, t));
+        n.places[1].capacity = Some(1);
+        let full = n.fire(&free, t).unwrap();
+        assert!(!n.is_enabled(&full, t), "q is at its capacity");
+    }
+
+    #[test]
     fn bad_arcs_are_named() {
         let mut n = mutex();
         assert_eq!(
-            n.add_transition("x", "x", &[("nowhere", 1)], &[]),
+            n.add_transition_with("x", None, &[("nowhere", 1)], &[]),
             Err(NetError::UnknownPlace {
                 transition: "x".into(),
                 place: "nowhere".into()
             })
         );
+        assert!(n.transition("x").is_none(), "a failed add leaves no trace");
         assert!(matches!(
-            n.add_transition("y", "y", &[("free", 0)], &[]),
+            n.add_transition_with("y", None, &[("free", 0)], &[]),
             Err(NetError::ZeroWeight { .. })
         ));
         assert_eq!(

@@ -1,0 +1,110 @@
+//! `vl petri analyze --json` against the Model Checking Contest's certified
+//! answers for every small and medium model in tests/petri-corpus.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::process::Command;
+
+use serde_json::Value;
+
+fn manifest() -> Vec<HashMap<String, String>> {
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/petri-corpus/manifest.csv"),
+    )
+    .expect("the corpus manifest is in the repo");
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    lines
+        .map(|line| {
+            // The last column (source) is quoted and holds commas; nothing before it does.
+            header
+                .iter()
+                .map(|h| h.to_string())
+                .zip(line.split(',').map(str::to_owned))
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn analysis_matches_the_certified_answers() {
+    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/petri-corpus");
+    let mut checked = 0;
+    let mut mismatches = Vec::new();
+    for model in manifest() {
+        if model["tier"] == "large" {
+            continue;
+        }
+        let out = Command::new(env!("CARGO_BIN_EXE_vl"))
+            .args(["petri", "analyze", "--json"])
+            .arg(corpus.join(&model["pnml"]))
+            .output()
+            .expect("vl runs");
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            model["model"],
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let got: Value = serde_json::from_slice(&out.stdout).expect("JSON report");
+        let number = |key: &str| got[key].as_u64().map(|v| v.to_string()).unwrap_or_default();
+        let verdict = |key: &str| {
+            got[key]
+                .as_bool()
+                .map(|b| b.to_string().to_uppercase())
+                .unwrap_or_default()
+        };
+        let checks = [
+            ("states", "states", number("states")),
+            ("rg_edges", "edges", number("edges")),
+            (
+                "max_tokens_in_place",
+                "max_tokens_in_place",
+                number("max_tokens_in_place"),
+            ),
+            (
+                "max_tokens_per_marking",
+                "max_tokens_per_marking",
+                number("max_tokens_per_marking"),
+            ),
+            ("deadlock", "deadlock", verdict("deadlock")),
+            ("one_safe", "safe", verdict("safe")),
+            ("quasi_live", "quasi_live", verdict("quasi_live")),
+            ("live", "live", verdict("live")),
+            (
+                "p_flow_basis_dim",
+                "p_flow_basis_dim",
+                number("p_flow_basis_dim"),
+            ),
+            (
+                "t_flow_basis_dim",
+                "t_flow_basis_dim",
+                number("t_flow_basis_dim"),
+            ),
+        ];
+        for (column, key, value) in checks {
+            let expected = &model[column];
+            if !expected.is_empty() && *expected != value {
+                mismatches.push(format!(
+                    "{}: {key} = {value}, certified {expected}",
+                    model["model"]
+                ));
+            }
+        }
+        if got["deadlock"] == true {
+            assert!(
+                got["deadlock_trace"].is_array(),
+                "{}: a deadlock comes with its trace",
+                model["model"]
+            );
+        }
+        checked += 1;
+    }
+    assert!(
+        mismatches.is_empty(),
+        "{} mismatches:\n{}",
+        mismatches.len(),
+        mismatches.join("\n")
+    );
+    assert!(checked >= 60, "only {checked} models checked");
+}
