@@ -9,7 +9,13 @@ use std::time::Instant;
 use anyhow::Result;
 use clap::Subcommand;
 use serde::Serialize;
-use vl_petri::{ExploreError, Net, Options, Progress, analyze, explore, from_pnml};
+use vl_petri::invariants::{
+    Invariant, TooManyInvariants, is_conservative, p_invariants, t_invariants,
+};
+use vl_petri::{
+    Coverability, CoverabilityError, ExploreError, Net, OMEGA, Options, Progress, StateSpace,
+    analyze, coverability, explore, from_pnml, graph_to_dot, net_to_dot,
+};
 
 use crate::BadInput;
 use crate::alloc::peak_bytes;
@@ -28,7 +34,46 @@ pub enum PetriCommand {
         #[arg(long, default_value_t = 100_000_000)]
         max_states: usize,
     },
+    /// Karp–Miller coverability: is the net bounded, which places are not,
+    /// and the maximal ω-markings that cover every reachable marking.
+    Coverability {
+        net: PathBuf,
+        #[arg(long)]
+        json: bool,
+        /// Also write the coverability graph as Graphviz DOT to this file.
+        #[arg(long)]
+        dot: Option<PathBuf>,
+        /// Give up past this many graph nodes.
+        #[arg(long, default_value_t = 10_000_000)]
+        max_nodes: usize,
+    },
+    /// Minimal semi-positive P- and T-invariants (Farkas / Martinez–Silva).
+    Invariants {
+        net: PathBuf,
+        #[arg(long)]
+        json: bool,
+        /// Give up when the algorithm holds more rows than this.
+        #[arg(long, default_value_t = 200_000)]
+        max_rows: usize,
+    },
+    /// Print the net, or its reachability graph, as Graphviz DOT.
+    Dot {
+        net: PathBuf,
+        /// Draw the reachability graph instead of the net.
+        #[arg(long)]
+        reachability: bool,
+        /// Refuse reachability graphs larger than this.
+        #[arg(long, default_value_t = 10_000)]
+        max_states: usize,
+    },
 }
+
+/// Rows the Farkas algorithm may hold while `analyze` decides conservativeness.
+const CONSERVATIVE_ROWS: usize = 20_000;
+
+/// Nodes the boundedness pre-check of `analyze` may build before leaving
+/// the question to full exploration.
+const QUICK_COVERABILITY_NODES: usize = 100_000;
 
 pub fn run(command: PetriCommand) -> Result<ExitCode> {
     match command {
@@ -37,6 +82,22 @@ pub fn run(command: PetriCommand) -> Result<ExitCode> {
             json,
             max_states,
         } => analyze_command(&net, json, max_states),
+        PetriCommand::Coverability {
+            net,
+            json,
+            dot,
+            max_nodes,
+        } => coverability_command(&net, json, dot.as_deref(), max_nodes),
+        PetriCommand::Invariants {
+            net,
+            json,
+            max_rows,
+        } => invariants_command(&net, json, max_rows),
+        PetriCommand::Dot {
+            net,
+            reachability,
+            max_states,
+        } => dot_command(&net, reachability, max_states),
     }
 }
 
@@ -48,6 +109,8 @@ fn load(path: &Path) -> Result<Net> {
 }
 
 /// `vl petri analyze --json`: the keys a program reads.
+/// Properties that need the full reachability graph are null for an
+/// unbounded net.
 #[derive(Serialize)]
 struct AnalyzeReport {
     places: usize,
@@ -55,14 +118,16 @@ struct AnalyzeReport {
     states: Option<usize>,
     edges: Option<usize>,
     bounded: bool,
-    max_tokens_in_place: u32,
-    max_tokens_per_marking: u64,
+    max_tokens_in_place: Option<u32>,
+    max_tokens_per_marking: Option<u64>,
     safe: bool,
-    deadlock: bool,
+    deadlock: Option<bool>,
     deadlock_trace: Option<Vec<String>>,
-    quasi_live: bool,
-    live: bool,
-    reversible: bool,
+    quasi_live: Option<bool>,
+    live: Option<bool>,
+    reversible: Option<bool>,
+    /// Null when the net has too many minimal P-invariants to decide it this way.
+    conservative: Option<bool>,
     p_flow_basis_dim: usize,
     t_flow_basis_dim: usize,
     seconds: f64,
@@ -72,32 +137,14 @@ struct AnalyzeReport {
 fn analyze_command(path: &Path, json: bool, max_states: usize) -> Result<ExitCode> {
     let net = load(path)?;
     let started = Instant::now();
-    let show_progress = std::io::stderr().is_terminal();
-    let mut report_progress = |p: Progress| {
-        eprint!(
-            "\r{:>12} states {:>14} edges {:>10.0} states/s",
-            p.states,
-            p.edges,
-            p.states as f64 / p.elapsed.as_secs_f64().max(1e-9)
-        );
-    };
-    let options = Options {
-        max_states,
-        progress: show_progress.then_some(&mut report_progress as &mut dyn FnMut(Progress)),
-    };
-    let space = match explore(&net, options) {
-        Ok(space) => space,
-        Err(e @ ExploreError::TooManyStates { .. }) => {
-            if show_progress {
-                eprintln!();
-            }
-            anyhow::bail!("{}: {e}; raise --max-states to go on", path.display());
-        }
-        Err(e) => anyhow::bail!("{}: {e}", path.display()),
-    };
-    if show_progress {
-        eprint!("\r{:78}\r", "");
+    // Karp–Miller settles boundedness first when it can do so cheaply: an
+    // unbounded net would otherwise explore until --max-states.
+    if let Ok(c) = coverability(&net, QUICK_COVERABILITY_NODES)
+        && !c.bounded()
+    {
+        return report_unbounded(&net, &c, started, json);
     }
+    let space = explore_with_progress(&net, path, max_states)?;
     let a = analyze(&net, &space);
     let report = AnalyzeReport {
         places: a.places,
@@ -105,14 +152,15 @@ fn analyze_command(path: &Path, json: bool, max_states: usize) -> Result<ExitCod
         states: Some(a.states),
         edges: Some(a.edges),
         bounded: a.bounded,
-        max_tokens_in_place: a.max_tokens_in_place,
-        max_tokens_per_marking: a.max_tokens_per_marking,
+        max_tokens_in_place: Some(a.max_tokens_in_place),
+        max_tokens_per_marking: Some(a.max_tokens_per_marking),
         safe: a.safe,
-        deadlock: a.deadlock,
+        deadlock: Some(a.deadlock),
         deadlock_trace: a.deadlock_trace.clone(),
-        quasi_live: a.quasi_live,
-        live: a.live,
-        reversible: a.reversible,
+        quasi_live: Some(a.quasi_live),
+        live: Some(a.live),
+        reversible: Some(a.reversible),
+        conservative: conservative(&net),
         p_flow_basis_dim: a.p_flow_basis_dim,
         t_flow_basis_dim: a.t_flow_basis_dim,
         seconds: started.elapsed().as_secs_f64(),
@@ -175,5 +223,261 @@ fn analyze_command(path: &Path, json: bool, max_states: usize) -> Result<ExitCod
     for (name, value) in rows {
         println!("{name:<14} {value}");
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Explores the reachability graph, showing progress on a terminal.
+fn explore_with_progress(net: &Net, path: &Path, max_states: usize) -> Result<StateSpace> {
+    let show_progress = std::io::stderr().is_terminal();
+    let mut report_progress = |p: Progress| {
+        eprint!(
+            "\r{:>12} states {:>14} edges {:>10.0} states/s",
+            p.states,
+            p.edges,
+            p.states as f64 / p.elapsed.as_secs_f64().max(1e-9)
+        );
+    };
+    let options = Options {
+        max_states,
+        progress: show_progress.then_some(&mut report_progress as &mut dyn FnMut(Progress)),
+    };
+    let result = explore(net, options);
+    if show_progress {
+        eprint!("\r{:78}\r", "");
+    }
+    match result {
+        Ok(space) => Ok(space),
+        Err(e @ ExploreError::TooManyStates { .. }) => {
+            anyhow::bail!("{}: {e}; raise --max-states to go on", path.display())
+        }
+        Err(e) => anyhow::bail!("{}: {e}", path.display()),
+    }
+}
+
+fn report_unbounded(net: &Net, c: &Coverability, started: Instant, json: bool) -> Result<ExitCode> {
+    let unbounded: Vec<&str> = c
+        .unbounded
+        .iter()
+        .map(|&p| net.places[p].id.as_str())
+        .collect();
+    if json {
+        let report = AnalyzeReport {
+            places: net.places.len(),
+            transitions: net.transitions.len(),
+            states: None,
+            edges: None,
+            bounded: false,
+            max_tokens_in_place: None,
+            max_tokens_per_marking: None,
+            safe: false,
+            deadlock: None,
+            deadlock_trace: None,
+            quasi_live: None,
+            live: None,
+            reversible: None,
+            conservative: conservative(net),
+            p_flow_basis_dim: net.places.len() - vl_petri::incidence_rank(net),
+            t_flow_basis_dim: net.transitions.len() - vl_petri::incidence_rank(net),
+            seconds: started.elapsed().as_secs_f64(),
+            peak_bytes: peak_bytes(),
+        };
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!(
+            "{:<14} {} ({} places, {} transitions)",
+            "net",
+            net.id,
+            net.places.len(),
+            net.transitions.len()
+        );
+        println!(
+            "{:<14} no: {} can grow without limit",
+            "bounded",
+            unbounded.join(", ")
+        );
+        println!("{:<14} see `vl petri coverability` for the ω-markings", "");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// An ω-marking as JSON: place id → count or "ω", empty places left out.
+fn omega_marking(net: &Net, m: &[u32]) -> serde_json::Map<String, serde_json::Value> {
+    m.iter()
+        .zip(&net.places)
+        .filter(|(v, _)| **v > 0)
+        .map(|(&v, p)| {
+            let value = if v == OMEGA {
+                serde_json::json!("ω")
+            } else {
+                serde_json::json!(v)
+            };
+            (p.id.clone(), value)
+        })
+        .collect()
+}
+
+fn coverability_command(
+    path: &Path,
+    json: bool,
+    dot: Option<&Path>,
+    max_nodes: usize,
+) -> Result<ExitCode> {
+    let net = load(path)?;
+    let c = coverability(&net, max_nodes).map_err(|e| match e {
+        CoverabilityError::TooLarge(_) => anyhow::anyhow!("{}: {e}", path.display()),
+        refused => BadInput(format!("{}: {refused}", path.display())).into(),
+    })?;
+    if let Some(file) = dot {
+        let picture = graph_to_dot(
+            &net,
+            &format!("coverability of {}", net.id),
+            &c.nodes,
+            &c.edges,
+        );
+        std::fs::write(file, picture)
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", file.display()))?;
+    }
+    let unbounded: Vec<String> = c
+        .unbounded
+        .iter()
+        .map(|&p| net.places[p].id.clone())
+        .collect();
+    let maximal: Vec<_> = c
+        .maximal()
+        .into_iter()
+        .map(|m| omega_marking(&net, m))
+        .collect();
+    if json {
+        let report = serde_json::json!({
+            "bounded": c.bounded(),
+            "unbounded_places": unbounded,
+            "maximal": maximal,
+            "nodes": c.nodes.len(),
+        });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!(
+            "{:<18} {}",
+            "bounded",
+            if c.bounded() { "yes" } else { "no" }
+        );
+        println!(
+            "{:<18} {}",
+            "unbounded places",
+            if unbounded.is_empty() {
+                "–".to_owned()
+            } else {
+                unbounded.join(", ")
+            }
+        );
+        println!("{:<18} {}", "graph nodes", c.nodes.len());
+        println!("maximal markings:");
+        for m in &maximal {
+            let cells: Vec<String> = m
+                .iter()
+                .map(|(p, v)| {
+                    format!(
+                        "{p}={}",
+                        v.as_str().map_or_else(|| v.to_string(), str::to_owned)
+                    )
+                })
+                .collect();
+            println!("  {{{}}}", cells.join(", "));
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn dot_command(path: &Path, reachability: bool, max_states: usize) -> Result<ExitCode> {
+    let net = load(path)?;
+    if !reachability {
+        print!("{}", net_to_dot(&net));
+        return Ok(ExitCode::SUCCESS);
+    }
+    let space = explore_with_progress(&net, path, max_states)?;
+    let nodes: Vec<Vec<u32>> = (0..space.states()).map(|s| space.marking(s).0).collect();
+    let edges: Vec<(usize, usize, usize)> = (0..space.states())
+        .flat_map(|s| space.successors(s).map(move |(t, to)| (s, t, to)))
+        .collect();
+    print!(
+        "{}",
+        graph_to_dot(&net, &format!("reachability of {}", net.id), &nodes, &edges)
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Whether a positive weighting of all places is invariant, if the minimal
+/// P-invariants can be listed.
+fn conservative(net: &Net) -> Option<bool> {
+    let invariants = p_invariants(net, CONSERVATIVE_ROWS).ok()?;
+    Some(is_conservative(net.places.len(), &invariants))
+}
+
+fn invariants_command(path: &Path, json: bool, max_rows: usize) -> Result<ExitCode> {
+    let net = load(path)?;
+    let describe = |e: TooManyInvariants| {
+        anyhow::anyhow!("{}: {e}; raise --max-rows to go on", path.display())
+    };
+    let p = p_invariants(&net, max_rows).map_err(describe)?;
+    let t = t_invariants(&net, max_rows).map_err(describe)?;
+    let rank = vl_petri::incidence_rank(&net);
+    let place_ids: Vec<&str> = net.places.iter().map(|p| p.id.as_str()).collect();
+    let transition_ids: Vec<&str> = net.transitions.iter().map(|t| t.id.as_str()).collect();
+    let as_map = |inv: &Invariant, ids: &[&str]| -> serde_json::Map<String, serde_json::Value> {
+        inv.iter()
+            .map(|&(i, k)| (ids[i].to_owned(), serde_json::json!(k)))
+            .collect()
+    };
+    if json {
+        let report = serde_json::json!({
+            "p_invariants": p.iter().map(|i| as_map(i, &place_ids)).collect::<Vec<_>>(),
+            "t_invariants": t.iter().map(|i| as_map(i, &transition_ids)).collect::<Vec<_>>(),
+            "p_flow_basis_dim": net.places.len() - rank,
+            "t_flow_basis_dim": net.transitions.len() - rank,
+            "conservative": is_conservative(net.places.len(), &p),
+        });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    let sum = |inv: &Invariant, ids: &[&str]| -> String {
+        inv.iter()
+            .map(|&(i, k)| {
+                if k == 1 {
+                    ids[i].to_owned()
+                } else {
+                    format!("{k}·{}", ids[i])
+                }
+            })
+            .collect::<Vec<_>>()
+            .join(" + ")
+    };
+    println!(
+        "{} minimal P-invariants (P-flow basis dimension {}):",
+        p.len(),
+        net.places.len() - rank
+    );
+    for inv in &p {
+        let m0: u64 = inv
+            .iter()
+            .map(|&(i, k)| k * u64::from(net.places[i].initial))
+            .sum();
+        println!("  {} = {m0}", sum(inv, &place_ids));
+    }
+    println!(
+        "{} minimal T-invariants (T-flow basis dimension {}):",
+        t.len(),
+        net.transitions.len() - rank
+    );
+    for inv in &t {
+        println!("  {}", sum(inv, &transition_ids));
+    }
+    println!(
+        "conservative: {}",
+        if is_conservative(net.places.len(), &p) {
+            "yes"
+        } else {
+            "no"
+        }
+    );
     Ok(ExitCode::SUCCESS)
 }

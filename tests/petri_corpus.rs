@@ -30,6 +30,7 @@ fn manifest() -> Vec<HashMap<String, String>> {
 fn analysis_matches_the_certified_answers() {
     let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/petri-corpus");
     let mut checked = 0;
+    let mut decided_conservative = 0;
     let mut mismatches = Vec::new();
     for model in manifest() {
         if model["tier"] == "large" {
@@ -91,6 +92,17 @@ fn analysis_matches_the_certified_answers() {
                 ));
             }
         }
+        // Not certified, but the LP check in the manifest must agree when we decide it.
+        if let Some(c) = got["conservative"].as_bool() {
+            let expected = model["conservative_weighted_derived"].to_lowercase();
+            if expected != c.to_string() {
+                mismatches.push(format!(
+                    "{}: conservative = {c}, LP check says {expected}",
+                    model["model"]
+                ));
+            }
+            decided_conservative += 1;
+        }
         if got["deadlock"] == true {
             assert!(
                 got["deadlock_trace"].is_array(),
@@ -107,4 +119,8 @@ fn analysis_matches_the_certified_answers() {
         mismatches.join("\n")
     );
     assert!(checked >= 60, "only {checked} models checked");
+    assert!(
+        decided_conservative >= 30,
+        "conservativeness decided for only {decided_conservative} models"
+    );
 }

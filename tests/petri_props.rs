@@ -6,7 +6,10 @@
 use std::collections::{HashSet, VecDeque};
 
 use proptest::prelude::*;
-use vl_petri::{ArcKind, Marking, Net, Options, analyze, explore, from_pnml, to_pnml};
+use vl_petri::invariants::{p_invariants, t_invariants};
+use vl_petri::{
+    ArcKind, Marking, Net, OMEGA, Options, analyze, coverability, explore, from_pnml, to_pnml,
+};
 
 /// A random net: 1–5 places, 1–5 transitions, weights 1–3.
 fn net() -> impl Strategy<Value = Net> {
@@ -26,7 +29,9 @@ fn net() -> impl Strategy<Value = Net> {
                     net.places[p.0].capacity = cap.map(|c| c.max(m));
                 }
                 for (t, (arcs, label)) in arcs.iter().zip(&labels).enumerate() {
-                    let id = net.add_transition(&format!("t{t}"), label.as_deref()).unwrap();
+                    let id = net
+                        .add_transition(&format!("t{t}"), label.as_deref())
+                        .unwrap();
                     for &(p, w, kind) in arcs {
                         let kind = match kind {
                             0..=4 => ArcKind::Input,
@@ -128,4 +133,98 @@ proptest! {
         prop_assert_eq!(a.max_tokens_in_place, max);
         prop_assert_eq!(a.safe, max <= 1);
     }
+}
+
+/// The same random nets without inhibitor arcs or capacities (monotone nets,
+/// where Karp–Miller is sound).
+fn monotone_net() -> impl Strategy<Value = Net> {
+    net().prop_map(|mut n| {
+        n.places.iter_mut().for_each(|p| p.capacity = None);
+        n.transitions.iter_mut().for_each(|t| t.inhibit.clear());
+        n
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    #[test]
+    fn karp_miller_covers_every_reachable_marking(net in monotone_net()) {
+        let c = coverability(&net, 20_000).unwrap();
+        let maximal = c.maximal();
+        // Every marking explored (all of them when bounded, the first few
+        // thousand otherwise) is covered by a maximal ω-marking.
+        let space = explore(&net, Options { max_states: LIMIT, progress: None });
+        let markings: Vec<Marking> = match &space {
+            Ok(space) => (0..space.states()).map(|s| space.marking(s)).collect(),
+            Err(_) => naive_prefix(&net),
+        };
+        for m in &markings {
+            prop_assert!(
+                maximal.iter().any(|k| k.iter().zip(&m.0).all(|(a, b)| a >= b)),
+                "{:?} is not covered", m
+            );
+        }
+        // An unbounded net cannot be explored to the end; a bounded one has no ω.
+        if !c.bounded() {
+            prop_assert!(space.is_err());
+        } else {
+            prop_assert!(maximal.iter().all(|k| k.iter().all(|&v| v != OMEGA)));
+        }
+    }
+
+    #[test]
+    fn invariants_are_invariant(net in monotone_net()) {
+        let c = net.incidence();
+        let p = p_invariants(&net, 10_000).unwrap();
+        for y in &p {
+            let y_c: Vec<i64> = (0..net.transitions.len())
+                .map(|t| y.iter().map(|&(i, k)| k as i64 * c[i][t]).sum())
+                .collect();
+            prop_assert!(y_c.iter().all(|&v| v == 0), "yᵀC = {:?} for {:?}", y_c, y);
+        }
+        for x in &t_invariants(&net, 10_000).unwrap() {
+            for row in &c {
+                let dot: i64 = x.iter().map(|&(j, k)| k as i64 * row[j]).sum();
+                prop_assert_eq!(dot, 0, "Cx ≠ 0 for {:?}", x);
+            }
+        }
+        // Minimal supports: none contains another.
+        for (i, a) in p.iter().enumerate() {
+            for (j, b) in p.iter().enumerate() {
+                if i != j {
+                    prop_assert!(!a.iter().all(|(pa, _)| b.iter().any(|(pb, _)| pa == pb)));
+                }
+            }
+        }
+        // A P-invariant's weighted token count is the same in every reachable marking.
+        if let Ok(space) = explore(&net, Options { max_states: LIMIT, progress: None }) {
+            for y in &p {
+                let count = |m: &Marking| y.iter().map(|&(i, k)| k * u64::from(m.0[i])).sum::<u64>();
+                let m0 = count(&net.initial_marking());
+                prop_assert!((0..space.states()).all(|s| count(&space.marking(s)) == m0));
+            }
+        }
+    }
+}
+
+/// The first LIMIT markings reached by plain BFS.
+fn naive_prefix(net: &Net) -> Vec<Marking> {
+    let m0 = net.initial_marking();
+    let mut seen = vec![m0.clone()];
+    let mut known = HashSet::from([m0.clone()]);
+    let mut queue = VecDeque::from([m0]);
+    while let Some(m) = queue.pop_front() {
+        for t in net.enabled(&m).collect::<Vec<_>>() {
+            let next = net.fire(&m, t).unwrap();
+            if known.insert(next.clone()) {
+                seen.push(next.clone());
+                if seen.len() >= LIMIT {
+                    return seen;
+                }
+                queue.push_back(next);
+            }
+        }
+    }
+    seen
 }

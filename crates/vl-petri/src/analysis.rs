@@ -79,8 +79,7 @@ pub fn analyze(net: &Net, space: &StateSpace) -> Analysis {
 
     let components = strongly_connected(space);
     let liveness = liveness(space, &components, transitions);
-    let c = net.incidence();
-    let r = rank(&c);
+    let r = incidence_rank(net);
     Analysis {
         places: net.places.len(),
         transitions,
@@ -246,4 +245,10 @@ fn liveness(space: &StateSpace, components: &Components, transitions: usize) -> 
             }
         })
         .collect()
+}
+
+/// The rank of the net's incidence matrix: |P| − rank is the dimension of
+/// the P-flow (place invariant) basis, |T| − rank that of the T-flow basis.
+pub fn incidence_rank(net: &Net) -> usize {
+    rank(&net.incidence())
 }

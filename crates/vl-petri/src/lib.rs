@@ -2,15 +2,21 @@
 //!
 //! [`net`] holds the model and its firing rule (the session supervisor in
 //! `vl-core` runs it live), [`pnml`] moves nets in and out, [`explore`]
-//! builds the reachability graph and [`analysis`] reads properties off it.
+//! builds the reachability graph and [`analysis`] reads properties off it;
+//! [`coverability`] decides boundedness with Karp–Miller; [`dot`] draws.
 
 pub mod analysis;
+pub mod coverability;
+pub mod dot;
 pub mod explore;
+pub mod invariants;
 mod linalg;
 pub mod net;
 pub mod pnml;
 
-pub use analysis::{Analysis, Liveness, analyze};
+pub use analysis::{Analysis, Liveness, analyze, incidence_rank};
+pub use coverability::{Coverability, CoverabilityError, OMEGA, coverability};
+pub use dot::{graph_to_dot, net_to_dot};
 pub use explore::{ExploreError, Options, Progress, StateSpace, explore};
 pub use net::{
     Arc, ArcKind, Marking, MarkingDisplay, Net, NetError, Place, PlaceId, Transition, TransitionId,

@@ -1,0 +1,111 @@
+//! Graphviz DOT pictures: of a net (places as circles with their tokens,
+//! transitions as boxes, inhibitor arcs ending in a circle) and of a state
+//! graph (reachability graph or coverability graph, markings as labels).
+
+use std::fmt::Write;
+
+use crate::coverability::OMEGA;
+use crate::net::Net;
+
+fn quote(s: &str) -> String {
+    format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
+}
+
+/// The net drawn with its initial marking.
+pub fn net_to_dot(net: &Net) -> String {
+    let mut out = format!("digraph {} {{\n  rankdir=LR;\n", quote(&net.id));
+    for p in &net.places {
+        let tokens = match p.initial {
+            0 => String::new(),
+            1 => "●".to_owned(),
+            n => n.to_string(),
+        };
+        let cap = p.capacity.map(|c| format!(" ≤{c}")).unwrap_or_default();
+        let _ = writeln!(
+            out,
+            "  {} [shape=circle, label={}, xlabel={}];",
+            quote(&format!("p:{}", p.id)),
+            quote(&tokens),
+            quote(&format!("{}{cap}", p.name))
+        );
+    }
+    for t in &net.transitions {
+        let label = match &t.label {
+            Some(l) if *l != t.name => format!("{}\n⟨{l}⟩", t.name),
+            _ => t.name.clone(),
+        };
+        let _ = writeln!(
+            out,
+            "  {} [shape=box, style=filled, fillcolor=gray90, label={}];",
+            quote(&format!("t:{}", t.id)),
+            quote(&label)
+        );
+    }
+    for t in &net.transitions {
+        let tid = quote(&format!("t:{}", t.id));
+        let weight = |w: u32| {
+            if w > 1 {
+                format!(" [label={w}]")
+            } else {
+                String::new()
+            }
+        };
+        for a in &t.pre {
+            let pid = quote(&format!("p:{}", net.places[a.place.0].id));
+            let _ = writeln!(out, "  {pid} -> {tid}{};", weight(a.weight));
+        }
+        for a in &t.post {
+            let pid = quote(&format!("p:{}", net.places[a.place.0].id));
+            let _ = writeln!(out, "  {tid} -> {pid}{};", weight(a.weight));
+        }
+        for a in &t.inhibit {
+            let pid = quote(&format!("p:{}", net.places[a.place.0].id));
+            let label = if a.weight > 1 {
+                format!(", label={}", a.weight)
+            } else {
+                String::new()
+            };
+            let _ = writeln!(out, "  {pid} -> {tid} [arrowhead=odot{label}];");
+        }
+    }
+    out.push_str("}\n");
+    out
+}
+
+/// A state graph: `nodes` are markings (ω allowed), `edges` are
+/// (from, transition, to); the first node is the initial one.
+pub fn graph_to_dot(
+    net: &Net,
+    title: &str,
+    nodes: &[Vec<u32>],
+    edges: &[(usize, usize, usize)],
+) -> String {
+    let mut out = format!("digraph {} {{\n", quote(title));
+    for (i, m) in nodes.iter().enumerate() {
+        let marked: Vec<String> = m
+            .iter()
+            .zip(&net.places)
+            .filter(|(v, _)| **v > 0)
+            .map(|(&v, p)| match v {
+                1 => p.id.clone(),
+                OMEGA => format!("{}:ω", p.id),
+                v => format!("{}:{v}", p.id),
+            })
+            .collect();
+        let style = if i == 0 { ", style=bold" } else { "" };
+        let _ = writeln!(
+            out,
+            "  s{i} [shape=box{style}, label={}];",
+            quote(&marked.join("\n"))
+        );
+    }
+    for &(from, t, to) in edges {
+        let _ = writeln!(
+            out,
+            "  s{from} -> s{to} [label={}];",
+            quote(&net.transitions[t].id)
+        );
+    }
+    out.push_str("}\n");
+    out
+}
