@@ -9,12 +9,13 @@ use std::time::Instant;
 use anyhow::Result;
 use clap::Subcommand;
 use serde::Serialize;
+use vl_petri::control::{Added, Constraint, ControlError, Limits, synthesize};
 use vl_petri::invariants::{
     Invariant, TooManyInvariants, is_conservative, p_invariants, t_invariants,
 };
 use vl_petri::{
     Coverability, CoverabilityError, ExploreError, Net, OMEGA, Options, Progress, StateSpace,
-    analyze, coverability, explore, from_pnml, graph_to_dot, net_to_dot,
+    analyze, coverability, explore, from_pnml, graph_to_dot, net_to_dot, to_pnml,
 };
 
 use crate::BadInput;
@@ -56,6 +57,23 @@ pub enum PetriCommand {
         #[arg(long, default_value_t = 200_000)]
         max_rows: usize,
     },
+    /// Add controller places and arcs that enforce constraints on the net:
+    /// 'p1 + 2*p3 <= 1' by a monitor place, 'if p2 then not t4' by an inhibitor arc.
+    Control {
+        net: PathBuf,
+        /// A constraint; repeat for several.
+        #[arg(long = "constraint", required = true)]
+        constraints: Vec<String>,
+        /// Transitions the controller may not disable (comma-separated).
+        #[arg(long, value_delimiter = ',')]
+        uncontrollable: Vec<String>,
+        /// Transitions the controller cannot observe (comma-separated).
+        #[arg(long, value_delimiter = ',')]
+        unobservable: Vec<String>,
+        /// Where to write the controlled net (PNML).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Print the net, or its reachability graph, as Graphviz DOT.
     Dot {
         net: PathBuf,
@@ -93,6 +111,13 @@ pub fn run(command: PetriCommand) -> Result<ExitCode> {
             json,
             max_rows,
         } => invariants_command(&net, json, max_rows),
+        PetriCommand::Control {
+            net,
+            constraints,
+            uncontrollable,
+            unobservable,
+            output,
+        } => control_command(&net, &constraints, uncontrollable, unobservable, &output),
         PetriCommand::Dot {
             net,
             reachability,
@@ -480,4 +505,46 @@ fn invariants_command(path: &Path, json: bool, max_rows: usize) -> Result<ExitCo
         }
     );
     Ok(ExitCode::SUCCESS)
+}
+
+fn control_command(
+    path: &Path,
+    constraints: &[String],
+    uncontrollable: Vec<String>,
+    unobservable: Vec<String>,
+    output: &Path,
+) -> Result<ExitCode> {
+    let plant = load(path)?;
+    let bad = |e: ControlError| BadInput(format!("{}: {e}", path.display()));
+    let constraints = constraints
+        .iter()
+        .map(|c| Constraint::parse(c))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(bad)?;
+    let limits = Limits {
+        uncontrollable,
+        unobservable,
+    };
+    let (net, added) = synthesize(&plant, &constraints, &limits).map_err(bad)?;
+    write_file(output, &to_pnml(&net))?;
+    for a in &added {
+        match a {
+            Added::Monitor {
+                place,
+                initial,
+                enforced,
+            } => {
+                println!("monitor place {place:<12} m0 = {initial:<4} enforces {enforced}")
+            }
+            Added::Inhibitor { place, transition } => {
+                println!("inhibitor arc {place} ⊸ {transition}")
+            }
+        }
+    }
+    println!("wrote {}", output.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn write_file(path: &Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
 }

@@ -6,6 +6,7 @@
 use std::collections::{HashSet, VecDeque};
 
 use proptest::prelude::*;
+use vl_petri::control::{Constraint, Limits, synthesize};
 use vl_petri::invariants::{p_invariants, t_invariants};
 use vl_petri::{
     ArcKind, Marking, Net, OMEGA, Options, analyze, coverability, explore, from_pnml, to_pnml,
@@ -227,4 +228,138 @@ fn naive_prefix(net: &Net) -> Vec<Marking> {
         }
     }
     seen
+}
+
+/// A linear constraint over `net` that its initial marking satisfies.
+fn constraint_for(net: &Net, coefficients: &[i64], slack: i64) -> (Vec<i64>, Constraint) {
+    let l: Vec<i64> = (0..net.places.len())
+        .map(|p| coefficients[p % coefficients.len()])
+        .collect();
+    let value: i64 = l
+        .iter()
+        .zip(&net.places)
+        .map(|(k, p)| k * i64::from(p.initial))
+        .sum();
+    let terms = l
+        .iter()
+        .enumerate()
+        .filter(|(_, k)| **k != 0)
+        .map(|(p, &k)| (net.places[p].id.clone(), k))
+        .collect();
+    (
+        l,
+        Constraint::Linear {
+            terms,
+            bound: value + slack,
+        },
+    )
+}
+
+fn satisfies(l: &[i64], bound: i64, m: &[u32]) -> bool {
+    l.iter().zip(m).map(|(k, &v)| k * i64::from(v)).sum::<i64>() <= bound
+}
+
+/// Plant markings reachable without ever leaving the constraint (plain BFS).
+fn reachable_within(net: &Net, l: &[i64], bound: i64) -> Option<HashSet<Vec<u32>>> {
+    let m0 = net.initial_marking();
+    let mut seen = HashSet::from([m0.0.clone()]);
+    let mut queue = VecDeque::from([m0]);
+    while let Some(m) = queue.pop_front() {
+        for t in net.enabled(&m).collect::<Vec<_>>() {
+            let next = net.fire(&m, t).ok()?;
+            if satisfies(l, bound, &next.0) && seen.insert(next.0.clone()) {
+                if seen.len() > LIMIT {
+                    return None;
+                }
+                queue.push_back(next);
+            }
+        }
+    }
+    Some(seen)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    #[test]
+    fn a_linear_controller_is_exact_when_everything_is_controllable(
+        net in net(),
+        coefficients in proptest::collection::vec(-1i64..=2, 1..5),
+        slack in 0i64..3,
+    ) {
+        let (l, constraint) = constraint_for(&net, &coefficients, slack);
+        let Constraint::Linear { bound, .. } = constraint else { unreachable!() };
+        let (controlled, _) = synthesize(&net, &[constraint], &Limits::default()).unwrap();
+        let Ok(space) = explore(&controlled, Options { max_states: LIMIT, progress: None }) else {
+            return Ok(());
+        };
+        let Some(expected) = reachable_within(&net, &l, bound) else { return Ok(()) };
+        let plant_places = net.places.len();
+        let mut got = HashSet::new();
+        for s in 0..space.states() {
+            let m = space.marking(s).0;
+            prop_assert!(satisfies(&l, bound, &m[..plant_places]), "{:?} breaks the constraint", m);
+            // The monitor holds exactly the slack.
+            let slack_now = bound - l.iter().zip(&m).map(|(k, &v)| k * i64::from(v)).sum::<i64>();
+            prop_assert_eq!(i64::from(m[plant_places]), slack_now);
+            got.insert(m[..plant_places].to_vec());
+        }
+        prop_assert_eq!(got, expected, "maximally permissive: exactly the markings reachable inside the constraint");
+    }
+
+    #[test]
+    fn with_uncontrollable_transitions_the_constraint_still_holds(
+        net in monotone_net(),
+        coefficients in proptest::collection::vec(0i64..=2, 1..5),
+        slack in 0i64..3,
+        uncontrollable in proptest::collection::vec(any::<bool>(), 5),
+    ) {
+        let (l, constraint) = constraint_for(&net, &coefficients, slack);
+        let Constraint::Linear { bound, .. } = constraint else { unreachable!() };
+        let limits = Limits {
+            uncontrollable: net.transitions.iter().zip(&uncontrollable).filter(|(_, u)| **u).map(|(t, _)| t.id.clone()).collect(),
+            ..Limits::default()
+        };
+        // Refusal is a valid answer; a controller, when given, must be right.
+        let Ok((controlled, _)) = synthesize(&net, &[constraint], &limits) else { return Ok(()) };
+        let Ok(space) = explore(&controlled, Options { max_states: LIMIT, progress: None }) else {
+            return Ok(());
+        };
+        let plant_places = net.places.len();
+        for s in 0..space.states() {
+            let m = space.marking(s);
+            prop_assert!(satisfies(&l, bound, &m.0[..plant_places]));
+            // An uncontrollable transition the plant allows is never blocked by the controller.
+            let plant_m = Marking(m.0[..plant_places].to_vec());
+            for id in &limits.uncontrollable {
+                let t = net.transition(id).unwrap();
+                if net.is_enabled(&plant_m, t) {
+                    prop_assert!(controlled.is_enabled(&m, t), "{} was disabled", id);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn an_if_then_controller_never_fires_t_while_p_is_marked(
+        net in net(),
+        p in 0usize..5,
+        t in 0usize..5,
+    ) {
+        let place = net.places[p % net.places.len()].id.clone();
+        let transition = net.transitions[t % net.transitions.len()].id.clone();
+        let rule = Constraint::IfThenNot { place: place.clone(), transition: transition.clone() };
+        let (controlled, _) = synthesize(&net, &[rule], &Limits::default()).unwrap();
+        let Ok(space) = explore(&controlled, Options { max_states: LIMIT, progress: None }) else {
+            return Ok(());
+        };
+        let (pi, ti) = (controlled.place(&place).unwrap(), controlled.transition(&transition).unwrap());
+        for s in 0..space.states() {
+            for (fired, _) in space.successors(s) {
+                if fired == ti.0 {
+                    prop_assert_eq!(space.marking(s).tokens(pi), 0, "{} fired while {} was marked", transition, place);
+                }
+            }
+        }
+    }
 }

@@ -142,7 +142,8 @@ impl Net {
     }
 
     /// Adds an arc of `kind` between place `place` and transition `t`. Two
-    /// arcs of the same kind between the same nodes add their weights.
+    /// input or output arcs between the same nodes add their weights; two
+    /// inhibitor arcs keep the stricter (smaller) threshold.
     pub fn add_arc(
         &mut self,
         kind: ArcKind,
@@ -168,6 +169,7 @@ impl Net {
             ArcKind::Inhibitor => &mut tr.inhibit,
         };
         match arcs.iter_mut().find(|a| a.place == p) {
+            Some(a) if kind == ArcKind::Inhibitor => a.weight = a.weight.min(weight),
             Some(a) => a.weight = a.weight.saturating_add(weight),
             None => arcs.push(Arc { place: p, weight }),
         }
