@@ -6,6 +6,7 @@
 use std::collections::{HashSet, VecDeque};
 
 use proptest::prelude::*;
+use vl_petri::compose::{compose, fuse_parallel_places};
 use vl_petri::control::{Constraint, Limits, synthesize};
 use vl_petri::invariants::{p_invariants, t_invariants};
 use vl_petri::{
@@ -48,6 +49,18 @@ fn net() -> impl Strategy<Value = Net> {
 }
 
 const LIMIT: usize = 3000;
+
+/// The reachability graph, if it has at most LIMIT states.
+fn small(net: &Net) -> Option<vl_petri::StateSpace> {
+    explore(
+        net,
+        Options {
+            max_states: LIMIT,
+            progress: None,
+        },
+    )
+    .ok()
+}
 
 /// Breadth-first search with the net's own firing rule: the reference.
 fn naive(net: &Net) -> Option<(HashSet<Marking>, usize)> {
@@ -360,6 +373,41 @@ proptest! {
                     prop_assert_eq!(space.marking(s).tokens(pi), 0, "{} fired while {} was marked", transition, place);
                 }
             }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    /// Each component, seen through the composed net, only does what it
+    /// could do alone; nets with no label in common run side by side.
+    #[test]
+    fn composition_projects_onto_its_components(a in net(), b in net()) {
+        let (mut a, mut b) = (a, b);
+        a.id = "a".into();
+        b.id = "b".into();
+        let composed = compose(&[a.clone(), b.clone()]).unwrap();
+        let (Some(sa), Some(sb), Some(sc)) = (small(&a), small(&b), small(&composed)) else {
+            return Ok(());
+        };
+        let alone = |s: &vl_petri::StateSpace| (0..s.states()).map(|i| s.marking(i).0).collect::<HashSet<_>>();
+        let (ra, rb) = (alone(&sa), alone(&sb));
+        let na = a.places.len();
+        for s in 0..sc.states() {
+            let m = sc.marking(s).0;
+            prop_assert!(ra.contains(&m[..na]));
+            prop_assert!(rb.contains(&m[na..]));
+        }
+        let labels = |n: &Net| n.transitions.iter().filter_map(|t| t.label.clone()).collect::<HashSet<_>>();
+        if labels(&a).is_disjoint(&labels(&b)) {
+            prop_assert_eq!(sc.states(), sa.states() * sb.states());
+        }
+        // Fusing parallel places never changes what can happen.
+        let fused = fuse_parallel_places(&composed);
+        if let Some(sf) = small(&fused) {
+            prop_assert_eq!(sf.states(), sc.states());
+            prop_assert_eq!(sf.edges(), sc.edges());
         }
     }
 }

@@ -6,6 +6,7 @@
 //! [`coverability`] decides boundedness with Karp–Miller; [`dot`] draws.
 
 pub mod analysis;
+pub mod compose;
 pub mod control;
 pub mod coverability;
 pub mod dot;
