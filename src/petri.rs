@@ -14,6 +14,7 @@ use vl_petri::control::{Added, Constraint, ControlError, Limits, synthesize};
 use vl_petri::invariants::{
     Invariant, TooManyInvariants, is_conservative, p_invariants, t_invariants,
 };
+use vl_petri::scxml::from_scxml;
 use vl_petri::{
     Coverability, CoverabilityError, ExploreError, Net, OMEGA, Options, Progress, StateSpace,
     analyze, coverability, explore, from_pnml, graph_to_dot, net_to_dot, to_pnml,
@@ -88,6 +89,14 @@ pub enum PetriCommand {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Turn a UML statechart (SCXML) into a Petri net: a place per state, a
+    /// transition per statechart transition labelled with its event.
+    FromScxml {
+        chart: PathBuf,
+        /// Where to write the net (PNML).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Print the net, or its reachability graph, as Graphviz DOT.
     Dot {
         net: PathBuf,
@@ -137,6 +146,7 @@ pub fn run(command: PetriCommand) -> Result<ExitCode> {
             unobservable,
             output,
         } => control_command(&net, &constraints, uncontrollable, unobservable, &output),
+        PetriCommand::FromScxml { chart, output } => from_scxml_command(&chart, &output),
         PetriCommand::Dot {
             net,
             reachability,
@@ -588,5 +598,19 @@ fn compose_command(paths: &[PathBuf], fuse: bool, output: &Path) -> Result<ExitC
         net.transitions.len()
     );
     println!("wrote {}", output.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn from_scxml_command(path: &Path, output: &Path) -> Result<ExitCode> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())))?;
+    let net = from_scxml(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?;
+    write_file(output, &to_pnml(&net))?;
+    println!(
+        "{} places (states), {} transitions; wrote {}",
+        net.places.len(),
+        net.transitions.len(),
+        output.display()
+    );
     Ok(ExitCode::SUCCESS)
 }

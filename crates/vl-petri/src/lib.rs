@@ -15,6 +15,7 @@ pub mod invariants;
 mod linalg;
 pub mod net;
 pub mod pnml;
+pub mod scxml;
 
 pub use analysis::{Analysis, Liveness, analyze, incidence_rank};
 pub use coverability::{Coverability, CoverabilityError, OMEGA, coverability};

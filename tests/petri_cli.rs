@@ -1,0 +1,275 @@
+//! `vl petri` through its command line: the thesis's methodology end to end
+//! (statecharts → nets → composition → analysis → controller), and clear
+//! refusals of bad input with exit code 2.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn vl(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vl"))
+        .args(args)
+        .output()
+        .expect("vl runs")
+}
+
+fn ok_json(args: &[&str]) -> Value {
+    let out = vl(args);
+    assert!(
+        out.status.success(),
+        "vl {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("JSON on stdout")
+}
+
+/// A scratch directory for this test's files.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn example(name: &str) -> String {
+    format!("{}/examples/statecharts/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+#[test]
+fn statecharts_to_a_controlled_lab_net() {
+    let dir = scratch("methodology");
+    let (mount, execute, lab, controlled) = (
+        dir.join("mount.pnml"),
+        dir.join("execute.pnml"),
+        dir.join("lab.pnml"),
+        dir.join("controlled.pnml"),
+    );
+    assert!(
+        vl(&[
+            "petri",
+            "from-scxml",
+            &example("mount.scxml"),
+            "-o",
+            s(&mount)
+        ])
+        .status
+        .success()
+    );
+    assert!(
+        vl(&[
+            "petri",
+            "from-scxml",
+            &example("execute.scxml"),
+            "-o",
+            s(&execute)
+        ])
+        .status
+        .success()
+    );
+    assert!(
+        vl(&[
+            "petri",
+            "compose",
+            s(&mount),
+            s(&execute),
+            "-o",
+            s(&lab),
+            "--fuse-parallel-places"
+        ])
+        .status
+        .success()
+    );
+
+    let a = ok_json(&["petri", "analyze", "--json", s(&lab)]);
+    assert_eq!(a["states"], 6);
+    assert_eq!(a["bounded"], true);
+    assert_eq!(a["safe"], true);
+    assert_eq!(a["deadlock"], false);
+    assert_eq!(a["live"], true, "the experiment can always proceed");
+    assert_eq!(a["reversible"], true, "the lab can always return to idle");
+    assert_eq!(a["conservative"], true);
+    for key in [
+        "places",
+        "transitions",
+        "edges",
+        "max_tokens_in_place",
+        "max_tokens_per_marking",
+        "deadlock_trace",
+        "quasi_live",
+        "p_flow_basis_dim",
+        "t_flow_basis_dim",
+        "seconds",
+        "peak_bytes",
+    ] {
+        assert!(a.get(key).is_some(), "analyze --json lacks {key}");
+    }
+
+    // Forbid starting a run while the robot's last command is unanswered, and
+    // limit the lab to one defined experiment at a time.
+    let out = vl(&[
+        "petri",
+        "control",
+        s(&lab),
+        "--constraint",
+        "if execute.executed then not execute.t5_ready_start",
+        "--constraint",
+        "execute.ready + execute.running <= 1",
+        "-o",
+        s(&controlled),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(said.contains("monitor place monitor2"), "{said}");
+    assert!(
+        said.contains("inhibitor arc execute.executed ⊸ execute.t5_ready_start"),
+        "{said}"
+    );
+    let c = ok_json(&["petri", "analyze", "--json", s(&controlled)]);
+    assert_eq!(
+        c["places"],
+        a["places"].as_u64().unwrap() + 1,
+        "one monitor place added"
+    );
+    assert_eq!(c["deadlock"], false);
+
+    let inv = ok_json(&["petri", "invariants", "--json", s(&lab)]);
+    assert!(!inv["p_invariants"].as_array().unwrap().is_empty());
+    let dot = vl(&["petri", "dot", s(&controlled)]);
+    assert!(String::from_utf8_lossy(&dot.stdout).starts_with("digraph"));
+    let rg = vl(&["petri", "dot", "--reachability", s(&lab)]);
+    assert_eq!(
+        String::from_utf8_lossy(&rg.stdout)
+            .matches("[shape=box")
+            .count(),
+        6
+    );
+}
+
+#[test]
+fn unbounded_nets_are_reported_as_such() {
+    let dir = scratch("unbounded");
+    let net = dir.join("producer.pnml");
+    std::fs::write(&net, PRODUCER).unwrap();
+    let a = ok_json(&["petri", "analyze", "--json", s(&net)]);
+    assert_eq!(a["bounded"], false);
+    assert_eq!(a["states"], Value::Null);
+    let dot = dir.join("cov.dot");
+    let c = ok_json(&["petri", "coverability", "--json", s(&net), "--dot", s(&dot)]);
+    assert_eq!(c["bounded"], false);
+    assert_eq!(c["unbounded_places"], serde_json::json!(["buffer"]));
+    assert_eq!(
+        c["maximal"],
+        serde_json::json!([{"ready": 1, "buffer": "ω"}])
+    );
+    assert!(std::fs::read_to_string(&dot).unwrap().contains("buffer:ω"));
+}
+
+const PRODUCER: &str = r#"<?xml version="1.0"?>
+<pnml xmlns="http://www.pnml.org/version-2009/grammar/pnml">
+ <net id="producer" type="http://www.pnml.org/version-2009/grammar/ptnet"><page id="pg">
+  <place id="ready"><initialMarking><text>1</text></initialMarking></place>
+  <place id="buffer"/>
+  <transition id="produce"/>
+  <arc id="a1" source="ready" target="produce"/>
+  <arc id="a2" source="produce" target="ready"/>
+  <arc id="a3" source="produce" target="buffer"><inscription><text>2</text></inscription></arc>
+ </page></net></pnml>"#;
+
+/// Runs `vl args…` and expects exit code 2 with `needle` in the message.
+fn refused(args: &[&str], needle: &str) {
+    let out = vl(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "vl {args:?} → {:?}: {err}",
+        out.status
+    );
+    assert!(
+        err.contains(needle),
+        "vl {args:?}: '{err}' lacks '{needle}'"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn bad_input_is_refused_with_exit_code_2() {
+    let dir = scratch("bad");
+    let write = |name: &str, text: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let truncated = write("truncated.pnml", &PRODUCER[..PRODUCER.len() / 2]);
+    refused(&["petri", "analyze", s(&truncated)], "not well-formed XML");
+    let missing = write(
+        "missing.pnml",
+        &PRODUCER.replace(r#"target="buffer""#, r#"target="nowhere""#),
+    );
+    refused(
+        &["petri", "analyze", s(&missing)],
+        "line 9: arc 'a3' refers to missing node 'nowhere'",
+    );
+    let negative = write(
+        "negative.pnml",
+        &PRODUCER.replace("<text>2</text>", "<text>-2</text>"),
+    );
+    refused(
+        &["petri", "invariants", s(&negative)],
+        "arc weight -2 is negative",
+    );
+    let good = write("producer.pnml", PRODUCER);
+    let out = dir.join("out.pnml");
+    refused(
+        &[
+            "petri",
+            "control",
+            s(&good),
+            "--constraint",
+            "ready + ghost <= 1",
+            "-o",
+            s(&out),
+        ],
+        "names unknown place 'ghost'",
+    );
+    refused(
+        &[
+            "petri",
+            "control",
+            s(&good),
+            "--constraint",
+            "ready < 1",
+            "-o",
+            s(&out),
+        ],
+        "does not parse",
+    );
+    refused(
+        &["petri", "analyze", s(&dir.join("absent.pnml"))],
+        "cannot read",
+    );
+    let chart = write(
+        "broken.scxml",
+        "<scxml><state id=\"a\"><transition target=\"b\"/></state></scxml>",
+    );
+    refused(
+        &["petri", "from-scxml", s(&chart), "-o", s(&out)],
+        "unknown state 'b'",
+    );
+    let inhibited = write("inhibited.pnml", &PRODUCER.replace(
+        r#"<arc id="a3" source="produce" target="buffer">"#,
+        r#"<arc id="a4" source="buffer" target="produce"><type value="inhibitor"/></arc><arc id="a3" source="produce" target="buffer">"#,
+    ));
+    refused(
+        &["petri", "coverability", s(&inhibited)],
+        "unsound with inhibitor arcs",
+    );
+}
