@@ -52,3 +52,8 @@ unsafe impl GlobalAlloc for Counting {
 pub fn peak_bytes() -> usize {
     PEAK.load(Ordering::Relaxed)
 }
+
+/// Starts a new peak measurement from what is live now.
+pub fn reset_peak() {
+    PEAK.store(LIVE.load(Ordering::Relaxed), Ordering::Relaxed);
+}

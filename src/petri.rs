@@ -21,7 +21,7 @@ use vl_petri::{
 };
 
 use crate::BadInput;
-use crate::alloc::peak_bytes;
+use crate::alloc::{peak_bytes, reset_peak};
 
 #[derive(Subcommand)]
 pub enum PetriCommand {
@@ -97,6 +97,21 @@ pub enum PetriCommand {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Time state-space exploration on the corpus's large models against the
+    /// figures TAPAAL's verifypn 3.1.1 recorded on this kind of machine.
+    Bench {
+        /// The corpus directory (with manifest.csv).
+        #[arg(long, default_value = "tests/petri-corpus")]
+        corpus: PathBuf,
+        /// Which tier of models: small, medium or large.
+        #[arg(long, default_value = "large")]
+        tier: String,
+        /// Only these models (repeatable).
+        #[arg(long = "model")]
+        models: Vec<String>,
+        #[arg(long)]
+        json: bool,
+    },
     /// Print the net, or its reachability graph, as Graphviz DOT.
     Dot {
         net: PathBuf,
@@ -146,6 +161,12 @@ pub fn run(command: PetriCommand) -> Result<ExitCode> {
             unobservable,
             output,
         } => control_command(&net, &constraints, uncontrollable, unobservable, &output),
+        PetriCommand::Bench {
+            corpus,
+            tier,
+            models,
+            json,
+        } => bench_command(&corpus, &tier, &models, json),
         PetriCommand::FromScxml { chart, output } => from_scxml_command(&chart, &output),
         PetriCommand::Dot {
             net,
@@ -612,5 +633,108 @@ fn from_scxml_command(path: &Path, output: &Path) -> Result<ExitCode> {
         net.transitions.len(),
         output.display()
     );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// One model's benchmark figures.
+#[derive(Serialize)]
+struct BenchRow {
+    model: String,
+    states: usize,
+    edges: usize,
+    certified_states: usize,
+    explore_seconds: f64,
+    analyze_seconds: f64,
+    states_per_second: f64,
+    store_bytes_per_state: f64,
+    graph_bytes_per_state: f64,
+    peak_bytes: usize,
+    verifypn_seconds: Option<f64>,
+    /// verifypn's time over ours for exploring: above 1 means we are faster.
+    speedup_vs_verifypn: Option<f64>,
+}
+
+fn bench_command(corpus: &Path, tier: &str, only: &[String], json: bool) -> Result<ExitCode> {
+    let manifest = corpus.join("manifest.csv");
+    let text = std::fs::read_to_string(&manifest)
+        .map_err(|e| BadInput(format!("cannot read {}: {e}", manifest.display())))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
+    let column = |name: &str| {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .ok_or_else(|| BadInput(format!("{} has no column {name}", manifest.display())))
+    };
+    let (c_model, c_tier, c_pnml, c_states, c_vp) = (
+        column("model")?,
+        column("tier")?,
+        column("pnml")?,
+        column("states")?,
+        column("verifypn_wall_s")?,
+    );
+    let mut rows = Vec::new();
+    for line in lines {
+        let cells: Vec<&str> = line.split(',').collect();
+        let name = cells[c_model];
+        if cells[c_tier] != tier || (!only.is_empty() && !only.iter().any(|m| m == name)) {
+            continue;
+        }
+        let net = load(&corpus.join(cells[c_pnml]))?;
+        if !json {
+            eprint!("{name} … ");
+        }
+        reset_peak();
+        let started = Instant::now();
+        let space = explore(&net, Options::default())
+            .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+        let explore_seconds = started.elapsed().as_secs_f64();
+        let analyzed = Instant::now();
+        let _ = analyze(&net, &space);
+        let analyze_seconds = analyzed.elapsed().as_secs_f64();
+        let states = space.states();
+        let verifypn_seconds = cells[c_vp].parse::<f64>().ok().filter(|&v| v > 0.0);
+        rows.push(BenchRow {
+            model: name.to_owned(),
+            states,
+            edges: space.edges(),
+            certified_states: cells[c_states].parse().unwrap_or(0),
+            explore_seconds,
+            analyze_seconds,
+            states_per_second: states as f64 / explore_seconds,
+            store_bytes_per_state: space.store_bytes() as f64 / states as f64,
+            graph_bytes_per_state: space.graph_bytes() as f64 / states as f64,
+            peak_bytes: peak_bytes(),
+            verifypn_seconds,
+            speedup_vs_verifypn: verifypn_seconds.map(|v| v / explore_seconds),
+        });
+        if !json {
+            eprintln!("{explore_seconds:.2} s");
+        }
+    }
+    if json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!(
+        "{:<28} {:>10} {:>5} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9} {:>8}",
+        "model", "states", "ok", "explore s", "states/s", "store B/s", "graph B/s", "analyze s", "verifypn", "speedup"
+    );
+    for r in &rows {
+        println!(
+            "{:<28} {:>10} {:>5} {:>9.2} {:>11.0} {:>9.1} {:>9.1} {:>9.2} {:>9} {:>8}",
+            r.model,
+            r.states,
+            if r.states == r.certified_states { "yes" } else { "NO" },
+            r.explore_seconds,
+            r.states_per_second,
+            r.store_bytes_per_state,
+            r.graph_bytes_per_state,
+            r.analyze_seconds,
+            r.verifypn_seconds.map_or("–".to_owned(), |v| format!("{v:.2} s")),
+            r.speedup_vs_verifypn.map_or("–".to_owned(), |v| format!("{v:.2}×")),
+        );
+    }
+    println!("(single thread; verifypn 3.1.1 explicit engine figures as measured on this kind of machine, from the manifest)");
     Ok(ExitCode::SUCCESS)
 }

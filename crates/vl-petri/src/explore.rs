@@ -63,6 +63,8 @@ pub struct StateSpace {
     edge_to: Vec<u32>,
     /// Transition fired on each edge.
     edge_by: Vec<u32>,
+    /// Bytes the hash index of markings took at the end of exploration.
+    index_bytes: usize,
 }
 
 /// Markings stored in the narrowest cell that holds every count.
@@ -164,13 +166,14 @@ pub fn explore(net: &Net, mut options: Options) -> Result<StateSpace, ExploreErr
             }
         };
         match result {
-            Ok((cells, (edges_from, edge_to, edge_by))) => {
+            Ok((cells, (edges_from, edge_to, edge_by, index_bytes))) => {
                 return Ok(StateSpace {
                     places: net.places.len(),
                     cells,
                     edges_from,
                     edge_to,
                     edge_by,
+                    index_bytes,
                 });
             }
             Err(Stop::Overflow) if widest_first < 2 => widest_first += 1,
@@ -189,7 +192,8 @@ enum Stop {
     Limit,
 }
 
-type Edges = (Vec<u64>, Vec<u32>, Vec<u32>);
+/// The CSR graph, and the bytes the marking index took.
+type Edges = (Vec<u64>, Vec<u32>, Vec<u32>, usize);
 
 fn hash_of<C: Cell>(m: &[C]) -> u64 {
     let mut h = FxHasher::default();
@@ -278,7 +282,8 @@ fn run<C: Cell>(
             });
         }
     }
-    Ok((store, (edges_from, edge_to, edge_by)))
+    let index_bytes = table.allocation_size();
+    Ok((store, (edges_from, edge_to, edge_by, index_bytes)))
 }
 
 impl StateSpace {
@@ -335,16 +340,15 @@ impl StateSpace {
         }
     }
 
-    /// Bytes used by the stored markings and the graph.
-    pub fn bytes(&self) -> usize {
-        let cells = match &self.cells {
-            Cells::U8(c) => c.capacity(),
-            Cells::U16(c) => c.capacity() * 2,
-            Cells::U32(c) => c.capacity() * 4,
-        };
-        cells
-            + self.edges_from.capacity() * 8
-            + (self.edge_to.capacity() + self.edge_by.capacity()) * 4
+    /// Bytes of the state store: the packed markings plus the hash index
+    /// that found them (the figure explicit-state tools quote per state).
+    pub fn store_bytes(&self) -> usize {
+        self.states() * self.bytes_per_marking() + self.index_bytes
+    }
+
+    /// Bytes of the graph's edges, which liveness and reversibility need.
+    pub fn graph_bytes(&self) -> usize {
+        self.edges_from.len() * 8 + (self.edge_to.len() + self.edge_by.len()) * 4
     }
 
     /// Bytes per stored marking.
