@@ -686,8 +686,8 @@ fn bench_command(corpus: &Path, tier: &str, only: &[String], json: bool) -> Resu
         }
         reset_peak();
         let started = Instant::now();
-        let space = explore(&net, Options::default())
-            .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+        let space =
+            explore(&net, Options::default()).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
         let explore_seconds = started.elapsed().as_secs_f64();
         let analyzed = Instant::now();
         let _ = analyze(&net, &space);
@@ -718,23 +718,40 @@ fn bench_command(corpus: &Path, tier: &str, only: &[String], json: bool) -> Resu
     }
     println!(
         "{:<28} {:>10} {:>5} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9} {:>8}",
-        "model", "states", "ok", "explore s", "states/s", "store B/s", "graph B/s", "analyze s", "verifypn", "speedup"
+        "model",
+        "states",
+        "ok",
+        "explore s",
+        "states/s",
+        "store B/s",
+        "graph B/s",
+        "analyze s",
+        "verifypn",
+        "speedup"
     );
     for r in &rows {
         println!(
             "{:<28} {:>10} {:>5} {:>9.2} {:>11.0} {:>9.1} {:>9.1} {:>9.2} {:>9} {:>8}",
             r.model,
             r.states,
-            if r.states == r.certified_states { "yes" } else { "NO" },
+            if r.states == r.certified_states {
+                "yes"
+            } else {
+                "NO"
+            },
             r.explore_seconds,
             r.states_per_second,
             r.store_bytes_per_state,
             r.graph_bytes_per_state,
             r.analyze_seconds,
-            r.verifypn_seconds.map_or("–".to_owned(), |v| format!("{v:.2} s")),
-            r.speedup_vs_verifypn.map_or("–".to_owned(), |v| format!("{v:.2}×")),
+            r.verifypn_seconds
+                .map_or("–".to_owned(), |v| format!("{v:.2} s")),
+            r.speedup_vs_verifypn
+                .map_or("–".to_owned(), |v| format!("{v:.2}×")),
         );
     }
-    println!("(single thread; verifypn 3.1.1 explicit engine figures as measured on this kind of machine, from the manifest)");
+    println!(
+        "(single thread; verifypn 3.1.1 explicit engine figures as measured on this kind of machine, from the manifest)"
+    );
     Ok(ExitCode::SUCCESS)
 }

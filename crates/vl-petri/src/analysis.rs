@@ -61,7 +61,7 @@ pub fn analyze(net: &Net, space: &StateSpace) -> Analysis {
     let mut max_tokens_per_marking = 0u64;
     space.for_each_marking(|m| {
         let mut sum = 0u64;
-        for (bound, v) in place_bounds.iter_mut().zip(m) {
+        for (bound, &v) in place_bounds.iter_mut().zip(m) {
             *bound = (*bound).max(v);
             sum += u64::from(v);
         }

@@ -3,11 +3,15 @@
 //! States are numbered in breadth-first discovery order, so the store of
 //! markings is also the BFS queue and successors are appended to a
 //! compressed adjacency list (CSR) as each state is expanded — no separate
-//! queue, no per-edge allocation. Markings are stored packed, one cell per
-//! place, in the narrowest width (1, 2 or 4 bytes) the net's token counts fit:
-//! exploration starts narrow and restarts wider only if a count overflows.
+//! queue, no per-edge allocation. Markings are bit-packed: a place whose
+//! bound the P-invariants prove gets just the bits that bound needs (a safe
+//! place one bit); any other place starts with the bits its initial count
+//! needs and, the first time a count outgrows them, the store is repacked
+//! with that place twice as wide and exploration goes on where it was. A
+//! successor is built by copying its parent's packed bytes and rewriting only
+//! the places the transition changes.
 
-use std::hash::{Hash, Hasher};
+use std::hash::Hasher;
 use std::time::{Duration, Instant};
 
 use hashbrown::HashTable;
@@ -55,8 +59,9 @@ impl Default for Options<'_> {
 /// The reachability graph: every reachable marking and every firing between them.
 #[derive(Debug, Clone)]
 pub struct StateSpace {
-    places: usize,
-    cells: Cells,
+    layout: Layout,
+    /// Packed markings, `layout.stride` bytes each, in state order.
+    store: Vec<u8>,
     /// `edges_from[s]..edges_from[s + 1]` index the successors of state s.
     edges_from: Vec<u64>,
     /// Target state of each edge.
@@ -67,37 +72,77 @@ pub struct StateSpace {
     index_bytes: usize,
 }
 
-/// Markings stored in the narrowest cell that holds every count.
+/// Where each place's count sits in a packed marking.
 #[derive(Debug, Clone)]
-enum Cells {
-    U8(Vec<u8>),
-    U16(Vec<u16>),
-    U32(Vec<u32>),
+struct Layout {
+    /// Bit offset of each place.
+    offset: Vec<u32>,
+    /// Bits of each place (0 for a place that is provably always empty).
+    width: Vec<u8>,
+    /// Bytes per marking.
+    stride: usize,
 }
 
-/// A token count cell.
-trait Cell: Copy + Eq + Hash + Default + Send {
-    const MAX: u32;
-    fn get(self) -> u32;
-    fn new(v: u32) -> Self;
-}
+/// Bytes of slack after a packed marking, so a place is read and written as
+/// one unaligned 8-byte word.
+const PAD: usize = 8;
 
-macro_rules! cell {
-    ($t:ty) => {
-        impl Cell for $t {
-            const MAX: u32 = <$t>::MAX as u32;
-            fn get(self) -> u32 {
-                u32::from(self)
-            }
-            fn new(v: u32) -> Self {
-                v as $t
-            }
+impl Layout {
+    fn new(width: Vec<u8>) -> Layout {
+        let mut offset = Vec::with_capacity(width.len());
+        let mut bits = 0u32;
+        for &w in &width {
+            offset.push(bits);
+            bits += u32::from(w);
         }
-    };
+        Layout {
+            offset,
+            width,
+            stride: bits.div_ceil(8) as usize,
+        }
+    }
+
+    /// The same layout with place `p` wide enough for `v` (at least doubled).
+    fn widened(&self, p: usize, v: u32) -> Layout {
+        let mut width = self.width.clone();
+        width[p] = (width[p].max(1) * 2).max(bits(v)).min(32);
+        Layout::new(width)
+    }
+
+    /// The largest count place `p` can hold.
+    fn max(&self, p: usize) -> u32 {
+        match self.width[p] {
+            32.. => u32::MAX,
+            w => (1u32 << w) - 1,
+        }
+    }
+
+    fn get(&self, packed: &[u8], p: usize) -> u32 {
+        let bit = self.offset[p] as usize;
+        let mut word = [0u8; 8];
+        let end = (bit / 8 + 8).min(packed.len());
+        word[..end - bit / 8].copy_from_slice(&packed[bit / 8..end]);
+        let v = u64::from_le_bytes(word) >> (bit % 8);
+        (v & ((1u64 << self.width[p]) - 1)) as u32
+    }
+
+    /// Writes `v` (which fits) into place `p` of `packed`, which has PAD spare bytes.
+    fn set(&self, packed: &mut [u8], p: usize, v: u32) {
+        let bit = self.offset[p] as usize;
+        let at = bit / 8;
+        let mut word = [0u8; 8];
+        word.copy_from_slice(&packed[at..at + 8]);
+        let mask = ((1u64 << self.width[p]) - 1) << (bit % 8);
+        let w = (u64::from_le_bytes(word) & !mask) | (u64::from(v) << (bit % 8));
+        packed[at..at + 8].copy_from_slice(&w.to_le_bytes());
+    }
+
+    fn unpack(&self, packed: &[u8], out: &mut [u32]) {
+        for (p, slot) in out.iter_mut().enumerate() {
+            *slot = self.get(packed, p);
+        }
+    }
 }
-cell!(u8);
-cell!(u16);
-cell!(u32);
 
 /// A transition compiled for fast firing.
 struct Compiled {
@@ -143,48 +188,49 @@ fn compile(net: &Net) -> Vec<Compiled> {
 /// How often progress is reported, in expanded states.
 const PROGRESS_EVERY: usize = 1 << 18;
 
+/// Rows the invariant computation may use while looking for place bounds.
+const BOUND_ROWS: usize = 5_000;
+
+/// Bits needed to write `v`.
+fn bits(v: u32) -> u8 {
+    (32 - v.leading_zeros()) as u8
+}
+
+/// Per-place bounds the minimal P-invariants prove: y·m = y·m0 for every
+/// reachable m, so m(p) ≤ y·m0 / y(p) for every invariant y covering p.
+fn proven_bounds(net: &Net) -> Vec<Option<u32>> {
+    let mut bounds = vec![None; net.places.len()];
+    let Ok(invariants) = crate::invariants::p_invariants(net, BOUND_ROWS) else {
+        return bounds;
+    };
+    for y in invariants {
+        let total: u64 = y
+            .iter()
+            .map(|&(p, k)| k * u64::from(net.places[p].initial))
+            .sum();
+        for &(p, k) in &y {
+            let b = u32::try_from(total / k).unwrap_or(u32::MAX);
+            bounds[p] = Some(bounds[p].map_or(b, |old: u32| old.min(b)));
+        }
+    }
+    bounds
+}
+
 /// Explores every marking reachable from the initial one.
 pub fn explore(net: &Net, mut options: Options) -> Result<StateSpace, ExploreError> {
     let compiled = compile(net);
     let initial = net.initial_marking();
-    let peak = initial.0.iter().copied().max().unwrap_or(0);
-    let mut widest_first = if peak > u32::from(u16::MAX) {
-        2
-    } else if peak > u32::from(u8::MAX) {
-        1
-    } else {
-        0
-    };
-    loop {
-        let result = match widest_first {
-            0 => run::<u8>(net, &compiled, &initial, &mut options).map(|(c, e)| (Cells::U8(c), e)),
-            1 => {
-                run::<u16>(net, &compiled, &initial, &mut options).map(|(c, e)| (Cells::U16(c), e))
-            }
-            _ => {
-                run::<u32>(net, &compiled, &initial, &mut options).map(|(c, e)| (Cells::U32(c), e))
-            }
-        };
-        match result {
-            Ok((cells, (edges_from, edge_to, edge_by, index_bytes))) => {
-                return Ok(StateSpace {
-                    places: net.places.len(),
-                    cells,
-                    edges_from,
-                    edge_to,
-                    edge_by,
-                    index_bytes,
-                });
-            }
-            Err(Stop::Overflow) if widest_first < 2 => widest_first += 1,
-            Err(Stop::Overflow) => return Err(ExploreError::TokenOverflow),
-            Err(Stop::Limit) => {
-                return Err(ExploreError::TooManyStates {
-                    limit: options.max_states,
-                });
-            }
-        }
-    }
+    let width = proven_bounds(net)
+        .iter()
+        .zip(&initial.0)
+        .map(|(bound, &m)| bound.map_or(bits(m).max(1), bits))
+        .collect();
+    run(Layout::new(width), &compiled, &initial, &mut options).map_err(|stop| match stop {
+        Stop::Overflow => ExploreError::TokenOverflow,
+        Stop::Limit => ExploreError::TooManyStates {
+            limit: options.max_states,
+        },
+    })
 }
 
 enum Stop {
@@ -192,63 +238,102 @@ enum Stop {
     Limit,
 }
 
-/// The CSR graph, and the bytes the marking index took.
-type Edges = (Vec<u64>, Vec<u32>, Vec<u32>, usize);
-
-fn hash_of<C: Cell>(m: &[C]) -> u64 {
+fn hash_of(m: &[u8]) -> u64 {
     let mut h = FxHasher::default();
-    m.hash(&mut h);
+    h.write(m);
     h.finish()
 }
 
-fn run<C: Cell>(
-    net: &Net,
+/// Markings `store` packed in `from`, repacked in `to`.
+fn repack(from: &Layout, to: &Layout, store: &[u8]) -> Vec<u8> {
+    let states = store.len().checked_div(from.stride).unwrap_or(0);
+    let mut out = vec![0u8; states * to.stride + PAD];
+    let mut m = vec![0u32; from.width.len()];
+    for s in 0..states {
+        from.unpack(&store[s * from.stride..(s + 1) * from.stride], &mut m);
+        for (p, &v) in m.iter().enumerate() {
+            to.set(&mut out[s * to.stride..], p, v);
+        }
+    }
+    out.truncate(states * to.stride);
+    out
+}
+
+fn run(
+    mut layout: Layout,
     compiled: &[Compiled],
     initial: &Marking,
     options: &mut Options,
-) -> Result<(Vec<C>, Edges), Stop> {
-    let width = net.places.len();
+) -> Result<StateSpace, Stop> {
+    let mut stride = layout.stride;
     let started = Instant::now();
-    let mut store: Vec<C> = initial.0.iter().map(|&v| C::new(v)).collect();
+    let mut next = vec![0u8; stride + PAD];
+    for (p, &v) in initial.0.iter().enumerate() {
+        layout.set(&mut next, p, v);
+    }
+    let mut store: Vec<u8> = next[..stride].to_vec();
     let mut table: HashTable<u32> = HashTable::new();
     let mut states = 1usize;
-    table.insert_unique(hash_of(&store[..width]), 0, |_| 0);
+    table.insert_unique(hash_of(&store[..stride]), 0, |_| 0);
     let mut edges_from: Vec<u64> = vec![0];
     let mut edge_to: Vec<u32> = Vec::new();
     let mut edge_by: Vec<u32> = Vec::new();
-    let mut next: Vec<C> = vec![C::default(); width];
-    let mut current: Vec<C> = vec![C::default(); width];
+    let mut current = vec![0u32; layout.width.len()];
+    let mut packed = vec![0u8; stride + PAD];
     let mut expanded = 0usize;
-    while expanded < states {
-        let at = expanded * width;
-        current.copy_from_slice(&store[at..at + width]);
+    'states: while expanded < states {
+        let at = expanded * stride;
+        packed[..stride].copy_from_slice(&store[at..at + stride]);
+        layout.unpack(&packed, &mut current);
         'transitions: for (t, tr) in compiled.iter().enumerate() {
             for &(p, w) in &tr.need {
-                if current[p as usize].get() < w {
+                if current[p as usize] < w {
                     continue 'transitions;
                 }
             }
             for &(p, w) in &tr.inhibit {
-                if current[p as usize].get() >= w {
+                if current[p as usize] >= w {
                     continue 'transitions;
                 }
             }
-            next.copy_from_slice(&current);
+            next.copy_from_slice(&packed);
             for &(p, change, capacity) in &tr.delta {
-                let v = i64::from(next[p as usize].get()) + change;
+                let p = p as usize;
+                let v = i64::from(current[p]) + change;
                 if capacity.is_some_and(|cap| v > i64::from(cap)) {
                     continue 'transitions;
                 }
-                if v > i64::from(C::MAX) {
-                    return Err(Stop::Overflow);
+                if v > i64::from(layout.max(p)) {
+                    if layout.width[p] >= 32 {
+                        return Err(Stop::Overflow);
+                    }
+                    // Widen p, repack what is stored, and expand this state again.
+                    let wider = layout.widened(p, v as u32);
+                    store = repack(&layout, &wider, &store);
+                    layout = wider;
+                    stride = layout.stride;
+                    table = HashTable::with_capacity(states);
+                    for id in 0..states {
+                        let s = id * stride;
+                        table.insert_unique(hash_of(&store[s..s + stride]), id as u32, |&id| {
+                            let s = id as usize * stride;
+                            hash_of(&store[s..s + stride])
+                        });
+                    }
+                    next = vec![0u8; stride + PAD];
+                    packed = vec![0u8; stride + PAD];
+                    let first_edge = edges_from[expanded] as usize;
+                    edge_to.truncate(first_edge);
+                    edge_by.truncate(first_edge);
+                    continue 'states;
                 }
-                next[p as usize] = C::new(v as u32);
+                layout.set(&mut next, p, v as u32);
             }
-            let hash = hash_of(&next);
+            let hash = hash_of(&next[..stride]);
             let found = table
                 .find(hash, |&id| {
-                    let s = id as usize * width;
-                    store[s..s + width] == next[..]
+                    let s = id as usize * stride;
+                    store[s..s + stride] == next[..stride]
                 })
                 .copied();
             let target = match found {
@@ -258,11 +343,11 @@ fn run<C: Cell>(
                         return Err(Stop::Limit);
                     }
                     let id = states as u32;
-                    store.extend_from_slice(&next);
+                    store.extend_from_slice(&next[..stride]);
                     states += 1;
                     table.insert_unique(hash, id, |&id| {
-                        let s = id as usize * width;
-                        hash_of(&store[s..s + width])
+                        let s = id as usize * stride;
+                        hash_of(&store[s..s + stride])
                     });
                     id
                 }
@@ -282,8 +367,14 @@ fn run<C: Cell>(
             });
         }
     }
-    let index_bytes = table.allocation_size();
-    Ok((store, (edges_from, edge_to, edge_by, index_bytes)))
+    Ok(StateSpace {
+        layout,
+        store,
+        edges_from,
+        edge_to,
+        edge_by,
+        index_bytes: table.allocation_size(),
+    })
 }
 
 impl StateSpace {
@@ -313,31 +404,22 @@ impl StateSpace {
 
     /// Tokens of every place in state `s`.
     pub fn marking(&self, s: usize) -> Marking {
-        let range = s * self.places..(s + 1) * self.places;
-        Marking(match &self.cells {
-            Cells::U8(c) => c[range].iter().map(|&v| u32::from(v)).collect(),
-            Cells::U16(c) => c[range].iter().map(|&v| u32::from(v)).collect(),
-            Cells::U32(c) => c[range].to_vec(),
-        })
+        let mut m = vec![0u32; self.layout.width.len()];
+        self.layout.unpack(self.packed(s), &mut m);
+        Marking(m)
     }
 
-    /// Calls `f` with each state's marking, without allocating per state.
-    pub fn for_each_marking(&self, mut f: impl FnMut(&mut dyn Iterator<Item = u32>)) {
-        let w = self.places.max(1);
-        match &self.cells {
-            Cells::U8(c) => c
-                .chunks(w)
-                .take(self.states())
-                .for_each(|m| f(&mut m.iter().map(|&v| u32::from(v)))),
-            Cells::U16(c) => c
-                .chunks(w)
-                .take(self.states())
-                .for_each(|m| f(&mut m.iter().map(|&v| u32::from(v)))),
-            Cells::U32(c) => c
-                .chunks(w)
-                .take(self.states())
-                .for_each(|m| f(&mut m.iter().copied())),
+    /// Calls `f` with each state's marking, reusing one buffer.
+    pub fn for_each_marking(&self, mut f: impl FnMut(&[u32])) {
+        let mut m = vec![0u32; self.layout.width.len()];
+        for s in 0..self.states() {
+            self.layout.unpack(self.packed(s), &mut m);
+            f(&m);
         }
+    }
+
+    fn packed(&self, s: usize) -> &[u8] {
+        &self.store[s * self.layout.stride..(s + 1) * self.layout.stride]
     }
 
     /// Bytes of the state store: the packed markings plus the hash index
@@ -353,11 +435,6 @@ impl StateSpace {
 
     /// Bytes per stored marking.
     pub fn bytes_per_marking(&self) -> usize {
-        self.places
-            * match self.cells {
-                Cells::U8(_) => 1,
-                Cells::U16(_) => 2,
-                Cells::U32(_) => 4,
-            }
+        self.layout.stride
     }
 }
