@@ -275,6 +275,7 @@ fn analyze_command(path: &Path, json: bool, max_states: usize) -> Result<ExitCod
         ("  reached by", trace),
         ("quasi-live", yes(a.quasi_live).to_owned()),
         ("live", yes(a.live).to_owned()),
+        ("  not L4", not_live(&net, &a.liveness)),
         ("reversible", yes(a.reversible).to_owned()),
         ("P-flow basis", format!("dimension {}", a.p_flow_basis_dim)),
         ("T-flow basis", format!("dimension {}", a.t_flow_basis_dim)),
@@ -643,6 +644,7 @@ struct BenchRow {
     states: usize,
     edges: usize,
     certified_states: usize,
+    certified_edges: usize,
     explore_seconds: f64,
     analyze_seconds: f64,
     states_per_second: f64,
@@ -666,11 +668,12 @@ fn bench_command(corpus: &Path, tier: &str, only: &[String], json: bool) -> Resu
             .position(|h| *h == name)
             .ok_or_else(|| BadInput(format!("{} has no column {name}", manifest.display())))
     };
-    let (c_model, c_tier, c_pnml, c_states, c_vp) = (
+    let (c_model, c_tier, c_pnml, c_states, c_edges, c_vp) = (
         column("model")?,
         column("tier")?,
         column("pnml")?,
         column("states")?,
+        column("rg_edges")?,
         column("verifypn_wall_s")?,
     );
     let mut rows = Vec::new();
@@ -699,6 +702,7 @@ fn bench_command(corpus: &Path, tier: &str, only: &[String], json: bool) -> Resu
             states,
             edges: space.edges(),
             certified_states: cells[c_states].parse().unwrap_or(0),
+            certified_edges: cells[c_edges].parse().unwrap_or(0),
             explore_seconds,
             analyze_seconds,
             states_per_second: states as f64 / explore_seconds,
@@ -754,4 +758,19 @@ fn bench_command(corpus: &Path, tier: &str, only: &[String], json: bool) -> Resu
         "(single thread; verifypn 3.1.1 explicit engine figures as measured on this kind of machine, from the manifest)"
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// The transitions that are not live, with their liveness level.
+fn not_live(net: &Net, levels: &[vl_petri::Liveness]) -> String {
+    let weak: Vec<String> = levels
+        .iter()
+        .zip(&net.transitions)
+        .filter(|(l, _)| **l != vl_petri::Liveness::L4)
+        .map(|(l, t)| format!("{} {l:?}", t.id))
+        .collect();
+    match weak.len() {
+        0 => "–".to_owned(),
+        n if n > 12 => format!("{} … and {} more", weak[..12].join(", "), n - 12),
+        _ => weak.join(", "),
+    }
 }

@@ -102,10 +102,17 @@ impl Layout {
         }
     }
 
-    /// The same layout with place `p` wide enough for `v` (at least doubled).
-    fn widened(&self, p: usize, v: u32) -> Layout {
+    /// The same layout with place `p` wide enough for `v`, and every place
+    /// in `also` (which reached its own limit) likewise doubled, so places
+    /// that grow together are repacked together.
+    fn widened(&self, p: usize, v: u32, also: &[bool]) -> Layout {
         let mut width = self.width.clone();
-        width[p] = (width[p].max(1) * 2).max(bits(v)).min(32);
+        for (q, w) in width.iter_mut().enumerate() {
+            if q == p || also[q] {
+                *w = ((*w).max(1) * 2).min(32);
+            }
+        }
+        width[p] = width[p].max(bits(v));
         Layout::new(width)
     }
 
@@ -119,11 +126,17 @@ impl Layout {
 
     fn get(&self, packed: &[u8], p: usize) -> u32 {
         let bit = self.offset[p] as usize;
-        let mut word = [0u8; 8];
-        let end = (bit / 8 + 8).min(packed.len());
-        word[..end - bit / 8].copy_from_slice(&packed[bit / 8..end]);
-        let v = u64::from_le_bytes(word) >> (bit % 8);
-        (v & ((1u64 << self.width[p]) - 1)) as u32
+        let at = bit / 8;
+        let word = match packed.get(at..at + 8) {
+            // The common case: a padded buffer, one unaligned load.
+            Some(eight) => u64::from_le_bytes(eight.try_into().expect("eight bytes")),
+            None => {
+                let mut word = [0u8; 8];
+                word[..packed.len() - at].copy_from_slice(&packed[at..]);
+                u64::from_le_bytes(word)
+            }
+        };
+        ((word >> (bit % 8)) & ((1u64 << self.width[p]) - 1)) as u32
     }
 
     /// Writes `v` (which fits) into place `p` of `packed`, which has PAD spare bytes.
@@ -281,11 +294,34 @@ fn run(
     let mut current = vec![0u32; layout.width.len()];
     let mut packed = vec![0u8; stride + PAD];
     let mut expanded = 0usize;
+    // Each transition is listed under its first input place: only those under
+    // a marked place (and those with no input) can be enabled.
+    let mut listed_under: Vec<Vec<u32>> = vec![Vec::new(); layout.width.len()];
+    let mut always: Vec<u32> = Vec::new();
+    for (t, tr) in compiled.iter().enumerate() {
+        match tr.need.first() {
+            Some(&(p, _)) => listed_under[p as usize].push(t as u32),
+            None => always.push(t as u32),
+        }
+    }
+    let mut candidates: Vec<u32> = Vec::with_capacity(compiled.len());
+    // Places that have been seen full: the next overflow widens them too.
+    let mut at_limit = vec![false; layout.width.len()];
     'states: while expanded < states {
         let at = expanded * stride;
         packed[..stride].copy_from_slice(&store[at..at + stride]);
         layout.unpack(&packed, &mut current);
-        'transitions: for (t, tr) in compiled.iter().enumerate() {
+        candidates.clear();
+        candidates.extend_from_slice(&always);
+        for (p, &v) in current.iter().enumerate() {
+            if v > 0 {
+                candidates.extend_from_slice(&listed_under[p]);
+            }
+        }
+        // In transition order, so the numbering of states does not depend on this filter.
+        candidates.sort_unstable();
+        'transitions: for &t in &candidates {
+            let tr = &compiled[t as usize];
             for &(p, w) in &tr.need {
                 if current[p as usize] < w {
                     continue 'transitions;
@@ -303,12 +339,16 @@ fn run(
                 if capacity.is_some_and(|cap| v > i64::from(cap)) {
                     continue 'transitions;
                 }
+                if v == i64::from(layout.max(p)) {
+                    at_limit[p] = true;
+                }
                 if v > i64::from(layout.max(p)) {
                     if layout.width[p] >= 32 {
                         return Err(Stop::Overflow);
                     }
                     // Widen p, repack what is stored, and expand this state again.
-                    let wider = layout.widened(p, v as u32);
+                    let wider = layout.widened(p, v as u32, &at_limit);
+                    at_limit.iter_mut().for_each(|a| *a = false);
                     store = repack(&layout, &wider, &store);
                     layout = wider;
                     stride = layout.stride;
@@ -353,7 +393,7 @@ fn run(
                 }
             };
             edge_to.push(target);
-            edge_by.push(t as u32);
+            edge_by.push(t);
         }
         edges_from.push(edge_to.len() as u64);
         expanded += 1;
