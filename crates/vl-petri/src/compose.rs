@@ -109,17 +109,10 @@ pub fn compose(nets: &[Net]) -> Result<Net, ComposeError> {
 }
 
 fn copy_arcs(out: &mut Net, t: TransitionId, net: &Net, prefix: &str, tr: &crate::net::Transition) {
-    let arcs = [
-        (ArcKind::Input, &tr.pre),
-        (ArcKind::Output, &tr.post),
-        (ArcKind::Inhibitor, &tr.inhibit),
-    ];
-    for (kind, list) in arcs {
-        for a in list {
-            let place = format!("{prefix}.{}", net.places[a.place.0].id);
-            out.add_arc(kind, &place, t, a.weight)
-                .expect("the place was copied");
-        }
+    for (kind, a) in tr.arcs() {
+        let place = format!("{prefix}.{}", net.places[a.place.0].id);
+        out.add_arc(kind, &place, t, a.weight)
+            .expect("the place was copied");
     }
 }
 
@@ -155,13 +148,10 @@ fn prefixes(nets: &[Net]) -> Vec<String> {
 pub fn fuse_parallel_places(net: &Net) -> Net {
     // A place's signature: its arcs to every transition, and its marking.
     let signature = |p: usize| {
-        let mut arcs: Vec<(usize, u8, u32)> = Vec::new();
+        let mut arcs: Vec<(usize, ArcKind, u32)> = Vec::new();
         for (t, tr) in net.transitions.iter().enumerate() {
-            let lists = [(0u8, &tr.pre), (1, &tr.post), (2, &tr.inhibit)];
-            for (kind, list) in lists {
-                for a in list.iter().filter(|a| a.place.0 == p) {
-                    arcs.push((t, kind, a.weight));
-                }
+            for (kind, a) in tr.arcs().filter(|(_, a)| a.place.0 == p) {
+                arcs.push((t, kind, a.weight));
             }
         }
         (arcs, net.places[p].initial, net.places[p].capacity)
@@ -198,17 +188,10 @@ pub fn fuse_parallel_places(net: &Net) -> Net {
             .add_transition(&tr.id, tr.label.as_deref())
             .expect("ids stay unique");
         out.transitions[t.0].name = tr.name.clone();
-        let lists = [
-            (ArcKind::Input, &tr.pre),
-            (ArcKind::Output, &tr.post),
-            (ArcKind::Inhibitor, &tr.inhibit),
-        ];
-        for (kind, list) in lists {
-            for a in list {
-                if let Some(id) = &keep[a.place.0] {
-                    out.add_arc(kind, id, t, a.weight)
-                        .expect("the kept place exists");
-                }
+        for (kind, a) in tr.arcs() {
+            if let Some(id) = &keep[a.place.0] {
+                out.add_arc(kind, id, t, a.weight)
+                    .expect("the kept place exists");
             }
         }
     }

@@ -69,7 +69,7 @@ pub struct Net {
 }
 
 /// Which way an arc runs, as files and builders name it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ArcKind {
     /// Place → transition.
     Input,
@@ -96,6 +96,16 @@ pub enum NetError {
     NotEnabled(String),
     #[error("firing '{0}' would overflow a place's token count")]
     Overflow(String),
+}
+
+impl Transition {
+    /// Every arc of the transition with its kind: inputs, outputs, inhibitors.
+    pub fn arcs(&self) -> impl Iterator<Item = (ArcKind, &Arc)> {
+        let inputs = self.pre.iter().map(|a| (ArcKind::Input, a));
+        let outputs = self.post.iter().map(|a| (ArcKind::Output, a));
+        let inhibitors = self.inhibit.iter().map(|a| (ArcKind::Inhibitor, a));
+        inputs.chain(outputs).chain(inhibitors)
+    }
 }
 
 impl Net {

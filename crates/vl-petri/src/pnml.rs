@@ -311,13 +311,7 @@ pub fn to_pnml(net: &Net) -> String {
     }
     let mut n = 0;
     for t in &net.transitions {
-        let arcs = t
-            .pre
-            .iter()
-            .map(|a| (ArcKind::Input, a))
-            .chain(t.post.iter().map(|a| (ArcKind::Output, a)))
-            .chain(t.inhibit.iter().map(|a| (ArcKind::Inhibitor, a)));
-        for (kind, arc) in arcs {
+        for (kind, arc) in t.arcs() {
             let place = &net.places[arc.place.0].id;
             let (source, target) = match kind {
                 ArcKind::Output => (&t.id, place),
