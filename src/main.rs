@@ -38,6 +38,27 @@ enum Command {
     /// Analyse Petri nets (PNML).
     #[command(subcommand)]
     Petri(petri::PetriCommand),
+    /// Emulate a Khepera II on a pseudo-terminal, backed by the simulator.
+    KheperaEmu(KheperaArgs),
+}
+
+#[derive(clap::Args)]
+struct KheperaArgs {
+    /// The arena the simulated robot drives in.
+    #[arg(long, default_value = "navigation")]
+    arena: String,
+    /// The line speed to emulate (with --line-timing).
+    #[arg(long, default_value_t = 38_400)]
+    baud: u32,
+    /// Also make a symlink to the device here.
+    #[arg(long)]
+    link: Option<std::path::PathBuf>,
+    /// Delay replies by the time their characters take at --baud.
+    #[arg(long)]
+    line_timing: bool,
+    /// Seed for the sensors' noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
 }
 
 #[global_allocator]
@@ -160,7 +181,31 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Guest(args) => guest(&runtime()?, args),
         Command::Demo(args) => demo(&runtime()?, args),
         Command::Petri(command) => petri::run(command),
+        Command::KheperaEmu(args) => khepera_emu(args),
     }
+}
+
+fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
+    let arena = match args.arena.as_str() {
+        "navigation" => Arena::navigation(),
+        other => {
+            return Err(BadInput(format!("unknown arena '{other}' (known: navigation)")).into());
+        }
+    };
+    let world = vl_sim::World::new(arena, vl_core::robot::RobotModel::khepera_ii(), args.seed)
+        .map_err(|e| BadInput(e.to_string()))?;
+    let line = vl_sim::Line {
+        baud: args.baud,
+        timing: args.line_timing,
+    };
+    let mut emulator =
+        vl_sim::Emulator::open(vl_sim::Khepera::new(world), line, args.link.as_deref())?;
+    // Scripts and tests read the device from this first line.
+    println!("vl khepera-emu: Khepera II on {}", emulator.device());
+    use std::io::Write as _;
+    std::io::stdout().flush()?;
+    emulator.run()?;
+    Ok(ExitCode::SUCCESS)
 }
 
 async fn host(args: HostArgs) -> Result<()> {

@@ -4,9 +4,13 @@
 //! seed and inputs give the same run on any machine.
 
 mod camera;
+mod emulator;
+mod khepera;
 mod proximity;
 mod world;
 
 pub use camera::camera_for;
+pub use emulator::{Emulator, EmulatorError, Line};
+pub use khepera::Khepera;
 pub use proximity::proximity_value;
 pub use world::{SimError, World};

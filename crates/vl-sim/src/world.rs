@@ -43,6 +43,9 @@ pub struct World {
     contact: bool,
     collisions: u64,
     odometer_mm: f64,
+    /// Distance each wheel's surface has turned through, mm (left, right);
+    /// it keeps turning when the body is stopped against a wall (slip).
+    wheel_travel_mm: [f64; 2],
     rng: Pcg64Mcg,
 }
 
@@ -71,6 +74,7 @@ impl World {
             contact: false,
             collisions: 0,
             odometer_mm: 0.0,
+            wheel_travel_mm: [0.0; 2],
             rng: Pcg64Mcg::seed_from_u64(seed),
         })
     }
@@ -113,6 +117,11 @@ impl World {
         self.odometer_mm
     }
 
+    /// How far each wheel has turned, mm (left, right): what its encoder counts.
+    pub fn wheel_travel_mm(&self) -> [f64; 2] {
+        self.wheel_travel_mm
+    }
+
     /// Asks the speed controller for `target` (clamped to the robot's limits).
     pub fn set_wheels(&mut self, target: WheelSpeeds) {
         self.target = self.robot.clamp(target);
@@ -134,6 +143,8 @@ impl World {
             left_mm_s: respond(self.wheels.left_mm_s, self.target.left_mm_s),
             right_mm_s: respond(self.wheels.right_mm_s, self.target.right_mm_s),
         };
+        self.wheel_travel_mm[0] += self.wheels.left_mm_s * STEP_S;
+        self.wheel_travel_mm[1] += self.wheels.right_mm_s * STEP_S;
         let next = self
             .pose
             .advance(self.wheels, self.robot.wheel_base_mm, STEP_S);

@@ -1,0 +1,125 @@
+//! A Khepera on a pseudo-terminal: opens a pty, and answers whatever a
+//! program writes to its device path as a real Khepera on a serial cable
+//! would, backed by the simulated robot moving in real time. The Host's
+//! serial driver is tested against it end to end.
+
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use serialport::{SerialPort, TTYPort};
+use thiserror::Error;
+
+use crate::khepera::Khepera;
+
+/// Bits on the wire per character: start, 8 data, 2 stop (Khepera: 8N2).
+const BITS_PER_CHAR: f64 = 11.0;
+
+#[derive(Debug, Error)]
+pub enum EmulatorError {
+    #[error("cannot open a pseudo-terminal: {0}")]
+    Pty(#[from] serialport::Error),
+    #[error("cannot link {link} to {device}: {source}")]
+    Link {
+        link: PathBuf,
+        device: String,
+        source: std::io::Error,
+    },
+    #[error("the pseudo-terminal failed: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// Line settings of the emulated port.
+#[derive(Debug, Clone, Copy)]
+pub struct Line {
+    pub baud: u32,
+    /// Delay each reply by the time its characters take at `baud`.
+    pub timing: bool,
+}
+
+/// An emulated Khepera waiting on a pty.
+pub struct Emulator {
+    khepera: Khepera,
+    master: TTYPort,
+    /// Kept open so the master side survives clients closing and reopening the device.
+    _slave: TTYPort,
+    device: String,
+    line: Line,
+}
+
+impl Emulator {
+    /// Opens a pty for `khepera`; `link`, if given, becomes a symlink to its device.
+    pub fn open(
+        khepera: Khepera,
+        line: Line,
+        link: Option<&Path>,
+    ) -> Result<Emulator, EmulatorError> {
+        // The slave end stays open but unlocked, so a client can open (and lock) the device.
+        let (mut master, slave) = TTYPort::pair()?;
+        master.set_timeout(Duration::from_millis(20))?;
+        let device = slave.name().unwrap_or_default();
+        if let Some(link) = link {
+            let _ = std::fs::remove_file(link);
+            std::os::unix::fs::symlink(&device, link).map_err(|source| EmulatorError::Link {
+                link: link.to_owned(),
+                device: device.clone(),
+                source,
+            })?;
+        }
+        Ok(Emulator {
+            khepera,
+            master,
+            _slave: slave,
+            device,
+            line,
+        })
+    }
+
+    /// The device path a client opens.
+    pub fn device(&self) -> &str {
+        &self.device
+    }
+
+    /// Answers commands until the pty fails; the simulated robot follows the wall clock.
+    pub fn run(&mut self) -> Result<(), EmulatorError> {
+        let started = Instant::now();
+        let mut pending: Vec<u8> = Vec::new();
+        let mut buf = [0u8; 256];
+        loop {
+            let n = match self.master.read(&mut buf) {
+                Ok(n) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => 0,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => 0,
+                Err(e) => return Err(e.into()),
+            };
+            pending.extend_from_slice(&buf[..n]);
+            self.catch_up(started.elapsed().as_secs_f64());
+            while let Some(end) = pending.iter().position(|&b| b == b'\r' || b == b'\n') {
+                let line: Vec<u8> = pending.drain(..=end).collect();
+                let text = String::from_utf8_lossy(&line[..line.len() - 1]).into_owned();
+                if let Some(reply) = self.khepera.handle(&text) {
+                    self.send(&reply)?;
+                }
+            }
+        }
+    }
+
+    /// Steps the simulated robot until its clock reaches `seconds`.
+    fn catch_up(&mut self, seconds: f64) {
+        let world = self.khepera.world_mut();
+        while world.time_s() < seconds {
+            world.step();
+        }
+    }
+
+    fn send(&mut self, reply: &str) -> Result<(), EmulatorError> {
+        let wire = format!("{reply}\r\n");
+        if self.line.timing {
+            let seconds = wire.len() as f64 * BITS_PER_CHAR / f64::from(self.line.baud.max(1));
+            std::thread::sleep(Duration::from_secs_f64(seconds));
+        }
+        self.master.write_all(wire.as_bytes())?;
+        self.master.flush()?;
+        Ok(())
+    }
+}

@@ -1,0 +1,202 @@
+//! The Khepera I/II serial protocol (BIOS 5.x), answered by the simulated
+//! robot: one upper-case letter, optional `,int` arguments, CR or LF; the
+//! reply is the letter in lower case, `,values`, CRLF.
+//!
+//! [`Khepera`] is the protocol alone, line in → reply out, over a [`World`]
+//! the caller advances; the emulator in `vl khepera-emu` puts it on a
+//! pseudo-terminal in real time.
+
+use crate::world::{STEP_S, World};
+use vl_core::robot::WheelSpeeds;
+
+/// The firmware's speed limit, pulses per 10 ms.
+const MAX_SPEED: i64 = 127;
+/// Ambient light reading in the simulated arena's even lighting (lower = brighter).
+const AMBIENT: u16 = 480;
+
+/// A Khepera answering its serial protocol.
+pub struct Khepera {
+    world: World,
+    /// Encoder counts set by `G`, subtracted from the wheels' travel.
+    counter_origin: [i64; 2],
+    /// Commanded speeds, pulses per 10 ms.
+    speed: [i64; 2],
+    leds: [bool; 2],
+}
+
+impl Khepera {
+    pub fn new(world: World) -> Self {
+        Khepera {
+            world,
+            counter_origin: [0; 2],
+            speed: [0; 2],
+            leds: [false; 2],
+        }
+    }
+
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    pub fn world_mut(&mut self) -> &mut World {
+        &mut self.world
+    }
+
+    /// Whether LED `n` is lit.
+    pub fn led(&self, n: usize) -> bool {
+        self.leds.get(n).copied().unwrap_or(false)
+    }
+
+    /// Wheel speeds in the firmware's unit: pulses per 10 ms.
+    fn pulses_per_tick(&self, mm_s: f64) -> i64 {
+        (mm_s * STEP_S / self.world.robot().mm_per_pulse).round() as i64
+    }
+
+    fn counters(&self) -> [i64; 2] {
+        let per = self.world.robot().mm_per_pulse;
+        let travel = self.world.wheel_travel_mm();
+        [
+            (travel[0] / per).round() as i64 - self.counter_origin[0],
+            (travel[1] / per).round() as i64 - self.counter_origin[1],
+        ]
+    }
+
+    /// The reply to one command line (without its line ending), or None for
+    /// an empty line, which the firmware ignores.
+    pub fn handle(&mut self, line: &str) -> Option<String> {
+        let line = line.trim();
+        let mut parts = line.split(',');
+        let command = parts.next().filter(|c| !c.is_empty())?;
+        let args: Result<Vec<i64>, _> = parts.map(|a| a.trim().parse::<i64>()).collect();
+        let Ok(args) = args else {
+            return Some("z,Bad arguments".to_owned());
+        };
+        let reply = match (command, args.as_slice()) {
+            ("A" | "F", [_, _, _]) => command.to_lowercase(),
+            ("J", [_, _, _, _]) => "j".to_owned(),
+            ("B", []) => "b,5.02,5.01".to_owned(),
+            ("D", [left, right]) => {
+                self.speed = [
+                    (*left).clamp(-MAX_SPEED, MAX_SPEED),
+                    (*right).clamp(-MAX_SPEED, MAX_SPEED),
+                ];
+                let per_tick = self.world.robot().mm_per_pulse / STEP_S;
+                self.world.set_wheels(WheelSpeeds {
+                    left_mm_s: self.speed[0] as f64 * per_tick,
+                    right_mm_s: self.speed[1] as f64 * per_tick,
+                });
+                "d".to_owned()
+            }
+            ("E", []) => {
+                let w = self.world.wheels();
+                format!(
+                    "e,{},{}",
+                    self.pulses_per_tick(w.left_mm_s),
+                    self.pulses_per_tick(w.right_mm_s)
+                )
+            }
+            ("G", [left, right]) => {
+                let now = self.counters();
+                self.counter_origin[0] += now[0] - left;
+                self.counter_origin[1] += now[1] - right;
+                "g".to_owned()
+            }
+            ("H", []) => {
+                let [l, r] = self.counters();
+                format!("h,{l},{r}")
+            }
+            ("K", []) => {
+                // Speed mode; "on target" once the wheel runs at the commanded speed.
+                let w = self.world.wheels();
+                let actual = [
+                    self.pulses_per_tick(w.left_mm_s),
+                    self.pulses_per_tick(w.right_mm_s),
+                ];
+                let motor = |i: usize| {
+                    let error = self.speed[i] - actual[i];
+                    format!("{},1,{}", u8::from(error == 0), error)
+                };
+                format!("k,{},{}", motor(0), motor(1))
+            }
+            ("L", [n, action]) if (0..=1).contains(n) && (0..=2).contains(action) => {
+                let led = &mut self.leds[*n as usize];
+                *led = match action {
+                    0 => false,
+                    1 => true,
+                    _ => !*led,
+                };
+                "l".to_owned()
+            }
+            ("N", []) => {
+                let values: Vec<String> =
+                    self.world.proximity().iter().map(u16::to_string).collect();
+                format!("n,{}", values.join(","))
+            }
+            ("O", []) => {
+                let values: Vec<String> = (0..self.world.robot().sensors.len())
+                    .map(|_| AMBIENT.to_string())
+                    .collect();
+                format!("o,{}", values.join(","))
+            }
+            ("A" | "B" | "D" | "E" | "F" | "G" | "H" | "J" | "K" | "L" | "N" | "O", _) => {
+                "z,Bad arguments".to_owned()
+            }
+            _ => "z,Command not found".to_owned(),
+        };
+        Some(reply)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vl_core::arena::Arena;
+    use vl_core::robot::RobotModel;
+
+    fn khepera() -> Khepera {
+        Khepera::new(World::new(Arena::navigation(), RobotModel::khepera_ii(), 1).unwrap())
+    }
+
+    #[test]
+    fn answers_the_bios_commands() {
+        let mut k = khepera();
+        assert_eq!(k.handle("B").unwrap(), "b,5.02,5.01");
+        assert_eq!(k.handle(""), None);
+        assert_eq!(k.handle("X").unwrap(), "z,Command not found");
+        assert_eq!(k.handle("D,ten,10").unwrap(), "z,Bad arguments");
+        assert_eq!(k.handle("D,10").unwrap(), "z,Bad arguments");
+        assert_eq!(k.handle("D,10,10").unwrap(), "d");
+        k.world_mut().run_for(1.0);
+        // 10 pulses per 10 ms for a second: 1000 pulses on each wheel.
+        let counts = |k: &mut Khepera| -> Vec<i64> {
+            let h = k.handle("H").unwrap();
+            h.strip_prefix("h,")
+                .unwrap()
+                .split(',')
+                .map(|v| v.parse().unwrap())
+                .collect()
+        };
+        // The speed controller's 30 ms lag costs a few pulses at the start…
+        assert!(counts(&mut k).iter().all(|&c| (960..=1000).contains(&c)));
+        // …then the counters grow by exactly 10 pulses per 10 ms.
+        let before = counts(&mut k);
+        k.world_mut().run_for(1.0);
+        let after = counts(&mut k);
+        assert_eq!((after[0] - before[0], after[1] - before[1]), (1000, 1000));
+        assert_eq!(k.handle("E").unwrap(), "e,10,10");
+        assert_eq!(k.handle("K").unwrap(), "k,1,1,0,1,1,0");
+        assert_eq!(k.handle("G,0,0").unwrap(), "g");
+        assert_eq!(k.handle("H").unwrap(), "h,0,0");
+        assert_eq!(k.handle("L,1,2").unwrap(), "l");
+        assert!(k.led(1));
+        let n = k.handle("N").unwrap();
+        assert!(n.starts_with("n,") && n.split(',').count() == 9, "{n}");
+        assert_eq!(
+            k.handle("D,500,-500").unwrap(),
+            "d",
+            "speeds beyond 127 are clamped"
+        );
+        k.world_mut().run_for(0.5);
+        assert_eq!(k.handle("E").unwrap(), "e,127,-127");
+    }
+}

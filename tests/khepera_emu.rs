@@ -1,0 +1,129 @@
+//! `vl khepera-emu` spoken to through `serialport` on its pseudo-terminal,
+//! as the Host's serial driver and K-Team's own tools would.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serialport::SerialPort;
+
+struct Emulator(Child);
+
+impl Drop for Emulator {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn start(extra: &[&str]) -> (Emulator, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_vl"))
+        .arg("khepera-emu")
+        .args(extra)
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("vl khepera-emu starts");
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let device = line.trim().rsplit(' ').next().unwrap().to_owned();
+    (Emulator(child), device)
+}
+
+fn open(device: &str) -> Box<dyn SerialPort> {
+    serialport::new(device, 38_400)
+        .stop_bits(serialport::StopBits::Two)
+        .timeout(Duration::from_secs(2))
+        .open()
+        .unwrap_or_else(|e| panic!("cannot open {device}: {e}"))
+}
+
+/// Sends one command and reads its CRLF-terminated reply.
+fn ask(port: &mut Box<dyn SerialPort>, command: &str) -> String {
+    port.write_all(format!("{command}\r").as_bytes()).unwrap();
+    let mut reply = Vec::new();
+    let mut byte = [0u8; 1];
+    while !reply.ends_with(b"\r\n") {
+        port.read_exact(&mut byte)
+            .unwrap_or_else(|e| panic!("no reply to {command}: {e}"));
+        reply.push(byte[0]);
+    }
+    String::from_utf8(reply).unwrap().trim_end().to_owned()
+}
+
+fn numbers(reply: &str) -> Vec<i64> {
+    reply
+        .split(',')
+        .skip(1)
+        .map(|v| v.parse().unwrap())
+        .collect()
+}
+
+#[test]
+fn the_emulated_khepera_answers_on_its_serial_line() {
+    let link = std::env::temp_dir().join(format!("vl-khepera-{}", std::process::id()));
+    let (_emu, device) = start(&["--link", link.to_str().unwrap()]);
+    assert!(device.starts_with("/dev/pts/"), "{device}");
+    assert_eq!(std::fs::read_link(&link).unwrap().to_str().unwrap(), device);
+
+    let mut port = open(link.to_str().unwrap());
+    assert_eq!(ask(&mut port, "B"), "b,5.02,5.01");
+    assert_eq!(ask(&mut port, "X"), "z,Command not found");
+    assert_eq!(ask(&mut port, "G,0,0"), "g");
+
+    // Far from everything, the proximity sensors read only noise.
+    let far = numbers(&ask(&mut port, "N"));
+    assert_eq!(far.len(), 8);
+    assert!(far.iter().all(|v| (0..=1023).contains(v)));
+
+    // At D,10,10 the counters grow by ~10 pulses per 10 ms.
+    assert_eq!(ask(&mut port, "D,10,10"), "d");
+    std::thread::sleep(Duration::from_millis(200));
+    let t0 = Instant::now();
+    let h0 = numbers(&ask(&mut port, "H"));
+    std::thread::sleep(Duration::from_millis(500));
+    let h1 = numbers(&ask(&mut port, "H"));
+    let ticks = t0.elapsed().as_secs_f64() / 0.01;
+    for wheel in 0..2 {
+        let rate = (h1[wheel] - h0[wheel]) as f64 / ticks;
+        assert!(
+            (rate - 10.0).abs() < 1.5,
+            "wheel {wheel}: {rate:.2} pulses per 10 ms"
+        );
+    }
+
+    // Driving on toward the box ahead, the front sensors rise.
+    assert_eq!(ask(&mut port, "D,40,40"), "d");
+    std::thread::sleep(Duration::from_millis(600));
+    let near = numbers(&ask(&mut port, "N"));
+    assert!(
+        near[2] > far[2] + 200 && near[3] > far[3] + 200,
+        "far {far:?}, near {near:?}"
+    );
+    assert_eq!(ask(&mut port, "D,0,0"), "d");
+
+    // Closing and reopening the port works; the robot's state survives.
+    drop(port);
+    let mut port = open(&device);
+    assert_eq!(ask(&mut port, "B"), "b,5.02,5.01");
+    let h2 = numbers(&ask(&mut port, "H"));
+    assert!(h2[0] > h1[0]);
+    let _ = std::fs::remove_file(&link);
+}
+
+#[test]
+fn line_timing_takes_as_long_as_the_baud_rate_says() {
+    let (_emu, device) = start(&["--baud", "9600", "--line-timing"]);
+    let mut port = open(&device);
+    let started = Instant::now();
+    let reply = ask(&mut port, "N");
+    let took = started.elapsed().as_secs_f64();
+    // 11 bits per character at 9600 baud.
+    let expected = (reply.len() + 2) as f64 * 11.0 / 9600.0;
+    assert!(
+        took >= expected * 0.9,
+        "{took:.3} s for {} characters",
+        reply.len() + 2
+    );
+}
