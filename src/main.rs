@@ -4,6 +4,7 @@
 
 mod alloc;
 mod petri;
+mod sim;
 
 use std::net::SocketAddr;
 use std::process::ExitCode;
@@ -40,6 +41,9 @@ enum Command {
     Petri(petri::PetriCommand),
     /// Emulate a Khepera II on a pseudo-terminal, backed by the simulator.
     KheperaEmu(KheperaArgs),
+    /// The simulator's tools: link models.
+    #[command(subcommand)]
+    Sim(sim::SimCommand),
 }
 
 #[derive(clap::Args)]
@@ -182,6 +186,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Demo(args) => demo(&runtime()?, args),
         Command::Petri(command) => petri::run(command),
         Command::KheperaEmu(args) => khepera_emu(args),
+        Command::Sim(command) => sim::run(command),
     }
 }
 

@@ -6,6 +6,7 @@
 mod camera;
 mod emulator;
 mod khepera;
+pub mod link;
 mod proximity;
 mod world;
 
