@@ -41,7 +41,7 @@ enum Command {
     Petri(petri::PetriCommand),
     /// Emulate a Khepera II on a pseudo-terminal, backed by the simulator.
     KheperaEmu(KheperaArgs),
-    /// The simulator's tools: link models.
+    /// The simulator's tools: scripted runs, camera frames, link models, speed.
     #[command(subcommand)]
     Sim(sim::SimCommand),
 }

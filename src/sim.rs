@@ -5,12 +5,51 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Subcommand;
 use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use vl_core::arena::Arena;
+use vl_core::robot::RobotModel;
 use vl_sim::link::{Link, LinkModel, LinkStats, measure};
+use vl_sim::script::{Script, run as run_script};
+use vl_sim::{World, camera_for};
 
 use crate::BadInput;
 
 #[derive(Subcommand)]
 pub enum SimCommand {
+    /// Run the simulated robot in virtual time and print where it ended and
+    /// a hash of the whole trace (same seed and script, same hash).
+    Run {
+        #[arg(long, default_value = "navigation")]
+        arena: String,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[arg(long, default_value_t = 10.0)]
+        duration: f64,
+        /// Lines of 't_s left_mm_s right_mm_s'; without one the robot steers to the arena's goal.
+        #[arg(long)]
+        script: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Render one overhead camera frame of an arena to a PNG.
+    Render {
+        #[arg(long, default_value = "navigation")]
+        arena: String,
+        #[arg(long, default_value_t = 320)]
+        width: u32,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Real-time factor of the simulator, with and without the camera.
+    Bench {
+        /// Simulated seconds per measurement.
+        #[arg(long, default_value_t = 600.0)]
+        seconds: f64,
+        #[arg(long)]
+        json: bool,
+    },
     /// Send packets through a modelled link and measure what they went through.
     Link {
         /// lan, internet2, internet-2005, intercontinental, congested or geo-satellite.
@@ -30,6 +69,19 @@ pub enum SimCommand {
 
 pub fn run(command: SimCommand) -> Result<ExitCode> {
     match command {
+        SimCommand::Run {
+            arena,
+            seed,
+            duration,
+            script,
+            json,
+        } => sim_run(&arena, seed, duration, script.as_deref(), json),
+        SimCommand::Render {
+            arena,
+            width,
+            output,
+        } => render(&arena, width, &output),
+        SimCommand::Bench { seconds, json } => bench(seconds, json),
         SimCommand::Link {
             profile,
             packets,
@@ -103,5 +155,131 @@ fn link(
     println!("{:<18} {:>12.3}", "delay p99, ms", m.delay_p99_ms);
     println!("{:<18} {:>12}", "duplicates", m.duplicates);
     println!("{:<18} {:>12}", "reorders", m.reorders);
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The arena called `name`.
+pub fn arena(name: &str) -> Result<Arena> {
+    match name {
+        "navigation" => Ok(Arena::navigation()),
+        other => Err(BadInput(format!("unknown arena '{other}' (known: navigation)")).into()),
+    }
+}
+
+fn world(name: &str, seed: u64) -> Result<World> {
+    Ok(World::new(arena(name)?, RobotModel::khepera_ii(), seed)
+        .map_err(|e| BadInput(e.to_string()))?)
+}
+
+fn sim_run(
+    arena: &str,
+    seed: u64,
+    duration: f64,
+    script: Option<&Path>,
+    json: bool,
+) -> Result<ExitCode> {
+    if !(duration.is_finite() && duration >= 0.0) {
+        return Err(BadInput(format!(
+            "--duration must be a non-negative number of seconds, not {duration}"
+        ))
+        .into());
+    }
+    let script = match script {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())))?;
+            Some(Script::parse(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?)
+        }
+        None => None,
+    };
+    let mut world = world(arena, seed)?;
+    let report = run_script(&mut world, script.as_ref(), duration);
+    if json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        let p = report.final_pose;
+        println!("{:<12} {:.2} s", "simulated", report.sim_seconds);
+        println!(
+            "{:<12} ({:.1}, {:.1}) mm, {:.1}°",
+            "final pose",
+            p.x_mm,
+            p.y_mm,
+            p.theta_rad.to_degrees()
+        );
+        println!("{:<12} {:.0} mm", "distance", report.distance_mm);
+        println!("{:<12} {}", "collisions", report.collisions);
+        println!("{:<12} {}", "trace hash", report.trace_hash);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn render(arena: &str, width: u32, output: &Path) -> Result<ExitCode> {
+    let world = world(arena, 0)?;
+    let camera = camera_for(&world, width.max(1), 15.0);
+    world
+        .render(&camera)
+        .save(output)
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", output.display()))?;
+    println!(
+        "{}×{} px, {} mm per px; wrote {}",
+        camera.width_px,
+        camera.height_px,
+        camera.mm_per_px,
+        output.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+#[derive(Serialize)]
+struct BenchReport {
+    sim_seconds: f64,
+    /// Simulated seconds per wall-clock second, robot and sensors only.
+    rtf_no_camera: f64,
+    /// The same with a 320×240 camera frame rendered at 30 Hz.
+    rtf_camera: f64,
+}
+
+fn bench(seconds: f64, json: bool) -> Result<ExitCode> {
+    let timed = |camera_hz: Option<f64>| -> Result<f64> {
+        let mut world = world("navigation", 1)?;
+        let camera = camera_for(&world, 320, 30.0);
+        let frame_every = camera_hz.map(|hz| ((1.0 / hz) / vl_sim::STEP_S).round().max(1.0) as u64);
+        let steps = (seconds / vl_sim::STEP_S) as u64;
+        let started = Instant::now();
+        let mut frames = 0usize;
+        for step in 0..steps {
+            if step % 2 == 0 {
+                std::hint::black_box(world.proximity());
+            }
+            // A slow circle keeps the robot moving through the arena.
+            world.set_wheels(vl_core::robot::WheelSpeeds {
+                left_mm_s: 120.0,
+                right_mm_s: 150.0,
+            });
+            world.step();
+            if frame_every.is_some_and(|every| step % every == 0) {
+                frames += std::hint::black_box(world.render(&camera)).len();
+            }
+        }
+        std::hint::black_box(frames);
+        Ok(seconds / started.elapsed().as_secs_f64())
+    };
+    let report = BenchReport {
+        sim_seconds: seconds,
+        rtf_no_camera: timed(None)?,
+        rtf_camera: timed(Some(30.0))?,
+    };
+    if json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!(
+            "{:<28} {:>12.0}×",
+            "real-time factor, no camera", report.rtf_no_camera
+        );
+        println!(
+            "{:<28} {:>12.0}×",
+            "with 320×240 camera at 30 Hz", report.rtf_camera
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }

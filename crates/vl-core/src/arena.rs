@@ -37,6 +37,38 @@ pub struct Arena {
 }
 
 impl Obstacle {
+    /// The corners (bottom-left, top-right) of the smallest box holding the obstacle.
+    pub fn bounds(&self) -> (Point, Point) {
+        match *self {
+            Obstacle::Rect {
+                x_mm,
+                y_mm,
+                width_mm,
+                height_mm,
+            } => (
+                Point { x_mm, y_mm },
+                Point {
+                    x_mm: x_mm + width_mm,
+                    y_mm: y_mm + height_mm,
+                },
+            ),
+            Obstacle::Circle {
+                x_mm,
+                y_mm,
+                radius_mm,
+            } => (
+                Point {
+                    x_mm: x_mm - radius_mm,
+                    y_mm: y_mm - radius_mm,
+                },
+                Point {
+                    x_mm: x_mm + radius_mm,
+                    y_mm: y_mm + radius_mm,
+                },
+            ),
+        }
+    }
+
     /// Distance from `p` to the obstacle's boundary; 0 inside it.
     pub fn distance(&self, p: Point) -> f64 {
         match *self {

@@ -2,6 +2,7 @@
 
 use image::{Rgb, RgbImage};
 use vl_core::camera::CameraModel;
+use vl_core::robot::Point;
 
 use crate::world::World;
 
@@ -24,25 +25,82 @@ pub fn camera_for(world: &World, width_px: u32, fps: f64) -> CameraModel {
 }
 
 impl World {
-    /// The overhead camera's view of the arena and the robot now.
+    /// The overhead camera's view of the arena and the robot now. Each shape
+    /// is painted over its own bounding box only, so a frame costs about one
+    /// pass over the image whatever the arena holds.
     pub fn render(&self, camera: &CameraModel) -> RgbImage {
         let arena = self.arena();
         let robot = self.robot();
         let pose = self.pose();
+        let mut image = RgbImage::from_pixel(camera.width_px, camera.height_px, FLOOR);
+        // Pixels whose centre lies beyond the walls.
+        let inside = |p: Point| {
+            (0.0..=arena.width_mm).contains(&p.x_mm) && (0.0..=arena.height_mm).contains(&p.y_mm)
+        };
+        paint(
+            &mut image,
+            camera,
+            (Point::default(), Point::default()),
+            true,
+            |p| (!inside(p)).then_some(OBSTACLE),
+        );
+        for obstacle in &arena.obstacles {
+            paint(&mut image, camera, obstacle.bounds(), false, |p| {
+                (obstacle.distance(p) <= 0.0).then_some(OBSTACLE)
+            });
+        }
         let marker = pose.to_world(robot.radius_mm * 0.45, 0.0);
         let marker_r = robot.radius_mm * 0.35;
-        RgbImage::from_fn(camera.width_px, camera.height_px, |c, r| {
-            let p = camera.to_arena(f64::from(c) + 0.5, f64::from(r) + 0.5);
+        let r = robot.radius_mm;
+        let body = (
+            Point {
+                x_mm: pose.x_mm - r,
+                y_mm: pose.y_mm - r,
+            },
+            Point {
+                x_mm: pose.x_mm + r,
+                y_mm: pose.y_mm + r,
+            },
+        );
+        paint(&mut image, camera, body, false, |p| {
             if p.distance(marker) <= marker_r {
-                MARKER
-            } else if p.distance(pose.point()) <= robot.radius_mm {
-                BODY
-            } else if arena.clearance(p) <= 0.0 {
-                OBSTACLE
+                Some(MARKER)
             } else {
-                FLOOR
+                (p.distance(pose.point()) <= r).then_some(BODY)
             }
-        })
+        });
+        image
+    }
+}
+
+/// Paints the pixels (centres) of `bounds` — or of the whole image when
+/// `everywhere` — that `colour` gives a colour.
+fn paint(
+    image: &mut RgbImage,
+    camera: &CameraModel,
+    bounds: (Point, Point),
+    everywhere: bool,
+    colour: impl Fn(Point) -> Option<Rgb<u8>>,
+) {
+    let (w, h) = (camera.width_px, camera.height_px);
+    let (cols, rows) = if everywhere {
+        (0..w, 0..h)
+    } else {
+        let (c0, r1) = camera.to_pixel(bounds.0);
+        let (c1, r0) = camera.to_pixel(bounds.1);
+        let clamp = |v: f64, max: u32| v.floor().clamp(0.0, f64::from(max)) as u32;
+        (
+            clamp(c0, w)..clamp(c1 + 1.0, w),
+            clamp(r0, h)..clamp(r1 + 1.0, h),
+        )
+    };
+    for r in rows {
+        for c in cols.clone() {
+            let p = camera.to_arena(f64::from(c) + 0.5, f64::from(r) + 0.5);
+            if let Some(colour) = colour(p) {
+                image.put_pixel(c, r, colour);
+            }
+        }
     }
 }
 

@@ -8,10 +8,11 @@ mod emulator;
 mod khepera;
 pub mod link;
 mod proximity;
+pub mod script;
 mod world;
 
 pub use camera::camera_for;
 pub use emulator::{Emulator, EmulatorError, Line};
 pub use khepera::Khepera;
 pub use proximity::proximity_value;
-pub use world::{SimError, World};
+pub use world::{STEP_S, SimError, World};

@@ -1,0 +1,108 @@
+//! `vl sim …` through its command line: deterministic runs, camera frames,
+//! link statistics, speed, and named refusals of bad input.
+
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn vl(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vl"))
+        .args(args)
+        .output()
+        .expect("vl runs")
+}
+
+fn json(args: &[&str]) -> Value {
+    let out = vl(args);
+    assert!(
+        out.status.success(),
+        "vl {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn runs_are_deterministic_per_seed() {
+    let run = |seed: &str| json(&["sim", "run", "--seed", seed, "--duration", "5", "--json"]);
+    let (a, b, c) = (run("11"), run("11"), run("12"));
+    assert_eq!(a["trace_hash"], b["trace_hash"]);
+    assert_eq!(a["final_pose"], b["final_pose"]);
+    assert_ne!(a["trace_hash"], c["trace_hash"]);
+    assert_eq!(a["collisions"], 0);
+
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let script = dir.join("square.txt");
+    std::fs::write(&script, "0 200 200\n1 -100 100\n1.5 200 200\n").unwrap();
+    let scripted = json(&[
+        "sim",
+        "run",
+        "--script",
+        script.to_str().unwrap(),
+        "--duration",
+        "3",
+        "--json",
+    ]);
+    assert!(scripted["distance_mm"].as_f64().unwrap() > 100.0);
+}
+
+#[test]
+fn render_writes_a_camera_frame() {
+    let png = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("arena.png");
+    assert!(
+        vl(&[
+            "sim",
+            "render",
+            "--arena",
+            "navigation",
+            "-o",
+            png.to_str().unwrap()
+        ])
+        .status
+        .success()
+    );
+    let frame = image::open(&png).unwrap().to_rgb8();
+    assert_eq!(frame.dimensions(), (320, 240));
+}
+
+#[test]
+fn link_and_bench_report_json() {
+    let link = json(&[
+        "sim",
+        "link",
+        "--profile",
+        "intercontinental",
+        "--packets",
+        "20000",
+        "--seed",
+        "3",
+        "--json",
+    ]);
+    let mean = link["measured"]["delay_mean_ms"].as_f64().unwrap();
+    assert!((mean - 75.0).abs() < 1.0, "{mean}");
+    assert!(link["measured"]["loss_rate"].as_f64().unwrap() > 0.0);
+    let bench = json(&["sim", "bench", "--seconds", "20", "--json"]);
+    assert!(bench["rtf_no_camera"].as_f64().unwrap() > 0.0);
+    assert!(bench["rtf_camera"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn bad_input_is_named() {
+    let refused = |args: &[&str], needle: &str| {
+        let out = vl(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "vl {args:?}: {err}");
+        assert!(err.contains(needle), "'{err}' lacks '{needle}'");
+    };
+    refused(
+        &["sim", "link", "--profile", "dialup"],
+        "unknown link profile 'dialup'",
+    );
+    refused(&["sim", "run", "--arena", "moon"], "unknown arena 'moon'");
+    let bad = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("bad-script.txt");
+    std::fs::write(&bad, "0 100\n").unwrap();
+    refused(
+        &["sim", "run", "--script", bad.to_str().unwrap()],
+        "script line 1",
+    );
+}
