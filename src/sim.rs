@@ -21,6 +21,7 @@ pub enum SimCommand {
     /// Run the simulated robot in virtual time and print where it ended and
     /// a hash of the whole trace (same seed and script, same hash).
     Run {
+        /// A shipped arena (navigation, corridor, open) or an arena JSON file.
         #[arg(long, default_value = "navigation")]
         arena: String,
         #[arg(long, default_value_t = 1)]
@@ -158,12 +159,25 @@ fn link(
     Ok(ExitCode::SUCCESS)
 }
 
-/// The arena called `name`.
-pub fn arena(name: &str) -> Result<Arena> {
-    match name {
-        "navigation" => Ok(Arena::navigation()),
-        other => Err(BadInput(format!("unknown arena '{other}' (known: navigation)")).into()),
+/// A shipped arena by name, or an arena file (JSON) by path.
+pub fn arena(name_or_path: &str) -> Result<Arena> {
+    if let Some(arena) = Arena::named(name_or_path) {
+        return Ok(arena);
     }
+    let path = Path::new(name_or_path);
+    if path.extension().is_some_and(|e| e == "json") || path.exists() {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())))?;
+        return Ok(
+            Arena::from_json(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?
+        );
+    }
+    let known: Vec<&str> = Arena::shipped().collect();
+    Err(BadInput(format!(
+        "unknown arena '{name_or_path}' (shipped: {}; or a .json file)",
+        known.join(", ")
+    ))
+    .into())
 }
 
 fn world(name: &str, seed: u64) -> Result<World> {

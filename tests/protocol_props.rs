@@ -52,6 +52,7 @@ fn obstacle() -> impl Strategy<Value = Obstacle> {
             y_mm,
             radius_mm
         }),
+        proptest::collection::vec(point(), 0..6).prop_map(|points| Obstacle::Polygon { points }),
     ]
 }
 

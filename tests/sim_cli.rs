@@ -99,6 +99,75 @@ fn bad_input_is_named() {
         "unknown link profile 'dialup'",
     );
     refused(&["sim", "run", "--arena", "moon"], "unknown arena 'moon'");
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let write = |name: &str, text: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_owned()
+    };
+    let arena = |obstacles: &str, start: &str| {
+        format!(
+            r#"{{"name": "test", "width_mm": 500, "height_mm": 400, "obstacles": [{obstacles}], "start": {start}, "goal": null}}"#
+        )
+    };
+    let free = r#"{"x_mm": 100, "y_mm": 100, "theta_rad": 0}"#;
+    refused(
+        &[
+            "sim",
+            "run",
+            "--arena",
+            &write("syntax.json", "{\"name\": \"x\", "),
+        ],
+        "arena file: EOF",
+    );
+    let two_points = arena(
+        r#"{"shape": "polygon", "points": [{"x_mm": 1, "y_mm": 1}, {"x_mm": 5, "y_mm": 5}]}"#,
+        free,
+    );
+    refused(
+        &[
+            "sim",
+            "render",
+            "--arena",
+            &write("line.json", &two_points),
+            "-o",
+            "/dev/null",
+        ],
+        "obstacle 0: a polygon needs at least 3 vertices",
+    );
+    let negative = arena(
+        r#"{"shape": "rect", "x_mm": 0, "y_mm": 0, "width_mm": -5, "height_mm": 10}"#,
+        free,
+    );
+    refused(
+        &["sim", "run", "--arena", &write("negative.json", &negative)],
+        "its width must be a positive number",
+    );
+    let blocked = arena(
+        r#"{"shape": "circle", "x_mm": 110, "y_mm": 100, "radius_mm": 40}"#,
+        free,
+    );
+    refused(
+        &["sim", "run", "--arena", &write("blocked.json", &blocked)],
+        "overlaps a wall or obstacle",
+    );
+    // A valid file works like a shipped arena.
+    let ok = arena(
+        r#"{"shape": "circle", "x_mm": 300, "y_mm": 200, "radius_mm": 40}"#,
+        free,
+    );
+    assert!(
+        vl(&[
+            "sim",
+            "run",
+            "--arena",
+            &write("ok.json", &ok),
+            "--duration",
+            "1"
+        ])
+        .status
+        .success()
+    );
     let bad = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("bad-script.txt");
     std::fs::write(&bad, "0 100\n").unwrap();
     refused(

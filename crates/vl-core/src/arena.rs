@@ -3,8 +3,16 @@
 //! Host validates a definition's goal against it, the Guest draws it.
 
 use serde::{Deserialize, Serialize};
+use thiserror::Error;
 
 use crate::robot::{Point, Pose};
+
+/// The arenas that ship with `vl`, by name.
+const SHIPPED: [(&str, &str); 3] = [
+    ("navigation", include_str!("../arenas/navigation.json")),
+    ("corridor", include_str!("../arenas/corridor.json")),
+    ("open", include_str!("../arenas/open.json")),
+];
 
 /// An obstacle on the arena floor, in mm in the arena frame.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -22,6 +30,17 @@ pub enum Obstacle {
         y_mm: f64,
         radius_mm: f64,
     },
+    /// A simple polygon, vertices in order (either winding).
+    Polygon { points: Vec<Point> },
+}
+
+/// Why an arena description cannot be used.
+#[derive(Debug, Error, PartialEq, Eq)]
+pub enum ArenaError {
+    #[error("arena file: {0}")]
+    Syntax(String),
+    #[error("arena '{arena}': {why}")]
+    Impossible { arena: String, why: String },
 }
 
 /// A rectangular walled arena with its obstacles, where the robot starts,
@@ -66,6 +85,82 @@ impl Obstacle {
                     y_mm: y_mm + radius_mm,
                 },
             ),
+            Obstacle::Polygon { ref points } => points.iter().fold(
+                (
+                    Point {
+                        x_mm: f64::INFINITY,
+                        y_mm: f64::INFINITY,
+                    },
+                    Point {
+                        x_mm: f64::NEG_INFINITY,
+                        y_mm: f64::NEG_INFINITY,
+                    },
+                ),
+                |(lo, hi), p| {
+                    (
+                        Point {
+                            x_mm: lo.x_mm.min(p.x_mm),
+                            y_mm: lo.y_mm.min(p.y_mm),
+                        },
+                        Point {
+                            x_mm: hi.x_mm.max(p.x_mm),
+                            y_mm: hi.y_mm.max(p.y_mm),
+                        },
+                    )
+                },
+            ),
+        }
+    }
+
+    /// Whether the shape is one that can exist: finite, positive sizes, a
+    /// polygon of at least three vertices enclosing some area.
+    pub fn check(&self) -> Result<(), String> {
+        let finite = |v: f64| v.is_finite();
+        let positive = |what: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("its {what} must be a positive number, not {v}"))
+            }
+        };
+        match *self {
+            Obstacle::Rect {
+                x_mm,
+                y_mm,
+                width_mm,
+                height_mm,
+            } => {
+                if !(finite(x_mm) && finite(y_mm)) {
+                    return Err("its corner is not a finite position".into());
+                }
+                positive("width", width_mm)?;
+                positive("height", height_mm)
+            }
+            Obstacle::Circle {
+                x_mm,
+                y_mm,
+                radius_mm,
+            } => {
+                if !(finite(x_mm) && finite(y_mm)) {
+                    return Err("its centre is not a finite position".into());
+                }
+                positive("radius", radius_mm)
+            }
+            Obstacle::Polygon { ref points } => {
+                if points.len() < 3 {
+                    return Err(format!(
+                        "a polygon needs at least 3 vertices, this one has {}",
+                        points.len()
+                    ));
+                }
+                if !points.iter().all(|p| finite(p.x_mm) && finite(p.y_mm)) {
+                    return Err("a polygon vertex is not a finite position".into());
+                }
+                if polygon_area(points).abs() < 1e-9 {
+                    return Err("the polygon encloses no area".into());
+                }
+                Ok(())
+            }
         }
     }
 
@@ -87,6 +182,14 @@ impl Obstacle {
                 y_mm,
                 radius_mm,
             } => ((p.x_mm - x_mm).hypot(p.y_mm - y_mm) - radius_mm).max(0.0),
+            Obstacle::Polygon { ref points } => {
+                if contains(points, p) {
+                    return 0.0;
+                }
+                edges(points)
+                    .map(|(a, b)| segment_distance(p, a, b))
+                    .fold(f64::INFINITY, f64::min)
+            }
         }
     }
 
@@ -135,8 +238,67 @@ impl Obstacle {
                 let t = -b - disc.sqrt();
                 (t >= 0.0).then_some(t)
             }
+            Obstacle::Polygon { ref points } => {
+                if contains(points, o) {
+                    return Some(0.0);
+                }
+                edges(points)
+                    .filter_map(|(a, b)| ray_segment(o, dx, dy, a, b))
+                    .fold(None, |best: Option<f64>, t| {
+                        Some(best.map_or(t, |b| b.min(t)))
+                    })
+            }
         }
     }
+}
+
+/// A polygon's edges, closing the last vertex back to the first.
+fn edges(points: &[Point]) -> impl Iterator<Item = (Point, Point)> + '_ {
+    points
+        .iter()
+        .zip(points.iter().cycle().skip(1))
+        .map(|(a, b)| (*a, *b))
+}
+
+/// Signed area (positive counter-clockwise), by the shoelace formula.
+fn polygon_area(points: &[Point]) -> f64 {
+    edges(points)
+        .map(|(a, b)| a.x_mm * b.y_mm - b.x_mm * a.y_mm)
+        .sum::<f64>()
+        / 2.0
+}
+
+/// Whether `p` lies inside the polygon (even–odd rule).
+fn contains(points: &[Point], p: Point) -> bool {
+    edges(points).fold(false, |inside, (a, b)| {
+        let crosses = (a.y_mm > p.y_mm) != (b.y_mm > p.y_mm)
+            && p.x_mm < (b.x_mm - a.x_mm) * (p.y_mm - a.y_mm) / (b.y_mm - a.y_mm) + a.x_mm;
+        inside != crosses
+    })
+}
+
+fn segment_distance(p: Point, a: Point, b: Point) -> f64 {
+    let (dx, dy) = (b.x_mm - a.x_mm, b.y_mm - a.y_mm);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 == 0.0 {
+        0.0
+    } else {
+        (((p.x_mm - a.x_mm) * dx + (p.y_mm - a.y_mm) * dy) / len2).clamp(0.0, 1.0)
+    };
+    (p.x_mm - (a.x_mm + t * dx)).hypot(p.y_mm - (a.y_mm + t * dy))
+}
+
+/// Where the ray o + t·(dx, dy), t ≥ 0, meets segment ab, if it does.
+fn ray_segment(o: Point, dx: f64, dy: f64, a: Point, b: Point) -> Option<f64> {
+    let (ex, ey) = (b.x_mm - a.x_mm, b.y_mm - a.y_mm);
+    let denom = dx * ey - dy * ex;
+    if denom.abs() < 1e-12 {
+        return None;
+    }
+    let (wx, wy) = (a.x_mm - o.x_mm, a.y_mm - o.y_mm);
+    let t = (wx * ey - wy * ex) / denom;
+    let u = (wx * dy - wy * dx) / denom;
+    (t >= 0.0 && (0.0..=1.0).contains(&u)).then_some(t)
 }
 
 impl Arena {
@@ -183,44 +345,56 @@ impl Arena {
     /// The thesis's navigation experiment: a robot, a goal and several
     /// obstacles between them, on an 800 × 600 mm floor.
     pub fn navigation() -> Self {
-        Arena {
-            name: "navigation".into(),
-            width_mm: 800.0,
-            height_mm: 600.0,
-            obstacles: vec![
-                Obstacle::Rect {
-                    x_mm: 250.0,
-                    y_mm: 0.0,
-                    width_mm: 60.0,
-                    height_mm: 230.0,
-                },
-                Obstacle::Rect {
-                    x_mm: 480.0,
-                    y_mm: 380.0,
-                    width_mm: 60.0,
-                    height_mm: 220.0,
-                },
-                Obstacle::Circle {
-                    x_mm: 420.0,
-                    y_mm: 170.0,
-                    radius_mm: 45.0,
-                },
-                Obstacle::Circle {
-                    x_mm: 180.0,
-                    y_mm: 430.0,
-                    radius_mm: 35.0,
-                },
-            ],
-            start: Pose {
-                x_mm: 100.0,
-                y_mm: 120.0,
-                theta_rad: 0.0,
-            },
-            goal: Some(Point {
-                x_mm: 680.0,
-                y_mm: 470.0,
-            }),
+        Arena::named("navigation").expect("the navigation arena ships with vl")
+    }
+
+    /// A shipped arena by name: navigation, corridor or open.
+    pub fn named(name: &str) -> Option<Arena> {
+        let (_, text) = SHIPPED.iter().find(|(n, _)| *n == name)?;
+        Some(Arena::from_json(text).expect("shipped arenas are valid"))
+    }
+
+    /// The names of the shipped arenas.
+    pub fn shipped() -> impl Iterator<Item = &'static str> {
+        SHIPPED.iter().map(|(n, _)| *n)
+    }
+
+    /// An arena from its JSON description, checked to be one that can exist.
+    pub fn from_json(text: &str) -> Result<Arena, ArenaError> {
+        let arena: Arena =
+            serde_json::from_str(text).map_err(|e| ArenaError::Syntax(e.to_string()))?;
+        arena.check()?;
+        Ok(arena)
+    }
+
+    /// Whether the arena can exist: a positive size, valid shapes, a start
+    /// and a goal on the floor.
+    pub fn check(&self) -> Result<(), ArenaError> {
+        let impossible = |why: String| ArenaError::Impossible {
+            arena: self.name.clone(),
+            why,
+        };
+        for (what, v) in [("width", self.width_mm), ("height", self.height_mm)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(impossible(format!(
+                    "its {what} must be a positive number of mm, not {v}"
+                )));
+            }
         }
+        for (i, o) in self.obstacles.iter().enumerate() {
+            o.check()
+                .map_err(|why| impossible(format!("obstacle {i}: {why}")))?;
+        }
+        let on_floor = |p: Point| {
+            (0.0..=self.width_mm).contains(&p.x_mm) && (0.0..=self.height_mm).contains(&p.y_mm)
+        };
+        if !on_floor(self.start.point()) || !self.start.theta_rad.is_finite() {
+            return Err(impossible("the start pose is not on the floor".into()));
+        }
+        if self.goal.is_some_and(|g| !on_floor(g)) {
+            return Err(impossible("the goal is not on the floor".into()));
+        }
+        Ok(())
     }
 }
 
@@ -257,12 +431,68 @@ mod tests {
         assert!(a.is_free(a.goal.unwrap(), 35.0));
     }
 
+    #[test]
+    fn polygons_have_inside_edges_and_rays() {
+        let triangle = Obstacle::Polygon {
+            points: vec![p(0.0, 0.0), p(100.0, 0.0), p(0.0, 100.0)],
+        };
+        assert_eq!(triangle.distance(p(10.0, 10.0)), 0.0);
+        assert!((triangle.distance(p(50.0, -20.0)) - 20.0).abs() < 1e-9);
+        assert!(
+            (triangle
+                .ray(p(50.0, -20.0), std::f64::consts::FRAC_PI_2)
+                .unwrap()
+                - 20.0)
+                .abs()
+                < 1e-9
+        );
+        assert_eq!(triangle.ray(p(200.0, 200.0), 0.0), None);
+        assert_eq!(triangle.check(), Ok(()));
+        let line = Obstacle::Polygon {
+            points: vec![p(0.0, 0.0), p(1.0, 1.0), p(2.0, 2.0)],
+        };
+        assert!(line.check().unwrap_err().contains("no area"));
+        let two = Obstacle::Polygon {
+            points: vec![p(0.0, 0.0), p(1.0, 1.0)],
+        };
+        assert!(two.check().unwrap_err().contains("at least 3 vertices"));
+    }
+
+    #[test]
+    fn arena_files_are_checked() {
+        for name in Arena::shipped() {
+            assert!(Arena::named(name).is_some(), "{name}");
+        }
+        assert!(matches!(
+            Arena::from_json("{ \"name\": "),
+            Err(ArenaError::Syntax(_))
+        ));
+        let mut bad = Arena::navigation();
+        bad.obstacles.push(Obstacle::Circle {
+            x_mm: 1.0,
+            y_mm: 1.0,
+            radius_mm: -3.0,
+        });
+        let text = serde_json::to_string(&bad).unwrap();
+        let e = Arena::from_json(&text).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("obstacle 4: its radius must be a positive number"),
+            "{e}"
+        );
+    }
+
+    fn shipped() -> impl Strategy<Value = Arena> {
+        proptest::sample::select(Arena::shipped().collect::<Vec<_>>())
+            .prop_map(|n| Arena::named(n).unwrap())
+    }
+
     proptest! {
         /// A ray stops exactly at a surface: the point it reaches has zero
         /// clearance, and every point before it is free.
         #[test]
-        fn ray_ends_on_a_surface(x in 1.0f64..799.0, y in 1.0f64..599.0, angle in -3.2f64..3.2) {
-            let a = Arena::navigation();
+        fn ray_ends_on_a_surface(a in shipped(), fx in 0.001f64..0.999, fy in 0.001f64..0.999, angle in -3.2f64..3.2) {
+            let (x, y) = (fx * a.width_mm, fy * a.height_mm);
             let o = p(x, y);
             prop_assume!(a.clearance(o) > 1e-6);
             let d = a.ray(o, angle);

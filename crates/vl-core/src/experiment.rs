@@ -60,31 +60,8 @@ impl Definition {
             }
         };
         for (i, o) in self.virtual_obstacles.iter().enumerate() {
-            let what = format!("virtual obstacle {i}");
-            match *o {
-                Obstacle::Rect {
-                    x_mm,
-                    y_mm,
-                    width_mm,
-                    height_mm,
-                } => {
-                    if !(x_mm.is_finite() && y_mm.is_finite()) {
-                        return Err(format!("{what} has a non-finite corner"));
-                    }
-                    positive(&format!("{what}'s width"), width_mm)?;
-                    positive(&format!("{what}'s height"), height_mm)?;
-                }
-                Obstacle::Circle {
-                    x_mm,
-                    y_mm,
-                    radius_mm,
-                } => {
-                    if !(x_mm.is_finite() && y_mm.is_finite()) {
-                        return Err(format!("{what} has a non-finite centre"));
-                    }
-                    positive(&format!("{what}'s radius"), radius_mm)?;
-                }
-            }
+            o.check()
+                .map_err(|why| format!("virtual obstacle {i}: {why}"))?;
         }
         if let Some(goal) = self.goal {
             positive("the goal tolerance", goal.tolerance_mm)?;

@@ -343,8 +343,8 @@ impl GuestApp {
             }
             for obstacle in &definition.virtual_obstacles {
                 let stroke = Stroke::new(2.0, Color32::from_rgb(255, 150, 0));
-                match *obstacle {
-                    Obstacle::Rect {
+                match obstacle {
+                    &Obstacle::Rect {
                         x_mm,
                         y_mm,
                         width_mm,
@@ -362,7 +362,7 @@ impl GuestApp {
                             egui::StrokeKind::Middle,
                         );
                     }
-                    Obstacle::Circle {
+                    &Obstacle::Circle {
                         x_mm,
                         y_mm,
                         radius_mm,
@@ -372,6 +372,11 @@ impl GuestApp {
                             radius_mm as f32 * px_per_mm,
                             stroke,
                         );
+                    }
+                    Obstacle::Polygon { points } => {
+                        let mut outline: Vec<Pos2> = points.iter().map(|&p| to_screen(p)).collect();
+                        outline.extend(outline.first().copied());
+                        painter.line(outline, stroke);
                     }
                 }
             }
