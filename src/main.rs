@@ -158,6 +158,12 @@ struct RunArgs {
 }
 
 fn main() -> ExitCode {
+    // Like any Unix filter, end quietly when a reader such as `head` closes
+    // the pipe, rather than panicking inside println!.
+    // SAFETY: restoring the default action of one signal before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
