@@ -80,6 +80,12 @@ impl std::fmt::Display for BadInput {
 
 impl std::error::Error for BadInput {}
 
+/// The text of a file the user named; a missing or unreadable one is bad input.
+pub fn read_input(path: &std::path::Path) -> Result<String> {
+    std::fs::read_to_string(path)
+        .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())).into())
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 enum RobotKind {
     /// The simulated Khepera II.

@@ -20,8 +20,8 @@ use vl_petri::{
     analyze, coverability, explore, from_pnml, graph_to_dot, net_to_dot, to_pnml,
 };
 
-use crate::BadInput;
 use crate::alloc::{peak_bytes, reset_peak};
+use crate::{BadInput, read_input};
 
 #[derive(Subcommand)]
 pub enum PetriCommand {
@@ -178,8 +178,7 @@ pub fn run(command: PetriCommand) -> Result<ExitCode> {
 
 /// Reads a PNML file; any problem with it is the user's input, exit code 2.
 fn load(path: &Path) -> Result<Net> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())))?;
+    let text = read_input(path)?;
     Ok(from_pnml(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?)
 }
 
@@ -624,8 +623,7 @@ fn compose_command(paths: &[PathBuf], fuse: bool, output: &Path) -> Result<ExitC
 }
 
 fn from_scxml_command(path: &Path, output: &Path) -> Result<ExitCode> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())))?;
+    let text = read_input(path)?;
     let net = from_scxml(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?;
     write_file(output, &to_pnml(&net))?;
     println!(
@@ -658,8 +656,7 @@ struct BenchRow {
 
 fn bench_command(corpus: &Path, tier: &str, only: &[String], json: bool) -> Result<ExitCode> {
     let manifest = corpus.join("manifest.csv");
-    let text = std::fs::read_to_string(&manifest)
-        .map_err(|e| BadInput(format!("cannot read {}: {e}", manifest.display())))?;
+    let text = read_input(&manifest)?;
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
     let column = |name: &str| {

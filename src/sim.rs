@@ -14,7 +14,7 @@ use vl_sim::link::{Link, LinkModel, LinkStats, measure};
 use vl_sim::script::{Script, run as run_script};
 use vl_sim::{World, camera_for};
 
-use crate::BadInput;
+use crate::{BadInput, read_input};
 
 #[derive(Subcommand)]
 pub enum SimCommand {
@@ -166,8 +166,7 @@ pub fn arena(name_or_path: &str) -> Result<Arena> {
     }
     let path = Path::new(name_or_path);
     if path.extension().is_some_and(|e| e == "json") || path.exists() {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())))?;
+        let text = read_input(path)?;
         return Ok(
             Arena::from_json(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?
         );
@@ -200,8 +199,7 @@ fn sim_run(
     }
     let script = match script {
         Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())))?;
+            let text = read_input(path)?;
             Some(Script::parse(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?)
         }
         None => None,
