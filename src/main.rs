@@ -48,9 +48,11 @@ enum Command {
 
 #[derive(clap::Args)]
 struct KheperaArgs {
-    /// The arena the simulated robot drives in.
+    /// The arena the simulated robot drives in: a shipped one or a JSON file.
     #[arg(long, default_value = "navigation")]
     arena: String,
+    #[command(flatten)]
+    robot: sim::RobotArgs,
     /// The line speed to emulate (with --line-timing).
     #[arg(long, default_value_t = 38_400)]
     baud: u32,
@@ -203,13 +205,9 @@ fn run(cli: Cli) -> Result<ExitCode> {
 }
 
 fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
-    let arena = match args.arena.as_str() {
-        "navigation" => Arena::navigation(),
-        other => {
-            return Err(BadInput(format!("unknown arena '{other}' (known: navigation)")).into());
-        }
-    };
-    let world = vl_sim::World::new(arena, vl_core::robot::RobotModel::khepera_ii(), args.seed)
+    let model = args.robot.model()?;
+    let name = model.name.clone();
+    let world = vl_sim::World::new(sim::arena_named(&args.arena)?, model, args.seed)
         .map_err(|e| BadInput(e.to_string()))?;
     let line = vl_sim::Line {
         baud: args.baud,
@@ -218,7 +216,7 @@ fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
     let mut emulator =
         vl_sim::Emulator::open(vl_sim::Khepera::new(world), line, args.link.as_deref())?;
     // Scripts and tests read the device from this first line.
-    println!("vl khepera-emu: Khepera II on {}", emulator.device());
+    println!("vl khepera-emu: {name} on {}", emulator.device());
     use std::io::Write as _;
     std::io::stdout().flush()?;
     emulator.run()?;

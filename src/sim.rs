@@ -12,16 +12,73 @@ use vl_core::arena::Arena;
 use vl_core::robot::RobotModel;
 use vl_sim::link::{Link, LinkModel, LinkStats, measure};
 use vl_sim::script::{Script, run as run_script};
-use vl_sim::{World, camera_for};
+use vl_sim::{Optics, World, camera_for};
 
 use crate::{BadInput, read_input};
+
+/// Which robot to simulate, and its size if not the stock one.
+#[derive(clap::Args)]
+pub struct RobotArgs {
+    /// khepera-ii or khepera-i.
+    #[arg(long, default_value = "khepera-ii")]
+    robot: String,
+    /// Build the robot with this body radius, mm (sensors move out with it).
+    #[arg(long, requires = "wheel_base_mm")]
+    radius_mm: Option<f64>,
+    /// … and this distance between its wheels, mm.
+    #[arg(long, requires = "radius_mm")]
+    wheel_base_mm: Option<f64>,
+}
+
+impl RobotArgs {
+    pub fn model(&self) -> Result<RobotModel> {
+        let model = RobotModel::named(&self.robot).ok_or_else(|| {
+            BadInput(format!(
+                "unknown robot '{}' (known: khepera-ii, khepera-i)",
+                self.robot
+            ))
+        })?;
+        Ok(match (self.radius_mm, self.wheel_base_mm) {
+            (Some(radius), Some(base)) => model.resized(radius, base).map_err(BadInput)?,
+            _ => model,
+        })
+    }
+}
+
+/// How the simulated camera departs from an ideal one.
+#[derive(clap::Args)]
+pub struct OpticsArgs {
+    /// Image shift in px, as DX,DY (lens off the sensor's axis).
+    #[arg(long, value_parser = parse_pair, default_value = "0,0")]
+    lens_offset: [f64; 2],
+    /// Gaussian blur, standard deviation in px.
+    #[arg(long, default_value_t = 0.0)]
+    blur: f64,
+    /// Per-pixel noise, standard deviation in grey levels.
+    #[arg(long, default_value_t = 0.0)]
+    noise: f64,
+    /// How much darker the bottom-right corner is (0–1).
+    #[arg(long, default_value_t = 0.0)]
+    lighting: f64,
+}
+
+fn parse_pair(text: &str) -> Result<[f64; 2], String> {
+    let parts: Vec<&str> = text.split(',').collect();
+    match parts.as_slice() {
+        [a, b] => Ok([
+            a.trim().parse().map_err(|e| format!("'{a}': {e}"))?,
+            b.trim().parse().map_err(|e| format!("'{b}': {e}"))?,
+        ]),
+        _ => Err(format!("expected two numbers as DX,DY, not '{text}'")),
+    }
+}
 
 #[derive(Subcommand)]
 pub enum SimCommand {
     /// Run the simulated robot in virtual time and print where it ended and
     /// a hash of the whole trace (same seed and script, same hash).
     Run {
-        /// A shipped arena (navigation, corridor, open) or an arena JSON file.
+        /// A shipped arena (navigation, corridor, open, maze) or an arena JSON file.
         #[arg(long, default_value = "navigation")]
         arena: String,
         #[arg(long, default_value_t = 1)]
@@ -31,15 +88,25 @@ pub enum SimCommand {
         /// Lines of 't_s left_mm_s right_mm_s'; without one the robot steers to the arena's goal.
         #[arg(long)]
         script: Option<PathBuf>,
+        #[command(flatten)]
+        robot: RobotArgs,
         #[arg(long)]
         json: bool,
     },
     /// Render one overhead camera frame of an arena to a PNG.
     Render {
+        /// A shipped arena (navigation, corridor, open, maze) or an arena JSON file.
         #[arg(long, default_value = "navigation")]
         arena: String,
         #[arg(long, default_value_t = 320)]
         width: u32,
+        #[command(flatten)]
+        robot: RobotArgs,
+        #[command(flatten)]
+        optics: OpticsArgs,
+        /// Seed of the camera noise.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
         #[arg(short, long)]
         output: PathBuf,
     },
@@ -75,13 +142,35 @@ pub fn run(command: SimCommand) -> Result<ExitCode> {
             seed,
             duration,
             script,
+            robot,
             json,
-        } => sim_run(&arena, seed, duration, script.as_deref(), json),
+        } => sim_run(
+            World::new(arena_named(&arena)?, robot.model()?, seed)
+                .map_err(|e| BadInput(e.to_string()))?,
+            duration,
+            script.as_deref(),
+            json,
+        ),
         SimCommand::Render {
             arena,
             width,
+            robot,
+            optics,
+            seed,
             output,
-        } => render(&arena, width, &output),
+        } => {
+            let optics = Optics {
+                lens_offset_px: optics.lens_offset,
+                blur_px: optics.blur,
+                noise: optics.noise,
+                lighting_gradient: optics.lighting,
+                seed,
+            };
+            optics.check().map_err(BadInput)?;
+            let world = World::new(arena_named(&arena)?, robot.model()?, seed)
+                .map_err(|e| BadInput(e.to_string()))?;
+            render(&world, width, &optics, &output)
+        }
         SimCommand::Bench { seconds, json } => bench(seconds, json),
         SimCommand::Link {
             profile,
@@ -160,16 +249,23 @@ fn link(
 }
 
 /// A shipped arena by name, or an arena file (JSON) by path.
-pub fn arena(name_or_path: &str) -> Result<Arena> {
+pub fn arena_named(name_or_path: &str) -> Result<Arena> {
     if let Some(arena) = Arena::named(name_or_path) {
         return Ok(arena);
     }
     let path = Path::new(name_or_path);
     if path.extension().is_some_and(|e| e == "json") || path.exists() {
         let text = read_input(path)?;
-        return Ok(
-            Arena::from_json(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?
-        );
+        // A map image is named relative to the arena file.
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let load = |image: &str| {
+            let file = dir.join(image);
+            image::open(&file)
+                .map(|i| i.to_luma8())
+                .map_err(|e| format!("cannot read the map image {}: {e}", file.display()))
+        };
+        return Ok(Arena::from_json_with(&text, load)
+            .map_err(|e| BadInput(format!("{}: {e}", path.display())))?);
     }
     let known: Vec<&str> = Arena::shipped().collect();
     Err(BadInput(format!(
@@ -179,14 +275,8 @@ pub fn arena(name_or_path: &str) -> Result<Arena> {
     .into())
 }
 
-fn world(name: &str, seed: u64) -> Result<World> {
-    Ok(World::new(arena(name)?, RobotModel::khepera_ii(), seed)
-        .map_err(|e| BadInput(e.to_string()))?)
-}
-
 fn sim_run(
-    arena: &str,
-    seed: u64,
+    mut world: World,
     duration: f64,
     script: Option<&Path>,
     json: bool,
@@ -204,7 +294,6 @@ fn sim_run(
         }
         None => None,
     };
-    let mut world = world(arena, seed)?;
     let report = run_script(&mut world, script.as_ref(), duration);
     if json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -225,11 +314,10 @@ fn sim_run(
     Ok(ExitCode::SUCCESS)
 }
 
-fn render(arena: &str, width: u32, output: &Path) -> Result<ExitCode> {
-    let world = world(arena, 0)?;
-    let camera = camera_for(&world, width.max(1), 15.0);
+fn render(world: &World, width: u32, optics: &Optics, output: &Path) -> Result<ExitCode> {
+    let camera = camera_for(world, width.max(1), 15.0);
     world
-        .render(&camera)
+        .render(&camera, optics)
         .save(output)
         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", output.display()))?;
     println!(
@@ -253,7 +341,7 @@ struct BenchReport {
 
 fn bench(seconds: f64, json: bool) -> Result<ExitCode> {
     let timed = |camera_hz: Option<f64>| -> Result<f64> {
-        let mut world = world("navigation", 1)?;
+        let mut world = World::new(Arena::navigation(), RobotModel::khepera_ii(), 1)?;
         let camera = camera_for(&world, 320, 30.0);
         let frame_every = camera_hz.map(|hz| ((1.0 / hz) / vl_sim::STEP_S).round().max(1.0) as u64);
         let steps = (seconds / vl_sim::STEP_S) as u64;
@@ -270,7 +358,8 @@ fn bench(seconds: f64, json: bool) -> Result<ExitCode> {
             });
             world.step();
             if frame_every.is_some_and(|every| step % every == 0) {
-                frames += std::hint::black_box(world.render(&camera)).len();
+                frames +=
+                    std::hint::black_box(world.render(&camera, &Optics::default())).len();
             }
         }
         std::hint::black_box(frames);

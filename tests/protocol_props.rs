@@ -4,7 +4,7 @@
 
 use proptest::prelude::*;
 use serde_json::{Value, json};
-use vl_core::arena::{Arena, Obstacle};
+use vl_core::arena::{Arena, Material, Obstacle, Shape};
 use vl_core::camera::CameraModel;
 use vl_core::experiment::{Definition, ExperimentInfo, Goal};
 use vl_core::protocol::{
@@ -39,20 +39,27 @@ fn wheels() -> impl Strategy<Value = WheelSpeeds> {
     })
 }
 
-fn obstacle() -> impl Strategy<Value = Obstacle> {
+fn material() -> impl Strategy<Value = Material> {
+    (num(), any::<[u8; 3]>()).prop_map(|(reflectivity, colour)| Material {
+        reflectivity,
+        colour,
+    })
+}
+
+fn shape() -> impl Strategy<Value = Shape> {
     prop_oneof![
-        (num(), num(), num(), num()).prop_map(|(x_mm, y_mm, width_mm, height_mm)| Obstacle::Rect {
+        (num(), num(), num(), num()).prop_map(|(x_mm, y_mm, width_mm, height_mm)| Shape::Rect {
             x_mm,
             y_mm,
             width_mm,
             height_mm
         }),
-        (num(), num(), num()).prop_map(|(x_mm, y_mm, radius_mm)| Obstacle::Circle {
+        (num(), num(), num()).prop_map(|(x_mm, y_mm, radius_mm)| Shape::Circle {
             x_mm,
             y_mm,
             radius_mm
         }),
-        proptest::collection::vec(point(), 0..6).prop_map(|points| Obstacle::Polygon { points }),
+        proptest::collection::vec(point(), 0..6).prop_map(|points| Shape::Polygon { points }),
     ]
 }
 
@@ -68,7 +75,7 @@ fn definition() -> impl Strategy<Value = Definition> {
     (
         proptest::option::of(goal()),
         proptest::collection::vec(point(), 0..4),
-        proptest::collection::vec(obstacle(), 0..3),
+        proptest::collection::vec(shape(), 0..3),
         proptest::option::of(num()),
         proptest::option::of(num()),
     )
@@ -88,16 +95,21 @@ fn arena() -> impl Strategy<Value = Arena> {
         text(),
         num(),
         num(),
-        proptest::collection::vec(obstacle(), 0..4),
+        proptest::collection::vec((shape(), material()), 0..4),
+        material(),
         pose(),
         proptest::option::of(point()),
     )
         .prop_map(
-            |(name, width_mm, height_mm, obstacles, start, goal)| Arena {
+            |(name, width_mm, height_mm, obstacles, walls, start, goal)| Arena {
                 name,
                 width_mm,
                 height_mm,
-                obstacles,
+                obstacles: obstacles
+                    .into_iter()
+                    .map(|(shape, material)| Obstacle { shape, material })
+                    .collect(),
+                walls,
                 start,
                 goal,
             },

@@ -4,7 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::arena::{Arena, Obstacle};
+use crate::arena::{Arena, Shape};
 use crate::robot::{Point, RobotModel};
 
 /// An experiment the Host offers.
@@ -41,7 +41,7 @@ pub struct Definition {
     pub path: Vec<Point>,
     /// Obstacles that exist only in software; the Host keeps the robot out of them.
     #[serde(default)]
-    pub virtual_obstacles: Vec<Obstacle>,
+    pub virtual_obstacles: Vec<Shape>,
     /// Cap on wheel speed for this run, below the robot's own limit.
     pub max_speed_mm_s: Option<f64>,
     /// The run is stopped when it lasts longer than this.
@@ -131,7 +131,7 @@ mod tests {
         let blocked = goal(280.0, 100.0).validate(&arena, &robot).unwrap_err();
         assert!(blocked.contains("overlaps"), "{blocked}");
         let mut virtual_block = goal(680.0, 470.0);
-        virtual_block.virtual_obstacles.push(Obstacle::Circle {
+        virtual_block.virtual_obstacles.push(Shape::Circle {
             x_mm: 680.0,
             y_mm: 470.0,
             radius_mm: 10.0,

@@ -61,6 +61,39 @@ impl RobotModel {
         Self::khepera("khepera-i", 27.5, 50.0)
     }
 
+    /// A robot model by name: khepera-ii or khepera-i.
+    pub fn named(name: &str) -> Option<Self> {
+        match name {
+            "khepera-ii" => Some(Self::khepera_ii()),
+            "khepera-i" => Some(Self::khepera_i()),
+            _ => None,
+        }
+    }
+
+    /// The same robot built to another size: the body's radius and the
+    /// distance between the wheels; the sensors move out with the body.
+    pub fn resized(mut self, radius_mm: f64, wheel_base_mm: f64) -> Result<Self, String> {
+        for (what, v) in [("radius", radius_mm), ("wheel base", wheel_base_mm)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("the robot's {what} must be a positive number of mm, not {v}"));
+            }
+        }
+        if wheel_base_mm > 2.0 * radius_mm {
+            return Err(format!(
+                "a wheel base of {wheel_base_mm} mm does not fit a body of radius {radius_mm} mm"
+            ));
+        }
+        let scale = radius_mm / self.radius_mm;
+        for mount in &mut self.sensors {
+            mount.x_mm *= scale;
+            mount.y_mm *= scale;
+        }
+        self.radius_mm = radius_mm;
+        self.wheel_base_mm = wheel_base_mm;
+        self.name = format!("{} ({radius_mm} mm)", self.name);
+        Ok(self)
+    }
+
     fn khepera(name: &str, radius_mm: f64, sensor_range_mm: f64) -> Self {
         // Sensor placement from K-Team's documentation (x forward, y left).
         let layout = [
@@ -197,6 +230,21 @@ mod tests {
         let p = Pose::default().advance(m.wheels_for(100.0, PI), m.wheel_base_mm, 1.0);
         assert!(p.x_mm.abs() < 1e-9);
         assert!((p.y_mm - 200.0 / PI).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_resized_robot_keeps_its_sensors_on_its_body() {
+        let big = RobotModel::khepera_ii().resized(70.0, 100.0).unwrap();
+        assert_eq!((big.radius_mm, big.wheel_base_mm), (70.0, 100.0));
+        for (m, k) in big.sensors.iter().zip(&RobotModel::khepera_ii().sensors) {
+            assert_eq!((m.x_mm, m.y_mm, m.angle_rad), (2.0 * k.x_mm, 2.0 * k.y_mm, k.angle_rad));
+        }
+        let e = RobotModel::khepera_ii().resized(-1.0, 53.0).unwrap_err();
+        assert!(e.contains("radius must be a positive"), "{e}");
+        let e = RobotModel::khepera_ii().resized(20.0, 53.0).unwrap_err();
+        assert!(e.contains("does not fit"), "{e}");
+        assert_eq!(RobotModel::named("khepera-i"), Some(RobotModel::khepera_i()));
+        assert_eq!(RobotModel::named("roomba"), None);
     }
 
     proptest! {

@@ -6,7 +6,7 @@
 use std::time::Duration;
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Vec2};
-use vl_core::arena::Obstacle;
+use vl_core::arena::Shape;
 use vl_core::experiment::{Definition, Goal};
 use vl_core::protocol::{Drive, GuestMessage, PROTOCOL_VERSION, Role};
 use vl_core::robot::Point;
@@ -344,7 +344,7 @@ impl GuestApp {
             for obstacle in &definition.virtual_obstacles {
                 let stroke = Stroke::new(2.0, Color32::from_rgb(255, 150, 0));
                 match obstacle {
-                    &Obstacle::Rect {
+                    &Shape::Rect {
                         x_mm,
                         y_mm,
                         width_mm,
@@ -362,7 +362,7 @@ impl GuestApp {
                             egui::StrokeKind::Middle,
                         );
                     }
-                    &Obstacle::Circle {
+                    &Shape::Circle {
                         x_mm,
                         y_mm,
                         radius_mm,
@@ -373,7 +373,7 @@ impl GuestApp {
                             stroke,
                         );
                     }
-                    Obstacle::Polygon { points } => {
+                    Shape::Polygon { points } => {
                         let mut outline: Vec<Pos2> = points.iter().map(|&p| to_screen(p)).collect();
                         outline.extend(outline.first().copied());
                         painter.line(outline, stroke);

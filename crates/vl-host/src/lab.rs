@@ -409,7 +409,7 @@ impl CameraLoop {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use vl_core::arena::Obstacle;
+    use vl_core::arena::Shape;
     use vl_core::robot::Pose;
 
     #[test]
@@ -425,7 +425,7 @@ mod tests {
             },
         };
         let definition = Definition {
-            virtual_obstacles: vec![Obstacle::Circle {
+            virtual_obstacles: vec![Shape::Circle {
                 x_mm: 200.0,
                 y_mm: 120.0,
                 radius_mm: 20.0,

@@ -9,7 +9,7 @@ use image::RgbImage;
 use vl_core::arena::Arena;
 use vl_core::camera::CameraModel;
 use vl_core::robot::{RobotModel, WheelSpeeds};
-use vl_sim::{SimError, World, camera_for};
+use vl_sim::{Optics, SimError, World, camera_for};
 
 use crate::drivers::{Camera, CameraError, Robot, RobotError, RobotReading};
 
@@ -89,6 +89,6 @@ impl Camera for SimCamera {
     }
 
     fn grab(&mut self) -> Result<RgbImage, CameraError> {
-        Ok(lock(&self.world).render(&self.model))
+        Ok(lock(&self.world).render(&self.model, &Optics::default()))
     }
 }

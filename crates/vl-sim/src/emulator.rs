@@ -106,9 +106,8 @@ impl Emulator {
 
     /// Steps the simulated robot until its clock reaches `seconds`.
     fn catch_up(&mut self, seconds: f64) {
-        let world = self.khepera.world_mut();
-        while world.time_s() < seconds {
-            world.step();
+        while self.khepera.world().time_s() < seconds {
+            self.khepera.step();
         }
     }
 

@@ -14,6 +14,20 @@ const MAX_SPEED: i64 = 127;
 /// Ambient light reading in the simulated arena's even lighting (lower = brighter).
 const AMBIENT: u16 = 480;
 
+/// The speed profile position moves follow (`J`): the firmware's default
+/// top speed is 20 pulses per 10 ms and its acceleration 64, in units of
+/// 1/256 pulse per 10 ms per 10 ms.
+const DEFAULT_PROFILE: [i64; 2] = [20, 64];
+/// A wheel within this many pulses of its position target is on target.
+const ON_TARGET_PULSES: i64 = 2;
+
+/// What each motor's controller holds: a speed (`D`) or a position (`C`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Mode {
+    Speed,
+    Position(i64),
+}
+
 /// A Khepera answering its serial protocol.
 pub struct Khepera {
     world: World,
@@ -21,6 +35,11 @@ pub struct Khepera {
     counter_origin: [i64; 2],
     /// Commanded speeds, pulses per 10 ms.
     speed: [i64; 2],
+    mode: [Mode; 2],
+    /// Per motor: top speed and acceleration of position moves (`J`).
+    profile: [[i64; 2]; 2],
+    /// Speed of each position move along its profile, pulses per 10 ms.
+    ramp: [f64; 2],
     leds: [bool; 2],
 }
 
@@ -30,8 +49,46 @@ impl Khepera {
             world,
             counter_origin: [0; 2],
             speed: [0; 2],
+            mode: [Mode::Speed; 2],
+            profile: [DEFAULT_PROFILE; 2],
+            ramp: [0.0; 2],
             leds: [false; 2],
         }
+    }
+
+    /// Advances the robot one control period: motors in position mode first
+    /// choose their speed along a trapezoidal profile towards their target.
+    pub fn step(&mut self) {
+        if self.mode.iter().any(|m| matches!(m, Mode::Position(_))) {
+            let counts = self.counters();
+            for wheel in 0..2 {
+                if let Mode::Position(target) = self.mode[wheel] {
+                    let [top, accel] = self.profile[wheel];
+                    let accel = accel as f64 / 256.0;
+                    let error = (target - counts[wheel]) as f64;
+                    // Speed up by the profile's acceleration, never beyond
+                    // the fastest speed that can still stop at the target.
+                    let braking = (2.0 * accel * error.abs()).sqrt();
+                    let ramp = (self.ramp[wheel] + accel)
+                        .min(braking)
+                        .min(top as f64)
+                        .min(error.abs());
+                    self.ramp[wheel] = ramp;
+                    self.speed[wheel] = (ramp.round().copysign(error) as i64).clamp(-MAX_SPEED, MAX_SPEED);
+                }
+            }
+            self.command_speeds();
+        }
+        self.world.step();
+    }
+
+    /// Asks the world's speed controller for the commanded pulse rates.
+    fn command_speeds(&mut self) {
+        let per_tick = self.world.robot().mm_per_pulse / STEP_S;
+        self.world.set_wheels(WheelSpeeds {
+            left_mm_s: self.speed[0] as f64 * per_tick,
+            right_mm_s: self.speed[1] as f64 * per_tick,
+        });
     }
 
     pub fn world(&self) -> &World {
@@ -73,18 +130,26 @@ impl Khepera {
         };
         let reply = match (command, args.as_slice()) {
             ("A" | "F", [_, _, _]) => command.to_lowercase(),
-            ("J", [_, _, _, _]) => "j".to_owned(),
+            ("J", [top_l, acc_l, top_r, acc_r]) => {
+                self.profile = [
+                    [(*top_l).clamp(0, MAX_SPEED), (*acc_l).clamp(1, 255)],
+                    [(*top_r).clamp(0, MAX_SPEED), (*acc_r).clamp(1, 255)],
+                ];
+                "j".to_owned()
+            }
+            ("C", [left, right]) => {
+                self.mode = [Mode::Position(*left), Mode::Position(*right)];
+                self.ramp = [self.speed[0].abs() as f64, self.speed[1].abs() as f64];
+                "c".to_owned()
+            }
             ("B", []) => "b,5.02,5.01".to_owned(),
             ("D", [left, right]) => {
                 self.speed = [
                     (*left).clamp(-MAX_SPEED, MAX_SPEED),
                     (*right).clamp(-MAX_SPEED, MAX_SPEED),
                 ];
-                let per_tick = self.world.robot().mm_per_pulse / STEP_S;
-                self.world.set_wheels(WheelSpeeds {
-                    left_mm_s: self.speed[0] as f64 * per_tick,
-                    right_mm_s: self.speed[1] as f64 * per_tick,
-                });
+                self.mode = [Mode::Speed; 2];
+                self.command_speeds();
                 "d".to_owned()
             }
             ("E", []) => {
@@ -106,15 +171,22 @@ impl Khepera {
                 format!("h,{l},{r}")
             }
             ("K", []) => {
-                // Speed mode; "on target" once the wheel runs at the commanded speed.
+                // On target: at the commanded speed, or near the commanded position.
                 let w = self.world.wheels();
                 let actual = [
                     self.pulses_per_tick(w.left_mm_s),
                     self.pulses_per_tick(w.right_mm_s),
                 ];
-                let motor = |i: usize| {
-                    let error = self.speed[i] - actual[i];
-                    format!("{},1,{}", u8::from(error == 0), error)
+                let counts = self.counters();
+                let motor = |i: usize| match self.mode[i] {
+                    Mode::Speed => {
+                        let error = self.speed[i] - actual[i];
+                        format!("{},1,{}", u8::from(error == 0), error)
+                    }
+                    Mode::Position(target) => {
+                        let error = target - counts[i];
+                        format!("{},0,{}", u8::from(error.abs() <= ON_TARGET_PULSES), error)
+                    }
                 };
                 format!("k,{},{}", motor(0), motor(1))
             }
@@ -138,7 +210,7 @@ impl Khepera {
                     .collect();
                 format!("o,{}", values.join(","))
             }
-            ("A" | "B" | "D" | "E" | "F" | "G" | "H" | "J" | "K" | "L" | "N" | "O", _) => {
+            ("A" | "B" | "C" | "D" | "E" | "F" | "G" | "H" | "J" | "K" | "L" | "N" | "O", _) => {
                 "z,Bad arguments".to_owned()
             }
             _ => "z,Command not found".to_owned(),
@@ -198,5 +270,34 @@ mod tests {
         );
         k.world_mut().run_for(0.5);
         assert_eq!(k.handle("E").unwrap(), "e,127,-127");
+    }
+
+    #[test]
+    fn position_moves_reach_their_targets() {
+        let mut k = khepera();
+        assert_eq!(k.handle("G,0,0").unwrap(), "g");
+        assert_eq!(k.handle("C,3000,-1500").unwrap(), "c");
+        let mut top = 0;
+        for _ in 0..400 {
+            k.step();
+            let e = k.handle("E").unwrap();
+            let left: i64 = e[2..].split(',').next().unwrap().parse().unwrap();
+            top = top.max(left);
+        }
+        let h = k.handle("H").unwrap();
+        let counts: Vec<i64> = h[2..].split(',').map(|v| v.parse().unwrap()).collect();
+        assert!((counts[0] - 3000).abs() <= 2 && (counts[1] + 1500).abs() <= 2, "{h}");
+        assert_eq!(top, 20, "the default profile's top speed");
+        let status = k.handle("K").unwrap();
+        assert!(status.starts_with("k,1,0,") && status.contains(",1,0,"), "{status}");
+        // A slower profile, then a speed command takes the motors back.
+        assert_eq!(k.handle("J,5,64,5,64").unwrap(), "j");
+        k.handle("C,4000,1000").unwrap();
+        for _ in 0..40 {
+            k.step();
+        }
+        assert_eq!(k.handle("E").unwrap(), "e,5,5");
+        k.handle("D,0,0").unwrap();
+        assert!(k.handle("K").unwrap().starts_with("k,0,1,-5,"));
     }
 }

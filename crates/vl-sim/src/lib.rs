@@ -4,6 +4,7 @@
 //! seed and inputs give the same run on any machine.
 
 mod camera;
+mod noise;
 mod emulator;
 mod khepera;
 pub mod link;
@@ -11,7 +12,7 @@ mod proximity;
 pub mod script;
 mod world;
 
-pub use camera::camera_for;
+pub use camera::{Optics, camera_for};
 pub use emulator::{Emulator, EmulatorError, Line};
 pub use khepera::Khepera;
 pub use proximity::proximity_value;

@@ -15,6 +15,8 @@ use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
 use thiserror::Error;
 
+use crate::noise::gaussian;
+
 /// How delays spread around their mean.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -235,10 +237,7 @@ impl Link {
     }
 
     fn gaussian(&mut self) -> f64 {
-        // Box–Muller; one of the pair is enough here.
-        let u1: f64 = self.rng.random::<f64>().max(f64::MIN_POSITIVE);
-        let u2: f64 = self.rng.random();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        gaussian(&mut self.rng)
     }
 
     /// An AR(1) step that keeps the variable standard normal.

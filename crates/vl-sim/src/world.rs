@@ -6,6 +6,7 @@ use thiserror::Error;
 use vl_core::arena::Arena;
 use vl_core::robot::{Pose, RobotModel, WheelSpeeds};
 
+use crate::noise::gaussian;
 use crate::proximity::proximity_value;
 
 /// The simulator's step: the Khepera's speed-control period.
@@ -20,6 +21,10 @@ const SETTLED_MM_S: f64 = 1.0;
 const NOISE_FLOOR: f64 = 10.0;
 /// Relative noise on an in-range reading.
 const READING_NOISE: f64 = 0.03;
+/// Standard deviation of each wheel's slip: the fraction of its turning
+/// that does not move the body, drawn afresh each step. Encoders count the
+/// turning, so odometry drifts from the truth as on the real robot.
+const SLIP_SD: f64 = 0.01;
 
 #[derive(Debug, Error, PartialEq)]
 pub enum SimError {
@@ -145,9 +150,15 @@ impl World {
         };
         self.wheel_travel_mm[0] += self.wheels.left_mm_s * STEP_S;
         self.wheel_travel_mm[1] += self.wheels.right_mm_s * STEP_S;
-        let next = self
-            .pose
-            .advance(self.wheels, self.robot.wheel_base_mm, STEP_S);
+        let ground = if self.wheels == WheelSpeeds::default() {
+            self.wheels
+        } else {
+            WheelSpeeds {
+                left_mm_s: self.wheels.left_mm_s * (1.0 + SLIP_SD * gaussian(&mut self.rng)),
+                right_mm_s: self.wheels.right_mm_s * (1.0 + SLIP_SD * gaussian(&mut self.rng)),
+            }
+        };
+        let next = self.pose.advance(ground, self.robot.wheel_base_mm, STEP_S);
         let clearance = |p: Pose| self.arena.clearance(p.point());
         // A move that does not bring the body closer to what it touches (sliding
         // along or backing away from a wall) is allowed even in contact.
@@ -186,9 +197,11 @@ impl World {
             .iter()
             .map(|mount| {
                 let origin = pose.to_world(mount.x_mm, mount.y_mm);
-                let distance = arena.ray(origin, pose.theta_rad + mount.angle_rad);
-                let value = if distance <= robot.sensor_range_mm {
-                    proximity_value(distance) * (1.0 + READING_NOISE * rng.random_range(-1.0..1.0))
+                let hit = arena.ray_hit(origin, pose.theta_rad + mount.angle_rad);
+                let value = if hit.distance_mm <= robot.sensor_range_mm {
+                    hit.reflectivity
+                        * proximity_value(hit.distance_mm)
+                        * (1.0 + READING_NOISE * rng.random_range(-1.0..1.0))
                 } else {
                     NOISE_FLOOR * rng.random::<f64>()
                 };
@@ -232,6 +245,40 @@ mod tests {
             "front sensors read {near:?}"
         );
         assert!(near[2] > far[2]);
+    }
+
+    #[test]
+    fn dark_obstacles_read_lower() {
+        let reading = |reflectivity: f64| {
+            let mut arena = Arena::navigation();
+            arena.obstacles[0].material.reflectivity = reflectivity;
+            let mut w = World::new(arena, RobotModel::khepera_ii(), 1).unwrap();
+            w.set_wheels(WheelSpeeds {
+                left_mm_s: 200.0,
+                right_mm_s: 200.0,
+            });
+            w.run_for(0.6);
+            let n = w.proximity();
+            f64::from(n[2] + n[3]) / 2.0
+        };
+        let (white, black) = (reading(1.0), reading(0.1));
+        assert!(white > 200.0, "{white}");
+        assert!((black / white - 0.1).abs() < 0.02, "{black} vs {white}");
+    }
+
+    #[test]
+    fn odometry_drifts_from_the_truth() {
+        let mut w = world(5);
+        w.set_wheels(WheelSpeeds {
+            left_mm_s: 100.0,
+            right_mm_s: 100.0,
+        });
+        w.run_for(1.0);
+        let [l, r] = w.wheel_travel_mm();
+        // Both encoders counted the same turning, yet the body drifted.
+        assert!((l - r).abs() < 1e-9);
+        assert!(w.pose().theta_rad.abs() > 1e-6);
+        assert!((w.odometer_mm() - l).abs() < 0.05 * l);
     }
 
     #[test]
