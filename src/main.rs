@@ -14,8 +14,10 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use vl_core::arena::Arena;
 use vl_core::protocol::Role;
+use vl_core::robot::RobotModel;
 use vl_guest::headless::{Report, Script, drive_to_goal};
-use vl_host::{HostConfig, SimHost};
+use vl_host::khepera::KheperaSerial;
+use vl_host::{Host, HostConfig};
 
 #[derive(Parser)]
 #[command(
@@ -88,16 +90,20 @@ pub fn read_input(path: &std::path::Path) -> Result<String> {
         .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())).into())
 }
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
 enum RobotKind {
     /// The simulated Khepera II.
     Sim,
+    /// A Khepera I/II on the serial line --port.
+    Khepera,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
 enum CameraKind {
-    /// The simulated overhead camera.
+    /// The simulated overhead camera (watches the simulated robot only).
     Sim,
+    /// No camera: Guests get feedback but no frames.
+    None,
 }
 
 #[derive(clap::Args)]
@@ -105,9 +111,25 @@ struct HostArgs {
     /// Which robot to drive.
     #[arg(long, value_enum, default_value = "sim")]
     robot: RobotKind,
-    /// Which camera to watch the arena with.
-    #[arg(long, value_enum, default_value = "sim")]
+    /// The serial device of a Khepera (with --robot khepera).
+    #[arg(long, required_if_eq("robot", "khepera"))]
+    port: Option<String>,
+    /// The serial line's speed (with --robot khepera).
+    #[arg(long, default_value_t = 38_400)]
+    baud: u32,
+    /// Which camera to watch the arena with; a real robot has no simulated
+    /// camera, so the default there is none.
+    #[arg(
+        long,
+        value_enum,
+        default_value_if("robot", "khepera", "none"),
+        default_value = "sim"
+    )]
     camera: CameraKind,
+    /// The arena the robot is in: a shipped one or a JSON file. A real robot
+    /// starts dead reckoning at its start pose.
+    #[arg(long, default_value = "navigation")]
+    arena: String,
     /// Address to listen on; port 0 picks a free one.
     #[arg(long, default_value = "127.0.0.1:7400")]
     listen: SocketAddr,
@@ -224,14 +246,30 @@ fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
 }
 
 async fn host(args: HostArgs) -> Result<()> {
-    let (RobotKind::Sim, CameraKind::Sim) = (args.robot, args.camera);
     let config = HostConfig {
         token: args.token,
         ..HostConfig::default()
     };
-    let host = SimHost::start(args.listen, Arena::navigation(), args.seed, config)
-        .await
-        .context("cannot start the Host")?;
+    let arena = sim::arena_named(&args.arena)?;
+    let host = match (args.robot, args.camera) {
+        (RobotKind::Sim, camera) => {
+            let with_camera = camera == CameraKind::Sim;
+            Host::start_sim(args.listen, arena, args.seed, with_camera, config).await
+        }
+        (RobotKind::Khepera, CameraKind::Sim) => {
+            return Err(BadInput(
+                "the simulated camera watches only the simulated robot; use --camera none".into(),
+            )
+            .into());
+        }
+        (RobotKind::Khepera, CameraKind::None) => {
+            let port = args.port.as_deref().expect("clap requires --port");
+            let robot = KheperaSerial::open(port, args.baud, RobotModel::khepera_ii(), arena.start)
+                .context("no Khepera to drive")?;
+            Host::start(args.listen, Box::new(robot), None, arena, config).await
+        }
+    }
+    .context("cannot start the Host")?;
     // Scripts and tests read the bound address from this first line.
     println!("vl host listening on {}", host.url());
     tokio::select! {
@@ -265,10 +303,11 @@ fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Result<ExitCode>
 fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<ExitCode> {
     let listen: SocketAddr = "127.0.0.1:0".parse().expect("a valid address");
     let host = runtime
-        .block_on(SimHost::start(
+        .block_on(Host::start_sim(
             listen,
             Arena::navigation(),
             args.seed,
+            true,
             HostConfig::default(),
         ))
         .context("cannot start the simulated Host")?;

@@ -275,12 +275,7 @@ pub fn arena_named(name_or_path: &str) -> Result<Arena> {
     .into())
 }
 
-fn sim_run(
-    mut world: World,
-    duration: f64,
-    script: Option<&Path>,
-    json: bool,
-) -> Result<ExitCode> {
+fn sim_run(mut world: World, duration: f64, script: Option<&Path>, json: bool) -> Result<ExitCode> {
     if !(duration.is_finite() && duration >= 0.0) {
         return Err(BadInput(format!(
             "--duration must be a non-negative number of seconds, not {duration}"
@@ -358,8 +353,7 @@ fn bench(seconds: f64, json: bool) -> Result<ExitCode> {
             });
             world.step();
             if frame_every.is_some_and(|every| step % every == 0) {
-                frames +=
-                    std::hint::black_box(world.render(&camera, &Optics::default())).len();
+                frames += std::hint::black_box(world.render(&camera, &Optics::default())).len();
             }
         }
         std::hint::black_box(frames);

@@ -12,7 +12,7 @@ use vl_core::arena::Arena;
 use vl_core::protocol::Role;
 use vl_guest::app::GuestApp;
 use vl_guest::client::connect;
-use vl_host::{HostConfig, SimHost};
+use vl_host::{Host, HostConfig};
 
 /// The simulated camera paints the robot's body this colour.
 const BODY: [u8; 3] = [196, 42, 38];
@@ -31,10 +31,11 @@ fn step_until(harness: &mut Harness<'_, GuestApp>, what: &str, done: impl Fn(&Gu
 fn the_connected_view_renders_camera_robot_and_rtt() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
     let host = runtime
-        .block_on(SimHost::start(
+        .block_on(Host::start_sim(
             "127.0.0.1:0".parse().unwrap(),
             Arena::navigation(),
             1,
+            true,
             HostConfig::default(),
         ))
         .unwrap();

@@ -12,7 +12,7 @@ use tokio::net::TcpStream;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream, connect_async};
 
-/// Kills the host when the test ends, pass or fail.
+/// Kills the process when the test ends, pass or fail.
 struct HostProcess(Child);
 
 impl Drop for HostProcess {
@@ -22,32 +22,33 @@ impl Drop for HostProcess {
     }
 }
 
-/// Starts `vl host` on an ephemeral port and returns it with its URL.
-fn start_host() -> (HostProcess, String) {
+/// Starts `vl ARGS…` and returns it with the end of its first line (after `prefix`).
+fn start_vl(args: &[&str], prefix: &str) -> (HostProcess, String) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_vl"))
-        .args([
-            "host",
-            "--robot",
-            "sim",
-            "--camera",
-            "sim",
-            "--listen",
-            "127.0.0.1:0",
-        ])
+        .args(args)
         .stdout(Stdio::piped())
         .spawn()
-        .expect("vl host starts");
+        .expect("vl starts");
     let stdout = child.stdout.take().expect("piped stdout");
     let mut line = String::new();
     BufReader::new(stdout)
         .read_line(&mut line)
-        .expect("vl host prints its address");
-    let url = line
+        .expect("vl prints its first line");
+    let rest = line
         .trim()
-        .strip_prefix("vl host listening on ")
+        .strip_prefix(prefix)
         .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
         .to_owned();
-    (HostProcess(child), url)
+    (HostProcess(child), rest)
+}
+
+/// Starts `vl host` on an ephemeral port and returns it with its URL.
+fn start_host() -> (HostProcess, String) {
+    let args = ["host", "--robot", "sim", "--camera", "sim"];
+    start_vl(
+        &[&args[..], &["--listen", "127.0.0.1:0"]].concat(),
+        "vl host listening on ",
+    )
 }
 
 type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
@@ -302,4 +303,58 @@ async fn the_watchdog_stops_a_silent_operator() {
         f["wheels"]["left_mm_s"].as_f64().unwrap().abs() < 1.0,
         "{f}"
     );
+}
+
+/// The Host's real serial driver against the Khepera emulator on a
+/// pseudo-terminal: the robot drives by dead reckoning, and when the line
+/// goes dead the run ends as a fault.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_khepera_on_a_serial_line_drives_and_its_loss_is_a_fault() {
+    let (emulator, device) = start_vl(&["khepera-emu"], "vl khepera-emu: khepera-ii on ");
+    let (_host, url) = start_vl(
+        &[
+            "host",
+            "--robot",
+            "khepera",
+            "--port",
+            &device,
+            "--listen",
+            "127.0.0.1:0",
+        ],
+        "vl host listening on ",
+    );
+    let mut op = Peer::connect(&url).await;
+    op.hello("operator").await;
+    start_teleoperation(&mut op).await;
+    let before = op.expect("feedback").await["pose"].clone();
+    let after = drive(&mut op, 1, 40, 200.0, 200.0).await;
+    let moved = after["pose"]["x_mm"].as_f64().unwrap() - before["x_mm"].as_f64().unwrap();
+    assert!(moved > 10.0, "odometry says the robot moved {moved} mm");
+    assert!(
+        after["wheels"]["left_mm_s"].as_f64().unwrap() > 100.0,
+        "{after}"
+    );
+    assert_eq!(after["proximity"].as_array().unwrap().len(), 8);
+    assert_eq!(op.frames, 0, "no camera, no frames");
+
+    drop(emulator);
+    let done = op.expect("done").await;
+    assert_eq!(done["summary"]["reason"], "fault", "{done}");
+}
+
+#[test]
+fn a_missing_serial_device_is_named() {
+    let out = Command::new(env!("CARGO_BIN_EXE_vl"))
+        .args([
+            "host",
+            "--robot",
+            "khepera",
+            "--port",
+            "/dev/no-such-khepera",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("/dev/no-such-khepera"), "{err}");
 }

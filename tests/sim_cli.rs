@@ -65,6 +65,88 @@ fn render_writes_a_camera_frame() {
     assert_eq!(frame.dimensions(), (320, 240));
 }
 
+/// An arena drawn as a top-view image, with a coloured, dark-to-IR obstacle,
+/// rendered with the camera's imperfections and driven by a bigger robot.
+#[test]
+fn arenas_from_images_with_materials() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("map-arena");
+    std::fs::create_dir_all(&dir).unwrap();
+    // 100 × 80 px at 4 mm per px: a dark bar at columns 60–69, all rows.
+    let map = image::GrayImage::from_fn(100, 80, |c, _| {
+        image::Luma([if (60..70).contains(&c) { 10 } else { 240 }])
+    });
+    map.save(dir.join("top.png")).unwrap();
+    let arena = dir.join("arena.json");
+    std::fs::write(
+        &arena,
+        r#"{"name": "drawn", "map": {"image": "top.png", "mm_per_px": 4},
+            "obstacles": [{"shape": "circle", "x_mm": 100, "y_mm": 250, "radius_mm": 30,
+                           "reflectivity": 0.05, "colour": [20, 120, 220]}],
+            "start": {"x_mm": 100, "y_mm": 100, "theta_rad": 0}, "goal": null}"#,
+    )
+    .unwrap();
+    let arena = arena.to_str().unwrap();
+    let png = dir.join("frame.png");
+    let out = vl(&[
+        "sim",
+        "render",
+        "--arena",
+        arena,
+        "--width",
+        "200",
+        "--blur",
+        "0.7",
+        "--noise",
+        "3",
+        "--lighting",
+        "0.2",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let frame = image::open(&png).unwrap().to_rgb8();
+    assert_eq!(frame.dimensions(), (200, 160));
+    // The bar (x 240–280 mm) is dark; the circle at (100, 250) is blue.
+    let [r, g, b] = frame.get_pixel(130, 80).0;
+    assert!(r < 60 && g < 60 && b < 60, "{:?}", (r, g, b));
+    let [r, _, b] = frame.get_pixel(50, 160 - 125).0;
+    assert!(b > 150 && r < 80, "{:?}", (r, b));
+    // Driving straight at the bar stops against it, a robot radius short.
+    let run = json(&[
+        "sim",
+        "run",
+        "--arena",
+        arena,
+        "--radius-mm",
+        "50",
+        "--wheel-base-mm",
+        "80",
+        "--script",
+        &write_script(&dir),
+        "--duration",
+        "4",
+        "--json",
+    ]);
+    let x = run["final_pose"]["x_mm"].as_f64().unwrap();
+    assert!((185.0..=190.0).contains(&x), "{run}");
+    assert_eq!(run["collisions"], 1);
+}
+
+fn write_script(dir: &std::path::Path) -> String {
+    let script = dir.join("ahead.txt");
+    std::fs::write(
+        &script,
+        "0 200 200
+",
+    )
+    .unwrap();
+    script.to_str().unwrap().to_owned()
+}
+
 #[test]
 fn link_and_bench_report_json() {
     let link = json(&[
@@ -99,6 +181,18 @@ fn bad_input_is_named() {
         "unknown link profile 'dialup'",
     );
     refused(&["sim", "run", "--arena", "moon"], "unknown arena 'moon'");
+    refused(
+        &["sim", "run", "--robot", "roomba"],
+        "unknown robot 'roomba'",
+    );
+    refused(
+        &["sim", "run", "--radius-mm", "10", "--wheel-base-mm", "53"],
+        "does not fit",
+    );
+    refused(
+        &["sim", "render", "--lighting", "1.5", "-o", "/dev/null"],
+        "lighting gradient must be between 0 and 1",
+    );
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
     let write = |name: &str, text: &str| {
         let p = dir.join(name);
@@ -135,21 +229,29 @@ fn bad_input_is_named() {
         ],
         "obstacle 0: a polygon needs at least 3 vertices",
     );
-    let negative = arena(
-        r#"{"shape": "rect", "x_mm": 0, "y_mm": 0, "width_mm": -5, "height_mm": 10}"#,
-        free,
-    );
+    // Each obstacle alone in an arena file, and what the refusal must say.
+    let refusals = [
+        (
+            r#"{"shape": "rect", "x_mm": 0, "y_mm": 0, "width_mm": -5, "height_mm": 10}"#,
+            "its width must be a positive number",
+        ),
+        (
+            r#"{"shape": "circle", "x_mm": 110, "y_mm": 100, "radius_mm": 40}"#,
+            "overlaps a wall or obstacle",
+        ),
+        (
+            r#"{"shape": "circle", "x_mm": 300, "y_mm": 200, "radius_mm": 40, "reflectivity": 3}"#,
+            "obstacle 0: its reflectivity must be between 0 and 1",
+        ),
+    ];
+    for (i, (obstacle, needle)) in refusals.into_iter().enumerate() {
+        let file = write(&format!("refused-{i}.json"), &arena(obstacle, free));
+        refused(&["sim", "run", "--arena", &file], needle);
+    }
+    let unmapped = r#"{"name": "m", "map": {"image": "nowhere.png", "mm_per_px": 2}, "obstacles": [], "start": {"x_mm": 10, "y_mm": 10, "theta_rad": 0}, "goal": null}"#;
     refused(
-        &["sim", "run", "--arena", &write("negative.json", &negative)],
-        "its width must be a positive number",
-    );
-    let blocked = arena(
-        r#"{"shape": "circle", "x_mm": 110, "y_mm": 100, "radius_mm": 40}"#,
-        free,
-    );
-    refused(
-        &["sim", "run", "--arena", &write("blocked.json", &blocked)],
-        "overlaps a wall or obstacle",
+        &["sim", "run", "--arena", &write("unmapped.json", unmapped)],
+        "cannot read the map image",
     );
     // A valid file works like a shipped arena.
     let ok = arena(

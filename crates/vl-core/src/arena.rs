@@ -485,7 +485,10 @@ impl Arena {
                     reflectivity: ob.material.reflectivity,
                 })
             })
-            .fold(walls, |a, b| if b.distance_mm < a.distance_mm { b } else { a })
+            .fold(
+                walls,
+                |a, b| if b.distance_mm < a.distance_mm { b } else { a },
+            )
     }
 
     /// The thesis's navigation experiment: a robot, a goal and several
@@ -515,7 +518,9 @@ impl Arena {
     /// must be loaded with [`Arena::from_json_with`].
     pub fn from_json(text: &str) -> Result<Arena, ArenaError> {
         Arena::from_json_with(text, |image| {
-            Err(format!("cannot load '{image}' here: no directory to find it in"))
+            Err(format!(
+                "cannot load '{image}' here: no directory to find it in"
+            ))
         })
     }
 
@@ -532,8 +537,8 @@ impl Arena {
         let mut value: serde_json::Value = serde_json::from_str(text).map_err(syntax)?;
         let map = value.as_object_mut().and_then(|o| o.remove("map"));
         if let Some(map) = map {
-            let map: MapImage = serde_json::from_value(map)
-                .map_err(|e| ArenaError::Syntax(format!("map: {e}")))?;
+            let map: MapImage =
+                serde_json::from_value(map).map_err(|e| ArenaError::Syntax(format!("map: {e}")))?;
             let name = value["name"].as_str().unwrap_or("unnamed").to_owned();
             let impossible = |why: String| ArenaError::Impossible {
                 arena: name.clone(),

@@ -18,6 +18,18 @@ pub struct CameraModel {
 }
 
 impl CameraModel {
+    /// A camera looking straight down at a `width_mm` × `height_mm` floor,
+    /// seeing all of it across `width_px` columns.
+    pub fn overhead(width_mm: f64, height_mm: f64, width_px: u32, fps: f64) -> CameraModel {
+        let mm_per_px = width_mm / f64::from(width_px);
+        CameraModel {
+            width_px,
+            height_px: (height_mm / mm_per_px).ceil() as u32,
+            mm_per_px,
+            fps,
+        }
+    }
+
     /// Continuous image coordinates (column, row) of an arena point: pixel
     /// (c, r) covers [c, c+1) × [r, r+1).
     pub fn to_pixel(&self, p: Point) -> (f64, f64) {

@@ -75,7 +75,9 @@ impl RobotModel {
     pub fn resized(mut self, radius_mm: f64, wheel_base_mm: f64) -> Result<Self, String> {
         for (what, v) in [("radius", radius_mm), ("wheel base", wheel_base_mm)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("the robot's {what} must be a positive number of mm, not {v}"));
+                return Err(format!(
+                    "the robot's {what} must be a positive number of mm, not {v}"
+                ));
             }
         }
         if wheel_base_mm > 2.0 * radius_mm {
@@ -237,13 +239,19 @@ mod tests {
         let big = RobotModel::khepera_ii().resized(70.0, 100.0).unwrap();
         assert_eq!((big.radius_mm, big.wheel_base_mm), (70.0, 100.0));
         for (m, k) in big.sensors.iter().zip(&RobotModel::khepera_ii().sensors) {
-            assert_eq!((m.x_mm, m.y_mm, m.angle_rad), (2.0 * k.x_mm, 2.0 * k.y_mm, k.angle_rad));
+            assert_eq!(
+                (m.x_mm, m.y_mm, m.angle_rad),
+                (2.0 * k.x_mm, 2.0 * k.y_mm, k.angle_rad)
+            );
         }
         let e = RobotModel::khepera_ii().resized(-1.0, 53.0).unwrap_err();
         assert!(e.contains("radius must be a positive"), "{e}");
         let e = RobotModel::khepera_ii().resized(20.0, 53.0).unwrap_err();
         assert!(e.contains("does not fit"), "{e}");
-        assert_eq!(RobotModel::named("khepera-i"), Some(RobotModel::khepera_i()));
+        assert_eq!(
+            RobotModel::named("khepera-i"),
+            Some(RobotModel::khepera_i())
+        );
         assert_eq!(RobotModel::named("roomba"), None);
     }
 

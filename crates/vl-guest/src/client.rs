@@ -18,7 +18,7 @@ const PING_EVERY: Duration = Duration::from_millis(200);
 /// What arrives from the Host.
 #[derive(Debug, Clone)]
 pub enum Incoming {
-    Message(HostMessage),
+    Message(Box<HostMessage>),
     /// A camera frame: its header and encoded image bytes.
     Frame(FrameHeader, Vec<u8>),
     /// A round trip (ping → pong) took this many ms.
@@ -101,7 +101,7 @@ pub async fn connect(url: &str) -> Result<Connection, ClientError> {
                         }
                         Ok(HostMessage::Bye) => break "the Host said bye".to_owned(),
                         Ok(message) => {
-                            let _ = deliver.send(Incoming::Message(message));
+                            let _ = deliver.send(Incoming::Message(Box::new(message)));
                         }
                         Err(e) => tracing::warn!("ignoring a message from the Host: {e}"),
                     },

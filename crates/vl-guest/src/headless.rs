@@ -114,13 +114,16 @@ impl Scripted {
                         reason: "the connection task ended".into(),
                     });
                 }
-                Some(Incoming::Message(HostMessage::Error { code, message })) => {
-                    return Err(ScriptError::Refused {
-                        step,
-                        code,
-                        message,
-                    });
-                }
+                Some(Incoming::Message(message)) => match *message {
+                    HostMessage::Error { code, message } => {
+                        return Err(ScriptError::Refused {
+                            step,
+                            code,
+                            message,
+                        });
+                    }
+                    other => self.session.apply(Incoming::Message(Box::new(other))),
+                },
                 Some(Incoming::Closed(reason)) => return Err(ScriptError::Closed { step, reason }),
                 Some(other) => self.session.apply(other),
             }

@@ -132,7 +132,7 @@ impl Session {
     /// Takes in one thing that arrived from the Host.
     pub fn apply(&mut self, incoming: Incoming) {
         match incoming {
-            Incoming::Message(message) => self.apply_message(message),
+            Incoming::Message(message) => self.apply_message(*message),
             Incoming::Frame(header, bytes) => self.apply_frame(header, &bytes),
             Incoming::RoundTrip(ms) => self.round_trips.push(ms),
             Incoming::Closed(reason) => {
@@ -261,7 +261,7 @@ mod tests {
     use super::*;
 
     fn feedback(event: u64, t_ms: f64) -> Incoming {
-        Incoming::Message(HostMessage::Feedback {
+        Incoming::Message(Box::new(HostMessage::Feedback {
             event,
             t_ms,
             pose: Pose::default(),
@@ -269,7 +269,7 @@ mod tests {
             proximity: vec![0; 8],
             contact: false,
             force: None,
-        })
+        }))
     }
 
     #[test]
@@ -277,7 +277,9 @@ mod tests {
         let mut s = Session::default();
         let drive = Drive::Velocity { v: 100.0, w: 0.0 };
         assert_eq!(s.next_command(drive), None, "no run, no command");
-        s.apply(Incoming::Message(HostMessage::Started { event: 0 }));
+        s.apply(Incoming::Message(Box::new(HostMessage::Started {
+            event: 0,
+        })));
         assert!(matches!(
             s.next_command(drive),
             Some(GuestMessage::Command { event: 1, .. })

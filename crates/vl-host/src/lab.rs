@@ -32,6 +32,8 @@ const TICK: Duration = Duration::from_millis(10);
 const FEEDBACK_EVERY: Duration = Duration::from_millis(20);
 /// A running robot with no new command for this long stops by itself.
 pub const WATCHDOG: Duration = Duration::from_millis(500);
+/// Width of the arena drawing a Guest gets when the lab has no camera.
+const NO_CAMERA_WIDTH_PX: u32 = 640;
 /// How far ahead the virtual-obstacle guard looks.
 const GUARD_LOOKAHEAD_S: f64 = 0.15;
 
@@ -69,12 +71,17 @@ pub struct Lab {
 }
 
 impl Lab {
-    /// Starts the control and camera loops on their own threads.
-    pub fn spawn(robot: Box<dyn Robot>, camera: Box<dyn Camera>, arena: Arena) -> Lab {
+    /// Starts the control and camera loops on their own threads. Without a
+    /// camera no frames are sent; the model still maps the arena for drawing.
+    pub fn spawn(robot: Box<dyn Robot>, camera: Option<Box<dyn Camera>>, arena: Arena) -> Lab {
+        let model = match &camera {
+            Some(camera) => camera.model(),
+            None => CameraModel::overhead(arena.width_mm, arena.height_mm, NO_CAMERA_WIDTH_PX, 0.0),
+        };
         let info = LabInfo {
             arena,
             robot: robot.model().clone(),
-            camera: camera.model(),
+            camera: model,
         };
         let (requests, request_rx) = mpsc::channel();
         let (feedback_tx, feedback) = watch::channel(None);
@@ -99,17 +106,19 @@ impl Lab {
             .name("vl-control".into())
             .spawn(move || control.run())
             .expect("the OS starts a thread");
-        let camera_loop = CameraLoop {
-            camera,
-            frames: frames_tx,
-            event,
-            since,
-            running: running.clone(),
-        };
-        thread::Builder::new()
-            .name("vl-camera".into())
-            .spawn(move || camera_loop.run())
-            .expect("the OS starts a thread");
+        if let Some(camera) = camera {
+            let camera_loop = CameraLoop {
+                camera,
+                frames: frames_tx,
+                event,
+                since,
+                running: running.clone(),
+            };
+            thread::Builder::new()
+                .name("vl-camera".into())
+                .spawn(move || camera_loop.run())
+                .expect("the OS starts a thread");
+        }
         Lab {
             info,
             requests,

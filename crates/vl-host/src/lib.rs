@@ -1,9 +1,11 @@
 //! The vl Host: the lab machine's side. It drives the robot and camera
-//! (behind the traits in [`drivers`], simulated in [`sim`]), runs the
+//! (behind the traits in [`drivers`]: simulated in [`sim`], a real Khepera
+//! on a serial line in [`khepera`]), runs the
 //! experiment control loop ([`lab`]) and serves Guests over WebSocket
 //! ([`server`]).
 
 pub mod drivers;
+pub mod khepera;
 pub mod lab;
 pub mod server;
 pub mod sim;
@@ -15,6 +17,8 @@ use vl_core::arena::Arena;
 use vl_core::robot::RobotModel;
 
 pub use server::HostConfig;
+
+use drivers::{Camera, Robot};
 
 /// Why a Host could not start.
 #[derive(Debug, thiserror::Error)]
@@ -30,28 +34,22 @@ const SIM_FPS: f64 = 15.0;
 /// Width of the simulated camera's image.
 const SIM_CAMERA_WIDTH_PX: u32 = 320;
 
-/// A Host on the simulated lab, bound and serving in the background.
-pub struct SimHost {
+/// A Host, bound and serving its lab in the background.
+pub struct Host {
     pub addr: SocketAddr,
     task: tokio::task::JoinHandle<()>,
 }
 
-impl SimHost {
-    /// Binds `listen` and serves a simulated Khepera II on `arena`.
+impl Host {
+    /// Binds `listen` and serves `robot` (and `camera`, if there is one) on `arena`.
     pub async fn start(
         listen: SocketAddr,
+        robot: Box<dyn Robot>,
+        camera: Option<Box<dyn Camera>>,
         arena: Arena,
-        seed: u64,
         config: HostConfig,
-    ) -> Result<SimHost, HostError> {
-        let (robot, camera) = sim::sim_lab(
-            arena.clone(),
-            RobotModel::khepera_ii(),
-            seed,
-            SIM_CAMERA_WIDTH_PX,
-            SIM_FPS,
-        )?;
-        let lab = lab::Lab::spawn(Box::new(robot), Box::new(camera), arena);
+    ) -> Result<Host, HostError> {
+        let lab = lab::Lab::spawn(robot, camera, arena);
         let listener = TcpListener::bind(listen)
             .await
             .map_err(|e| HostError::Bind(listen, e))?;
@@ -59,7 +57,27 @@ impl SimHost {
             .local_addr()
             .map_err(|e| HostError::Bind(listen, e))?;
         let task = tokio::spawn(server::serve(listener, lab, config));
-        Ok(SimHost { addr, task })
+        Ok(Host { addr, task })
+    }
+
+    /// Binds `listen` and serves a simulated Khepera II on `arena`, watched
+    /// by the simulated camera if `with_camera`.
+    pub async fn start_sim(
+        listen: SocketAddr,
+        arena: Arena,
+        seed: u64,
+        with_camera: bool,
+        config: HostConfig,
+    ) -> Result<Host, HostError> {
+        let (robot, camera) = sim::sim_lab(
+            arena.clone(),
+            RobotModel::khepera_ii(),
+            seed,
+            SIM_CAMERA_WIDTH_PX,
+            SIM_FPS,
+        )?;
+        let camera = with_camera.then(|| Box::new(camera) as Box<dyn Camera>);
+        Host::start(listen, Box::new(robot), camera, arena, config).await
     }
 
     /// The WebSocket URL Guests connect to.
@@ -73,7 +91,7 @@ impl SimHost {
     }
 }
 
-impl Drop for SimHost {
+impl Drop for Host {
     fn drop(&mut self) {
         self.task.abort();
     }

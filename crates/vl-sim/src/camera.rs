@@ -4,6 +4,7 @@ use image::{Rgb, RgbImage};
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
+use vl_core::arena::Arena;
 use vl_core::camera::CameraModel;
 use vl_core::robot::Point;
 
@@ -60,13 +61,7 @@ impl Optics {
 /// A camera that sees the whole arena at `width_px` columns.
 pub fn camera_for(world: &World, width_px: u32, fps: f64) -> CameraModel {
     let arena = world.arena();
-    let mm_per_px = arena.width_mm / f64::from(width_px);
-    CameraModel {
-        width_px,
-        height_px: (arena.height_mm / mm_per_px).ceil() as u32,
-        mm_per_px,
-        fps,
-    }
+    CameraModel::overhead(arena.width_mm, arena.height_mm, width_px, fps)
 }
 
 impl World {
@@ -79,27 +74,21 @@ impl World {
         let pose = self.pose();
         let [dx, dy] = optics.lens_offset_px;
         // The camera shifted by the lens offset sees these arena points.
-        let sample = |c: u32, r: u32| camera.to_arena(f64::from(c) + 0.5 - dx, f64::from(r) + 0.5 - dy);
+        let sample =
+            |c: u32, r: u32| camera.to_arena(f64::from(c) + 0.5 - dx, f64::from(r) + 0.5 - dy);
         let shifted = |p: Point| Point {
             x_mm: p.x_mm + dx * camera.mm_per_px,
             y_mm: p.y_mm - dy * camera.mm_per_px,
         };
-        let walls = Rgb(arena.walls.colour);
         let mut image = RgbImage::from_pixel(camera.width_px, camera.height_px, FLOOR);
-        // Pixels whose centre lies beyond the walls.
-        let inside = |p: Point| {
-            (0.0..=arena.width_mm).contains(&p.x_mm) && (0.0..=arena.height_mm).contains(&p.y_mm)
-        };
-        paint(&mut image, camera, None, &sample, |p| {
-            (!inside(p)).then_some(walls)
-        });
+        paint_walls(&mut image, camera, arena, optics.lens_offset_px);
         for obstacle in &arena.obstacles {
             let (lo, hi) = obstacle.shape.bounds();
             let colour = Rgb(obstacle.material.colour);
             paint(
                 &mut image,
                 camera,
-                Some((shifted(lo), shifted(hi))),
+                (shifted(lo), shifted(hi)),
                 &sample,
                 |p| (obstacle.shape.distance(p) <= 0.0).then_some(colour),
             );
@@ -117,7 +106,7 @@ impl World {
                 y_mm: pose.y_mm + r,
             }),
         );
-        paint(&mut image, camera, Some(body), &sample, |p| {
+        paint(&mut image, camera, body, &sample, |p| {
             if p.distance(marker) <= marker_r {
                 Some(MARKER)
             } else {
@@ -135,29 +124,55 @@ impl World {
     }
 }
 
-/// Paints the pixels whose centre falls in `bounds` (mm) — or all of them
-/// without bounds — that `colour` gives a colour; `sample` says which arena
-/// point a pixel sees.
+/// Paints the walls' colour on the pixels whose centre, shifted by the
+/// lens offset, lies beyond the floor: whole columns and rows, computed
+/// rather than tested pixel by pixel.
+fn paint_walls(image: &mut RgbImage, camera: &CameraModel, arena: &Arena, [dx, dy]: [f64; 2]) {
+    let (w, h) = (camera.width_px, camera.height_px);
+    // The first and one-past-last index in 0..n whose centre + shift lies in 0..=extent px.
+    let span = |n: u32, shift: f64, extent: f64| {
+        let first = (shift - 0.5).ceil().clamp(0.0, f64::from(n)) as u32;
+        let end = ((extent + shift - 0.5).floor() + 1.0).clamp(0.0, f64::from(n)) as u32;
+        (first, end.max(first))
+    };
+    // Pixel c sees x = (c + 0.5 − dx)·S; row r sees y = (H − r − 0.5 + dy)·S.
+    let (c0, c1) = span(w, dx, arena.width_mm / camera.mm_per_px);
+    let (r0, r1) = span(
+        h,
+        f64::from(h) - arena.height_mm / camera.mm_per_px + dy,
+        arena.height_mm / camera.mm_per_px,
+    );
+    let walls = Rgb(arena.walls.colour);
+    for r in 0..h {
+        if (r0..r1).contains(&r) {
+            for c in (0..c0).chain(c1..w) {
+                image.put_pixel(c, r, walls);
+            }
+        } else {
+            for c in 0..w {
+                image.put_pixel(c, r, walls);
+            }
+        }
+    }
+}
+
+/// Paints the pixels whose centre falls in `bounds` (mm) that `colour`
+/// gives a colour; `sample` says which arena point a pixel sees.
 fn paint(
     image: &mut RgbImage,
     camera: &CameraModel,
-    bounds: Option<(Point, Point)>,
+    (lo, hi): (Point, Point),
     sample: &impl Fn(u32, u32) -> Point,
     colour: impl Fn(Point) -> Option<Rgb<u8>>,
 ) {
     let (w, h) = (camera.width_px, camera.height_px);
-    let (cols, rows) = match bounds {
-        None => (0..w, 0..h),
-        Some((lo, hi)) => {
-            let (c0, r1) = camera.to_pixel(lo);
-            let (c1, r0) = camera.to_pixel(hi);
-            let clamp = |v: f64, max: u32| v.floor().clamp(0.0, f64::from(max)) as u32;
-            (
-                clamp(c0, w)..clamp(c1 + 1.0, w),
-                clamp(r0, h)..clamp(r1 + 1.0, h),
-            )
-        }
-    };
+    let (c0, r1) = camera.to_pixel(lo);
+    let (c1, r0) = camera.to_pixel(hi);
+    let clamp = |v: f64, max: u32| v.floor().clamp(0.0, f64::from(max)) as u32;
+    let (cols, rows) = (
+        clamp(c0, w)..clamp(c1 + 1.0, w),
+        clamp(r0, h)..clamp(r1 + 1.0, h),
+    );
     for r in rows {
         for c in cols.clone() {
             if let Some(colour) = colour(sample(c, r)) {
@@ -237,7 +252,10 @@ mod tests {
             x_mm: 280.0,
             y_mm: 100.0,
         });
-        assert_eq!(*img.get_pixel(bc as u32, br as u32), Rgb(w.arena().obstacles[0].material.colour));
+        assert_eq!(
+            *img.get_pixel(bc as u32, br as u32),
+            Rgb(w.arena().obstacles[0].material.colour)
+        );
     }
 
     #[test]
@@ -253,6 +271,14 @@ mod tests {
             },
         );
         assert_eq!(shifted.get_pixel(60 + 3, 80 - 2), ideal.get_pixel(60, 80));
+        // The image moved right and up: walls show on the left and bottom.
+        let walls = Rgb(w.arena().walls.colour);
+        let (last_col, last_row) = (cam.width_px - 1, cam.height_px - 1);
+        assert_eq!(*shifted.get_pixel(2, 60), walls);
+        assert_ne!(*shifted.get_pixel(3, 60), walls);
+        assert_eq!(*shifted.get_pixel(80, last_row - 1), walls);
+        assert_ne!(*shifted.get_pixel(80, last_row - 2), walls);
+        assert_ne!(*shifted.get_pixel(last_col, 0), walls);
         let noisy = |seed| {
             w.render(
                 &cam,
@@ -270,7 +296,12 @@ mod tests {
         let lit = noisy(1);
         // The floor is darker towards the bottom-right corner.
         let grey = |c, r| f64::from(lit.get_pixel(c, r).0[1]);
-        assert!(grey(5, 5) > grey(150, 112) + 40.0, "{} {}", grey(5, 5), grey(150, 112));
+        assert!(
+            grey(5, 5) > grey(150, 112) + 40.0,
+            "{} {}",
+            grey(5, 5),
+            grey(150, 112)
+        );
         // Blur leaves the box's edge in between floor and obstacle.
         let sharp = w.render(
             &cam,
@@ -279,10 +310,27 @@ mod tests {
                 ..Optics::default()
             },
         );
-        let (c, r) = cam.to_pixel(Point { x_mm: 250.0, y_mm: 100.0 });
+        let (c, r) = cam.to_pixel(Point {
+            x_mm: 250.0,
+            y_mm: 100.0,
+        });
         let edge = sharp.get_pixel(c as u32, r as u32).0[1];
         assert!((70..200).contains(&edge), "{edge}");
-        assert!(Optics { lighting_gradient: 2.0, ..Optics::default() }.check().is_err());
-        assert!(Optics { blur_px: -1.0, ..Optics::default() }.check().is_err());
+        assert!(
+            Optics {
+                lighting_gradient: 2.0,
+                ..Optics::default()
+            }
+            .check()
+            .is_err()
+        );
+        assert!(
+            Optics {
+                blur_px: -1.0,
+                ..Optics::default()
+            }
+            .check()
+            .is_err()
+        );
     }
 }

@@ -61,11 +61,11 @@ impl Khepera {
     pub fn step(&mut self) {
         if self.mode.iter().any(|m| matches!(m, Mode::Position(_))) {
             let counts = self.counters();
-            for wheel in 0..2 {
+            for (wheel, count) in counts.into_iter().enumerate() {
                 if let Mode::Position(target) = self.mode[wheel] {
                     let [top, accel] = self.profile[wheel];
                     let accel = accel as f64 / 256.0;
-                    let error = (target - counts[wheel]) as f64;
+                    let error = (target - count) as f64;
                     // Speed up by the profile's acceleration, never beyond
                     // the fastest speed that can still stop at the target.
                     let braking = (2.0 * accel * error.abs()).sqrt();
@@ -74,7 +74,8 @@ impl Khepera {
                         .min(top as f64)
                         .min(error.abs());
                     self.ramp[wheel] = ramp;
-                    self.speed[wheel] = (ramp.round().copysign(error) as i64).clamp(-MAX_SPEED, MAX_SPEED);
+                    self.speed[wheel] =
+                        (ramp.round().copysign(error) as i64).clamp(-MAX_SPEED, MAX_SPEED);
                 }
             }
             self.command_speeds();
@@ -286,10 +287,16 @@ mod tests {
         }
         let h = k.handle("H").unwrap();
         let counts: Vec<i64> = h[2..].split(',').map(|v| v.parse().unwrap()).collect();
-        assert!((counts[0] - 3000).abs() <= 2 && (counts[1] + 1500).abs() <= 2, "{h}");
+        assert!(
+            (counts[0] - 3000).abs() <= 2 && (counts[1] + 1500).abs() <= 2,
+            "{h}"
+        );
         assert_eq!(top, 20, "the default profile's top speed");
         let status = k.handle("K").unwrap();
-        assert!(status.starts_with("k,1,0,") && status.contains(",1,0,"), "{status}");
+        assert!(
+            status.starts_with("k,1,0,") && status.contains(",1,0,"),
+            "{status}"
+        );
         // A slower profile, then a speed command takes the motors back.
         assert_eq!(k.handle("J,5,64,5,64").unwrap(), "j");
         k.handle("C,4000,1000").unwrap();

@@ -4,10 +4,10 @@
 //! seed and inputs give the same run on any machine.
 
 mod camera;
-mod noise;
 mod emulator;
 mod khepera;
 pub mod link;
+mod noise;
 mod proximity;
 pub mod script;
 mod world;
