@@ -5,6 +5,7 @@
 mod alloc;
 mod petri;
 mod sim;
+mod vision;
 
 use std::net::SocketAddr;
 use std::process::ExitCode;
@@ -46,6 +47,9 @@ enum Command {
     /// The simulator's tools: scripted runs, camera frames, link models, speed.
     #[command(subcommand)]
     Sim(sim::SimCommand),
+    /// Vision on camera frames: components, moments, the robot's pose.
+    #[command(subcommand)]
+    Vision(vision::VisionCommand),
 }
 
 #[derive(clap::Args)]
@@ -223,6 +227,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Petri(command) => petri::run(command),
         Command::KheperaEmu(args) => khepera_emu(args),
         Command::Sim(command) => sim::run(command),
+        Command::Vision(command) => vision::run(command),
     }
 }
 

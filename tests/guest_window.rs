@@ -15,7 +15,7 @@ use vl_guest::client::connect;
 use vl_host::{Host, HostConfig};
 
 /// The simulated camera paints the robot's body this colour.
-const BODY: [u8; 3] = [196, 42, 38];
+const BODY: [u8; 3] = [170, 36, 32];
 
 fn step_until(harness: &mut Harness<'_, GuestApp>, what: &str, done: impl Fn(&GuestApp) -> bool) {
     let deadline = Instant::now() + Duration::from_secs(10);

@@ -9,3 +9,4 @@ pub mod protocol;
 pub mod robot;
 pub mod session;
 pub mod steer;
+pub mod vision;

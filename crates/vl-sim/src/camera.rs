@@ -12,7 +12,7 @@ use crate::noise::gaussian;
 use crate::world::World;
 
 const FLOOR: Rgb<u8> = Rgb([226, 224, 216]);
-const BODY: Rgb<u8> = Rgb([196, 42, 38]);
+const BODY: Rgb<u8> = Rgb([170, 36, 32]);
 /// A light disc on the front half of the body shows the heading.
 const MARKER: Rgb<u8> = Rgb([250, 250, 250]);
 

@@ -1,0 +1,560 @@
+//! Vision on the overhead camera's frames: grey conversion, binarisation
+//! (fixed or Otsu), connected components with their moments and Hu
+//! invariants, and the robot's pose from its markers.
+//!
+//! Conventions follow OpenCV so results can be checked against it: grey is
+//! ITU-R 601 luma in 15-bit fixed point, a fixed threshold keeps pixels
+//! brighter than it, components are numbered in raster order of their first
+//! pixel, and moments use integer pixel coordinates (column x, row y, y
+//! down).
+
+use image::{GrayImage, RgbImage};
+use serde::Serialize;
+
+/// Which pixels touch: edges only, or edges and corners.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Connectivity {
+    Four,
+    Eight,
+}
+
+/// A binary image: `true` is foreground.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mask {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<bool>,
+}
+
+/// One connected component and what its shape says.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Component {
+    /// Its number in the label image (1, 2, …; 0 is background).
+    pub label: u32,
+    pub area: u64,
+    pub centroid: Centroid,
+    /// Left, top, width, height, px.
+    pub bbox: [u32; 4],
+    /// Angle of the principal axis from +x towards +y (image rows, down), rad.
+    pub orientation_rad: f64,
+    pub hu: [f64; 7],
+    /// Pixels of background it encloses completely.
+    pub hole_area: u64,
+    /// Centroid of those enclosed pixels, if any.
+    #[serde(skip)]
+    pub hole_centroid: Option<Centroid>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Centroid {
+    pub x: f64,
+    pub y: f64,
+}
+
+/// The robot's pose seen from above, in image pixels: x right, y down as
+/// the image is stored, θ counter-clockwise from +x as the arena sees it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RobotPose {
+    pub x: f64,
+    pub y: f64,
+    pub theta: f64,
+}
+
+/// Grey level of each pixel: (9798 R + 19235 G + 3735 B + 2¹⁴) >> 15, the
+/// 0.299/0.587/0.114 weights in OpenCV's 15-bit fixed point.
+pub fn grey(image: &RgbImage) -> GrayImage {
+    let (w, h) = image.dimensions();
+    let mut out = GrayImage::new(w, h);
+    for (o, p) in out.as_mut().iter_mut().zip(image.as_raw().chunks_exact(3)) {
+        let [r, g, b] = [u32::from(p[0]), u32::from(p[1]), u32::from(p[2])];
+        *o = ((9798 * r + 19235 * g + 3735 * b + (1 << 14)) >> 15) as u8;
+    }
+    out
+}
+
+/// Otsu's threshold: the grey level t that best splits the histogram into
+/// [0, t] and (t, 255] (largest between-class variance, first on ties).
+pub fn otsu(image: &GrayImage) -> u8 {
+    let mut histogram = [0u64; 256];
+    for &v in image.as_raw() {
+        histogram[usize::from(v)] += 1;
+    }
+    let total = image.as_raw().len().max(1) as f64;
+    let mean: f64 = (0..256)
+        .map(|i| i as f64 * histogram[i] as f64)
+        .sum::<f64>()
+        / total;
+    let (mut q1, mut mu1, mut best, mut best_sigma) = (0.0f64, 0.0f64, 0u8, 0.0f64);
+    for (i, &count) in histogram.iter().enumerate() {
+        let p = count as f64 / total;
+        mu1 *= q1;
+        q1 += p;
+        let q2 = 1.0 - q1;
+        if q1.min(q2) < f64::from(f32::EPSILON) || q1.max(q2) > 1.0 - f64::from(f32::EPSILON) {
+            continue;
+        }
+        mu1 = (mu1 + i as f64 * p) / q1;
+        let mu2 = (mean - q1 * mu1) / q2;
+        let sigma = q1 * q2 * (mu1 - mu2) * (mu1 - mu2);
+        if sigma > best_sigma {
+            best_sigma = sigma;
+            best = i as u8;
+        }
+    }
+    best
+}
+
+/// Foreground where grey > `threshold` (or ≤ it when `invert`: dark objects
+/// on a light floor).
+pub fn binarise(image: &GrayImage, threshold: u8, invert: bool) -> Mask {
+    Mask {
+        width: image.width(),
+        height: image.height(),
+        pixels: image
+            .as_raw()
+            .iter()
+            .map(|&v| (v > threshold) != invert)
+            .collect(),
+    }
+}
+
+/// Labels of each pixel (0 background, components 1.. in raster order of
+/// their first pixel) and the number of components.
+pub fn label(mask: &Mask, connectivity: Connectivity) -> (Vec<u32>, u32) {
+    let (w, h) = (mask.width as usize, mask.height as usize);
+    let mut labels = vec![0u32; w * h];
+    // Union-find over provisional labels; a root is the smallest of its set.
+    let mut parent: Vec<u32> = vec![0];
+    fn find(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            parent[x as usize] = parent[parent[x as usize] as usize];
+            x = parent[x as usize];
+        }
+        x
+    }
+    for r in 0..h {
+        for c in 0..w {
+            let i = r * w + c;
+            if !mask.pixels[i] {
+                continue;
+            }
+            // Already-visited neighbours: left, and the row above.
+            let mut neighbours = [0u32; 4];
+            let mut n = 0;
+            let mut look = |j: usize| {
+                if labels[j] != 0 {
+                    neighbours[n] = labels[j];
+                    n += 1;
+                }
+            };
+            if c > 0 {
+                look(i - 1);
+            }
+            if r > 0 {
+                look(i - w);
+                if connectivity == Connectivity::Eight {
+                    if c > 0 {
+                        look(i - w - 1);
+                    }
+                    if c + 1 < w {
+                        look(i - w + 1);
+                    }
+                }
+            }
+            if n == 0 {
+                let new = parent.len() as u32;
+                parent.push(new);
+                labels[i] = new;
+                continue;
+            }
+            let mut root = find(&mut parent, neighbours[0]);
+            for &other in &neighbours[1..n] {
+                let other = find(&mut parent, other);
+                if other != root {
+                    let (lo, hi) = (root.min(other), root.max(other));
+                    parent[hi as usize] = lo;
+                    root = lo;
+                }
+            }
+            labels[i] = root;
+        }
+    }
+    // Final numbers in order of each set's first (smallest) provisional label.
+    let mut number = vec![0u32; parent.len()];
+    let mut count = 0;
+    for x in 1..parent.len() as u32 {
+        let root = find(&mut parent, x);
+        if root == x {
+            count += 1;
+            number[x as usize] = count;
+        } else {
+            number[x as usize] = number[root as usize];
+        }
+    }
+    for l in &mut labels {
+        *l = number[*l as usize];
+    }
+    (labels, count)
+}
+
+/// Raw moment sums of one component, exact in integers (third order in
+/// 128 bits: x³ summed over a large component passes 2⁶⁴).
+#[derive(Debug, Clone, Copy, Default)]
+struct Sums {
+    m00: u64,
+    m10: u64,
+    m01: u64,
+    m20: u64,
+    m11: u64,
+    m02: u64,
+    m30: u128,
+    m21: u128,
+    m12: u128,
+    m03: u128,
+    left: u32,
+    top: u32,
+    right: u32,
+    bottom: u32,
+}
+
+impl Sums {
+    fn add(&mut self, x: u32, y: u32) {
+        if self.m00 == 0 {
+            (self.left, self.top, self.right, self.bottom) = (x, y, x, y);
+        }
+        self.left = self.left.min(x);
+        self.right = self.right.max(x);
+        self.top = self.top.min(y);
+        self.bottom = self.bottom.max(y);
+        let (x, y) = (u64::from(x), u64::from(y));
+        self.m00 += 1;
+        self.m10 += x;
+        self.m01 += y;
+        self.m20 += x * x;
+        self.m11 += x * y;
+        self.m02 += y * y;
+        let (x3, y3) = (u128::from(x), u128::from(y));
+        self.m30 += x3 * x3 * x3;
+        self.m21 += x3 * x3 * y3;
+        self.m12 += x3 * y3 * y3;
+        self.m03 += y3 * y3 * y3;
+    }
+
+    fn centroid(&self) -> Centroid {
+        let a = self.m00 as f64;
+        Centroid {
+            x: self.m10 as f64 / a,
+            y: self.m01 as f64 / a,
+        }
+    }
+
+    /// Principal-axis angle and the seven Hu invariants.
+    fn shape(&self) -> (f64, [f64; 7]) {
+        let f = |v: u64| v as f64;
+        let f3 = |v: u128| v as f64;
+        let Centroid { x: cx, y: cy } = self.centroid();
+        let mu20 = f(self.m20) - f(self.m10) * cx;
+        let mu11 = f(self.m11) - f(self.m10) * cy;
+        let mu02 = f(self.m02) - f(self.m01) * cy;
+        let mu30 = f3(self.m30) - cx * (3.0 * mu20 + cx * f(self.m10));
+        let mu21 = f3(self.m21) - cx * (2.0 * mu11 + cx * f(self.m01)) - cy * mu20;
+        let mu12 = f3(self.m12) - cy * (2.0 * mu11 + cy * f(self.m10)) - cx * mu02;
+        let mu03 = f3(self.m03) - cy * (3.0 * mu02 + cy * f(self.m01));
+        let inv = 1.0 / f(self.m00);
+        let (s2, s3) = (inv * inv, inv * inv * inv.sqrt());
+        let (n20, n11, n02) = (mu20 * s2, mu11 * s2, mu02 * s2);
+        let (n30, n21, n12, n03) = (mu30 * s3, mu21 * s3, mu12 * s3, mu03 * s3);
+        let (a, b) = (n30 + n12, n21 + n03);
+        let (p, q) = (n30 - 3.0 * n12, 3.0 * n21 - n03);
+        let d = n20 - n02;
+        let hu = [
+            n20 + n02,
+            d * d + 4.0 * n11 * n11,
+            p * p + q * q,
+            a * a + b * b,
+            p * a * (a * a - 3.0 * b * b) + q * b * (3.0 * a * a - b * b),
+            d * (a * a - b * b) + 4.0 * n11 * a * b,
+            q * a * (a * a - 3.0 * b * b) - p * b * (3.0 * a * a - b * b),
+        ];
+        (0.5 * (2.0 * mu11).atan2(mu20 - mu02), hu)
+    }
+}
+
+/// The components of `mask` with their statistics, in label order, and the
+/// label image. Holes are background regions (of the complementary
+/// connectivity) that do not reach the image's border.
+pub fn components(mask: &Mask, connectivity: Connectivity) -> (Vec<Component>, Vec<u32>) {
+    let (labels, count) = label(mask, connectivity);
+    let w = mask.width as usize;
+    let mut sums = vec![Sums::default(); count as usize + 1];
+    for (i, &l) in labels.iter().enumerate() {
+        if l != 0 {
+            sums[l as usize].add((i % w) as u32, (i / w) as u32);
+        }
+    }
+    let holes = holes(mask, &labels, connectivity);
+    let found = (1..=count as usize)
+        .map(|l| {
+            let s = &sums[l];
+            let (orientation_rad, hu) = s.shape();
+            let hole = &holes[l];
+            Component {
+                label: l as u32,
+                area: s.m00,
+                centroid: s.centroid(),
+                bbox: [s.left, s.top, s.right - s.left + 1, s.bottom - s.top + 1],
+                orientation_rad,
+                hu,
+                hole_area: hole.m00,
+                hole_centroid: (hole.m00 > 0).then(|| hole.centroid()),
+            }
+        })
+        .collect();
+    (found, labels)
+}
+
+/// Per component label, the moment sums of the background it encloses.
+fn holes(mask: &Mask, labels: &[u32], connectivity: Connectivity) -> Vec<Sums> {
+    let (w, h) = (mask.width as usize, mask.height as usize);
+    let background = Mask {
+        width: mask.width,
+        height: mask.height,
+        pixels: mask.pixels.iter().map(|&p| !p).collect(),
+    };
+    let dual = match connectivity {
+        Connectivity::Four => Connectivity::Eight,
+        Connectivity::Eight => Connectivity::Four,
+    };
+    let (regions, count) = label(&background, dual);
+    let count = count as usize;
+    let mut enclosing = vec![0u32; count + 1];
+    let mut touches_border = vec![false; count + 1];
+    let mut sums = vec![Sums::default(); count + 1];
+    for (i, &region) in regions.iter().enumerate() {
+        if region == 0 {
+            continue;
+        }
+        let (c, r) = (i % w, i / w);
+        let region = region as usize;
+        if c == 0 || r == 0 || c + 1 == w || r + 1 == h {
+            touches_border[region] = true;
+        }
+        // A region's first pixel has foreground above it: the enclosing component.
+        if sums[region].m00 == 0 && r > 0 {
+            enclosing[region] = labels[i - w];
+        }
+        sums[region].add(c as u32, r as u32);
+    }
+    let mut per_component =
+        vec![Sums::default(); labels.iter().copied().max().unwrap_or(0) as usize + 1];
+    for region in 1..=count {
+        if !touches_border[region] && enclosing[region] != 0 {
+            let into = &mut per_component[enclosing[region] as usize];
+            let add = sums[region];
+            merge(into, &add);
+        }
+    }
+    per_component
+}
+
+fn merge(into: &mut Sums, add: &Sums) {
+    if into.m00 == 0 {
+        *into = *add;
+        return;
+    }
+    into.m00 += add.m00;
+    into.m10 += add.m10;
+    into.m01 += add.m01;
+    into.m20 += add.m20;
+    into.m11 += add.m11;
+    into.m02 += add.m02;
+    into.m30 += add.m30;
+    into.m21 += add.m21;
+    into.m12 += add.m12;
+    into.m03 += add.m03;
+    into.left = into.left.min(add.left);
+    into.top = into.top.min(add.top);
+    into.right = into.right.max(add.right);
+    into.bottom = into.bottom.max(add.bottom);
+}
+
+/// Whether a component is the robot as the camera marks it: a round body
+/// (filled, it covers π/4 of its bounding box) with one light disc inside,
+/// ahead of its centre, of about an eighth of the body's area.
+pub fn is_robot(c: &Component) -> bool {
+    let filled = (c.area + c.hole_area) as f64;
+    let [_, _, bw, bh] = c.bbox;
+    let box_area = f64::from(bw) * f64::from(bh);
+    let roundness = filled / box_area;
+    let marker = c.hole_area as f64 / filled;
+    let square = f64::from(bw.min(bh)) / f64::from(bw.max(bh));
+    c.hole_centroid.is_some()
+        && (0.70..0.85).contains(&roundness)
+        && square > 0.85
+        && (0.05..0.25).contains(&marker)
+}
+
+/// The robot's pose from its component: the filled body's centroid is its
+/// centre, and the marker lies ahead of it.
+pub fn robot_pose(c: &Component) -> Option<RobotPose> {
+    let hole = c.hole_centroid?;
+    let (a, b) = (c.area as f64, c.hole_area as f64);
+    let x = (a * c.centroid.x + b * hole.x) / (a + b);
+    let y = (a * c.centroid.y + b * hole.y) / (a + b);
+    // Rows grow downwards; the arena's y grows upwards.
+    Some(RobotPose {
+        x,
+        y,
+        theta: (y - hole.y).atan2(hole.x - x),
+    })
+}
+
+/// Everything the camera tells: the threshold used, each component, and
+/// the robot's pose if one component is the robot.
+#[derive(Debug, Clone, Serialize)]
+pub struct Scene {
+    pub threshold: u8,
+    pub components: Vec<Component>,
+    pub robot: Option<RobotPose>,
+}
+
+/// The whole pipeline on one frame: grey, threshold (Otsu's unless given),
+/// 8-connected components, robot pose.
+pub fn inspect(image: &RgbImage, threshold: Option<u8>, invert: bool) -> Scene {
+    let grey = grey(image);
+    let threshold = threshold.unwrap_or_else(|| otsu(&grey));
+    let mask = binarise(&grey, threshold, invert);
+    let (components, _) = components(&mask, Connectivity::Eight);
+    let robot = components.iter().find(|c| is_robot(c)).and_then(robot_pose);
+    Scene {
+        threshold,
+        components,
+        robot,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn mask(rows: &[&str]) -> Mask {
+        Mask {
+            width: rows[0].len() as u32,
+            height: rows.len() as u32,
+            pixels: rows
+                .iter()
+                .flat_map(|r| r.chars().map(|c| c == '#'))
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn diagonal_neighbours_join_only_under_eight_connectivity() {
+        let m = mask(&["#..", ".#.", "..#", "#.."]);
+        assert_eq!(label(&m, Connectivity::Eight).1, 2);
+        assert_eq!(label(&m, Connectivity::Four).1, 4);
+    }
+
+    #[test]
+    fn a_ring_has_a_hole_and_its_centre() {
+        let m = mask(&["#####", "#...#", "#...#", "#####"]);
+        let (found, _) = components(&m, Connectivity::Eight);
+        assert_eq!(found.len(), 1);
+        assert_eq!(found[0].area, 14);
+        assert_eq!(found[0].hole_area, 6);
+        assert_eq!(found[0].hole_centroid, Some(Centroid { x: 2.0, y: 1.5 }));
+        assert_eq!(found[0].bbox, [0, 0, 5, 4]);
+    }
+
+    #[test]
+    fn otsu_splits_two_levels_between_them() {
+        let image = GrayImage::from_fn(10, 10, |c, _| image::Luma([if c < 4 { 40 } else { 200 }]));
+        let t = otsu(&image);
+        assert!((40..200).contains(&t), "{t}");
+    }
+
+    /// A naive flood fill over `mask`.
+    fn flood_count(m: &Mask, connectivity: Connectivity) -> u32 {
+        let (w, h) = (m.width as i64, m.height as i64);
+        let mut seen = vec![false; m.pixels.len()];
+        let mut count = 0;
+        for start in 0..m.pixels.len() {
+            if !m.pixels[start] || seen[start] {
+                continue;
+            }
+            count += 1;
+            let mut stack = vec![start];
+            seen[start] = true;
+            while let Some(i) = stack.pop() {
+                let (c, r) = (i as i64 % w, i as i64 / w);
+                for dr in -1..=1 {
+                    for dc in -1..=1 {
+                        let diagonal = dr != 0 && dc != 0;
+                        if (dr, dc) == (0, 0) || (diagonal && connectivity == Connectivity::Four) {
+                            continue;
+                        }
+                        let (nc, nr) = (c + dc, r + dr);
+                        if (0..w).contains(&nc) && (0..h).contains(&nr) {
+                            let j = (nr * w + nc) as usize;
+                            if m.pixels[j] && !seen[j] {
+                                seen[j] = true;
+                                stack.push(j);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        count
+    }
+
+    proptest! {
+        /// Labelling agrees with a flood fill, and neighbours share labels.
+        #[test]
+        fn labels_agree_with_flood_fill(w in 1u32..16, h in 1u32..16, bits in proptest::collection::vec(any::<bool>(), 256)) {
+            let m = Mask { width: w, height: h, pixels: bits[..(w * h) as usize].to_vec() };
+            for connectivity in [Connectivity::Four, Connectivity::Eight] {
+                let (labels, count) = label(&m, connectivity);
+                prop_assert_eq!(count, flood_count(&m, connectivity));
+                for (i, &l) in labels.iter().enumerate() {
+                    prop_assert_eq!(l != 0, m.pixels[i]);
+                    let c = i % w as usize;
+                    if l != 0 && c > 0 && labels[i - 1] != 0 {
+                        prop_assert_eq!(labels[i - 1], l);
+                    }
+                }
+                // Raster order of first pixels.
+                let mut next = 1;
+                for &l in &labels {
+                    if l == next { next += 1; }
+                    prop_assert!(l < next);
+                }
+            }
+        }
+
+        /// Hu invariants do not change when the shape is moved.
+        #[test]
+        fn hu_is_translation_invariant(bits in proptest::collection::vec(any::<bool>(), 36), dx in 0u32..5, dy in 0u32..5) {
+            prop_assume!(bits.iter().any(|&b| b));
+            let place = |ox: u32, oy: u32| {
+                let mut m = Mask { width: 12, height: 12, pixels: vec![false; 144] };
+                for (i, &b) in bits.iter().enumerate() {
+                    let (x, y) = (i as u32 % 6 + ox, i as u32 / 6 + oy);
+                    m.pixels[(y * 12 + x) as usize] = b;
+                }
+                let (found, _) = components(&m, Connectivity::Eight);
+                let mut sums = Sums::default();
+                for (i, &p) in m.pixels.iter().enumerate() {
+                    if p { sums.add(i as u32 % 12, i as u32 / 12); }
+                }
+                (found.len(), sums.shape().1)
+            };
+            let (a, b) = (place(0, 0), place(dx, dy));
+            prop_assert_eq!(a.0, b.0);
+            for k in 0..7 {
+                prop_assert!((a.1[k] - b.1[k]).abs() <= 1e-9 * (1.0 + a.1[k].abs()), "h{} {} vs {}", k + 1, a.1[k], b.1[k]);
+            }
+        }
+    }
+}
