@@ -50,7 +50,23 @@ pub struct RobotModel {
     pub sensors: Vec<SensorMount>,
 }
 
+/// The Khepera's speed unit is encoder pulses per this period (its on-board
+/// speed controller's), s.
+pub const SPEED_PERIOD_S: f64 = 0.01;
+/// The firmware's speed limit, pulses per speed period.
+pub const MAX_PULSES_PER_PERIOD: i64 = 127;
+
 impl RobotModel {
+    /// A wheel speed in the firmware's unit, pulses per 10 ms (rounded).
+    pub fn pulses_per_period(&self, mm_s: f64) -> i64 {
+        (mm_s * SPEED_PERIOD_S / self.mm_per_pulse).round() as i64
+    }
+
+    /// A speed in pulses per 10 ms, in mm/s.
+    pub fn speed_mm_s(&self, pulses: i64) -> f64 {
+        pulses as f64 * self.mm_per_pulse / SPEED_PERIOD_S
+    }
+
     /// K-Team Khepera II: 70 mm body, 8 IR sensors reaching ≈100 mm.
     pub fn khepera_ii() -> Self {
         Self::khepera("khepera-ii", 35.0, 100.0)
@@ -114,8 +130,7 @@ impl RobotModel {
             radius_mm,
             wheel_base_mm: 53.0,
             mm_per_pulse,
-            // 127 pulses per 10 ms is the firmware's speed limit.
-            max_wheel_speed_mm_s: 127.0 * mm_per_pulse * 100.0,
+            max_wheel_speed_mm_s: MAX_PULSES_PER_PERIOD as f64 * mm_per_pulse / SPEED_PERIOD_S,
             sensor_range_mm,
             sensors: layout
                 .iter()

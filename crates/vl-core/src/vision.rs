@@ -240,6 +240,28 @@ impl Sums {
         self.m03 += y3 * y3 * y3;
     }
 
+    /// Adds another region's sums (several holes in one component).
+    fn merge(&mut self, add: &Sums) {
+        if self.m00 == 0 {
+            *self = *add;
+            return;
+        }
+        self.m00 += add.m00;
+        self.m10 += add.m10;
+        self.m01 += add.m01;
+        self.m20 += add.m20;
+        self.m11 += add.m11;
+        self.m02 += add.m02;
+        self.m30 += add.m30;
+        self.m21 += add.m21;
+        self.m12 += add.m12;
+        self.m03 += add.m03;
+        self.left = self.left.min(add.left);
+        self.top = self.top.min(add.top);
+        self.right = self.right.max(add.right);
+        self.bottom = self.bottom.max(add.bottom);
+    }
+
     fn centroid(&self) -> Centroid {
         let a = self.m00 as f64;
         Centroid {
@@ -292,7 +314,7 @@ pub fn components(mask: &Mask, connectivity: Connectivity) -> (Vec<Component>, V
             sums[l as usize].add((i % w) as u32, (i / w) as u32);
         }
     }
-    let holes = holes(mask, &labels, connectivity);
+    let holes = holes(mask, &labels, count, connectivity);
     let found = (1..=count as usize)
         .map(|l| {
             let s = &sums[l];
@@ -313,8 +335,9 @@ pub fn components(mask: &Mask, connectivity: Connectivity) -> (Vec<Component>, V
     (found, labels)
 }
 
-/// Per component label, the moment sums of the background it encloses.
-fn holes(mask: &Mask, labels: &[u32], connectivity: Connectivity) -> Vec<Sums> {
+/// Per component label (of `components` in all), the moment sums of the
+/// background it encloses.
+fn holes(mask: &Mask, labels: &[u32], components: u32, connectivity: Connectivity) -> Vec<Sums> {
     let (w, h) = (mask.width as usize, mask.height as usize);
     let background = Mask {
         width: mask.width,
@@ -345,37 +368,13 @@ fn holes(mask: &Mask, labels: &[u32], connectivity: Connectivity) -> Vec<Sums> {
         }
         sums[region].add(c as u32, r as u32);
     }
-    let mut per_component =
-        vec![Sums::default(); labels.iter().copied().max().unwrap_or(0) as usize + 1];
+    let mut per_component = vec![Sums::default(); components as usize + 1];
     for region in 1..=count {
         if !touches_border[region] && enclosing[region] != 0 {
-            let into = &mut per_component[enclosing[region] as usize];
-            let add = sums[region];
-            merge(into, &add);
+            per_component[enclosing[region] as usize].merge(&sums[region]);
         }
     }
     per_component
-}
-
-fn merge(into: &mut Sums, add: &Sums) {
-    if into.m00 == 0 {
-        *into = *add;
-        return;
-    }
-    into.m00 += add.m00;
-    into.m10 += add.m10;
-    into.m01 += add.m01;
-    into.m20 += add.m20;
-    into.m11 += add.m11;
-    into.m02 += add.m02;
-    into.m30 += add.m30;
-    into.m21 += add.m21;
-    into.m12 += add.m12;
-    into.m03 += add.m03;
-    into.left = into.left.min(add.left);
-    into.top = into.top.min(add.top);
-    into.right = into.right.max(add.right);
-    into.bottom = into.bottom.max(add.bottom);
 }
 
 /// Whether a component is the robot as the camera marks it: a round body

@@ -10,14 +10,12 @@ use std::io::{Read, Write};
 use std::time::Duration;
 
 use serialport::{ClearBuffer, DataBits, FlowControl, Parity, SerialPort, StopBits};
-use vl_core::robot::{Pose, RobotModel, WheelSpeeds};
+use vl_core::robot::{MAX_PULSES_PER_PERIOD, Pose, RobotModel, WheelSpeeds};
 
 use crate::drivers::{Robot, RobotError, RobotReading};
 
 /// How long the robot has to answer one command.
 const REPLY_TIMEOUT: Duration = Duration::from_millis(300);
-/// The firmware's speed limit, pulses per 10 ms.
-const MAX_PULSES: i64 = 127;
 /// A proximity reading this high means the body is touching something.
 const TOUCHING: u16 = 1000;
 
@@ -119,9 +117,11 @@ impl KheperaSerial {
         Ok([v[0], v[1]])
     }
 
-    /// mm/s to the firmware's pulses per 10 ms.
+    /// mm/s to the firmware's pulses per 10 ms, within its limit.
     fn pulses(&self, mm_s: f64) -> i64 {
-        ((mm_s * 0.01 / self.model.mm_per_pulse).round() as i64).clamp(-MAX_PULSES, MAX_PULSES)
+        self.model
+            .pulses_per_period(mm_s)
+            .clamp(-MAX_PULSES_PER_PERIOD, MAX_PULSES_PER_PERIOD)
     }
 }
 
@@ -159,8 +159,8 @@ impl Robot for KheperaSerial {
         Ok(RobotReading {
             pose: self.pose,
             wheels: WheelSpeeds {
-                left_mm_s: speed[0] as f64 * per / 0.01,
-                right_mm_s: speed[1] as f64 * per / 0.01,
+                left_mm_s: self.model.speed_mm_s(speed[0]),
+                right_mm_s: self.model.speed_mm_s(speed[1]),
             },
             contact: proximity.iter().any(|&v| v >= TOUCHING),
             proximity,

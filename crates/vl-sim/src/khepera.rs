@@ -6,11 +6,9 @@
 //! the caller advances; the emulator in `vl khepera-emu` puts it on a
 //! pseudo-terminal in real time.
 
-use crate::world::{STEP_S, World};
-use vl_core::robot::WheelSpeeds;
+use crate::world::World;
+use vl_core::robot::{MAX_PULSES_PER_PERIOD as MAX_SPEED, WheelSpeeds};
 
-/// The firmware's speed limit, pulses per 10 ms.
-const MAX_SPEED: i64 = 127;
 /// Ambient light reading in the simulated arena's even lighting (lower = brighter).
 const AMBIENT: u16 = 480;
 
@@ -85,11 +83,12 @@ impl Khepera {
 
     /// Asks the world's speed controller for the commanded pulse rates.
     fn command_speeds(&mut self) {
-        let per_tick = self.world.robot().mm_per_pulse / STEP_S;
-        self.world.set_wheels(WheelSpeeds {
-            left_mm_s: self.speed[0] as f64 * per_tick,
-            right_mm_s: self.speed[1] as f64 * per_tick,
-        });
+        let robot = self.world.robot();
+        let wheels = WheelSpeeds {
+            left_mm_s: robot.speed_mm_s(self.speed[0]),
+            right_mm_s: robot.speed_mm_s(self.speed[1]),
+        };
+        self.world.set_wheels(wheels);
     }
 
     pub fn world(&self) -> &World {
@@ -103,11 +102,6 @@ impl Khepera {
     /// Whether LED `n` is lit.
     pub fn led(&self, n: usize) -> bool {
         self.leds.get(n).copied().unwrap_or(false)
-    }
-
-    /// Wheel speeds in the firmware's unit: pulses per 10 ms.
-    fn pulses_per_tick(&self, mm_s: f64) -> i64 {
-        (mm_s * STEP_S / self.world.robot().mm_per_pulse).round() as i64
     }
 
     fn counters(&self) -> [i64; 2] {
@@ -157,8 +151,8 @@ impl Khepera {
                 let w = self.world.wheels();
                 format!(
                     "e,{},{}",
-                    self.pulses_per_tick(w.left_mm_s),
-                    self.pulses_per_tick(w.right_mm_s)
+                    self.world.robot().pulses_per_period(w.left_mm_s),
+                    self.world.robot().pulses_per_period(w.right_mm_s)
                 )
             }
             ("G", [left, right]) => {
@@ -175,8 +169,8 @@ impl Khepera {
                 // On target: at the commanded speed, or near the commanded position.
                 let w = self.world.wheels();
                 let actual = [
-                    self.pulses_per_tick(w.left_mm_s),
-                    self.pulses_per_tick(w.right_mm_s),
+                    self.world.robot().pulses_per_period(w.left_mm_s),
+                    self.world.robot().pulses_per_period(w.right_mm_s),
                 ];
                 let counts = self.counters();
                 let motor = |i: usize| match self.mode[i] {

@@ -236,13 +236,9 @@ impl Link {
         &self.model
     }
 
-    fn gaussian(&mut self) -> f64 {
-        gaussian(&mut self.rng)
-    }
-
     /// An AR(1) step that keeps the variable standard normal.
     fn correlated(&mut self, previous: f64, rho: f64) -> f64 {
-        let e = self.gaussian();
+        let e = gaussian(&mut self.rng);
         rho * previous + (1.0 - rho * rho).sqrt() * e
     }
 
