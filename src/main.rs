@@ -4,6 +4,7 @@
 
 mod alloc;
 mod petri;
+mod plan;
 mod sim;
 mod vision;
 
@@ -50,6 +51,8 @@ enum Command {
     /// Vision on camera frames: components, moments, the robot's pose.
     #[command(subcommand)]
     Vision(vision::VisionCommand),
+    /// Plan a path on a top-view map: C-space, NF1, spline, clearance.
+    Plan(plan::PlanArgs),
 }
 
 #[derive(clap::Args)]
@@ -228,6 +231,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::KheperaEmu(args) => khepera_emu(args),
         Command::Sim(command) => sim::run(command),
         Command::Vision(command) => vision::run(command),
+        Command::Plan(args) => plan::run(args),
     }
 }
 

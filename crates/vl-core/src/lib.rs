@@ -3,10 +3,14 @@
 
 pub mod arena;
 pub mod camera;
+pub mod cspace;
 pub mod experiment;
 pub mod frame;
+pub mod nf1;
+pub mod plan;
 pub mod protocol;
 pub mod robot;
 pub mod session;
+pub mod spline;
 pub mod steer;
 pub mod vision;

@@ -1,0 +1,312 @@
+//! Path planning on a C-space, as the mobile-robotics lab does it: the NF1
+//! wavefront from the goal, steepest descent from the start, a cubic spline
+//! through the descent's cells, and a check that the smooth path stays in
+//! free C-space, with the clearance it keeps.
+
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::cspace::{CSpace, Grid};
+use crate::nf1::{Cell, Nf1};
+use crate::robot::{Point, Pose, wrap_angle};
+use crate::spline::{Knot, Spline};
+use crate::vision::Connectivity;
+
+/// Cells of the descent between spline knots, before refinement.
+const KNOT_STRIDE: usize = 6;
+/// Spline samples per cell of path length.
+const SAMPLES_PER_CELL: f64 = 4.0;
+
+/// Why there is no path.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum NoPath {
+    #[error("the {which} ({x:.1}, {y:.1}) mm is off the map, which spans 0–{w:.1} × 0–{h:.1} mm")]
+    OffMap {
+        which: End,
+        x: f64,
+        y: f64,
+        w: f64,
+        h: f64,
+    },
+    #[error(
+        "the {which} ({x:.1}, {y:.1}) mm lies in an obstacle of the C-space (the robot would touch one there)"
+    )]
+    Blocked { which: End, x: f64, y: f64 },
+    #[error("the start and the goal are not connected in free C-space")]
+    Disconnected,
+}
+
+/// The start or the goal of a plan.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum End {
+    Start,
+    Goal,
+}
+
+impl std::fmt::Display for End {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            End::Start => "start",
+            End::Goal => "goal",
+        })
+    }
+}
+
+/// How the path was smoothed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Smoothing {
+    /// A cubic spline through this many knots.
+    Spline { knots: usize },
+    /// Straight lines between the descent's cell centres: no spline through
+    /// them stayed clear of the obstacles.
+    Polyline,
+}
+
+/// A planned path.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// The start cell's NF1 value: grid steps to the goal.
+    pub nf1_start_value: u32,
+    /// The descent, start cell to goal cell.
+    pub grid_path: Vec<Cell>,
+    /// The smooth path's samples, start to goal, at most a quarter cell
+    /// apart. θ is the planned heading for a polygon robot, and the path's
+    /// direction for a disc.
+    pub path: Vec<Pose>,
+    pub length_mm: f64,
+    /// The least distance from a sample to a blocked C-space cell or the
+    /// map's edge: how far the robot could stray before touching something.
+    pub min_clearance_mm: f64,
+    pub smoothing: Smoothing,
+}
+
+/// The cell the robot stands in at `pose`, if it is free.
+pub fn locate(cspace: &CSpace, pose: Pose, which: End) -> Result<Cell, NoPath> {
+    let grid = cspace.grid();
+    let (w, h) = grid.size_mm();
+    let (c, r) = grid.cell_of(pose.point()).ok_or(NoPath::OffMap {
+        which,
+        x: pose.x_mm,
+        y: pose.y_mm,
+        w,
+        h,
+    })?;
+    let k = cspace.slice_of(pose.theta_rad);
+    if cspace.slices[k].is_blocked(c, r) {
+        return Err(NoPath::Blocked {
+            which,
+            x: pose.x_mm,
+            y: pose.y_mm,
+        });
+    }
+    Ok((c, r, k as u32))
+}
+
+/// Plans from `start` to `goal`.
+pub fn plan(
+    cspace: &CSpace,
+    start: Pose,
+    goal: Pose,
+    connectivity: Connectivity,
+) -> Result<Plan, NoPath> {
+    let from = locate(cspace, start, End::Start)?;
+    let to = locate(cspace, goal, End::Goal)?;
+    let nf1 = Nf1::from_goal(cspace, to, connectivity);
+    let nf1_start_value = nf1.value(from).ok_or(NoPath::Disconnected)?;
+    let grid_path = nf1.descend(from, to).ok_or(NoPath::Disconnected)?;
+    let (path, smoothing) = smooth(cspace, start, goal, &grid_path);
+    let length_mm = path
+        .windows(2)
+        .map(|w| w[0].point().distance(w[1].point()))
+        .sum();
+    Ok(Plan {
+        nf1_start_value,
+        min_clearance_mm: clearance(cspace, &path),
+        grid_path,
+        path,
+        length_mm,
+        smoothing,
+    })
+}
+
+/// The heading coordinate's scale: turning by one radian counts as moving
+/// this far, so rotations in place still advance the spline's parameter.
+fn heading_mm(cspace: &CSpace) -> f64 {
+    if cspace.slices.len() == 1 {
+        0.0
+    } else {
+        cspace.footprint.reach_mm().max(cspace.grid().cell_mm)
+    }
+}
+
+/// Spline knots (x, y, scaled unwrapped θ) for each cell of the descent,
+/// with the real start and goal poses in place of their cells' centres.
+fn knots(cspace: &CSpace, start: Pose, goal: Pose, cells: &[Cell]) -> Vec<Knot> {
+    let grid = cspace.grid();
+    let rho = heading_mm(cspace);
+    let mut theta = start.theta_rad;
+    let mut out: Vec<Knot> = cells
+        .iter()
+        .map(|&(c, r, k)| {
+            theta += wrap_angle(cspace.theta_of(k as usize) - theta);
+            let p = grid.centre(c, r);
+            [p.x_mm, p.y_mm, theta * rho]
+        })
+        .collect();
+    let goal_theta = theta + wrap_angle(goal.theta_rad - theta);
+    let goal = [goal.x_mm, goal.y_mm, goal_theta * rho];
+    if out.len() == 1 {
+        out.push(goal);
+    } else if let Some(last) = out.last_mut() {
+        *last = goal;
+    }
+    out[0] = [start.x_mm, start.y_mm, start.theta_rad * rho];
+    out
+}
+
+/// The smooth path along the descent `cells`: a chord-length cubic spline
+/// through every few cells, with knots added wherever a sample falls in a
+/// blocked cell, or straight lines between cell centres when even a knot
+/// at every cell does not keep it clear.
+pub fn smooth(cspace: &CSpace, start: Pose, goal: Pose, cells: &[Cell]) -> (Vec<Pose>, Smoothing) {
+    let all = knots(cspace, start, goal, cells);
+    let step = cspace.grid().cell_mm / SAMPLES_PER_CELL;
+    let rho = heading_mm(cspace);
+    let to_pose = |k: &Knot, tangent: f64| Pose {
+        x_mm: k[0],
+        y_mm: k[1],
+        theta_rad: if rho > 0.0 {
+            wrap_angle(k[2] / rho)
+        } else {
+            tangent
+        },
+    };
+    let free = |k: &Knot| {
+        let theta = if rho > 0.0 { k[2] / rho } else { 0.0 };
+        cspace.is_free(
+            Point {
+                x_mm: k[0],
+                y_mm: k[1],
+            },
+            theta,
+        )
+    };
+    let last = all.len() - 1;
+    let mut chosen: Vec<usize> = (0..last).step_by(KNOT_STRIDE).chain([last]).collect();
+    loop {
+        let spline = Spline::through(&chosen.iter().map(|&i| all[i]).collect::<Vec<_>>());
+        let samples = spline.sample(step);
+        let mut bad: Vec<usize> = samples
+            .iter()
+            .filter(|(_, k)| !free(k))
+            .map(|&(t, _)| spline.interval(t))
+            .collect();
+        if bad.is_empty() {
+            let knots = chosen.len();
+            return (poses(&samples, to_pose), Smoothing::Spline { knots });
+        }
+        bad.dedup();
+        if bad.iter().any(|&j| chosen[j + 1] - chosen[j] < 2) {
+            break;
+        }
+        // A knot halfway (along the descent) into each interval that strayed.
+        for &j in bad.iter().rev() {
+            chosen.insert(j + 1, (chosen[j] + chosen[j + 1]) / 2);
+        }
+    }
+    // Straight segments between neighbouring free cells stay within them.
+    let mut samples = Vec::new();
+    for pair in all.windows(2) {
+        let line = Spline::through(pair);
+        let part = line.sample(step);
+        let skip = usize::from(!samples.is_empty());
+        samples.extend(part.into_iter().skip(skip));
+    }
+    (poses(&samples, to_pose), Smoothing::Polyline)
+}
+
+/// Samples as poses, θ from the direction to the next sample where the
+/// knots carry no heading.
+fn poses(samples: &[(f64, Knot)], to_pose: impl Fn(&Knot, f64) -> Pose) -> Vec<Pose> {
+    let mut tangent = 0.0;
+    samples
+        .iter()
+        .enumerate()
+        .map(|(i, (_, k))| {
+            if let Some((_, next)) = samples.get(i + 1) {
+                let (dx, dy) = (next[0] - k[0], next[1] - k[1]);
+                if dx != 0.0 || dy != 0.0 {
+                    tangent = dy.atan2(dx);
+                }
+            }
+            to_pose(k, tangent)
+        })
+        .collect()
+}
+
+/// The least distance from any pose of `path` to a blocked cell (as a
+/// square) of its heading's slice, or to the map's edge; 0 for a pose in a
+/// blocked cell.
+///
+/// The distance transform gives each pose a lower bound; poses are then
+/// checked exactly, nearest first, until no bound can beat the best found.
+pub fn clearance(cspace: &CSpace, path: &[Pose]) -> f64 {
+    let mut transforms: Vec<Option<Vec<f64>>> = vec![None; cspace.slices.len()];
+    let mut candidates: Vec<(f64, usize, usize)> = Vec::with_capacity(path.len());
+    for (i, pose) in path.iter().enumerate() {
+        let k = cspace.slice_of(pose.theta_rad);
+        let grid = &cspace.slices[k];
+        let Some((c, r)) = grid.cell_of(pose.point()) else {
+            return 0.0;
+        };
+        let d2 = transforms[k].get_or_insert_with(|| grid.distance_transform());
+        let centre_cells = d2[grid.index(c, r)].sqrt();
+        let bound = (centre_cells - std::f64::consts::SQRT_2).max(0.0) * grid.cell_mm;
+        candidates.push((bound.min(edge_distance(grid, pose.point())), i, k));
+    }
+    candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut best = f64::INFINITY;
+    for (bound, i, k) in candidates {
+        if bound >= best {
+            break;
+        }
+        let grid = &cspace.slices[k];
+        let d2 = transforms[k].as_ref().expect("computed above");
+        best = best.min(exact_clearance(grid, d2, path[i].point()));
+    }
+    if best.is_finite() { best } else { 0.0 }
+}
+
+fn edge_distance(grid: &Grid, p: Point) -> f64 {
+    let (w, h) = grid.size_mm();
+    p.x_mm.min(w - p.x_mm).min(p.y_mm).min(h - p.y_mm).max(0.0)
+}
+
+/// Distance from `p` to the nearest blocked cell's square or the map edge,
+/// searching the cells the distance transform says could be nearest.
+fn exact_clearance(grid: &Grid, d2: &[f64], p: Point) -> f64 {
+    let s = grid.cell_mm;
+    let Some((c, r)) = grid.cell_of(p) else {
+        return 0.0;
+    };
+    let mut best = edge_distance(grid, p);
+    // The nearest blocked centre is within sqrt(d2) cells of this cell's
+    // centre, so its square is within that plus half a diagonal of p; any
+    // square at least that near has its centre within 1.5 diagonals more.
+    let bound = (d2[grid.index(c, r)].sqrt() * s + s * std::f64::consts::FRAC_1_SQRT_2).min(best);
+    let reach = (bound / s + 1.5 * std::f64::consts::SQRT_2).ceil() as i64;
+    let (c, r) = (i64::from(c), i64::from(r));
+    for rr in (r - reach).max(0)..=(r + reach).min(i64::from(grid.height) - 1) {
+        for cc in (c - reach).max(0)..=(c + reach).min(i64::from(grid.width) - 1) {
+            if !grid.is_blocked(cc as u32, rr as u32) {
+                continue;
+            }
+            let centre = grid.centre(cc as u32, rr as u32);
+            let dx = ((centre.x_mm - p.x_mm).abs() - s / 2.0).max(0.0);
+            let dy = ((centre.y_mm - p.y_mm).abs() - s / 2.0).max(0.0);
+            best = best.min(dx.hypot(dy));
+        }
+    }
+    best
+}

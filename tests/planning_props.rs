@@ -1,0 +1,288 @@
+//! Planning against brute force on random maps: a path exists exactly when
+//! a naive flood fill connects start and goal, NF1 is the breadth-first
+//! distance, the descent goes down one value per step to the goal, the
+//! smooth path stays in free cells, and its clearance is what an exhaustive
+//! search over every blocked cell says.
+
+use std::collections::VecDeque;
+
+use proptest::prelude::*;
+use vl_core::cspace::{CSpace, Footprint, Grid};
+use vl_core::nf1::{Cell, Nf1};
+use vl_core::plan::{NoPath, Plan, plan};
+use vl_core::robot::{Point, Pose};
+use vl_core::vision::Connectivity;
+
+const CELL_MM: f64 = 10.0;
+
+fn random_map() -> impl Strategy<Value = Grid> {
+    (3u32..18, 3u32..18, 0.0f64..0.45).prop_flat_map(|(w, h, density)| {
+        proptest::collection::vec(proptest::bool::weighted(density), (w * h) as usize).prop_map(
+            move |blocked| Grid {
+                width: w,
+                height: h,
+                cell_mm: CELL_MM,
+                blocked,
+            },
+        )
+    })
+}
+
+fn connectivity() -> impl Strategy<Value = Connectivity> {
+    prop_oneof![Just(Connectivity::Four), Just(Connectivity::Eight)]
+}
+
+/// A pose anywhere on the map (fractions of its extent); when `snap`, moved
+/// on to the next free cell in raster order, if there is one, so most cases
+/// plan rather than stop at a blocked start or goal.
+fn pose_on(cs: &CSpace, (fx, fy, theta): (f64, f64, f64), snap: bool) -> Pose {
+    let grid = cs.grid();
+    let (w, h) = grid.size_mm();
+    let pose = Pose {
+        x_mm: fx * w,
+        y_mm: fy * h,
+        theta_rad: theta,
+    };
+    let blocked = &cs.slices[cs.slice_of(theta)].blocked;
+    let (c, r) = grid.cell_of(pose.point()).unwrap();
+    let here = grid.index(c, r);
+    let Some(i) = (0..blocked.len())
+        .map(|k| (here + k) % blocked.len())
+        .find(|&i| !blocked[i])
+    else {
+        return pose;
+    };
+    if !snap || i == here {
+        return pose;
+    }
+    let centre = grid.centre(i as u32 % grid.width, i as u32 / grid.width);
+    let offset = |f: f64, size: f64| (f * size / grid.cell_mm).fract() - 0.5;
+    Pose {
+        x_mm: centre.x_mm + offset(fx, w) * grid.cell_mm,
+        y_mm: centre.y_mm + offset(fy, h) * grid.cell_mm,
+        theta_rad: theta,
+    }
+}
+
+/// Cells one step from `cell`, by the rules the planner states, found by
+/// looking at every cell of the C-space.
+fn steps(cs: &CSpace, conn: Connectivity, (c, r, k): Cell) -> Vec<Cell> {
+    let n = cs.slices.len() as u32;
+    let free = |c: i64, r: i64, k: u32| {
+        let g = &cs.slices[k as usize];
+        c >= 0
+            && r >= 0
+            && c < i64::from(g.width)
+            && r < i64::from(g.height)
+            && !g.is_blocked(c as u32, r as u32)
+    };
+    let mut out = Vec::new();
+    let (ci, ri) = (i64::from(c), i64::from(r));
+    for dr in -1i64..=1 {
+        for dc in -1i64..=1 {
+            let diagonal = dc != 0 && dr != 0;
+            let allowed = match (dc, dr) {
+                (0, 0) => false,
+                _ if diagonal => {
+                    conn == Connectivity::Eight && free(ci + dc, ri, k) && free(ci, ri + dr, k)
+                }
+                _ => true,
+            };
+            if allowed && free(ci + dc, ri + dr, k) {
+                out.push(((ci + dc) as u32, (ri + dr) as u32, k));
+            }
+        }
+    }
+    if n > 1 {
+        for kk in [(k + 1) % n, (k + n - 1) % n] {
+            if free(ci, ri, kk) && !out.contains(&(c, r, kk)) {
+                out.push((c, r, kk));
+            }
+        }
+    }
+    out
+}
+
+/// Breadth-first distances from `from` over free cells, as a map.
+fn bfs(cs: &CSpace, conn: Connectivity, from: Cell) -> std::collections::HashMap<Cell, u32> {
+    let mut dist = std::collections::HashMap::from([(from, 0)]);
+    let mut queue = VecDeque::from([from]);
+    while let Some(cell) = queue.pop_front() {
+        let d = dist[&cell];
+        for next in steps(cs, conn, cell) {
+            dist.entry(next).or_insert_with(|| {
+                queue.push_back(next);
+                d + 1
+            });
+        }
+    }
+    dist
+}
+
+/// Whether a depth-first flood fill from `from` meets `to`.
+fn flood_connected(cs: &CSpace, conn: Connectivity, from: Cell, to: Cell) -> bool {
+    let mut seen = std::collections::HashSet::from([from]);
+    let mut stack = vec![from];
+    while let Some(cell) = stack.pop() {
+        if cell == to {
+            return true;
+        }
+        for next in steps(cs, conn, cell) {
+            if seen.insert(next) {
+                stack.push(next);
+            }
+        }
+    }
+    false
+}
+
+fn cell_of(cs: &CSpace, pose: Pose) -> Option<Cell> {
+    let (c, r) = cs.grid().cell_of(pose.point())?;
+    Some((c, r, cs.slice_of(pose.theta_rad) as u32))
+}
+
+fn is_free(cs: &CSpace, cell: Cell) -> bool {
+    !cs.slices[cell.2 as usize].is_blocked(cell.0, cell.1)
+}
+
+/// Clearance by looking at every blocked cell of the pose's slice.
+fn brute_clearance(cs: &CSpace, path: &[Pose]) -> f64 {
+    path.iter()
+        .map(|pose| {
+            let g = &cs.slices[cs.slice_of(pose.theta_rad)];
+            let p = pose.point();
+            let (w, h) = g.size_mm();
+            let mut best = p.x_mm.min(w - p.x_mm).min(p.y_mm).min(h - p.y_mm).max(0.0);
+            for r in 0..g.height {
+                for c in 0..g.width {
+                    if g.is_blocked(c, r) {
+                        let x0 = f64::from(c) * g.cell_mm;
+                        let y0 = f64::from(g.height - 1 - r) * g.cell_mm;
+                        let dx = (x0 - p.x_mm).max(p.x_mm - (x0 + g.cell_mm)).max(0.0);
+                        let dy = (y0 - p.y_mm).max(p.y_mm - (y0 + g.cell_mm)).max(0.0);
+                        best = best.min(dx.hypot(dy));
+                    }
+                }
+            }
+            best
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Every claim a plan (or its refusal) makes, checked by brute force.
+fn check(
+    cs: &CSpace,
+    conn: Connectivity,
+    start: Pose,
+    goal: Pose,
+    result: Result<Plan, NoPath>,
+) -> Result<(), TestCaseError> {
+    let (from, to) = (cell_of(cs, start).unwrap(), cell_of(cs, goal).unwrap());
+    if !is_free(cs, from) || !is_free(cs, to) {
+        prop_assert!(matches!(result, Err(NoPath::Blocked { .. })), "{result:?}");
+        return Ok(());
+    }
+    let connected = flood_connected(cs, conn, from, to);
+    let plan = match result {
+        Err(NoPath::Disconnected) => {
+            prop_assert!(!connected, "flood fill connects {from:?} to {to:?}");
+            return Ok(());
+        }
+        Err(e) => return Err(TestCaseError::fail(format!("unexpected {e}"))),
+        Ok(plan) => plan,
+    };
+    prop_assert!(connected);
+    prop_assert_eq!(
+        Some(plan.nf1_start_value),
+        bfs(cs, conn, to).get(&from).copied()
+    );
+    // The descent: one NF1 value lower each step, by legal steps, to the goal.
+    let nf1 = Nf1::from_goal(cs, to, conn);
+    prop_assert_eq!(plan.grid_path.first(), Some(&from));
+    prop_assert_eq!(plan.grid_path.last(), Some(&to));
+    for (i, pair) in plan.grid_path.windows(2).enumerate() {
+        prop_assert_eq!(
+            nf1.value(pair[1]),
+            Some(plan.nf1_start_value - i as u32 - 1)
+        );
+        prop_assert!(steps(cs, conn, pair[0]).contains(&pair[1]), "{pair:?}");
+    }
+    // The smooth path: from the start to the goal, never in a blocked cell.
+    let (first, last) = (plan.path[0], *plan.path.last().unwrap());
+    prop_assert!(first.point().distance(start.point()) < 1e-6);
+    prop_assert!(last.point().distance(goal.point()) < 1e-6);
+    for (i, pose) in plan.path.iter().enumerate() {
+        let cell = cell_of(cs, *pose);
+        prop_assert!(
+            cell.is_some_and(|cell| is_free(cs, cell)),
+            "sample {i} {pose:?} is in {cell:?}, blocked or off the map"
+        );
+    }
+    for pair in plan.path.windows(2) {
+        prop_assert!(pair[0].point().distance(pair[1].point()) <= CELL_MM / 4.0 + 1e-9);
+    }
+    let brute = brute_clearance(cs, &plan.path);
+    prop_assert!(
+        (plan.min_clearance_mm - brute).abs() < 1e-9,
+        "clearance {} vs brute force {brute}",
+        plan.min_clearance_mm
+    );
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(500))]
+
+    #[test]
+    fn disc_robot_plans_agree_with_brute_force(
+        map in random_map(),
+        conn in connectivity(),
+        radius in prop_oneof![Just(0.0), 0.0f64..16.0],
+        s in (0.0f64..1.0, 0.0f64..1.0, -3.0f64..3.0),
+        g in (0.0f64..1.0, 0.0f64..1.0, -3.0f64..3.0),
+        snap in proptest::bool::weighted(0.85),
+    ) {
+        let cs = CSpace::build(&map, Footprint::Disc { radius_mm: radius }, 1).unwrap();
+        let (start, goal) = (pose_on(&cs, s, snap), pose_on(&cs, g, snap));
+        check(&cs, conn, start, goal, plan(&cs, start, goal, conn))?;
+    }
+
+    #[test]
+    fn polygon_robot_plans_agree_with_brute_force(
+        map in random_map(),
+        conn in connectivity(),
+        slices in 2u32..7,
+        length in 5.0f64..25.0,
+        s in (0.0f64..1.0, 0.0f64..1.0, -3.0f64..3.0),
+        g in (0.0f64..1.0, 0.0f64..1.0, -3.0f64..3.0),
+        snap in proptest::bool::weighted(0.85),
+    ) {
+        // A bar along the robot's x axis: it fits through a gap only end-on.
+        let bar = Footprint::Polygon { points: vec![
+            Point { x_mm: -length, y_mm: -2.0 },
+            Point { x_mm: length, y_mm: -2.0 },
+            Point { x_mm: length, y_mm: 2.0 },
+            Point { x_mm: -length, y_mm: 2.0 },
+        ]};
+        let cs = CSpace::build(&map, bar, slices).unwrap();
+        let (start, goal) = (pose_on(&cs, s, snap), pose_on(&cs, g, snap));
+        check(&cs, conn, start, goal, plan(&cs, start, goal, conn))?;
+    }
+}
+
+#[test]
+fn a_start_off_the_map_is_named() {
+    let map = Grid::free(5, 5, CELL_MM).unwrap();
+    let cs = CSpace::build(&map, Footprint::Disc { radius_mm: 0.0 }, 1).unwrap();
+    let outside = Pose {
+        x_mm: -1.0,
+        y_mm: 10.0,
+        theta_rad: 0.0,
+    };
+    let err = plan(&cs, outside, Pose::default(), Connectivity::Four).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("start (-1.0, 10.0) mm is off the map"),
+        "{err}"
+    );
+}
