@@ -9,9 +9,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use vl_core::arena::Arena;
-use vl_core::robot::RobotModel;
+use vl_core::follow::{Follower, Following, PLAN_MARGIN_MM};
+use vl_core::plan::plan_in_arena;
+use vl_core::robot::{Point, RobotModel};
 use vl_sim::link::{Link, LinkModel, LinkStats, measure};
-use vl_sim::script::{Script, run as run_script};
+use vl_sim::script::{Driver, Script, run as run_script};
 use vl_sim::{Optics, World, camera_for};
 
 use crate::{BadInput, read_input};
@@ -85,9 +87,14 @@ pub enum SimCommand {
         seed: u64,
         #[arg(long, default_value_t = 10.0)]
         duration: f64,
-        /// Lines of 't_s left_mm_s right_mm_s'; without one the robot steers to the arena's goal.
+        /// Lines of 't_s left_mm_s right_mm_s'. Without one the robot plans
+        /// a path to the goal and follows it, and the run ends when it
+        /// arrives; with no goal either, it stays put.
         #[arg(long)]
         script: Option<PathBuf>,
+        /// Where to go, x,y mm (default: the goal the arena suggests).
+        #[arg(long, value_parser = parse_pair, conflicts_with = "script")]
+        goal: Option<[f64; 2]>,
         #[command(flatten)]
         robot: RobotArgs,
         #[arg(long)]
@@ -142,6 +149,7 @@ pub fn run(command: SimCommand) -> Result<ExitCode> {
             seed,
             duration,
             script,
+            goal,
             robot,
             json,
         } => sim_run(
@@ -149,6 +157,7 @@ pub fn run(command: SimCommand) -> Result<ExitCode> {
                 .map_err(|e| BadInput(e.to_string()))?,
             duration,
             script.as_deref(),
+            goal,
             json,
         ),
         SimCommand::Render {
@@ -275,21 +284,29 @@ pub fn arena_named(name_or_path: &str) -> Result<Arena> {
     .into())
 }
 
-fn sim_run(mut world: World, duration: f64, script: Option<&Path>, json: bool) -> Result<ExitCode> {
+fn sim_run(
+    mut world: World,
+    duration: f64,
+    script: Option<&Path>,
+    goal: Option<[f64; 2]>,
+    json: bool,
+) -> Result<ExitCode> {
     if !(duration.is_finite() && duration >= 0.0) {
         return Err(BadInput(format!(
             "--duration must be a non-negative number of seconds, not {duration}"
         ))
         .into());
     }
-    let script = match script {
+    let mut driver = match script {
         Some(path) => {
             let text = read_input(path)?;
-            Some(Script::parse(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?)
+            Driver::Script(
+                Script::parse(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?,
+            )
         }
-        None => None,
+        None => follow_to(&world, goal)?,
     };
-    let report = run_script(&mut world, script.as_ref(), duration);
+    let report = run_script(&mut world, &mut driver, duration);
     if json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -303,10 +320,46 @@ fn sim_run(mut world: World, duration: f64, script: Option<&Path>, json: bool) -
             p.theta_rad.to_degrees()
         );
         println!("{:<12} {:.0} mm", "distance", report.distance_mm);
+        if let Some(t) = report.following {
+            println!(
+                "{:<12} {} (path kept to within {:.1} mm on average, {:.1} mm at worst)",
+                "goal",
+                if t.reached_goal {
+                    "reached"
+                } else {
+                    "not reached"
+                },
+                t.mean_error_mm,
+                t.max_error_mm
+            );
+        }
         println!("{:<12} {}", "collisions", report.collisions);
         println!("{:<12} {}", "trace hash", report.trace_hash);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A follower for a path planned from the robot to `goal` (or the
+/// arena's); idle when there is neither.
+fn follow_to(world: &World, goal: Option<[f64; 2]>) -> Result<Driver> {
+    let arena = world.arena();
+    let goal = match (goal, arena.goal) {
+        (Some([x_mm, y_mm]), _) => Point { x_mm, y_mm },
+        (None, Some(goal)) => goal,
+        (None, None) => return Ok(Driver::Idle),
+    };
+    let plan = plan_in_arena(
+        arena,
+        &[],
+        world.robot().radius_mm,
+        PLAN_MARGIN_MM,
+        world.pose(),
+        goal,
+    )
+    .map_err(|e| BadInput(format!("no path to follow: {e}")))?;
+    let path = plan.path.iter().map(|p| p.point()).collect();
+    let follower = Follower::new(path, Following::default()).expect("a plan has samples");
+    Ok(Driver::Path(follower))
 }
 
 fn render(world: &World, width: u32, optics: &Optics, output: &Path) -> Result<ExitCode> {

@@ -261,6 +261,57 @@ async fn start_teleoperation(op: &mut Peer) {
     op.expect("started").await;
 }
 
+/// In the teleoperation experiment the obstacles push back: driven flat out
+/// at the wall ahead, the robot stops short of it, and the push comes back
+/// as a force on the joystick. Navigation runs feel nothing.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn teleoperation_feeds_back_the_push_of_obstacles() {
+    let (_host, url) = start_host();
+    let mut op = Peer::connect(&url).await;
+    op.hello("operator").await;
+    start_teleoperation(&mut op).await;
+    // The robot starts at x = 100 mm facing +x; a box begins at x = 250 mm.
+    let mut strongest: f64 = 0.0;
+    let mut last = Value::Null;
+    for event in 1..=150 {
+        op.send(json!({"type": "command", "event": event, "v": 300.0, "w": 0.0}))
+            .await;
+        loop {
+            let f = op.expect("feedback").await;
+            assert_eq!(f["contact"], false, "touched the box: {f}");
+            let force = f["force"]
+                .as_array()
+                .expect("assisted feedback carries a force");
+            strongest = strongest.min(force[1].as_f64().unwrap());
+            if f["event"].as_u64() == Some(event) {
+                last = f;
+                break;
+            }
+        }
+    }
+    let x = last["pose"]["x_mm"].as_f64().unwrap();
+    let radius = 35.0;
+    assert!(
+        x + radius > 200.0 && x + radius < 250.0,
+        "held {:.0} mm short of the box: {last}",
+        250.0 - x - radius
+    );
+    assert!(strongest < -0.3, "felt at most {strongest}");
+    op.send(json!({"type": "stop"})).await;
+    assert_eq!(op.expect("done").await["summary"]["collisions"], 0);
+
+    // The navigation experiment is not assisted: no force.
+    op.send(json!({"type": "mount", "experiment": "navigation"}))
+        .await;
+    op.expect("mounted").await;
+    op.send(json!({"type": "define"})).await;
+    op.expect("defined").await;
+    op.send(json!({"type": "start"})).await;
+    op.expect("started").await;
+    let plain = drive(&mut op, 1, 3, 100.0, 100.0).await;
+    assert!(plain.get("force").is_none(), "{plain}");
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_robot_stops_when_the_operator_leaves() {
     let (_host, url) = start_host();

@@ -277,3 +277,41 @@ fn bad_input_is_named() {
         "script line 1",
     );
 }
+
+#[test]
+fn runs_follow_a_planned_path_and_report_the_tracking_error() {
+    for arena in ["corridor", "maze"] {
+        let out = json(&["sim", "run", "--arena", arena, "--duration", "60", "--json"]);
+        let following = &out["following"];
+        assert_eq!(following["reached_goal"], true, "{arena}: {out}");
+        assert_eq!(out["collisions"], 0, "{arena}: {out}");
+        let (mean, max) = (
+            following["mean_error_mm"].as_f64().unwrap(),
+            following["max_error_mm"].as_f64().unwrap(),
+        );
+        assert!(mean > 0.0 && mean <= max && max < 25.0, "{arena}: {out}");
+        assert!(
+            out["sim_seconds"].as_f64().unwrap() < 60.0,
+            "it stops on arrival"
+        );
+    }
+    let open = json(&[
+        "sim",
+        "run",
+        "--arena",
+        "open",
+        "--goal",
+        "500,100",
+        "--duration",
+        "30",
+        "--json",
+    ]);
+    assert_eq!(open["following"]["reached_goal"], true, "{open}");
+    let out = vl(&["sim", "run", "--arena", "navigation", "--goal", "280,100"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("no path to follow") && err.contains("goal (280.0, 100.0)"),
+        "{err}"
+    );
+}

@@ -14,7 +14,7 @@ use crate::arena::{Arena, Shape};
 use crate::robot::Point;
 
 /// Why a grid or C-space could not be built.
-#[derive(Debug, Error, PartialEq)]
+#[derive(Debug, Error, Clone, PartialEq)]
 pub enum CSpaceError {
     #[error("the scale must be a positive number of mm, got {0}")]
     Scale(f64),

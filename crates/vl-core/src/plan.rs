@@ -6,7 +6,8 @@
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::cspace::{CSpace, Grid};
+use crate::arena::{Arena, Shape};
+use crate::cspace::{CSpace, CSpaceError, Footprint, Grid};
 use crate::nf1::{Cell, Nf1};
 use crate::robot::{Point, Pose, wrap_angle};
 use crate::spline::{Knot, Spline};
@@ -101,6 +102,55 @@ pub fn locate(cspace: &CSpace, pose: Pose, which: End) -> Result<Cell, NoPath> {
         });
     }
     Ok((c, r, k as u32))
+}
+
+/// Cell size for planning on an arena's obstacle list.
+pub const ARENA_CELL_MM: f64 = 5.0;
+
+/// Why a path in an arena could not be planned.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum ArenaPlanError {
+    #[error(transparent)]
+    Map(#[from] CSpaceError),
+    #[error(transparent)]
+    NoPath(#[from] NoPath),
+}
+
+/// A path for a disc robot of `radius_mm` across `arena` (plus virtual
+/// obstacles), on cells of [`ARENA_CELL_MM`], keeping `margin_mm` more than
+/// the radius from obstacles, or as much of it as the narrowest passage on
+/// the way (and the start and goal) allow.
+pub fn plan_in_arena(
+    arena: &Arena,
+    virtual_obstacles: &[Shape],
+    radius_mm: f64,
+    margin_mm: f64,
+    start: Pose,
+    goal: Point,
+) -> Result<Plan, ArenaPlanError> {
+    let mut grid = Grid::from_arena(arena, ARENA_CELL_MM)?;
+    for shape in virtual_obstacles {
+        grid.block(shape);
+    }
+    let goal = Pose {
+        x_mm: goal.x_mm,
+        y_mm: goal.y_mm,
+        theta_rad: 0.0,
+    };
+    let mut result = Err(NoPath::Disconnected.into());
+    // Narrow passages, or a start or goal close to an obstacle, may leave
+    // room for less margin; the robot's body must still fit.
+    for extra in [1.0, 0.6, 0.4, 0.2, 0.0].map(|f| f * margin_mm) {
+        let footprint = Footprint::Disc {
+            radius_mm: radius_mm + extra,
+        };
+        let cspace = CSpace::build(&grid, footprint, 1)?;
+        result = plan(&cspace, start, goal, Connectivity::Eight).map_err(Into::into);
+        if result.is_ok() {
+            break;
+        }
+    }
+    result
 }
 
 /// Plans from `start` to `goal`.

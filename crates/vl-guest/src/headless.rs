@@ -1,17 +1,19 @@
-//! The headless Guest: scripts a whole session — mount, define a goal,
-//! execute it under event-based control — with no window, for demos, tests
-//! and unattended runs.
+//! The headless Guest: scripts a whole session — mount, plan a path to the
+//! goal on the lab's map and define it, then execute it under event-based
+//! control, steering along the path — with no window, for demos, tests and
+//! unattended runs.
 
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use thiserror::Error;
 use vl_core::experiment::{Definition, Goal};
+use vl_core::follow::{Command, Follower, Following, PLAN_MARGIN_MM};
+use vl_core::plan::{ArenaPlanError, plan_in_arena};
 use vl_core::protocol::{
     Drive, EndReason, ErrorCode, GuestMessage, HostMessage, PROTOCOL_VERSION, Role,
 };
-use vl_core::robot::Pose;
-use vl_core::steer::{Steering, go_to_goal};
+use vl_core::robot::{Pose, WheelSpeeds};
 
 use crate::client::{ClientError, Connection, Incoming, connect};
 use crate::session::Session;
@@ -25,7 +27,7 @@ pub struct Script {
     pub token: Option<String>,
     /// The whole session must finish within this.
     pub timeout: Duration,
-    pub steering: Steering,
+    pub following: Following,
     /// Print a line of progress to stderr every second.
     pub progress: bool,
 }
@@ -37,7 +39,7 @@ impl Default for Script {
             goal: None,
             token: None,
             timeout: Duration::from_secs(60),
-            steering: Steering::default(),
+            following: Following::default(),
             progress: false,
         }
     }
@@ -80,6 +82,8 @@ pub enum ScriptError {
     Timeout { step: &'static str, seconds: f64 },
     #[error("experiment \"{0}\" suggests no goal and none was given")]
     NoGoal(String),
+    #[error("no path to the goal: {0}")]
+    NoPath(#[from] ArenaPlanError),
 }
 
 /// A Guest that waits for what it asked for.
@@ -167,9 +171,32 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
         },
         (None, None) => return Err(ScriptError::NoGoal(script.experiment.clone())),
     };
+    // Plan from where the robot is, as a user does on the camera view.
+    guest
+        .until("see the robot", ignore, |s| s.robot.is_some())
+        .await?;
+    let start = guest.session.robot.as_ref().expect("seen").pose;
+    let plan = plan_in_arena(
+        &lab.arena,
+        &[],
+        lab.robot.radius_mm,
+        PLAN_MARGIN_MM,
+        start,
+        goal.point(),
+    )?;
+    let path: Vec<_> = plan.path.iter().map(|p| p.point()).collect();
+    let mut follower = Follower::new(
+        path.clone(),
+        Following {
+            tolerance_mm: goal.tolerance_mm / 2.0,
+            ..script.following
+        },
+    )
+    .expect("a plan has samples");
     guest.connection.send(GuestMessage::Define {
         definition: Definition {
             goal: Some(goal),
+            path,
             ..Definition::default()
         },
     });
@@ -180,18 +207,14 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
     guest.connection.send(GuestMessage::Start);
     guest.until("start", ignore, |s| s.running).await?;
 
-    let steering = script.steering;
     let mut last_progress = Instant::now();
     let progress = script.progress;
     let steer = move |session: &mut Session, connection: &Connection| {
         let Some(robot) = &session.robot else { return };
-        let wheels = go_to_goal(
-            &lab.robot,
-            robot.pose,
-            goal.point(),
-            &robot.proximity,
-            steering,
-        );
+        let wheels = match follower.step(&lab.robot, robot.pose, &robot.proximity) {
+            Command::Drive(wheels) => wheels,
+            Command::Arrived => WheelSpeeds::default(),
+        };
         if progress && last_progress.elapsed() >= Duration::from_secs(1) {
             last_progress = Instant::now();
             eprintln!(

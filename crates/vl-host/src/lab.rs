@@ -19,10 +19,13 @@ use tokio_tungstenite::tungstenite::Bytes;
 use tracing::{debug, warn};
 use vl_core::arena::Arena;
 use vl_core::camera::CameraModel;
+use vl_core::cspace::{CSpace, Footprint, Grid};
 use vl_core::experiment::Definition;
 use vl_core::frame::{FrameHeader, ImageFormat};
+use vl_core::plan::ARENA_CELL_MM;
 use vl_core::protocol::{Drive, EndReason, HostMessage, Summary};
 use vl_core::robot::{Point, RobotModel, WheelSpeeds};
+use vl_core::teleop::{MapField, Teleop, Vector};
 
 use crate::drivers::{Camera, Robot, RobotReading};
 
@@ -36,6 +39,10 @@ pub const WATCHDOG: Duration = Duration::from_millis(500);
 const NO_CAMERA_WIDTH_PX: u32 = 640;
 /// How far ahead the virtual-obstacle guard looks.
 const GUARD_LOOKAHEAD_S: f64 = 0.15;
+/// Distance from the body within which the map's potential field pushes.
+const MAP_FIELD_INFLUENCE_MM: f64 = 40.0;
+/// Its strength: about 100 mm/s of push with the body 10 mm from a wall.
+const MAP_FIELD_ETA: f64 = 1.0e5;
 
 /// What the lab is, as the Guest needs it at mount.
 #[derive(Debug, Clone)]
@@ -48,8 +55,16 @@ pub struct LabInfo {
 /// Requests from the session to the control loop.
 #[derive(Debug)]
 pub enum LabRequest {
-    Start(Definition),
-    Drive { event: u64, drive: Drive },
+    /// A run begins; `assisted` runs add the potential fields to the
+    /// operator's commands and feed the push back as a force.
+    Start {
+        definition: Definition,
+        assisted: bool,
+    },
+    Drive {
+        event: u64,
+        drive: Drive,
+    },
     Finish(EndReason),
 }
 
@@ -101,6 +116,8 @@ impl Lab {
             run: None,
             last: None,
             sent: None,
+            teleop: Teleop::default(),
+            map_field: map_field(&info),
         };
         thread::Builder::new()
             .name("vl-control".into())
@@ -150,6 +167,9 @@ struct Run {
     distance_mm: f64,
     collisions: u64,
     wheels: WheelSpeeds,
+    /// For an assisted run: the velocity the operator asks for, and the
+    /// force last fed back.
+    assist: Option<(Vector, [f64; 2])>,
 }
 
 struct Control {
@@ -165,6 +185,9 @@ struct Control {
     last: Option<RobotReading>,
     /// What the wheels were last told, so an unchanged command is not resent.
     sent: Option<WheelSpeeds>,
+    teleop: Teleop,
+    /// The arena's repulsive field, over the C-space of the robot's body.
+    map_field: Option<MapField>,
 }
 
 impl Control {
@@ -206,7 +229,10 @@ impl Control {
     /// Applies a request; true when it changed what the robot does.
     fn handle(&mut self, request: LabRequest) -> bool {
         match request {
-            LabRequest::Start(definition) => {
+            LabRequest::Start {
+                definition,
+                assisted,
+            } => {
                 self.event.store(0, Ordering::Relaxed);
                 let now = Instant::now();
                 self.run = Some(Run {
@@ -216,6 +242,7 @@ impl Control {
                     distance_mm: 0.0,
                     collisions: 0,
                     wheels: WheelSpeeds::default(),
+                    assist: assisted.then_some((Vector::default(), [0.0; 2])),
                 });
                 false
             }
@@ -230,6 +257,12 @@ impl Control {
                     wheels = capped.clamp(wheels);
                 }
                 run.wheels = wheels;
+                if let Some((desired, _)) = &mut run.assist {
+                    let robot = &self.info.robot;
+                    let v = (wheels.left_mm_s + wheels.right_mm_s) / 2.0;
+                    let w = (wheels.right_mm_s - wheels.left_mm_s) / robot.wheel_base_mm;
+                    *desired = self.teleop.velocity_for(robot, v, w);
+                }
                 run.last_command = Instant::now();
                 self.event.store(event, Ordering::Relaxed);
                 self.drive();
@@ -245,9 +278,26 @@ impl Control {
     /// Sends the run's wheel speeds, unless the virtual-obstacle guard or
     /// the watchdog says otherwise.
     fn drive(&mut self) {
-        let Some(run) = &self.run else { return };
+        let Some(run) = &mut self.run else { return };
+        let stale = run.last_command.elapsed() > WATCHDOG;
         let mut wheels = run.wheels;
-        if run.last_command.elapsed() > WATCHDOG {
+        if let (Some((desired, force)), Some(reading)) = (&mut run.assist, &self.last) {
+            let robot = &self.info.robot;
+            let ahead = self.map_field.as_ref().map_or(Vector::default(), |f| {
+                f.guidance(reading.pose.point())
+                    .rotated(reading.pose.theta_rad)
+            });
+            let sensed = self.teleop.sensor_field(robot, &reading.proximity);
+            let field = Vector {
+                x: sensed.x + ahead.x,
+                y: sensed.y + ahead.y,
+            };
+            let wanted = if stale { Vector::default() } else { *desired };
+            let assisted = self.teleop.assist(robot, wanted, field);
+            *force = assisted.force;
+            wheels = assisted.wheels;
+        }
+        if stale {
             wheels = WheelSpeeds::default();
         }
         if let Some(reading) = &self.last {
@@ -335,9 +385,33 @@ impl Control {
             wheels: reading.wheels,
             proximity: reading.proximity.clone(),
             contact: reading.contact,
-            force: None,
+            force: self.run.as_ref().and_then(|r| r.assist).map(|(_, f)| f),
         };
         self.feedback.send_replace(Some(message));
+    }
+}
+
+/// The arena's potential field for assisted teleoperation: repulsive from
+/// the C-space obstacles of the robot's body, so the push depends on how far
+/// the body (not its centre) is from a wall.
+fn map_field(info: &LabInfo) -> Option<MapField> {
+    let footprint = Footprint::Disc {
+        radius_mm: info.robot.radius_mm,
+    };
+    let grown = Grid::from_arena(&info.arena, ARENA_CELL_MM)
+        .and_then(|grid| CSpace::build(&grid, footprint, 1));
+    match grown {
+        Ok(cspace) => Some(MapField::new(
+            cspace.grid(),
+            MAP_FIELD_INFLUENCE_MM,
+            MAP_FIELD_ETA,
+        )),
+        // An arena that cannot be gridded (it was checked on loading) gets
+        // no map guidance; the sensors' field still acts.
+        Err(e) => {
+            warn!("no map field for assisted teleoperation: {e}");
+            None
+        }
     }
 }
 

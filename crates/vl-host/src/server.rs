@@ -412,7 +412,12 @@ impl Hub {
                 if self.supervise(id, Action::Start) {
                     self.last_event = 0;
                     let definition = self.definition.clone().unwrap_or_default();
-                    self.lab.request(LabRequest::Start(definition));
+                    // The teleoperation experiment is the force-feedback one.
+                    let assisted = self.experiment.as_deref() == Some("teleoperation");
+                    self.lab.request(LabRequest::Start {
+                        definition,
+                        assisted,
+                    });
                     self.broadcast(&HostMessage::Started { event: 0 });
                 }
             }

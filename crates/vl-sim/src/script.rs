@@ -1,10 +1,11 @@
-//! Scripted runs of the simulator with a fingerprint of everything that
-//! happened, so "same seed, same inputs, same trace" can be checked anywhere.
+//! Runs of the simulator, scripted or following a planned path, with a
+//! fingerprint of everything that happened, so "same seed, same inputs,
+//! same trace" can be checked anywhere.
 
 use serde::Serialize;
 use thiserror::Error;
+use vl_core::follow::{Command, Follower};
 use vl_core::robot::{Pose, WheelSpeeds};
-use vl_core::steer::{Steering, go_to_goal};
 
 use crate::world::{STEP_S, World};
 
@@ -71,6 +72,17 @@ impl Script {
     }
 }
 
+/// What drives the robot during a run.
+#[derive(Debug, Clone)]
+pub enum Driver {
+    /// Wheel speeds at given times.
+    Script(Script),
+    /// A path to follow; the run ends when the robot arrives.
+    Path(Follower),
+    /// Nothing: the robot stays put.
+    Idle,
+}
+
 /// What a run did.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct RunReport {
@@ -78,8 +90,20 @@ pub struct RunReport {
     pub final_pose: Pose,
     pub collisions: u64,
     pub distance_mm: f64,
+    /// How well a followed path was kept to.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub following: Option<Tracking>,
     /// FNV-1a over every step's pose and every sensor reading, as hex.
     pub trace_hash: String,
+}
+
+/// How far the robot's true position strayed from the path it followed.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct Tracking {
+    pub reached_goal: bool,
+    /// Mean and largest distance from the path, sampled every step.
+    pub mean_error_mm: f64,
+    pub max_error_mm: f64,
 }
 
 /// 64-bit FNV-1a, fed the exact bits of the trace.
@@ -93,13 +117,13 @@ impl Fnv {
     }
 }
 
-/// Runs `world` for `seconds`, driving it by `script`, or toward the
-/// arena's goal with go-to-goal steering when there is none.
-pub fn run(world: &mut World, script: Option<&Script>, seconds: f64) -> RunReport {
+/// Runs `world` for up to `seconds` as `driver` says.
+pub fn run(world: &mut World, driver: &mut Driver, seconds: f64) -> RunReport {
     let mut trace = Fnv(0xcbf2_9ce4_8422_2325);
     let steps = (seconds / STEP_S).round() as u64;
-    let goal = world.arena().goal;
     let mut proximity = world.proximity();
+    let (mut error_sum, mut error_max, mut arrived) = (0.0, 0.0f64, false);
+    let mut followed = 0u64;
     for step in 0..steps {
         if step % SENSE_EVERY_STEPS == 0 {
             proximity = world.proximity();
@@ -107,22 +131,34 @@ pub fn run(world: &mut World, script: Option<&Script>, seconds: f64) -> RunRepor
                 trace.feed(&v.to_le_bytes());
             }
         }
-        let wheels = match (script, goal) {
-            (Some(script), _) => script.at(world.time_s()),
-            (None, Some(goal)) => go_to_goal(
-                world.robot(),
-                world.pose(),
-                goal,
-                &proximity,
-                Steering::default(),
-            ),
-            (None, None) => WheelSpeeds::default(),
+        let wheels = match driver {
+            Driver::Script(script) => script.at(world.time_s()),
+            Driver::Path(follower) => {
+                match follower.step(world.robot(), world.pose(), &proximity) {
+                    Command::Drive(wheels) => wheels,
+                    Command::Arrived => {
+                        arrived = true;
+                        WheelSpeeds::default()
+                    }
+                }
+            }
+            Driver::Idle => WheelSpeeds::default(),
         };
+        if arrived {
+            world.set_wheels(wheels);
+            break;
+        }
         world.set_wheels(wheels);
         world.step();
         let p = world.pose();
         for v in [p.x_mm, p.y_mm, p.theta_rad] {
             trace.feed(&v.to_bits().to_le_bytes());
+        }
+        if let Driver::Path(follower) = driver {
+            let e = follower.distance_to_path(p.point());
+            error_sum += e;
+            error_max = error_max.max(e);
+            followed += 1;
         }
     }
     RunReport {
@@ -130,6 +166,11 @@ pub fn run(world: &mut World, script: Option<&Script>, seconds: f64) -> RunRepor
         final_pose: world.pose(),
         collisions: world.collisions(),
         distance_mm: world.odometer_mm(),
+        following: matches!(driver, Driver::Path(_)).then(|| Tracking {
+            reached_goal: arrived,
+            mean_error_mm: error_sum / followed.max(1) as f64,
+            max_error_mm: error_max,
+        }),
         trace_hash: format!("{:016x}", trace.0),
     }
 }
@@ -146,9 +187,24 @@ mod tests {
 
     #[test]
     fn same_seed_same_trace_other_seed_other_trace() {
-        let a = run(&mut world(3), None, 5.0);
-        let b = run(&mut world(3), None, 5.0);
-        let c = run(&mut world(4), None, 5.0);
+        let path = |w: &World| {
+            let plan = vl_core::plan::plan_in_arena(
+                w.arena(),
+                &[],
+                w.robot().radius_mm,
+                vl_core::follow::PLAN_MARGIN_MM,
+                w.pose(),
+                w.arena().goal.unwrap(),
+            )
+            .unwrap();
+            let points = plan.path.iter().map(|p| p.point()).collect();
+            Driver::Path(Follower::new(points, Default::default()).unwrap())
+        };
+        let (mut w3, mut w3b, mut w4) = (world(3), world(3), world(4));
+        let (mut p3, mut p3b, mut p4) = (path(&w3), path(&w3b), path(&w4));
+        let a = run(&mut w3, &mut p3, 5.0);
+        let b = run(&mut w3b, &mut p3b, 5.0);
+        let c = run(&mut w4, &mut p4, 5.0);
         assert_eq!(a, b);
         assert_ne!(a.trace_hash, c.trace_hash);
     }
@@ -158,7 +214,7 @@ mod tests {
         let script = Script::parse("# a turn\n0 100 100\n1.0, 50, 150\n").unwrap();
         assert_eq!(script.at(0.5).left_mm_s, 100.0);
         assert_eq!(script.at(1.5).right_mm_s, 150.0);
-        let report = run(&mut world(1), Some(&script), 2.0);
+        let report = run(&mut world(1), &mut Driver::Script(script.clone()), 2.0);
         assert!(report.distance_mm > 100.0, "{report:?}");
         assert!(
             report.final_pose.theta_rad > 0.5,
