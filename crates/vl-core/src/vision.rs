@@ -118,83 +118,114 @@ pub fn binarise(image: &GrayImage, threshold: u8, invert: bool) -> Mask {
     }
 }
 
+/// Runs of equal pixels along each row: the unit labelling and moments
+/// work on, so a long stretch of floor or wall costs one step, not one per
+/// pixel.
+#[derive(Debug, Clone, Default)]
+struct Runs {
+    /// (first column, end column, row), in raster order.
+    spans: Vec<(u32, u32, u32)>,
+    /// Index in `spans` of each row's first run, and one past the last row.
+    rows: Vec<usize>,
+}
+
+impl Runs {
+    /// The runs of pixels equal to `value`.
+    fn of(mask: &Mask, value: bool) -> Runs {
+        let w = mask.width as usize;
+        let mut runs = Runs::default();
+        for (r, row) in mask.pixels.chunks_exact(w.max(1)).enumerate() {
+            runs.rows.push(runs.spans.len());
+            let mut c = 0;
+            while c < w {
+                if row[c] == value {
+                    let start = c;
+                    while c < w && row[c] == value {
+                        c += 1;
+                    }
+                    runs.spans.push((start as u32, c as u32, r as u32));
+                } else {
+                    c += 1;
+                }
+            }
+        }
+        runs.rows.push(runs.spans.len());
+        runs
+    }
+
+    /// The runs of row `r`, as a range of indices.
+    fn row(&self, r: usize) -> std::ops::Range<usize> {
+        self.rows[r]..self.rows[r + 1]
+    }
+
+    /// Each run's component number (1.. in raster order of first pixel)
+    /// and the number of components: union-find over runs of consecutive
+    /// rows that touch (overlap, or meet at a corner under 8-connectivity).
+    fn label(&self, connectivity: Connectivity) -> (Vec<u32>, u32) {
+        let n = self.spans.len();
+        // A root is the smallest run index of its set, so roots come in
+        // raster order of their first run.
+        let mut parent: Vec<u32> = (0..n as u32).collect();
+        fn find(parent: &mut [u32], mut x: u32) -> u32 {
+            while parent[x as usize] != x {
+                parent[x as usize] = parent[parent[x as usize] as usize];
+                x = parent[x as usize];
+            }
+            x
+        }
+        let reach = u32::from(connectivity == Connectivity::Eight);
+        for r in 1..self.rows.len().saturating_sub(1) {
+            let above = self.row(r - 1);
+            let mut j = above.start;
+            for i in self.row(r) {
+                let (a, b, _) = self.spans[i];
+                // Skip runs above that end before this one can touch them.
+                while j < above.end && self.spans[j].1 + reach <= a {
+                    j += 1;
+                }
+                let mut k = j;
+                while k < above.end && self.spans[k].0 < b + reach {
+                    let (x, y) = (find(&mut parent, i as u32), find(&mut parent, k as u32));
+                    if x != y {
+                        let (lo, hi) = (x.min(y), x.max(y));
+                        parent[hi as usize] = lo;
+                    }
+                    k += 1;
+                }
+            }
+        }
+        let mut number = vec![0u32; n];
+        let mut count = 0;
+        for x in 0..n {
+            let root = find(&mut parent, x as u32) as usize;
+            if root == x {
+                count += 1;
+                number[x] = count;
+            } else {
+                number[x] = number[root];
+            }
+        }
+        (number, count)
+    }
+
+    /// The label image these runs' numbers paint (0 elsewhere).
+    fn paint(&self, number: &[u32], width: u32, height: u32) -> Vec<u32> {
+        let w = width as usize;
+        let mut labels = vec![0u32; w * height as usize];
+        for (&(a, b, r), &l) in self.spans.iter().zip(number) {
+            let row = r as usize * w;
+            labels[row + a as usize..row + b as usize].fill(l);
+        }
+        labels
+    }
+}
+
 /// Labels of each pixel (0 background, components 1.. in raster order of
 /// their first pixel) and the number of components.
 pub fn label(mask: &Mask, connectivity: Connectivity) -> (Vec<u32>, u32) {
-    let (w, h) = (mask.width as usize, mask.height as usize);
-    let mut labels = vec![0u32; w * h];
-    // Union-find over provisional labels; a root is the smallest of its set.
-    let mut parent: Vec<u32> = vec![0];
-    fn find(parent: &mut [u32], mut x: u32) -> u32 {
-        while parent[x as usize] != x {
-            parent[x as usize] = parent[parent[x as usize] as usize];
-            x = parent[x as usize];
-        }
-        x
-    }
-    for r in 0..h {
-        for c in 0..w {
-            let i = r * w + c;
-            if !mask.pixels[i] {
-                continue;
-            }
-            // Already-visited neighbours: left, and the row above.
-            let mut neighbours = [0u32; 4];
-            let mut n = 0;
-            let mut look = |j: usize| {
-                if labels[j] != 0 {
-                    neighbours[n] = labels[j];
-                    n += 1;
-                }
-            };
-            if c > 0 {
-                look(i - 1);
-            }
-            if r > 0 {
-                look(i - w);
-                if connectivity == Connectivity::Eight {
-                    if c > 0 {
-                        look(i - w - 1);
-                    }
-                    if c + 1 < w {
-                        look(i - w + 1);
-                    }
-                }
-            }
-            if n == 0 {
-                let new = parent.len() as u32;
-                parent.push(new);
-                labels[i] = new;
-                continue;
-            }
-            let mut root = find(&mut parent, neighbours[0]);
-            for &other in &neighbours[1..n] {
-                let other = find(&mut parent, other);
-                if other != root {
-                    let (lo, hi) = (root.min(other), root.max(other));
-                    parent[hi as usize] = lo;
-                    root = lo;
-                }
-            }
-            labels[i] = root;
-        }
-    }
-    // Final numbers in order of each set's first (smallest) provisional label.
-    let mut number = vec![0u32; parent.len()];
-    let mut count = 0;
-    for x in 1..parent.len() as u32 {
-        let root = find(&mut parent, x);
-        if root == x {
-            count += 1;
-            number[x as usize] = count;
-        } else {
-            number[x as usize] = number[root as usize];
-        }
-    }
-    for l in &mut labels {
-        *l = number[*l as usize];
-    }
-    (labels, count)
+    let runs = Runs::of(mask, true);
+    let (number, count) = runs.label(connectivity);
+    (runs.paint(&number, mask.width, mask.height), count)
 }
 
 /// Raw moment sums of one component, exact in integers (third order in
@@ -217,7 +248,43 @@ struct Sums {
     bottom: u32,
 }
 
+/// Σ xᵏ for x in 0..m, k = 1, 2, 3.
+fn power_sums(m: u64) -> (u64, u64, u128) {
+    let m1 = u128::from(m);
+    let s1 = m1 * m1.saturating_sub(1) / 2;
+    let s2 = m1.saturating_sub(1) * m1 * (2 * m1).saturating_sub(1) / 6;
+    (s1 as u64, s2 as u64, s1 * s1)
+}
+
 impl Sums {
+    /// Adds the pixels a ≤ x < b of row y.
+    fn add_run(&mut self, a: u32, b: u32, y: u32) {
+        if self.m00 == 0 {
+            (self.left, self.top, self.right, self.bottom) = (a, y, b - 1, y);
+        }
+        self.left = self.left.min(a);
+        self.right = self.right.max(b - 1);
+        self.top = self.top.min(y);
+        self.bottom = self.bottom.max(y);
+        let (pa, pb) = (power_sums(u64::from(a)), power_sums(u64::from(b)));
+        let n = u64::from(b - a);
+        let (sx, sxx, sxxx) = (pb.0 - pa.0, pb.1 - pa.1, pb.2 - pa.2);
+        let y1 = u64::from(y);
+        let y3 = u128::from(y);
+        self.m00 += n;
+        self.m10 += sx;
+        self.m01 += n * y1;
+        self.m20 += sxx;
+        self.m11 += sx * y1;
+        self.m02 += n * y1 * y1;
+        self.m30 += sxxx;
+        self.m21 += u128::from(sxx) * y3;
+        self.m12 += u128::from(sx) * y3 * y3;
+        self.m03 += u128::from(n) * y3 * y3 * y3;
+    }
+
+    /// Adds one pixel: the plain definition, which tests hold runs to.
+    #[cfg(test)]
     fn add(&mut self, x: u32, y: u32) {
         if self.m00 == 0 {
             (self.left, self.top, self.right, self.bottom) = (x, y, x, y);
@@ -306,13 +373,12 @@ impl Sums {
 /// label image. Holes are background regions (of the complementary
 /// connectivity) that do not reach the image's border.
 pub fn components(mask: &Mask, connectivity: Connectivity) -> (Vec<Component>, Vec<u32>) {
-    let (labels, count) = label(mask, connectivity);
-    let w = mask.width as usize;
+    let runs = Runs::of(mask, true);
+    let (number, count) = runs.label(connectivity);
+    let labels = runs.paint(&number, mask.width, mask.height);
     let mut sums = vec![Sums::default(); count as usize + 1];
-    for (i, &l) in labels.iter().enumerate() {
-        if l != 0 {
-            sums[l as usize].add((i % w) as u32, (i / w) as u32);
-        }
+    for (&(a, b, r), &l) in runs.spans.iter().zip(&number) {
+        sums[l as usize].add_run(a, b, r);
     }
     let holes = holes(mask, &labels, count, connectivity);
     let found = (1..=count as usize)
@@ -336,37 +402,31 @@ pub fn components(mask: &Mask, connectivity: Connectivity) -> (Vec<Component>, V
 }
 
 /// Per component label (of `components` in all), the moment sums of the
-/// background it encloses.
+/// background it encloses: background regions, of the complementary
+/// connectivity, that do not reach the image's border.
 fn holes(mask: &Mask, labels: &[u32], components: u32, connectivity: Connectivity) -> Vec<Sums> {
-    let (w, h) = (mask.width as usize, mask.height as usize);
-    let background = Mask {
-        width: mask.width,
-        height: mask.height,
-        pixels: mask.pixels.iter().map(|&p| !p).collect(),
-    };
+    let (w, h) = (mask.width, mask.height);
     let dual = match connectivity {
         Connectivity::Four => Connectivity::Eight,
         Connectivity::Eight => Connectivity::Four,
     };
-    let (regions, count) = label(&background, dual);
+    let runs = Runs::of(mask, false);
+    let (region_of, count) = runs.label(dual);
     let count = count as usize;
     let mut enclosing = vec![0u32; count + 1];
     let mut touches_border = vec![false; count + 1];
     let mut sums = vec![Sums::default(); count + 1];
-    for (i, &region) in regions.iter().enumerate() {
-        if region == 0 {
-            continue;
-        }
-        let (c, r) = (i % w, i / w);
+    for (&(a, b, r), &region) in runs.spans.iter().zip(&region_of) {
         let region = region as usize;
-        if c == 0 || r == 0 || c + 1 == w || r + 1 == h {
+        if a == 0 || r == 0 || b == w || r + 1 == h {
             touches_border[region] = true;
         }
-        // A region's first pixel has foreground above it: the enclosing component.
+        // A region's first run has foreground above its first pixel: the
+        // enclosing component.
         if sums[region].m00 == 0 && r > 0 {
-            enclosing[region] = labels[i - w];
+            enclosing[region] = labels[(r as usize - 1) * w as usize + a as usize];
         }
-        sums[region].add(c as u32, r as u32);
+        sums[region].add_run(a, b, r);
     }
     let mut per_component = vec![Sums::default(); components as usize + 1];
     for region in 1..=count {
@@ -529,6 +589,28 @@ mod tests {
                     if l == next { next += 1; }
                     prop_assert!(l < next);
                 }
+            }
+        }
+
+        /// Moments summed run by run in closed form equal the pixel-by-pixel sums.
+        #[test]
+        fn run_moments_equal_pixel_moments(bits in proptest::collection::vec(any::<bool>(), 1..400), width in 1u32..40) {
+            let height = (bits.len() as u32).div_ceil(width);
+            let mut pixels = bits.clone();
+            pixels.resize((width * height) as usize, false);
+            let m = Mask { width, height, pixels };
+            let (found, labels) = components(&m, Connectivity::Eight);
+            for c in &found {
+                let mut sums = Sums::default();
+                for (i, &l) in labels.iter().enumerate() {
+                    if l == c.label {
+                        sums.add(i as u32 % width, i as u32 / width);
+                    }
+                }
+                prop_assert_eq!(c.area, sums.m00);
+                prop_assert_eq!(c.centroid, sums.centroid());
+                prop_assert_eq!(c.hu, sums.shape().1);
+                prop_assert_eq!(c.bbox, [sums.left, sums.top, sums.right - sums.left + 1, sums.bottom - sums.top + 1]);
             }
         }
 
