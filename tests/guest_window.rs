@@ -63,15 +63,45 @@ fn the_connected_view_renders_camera_robot_and_rtt() {
     harness.get_by_label_contains("IR0 ");
     harness.get_by_label("Start");
 
-    // Define the suggested goal, start, and drive forward with the arrow key.
+    // Define the suggested goal: the window plans a path to it.
     harness
         .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
         .click();
     step_until(&mut harness, "show the definition", |app| {
         app.session().definition.is_some()
     });
+    let path = harness.state().session().definition.clone().unwrap().path;
+    assert!(path.len() > 100, "a planned path of {} points", path.len());
+    harness.get_by_label_contains("mm from obstacles");
+    // Started, the robot follows the path with no hand on the stick …
     harness.get_by_label("Start").click();
     step_until(&mut harness, "start the run", |app| app.session().running);
+    let from = harness
+        .state()
+        .session()
+        .robot
+        .as_ref()
+        .unwrap()
+        .pose
+        .point();
+    step_until(&mut harness, "follow the path", |app| {
+        let here = app.session().robot.as_ref().unwrap().pose.point();
+        here.distance(from) > 60.0
+    });
+    let here = harness
+        .state()
+        .session()
+        .robot
+        .as_ref()
+        .unwrap()
+        .pose
+        .point();
+    let off_path = path
+        .iter()
+        .map(|p| p.distance(here))
+        .fold(f64::MAX, f64::min);
+    assert!(off_path < 20.0, "{off_path:.0} mm off the path");
+    // … and the arrow key takes over while held.
     let start_x = harness.state().session().robot.as_ref().unwrap().pose.x_mm;
     harness.key_down(egui::Key::ArrowUp);
     step_until(&mut harness, "drive forward on the arrow key", |app| {

@@ -1,15 +1,19 @@
 //! The desktop Guest (egui): mount, define and execute an experiment while
 //! watching the camera with the robot's reported pose drawn over it, the
-//! proximity readings and the live round-trip time; drive with a
-//! mouse-dragged virtual joystick or the arrow keys.
+//! proximity readings and the live round-trip time. Click the camera view to
+//! place the goal; defining it plans a path on the lab's map, which the
+//! robot follows once started. Drive by hand with a mouse-dragged virtual
+//! joystick or the arrow keys, which take over from the path while held.
 
 use std::time::Duration;
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Vec2};
 use vl_core::arena::Shape;
 use vl_core::experiment::{Definition, Goal};
+use vl_core::follow::{Command, Follower, Following, PLAN_MARGIN_MM};
+use vl_core::plan::plan_in_arena;
 use vl_core::protocol::{Drive, GuestMessage, PROTOCOL_VERSION, Role};
-use vl_core::robot::Point;
+use vl_core::robot::{Point, WheelSpeeds};
 
 use crate::client::Connection;
 use crate::session::{Link, MountedLab, Session};
@@ -21,6 +25,7 @@ const TURN_RAD_S: f64 = 3.0;
 const JOYSTICK_PX: f32 = 140.0;
 const ROBOT_COLOUR: Color32 = Color32::from_rgb(40, 200, 255);
 const GOAL_COLOUR: Color32 = Color32::from_rgb(40, 190, 60);
+const PATH_COLOUR: Color32 = Color32::from_rgb(250, 220, 40);
 
 /// The Guest's window.
 pub struct GuestApp {
@@ -30,6 +35,10 @@ pub struct GuestApp {
     /// Virtual joystick deflection: x = turn right, y = forward, each in −1..1.
     joystick: Vec2,
     goal: Goal,
+    /// What planning the defined goal gave: the path's length, or why none.
+    plan_note: Option<String>,
+    /// Steers along the defined path during a run.
+    follower: Option<Follower>,
 }
 
 impl GuestApp {
@@ -50,6 +59,8 @@ impl GuestApp {
                 y_mm: 0.0,
                 tolerance_mm: 15.0,
             },
+            plan_note: None,
+            follower: None,
         }
     }
 
@@ -89,10 +100,14 @@ impl GuestApp {
         }
     }
 
-    /// Sends the next event-paced command from the joystick or arrow keys.
+    /// Sends the next event-paced command: from the joystick or arrow keys
+    /// while they are in use, otherwise along the defined path.
     fn drive(&mut self, ctx: &egui::Context) {
         if !self.session.is_operator() {
             return;
+        }
+        if !self.session.running {
+            self.follower = None;
         }
         let (mut forward, mut turn) = (f64::from(self.joystick.y), f64::from(self.joystick.x));
         ctx.input(|i| {
@@ -100,9 +115,22 @@ impl GuestApp {
             forward += key(egui::Key::ArrowUp) - key(egui::Key::ArrowDown);
             turn += key(egui::Key::ArrowRight) - key(egui::Key::ArrowLeft);
         });
-        let drive = Drive::Velocity {
-            v: forward.clamp(-1.0, 1.0) * DRIVE_MM_S,
-            w: -turn.clamp(-1.0, 1.0) * TURN_RAD_S,
+        let by_hand = forward != 0.0 || turn != 0.0;
+        let drive = match (&mut self.follower, &self.session.robot, &self.session.lab) {
+            (Some(follower), Some(robot), Some(lab)) if !by_hand => {
+                let wheels = match follower.step(&lab.robot, robot.pose, &robot.proximity) {
+                    Command::Drive(wheels) => wheels,
+                    Command::Arrived => WheelSpeeds::default(),
+                };
+                Drive::Wheels {
+                    left: wheels.left_mm_s,
+                    right: wheels.right_mm_s,
+                }
+            }
+            _ => Drive::Velocity {
+                v: forward.clamp(-1.0, 1.0) * DRIVE_MM_S,
+                w: -turn.clamp(-1.0, 1.0) * TURN_RAD_S,
+            },
         };
         if let Some(command) = self.session.next_command(drive) {
             self.connection.send(command);
@@ -180,14 +208,12 @@ impl GuestApp {
                     )
                     .clicked()
                 {
-                    self.connection.send(GuestMessage::Define {
-                        definition: Definition {
-                            goal: Some(self.goal),
-                            ..Definition::default()
-                        },
-                    });
+                    self.define();
                 }
             });
+            if let Some(note) = &self.plan_note {
+                ui.label(note);
+            }
             ui.separator();
             ui.heading("Execute");
             ui.horizontal(|ui| {
@@ -197,6 +223,7 @@ impl GuestApp {
                     .add_enabled(can_start, egui::Button::new("Start"))
                     .clicked()
                 {
+                    self.follow_definition();
                     self.connection.send(GuestMessage::Start);
                 }
                 if ui
@@ -244,6 +271,65 @@ impl GuestApp {
                 ui.colored_label(Color32::LIGHT_RED, format!("{code:?}: {message}"));
             }
         }
+    }
+
+    /// Plans a path from the robot to the goal on the lab's map and defines
+    /// both; without a path the goal alone is defined, to drive by hand.
+    fn define(&mut self) {
+        let Some(lab) = &self.session.lab else { return };
+        let start = self
+            .session
+            .robot
+            .as_ref()
+            .map_or(lab.arena.start, |r| r.pose);
+        let planned = plan_in_arena(
+            &lab.arena,
+            &[],
+            lab.robot.radius_mm,
+            PLAN_MARGIN_MM,
+            start,
+            self.goal.point(),
+        );
+        let path = match planned {
+            Ok(plan) => {
+                let path: Vec<Point> = plan.path.iter().map(|p| p.point()).collect();
+                let body_gap = path
+                    .iter()
+                    .map(|&p| lab.arena.clearance(p) - lab.robot.radius_mm)
+                    .fold(f64::INFINITY, f64::min);
+                self.plan_note = Some(format!(
+                    "path {:.0} mm; the body keeps {body_gap:.0} mm from obstacles",
+                    plan.length_mm
+                ));
+                path
+            }
+            Err(e) => {
+                self.plan_note = Some(format!("no path ({e}): drive by hand"));
+                Vec::new()
+            }
+        };
+        self.connection.send(GuestMessage::Define {
+            definition: Definition {
+                goal: Some(self.goal),
+                path,
+                ..Definition::default()
+            },
+        });
+    }
+
+    /// Prepares to steer along the defined path, if there is one.
+    fn follow_definition(&mut self) {
+        let Some(definition) = &self.session.definition else {
+            return;
+        };
+        let tolerance_mm = definition.goal.map_or(10.0, |g| g.tolerance_mm / 2.0);
+        self.follower = Follower::new(
+            definition.path.clone(),
+            Following {
+                tolerance_mm,
+                ..Following::default()
+            },
+        );
     }
 
     fn joystick(&mut self, ui: &mut egui::Ui) {
@@ -296,7 +382,17 @@ impl GuestApp {
         let scale = (available.x / image_size.x)
             .min(available.y / image_size.y)
             .max(0.1);
-        let (rect, _) = ui.allocate_exact_size(image_size * scale, Sense::hover());
+        let (rect, response) = ui.allocate_exact_size(image_size * scale, Sense::click());
+        // A click on the floor places the goal there.
+        if let (Some(pos), Some(lab)) = (response.interact_pointer_pos(), &self.session.lab)
+            && response.clicked()
+            && !self.session.running
+        {
+            let col = (pos.x - rect.min.x) / rect.width() * lab.camera.width_px as f32;
+            let row = (pos.y - rect.min.y) / rect.height() * lab.camera.height_px as f32;
+            let p = lab.camera.to_arena(f64::from(col), f64::from(row));
+            (self.goal.x_mm, self.goal.y_mm) = (p.x_mm.round(), p.y_mm.round());
+        }
         let painter = ui.painter_at(rect);
         painter.image(
             texture.id(),
@@ -327,7 +423,15 @@ impl GuestApp {
                 )
         };
         let px_per_mm = rect.width() / (lab.camera.width_px as f32 * lab.camera.mm_per_px as f32);
+        // The goal being chosen, before it is defined.
+        painter.circle_stroke(
+            to_screen(self.goal.point()),
+            4.0,
+            Stroke::new(1.5, GOAL_COLOUR.gamma_multiply(0.7)),
+        );
         if let Some(definition) = &self.session.definition {
+            let path: Vec<Pos2> = definition.path.iter().map(|&p| to_screen(p)).collect();
+            painter.line(path, Stroke::new(2.0, PATH_COLOUR));
             if let Some(goal) = definition.goal {
                 let centre = to_screen(goal.point());
                 let r = (goal.tolerance_mm as f32 * px_per_mm).max(4.0);
