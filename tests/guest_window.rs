@@ -76,26 +76,12 @@ fn the_connected_view_renders_camera_robot_and_rtt() {
     // Started, the robot follows the path with no hand on the stick …
     harness.get_by_label("Start").click();
     step_until(&mut harness, "start the run", |app| app.session().running);
-    let from = harness
-        .state()
-        .session()
-        .robot
-        .as_ref()
-        .unwrap()
-        .pose
-        .point();
+    let at = |app: &GuestApp| app.session().robot.as_ref().unwrap().pose.point();
+    let from = at(harness.state());
     step_until(&mut harness, "follow the path", |app| {
-        let here = app.session().robot.as_ref().unwrap().pose.point();
-        here.distance(from) > 60.0
+        at(app).distance(from) > 60.0
     });
-    let here = harness
-        .state()
-        .session()
-        .robot
-        .as_ref()
-        .unwrap()
-        .pose
-        .point();
+    let here = at(harness.state());
     let off_path = path
         .iter()
         .map(|p| p.distance(here))

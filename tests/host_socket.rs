@@ -252,7 +252,12 @@ async fn operator_drives_observer_watches_garbage_is_refused() {
 
 /// Mounts the teleoperation experiment with an empty definition and starts a run.
 async fn start_teleoperation(op: &mut Peer) {
-    op.send(json!({"type": "mount", "experiment": "teleoperation"}))
+    start_experiment(op, "teleoperation").await;
+}
+
+/// Mounts `experiment` with an empty definition and starts a run.
+async fn start_experiment(op: &mut Peer, experiment: &str) {
+    op.send(json!({"type": "mount", "experiment": experiment}))
         .await;
     op.expect("mounted").await;
     op.send(json!({"type": "define"})).await;
@@ -301,13 +306,7 @@ async fn teleoperation_feeds_back_the_push_of_obstacles() {
     assert_eq!(op.expect("done").await["summary"]["collisions"], 0);
 
     // The navigation experiment is not assisted: no force.
-    op.send(json!({"type": "mount", "experiment": "navigation"}))
-        .await;
-    op.expect("mounted").await;
-    op.send(json!({"type": "define"})).await;
-    op.expect("defined").await;
-    op.send(json!({"type": "start"})).await;
-    op.expect("started").await;
+    start_experiment(&mut op, "navigation").await;
     let plain = drive(&mut op, 1, 3, 100.0, 100.0).await;
     assert!(plain.get("force").is_none(), "{plain}");
 }

@@ -15,6 +15,28 @@ fn vl(args: &[&str]) -> Output {
         .expect("vl runs")
 }
 
+/// `vl plan` flags for `map` at `scale` mm per px from `start` to `goal`, then `extra`.
+fn args<'a>(
+    map: &'a str,
+    scale: &'a str,
+    start: &'a str,
+    goal: &'a str,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    let mut all = vec![
+        "--map",
+        map,
+        "--mm-per-px",
+        scale,
+        "--start",
+        start,
+        "--goal",
+        goal,
+    ];
+    all.extend_from_slice(extra);
+    all
+}
+
 fn plan_json(args: &[&str]) -> Value {
     let mut all = vec!["plan", "--json"];
     all.extend_from_slice(args);
@@ -47,20 +69,13 @@ const GOAL: &str = "175,75";
 fn plans_around_a_wall_in_the_ros_map_frame() {
     let map = wall_map("wall8.png", 8);
     let map = map.to_str().unwrap();
-    let out = plan_json(&[
-        "--map",
+    let out = plan_json(&args(
         map,
-        "--mm-per-px",
         "10",
-        "--start",
         START,
-        "--goal",
         GOAL,
-        "--robot-radius",
-        "0",
-        "--connectivity",
-        "4",
-    ]);
+        &["--robot-radius", "0", "--connectivity", "4"],
+    ));
     assert_eq!(out["found"], true);
     assert_eq!(out["grid"]["width"], 20);
     assert_eq!(out["grid_path"][0], serde_json::json!([2, 2]));
@@ -91,50 +106,26 @@ fn plans_around_a_wall_in_the_ros_map_frame() {
     assert!(out["seconds"].as_f64().unwrap() >= 0.0);
 
     // With 8-connectivity the descent cuts corners: fewer steps.
-    let eight = plan_json(&[
-        "--map",
-        map,
-        "--mm-per-px",
-        "10",
-        "--start",
-        START,
-        "--goal",
-        GOAL,
-        "--robot-radius",
-        "0",
-    ]);
+    let eight = plan_json(&args(map, "10", START, GOAL, &["--robot-radius", "0"]));
     assert!(eight["nf1_start_value"].as_u64().unwrap() < 27);
 
     // A robot 11 mm in radius no longer fits under the wall's end …
-    let fat = plan_json(&[
-        "--map",
-        map,
-        "--mm-per-px",
-        "10",
-        "--start",
-        START,
-        "--goal",
-        GOAL,
-        "--robot-radius",
-        "11",
-    ]);
+    let fat = plan_json(&args(map, "10", START, GOAL, &["--robot-radius", "11"]));
     assert_eq!(fat["found"], false);
     assert!(fat["reason"].as_str().unwrap().contains("not connected"));
     // … and a virtual obstacle can close the gap for a point too.
-    let closed = plan_json(&[
-        "--map",
+    let closed = plan_json(&args(
         map,
-        "--mm-per-px",
         "10",
-        "--start",
         START,
-        "--goal",
         GOAL,
-        "--robot-radius",
-        "0",
-        "--virtual-obstacle",
-        "rect:95,0,20,25",
-    ]);
+        &[
+            "--robot-radius",
+            "0",
+            "--virtual-obstacle",
+            "rect:95,0,20,25",
+        ],
+    ));
     assert_eq!(closed["found"], false);
 }
 
@@ -143,22 +134,20 @@ fn coarser_cells_svg_and_a_polygon_robot() {
     let map = wall_map("wall6.png", 6);
     let map = map.to_str().unwrap();
     let svg = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("wall6.svg");
-    let coarse = plan_json(&[
-        "--map",
+    let coarse = plan_json(&args(
         map,
-        "--mm-per-px",
         "10",
-        "--cell-mm",
-        "20",
-        "--start",
         START,
-        "--goal",
         GOAL,
-        "--robot-radius",
-        "0",
-        "--svg",
-        svg.to_str().unwrap(),
-    ]);
+        &[
+            "--cell-mm",
+            "20",
+            "--robot-radius",
+            "0",
+            "--svg",
+            svg.to_str().unwrap(),
+        ],
+    ));
     assert_eq!(coarse["grid"]["width"], 10);
     assert_eq!(coarse["grid"]["height"], 5);
     assert_eq!(coarse["grid_path"][0], serde_json::json!([1, 1]));
@@ -167,20 +156,18 @@ fn coarser_cells_svg_and_a_polygon_robot() {
 
     // A bar 30 mm long passes the 20 mm gap under a longer wall only end-on.
     let map = wall_map("wall8-bar.png", 8);
-    let bar = plan_json(&[
-        "--map",
+    let bar = plan_json(&args(
         map.to_str().unwrap(),
-        "--mm-per-px",
         "10",
-        "--start",
         "25,75,1.5708",
-        "--goal",
         "175,75,1.5708",
-        "--footprint",
-        "-15,-2;15,-2;15,2;-15,2",
-        "--theta-slices",
-        "8",
-    ]);
+        &[
+            "--footprint",
+            "-15,-2;15,-2;15,2;-15,2",
+            "--theta-slices",
+            "8",
+        ],
+    ));
     assert_eq!(bar["found"], true, "{bar}");
     assert_eq!(bar["grid"]["theta_slices"], 8);
     let slices: Vec<u64> = bar["grid_path_slices"]
@@ -231,115 +218,40 @@ fn bad_input_is_named_with_exit_code_2() {
     let missing = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("no-such-map.png");
     let cases: [(Vec<&str>, &str); 8] = [
         (
-            vec![
-                "--map",
-                missing.to_str().unwrap(),
-                "--mm-per-px",
-                "10",
-                "--start",
-                START,
-                "--goal",
-                GOAL,
-            ],
+            args(missing.to_str().unwrap(), "10", START, GOAL, &[]),
             "cannot read the map image",
         ),
         (
-            vec![
-                "--map",
-                map,
-                "--mm-per-px",
-                "10",
-                "--start",
-                "-5,75",
-                "--goal",
-                GOAL,
-            ],
+            args(map, "10", "-5,75", GOAL, &[]),
             "start (-5.0, 75.0) mm is off the map",
         ),
         (
-            vec![
-                "--map",
-                map,
-                "--mm-per-px",
-                "10",
-                "--start",
-                START,
-                "--goal",
-                "105,75",
-                "--robot-radius",
-                "0",
-            ],
+            args(map, "10", START, "105,75", &["--robot-radius", "0"]),
             "goal (105.0, 75.0) mm lies in an obstacle",
         ),
         (
-            vec![
-                "--map",
-                map,
-                "--mm-per-px",
-                "0",
-                "--start",
-                START,
-                "--goal",
-                GOAL,
-            ],
+            args(map, "0", START, GOAL, &[]),
             "scale must be a positive number",
         ),
         (
-            vec![
-                "--map",
-                map,
-                "--mm-per-px",
-                "-2",
-                "--start",
-                START,
-                "--goal",
-                GOAL,
-            ],
+            args(map, "-2", START, GOAL, &[]),
             "scale must be a positive number",
         ),
         (
-            vec![
-                "--map",
-                map,
-                "--mm-per-px",
-                "10",
-                "--start",
-                START,
-                "--goal",
-                GOAL,
-                "--connectivity",
-                "6",
-            ],
+            args(map, "10", START, GOAL, &["--connectivity", "6"]),
             "--connectivity must be 4 or 8",
         ),
         (
-            vec![
-                "--map",
+            args(
                 map,
-                "--mm-per-px",
                 "10",
-                "--start",
                 START,
-                "--goal",
                 GOAL,
-                "--virtual-obstacle",
-                "circle:1,2,-3",
-            ],
+                &["--virtual-obstacle", "circle:1,2,-3"],
+            ),
             "radius",
         ),
-        (
-            vec![
-                "--map",
-                map,
-                "--mm-per-px",
-                "10",
-                "--start",
-                "25",
-                "--goal",
-                GOAL,
-            ],
-            "expected x,y or x,y,θ",
-        ),
+        (args(map, "10", "25", GOAL, &[]), "expected x,y or x,y,θ"),
     ];
     for (args, needle) in cases {
         let mut all = vec!["plan"];
