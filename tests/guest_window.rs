@@ -108,3 +108,56 @@ fn the_connected_view_renders_camera_robot_and_rtt() {
         "only {robot_pixels} robot-coloured pixels on screen"
     );
 }
+
+/// A lab without a camera still shows its floor: the arena drawn from the
+/// model the Host sends at mount, with the robot's reported pose on it.
+#[test]
+fn without_a_camera_the_window_draws_the_arena_from_its_model() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let host = runtime
+        .block_on(Host::start_sim(
+            "127.0.0.1:0".parse().unwrap(),
+            Arena::navigation(),
+            1,
+            false,
+            HostConfig::default(),
+        ))
+        .unwrap();
+    let connection = runtime.block_on(connect(&host.url())).unwrap();
+    let _entered = runtime.enter();
+    let app = GuestApp::new(connection, Role::Operator, None);
+    let mut harness = Harness::builder()
+        .with_size(Vec2::new(1100.0, 720.0))
+        .wgpu()
+        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
+    step_until(&mut harness, "be welcomed", |app| {
+        app.session().role.is_some()
+    });
+    harness
+        .get_by_label("Navigate to a goal among obstacles")
+        .click();
+    step_until(&mut harness, "mount and see the robot", |app| {
+        app.session().lab.is_some() && app.session().robot.is_some()
+    });
+    harness.get_by_label_contains("no camera in this lab");
+    assert!(harness.query_by_label("waiting for the camera…").is_none());
+
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-no-camera.png"
+    ));
+    let count = |rgb: [u8; 3]| {
+        image
+            .pixels()
+            .filter(|p| p.0[..3].iter().zip(rgb).all(|(a, b)| a.abs_diff(b) <= 4))
+            .count()
+    };
+    // The navigation arena's four obstacles cover about 8 % of its floor.
+    let (floor, obstacles) = (count([226, 224, 218]), count([45, 48, 56]));
+    assert!(floor > 100_000, "{floor} floor pixels");
+    assert!(
+        obstacles * 100 > floor * 4 && obstacles * 100 < floor * 15,
+        "{obstacles} obstacle pixels on {floor} of floor"
+    );
+}

@@ -26,6 +26,10 @@ const JOYSTICK_PX: f32 = 140.0;
 const ROBOT_COLOUR: Color32 = Color32::from_rgb(40, 200, 255);
 const GOAL_COLOUR: Color32 = Color32::from_rgb(40, 190, 60);
 const PATH_COLOUR: Color32 = Color32::from_rgb(250, 220, 40);
+const VIRTUAL_COLOUR: Color32 = Color32::from_rgb(255, 150, 0);
+/// The arena drawn from its model when the lab has no camera.
+const FLOOR_COLOUR: Color32 = Color32::from_rgb(226, 224, 218);
+const OBSTACLE_COLOUR: Color32 = Color32::from_rgb(45, 48, 56);
 
 /// The Guest's window.
 pub struct GuestApp {
@@ -352,32 +356,36 @@ impl GuestApp {
         });
     }
 
+    /// The camera image with what the Guest knows drawn over it; without a
+    /// camera, the arena as its model describes it.
     fn camera_view(&mut self, ui: &mut egui::Ui) {
-        let Some(frame) = &self.session.frame else {
-            ui.centered_and_justified(|ui| ui.label("waiting for the camera…"));
-            return;
-        };
-        let seq = frame.header.seq;
-        if self.texture.as_ref().is_none_or(|(shown, _)| *shown != seq) {
-            let size = [frame.image.width() as usize, frame.image.height() as usize];
-            let image = egui::ColorImage::from_rgba_unmultiplied(size, frame.image.as_raw());
-            match &mut self.texture {
-                Some((shown, texture)) => {
-                    texture.set(image, TextureOptions::NEAREST);
-                    *shown = seq;
-                }
-                None => {
-                    let texture = ui
-                        .ctx()
-                        .load_texture("camera", image, TextureOptions::NEAREST);
-                    self.texture = Some((seq, texture));
+        if let Some(frame) = &self.session.frame {
+            let seq = frame.header.seq;
+            if self.texture.as_ref().is_none_or(|(shown, _)| *shown != seq) {
+                let size = [frame.image.width() as usize, frame.image.height() as usize];
+                let image = egui::ColorImage::from_rgba_unmultiplied(size, frame.image.as_raw());
+                match &mut self.texture {
+                    Some((shown, texture)) => {
+                        texture.set(image, TextureOptions::NEAREST);
+                        *shown = seq;
+                    }
+                    None => {
+                        let texture =
+                            ui.ctx()
+                                .load_texture("camera", image, TextureOptions::NEAREST);
+                        self.texture = Some((seq, texture));
+                    }
                 }
             }
         }
-        let Some((_, texture)) = &self.texture else {
-            return;
+        let image_size = match (&self.texture, &self.session.lab) {
+            (Some((_, texture)), _) => texture.size_vec2(),
+            (None, Some(lab)) => Vec2::new(lab.camera.width_px as f32, lab.camera.height_px as f32),
+            (None, None) => {
+                ui.centered_and_justified(|ui| ui.label("waiting for the camera…"));
+                return;
+            }
         };
-        let image_size = texture.size_vec2();
         let available = ui.available_size() - Vec2::new(0.0, 20.0);
         let scale = (available.x / image_size.x)
             .min(available.y / image_size.y)
@@ -394,35 +402,43 @@ impl GuestApp {
             (self.goal.x_mm, self.goal.y_mm) = (p.x_mm.round(), p.y_mm.round());
         }
         let painter = ui.painter_at(rect);
-        painter.image(
-            texture.id(),
-            rect,
-            Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
-            Color32::WHITE,
-        );
-        if let Some(lab) = &self.session.lab {
-            self.overlay(&painter, rect, lab);
+        match (&self.texture, &self.session.lab) {
+            (Some((_, texture)), _) => {
+                painter.image(
+                    texture.id(),
+                    rect,
+                    Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+                    Color32::WHITE,
+                );
+            }
+            (None, Some(lab)) => {
+                painter.rect_filled(rect, 0.0, FLOOR_COLOUR);
+                let view = View::new(rect, lab);
+                for obstacle in &lab.arena.obstacles {
+                    view.fill(&painter, &obstacle.shape, OBSTACLE_COLOUR);
+                }
+            }
+            (None, None) => {}
         }
-        ui.label(format!(
-            "frame {} · event {} · captured at {:.2} s",
-            frame.header.seq,
-            frame.header.event,
-            frame.header.capture_us as f64 / 1e6
-        ));
+        if let Some(lab) = &self.session.lab {
+            self.overlay(&painter, &View::new(rect, lab), lab);
+        }
+        ui.label(match &self.session.frame {
+            Some(frame) => format!(
+                "frame {} · event {} · captured at {:.2} s",
+                frame.header.seq,
+                frame.header.event,
+                frame.header.capture_us as f64 / 1e6
+            ),
+            None => "no camera in this lab: the arena as its map describes it".into(),
+        });
     }
 
     /// Draws what the Guest knows over the camera image: the robot's
-    /// reported pose, the goal and the virtual obstacles.
-    fn overlay(&self, painter: &egui::Painter, rect: Rect, lab: &MountedLab) {
-        let to_screen = |p: Point| {
-            let (c, r) = lab.camera.to_pixel(p);
-            rect.min
-                + Vec2::new(
-                    c as f32 / lab.camera.width_px as f32 * rect.width(),
-                    r as f32 / lab.camera.height_px as f32 * rect.height(),
-                )
-        };
-        let px_per_mm = rect.width() / (lab.camera.width_px as f32 * lab.camera.mm_per_px as f32);
+    /// reported pose, the goal, the planned path and the virtual obstacles.
+    fn overlay(&self, painter: &egui::Painter, view: &View, lab: &MountedLab) {
+        let to_screen = |p: Point| view.to_screen(p);
+        let px_per_mm = view.px_per_mm;
         // The goal being chosen, before it is defined.
         painter.circle_stroke(
             to_screen(self.goal.point()),
@@ -446,43 +462,7 @@ impl GuestApp {
                 );
             }
             for obstacle in &definition.virtual_obstacles {
-                let stroke = Stroke::new(2.0, Color32::from_rgb(255, 150, 0));
-                match obstacle {
-                    &Shape::Rect {
-                        x_mm,
-                        y_mm,
-                        width_mm,
-                        height_mm,
-                    } => {
-                        let a = to_screen(Point { x_mm, y_mm });
-                        let b = to_screen(Point {
-                            x_mm: x_mm + width_mm,
-                            y_mm: y_mm + height_mm,
-                        });
-                        painter.rect_stroke(
-                            Rect::from_two_pos(a, b),
-                            0.0,
-                            stroke,
-                            egui::StrokeKind::Middle,
-                        );
-                    }
-                    &Shape::Circle {
-                        x_mm,
-                        y_mm,
-                        radius_mm,
-                    } => {
-                        painter.circle_stroke(
-                            to_screen(Point { x_mm, y_mm }),
-                            radius_mm as f32 * px_per_mm,
-                            stroke,
-                        );
-                    }
-                    Shape::Polygon { points } => {
-                        let mut outline: Vec<Pos2> = points.iter().map(|&p| to_screen(p)).collect();
-                        outline.extend(outline.first().copied());
-                        painter.line(outline, stroke);
-                    }
-                }
+                view.outline(painter, obstacle, Stroke::new(2.0, VIRTUAL_COLOUR));
             }
         }
         if let Some(robot) = &self.session.robot {
@@ -493,6 +473,106 @@ impl GuestApp {
             painter.line_segment([centre, nose], Stroke::new(2.0, ROBOT_COLOUR));
         }
     }
+}
+
+/// Where the arena lands on screen: the camera model's pixels scaled into
+/// the view's rectangle.
+struct View<'a> {
+    rect: Rect,
+    lab: &'a MountedLab,
+    px_per_mm: f32,
+}
+
+impl<'a> View<'a> {
+    fn new(rect: Rect, lab: &'a MountedLab) -> View<'a> {
+        let px_per_mm = rect.width() / (lab.camera.width_px as f32 * lab.camera.mm_per_px as f32);
+        View {
+            rect,
+            lab,
+            px_per_mm,
+        }
+    }
+
+    fn to_screen(&self, p: Point) -> Pos2 {
+        let camera = &self.lab.camera;
+        let (c, r) = camera.to_pixel(p);
+        self.rect.min
+            + Vec2::new(
+                c as f32 / camera.width_px as f32 * self.rect.width(),
+                r as f32 / camera.height_px as f32 * self.rect.height(),
+            )
+    }
+
+    /// The screen outline of `shape`: a box, a circle (centre and radius)
+    /// or a polygon's corners.
+    fn outline_of(&self, shape: &Shape) -> ScreenShape {
+        match *shape {
+            Shape::Rect {
+                x_mm,
+                y_mm,
+                width_mm,
+                height_mm,
+            } => ScreenShape::Box(Rect::from_two_pos(
+                self.to_screen(Point { x_mm, y_mm }),
+                self.to_screen(Point {
+                    x_mm: x_mm + width_mm,
+                    y_mm: y_mm + height_mm,
+                }),
+            )),
+            Shape::Circle {
+                x_mm,
+                y_mm,
+                radius_mm,
+            } => ScreenShape::Disc(
+                self.to_screen(Point { x_mm, y_mm }),
+                radius_mm as f32 * self.px_per_mm,
+            ),
+            Shape::Polygon { ref points } => {
+                ScreenShape::Corners(points.iter().map(|&p| self.to_screen(p)).collect())
+            }
+        }
+    }
+
+    fn outline(&self, painter: &egui::Painter, shape: &Shape, stroke: Stroke) {
+        match self.outline_of(shape) {
+            ScreenShape::Box(r) => {
+                painter.rect_stroke(r, 0.0, stroke, egui::StrokeKind::Middle);
+            }
+            ScreenShape::Disc(c, radius) => {
+                painter.circle_stroke(c, radius, stroke);
+            }
+            ScreenShape::Corners(mut corners) => {
+                corners.extend(corners.first().copied());
+                painter.line(corners, stroke);
+            }
+        }
+    }
+
+    fn fill(&self, painter: &egui::Painter, shape: &Shape, colour: Color32) {
+        match self.outline_of(shape) {
+            ScreenShape::Box(r) => {
+                painter.rect_filled(r, 0.0, colour);
+            }
+            ScreenShape::Disc(c, radius) => {
+                painter.circle_filled(c, radius, colour);
+            }
+            // egui fills convex outlines; arena polygons are checked simple,
+            // and a concave one still shows its outline.
+            ScreenShape::Corners(corners) => {
+                painter.add(egui::Shape::convex_polygon(
+                    corners,
+                    colour,
+                    Stroke::new(1.0, colour),
+                ));
+            }
+        }
+    }
+}
+
+enum ScreenShape {
+    Box(Rect),
+    Disc(Pos2, f32),
+    Corners(Vec<Pos2>),
 }
 
 impl eframe::App for GuestApp {
