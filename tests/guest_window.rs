@@ -27,15 +27,17 @@ fn step_until(harness: &mut Harness<'_, GuestApp>, what: &str, done: impl Fn(&Gu
     harness.step();
 }
 
-#[test]
-fn the_connected_view_renders_camera_robot_and_rtt() {
+/// Runs `test` on a Guest window connected as operator to a simulated
+/// Host (with or without its camera), with the navigation experiment
+/// being mounted.
+fn with_mounting_window(camera: bool, test: impl FnOnce(&mut Harness<'_, GuestApp>)) {
     let runtime = tokio::runtime::Runtime::new().unwrap();
     let host = runtime
         .block_on(Host::start_sim(
             "127.0.0.1:0".parse().unwrap(),
             Arena::navigation(),
             1,
-            true,
+            camera,
             HostConfig::default(),
         ))
         .unwrap();
@@ -46,14 +48,22 @@ fn the_connected_view_renders_camera_robot_and_rtt() {
         .with_size(Vec2::new(1100.0, 720.0))
         .wgpu()
         .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
-
     step_until(&mut harness, "be welcomed", |app| {
         app.session().role.is_some()
     });
     harness
         .get_by_label("Navigate to a goal among obstacles")
         .click();
-    step_until(&mut harness, "show a frame and the robot", |app| {
+    test(&mut harness);
+}
+
+#[test]
+fn the_connected_view_renders_camera_robot_and_rtt() {
+    with_mounting_window(true, connected_view);
+}
+
+fn connected_view(harness: &mut Harness<'_, GuestApp>) {
+    step_until(harness, "show a frame and the robot", |app| {
         let s = app.session();
         s.lab.is_some() && s.frame.is_some() && s.robot.is_some() && s.round_trips.count() > 0
     });
@@ -67,7 +77,7 @@ fn the_connected_view_renders_camera_robot_and_rtt() {
     harness
         .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
         .click();
-    step_until(&mut harness, "show the definition", |app| {
+    step_until(harness, "show the definition", |app| {
         app.session().definition.is_some()
     });
     let path = harness.state().session().definition.clone().unwrap().path;
@@ -75,10 +85,10 @@ fn the_connected_view_renders_camera_robot_and_rtt() {
     harness.get_by_label_contains("mm from obstacles");
     // Started, the robot follows the path with no hand on the stick …
     harness.get_by_label("Start").click();
-    step_until(&mut harness, "start the run", |app| app.session().running);
+    step_until(harness, "start the run", |app| app.session().running);
     let at = |app: &GuestApp| app.session().robot.as_ref().unwrap().pose.point();
     let from = at(harness.state());
-    step_until(&mut harness, "follow the path", |app| {
+    step_until(harness, "follow the path", |app| {
         at(app).distance(from) > 60.0
     });
     let here = at(harness.state());
@@ -90,7 +100,7 @@ fn the_connected_view_renders_camera_robot_and_rtt() {
     // … and the arrow key takes over while held.
     let start_x = harness.state().session().robot.as_ref().unwrap().pose.x_mm;
     harness.key_down(egui::Key::ArrowUp);
-    step_until(&mut harness, "drive forward on the arrow key", |app| {
+    step_until(harness, "drive forward on the arrow key", |app| {
         app.session().robot.as_ref().unwrap().pose.x_mm > start_x + 20.0
     });
     harness.key_up(egui::Key::ArrowUp);
@@ -113,30 +123,11 @@ fn the_connected_view_renders_camera_robot_and_rtt() {
 /// model the Host sends at mount, with the robot's reported pose on it.
 #[test]
 fn without_a_camera_the_window_draws_the_arena_from_its_model() {
-    let runtime = tokio::runtime::Runtime::new().unwrap();
-    let host = runtime
-        .block_on(Host::start_sim(
-            "127.0.0.1:0".parse().unwrap(),
-            Arena::navigation(),
-            1,
-            false,
-            HostConfig::default(),
-        ))
-        .unwrap();
-    let connection = runtime.block_on(connect(&host.url())).unwrap();
-    let _entered = runtime.enter();
-    let app = GuestApp::new(connection, Role::Operator, None);
-    let mut harness = Harness::builder()
-        .with_size(Vec2::new(1100.0, 720.0))
-        .wgpu()
-        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
-    step_until(&mut harness, "be welcomed", |app| {
-        app.session().role.is_some()
-    });
-    harness
-        .get_by_label("Navigate to a goal among obstacles")
-        .click();
-    step_until(&mut harness, "mount and see the robot", |app| {
+    with_mounting_window(false, arena_from_model);
+}
+
+fn arena_from_model(harness: &mut Harness<'_, GuestApp>) {
+    step_until(harness, "mount and see the robot", |app| {
         app.session().lab.is_some() && app.session().robot.is_some()
     });
     harness.get_by_label_contains("no camera in this lab");
