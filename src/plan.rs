@@ -392,8 +392,8 @@ fn svg(workspace: &Grid, cspace: &CSpace, start: Pose, goal: Pose, plan: Option<
 
 /// A square map of `size` cells with walls across it, each with a gap at
 /// alternate ends (so the path snakes), and scattered blocks between.
-fn bench_map(size: u32) -> Grid {
-    let mut grid = Grid::free(size, size, 1.0).expect("a positive size");
+fn bench_map(size: u32) -> Result<Grid> {
+    let mut grid = Grid::free(size, size, 1.0).map_err(|e| BadInput(format!("--size: {e}")))?;
     let walls = 6;
     for k in 1..=walls {
         let row = size * k / (walls + 1);
@@ -423,7 +423,7 @@ fn bench_map(size: u32) -> Grid {
             radius_mm: f64::from(size) / 120.0,
         });
     }
-    grid
+    Ok(grid)
 }
 
 #[derive(Serialize)]
@@ -446,7 +446,7 @@ fn bench(size: u32, runs: u32, json: bool) -> Result<ExitCode> {
         return Err(BadInput(format!("--size must be at least 50 cells, not {size}")).into());
     }
     let runs = runs.max(1);
-    let workspace = bench_map(size);
+    let workspace = bench_map(size)?;
     let time = |f: &mut dyn FnMut()| {
         let t = Instant::now();
         f();

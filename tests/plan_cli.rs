@@ -216,7 +216,11 @@ fn bad_input_is_named_with_exit_code_2() {
     let map = wall_map("wall-bad.png", 8);
     let map = map.to_str().unwrap();
     let missing = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("no-such-map.png");
-    let cases: [(Vec<&str>, &str); 8] = [
+    let cases: [(Vec<&str>, &str); 9] = [
+        (
+            args(map, "10", START, GOAL, &["--cell-mm", "0.001"]),
+            "more than the 200000000 this planner holds",
+        ),
         (
             args(missing.to_str().unwrap(), "10", START, GOAL, &[]),
             "cannot read the map image",

@@ -24,7 +24,15 @@ pub enum CSpaceError {
     Footprint(String),
     #[error("the number of θ slices must be between 1 and 360, got {0}")]
     Slices(u32),
+    #[error(
+        "the C-space would have {cells} cells, more than the {MAX_CELLS} this planner holds: use larger cells (--cell-mm) or fewer θ slices"
+    )]
+    TooLarge { cells: u64 },
 }
+
+/// The most cells (over all θ slices) a C-space may have: about 1.5 GB
+/// of grids, NF1 values and queue.
+pub const MAX_CELLS: u64 = 200_000_000;
 
 /// A square-celled occupancy grid: `blocked` is row-major from the top row.
 #[derive(Debug, Clone, PartialEq)]
@@ -81,6 +89,10 @@ impl Grid {
         }
         if width == 0 || height == 0 {
             return Err(CSpaceError::Empty);
+        }
+        let cells = u64::from(width) * u64::from(height);
+        if cells > MAX_CELLS {
+            return Err(CSpaceError::TooLarge { cells });
         }
         Ok(Grid {
             width,
@@ -326,6 +338,15 @@ impl CSpace {
         footprint.check()?;
         if !(1..=360).contains(&theta_slices) {
             return Err(CSpaceError::Slices(theta_slices));
+        }
+        let slices = if matches!(footprint, Footprint::Disc { .. }) {
+            1
+        } else {
+            theta_slices
+        };
+        let cells = workspace.blocked.len() as u64 * u64::from(slices);
+        if cells > MAX_CELLS {
+            return Err(CSpaceError::TooLarge { cells });
         }
         let slices = match &footprint {
             Footprint::Disc { radius_mm } => vec![grow_by_disc(workspace, *radius_mm)],
