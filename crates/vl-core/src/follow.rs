@@ -243,22 +243,26 @@ mod tests {
     }
 
     #[test]
-    fn sensors_below_the_threshold_are_ignored_above_it_they_steer() {
+    fn near_readings_slow_the_robot_only_unmapped_ones_steer_it() {
         let robot = RobotModel::khepera_ii();
         let mut follower = Follower::new(ell(), Following::default()).unwrap();
         let pose = Pose::default();
-        let Command::Drive(mapped) = follower.step(&robot, pose, &[300, 300, 300, 0, 0, 0, 0, 0])
-        else {
-            panic!("not there yet")
+        let mut drive = |proximity: [u16; 8]| match follower.step(&robot, pose, &proximity) {
+            Command::Drive(wheels) => wheels,
+            Command::Arrived => panic!("not there yet"),
         };
-        let Command::Drive(clear) = follower.step(&robot, pose, &[0; 8]) else {
-            panic!("not there yet")
-        };
-        assert_eq!(mapped, clear, "readings under the threshold change nothing");
-        let Command::Drive(blocked) = follower.step(&robot, pose, &[0, 1000, 900, 0, 0, 0, 0, 0])
-        else {
-            panic!("not there yet")
-        };
+        let clear = drive([0; 8]);
+        assert_eq!(
+            drive([200, 200, 200, 0, 0, 0, 0, 0]),
+            clear,
+            "noise changes nothing"
+        );
+        // A mapped wall a few cm to the left: slower, on the same course.
+        let near = drive([400, 0, 0, 0, 0, 0, 0, 0]);
+        assert!(near.left_mm_s < clear.left_mm_s);
+        assert_eq!(near.left_mm_s, near.right_mm_s);
+        // Something much nearer than the plan allowed: it turns away (right).
+        let blocked = drive([0, 1000, 900, 0, 0, 0, 0, 0]);
         assert!(
             blocked.left_mm_s > blocked.right_mm_s,
             "an obstacle on the left turns it right: {blocked:?}"
