@@ -296,6 +296,10 @@ async fn teleoperation_feeds_back_the_push_of_obstacles() {
     }
     let x = last["pose"]["x_mm"].as_f64().unwrap();
     let radius = 35.0;
+    println!(
+        "held {:.1} mm short of the box; strongest push back {strongest:.2}",
+        250.0 - x - radius
+    );
     assert!(
         x + radius > 200.0 && x + radius < 250.0,
         "held {:.0} mm short of the box: {last}",
