@@ -33,10 +33,6 @@ impl Vector {
         }
     }
 
-    pub fn norm(self) -> f64 {
-        self.x.hypot(self.y)
-    }
-
     /// The same vector seen from a frame turned by `theta` (world → robot
     /// for the robot's heading).
     pub fn rotated(self, theta: f64) -> Vector {
