@@ -357,7 +357,7 @@ fn follow_to(world: &World, goal: Option<[f64; 2]>) -> Result<Driver> {
         goal,
     )
     .map_err(|e| BadInput(format!("no path to follow: {e}")))?;
-    let path = plan.path.iter().map(|p| p.point()).collect();
+    let path = plan.points();
     let follower = Follower::new(path, Following::default()).expect("a plan has samples");
     Ok(Driver::Path(follower))
 }

@@ -34,7 +34,7 @@ fn planned_paths_are_followed_to_the_goal_in_every_shipped_arena() {
                 goal,
             )
             .unwrap_or_else(|e| panic!("{name}: {e}"));
-            let path = plan.path.iter().map(|p| p.point()).collect();
+            let path = plan.points();
             let follower = Follower::new(path, Following::default()).unwrap();
             let report = run(&mut world, &mut Driver::Path(follower), 120.0);
             let tracking = report.following.unwrap();

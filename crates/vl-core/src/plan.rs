@@ -82,6 +82,13 @@ pub struct Plan {
     pub smoothing: Smoothing,
 }
 
+impl Plan {
+    /// The smooth path's positions, start to goal: what a follower steers along.
+    pub fn points(&self) -> Vec<Point> {
+        self.path.iter().map(|p| p.point()).collect()
+    }
+}
+
 /// The cell the robot stands in at `pose`, if it is free.
 pub fn locate(cspace: &CSpace, pose: Pose, which: End) -> Result<Cell, NoPath> {
     let grid = cspace.grid();

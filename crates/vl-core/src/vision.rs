@@ -130,17 +130,17 @@ struct Runs {
 }
 
 impl Runs {
-    /// The runs of pixels equal to `value`.
-    fn of(mask: &Mask, value: bool) -> Runs {
+    /// The runs of foreground pixels.
+    fn of(mask: &Mask) -> Runs {
         let w = mask.width as usize;
         let mut runs = Runs::default();
         for (r, row) in mask.pixels.chunks_exact(w.max(1)).enumerate() {
             runs.rows.push(runs.spans.len());
             let mut c = 0;
             while c < w {
-                if row[c] == value {
+                if row[c] {
                     let start = c;
-                    while c < w && row[c] == value {
+                    while c < w && row[c] {
                         c += 1;
                     }
                     runs.spans.push((start as u32, c as u32, r as u32));
@@ -151,6 +151,28 @@ impl Runs {
         }
         runs.rows.push(runs.spans.len());
         runs
+    }
+
+    /// The runs of everything else in rows `width` wide: the gaps between
+    /// these runs and the rows' ends.
+    fn gaps(&self, width: u32) -> Runs {
+        let mut gaps = Runs::default();
+        for r in 0..self.rows.len().saturating_sub(1) {
+            gaps.rows.push(gaps.spans.len());
+            let mut from = 0;
+            for i in self.row(r) {
+                let (a, b, _) = self.spans[i];
+                if a > from {
+                    gaps.spans.push((from, a, r as u32));
+                }
+                from = b;
+            }
+            if from < width {
+                gaps.spans.push((from, width, r as u32));
+            }
+        }
+        gaps.rows.push(gaps.spans.len());
+        gaps
     }
 
     /// The runs of row `r`, as a range of indices.
@@ -223,7 +245,7 @@ impl Runs {
 /// Labels of each pixel (0 background, components 1.. in raster order of
 /// their first pixel) and the number of components.
 pub fn label(mask: &Mask, connectivity: Connectivity) -> (Vec<u32>, u32) {
-    let runs = Runs::of(mask, true);
+    let runs = Runs::of(mask);
     let (number, count) = runs.label(connectivity);
     (runs.paint(&number, mask.width, mask.height), count)
 }
@@ -373,14 +395,14 @@ impl Sums {
 /// label image. Holes are background regions (of the complementary
 /// connectivity) that do not reach the image's border.
 pub fn components(mask: &Mask, connectivity: Connectivity) -> (Vec<Component>, Vec<u32>) {
-    let runs = Runs::of(mask, true);
+    let runs = Runs::of(mask);
     let (number, count) = runs.label(connectivity);
     let labels = runs.paint(&number, mask.width, mask.height);
     let mut sums = vec![Sums::default(); count as usize + 1];
     for (&(a, b, r), &l) in runs.spans.iter().zip(&number) {
         sums[l as usize].add_run(a, b, r);
     }
-    let holes = holes(mask, &labels, count, connectivity);
+    let holes = holes(&runs, mask, &labels, count, connectivity);
     let found = (1..=count as usize)
         .map(|l| {
             let s = &sums[l];
@@ -404,13 +426,19 @@ pub fn components(mask: &Mask, connectivity: Connectivity) -> (Vec<Component>, V
 /// Per component label (of `components` in all), the moment sums of the
 /// background it encloses: background regions, of the complementary
 /// connectivity, that do not reach the image's border.
-fn holes(mask: &Mask, labels: &[u32], components: u32, connectivity: Connectivity) -> Vec<Sums> {
+fn holes(
+    foreground: &Runs,
+    mask: &Mask,
+    labels: &[u32],
+    components: u32,
+    connectivity: Connectivity,
+) -> Vec<Sums> {
     let (w, h) = (mask.width, mask.height);
     let dual = match connectivity {
         Connectivity::Four => Connectivity::Eight,
         Connectivity::Eight => Connectivity::Four,
     };
-    let runs = Runs::of(mask, false);
+    let runs = foreground.gaps(w);
     let (region_of, count) = runs.label(dual);
     let count = count as usize;
     let mut enclosing = vec![0u32; count + 1];

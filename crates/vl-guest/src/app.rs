@@ -296,7 +296,7 @@ impl GuestApp {
         );
         let path = match planned {
             Ok(plan) => {
-                let path: Vec<Point> = plan.path.iter().map(|p| p.point()).collect();
+                let path: Vec<Point> = plan.points();
                 let body_gap = path
                     .iter()
                     .map(|&p| lab.arena.clearance(p) - lab.robot.radius_mm)

@@ -184,7 +184,7 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
         start,
         goal.point(),
     )?;
-    let path: Vec<_> = plan.path.iter().map(|p| p.point()).collect();
+    let path: Vec<_> = plan.points();
     let mut follower = Follower::new(
         path.clone(),
         Following {

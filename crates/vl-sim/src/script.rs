@@ -197,7 +197,7 @@ mod tests {
                 w.arena().goal.unwrap(),
             )
             .unwrap();
-            let points = plan.path.iter().map(|p| p.point()).collect();
+            let points = plan.points();
             Driver::Path(Follower::new(points, Default::default()).unwrap())
         };
         let (mut w3, mut w3b, mut w4) = (world(3), world(3), world(4));
