@@ -1,5 +1,5 @@
-//! `vl petri …`: the thesis's methodology as commands — analyse nets (and
-//! later compose them and synthesise their controllers).
+//! `vl petri …`: the thesis's methodology as commands — statecharts to
+//! nets, analysis, composition and controller synthesis.
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -9,22 +9,21 @@ use std::time::Instant;
 use anyhow::Result;
 use clap::Subcommand;
 use serde::Serialize;
-use vl_petri::compose::{compose, fuse_parallel_places};
-use vl_petri::control::{Added, Constraint, ControlError, Limits, synthesize};
-use vl_petri::invariants::{
-    Invariant, TooManyInvariants, is_conservative, p_invariants, t_invariants,
-};
-use vl_petri::scxml::from_scxml;
 use vl_petri::{
-    Coverability, CoverabilityError, ExploreError, Net, OMEGA, Options, Progress, StateSpace,
-    analyze, coverability, explore, from_pnml, graph_to_dot, net_to_dot, to_pnml,
+    Added, BenchRow, Constraint, ControlError, Coverability, CoverabilityError, ExploreError,
+    Invariant, Limits, Manifest, Net, OMEGA, Options, Progress, StateSpace, TooManyInvariants,
+    analyze, bench_model, compose, coverability, explore, from_pnml, from_scxml,
+    fuse_parallel_places, graph_to_dot, is_conservative, net_to_dot, p_invariants, synthesize,
+    t_invariants, to_pnml,
 };
 
-use crate::alloc::{peak_bytes, reset_peak};
-use crate::{BadInput, read_input};
+use crate::BadInput;
+use crate::alloc::{Counting, peak_bytes};
+use crate::report::{Report, Table, count, emit, yes};
+use crate::shipped::{CORPUS_MANIFEST, corpus_model, read_input};
 
 #[derive(Subcommand)]
-pub enum PetriCommand {
+pub(crate) enum PetriCommand {
     /// Explore the reachability graph and report boundedness, safeness,
     /// deadlocks, liveness, reversibility and the flow-basis dimensions.
     Analyze {
@@ -100,9 +99,10 @@ pub enum PetriCommand {
     /// Time state-space exploration on the corpus's large models against the
     /// figures TAPAAL's verifypn 3.1.1 recorded on this kind of machine.
     Bench {
-        /// The corpus directory (with manifest.csv).
-        #[arg(long, default_value = "tests/petri-corpus")]
-        corpus: PathBuf,
+        /// A corpus directory (with manifest.csv); the large models are
+        /// built in, the small and medium ones are in tests/petri-corpus.
+        #[arg(long)]
+        corpus: Option<PathBuf>,
         /// Which tier of models: small, medium or large.
         #[arg(long, default_value = "large")]
         tier: String,
@@ -124,14 +124,7 @@ pub enum PetriCommand {
     },
 }
 
-/// Rows the Farkas algorithm may hold while `analyze` decides conservativeness.
-const CONSERVATIVE_ROWS: usize = 20_000;
-
-/// Nodes the boundedness pre-check of `analyze` may build before leaving
-/// the question to full exploration.
-const QUICK_COVERABILITY_NODES: usize = 100_000;
-
-pub fn run(command: PetriCommand) -> Result<ExitCode> {
+pub(crate) fn run(command: PetriCommand) -> Result<ExitCode> {
     match command {
         PetriCommand::Analyze {
             net,
@@ -166,7 +159,7 @@ pub fn run(command: PetriCommand) -> Result<ExitCode> {
             tier,
             models,
             json,
-        } => bench_command(&corpus, &tier, &models, json),
+        } => bench_command(corpus.as_deref(), &tier, &models, json),
         PetriCommand::FromScxml { chart, output } => from_scxml_command(&chart, &output),
         PetriCommand::Dot {
             net,
@@ -176,22 +169,29 @@ pub fn run(command: PetriCommand) -> Result<ExitCode> {
     }
 }
 
-/// Reads a PNML file; any problem with it is the user's input, exit code 2.
+/// Reads a PNML file (or a shipped example net); any problem with it is
+/// the user's input, exit code 2.
 fn load(path: &Path) -> Result<Net> {
     let text = read_input(path)?;
     Ok(from_pnml(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?)
 }
 
-/// `vl petri analyze --json`: the keys a program reads.
-/// Properties that need the full reachability graph are null for an
-/// unbounded net.
+fn write_file(path: &Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+}
+
+/// `vl petri analyze`: the keys a program reads. Properties that need the
+/// full reachability graph are null for an unbounded net.
 #[derive(Serialize)]
 struct AnalyzeReport {
+    net: String,
     places: usize,
     transitions: usize,
     states: Option<usize>,
     edges: Option<usize>,
     bounded: bool,
+    /// The places that can grow without limit (Karp–Miller's ω).
+    unbounded_places: Vec<String>,
     max_tokens_in_place: Option<u32>,
     max_tokens_per_marking: Option<u64>,
     safe: bool,
@@ -199,6 +199,8 @@ struct AnalyzeReport {
     deadlock_trace: Option<Vec<String>>,
     quasi_live: Option<bool>,
     live: Option<bool>,
+    /// Transitions below L4, with their level.
+    not_live: Vec<String>,
     reversible: Option<bool>,
     /// Null when the net has too many minimal P-invariants to decide it this way.
     conservative: Option<bool>,
@@ -206,99 +208,160 @@ struct AnalyzeReport {
     t_flow_basis_dim: usize,
     seconds: f64,
     peak_bytes: usize,
+    #[serde(skip)]
+    bytes_per_marking: usize,
 }
+
+/// Rows the Farkas algorithm may hold while `analyze` decides conservativeness.
+const CONSERVATIVE_ROWS: usize = 20_000;
+
+/// Nodes the boundedness pre-check of `analyze` may build before leaving
+/// the question to full exploration.
+const QUICK_COVERABILITY_NODES: usize = 100_000;
 
 fn analyze_command(path: &Path, json: bool, max_states: usize) -> Result<ExitCode> {
     let net = load(path)?;
     let started = Instant::now();
+    let rank = vl_petri::incidence_rank(&net);
+    let mut report = AnalyzeReport {
+        net: net.id.clone(),
+        places: net.places.len(),
+        transitions: net.transitions.len(),
+        states: None,
+        edges: None,
+        bounded: false,
+        unbounded_places: Vec::new(),
+        max_tokens_in_place: None,
+        max_tokens_per_marking: None,
+        safe: false,
+        deadlock: None,
+        deadlock_trace: None,
+        quasi_live: None,
+        live: None,
+        not_live: Vec::new(),
+        reversible: None,
+        conservative: conservative(&net),
+        p_flow_basis_dim: net.places.len() - rank,
+        t_flow_basis_dim: net.transitions.len() - rank,
+        seconds: 0.0,
+        peak_bytes: 0,
+        bytes_per_marking: 0,
+    };
     // Karp–Miller settles boundedness first when it can do so cheaply: an
     // unbounded net would otherwise explore until --max-states.
-    if let Ok(c) = coverability(&net, QUICK_COVERABILITY_NODES)
-        && !c.bounded()
-    {
-        return report_unbounded(&net, &c, started, json);
+    match coverability(&net, QUICK_COVERABILITY_NODES) {
+        Ok(c) if !c.bounded() => {
+            report.unbounded_places = place_ids(&net, &c.unbounded);
+        }
+        _ => {
+            let space = explore_with_progress(&net, path, max_states)?;
+            let a = analyze(&net, &space);
+            report.states = Some(a.states);
+            report.edges = Some(a.edges);
+            report.bounded = a.bounded;
+            report.max_tokens_in_place = Some(a.max_tokens_in_place);
+            report.max_tokens_per_marking = Some(a.max_tokens_per_marking);
+            report.safe = a.safe;
+            report.deadlock = Some(a.deadlock);
+            report.deadlock_trace = a.deadlock_trace;
+            report.quasi_live = Some(a.quasi_live);
+            report.live = Some(a.live);
+            report.reversible = Some(a.reversible);
+            report.not_live = a
+                .liveness
+                .iter()
+                .zip(&net.transitions)
+                .filter(|(l, _)| **l != vl_petri::Liveness::L4)
+                .map(|(l, t)| format!("{} {l:?}", t.id))
+                .collect();
+            report.bytes_per_marking = space.bytes_per_marking();
+        }
     }
-    let space = explore_with_progress(&net, path, max_states)?;
-    let a = analyze(&net, &space);
-    let report = AnalyzeReport {
-        places: a.places,
-        transitions: a.transitions,
-        states: Some(a.states),
-        edges: Some(a.edges),
-        bounded: a.bounded,
-        max_tokens_in_place: Some(a.max_tokens_in_place),
-        max_tokens_per_marking: Some(a.max_tokens_per_marking),
-        safe: a.safe,
-        deadlock: Some(a.deadlock),
-        deadlock_trace: a.deadlock_trace.clone(),
-        quasi_live: Some(a.quasi_live),
-        live: Some(a.live),
-        reversible: Some(a.reversible),
-        conservative: conservative(&net),
-        p_flow_basis_dim: a.p_flow_basis_dim,
-        t_flow_basis_dim: a.t_flow_basis_dim,
-        seconds: started.elapsed().as_secs_f64(),
-        peak_bytes: peak_bytes(),
-    };
-    if json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(ExitCode::SUCCESS);
-    }
-    let yes = |b: bool| if b { "yes" } else { "no" };
-    let trace = match &a.deadlock_trace {
-        Some(t) if t.is_empty() => "the initial marking is dead".to_owned(),
-        Some(t) => t.join(" "),
-        None => "–".to_owned(),
-    };
-    let rows = [
-        (
-            "net",
-            format!(
-                "{} ({} places, {} transitions)",
-                net.id, a.places, a.transitions
-            ),
-        ),
-        ("states", a.states.to_string()),
-        ("edges", a.edges.to_string()),
-        (
-            "bounded",
-            format!(
-                "{} (at most {} tokens in a place, {} in a marking)",
-                yes(a.bounded),
-                a.max_tokens_in_place,
-                a.max_tokens_per_marking
-            ),
-        ),
-        ("safe", yes(a.safe).to_owned()),
-        ("deadlock", yes(a.deadlock).to_owned()),
-        ("  reached by", trace),
-        ("quasi-live", yes(a.quasi_live).to_owned()),
-        ("live", yes(a.live).to_owned()),
-        ("  not L4", not_live(&net, &a.liveness)),
-        ("reversible", yes(a.reversible).to_owned()),
-        ("P-flow basis", format!("dimension {}", a.p_flow_basis_dim)),
-        ("T-flow basis", format!("dimension {}", a.t_flow_basis_dim)),
-        (
-            "time",
-            format!(
-                "{:.3} s, {} states/s",
-                report.seconds,
-                (a.states as f64 / report.seconds.max(1e-9)) as u64
-            ),
-        ),
-        (
-            "memory",
-            format!(
-                "{:.1} MB peak, {} bytes per marking",
-                report.peak_bytes as f64 / 1e6,
-                space.bytes_per_marking()
-            ),
-        ),
-    ];
-    for (name, value) in rows {
-        println!("{name:<14} {value}");
-    }
+    report.seconds = started.elapsed().as_secs_f64();
+    report.peak_bytes = peak_bytes();
+    emit(&report, json)?;
     Ok(ExitCode::SUCCESS)
+}
+
+impl Report for AnalyzeReport {
+    fn table(&self) -> Table {
+        let net = format!(
+            "{} ({}, {})",
+            self.net,
+            count(self.places as u64, "place", "places"),
+            count(self.transitions as u64, "transition", "transitions")
+        );
+        let (Some(states), Some(edges)) = (self.states, self.edges) else {
+            return Table::pairs([
+                ("net", net),
+                (
+                    "bounded",
+                    format!(
+                        "no: {} can grow without limit",
+                        self.unbounded_places.join(", ")
+                    ),
+                ),
+            ])
+            .note("see `vl petri coverability` for the ω-markings");
+        };
+        let maybe = |b: Option<bool>| b.map_or("–", yes).to_owned();
+        let trace = match &self.deadlock_trace {
+            Some(t) if t.is_empty() => "the initial marking is dead".to_owned(),
+            Some(t) => t.join(" "),
+            None => "–".to_owned(),
+        };
+        let not_live = match self.not_live.len() {
+            0 => "–".to_owned(),
+            n if n > 12 => format!("{} … and {} more", self.not_live[..12].join(", "), n - 12),
+            _ => self.not_live.join(", "),
+        };
+        Table::pairs([
+            ("net", net),
+            ("states", states.to_string()),
+            ("edges", edges.to_string()),
+            (
+                "bounded",
+                format!(
+                    "{} (at most {} in a place, {} in a marking)",
+                    yes(self.bounded),
+                    count(self.max_tokens_in_place.unwrap_or(0), "token", "tokens"),
+                    count(self.max_tokens_per_marking.unwrap_or(0), "token", "tokens"),
+                ),
+            ),
+            ("safe", yes(self.safe).to_owned()),
+            ("deadlock", maybe(self.deadlock)),
+            ("  reached by", trace),
+            ("quasi-live", maybe(self.quasi_live)),
+            ("live", maybe(self.live)),
+            ("  not L4", not_live),
+            ("reversible", maybe(self.reversible)),
+            ("conservative", maybe(self.conservative)),
+            (
+                "P-flow basis",
+                format!("dimension {}", self.p_flow_basis_dim),
+            ),
+            (
+                "T-flow basis",
+                format!("dimension {}", self.t_flow_basis_dim),
+            ),
+            (
+                "time",
+                format!(
+                    "{:.3} s, {} states/s",
+                    self.seconds,
+                    (states as f64 / self.seconds.max(1e-9)) as u64
+                ),
+            ),
+            (
+                "memory",
+                format!(
+                    "{:.1} MB peak, {} per marking",
+                    self.peak_bytes as f64 / 1e6,
+                    count(self.bytes_per_marking as u64, "byte", "bytes")
+                ),
+            ),
+        ])
+    }
 }
 
 /// Explores the reachability graph, showing progress on a terminal.
@@ -329,53 +392,11 @@ fn explore_with_progress(net: &Net, path: &Path, max_states: usize) -> Result<St
     }
 }
 
-fn report_unbounded(net: &Net, c: &Coverability, started: Instant, json: bool) -> Result<ExitCode> {
-    let unbounded: Vec<&str> = c
-        .unbounded
-        .iter()
-        .map(|&p| net.places[p].id.as_str())
-        .collect();
-    if json {
-        let report = AnalyzeReport {
-            places: net.places.len(),
-            transitions: net.transitions.len(),
-            states: None,
-            edges: None,
-            bounded: false,
-            max_tokens_in_place: None,
-            max_tokens_per_marking: None,
-            safe: false,
-            deadlock: None,
-            deadlock_trace: None,
-            quasi_live: None,
-            live: None,
-            reversible: None,
-            conservative: conservative(net),
-            p_flow_basis_dim: net.places.len() - vl_petri::incidence_rank(net),
-            t_flow_basis_dim: net.transitions.len() - vl_petri::incidence_rank(net),
-            seconds: started.elapsed().as_secs_f64(),
-            peak_bytes: peak_bytes(),
-        };
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        println!(
-            "{:<14} {} ({} places, {} transitions)",
-            "net",
-            net.id,
-            net.places.len(),
-            net.transitions.len()
-        );
-        println!(
-            "{:<14} no: {} can grow without limit",
-            "bounded",
-            unbounded.join(", ")
-        );
-        println!("{:<14} see `vl petri coverability` for the ω-markings", "");
-    }
-    Ok(ExitCode::SUCCESS)
+fn place_ids(net: &Net, places: &[usize]) -> Vec<String> {
+    places.iter().map(|&p| net.places[p].id.clone()).collect()
 }
 
-/// An ω-marking as JSON: place id → count or "ω", empty places left out.
+/// An ω-marking: place id → count or "ω", empty places left out.
 fn omega_marking(net: &Net, m: &[u32]) -> serde_json::Map<String, serde_json::Value> {
     m.iter()
         .zip(&net.places)
@@ -389,6 +410,57 @@ fn omega_marking(net: &Net, m: &[u32]) -> serde_json::Map<String, serde_json::Va
             (p.id.clone(), value)
         })
         .collect()
+}
+
+/// `vl petri coverability`.
+#[derive(Serialize)]
+struct CoverabilityReport {
+    bounded: bool,
+    unbounded_places: Vec<String>,
+    maximal: Vec<serde_json::Map<String, serde_json::Value>>,
+    nodes: usize,
+}
+
+impl CoverabilityReport {
+    fn new(net: &Net, c: &Coverability) -> CoverabilityReport {
+        CoverabilityReport {
+            bounded: c.bounded(),
+            unbounded_places: place_ids(net, &c.unbounded),
+            maximal: c
+                .maximal()
+                .into_iter()
+                .map(|m| omega_marking(net, m))
+                .collect(),
+            nodes: c.nodes.len(),
+        }
+    }
+}
+
+impl Report for CoverabilityReport {
+    fn table(&self) -> Table {
+        let unbounded = if self.unbounded_places.is_empty() {
+            "–".to_owned()
+        } else {
+            self.unbounded_places.join(", ")
+        };
+        let mut table = Table::pairs([
+            ("bounded", yes(self.bounded).to_owned()),
+            ("unbounded places", unbounded),
+            ("graph nodes", self.nodes.to_string()),
+        ])
+        .note("maximal markings:");
+        for m in &self.maximal {
+            let cells: Vec<String> = m
+                .iter()
+                .map(|(p, v)| {
+                    let v = v.as_str().map_or_else(|| v.to_string(), str::to_owned);
+                    format!("{p}={v}")
+                })
+                .collect();
+            table = table.note(format!("  {{{}}}", cells.join(", ")));
+        }
+        table
+    }
 }
 
 fn coverability_command(
@@ -409,57 +481,9 @@ fn coverability_command(
             &c.nodes,
             &c.edges,
         );
-        std::fs::write(file, picture)
-            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", file.display()))?;
+        write_file(file, &picture)?;
     }
-    let unbounded: Vec<String> = c
-        .unbounded
-        .iter()
-        .map(|&p| net.places[p].id.clone())
-        .collect();
-    let maximal: Vec<_> = c
-        .maximal()
-        .into_iter()
-        .map(|m| omega_marking(&net, m))
-        .collect();
-    if json {
-        let report = serde_json::json!({
-            "bounded": c.bounded(),
-            "unbounded_places": unbounded,
-            "maximal": maximal,
-            "nodes": c.nodes.len(),
-        });
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        println!(
-            "{:<18} {}",
-            "bounded",
-            if c.bounded() { "yes" } else { "no" }
-        );
-        println!(
-            "{:<18} {}",
-            "unbounded places",
-            if unbounded.is_empty() {
-                "–".to_owned()
-            } else {
-                unbounded.join(", ")
-            }
-        );
-        println!("{:<18} {}", "graph nodes", c.nodes.len());
-        println!("maximal markings:");
-        for m in &maximal {
-            let cells: Vec<String> = m
-                .iter()
-                .map(|(p, v)| {
-                    format!(
-                        "{p}={}",
-                        v.as_str().map_or_else(|| v.to_string(), str::to_owned)
-                    )
-                })
-                .collect();
-            println!("  {{{}}}", cells.join(", "));
-        }
-    }
+    emit(&CoverabilityReport::new(&net, &c), json)?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -488,6 +512,86 @@ fn conservative(net: &Net) -> Option<bool> {
     Some(is_conservative(net.places.len(), &invariants))
 }
 
+/// `vl petri invariants`: each invariant as element id → weight.
+#[derive(Serialize)]
+struct InvariantsReport {
+    p_invariants: Vec<serde_json::Map<String, serde_json::Value>>,
+    t_invariants: Vec<serde_json::Map<String, serde_json::Value>>,
+    p_flow_basis_dim: usize,
+    t_flow_basis_dim: usize,
+    conservative: bool,
+    /// Each P-invariant's weighted token sum, the same in every reachable marking.
+    #[serde(skip)]
+    p_sums: Vec<u64>,
+}
+
+impl InvariantsReport {
+    fn new(net: &Net, p: &[Invariant], t: &[Invariant]) -> InvariantsReport {
+        let rank = vl_petri::incidence_rank(net);
+        let place_ids: Vec<&str> = net.places.iter().map(|p| p.id.as_str()).collect();
+        let transition_ids: Vec<&str> = net.transitions.iter().map(|t| t.id.as_str()).collect();
+        let as_map = |inv: &Invariant, ids: &[&str]| {
+            inv.iter()
+                .map(|&(i, k)| (ids[i].to_owned(), serde_json::json!(k)))
+                .collect()
+        };
+        InvariantsReport {
+            p_invariants: p.iter().map(|i| as_map(i, &place_ids)).collect(),
+            t_invariants: t.iter().map(|i| as_map(i, &transition_ids)).collect(),
+            p_flow_basis_dim: net.places.len() - rank,
+            t_flow_basis_dim: net.transitions.len() - rank,
+            conservative: is_conservative(net.places.len(), p),
+            p_sums: p
+                .iter()
+                .map(|inv| {
+                    inv.iter()
+                        .map(|&(i, k)| k * u64::from(net.places[i].initial))
+                        .sum()
+                })
+                .collect(),
+        }
+    }
+}
+
+impl Report for InvariantsReport {
+    fn table(&self) -> Table {
+        let sum = |inv: &serde_json::Map<String, serde_json::Value>| -> String {
+            inv.iter()
+                .map(|(id, k)| match k.as_u64() {
+                    Some(1) => id.clone(),
+                    _ => format!("{k}·{id}"),
+                })
+                .collect::<Vec<_>>()
+                .join(" + ")
+        };
+        let mut table = Table::default().title(format!(
+            "{} (P-flow basis dimension {}):",
+            count(
+                self.p_invariants.len() as u64,
+                "minimal P-invariant",
+                "minimal P-invariants"
+            ),
+            self.p_flow_basis_dim
+        ));
+        for (inv, m0) in self.p_invariants.iter().zip(&self.p_sums) {
+            table = table.title(format!("  {} = {m0}", sum(inv)));
+        }
+        table = table.title(format!(
+            "{} (T-flow basis dimension {}):",
+            count(
+                self.t_invariants.len() as u64,
+                "minimal T-invariant",
+                "minimal T-invariants"
+            ),
+            self.t_flow_basis_dim
+        ));
+        for inv in &self.t_invariants {
+            table = table.title(format!("  {}", sum(inv)));
+        }
+        table.title(format!("conservative: {}", yes(self.conservative)))
+    }
+}
+
 fn invariants_command(path: &Path, json: bool, max_rows: usize) -> Result<ExitCode> {
     let net = load(path)?;
     let describe = |e: TooManyInvariants| {
@@ -495,65 +599,7 @@ fn invariants_command(path: &Path, json: bool, max_rows: usize) -> Result<ExitCo
     };
     let p = p_invariants(&net, max_rows).map_err(describe)?;
     let t = t_invariants(&net, max_rows).map_err(describe)?;
-    let rank = vl_petri::incidence_rank(&net);
-    let place_ids: Vec<&str> = net.places.iter().map(|p| p.id.as_str()).collect();
-    let transition_ids: Vec<&str> = net.transitions.iter().map(|t| t.id.as_str()).collect();
-    let as_map = |inv: &Invariant, ids: &[&str]| -> serde_json::Map<String, serde_json::Value> {
-        inv.iter()
-            .map(|&(i, k)| (ids[i].to_owned(), serde_json::json!(k)))
-            .collect()
-    };
-    if json {
-        let report = serde_json::json!({
-            "p_invariants": p.iter().map(|i| as_map(i, &place_ids)).collect::<Vec<_>>(),
-            "t_invariants": t.iter().map(|i| as_map(i, &transition_ids)).collect::<Vec<_>>(),
-            "p_flow_basis_dim": net.places.len() - rank,
-            "t_flow_basis_dim": net.transitions.len() - rank,
-            "conservative": is_conservative(net.places.len(), &p),
-        });
-        println!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(ExitCode::SUCCESS);
-    }
-    let sum = |inv: &Invariant, ids: &[&str]| -> String {
-        inv.iter()
-            .map(|&(i, k)| {
-                if k == 1 {
-                    ids[i].to_owned()
-                } else {
-                    format!("{k}·{}", ids[i])
-                }
-            })
-            .collect::<Vec<_>>()
-            .join(" + ")
-    };
-    println!(
-        "{} minimal P-invariants (P-flow basis dimension {}):",
-        p.len(),
-        net.places.len() - rank
-    );
-    for inv in &p {
-        let m0: u64 = inv
-            .iter()
-            .map(|&(i, k)| k * u64::from(net.places[i].initial))
-            .sum();
-        println!("  {} = {m0}", sum(inv, &place_ids));
-    }
-    println!(
-        "{} minimal T-invariants (T-flow basis dimension {}):",
-        t.len(),
-        net.transitions.len() - rank
-    );
-    for inv in &t {
-        println!("  {}", sum(inv, &transition_ids));
-    }
-    println!(
-        "conservative: {}",
-        if is_conservative(net.places.len(), &p) {
-            "yes"
-        } else {
-            "no"
-        }
-    );
+    emit(&InvariantsReport::new(&net, &p, &t), json)?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -595,10 +641,6 @@ fn control_command(
     Ok(ExitCode::SUCCESS)
 }
 
-fn write_file(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
-}
-
 fn compose_command(paths: &[PathBuf], fuse: bool, output: &Path) -> Result<ExitCode> {
     let nets = paths.iter().map(|p| load(p)).collect::<Result<Vec<_>>>()?;
     let mut net = compose(&nets)?;
@@ -613,10 +655,10 @@ fn compose_command(paths: &[PathBuf], fuse: bool, output: &Path) -> Result<ExitC
         .filter(|t| t.id.contains('|'))
         .count();
     println!(
-        "{} places ({} fused away), {} transitions ({fused} synchronised)",
-        net.places.len(),
+        "{} ({} fused away), {} ({fused} synchronised)",
+        count(net.places.len() as u64, "place", "places"),
         before - net.places.len(),
-        net.transitions.len()
+        count(net.transitions.len() as u64, "transition", "transitions"),
     );
     println!("wrote {}", output.display());
     Ok(ExitCode::SUCCESS)
@@ -627,148 +669,101 @@ fn from_scxml_command(path: &Path, output: &Path) -> Result<ExitCode> {
     let net = from_scxml(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?;
     write_file(output, &to_pnml(&net))?;
     println!(
-        "{} places (states), {} transitions; wrote {}",
-        net.places.len(),
-        net.transitions.len(),
+        "{} (states), {}; wrote {}",
+        count(net.places.len() as u64, "place", "places"),
+        count(net.transitions.len() as u64, "transition", "transitions"),
         output.display()
     );
     Ok(ExitCode::SUCCESS)
 }
 
-/// One model's benchmark figures.
-#[derive(Serialize)]
-struct BenchRow {
-    model: String,
-    states: usize,
-    edges: usize,
-    certified_states: usize,
-    certified_edges: usize,
-    explore_seconds: f64,
-    analyze_seconds: f64,
-    states_per_second: f64,
-    store_bytes_per_state: f64,
-    graph_bytes_per_state: f64,
-    peak_bytes: usize,
-    verifypn_seconds: Option<f64>,
-    /// verifypn's time over ours for exploring: above 1 means we are faster.
-    speedup_vs_verifypn: Option<f64>,
-}
-
-fn bench_command(corpus: &Path, tier: &str, only: &[String], json: bool) -> Result<ExitCode> {
-    let manifest = corpus.join("manifest.csv");
-    let text = read_input(&manifest)?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
-    let column = |name: &str| {
-        header
-            .iter()
-            .position(|h| *h == name)
-            .ok_or_else(|| BadInput(format!("{} has no column {name}", manifest.display())))
+fn bench_command(
+    corpus: Option<&Path>,
+    tier: &str,
+    only: &[String],
+    json: bool,
+) -> Result<ExitCode> {
+    let manifest_text = match corpus {
+        Some(dir) => read_input(&dir.join("manifest.csv"))?,
+        None => CORPUS_MANIFEST.to_owned(),
     };
-    let (c_model, c_tier, c_pnml, c_states, c_edges, c_vp) = (
-        column("model")?,
-        column("tier")?,
-        column("pnml")?,
-        column("states")?,
-        column("rg_edges")?,
-        column("verifypn_wall_s")?,
-    );
-    let mut rows = Vec::new();
-    for line in lines {
-        let cells: Vec<&str> = line.split(',').collect();
-        let name = cells[c_model];
-        if cells[c_tier] != tier || (!only.is_empty() && !only.iter().any(|m| m == name)) {
-            continue;
-        }
-        let net = load(&corpus.join(cells[c_pnml]))?;
-        if !json {
-            eprint!("{name} … ");
-        }
-        reset_peak();
-        let started = Instant::now();
-        let space =
-            explore(&net, Options::default()).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-        let explore_seconds = started.elapsed().as_secs_f64();
-        let analyzed = Instant::now();
-        let _ = analyze(&net, &space);
-        let analyze_seconds = analyzed.elapsed().as_secs_f64();
-        let states = space.states();
-        let verifypn_seconds = cells[c_vp].parse::<f64>().ok().filter(|&v| v > 0.0);
-        rows.push(BenchRow {
-            model: name.to_owned(),
-            states,
-            edges: space.edges(),
-            certified_states: cells[c_states].parse().unwrap_or(0),
-            certified_edges: cells[c_edges].parse().unwrap_or(0),
-            explore_seconds,
-            analyze_seconds,
-            states_per_second: states as f64 / explore_seconds,
-            store_bytes_per_state: space.store_bytes() as f64 / states as f64,
-            graph_bytes_per_state: space.graph_bytes() as f64 / states as f64,
-            peak_bytes: peak_bytes(),
-            verifypn_seconds,
-            speedup_vs_verifypn: verifypn_seconds.map(|v| v / explore_seconds),
-        });
-        if !json {
-            eprintln!("{explore_seconds:.2} s");
-        }
-    }
-    if json {
-        println!("{}", serde_json::to_string_pretty(&rows)?);
-        return Ok(ExitCode::SUCCESS);
-    }
-    println!(
-        "{:<28} {:>10} {:>5} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9} {:>8}",
-        "model",
-        "states",
-        "ok",
-        "explore s",
-        "states/s",
-        "store B/s",
-        "graph B/s",
-        "analyze s",
-        "verifypn",
-        "speedup"
-    );
-    for r in &rows {
-        println!(
-            "{:<28} {:>10} {:>5} {:>9.2} {:>11.0} {:>9.1} {:>9.1} {:>9.2} {:>9} {:>8}",
-            r.model,
-            r.states,
-            if r.states == r.certified_states {
-                "yes"
+    let manifest = Manifest::parse(&manifest_text).map_err(|e| BadInput(e.to_string()))?;
+    let models: Vec<_> = manifest
+        .tier(tier)
+        .filter(|m| only.is_empty() || only.iter().any(|name| name == m.name()))
+        .collect();
+    if models.is_empty() {
+        return Err(BadInput(format!(
+            "no {tier} model{} in the manifest",
+            if only.is_empty() {
+                String::new()
             } else {
-                "NO"
-            },
-            r.explore_seconds,
-            r.states_per_second,
-            r.store_bytes_per_state,
-            r.graph_bytes_per_state,
-            r.analyze_seconds,
-            r.verifypn_seconds
-                .map_or("–".to_owned(), |v| format!("{v:.2} s")),
-            r.speedup_vs_verifypn
-                .map_or("–".to_owned(), |v| format!("{v:.2}×")),
-        );
+                format!(" named {}", only.join(", "))
+            }
+        ))
+        .into());
     }
-    println!("ok: states and edges equal the certified counts. Single thread; verifypn 3.1.1's");
-    println!(
-        "explicit engine times were measured on this kind of machine and come from the manifest."
-    );
+    let mut rows: Vec<BenchRow> = Vec::new();
+    for model in models {
+        let net = match corpus {
+            Some(dir) => load(&dir.join(model.pnml()))?,
+            None => {
+                let text = corpus_model(model.pnml()).ok_or_else(|| {
+                    BadInput(format!(
+                        "{} is not built in (only the large tier is): \
+                         give --corpus tests/petri-corpus",
+                        model.name()
+                    ))
+                })?;
+                from_pnml(text).map_err(|e| anyhow::anyhow!("{}: {e}", model.name()))?
+            }
+        };
+        if !json {
+            eprint!("{} … ", model.name());
+        }
+        let row = bench_model(model, &net, &Counting)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", model.name()))?;
+        if !json {
+            eprintln!("{:.2} s", row.explore_seconds);
+        }
+        rows.push(row);
+    }
+    emit(&rows, json)?;
     Ok(ExitCode::SUCCESS)
 }
 
-/// The transitions that are not live, with their liveness level.
-fn not_live(net: &Net, levels: &[vl_petri::Liveness]) -> String {
-    let weak: Vec<String> = levels
-        .iter()
-        .zip(&net.transitions)
-        .filter(|(l, _)| **l != vl_petri::Liveness::L4)
-        .map(|(l, t)| format!("{} {l:?}", t.id))
-        .collect();
-    match weak.len() {
-        0 => "–".to_owned(),
-        n if n > 12 => format!("{} … and {} more", weak[..12].join(", "), n - 12),
-        _ => weak.join(", "),
+impl Report for Vec<BenchRow> {
+    fn table(&self) -> Table {
+        let mut table = Table::columns(&[
+            "model",
+            "states",
+            "ok",
+            "explore s",
+            "states/s",
+            "store B/state",
+            "graph B/state",
+            "analyze s",
+            "verifypn",
+            "speedup",
+        ]);
+        for r in self {
+            table.row(vec![
+                r.model.clone(),
+                r.states.to_string(),
+                if r.certified() { "yes" } else { "NO" }.to_owned(),
+                format!("{:.2}", r.explore_seconds),
+                format!("{:.0}", r.states_per_second),
+                format!("{:.1}", r.store_bytes_per_state),
+                format!("{:.1}", r.graph_bytes_per_state),
+                format!("{:.2}", r.analyze_seconds),
+                r.verifypn_seconds
+                    .map_or("–".to_owned(), |v| format!("{v:.2} s")),
+                r.speedup_vs_verifypn
+                    .map_or("–".to_owned(), |v| format!("{v:.2}×")),
+            ]);
+        }
+        table
+            .note("ok: states and edges equal the certified counts. Single thread; verifypn 3.1.1's")
+            .note("explicit engine times were measured on this kind of machine and come from the manifest.")
     }
 }

@@ -1,29 +1,22 @@
 //! `vl sim …`: the simulator's tools.
 
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Subcommand;
-use serde::Serialize;
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use vl_core::{Arena, Point, RobotKind, RobotModel};
+use vl_sim::{Driver, LinkReport, Optics, Profile, RunReport, Script, SimBench, World, camera_for};
 
-use vl_core::arena::Arena;
-use vl_core::follow::{Follower, Following, PLAN_MARGIN_MM};
-use vl_core::plan::plan_in_arena;
-use vl_core::robot::{Point, RobotModel};
-use vl_sim::link::{Link, LinkModel, LinkStats, measure};
-use vl_sim::script::{Driver, Script, run as run_script};
-use vl_sim::{Optics, World, camera_for};
-
-use crate::{BadInput, read_input};
+use crate::report::{Report, Table, emit};
+use crate::shipped::read_input;
+use crate::{BadInput, named};
 
 /// Which robot to simulate, and its size if not the stock one.
 #[derive(clap::Args)]
-pub struct RobotArgs {
-    /// khepera-ii or khepera-i.
-    #[arg(long, default_value = "khepera-ii")]
-    robot: String,
+pub(crate) struct RobotArgs {
+    #[arg(long, value_parser = named::<RobotKind>(), default_value = "khepera-ii")]
+    robot: RobotKind,
     /// Build the robot with this body radius, mm (sensors move out with it).
     #[arg(long, requires = "wheel_base_mm")]
     radius_mm: Option<f64>,
@@ -33,13 +26,8 @@ pub struct RobotArgs {
 }
 
 impl RobotArgs {
-    pub fn model(&self) -> Result<RobotModel> {
-        let model = RobotModel::named(&self.robot).ok_or_else(|| {
-            BadInput(format!(
-                "unknown robot '{}' (known: khepera-ii, khepera-i)",
-                self.robot
-            ))
-        })?;
+    pub(crate) fn model(&self) -> Result<RobotModel> {
+        let model = self.robot.model();
         Ok(match (self.radius_mm, self.wheel_base_mm) {
             (Some(radius), Some(base)) => model.resized(radius, base).map_err(BadInput)?,
             _ => model,
@@ -49,10 +37,10 @@ impl RobotArgs {
 
 /// How the simulated camera departs from an ideal one.
 #[derive(clap::Args)]
-pub struct OpticsArgs {
+pub(crate) struct OpticsArgs {
     /// Image shift in px, as DX,DY (lens off the sensor's axis).
-    #[arg(long, value_parser = parse_pair, default_value = "0,0")]
-    lens_offset: [f64; 2],
+    #[arg(long, default_value = "0,0", allow_hyphen_values = true)]
+    lens_offset: Point,
     /// Gaussian blur, standard deviation in px.
     #[arg(long, default_value_t = 0.0)]
     blur: f64,
@@ -64,19 +52,8 @@ pub struct OpticsArgs {
     lighting: f64,
 }
 
-fn parse_pair(text: &str) -> Result<[f64; 2], String> {
-    let parts: Vec<&str> = text.split(',').collect();
-    match parts.as_slice() {
-        [a, b] => Ok([
-            a.trim().parse().map_err(|e| format!("'{a}': {e}"))?,
-            b.trim().parse().map_err(|e| format!("'{b}': {e}"))?,
-        ]),
-        _ => Err(format!("expected two numbers as DX,DY, not '{text}'")),
-    }
-}
-
 #[derive(Subcommand)]
-pub enum SimCommand {
+pub(crate) enum SimCommand {
     /// Run the simulated robot in virtual time and print where it ended and
     /// a hash of the whole trace (same seed and script, same hash).
     Run {
@@ -85,16 +62,18 @@ pub enum SimCommand {
         arena: String,
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        #[arg(long, default_value_t = 10.0)]
-        duration: f64,
+        /// Simulated seconds to run at most (default: twice what the path
+        /// takes at cruising speed plus 5 s; a script's last line plus 10 s).
+        #[arg(long)]
+        duration: Option<f64>,
         /// Lines of 't_s left_mm_s right_mm_s'. Without one the robot plans
         /// a path to the goal and follows it, and the run ends when it
         /// arrives; with no goal either, it stays put.
         #[arg(long)]
         script: Option<PathBuf>,
         /// Where to go, x,y mm (default: the goal the arena suggests).
-        #[arg(long, value_parser = parse_pair, conflicts_with = "script")]
-        goal: Option<[f64; 2]>,
+        #[arg(long, conflicts_with = "script", allow_hyphen_values = true)]
+        goal: Option<Point>,
         #[command(flatten)]
         robot: RobotArgs,
         #[arg(long)]
@@ -127,9 +106,8 @@ pub enum SimCommand {
     },
     /// Send packets through a modelled link and measure what they went through.
     Link {
-        /// lan, internet2, internet-2005, intercontinental, congested or geo-satellite.
-        #[arg(long)]
-        profile: String,
+        #[arg(long, value_parser = named::<Profile>())]
+        profile: Profile,
         #[arg(long, default_value_t = 100_000)]
         packets: usize,
         #[arg(long, default_value_t = 1)]
@@ -142,7 +120,7 @@ pub enum SimCommand {
     },
 }
 
-pub fn run(command: SimCommand) -> Result<ExitCode> {
+pub(crate) fn run(command: SimCommand) -> Result<ExitCode> {
     match command {
         SimCommand::Run {
             arena,
@@ -152,14 +130,11 @@ pub fn run(command: SimCommand) -> Result<ExitCode> {
             goal,
             robot,
             json,
-        } => sim_run(
-            World::new(arena_named(&arena)?, robot.model()?, seed)
-                .map_err(|e| BadInput(e.to_string()))?,
-            duration,
-            script.as_deref(),
-            goal,
-            json,
-        ),
+        } => {
+            let world = World::new(load_arena(&arena)?, robot.model()?, seed)
+                .map_err(|e| BadInput(e.to_string()))?;
+            sim_run(world, duration, script.as_deref(), goal, json)
+        }
         SimCommand::Render {
             arena,
             width,
@@ -169,134 +144,61 @@ pub fn run(command: SimCommand) -> Result<ExitCode> {
             output,
         } => {
             let optics = Optics {
-                lens_offset_px: optics.lens_offset,
+                lens_offset_px: [optics.lens_offset.x_mm, optics.lens_offset.y_mm],
                 blur_px: optics.blur,
                 noise: optics.noise,
                 lighting_gradient: optics.lighting,
                 seed,
             };
             optics.check().map_err(BadInput)?;
-            let world = World::new(arena_named(&arena)?, robot.model()?, seed)
+            let world = World::new(load_arena(&arena)?, robot.model()?, seed)
                 .map_err(|e| BadInput(e.to_string()))?;
             render(&world, width, &optics, &output)
         }
-        SimCommand::Bench { seconds, json } => bench(seconds, json),
+        SimCommand::Bench { seconds, json } => {
+            if !(seconds.is_finite() && seconds > 0.0) {
+                return Err(BadInput(format!(
+                    "--seconds must be a positive number, not {seconds}"
+                ))
+                .into());
+            }
+            emit(&vl_sim::bench(seconds)?, json)?;
+            Ok(ExitCode::SUCCESS)
+        }
         SimCommand::Link {
             profile,
             packets,
             seed,
             interval_ms,
             json,
-        } => link(&profile, packets, seed, interval_ms, json),
+        } => {
+            if !(interval_ms.is_finite() && interval_ms > 0.0) {
+                return Err(BadInput(format!(
+                    "--interval-ms must be a positive number, not {interval_ms}"
+                ))
+                .into());
+            }
+            emit(
+                &LinkReport::measure(profile, packets, interval_ms, seed),
+                json,
+            )?;
+            Ok(ExitCode::SUCCESS)
+        }
     }
 }
 
-/// Measured figures beside the ones the profile asks for.
-#[derive(Serialize)]
-struct LinkReport {
-    profile: String,
-    model: LinkModel,
-    measured: LinkStats,
-    expected: Expected,
-}
-
-#[derive(Serialize)]
-struct Expected {
-    delay_mean_ms: f64,
-    jitter_ms: f64,
-    loss_rate: f64,
-    mean_loss_burst: f64,
-}
-
-fn link(
-    profile: &str,
-    packets: usize,
-    seed: u64,
-    interval_ms: f64,
-    json: bool,
-) -> Result<ExitCode> {
-    let model = LinkModel::profile(profile).map_err(|e| BadInput(e.to_string()))?;
-    let expected = Expected {
-        delay_mean_ms: model.expected_delay(),
-        jitter_ms: model.expected_jitter(),
-        loss_rate: model.expected_loss(),
-        mean_loss_burst: model.expected_burst(),
-    };
-    let mut link = Link::new(model.clone(), seed);
-    let measured = measure(&mut link, packets, interval_ms, 100);
-    if json {
-        let report = LinkReport {
-            profile: profile.to_owned(),
-            model,
-            measured,
-            expected,
-        };
-        println!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(ExitCode::SUCCESS);
-    }
-    let m = &measured;
-    println!("{profile}: {packets} packets, one every {interval_ms} ms, seed {seed}");
-    println!("{:<18} {:>12} {:>12}", "", "measured", "profile");
-    let rows = [
-        ("delay mean, ms", m.delay_mean_ms, expected.delay_mean_ms),
-        ("jitter (sd), ms", m.jitter_ms, expected.jitter_ms),
-        (
-            "loss rate, %",
-            m.loss_rate * 100.0,
-            expected.loss_rate * 100.0,
-        ),
-        ("loss burst", m.mean_loss_burst, expected.mean_loss_burst),
-    ];
-    for (name, got, want) in rows {
-        println!("{name:<18} {got:>12.4} {want:>12.4}");
-    }
-    println!("{:<18} {:>12.3}", "delay p50, ms", m.delay_p50_ms);
-    println!("{:<18} {:>12.3}", "delay p99, ms", m.delay_p99_ms);
-    println!("{:<18} {:>12}", "duplicates", m.duplicates);
-    println!("{:<18} {:>12}", "reorders", m.reorders);
-    Ok(ExitCode::SUCCESS)
-}
-
-/// A shipped arena by name, or an arena file (JSON) by path.
-pub fn arena_named(name_or_path: &str) -> Result<Arena> {
-    if let Some(arena) = Arena::named(name_or_path) {
-        return Ok(arena);
-    }
-    let path = Path::new(name_or_path);
-    if path.extension().is_some_and(|e| e == "json") || path.exists() {
-        let text = read_input(path)?;
-        // A map image is named relative to the arena file.
-        let dir = path.parent().unwrap_or(Path::new("."));
-        let load = |image: &str| {
-            let file = dir.join(image);
-            image::open(&file)
-                .map(|i| i.to_luma8())
-                .map_err(|e| format!("cannot read the map image {}: {e}", file.display()))
-        };
-        return Ok(Arena::from_json_with(&text, load)
-            .map_err(|e| BadInput(format!("{}: {e}", path.display())))?);
-    }
-    let known: Vec<&str> = Arena::shipped().collect();
-    Err(BadInput(format!(
-        "unknown arena '{name_or_path}' (shipped: {}; or a .json file)",
-        known.join(", ")
-    ))
-    .into())
+/// A shipped arena or an arena file; any problem with it is the user's input.
+pub(crate) fn load_arena(name_or_path: &str) -> Result<Arena> {
+    Ok(Arena::load(name_or_path).map_err(|e| BadInput(e.to_string()))?)
 }
 
 fn sim_run(
     mut world: World,
-    duration: f64,
+    duration: Option<f64>,
     script: Option<&Path>,
-    goal: Option<[f64; 2]>,
+    goal: Option<Point>,
     json: bool,
 ) -> Result<ExitCode> {
-    if !(duration.is_finite() && duration >= 0.0) {
-        return Err(BadInput(format!(
-            "--duration must be a non-negative number of seconds, not {duration}"
-        ))
-        .into());
-    }
     let mut driver = match script {
         Some(path) => {
             let text = read_input(path)?;
@@ -304,62 +206,110 @@ fn sim_run(
                 Script::parse(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?,
             )
         }
-        None => follow_to(&world, goal)?,
+        None => Driver::to_goal(&world, goal)
+            .map_err(|e| BadInput(format!("no path to follow: {e}")))?,
     };
-    let report = run_script(&mut world, &mut driver, duration);
-    if json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        let p = report.final_pose;
-        println!("{:<12} {:.2} s", "simulated", report.sim_seconds);
-        println!(
-            "{:<12} ({:.1}, {:.1}) mm, {:.1}°",
-            "final pose",
-            p.x_mm,
-            p.y_mm,
-            p.theta_rad.to_degrees()
-        );
-        println!("{:<12} {:.0} mm", "distance", report.distance_mm);
-        if let Some(t) = report.following {
-            println!(
-                "{:<12} {} (path kept to within {:.1} mm on average, {:.1} mm at worst)",
-                "goal",
-                if t.reached_goal {
-                    "reached"
-                } else {
-                    "not reached"
-                },
-                t.mean_error_mm,
-                t.max_error_mm
-            );
-        }
-        println!("{:<12} {}", "collisions", report.collisions);
-        println!("{:<12} {}", "trace hash", report.trace_hash);
+    let duration = duration.unwrap_or_else(|| driver.duration_s());
+    if !(duration.is_finite() && duration >= 0.0) {
+        return Err(BadInput(format!(
+            "--duration must be a non-negative number of seconds, not {duration}"
+        ))
+        .into());
     }
+    emit(&vl_sim::run(&mut world, &mut driver, duration), json)?;
     Ok(ExitCode::SUCCESS)
 }
 
-/// A follower for a path planned from the robot to `goal` (or the
-/// arena's); idle when there is neither.
-fn follow_to(world: &World, goal: Option<[f64; 2]>) -> Result<Driver> {
-    let arena = world.arena();
-    let goal = match (goal, arena.goal) {
-        (Some([x_mm, y_mm]), _) => Point { x_mm, y_mm },
-        (None, Some(goal)) => goal,
-        (None, None) => return Ok(Driver::Idle),
-    };
-    let plan = plan_in_arena(
-        arena,
-        &[],
-        world.robot().radius_mm,
-        PLAN_MARGIN_MM,
-        world.pose(),
-        goal,
-    )
-    .map_err(|e| BadInput(format!("no path to follow: {e}")))?;
-    let path = plan.points();
-    let follower = Follower::new(path, Following::default()).expect("a plan has samples");
-    Ok(Driver::Path(follower))
+impl Report for RunReport {
+    fn table(&self) -> Table {
+        let p = self.final_pose;
+        let mut rows = vec![
+            ("simulated", format!("{:.2} s", self.sim_seconds)),
+            (
+                "final pose",
+                format!(
+                    "({:.1}, {:.1}) mm, {:.1}°",
+                    p.x_mm,
+                    p.y_mm,
+                    p.theta_rad.to_degrees()
+                ),
+            ),
+            ("distance", format!("{:.0} mm", self.distance_mm)),
+        ];
+        if let Some(t) = self.following {
+            rows.push((
+                "goal",
+                format!(
+                    "{} (path kept to within {:.1} mm on average, {:.1} mm at worst)",
+                    if t.reached_goal {
+                        "reached"
+                    } else {
+                        "not reached"
+                    },
+                    t.mean_error_mm,
+                    t.max_error_mm
+                ),
+            ));
+        }
+        rows.push(("collisions", self.collisions.to_string()));
+        rows.push(("trace hash", self.trace_hash.clone()));
+        Table::pairs(rows)
+    }
+}
+
+impl Report for LinkReport {
+    fn table(&self) -> Table {
+        let (m, e) = (&self.measured, &self.expected);
+        let mut table = Table::columns(&["", "measured", "profile"]).title(format!(
+            "{}: {} packets, one every {} ms, seed {}",
+            self.profile, self.packets, self.interval_ms, self.seed
+        ));
+        let rows = [
+            ("delay mean, ms", m.delay_mean_ms, Some(e.delay_mean_ms)),
+            ("jitter (sd), ms", m.jitter_ms, Some(e.jitter_ms)),
+            (
+                "loss rate, %",
+                m.loss_rate * 100.0,
+                Some(e.loss_rate * 100.0),
+            ),
+            ("loss burst", m.mean_loss_burst, Some(e.mean_loss_burst)),
+            ("delay p50, ms", m.delay_p50_ms, None),
+            ("delay p99, ms", m.delay_p99_ms, None),
+        ];
+        for (name, got, want) in rows {
+            table.row(vec![
+                name.to_owned(),
+                format!("{got:.4}"),
+                want.map_or(String::new(), |w| format!("{w:.4}")),
+            ]);
+        }
+        table.row(vec![
+            "duplicates".into(),
+            m.duplicates.to_string(),
+            String::new(),
+        ]);
+        table.row(vec![
+            "reorders".into(),
+            m.reorders.to_string(),
+            String::new(),
+        ]);
+        table
+    }
+}
+
+impl Report for SimBench {
+    fn table(&self) -> Table {
+        Table::pairs([
+            (
+                "real-time factor, no camera",
+                format!("{:.0}×", self.rtf_no_camera),
+            ),
+            (
+                "with 320×240 camera at 30 Hz",
+                format!("{:.0}×", self.rtf_camera),
+            ),
+        ])
+    }
 }
 
 fn render(world: &World, width: u32, optics: &Optics, output: &Path) -> Result<ExitCode> {
@@ -375,59 +325,5 @@ fn render(world: &World, width: u32, optics: &Optics, output: &Path) -> Result<E
         camera.mm_per_px,
         output.display()
     );
-    Ok(ExitCode::SUCCESS)
-}
-
-#[derive(Serialize)]
-struct BenchReport {
-    sim_seconds: f64,
-    /// Simulated seconds per wall-clock second, robot and sensors only.
-    rtf_no_camera: f64,
-    /// The same with a 320×240 camera frame rendered at 30 Hz.
-    rtf_camera: f64,
-}
-
-fn bench(seconds: f64, json: bool) -> Result<ExitCode> {
-    let timed = |camera_hz: Option<f64>| -> Result<f64> {
-        let mut world = World::new(Arena::navigation(), RobotModel::khepera_ii(), 1)?;
-        let camera = camera_for(&world, 320, 30.0);
-        let frame_every = camera_hz.map(|hz| ((1.0 / hz) / vl_sim::STEP_S).round().max(1.0) as u64);
-        let steps = (seconds / vl_sim::STEP_S) as u64;
-        let started = Instant::now();
-        let mut frames = 0usize;
-        for step in 0..steps {
-            if step % 2 == 0 {
-                std::hint::black_box(world.proximity());
-            }
-            // A slow circle keeps the robot moving through the arena.
-            world.set_wheels(vl_core::robot::WheelSpeeds {
-                left_mm_s: 120.0,
-                right_mm_s: 150.0,
-            });
-            world.step();
-            if frame_every.is_some_and(|every| step % every == 0) {
-                frames += std::hint::black_box(world.render(&camera, &Optics::default())).len();
-            }
-        }
-        std::hint::black_box(frames);
-        Ok(seconds / started.elapsed().as_secs_f64())
-    };
-    let report = BenchReport {
-        sim_seconds: seconds,
-        rtf_no_camera: timed(None)?,
-        rtf_camera: timed(Some(30.0))?,
-    };
-    if json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        println!(
-            "{:<28} {:>12.0}×",
-            "real-time factor, no camera", report.rtf_no_camera
-        );
-        println!(
-            "{:<28} {:>12.0}×",
-            "with 320×240 camera at 30 Hz", report.rtf_camera
-        );
-    }
     Ok(ExitCode::SUCCESS)
 }

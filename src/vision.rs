@@ -3,25 +3,24 @@
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Instant;
 
 use anyhow::Result;
 use clap::Subcommand;
 use image::RgbImage;
-use serde::Serialize;
-use vl_core::vision::{Scene, inspect};
+use vl_core::{Scene, Threshold, VisionBench, inspect};
 
 use crate::BadInput;
+use crate::report::{Report, Table, emit};
 
 #[derive(Subcommand)]
-pub enum VisionCommand {
+pub(crate) enum VisionCommand {
     /// Threshold a frame, list its connected components (8-connected) with
     /// their moments, and find the robot by its markers.
     Inspect {
         image: PathBuf,
         /// otsu, or a grey level 0–255: foreground is brighter than it.
         #[arg(long, default_value = "otsu")]
-        threshold: String,
+        threshold: Threshold,
         /// Foreground is darker instead (dark objects on a light floor).
         #[arg(long)]
         invert: bool,
@@ -38,65 +37,19 @@ pub enum VisionCommand {
     },
 }
 
-pub fn run(command: VisionCommand) -> Result<ExitCode> {
+pub(crate) fn run(command: VisionCommand) -> Result<ExitCode> {
     match command {
         VisionCommand::Inspect {
             image,
             threshold,
             invert,
             json,
-        } => {
-            let frame = load(&image)?;
-            let threshold = match threshold.as_str() {
-                "otsu" => None,
-                level => Some(level.parse::<u8>().map_err(|_| {
-                    BadInput(format!(
-                        "--threshold must be 'otsu' or a grey level 0–255, not '{level}'"
-                    ))
-                })?),
-            };
-            let scene = inspect(&frame, threshold, invert);
-            if json {
-                println!("{}", serde_json::to_string_pretty(&scene)?);
-            } else {
-                print_scene(&scene);
-            }
-            Ok(ExitCode::SUCCESS)
-        }
+        } => emit(&inspect(&load(&image)?, threshold, invert), json)?,
         VisionCommand::Bench { image, runs, json } => {
-            let frame = load(&image)?;
-            let runs = runs.max(1);
-            // One untimed run warms caches and the allocator.
-            std::hint::black_box(inspect(&frame, None, true));
-            let started = Instant::now();
-            for _ in 0..runs {
-                std::hint::black_box(inspect(std::hint::black_box(&frame), None, true));
-            }
-            let report = BenchReport {
-                width: frame.width(),
-                height: frame.height(),
-                runs,
-                ms_per_frame: started.elapsed().as_secs_f64() * 1e3 / f64::from(runs),
-            };
-            if json {
-                println!("{}", serde_json::to_string_pretty(&report)?);
-            } else {
-                println!(
-                    "{}×{} px, {} runs: {:.3} ms per frame (grey, Otsu, 8-connected components, moments, Hu, robot)",
-                    report.width, report.height, report.runs, report.ms_per_frame
-                );
-            }
-            Ok(ExitCode::SUCCESS)
+            emit(&vl_core::bench_vision(&load(&image)?, runs), json)?
         }
     }
-}
-
-#[derive(Serialize)]
-struct BenchReport {
-    width: u32,
-    height: u32,
-    runs: u32,
-    ms_per_frame: f64,
+    Ok(ExitCode::SUCCESS)
 }
 
 fn load(path: &Path) -> Result<RgbImage> {
@@ -105,30 +58,45 @@ fn load(path: &Path) -> Result<RgbImage> {
         .to_rgb8())
 }
 
-fn print_scene(scene: &Scene) {
-    println!("threshold {}", scene.threshold);
-    println!(
-        "{:>5} {:>8} {:>16} {:>20} {:>9} {:>12}",
-        "label", "area", "centroid", "bbox", "angle °", "hu1"
-    );
-    for c in &scene.components {
-        println!(
-            "{:>5} {:>8} {:>16} {:>20} {:>9.1} {:>12.6}",
-            c.label,
-            c.area,
-            format!("({:.1}, {:.1})", c.centroid.x, c.centroid.y),
-            format!("{:?}", c.bbox),
-            c.orientation_rad.to_degrees(),
-            c.hu[0]
-        );
+impl Report for Scene {
+    fn table(&self) -> Table {
+        let mut table = Table::columns(&["label", "area", "centroid", "bbox", "angle °", "hu1"])
+            .title(format!("threshold {}", self.threshold));
+        for c in &self.components {
+            let [x, y, w, h] = c.bbox;
+            table.row(vec![
+                c.label.to_string(),
+                c.area.to_string(),
+                format!("({:.1}, {:.1})", c.centroid.x, c.centroid.y),
+                format!("{x},{y} {w}×{h}"),
+                format!("{:.1}", c.orientation_rad.to_degrees()),
+                format!("{:.6}", c.hu[0]),
+            ]);
+        }
+        table.note(match self.robot {
+            Some(r) => format!(
+                "robot at ({:.1}, {:.1}) px, heading {:.1}°",
+                r.x,
+                r.y,
+                r.theta.to_degrees()
+            ),
+            None => "no robot found".to_owned(),
+        })
     }
-    match scene.robot {
-        Some(r) => println!(
-            "robot at ({:.1}, {:.1}) px, heading {:.1}°",
-            r.x,
-            r.y,
-            r.theta.to_degrees()
-        ),
-        None => println!("no robot found"),
+}
+
+impl Report for VisionBench {
+    fn table(&self) -> Table {
+        Table::pairs([
+            ("frame", format!("{}×{} px", self.width, self.height)),
+            ("runs", self.runs.to_string()),
+            (
+                "per frame",
+                format!(
+                    "{:.3} ms (grey, Otsu, 8-connected components, moments, Hu, robot)",
+                    self.ms_per_frame
+                ),
+            ),
+        ])
     }
 }

@@ -1,26 +1,12 @@
 //! The `vl` binary as a newcomer meets it: its help, the headless demo and
 //! its JSON report, and clear failures.
 
-use std::process::{Command, Output};
+mod common;
 
+use std::process::Command;
+
+use common::{refused, stderr, stdout, vl};
 use serde_json::Value;
-
-fn vl(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vl"))
-        .args(args)
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .expect("vl runs")
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 #[test]
 fn help_lists_the_subcommands_and_each_has_its_own() {
@@ -76,24 +62,39 @@ fn without_a_display_the_demo_says_so_and_runs_headless() {
 }
 
 #[test]
-fn an_unreachable_host_is_a_clear_error() {
+fn an_unreachable_host_is_a_clear_error_said_once() {
     let out = vl(&["guest", "--connect", "ws://127.0.0.1:9", "--headless"]);
-    assert!(!out.status.success());
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let said = stderr(&out);
     assert!(
-        stderr(&out).contains("cannot connect to ws://127.0.0.1:9"),
-        "{}",
-        stderr(&out)
+        said.contains("vl: cannot connect to ws://127.0.0.1:9: connection refused: is a vl Host listening there?"),
+        "{said}"
+    );
+    assert_eq!(said.matches("refused").count(), 1, "{said}");
+}
+
+#[test]
+fn addresses_that_cannot_be_a_host_get_a_hint() {
+    refused(
+        &["guest", "--connect", "127.0.0.1:7400", "--headless"],
+        "it has no scheme: try ws://127.0.0.1:7400",
+    );
+    refused(
+        &["guest", "--connect", "wss://lab.example:7400"],
+        "wss:// (WebSocket over TLS) is not supported yet: connect with ws://lab.example:7400",
     );
 }
 
 #[test]
-fn an_unknown_experiment_is_refused_by_name() {
-    let out = vl(&["demo", "--headless", "--experiment", "juggling"]);
-    assert!(!out.status.success());
+fn an_unknown_experiment_is_refused_with_the_known_ones() {
+    refused(
+        &["demo", "--headless", "--experiment", "juggling"],
+        "invalid value 'juggling' for '--experiment <EXPERIMENT>'\n  [possible values: navigation, teleoperation]",
+    );
+    let help = stdout(&vl(&["host", "--help"]));
     assert!(
-        stderr(&out).contains("no experiment \"juggling\""),
-        "{}",
-        stderr(&out)
+        help.contains("[possible values: navigation, teleoperation]"),
+        "vl host --help names the experiments: {help}"
     );
 }
 

@@ -2,12 +2,8 @@
 //! on the arena's map brings the simulated Khepera to the goal without a
 //! collision, and the robot keeps close to the path all the way.
 
-use vl_core::arena::Arena;
-use vl_core::follow::{Follower, Following, PLAN_MARGIN_MM};
-use vl_core::plan::plan_in_arena;
-use vl_core::robot::{Point, RobotModel};
-use vl_sim::World;
-use vl_sim::script::{Driver, run};
+use vl_core::{Arena, Goal, Point, RobotModel, plan_route};
+use vl_sim::{Driver, World, run};
 
 #[test]
 fn planned_paths_are_followed_to_the_goal_in_every_shipped_arena() {
@@ -25,18 +21,13 @@ fn planned_paths_are_followed_to_the_goal_in_every_shipped_arena() {
         for seed in 0..3 {
             let robot = RobotModel::khepera_ii();
             let mut world = World::new(arena.clone(), robot.clone(), seed).unwrap();
-            let plan = plan_in_arena(
-                &arena,
-                &[],
-                robot.radius_mm,
-                PLAN_MARGIN_MM,
-                world.pose(),
-                goal,
-            )
-            .unwrap_or_else(|e| panic!("{name}: {e}"));
-            let path = plan.points();
-            let follower = Follower::new(path, Following::default()).unwrap();
-            let report = run(&mut world, &mut Driver::Path(follower), 120.0);
+            let plan = plan_route(&arena, &[], &robot, world.pose(), goal)
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
+            // The path a Guest would define, followed for as long as
+            // `vl sim run` gives it by default.
+            let mut driver = Driver::to_goal(&world, Some(goal)).unwrap();
+            let duration = driver.duration_s();
+            let report = run(&mut world, &mut driver, duration);
             let tracking = report.following.unwrap();
             println!(
                 "{name:<11} {seed:>4} {:>9.0} {:>8.2} {:>11.1} {:>10.1}",
@@ -44,7 +35,7 @@ fn planned_paths_are_followed_to_the_goal_in_every_shipped_arena() {
             );
             assert!(tracking.reached_goal, "{name}, seed {seed}: {report:?}");
             assert!(
-                report.final_pose.point().distance(goal) <= Following::default().tolerance_mm,
+                report.final_pose.point().distance(goal) <= Goal::DEFAULT_TOLERANCE_MM / 2.0,
                 "{name}, seed {seed}: {report:?}"
             );
             assert_eq!(report.collisions, 0, "{name}, seed {seed}: {report:?}");

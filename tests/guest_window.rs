@@ -8,10 +8,10 @@ use std::time::{Duration, Instant};
 use egui::Vec2;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
-use vl_core::arena::Arena;
-use vl_core::protocol::Role;
-use vl_guest::app::GuestApp;
-use vl_guest::client::connect;
+mod common;
+
+use vl_core::{Arena, Role};
+use vl_guest::{GuestApp, Link};
 use vl_host::{Host, HostConfig};
 
 /// The simulated camera paints the robot's body this colour.
@@ -25,6 +25,15 @@ fn step_until(harness: &mut Harness<'_, GuestApp>, what: &str, done: impl Fn(&Gu
         std::thread::sleep(Duration::from_millis(20));
     }
     harness.step();
+}
+
+/// A Guest window on `url`, as operator, rendered by wgpu.
+fn window(url: &str) -> Harness<'static, GuestApp> {
+    let app = GuestApp::new(url, Role::Operator, None).expect("a Host's address");
+    Harness::builder()
+        .with_size(Vec2::new(1100.0, 720.0))
+        .wgpu()
+        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app)
 }
 
 /// Runs `test` on a Guest window connected as operator to a simulated
@@ -41,13 +50,8 @@ fn with_mounting_window(camera: bool, test: impl FnOnce(&mut Harness<'_, GuestAp
             HostConfig::default(),
         ))
         .unwrap();
-    let connection = runtime.block_on(connect(&host.url())).unwrap();
     let _entered = runtime.enter();
-    let app = GuestApp::new(connection, Role::Operator, None);
-    let mut harness = Harness::builder()
-        .with_size(Vec2::new(1100.0, 720.0))
-        .wgpu()
-        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
+    let mut harness = window(&host.url());
     step_until(&mut harness, "be welcomed", |app| {
         app.session().role.is_some()
     });
@@ -151,4 +155,43 @@ fn arena_from_model(harness: &mut Harness<'_, GuestApp>) {
         obstacles * 100 > floor * 4 && obstacles * 100 < floor * 15,
         "{obstacles} obstacle pixels on {floor} of floor"
     );
+}
+
+/// A Host that cannot be reached leaves the window open, saying why, with
+/// a Reconnect button that works once the Host is up; the error then goes.
+#[test]
+fn an_unreachable_host_is_shown_and_reconnect_brings_it_back() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let port = common::free_port();
+    let url = format!("ws://127.0.0.1:{port}");
+    let _entered = runtime.enter();
+    let mut harness = window(&url);
+    step_until(&mut harness, "give up connecting", |app| {
+        matches!(app.session().link, Link::Closed(_))
+    });
+    harness.get_by_label_contains(&format!(
+        "not connected: cannot connect to {url}: connection refused"
+    ));
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-unreachable.png"
+    ));
+
+    let _host = runtime
+        .block_on(Host::start_sim(
+            ([127, 0, 0, 1], port).into(),
+            Arena::navigation(),
+            1,
+            false,
+            HostConfig::default(),
+        ))
+        .unwrap();
+    harness.get_by_label("Reconnect").click();
+    step_until(&mut harness, "be welcomed after reconnecting", |app| {
+        app.session().role.is_some()
+    });
+    assert!(harness.query_by_label_contains("not connected").is_none());
+    assert!(harness.query_by_label("Reconnect").is_none());
+    harness.get_by_label("Navigate to a goal among obstacles");
 }

@@ -2,54 +2,17 @@
 //! protocol document describes: an operator drives, an observer watches,
 //! and malformed input is answered without disturbing anyone.
 
-use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
+mod common;
+
 use std::time::Duration;
+
+use common::{start_emulator, start_host, start_vl};
 
 use futures_util::{SinkExt, StreamExt};
 use serde_json::{Value, json};
 use tokio::net::TcpStream;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream, connect_async};
-
-/// Kills the process when the test ends, pass or fail.
-struct HostProcess(Child);
-
-impl Drop for HostProcess {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-/// Starts `vl ARGS…` and returns it with the end of its first line (after `prefix`).
-fn start_vl(args: &[&str], prefix: &str) -> (HostProcess, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_vl"))
-        .args(args)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("vl starts");
-    let stdout = child.stdout.take().expect("piped stdout");
-    let mut line = String::new();
-    BufReader::new(stdout)
-        .read_line(&mut line)
-        .expect("vl prints its first line");
-    let rest = line
-        .trim()
-        .strip_prefix(prefix)
-        .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
-        .to_owned();
-    (HostProcess(child), rest)
-}
-
-/// Starts `vl host` on an ephemeral port and returns it with its URL.
-fn start_host() -> (HostProcess, String) {
-    let args = ["host", "--robot", "sim", "--camera", "sim"];
-    start_vl(
-        &[&args[..], &["--listen", "127.0.0.1:0"]].concat(),
-        "vl host listening on ",
-    )
-}
 
 type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
 
@@ -140,7 +103,7 @@ async fn drive(op: &mut Peer, first_event: u64, n: u64, left: f64, right: f64) -
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn operator_drives_observer_watches_garbage_is_refused() {
-    let (_host, url) = start_host();
+    let (_host, url) = start_host(&["--camera", "sim"]);
 
     let mut op = Peer::connect(&url).await;
     let welcome = op.hello("operator").await;
@@ -271,7 +234,7 @@ async fn start_experiment(op: &mut Peer, experiment: &str) {
 /// as a force on the joystick. Navigation runs feel nothing.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn teleoperation_feeds_back_the_push_of_obstacles() {
-    let (_host, url) = start_host();
+    let (_host, url) = start_host(&["--camera", "sim"]);
     let mut op = Peer::connect(&url).await;
     op.hello("operator").await;
     start_teleoperation(&mut op).await;
@@ -317,7 +280,7 @@ async fn teleoperation_feeds_back_the_push_of_obstacles() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_robot_stops_when_the_operator_leaves() {
-    let (_host, url) = start_host();
+    let (_host, url) = start_host(&["--camera", "sim"]);
     let mut op = Peer::connect(&url).await;
     op.hello("operator").await;
     let mut watcher = Peer::connect(&url).await;
@@ -345,7 +308,7 @@ async fn the_robot_stops_when_the_operator_leaves() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_watchdog_stops_a_silent_operator() {
-    let (_host, url) = start_host();
+    let (_host, url) = start_host(&["--camera", "sim"]);
     let mut op = Peer::connect(&url).await;
     op.hello("operator").await;
     start_teleoperation(&mut op).await;
@@ -364,7 +327,7 @@ async fn the_watchdog_stops_a_silent_operator() {
 /// goes dead the run ends as a fault.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_khepera_on_a_serial_line_drives_and_its_loss_is_a_fault() {
-    let (emulator, device) = start_vl(&["khepera-emu"], "vl khepera-emu: khepera-ii on ");
+    let (emulator, device) = start_emulator(&[]);
     let (_host, url) = start_vl(
         &[
             "host",
@@ -398,17 +361,56 @@ async fn a_khepera_on_a_serial_line_drives_and_its_loss_is_a_fault() {
 
 #[test]
 fn a_missing_serial_device_is_named() {
-    let out = Command::new(env!("CARGO_BIN_EXE_vl"))
-        .args([
-            "host",
-            "--robot",
-            "khepera",
-            "--port",
-            "/dev/no-such-khepera",
-        ])
-        .output()
-        .unwrap();
+    let out = common::vl(&[
+        "host",
+        "--robot",
+        "khepera",
+        "--port",
+        "/dev/no-such-khepera",
+    ]);
     assert_eq!(out.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("/dev/no-such-khepera"), "{err}");
+    let err = common::stderr(&out);
+    assert!(
+        err.contains("cannot open the robot's line /dev/no-such-khepera"),
+        "{err}"
+    );
+}
+
+/// Out-of-turn actions are refused by the session net, saying what stands
+/// in the way; an unknown experiment is answered with the ones on offer.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_session_net_says_why_an_action_must_wait() {
+    let (_host, url) = start_host(&["--camera", "none", "--experiments", "teleoperation"]);
+    let mut op = Peer::connect(&url).await;
+    let welcome = op.hello("operator").await;
+    assert_eq!(welcome["experiments"].as_array().unwrap().len(), 1);
+    op.send(json!({"type": "start"})).await;
+    let e = op.expect_error("not_allowed_now").await;
+    assert_eq!(
+        e["message"],
+        "cannot start a run now: no experiment is mounted"
+    );
+    op.send(json!({"type": "mount", "experiment": "navigation"}))
+        .await;
+    let e = op.expect_error("unknown_experiment").await;
+    assert_eq!(
+        e["message"],
+        "this Host has no experiment \"navigation\"; it offers teleoperation"
+    );
+    op.send(json!({"type": "mount", "experiment": "teleoperation"}))
+        .await;
+    assert_eq!(op.expect("mounted").await["experiment"], "teleoperation");
+    op.send(json!({"type": "stop"})).await;
+    let e = op.expect_error("not_allowed_now").await;
+    assert_eq!(
+        e["message"],
+        "cannot stop a run now: the experiment is not defined yet"
+    );
+    op.send(json!({"type": "command", "event": 1, "v": 10, "w": 0}))
+        .await;
+    let e = op.expect_error("not_allowed_now").await;
+    assert_eq!(
+        e["message"],
+        "cannot drive now: the experiment is not defined yet"
+    );
 }

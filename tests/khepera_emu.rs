@@ -1,35 +1,14 @@
 //! `vl khepera-emu` spoken to through `serialport` on its pseudo-terminal,
 //! as the Host's serial driver and K-Team's own tools would.
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::process::{Child, Command, Stdio};
+mod common;
+
+use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
+use common::start_emulator;
+
 use serialport::SerialPort;
-
-struct Emulator(Child);
-
-impl Drop for Emulator {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn start(extra: &[&str]) -> (Emulator, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_vl"))
-        .arg("khepera-emu")
-        .args(extra)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("vl khepera-emu starts");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let device = line.trim().rsplit(' ').next().unwrap().to_owned();
-    (Emulator(child), device)
-}
 
 fn open(device: &str) -> Box<dyn SerialPort> {
     serialport::new(device, 38_400)
@@ -63,7 +42,7 @@ fn numbers(reply: &str) -> Vec<i64> {
 #[test]
 fn the_emulated_khepera_answers_on_its_serial_line() {
     let link = std::env::temp_dir().join(format!("vl-khepera-{}", std::process::id()));
-    let (_emu, device) = start(&["--link", link.to_str().unwrap()]);
+    let (_emu, device) = start_emulator(&["--link", link.to_str().unwrap()]);
     assert!(device.starts_with("/dev/pts/"), "{device}");
     assert_eq!(std::fs::read_link(&link).unwrap().to_str().unwrap(), device);
 
@@ -114,7 +93,7 @@ fn the_emulated_khepera_answers_on_its_serial_line() {
 
 #[test]
 fn line_timing_takes_as_long_as_the_baud_rate_says() {
-    let (_emu, device) = start(&["--baud", "9600", "--line-timing"]);
+    let (_emu, device) = start_emulator(&["--baud", "9600", "--line-timing"]);
     let mut port = open(&device);
     let started = Instant::now();
     let reply = ask(&mut port, "N");

@@ -2,38 +2,10 @@
 //! (statecharts → nets → composition → analysis → controller), and clear
 //! refusals of bad input with exit code 2.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
+use common::{refused, s, scratch, stdout, vl, vl_json as ok_json};
 use serde_json::Value;
-
-fn vl(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vl"))
-        .args(args)
-        .output()
-        .expect("vl runs")
-}
-
-fn ok_json(args: &[&str]) -> Value {
-    let out = vl(args);
-    assert!(
-        out.status.success(),
-        "vl {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("JSON on stdout")
-}
-
-/// A scratch directory for this test's files.
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 fn example(name: &str) -> String {
     format!("{}/examples/statecharts/{name}", env!("CARGO_MANIFEST_DIR"))
@@ -140,6 +112,13 @@ fn statecharts_to_a_controlled_lab_net() {
     );
     assert_eq!(c["deadlock"], false);
 
+    // People read the same analysis as a table, in words that agree in number.
+    let table = stdout(&vl(&["petri", "analyze", s(&lab)]));
+    assert!(
+        table.contains("yes (at most 1 token in a place, 3 tokens in a marking)"),
+        "{table}"
+    );
+
     let inv = ok_json(&["petri", "invariants", "--json", s(&lab)]);
     assert!(!inv["p_invariants"].as_array().unwrap().is_empty());
     let dot = vl(&["petri", "dot", s(&controlled)]);
@@ -172,6 +151,29 @@ fn unbounded_nets_are_reported_as_such() {
     assert!(std::fs::read_to_string(&dot).unwrap().contains("buffer:ω"));
 }
 
+/// The shipped examples are built in: named, they are found from any
+/// directory.
+#[test]
+fn shipped_examples_are_found_by_name_anywhere() {
+    let c = ok_json(&["petri", "coverability", "--json", "producer-consumer"]);
+    assert_eq!(c["unbounded_places"], serde_json::json!(["buffer"]));
+    let dir = scratch("elsewhere");
+    let out = dir.join("mount.pnml");
+    let made = std::process::Command::new(common::vl_bin())
+        .current_dir(&dir)
+        .args([
+            "petri",
+            "from-scxml",
+            "examples/statecharts/mount.scxml",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(made.status.success(), "{}", common::stderr(&made));
+    assert!(std::fs::read_to_string(&out).unwrap().contains("<pnml"));
+}
+
 const PRODUCER: &str = r#"<?xml version="1.0"?>
 <pnml xmlns="http://www.pnml.org/version-2009/grammar/pnml">
  <net id="producer" type="http://www.pnml.org/version-2009/grammar/ptnet"><page id="pg">
@@ -182,23 +184,6 @@ const PRODUCER: &str = r#"<?xml version="1.0"?>
   <arc id="a2" source="produce" target="ready"/>
   <arc id="a3" source="produce" target="buffer"><inscription><text>2</text></inscription></arc>
  </page></net></pnml>"#;
-
-/// Runs `vl args…` and expects exit code 2 with `needle` in the message.
-fn refused(args: &[&str], needle: &str) {
-    let out = vl(args);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(
-        out.status.code(),
-        Some(2),
-        "vl {args:?} → {:?}: {err}",
-        out.status
-    );
-    assert!(
-        err.contains(needle),
-        "vl {args:?}: '{err}' lacks '{needle}'"
-    );
-    assert!(!err.contains("panicked"), "{err}");
-}
 
 #[test]
 fn bad_input_is_refused_with_exit_code_2() {

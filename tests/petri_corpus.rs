@@ -1,50 +1,40 @@
 //! `vl petri analyze --json` against the Model Checking Contest's certified
 //! answers for every small and medium model in tests/petri-corpus.
 
-use std::collections::HashMap;
 use std::path::Path;
 use std::process::Command;
 
 use serde_json::Value;
+use vl_petri::Manifest;
 
-fn manifest() -> Vec<HashMap<String, String>> {
-    let text = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/petri-corpus/manifest.csv"),
-    )
-    .expect("the corpus manifest is in the repo");
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    lines
-        .map(|line| {
-            // The last column (source) is quoted and holds commas; nothing before it does.
-            header
-                .iter()
-                .map(|h| h.to_string())
-                .zip(line.split(',').map(str::to_owned))
-                .collect()
-        })
-        .collect()
+fn corpus() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/petri-corpus"))
+}
+
+fn manifest() -> Manifest {
+    let text = std::fs::read_to_string(corpus().join("manifest.csv"))
+        .expect("the corpus manifest is in the repo");
+    Manifest::parse(&text).expect("the manifest parses")
 }
 
 #[test]
 fn analysis_matches_the_certified_answers() {
-    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/petri-corpus");
     let mut checked = 0;
     let mut decided_conservative = 0;
     let mut mismatches = Vec::new();
-    for model in manifest() {
-        if model["tier"] == "large" {
+    for model in manifest().models {
+        if model.tier() == "large" {
             continue;
         }
         let out = Command::new(env!("CARGO_BIN_EXE_vl"))
             .args(["petri", "analyze", "--json"])
-            .arg(corpus.join(&model["pnml"]))
+            .arg(corpus().join(model.pnml()))
             .output()
             .expect("vl runs");
         assert!(
             out.status.success(),
             "{}: {}",
-            model["model"],
+            model.name(),
             String::from_utf8_lossy(&out.stderr)
         );
         let got: Value = serde_json::from_slice(&out.stdout).expect("JSON report");
@@ -84,21 +74,24 @@ fn analysis_matches_the_certified_answers() {
             ),
         ];
         for (column, key, value) in checks {
-            let expected = &model[column];
-            if !expected.is_empty() && *expected != value {
+            let expected = model.get(column).unwrap_or_default();
+            if !expected.is_empty() && expected != value {
                 mismatches.push(format!(
                     "{}: {key} = {value}, certified {expected}",
-                    model["model"]
+                    model.name()
                 ));
             }
         }
         // Not certified, but the LP check in the manifest must agree when we decide it.
         if let Some(c) = got["conservative"].as_bool() {
-            let expected = model["conservative_weighted_derived"].to_lowercase();
+            let expected = model
+                .get("conservative_weighted_derived")
+                .unwrap_or_default()
+                .to_lowercase();
             if expected != c.to_string() {
                 mismatches.push(format!(
                     "{}: conservative = {c}, LP check says {expected}",
-                    model["model"]
+                    model.name()
                 ));
             }
             decided_conservative += 1;
@@ -107,7 +100,7 @@ fn analysis_matches_the_certified_answers() {
             assert!(
                 got["deadlock_trace"].is_array(),
                 "{}: a deadlock comes with its trace",
-                model["model"]
+                model.name()
             );
         }
         checked += 1;

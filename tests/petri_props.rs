@@ -6,11 +6,9 @@
 use std::collections::{HashSet, VecDeque};
 
 use proptest::prelude::*;
-use vl_petri::compose::{compose, fuse_parallel_places};
-use vl_petri::control::{Constraint, Limits, synthesize};
-use vl_petri::invariants::{p_invariants, t_invariants};
 use vl_petri::{
-    ArcKind, Marking, Net, OMEGA, Options, analyze, coverability, explore, from_pnml, to_pnml,
+    ArcKind, Constraint, Limits, Marking, Net, OMEGA, Options, analyze, compose, coverability,
+    explore, from_pnml, fuse_parallel_places, p_invariants, synthesize, t_invariants, to_pnml,
 };
 
 /// A random net: 1–5 places, 1–5 transitions, weights 1–3.

@@ -2,18 +2,13 @@
 //! hand count confirms, a path around a wall, "no path", virtual
 //! obstacles, coarser cells, the SVG, and bad input refused with exit 2.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
+use std::path::PathBuf;
+
+use common::{refused, vl, vl_json};
 use image::{GrayImage, Luma};
 use serde_json::Value;
-
-fn vl(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vl"))
-        .args(args)
-        .output()
-        .expect("vl runs")
-}
 
 /// `vl plan` flags for `map` at `scale` mm per px from `start` to `goal`, then `extra`.
 fn args<'a>(
@@ -40,13 +35,7 @@ fn args<'a>(
 fn plan_json(args: &[&str]) -> Value {
     let mut all = vec!["plan", "--json"];
     all.extend_from_slice(args);
-    let out = vl(&all);
-    assert!(
-        out.status.success(),
-        "vl {all:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap()
+    vl_json(&all)
 }
 
 /// A 20 × 10 px white map with a black wall down column 10 from the top,
@@ -192,23 +181,29 @@ fn coarser_cells_svg_and_a_polygon_robot() {
 
 #[test]
 fn the_shipped_maze_has_a_path_for_a_khepera() {
-    let maze = concat!(
+    let file = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/crates/vl-core/arenas/maze.png"
     );
-    let out = plan_json(&[
-        "--map",
-        maze,
-        "--mm-per-px",
-        "5",
-        "--start",
-        "80,520",
-        "--goal",
-        "720,80",
-    ]);
+    let plan = |map: &str| {
+        plan_json(&[
+            "--map",
+            map,
+            "--mm-per-px",
+            "5",
+            "--start",
+            "80,520",
+            "--goal",
+            "720,80",
+        ])
+    };
+    let out = plan(file);
     assert_eq!(out["found"], true);
     assert!(out["min_clearance_mm"].as_f64().unwrap() >= 0.0);
     assert!(out["length_mm"].as_f64().unwrap() > 800.0);
+    // The maze ships inside vl: by name it plans the same from anywhere.
+    let by_name = plan("maze");
+    assert_eq!(by_name["path"], out["path"]);
 }
 
 #[test]
@@ -243,7 +238,7 @@ fn bad_input_is_named_with_exit_code_2() {
         ),
         (
             args(map, "10", START, GOAL, &["--connectivity", "6"]),
-            "--connectivity must be 4 or 8",
+            "invalid value '6' for '--connectivity <CONNECTIVITY>'\n  [possible values: 4, 8]",
         ),
         (
             args(
@@ -260,11 +255,12 @@ fn bad_input_is_named_with_exit_code_2() {
     for (args, needle) in cases {
         let mut all = vec!["plan"];
         all.extend(args);
-        let out = vl(&all);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "vl {all:?}: {stderr}");
-        assert!(stderr.contains(needle), "vl {all:?} said: {stderr}");
+        refused(&all, needle);
     }
+    refused(
+        &["plan", "bench", "--size", "10"],
+        "--size: the benchmark map must be at least 50 cells a side, not 10",
+    );
 }
 
 #[test]

@@ -7,11 +7,7 @@
 use std::collections::VecDeque;
 
 use proptest::prelude::*;
-use vl_core::cspace::{CSpace, Footprint, Grid};
-use vl_core::nf1::{Cell, Nf1};
-use vl_core::plan::{NoPath, Plan, plan};
-use vl_core::robot::{Point, Pose};
-use vl_core::vision::Connectivity;
+use vl_core::{CSpace, Cell, Connectivity, Footprint, Grid, Nf1, NoPath, Plan, Point, Pose, plan};
 
 const CELL_MM: f64 = 10.0;
 

@@ -3,7 +3,7 @@
 
 use std::collections::BTreeSet;
 
-use vl_core::protocol::{GuestMessage, HostMessage, Wire};
+use vl_core::{GuestMessage, HostMessage, Wire};
 
 /// The ```json guest / ```json host blocks of the document.
 fn examples() -> Vec<(String, String)> {

@@ -4,13 +4,11 @@
 
 use proptest::prelude::*;
 use serde_json::{Value, json};
-use vl_core::arena::{Arena, Material, Obstacle, Shape};
-use vl_core::camera::CameraModel;
-use vl_core::experiment::{Definition, ExperimentInfo, Goal};
-use vl_core::protocol::{
-    Drive, EndReason, ErrorCode, GuestMessage, HostMessage, Role, Summary, Wire,
+use vl_core::{
+    Arena, CameraModel, Definition, Drive, EndReason, ErrorCode, Experiment, ExperimentInfo, Goal,
+    GuestMessage, HostMessage, Material, Named, Obstacle, Point, Pose, RobotModel, Role,
+    SensorMount, Shape, Summary, WheelSpeeds, Wire,
 };
-use vl_core::robot::{Point, Pose, RobotModel, SensorMount, WheelSpeeds};
 
 fn num() -> impl Strategy<Value = f64> {
     prop_oneof![-1e6f64..1e6, Just(0.0), any::<i32>().prop_map(f64::from)]
@@ -193,7 +191,6 @@ fn error_code() -> impl Strategy<Value = ErrorCode> {
         InvalidDefinition,
         NotAllowedNow,
         StaleCommand,
-        RobotFault,
     ])
 }
 
@@ -243,8 +240,12 @@ fn guest_message() -> impl Strategy<Value = GuestMessage> {
     ]
 }
 
+fn experiment() -> impl Strategy<Value = Experiment> {
+    proptest::sample::select(Experiment::ALL)
+}
+
 fn host_message() -> impl Strategy<Value = HostMessage> {
-    let info = (text(), text()).prop_map(|(id, title)| ExperimentInfo { id, title });
+    let info = (experiment(), text()).prop_map(|(id, title)| ExperimentInfo { id, title });
     prop_oneof![
         (any::<u64>(), role(), proptest::collection::vec(info, 0..3)).prop_map(
             |(session, role, experiments)| HostMessage::Welcome {
@@ -256,14 +257,16 @@ fn host_message() -> impl Strategy<Value = HostMessage> {
         (error_code(), text()).prop_map(|(code, message)| HostMessage::Error { code, message }),
         num().prop_map(|t| HostMessage::Ping { t }),
         num().prop_map(|t| HostMessage::Pong { t }),
-        (text(), arena(), robot(), camera()).prop_map(|(experiment, arena, robot, camera)| {
-            HostMessage::Mounted {
-                experiment,
-                arena,
-                robot,
-                camera,
+        (experiment(), arena(), robot(), camera()).prop_map(
+            |(experiment, arena, robot, camera)| {
+                HostMessage::Mounted {
+                    experiment,
+                    arena,
+                    robot,
+                    camera,
+                }
             }
-        }),
+        ),
         definition().prop_map(|definition| HostMessage::Defined { definition }),
         any::<u64>().prop_map(|event| HostMessage::Started { event }),
         (
@@ -353,7 +356,7 @@ proptest! {
         let text = String::from_utf8_lossy(&bytes);
         let _ = GuestMessage::decode(&text);
         let _ = HostMessage::decode(&text);
-        let _ = vl_core::frame::FrameHeader::decode(&bytes);
+        let _ = vl_core::FrameHeader::decode(&bytes);
     }
 
     #[test]

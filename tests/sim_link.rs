@@ -2,7 +2,8 @@
 //! their distribution, and the named profiles measure as they are defined.
 
 use proptest::prelude::*;
-use vl_sim::link::{Distribution, Link, LinkModel, Loss, PROFILES, measure};
+use vl_core::Named;
+use vl_sim::{Distribution, Link, LinkModel, Loss, Profile, measure};
 
 fn model() -> impl Strategy<Value = LinkModel> {
     let distribution = prop_oneof![
@@ -76,7 +77,7 @@ proptest! {
 
     #[test]
     fn uniform_delays_stay_in_their_band(mean in 10.0f64..200.0, jitter in 0.0f64..10.0, rho in 0.0f64..0.9, seed in any::<u64>()) {
-        let model = LinkModel { delay_ms: mean, jitter_ms: jitter, correlation: rho, ..LinkModel::profile("lan").unwrap() };
+        let model = LinkModel { delay_ms: mean, jitter_ms: jitter, correlation: rho, ..LinkModel::profile(Profile::Lan) };
         let mut link = Link::new(model, seed);
         for i in 0..1000 {
             let sent = i as f64;
@@ -95,8 +96,8 @@ fn close(got: f64, want: f64, tolerance: f64) -> bool {
 
 #[test]
 fn named_profiles_measure_as_defined() {
-    for name in PROFILES {
-        let model = LinkModel::profile(name).unwrap();
+    for &name in Profile::ALL {
+        let model = LinkModel::profile(name);
         let stats = measure(&mut Link::new(model.clone(), 7), 100_000, 10.0, 100);
         assert!(
             close(stats.delay_mean_ms, model.expected_delay(), 0.05),

@@ -3,10 +3,12 @@
 //! `vl vision` through its command line.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+mod common;
+
+use common::{refused, s, vl_json};
 use serde_json::Value;
-use vl_core::vision::{Connectivity, binarise, components, grey, inspect, label, otsu};
+use vl_core::{Connectivity, Threshold, binarise, components, grey, inspect, label, otsu};
 
 fn frames() -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/vision");
@@ -106,7 +108,11 @@ fn agrees_with_opencv() {
 fn finds_the_robot_where_the_simulator_put_it() {
     // navigation.png: 320 px across 800 mm; the robot starts at (100, 120) mm facing +x.
     let frame = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/vision/navigation.png");
-    let scene = inspect(&image::open(&frame).unwrap().to_rgb8(), None, true);
+    let scene = inspect(
+        &image::open(&frame).unwrap().to_rgb8(),
+        Threshold::Otsu,
+        true,
+    );
     let robot = scene.robot.expect("the robot is found");
     let (x_px, y_px) = (100.0 / 2.5 - 0.5, 240.0 - 120.0 / 2.5 - 0.5);
     assert!(
@@ -118,7 +124,7 @@ fn finds_the_robot_where_the_simulator_put_it() {
     let robots = scene
         .components
         .iter()
-        .filter(|c| vl_core::vision::is_robot(c))
+        .filter(|c| vl_core::is_robot(c))
         .count();
     assert_eq!(robots, 1);
 }
@@ -126,13 +132,7 @@ fn finds_the_robot_where_the_simulator_put_it() {
 #[test]
 fn the_cli_reports_json_and_refuses_bad_input() {
     let frame = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/vision/maze-640.png");
-    let out = Command::new(env!("CARGO_BIN_EXE_vl"))
-        .args(["vision", "inspect", "--invert", "--json"])
-        .arg(&frame)
-        .output()
-        .unwrap();
-    assert!(out.status.success());
-    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = vl_json(&["vision", "inspect", "--invert", "--json", s(&frame)]);
     assert_eq!(
         v["threshold"].as_f64(),
         expected(&frame)["otsu_threshold"].as_f64()
@@ -142,15 +142,6 @@ fn the_cli_reports_json_and_refuses_bad_input() {
     assert!(v["components"][0]["orientation_rad"].is_number());
     assert!(v["robot"]["theta"].is_number());
 
-    let refused = |args: &[&str], needle: &str| {
-        let out = Command::new(env!("CARGO_BIN_EXE_vl"))
-            .args(args)
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
-        assert!(err.contains(needle), "'{err}' lacks '{needle}'");
-    };
     refused(
         &["vision", "inspect", "/no/such.png"],
         "cannot read the image /no/such.png",
@@ -169,6 +160,6 @@ fn the_cli_reports_json_and_refuses_bad_input() {
             "300",
             frame.to_str().unwrap(),
         ],
-        "--threshold must be 'otsu' or a grey level",
+        "invalid value '300' for '--threshold <THRESHOLD>': a threshold is 'otsu' or a grey level 0–255, not '300'",
     );
 }

@@ -1,17 +1,51 @@
-//! What the vl Guest and Host share: the protocol they speak over the
-//! Media, the robot and arena models, and algorithms both sides run.
+//! What the vl Guest and Host share, and the lab's algorithms both run.
+//!
+//! - the contract between them: protocol v1's messages, camera frames,
+//!   experiments and their definitions, the session supervisor net;
+//! - the lab's models: the robot and its Khepera protocol, the arena, the
+//!   camera;
+//! - vision on the overhead camera's frames;
+//! - navigation: C-space, NF1, splines, path following;
+//! - teleoperation: potential fields, force feedback, prediction.
+//!
+//! Modules are private; what other crates use is re-exported here.
 
-pub mod arena;
-pub mod camera;
-pub mod cspace;
-pub mod experiment;
-pub mod follow;
-pub mod frame;
-pub mod nf1;
-pub mod plan;
-pub mod protocol;
-pub mod robot;
-pub mod session;
-pub mod spline;
-pub mod teleop;
-pub mod vision;
+mod contract;
+mod model;
+mod named;
+mod navigation;
+mod teleop;
+mod vision;
+
+pub use contract::experiment::{Definition, Experiment, ExperimentInfo, Goal};
+pub use contract::frame::{FrameError, FrameHeader, HEADER_LEN, ImageFormat, MAX_FRAME_BYTES};
+pub use contract::protocol::{
+    DecodeError, Drive, EndReason, ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES,
+    PROTOCOL_VERSION, Role, Summary, Wire,
+};
+pub use contract::session::{Action, NotAllowed, Phase, Supervisor};
+pub use model::arena::{Arena, ArenaError, Hit, Material, Obstacle, Shape};
+pub use model::camera::CameraModel;
+pub use model::khepera::{
+    CommandError, KheperaCommand, KheperaReply, LedAction, MalformedReply, MotorMode, MotorStatus,
+};
+pub use model::robot::{
+    MAX_PULSES_PER_PERIOD, Point, Pose, RobotKind, RobotModel, SPEED_PERIOD_S, SensorMount,
+    WheelSpeeds, wrap_angle,
+};
+pub use named::{Named, UnknownName};
+pub use navigation::bench::{MIN_BENCH_CELLS, PlanBench, PlanBenchError, bench as bench_planning};
+pub use navigation::cspace::{CSpace, CSpaceError, Footprint, Grid, MAX_CELLS};
+pub use navigation::follow::{Avoidance, Follower, Following, PLAN_MARGIN_MM, Steer};
+pub use navigation::nf1::{Cell, Nf1};
+pub use navigation::plan::{
+    ARENA_CELL_MM, ArenaPlanError, NoPath, PathEnd, Plan, Smoothing, clearance, plan,
+    plan_in_arena, plan_route,
+};
+pub use navigation::svg::plan_svg;
+pub use teleop::{Assisted, Joystick, MapField, Teleop, Vector, predict};
+pub use vision::{
+    Centroid, Component, Connectivity, Mask, RobotPose, Scene, Threshold, ThresholdError,
+    VisionBench, bench as bench_vision, binarise, components, grey, inspect, is_robot, label, otsu,
+    robot_pose,
+};

@@ -4,18 +4,16 @@
 //! place the goal; defining it plans a path on the lab's map, which the
 //! robot follows once started. Drive by hand with a mouse-dragged virtual
 //! joystick or the arrow keys, which take over from the path while held.
+//! The window opens whether or not the Host answers, says why when it does
+//! not, and reconnects on request.
 
 use std::time::Duration;
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Vec2};
-use vl_core::arena::Shape;
-use vl_core::experiment::{Definition, Goal};
-use vl_core::follow::{Command, Follower, Following, PLAN_MARGIN_MM};
-use vl_core::plan::plan_in_arena;
-use vl_core::protocol::{Drive, GuestMessage, PROTOCOL_VERSION, Role};
-use vl_core::robot::{Point, WheelSpeeds};
+use vl_core::{Definition, Drive, Goal, GuestMessage, PROTOCOL_VERSION, Point, Role, Shape};
 
-use crate::client::Connection;
+use crate::client::{ClientError, Connection, Incoming, open};
+use crate::pilot::{Pilot, Route};
 use crate::session::{Link, MountedLab, Session};
 
 /// Top speed the joystick and arrow keys ask for, mm/s.
@@ -31,8 +29,17 @@ const VIRTUAL_COLOUR: Color32 = Color32::from_rgb(255, 150, 0);
 const FLOOR_COLOUR: Color32 = Color32::from_rgb(226, 224, 218);
 const OBSTACLE_COLOUR: Color32 = Color32::from_rgb(45, 48, 56);
 
+/// Who the window connects to, and as whom.
+#[derive(Debug, Clone)]
+struct Address {
+    url: String,
+    role: Role,
+    token: Option<String>,
+}
+
 /// The Guest's window.
 pub struct GuestApp {
+    address: Address,
     session: Session,
     connection: Connection,
     texture: Option<(u64, TextureHandle)>,
@@ -42,29 +49,52 @@ pub struct GuestApp {
     /// What planning the defined goal gave: the path's length, or why none.
     plan_note: Option<String>,
     /// Steers along the defined path during a run.
-    follower: Option<Follower>,
+    pilot: Pilot,
 }
 
 impl GuestApp {
-    /// A window on `connection`, which says hello as `role` straight away.
-    pub fn new(connection: Connection, role: Role, token: Option<String>) -> Self {
-        connection.send(GuestMessage::Hello {
-            protocol: PROTOCOL_VERSION,
+    /// A window on the Host at `url`, connecting as `role` straight away
+    /// (on the current tokio runtime). Only an address that cannot be a
+    /// Host's is refused; an unreachable Host is shown in the window.
+    pub fn new(url: &str, role: Role, token: Option<String>) -> Result<Self, ClientError> {
+        let address = Address {
+            url: url.to_owned(),
             role,
             token,
-        });
-        GuestApp {
+        };
+        let connection = GuestApp::connect(&address)?;
+        Ok(GuestApp {
+            address,
             session: Session::default(),
             connection,
             texture: None,
             joystick: Vec2::ZERO,
-            goal: Goal {
-                x_mm: 0.0,
-                y_mm: 0.0,
-                tolerance_mm: 15.0,
-            },
+            goal: Goal::at(Point::default()),
             plan_note: None,
-            follower: None,
+            pilot: Pilot::default(),
+        })
+    }
+
+    /// Opens a connection that says hello as soon as it is up.
+    fn connect(address: &Address) -> Result<Connection, ClientError> {
+        let connection = open(&address.url)?;
+        connection.send(GuestMessage::Hello {
+            protocol: PROTOCOL_VERSION,
+            role: address.role,
+            token: address.token.clone(),
+        });
+        Ok(connection)
+    }
+
+    /// Starts over on a new connection: what the old one knew is gone.
+    fn reconnect(&mut self) {
+        self.session = Session::default();
+        self.texture = None;
+        self.plan_note = None;
+        self.pilot.release();
+        match GuestApp::connect(&self.address) {
+            Ok(connection) => self.connection = connection,
+            Err(e) => self.session.apply(Incoming::Unreachable(e)),
         }
     }
 
@@ -111,7 +141,7 @@ impl GuestApp {
             return;
         }
         if !self.session.running {
-            self.follower = None;
+            self.pilot.release();
         }
         let (mut forward, mut turn) = (f64::from(self.joystick.y), f64::from(self.joystick.x));
         ctx.input(|i| {
@@ -120,38 +150,40 @@ impl GuestApp {
             turn += key(egui::Key::ArrowRight) - key(egui::Key::ArrowLeft);
         });
         let by_hand = forward != 0.0 || turn != 0.0;
-        let drive = match (&mut self.follower, &self.session.robot, &self.session.lab) {
-            (Some(follower), Some(robot), Some(lab)) if !by_hand => {
-                let wheels = match follower.step(&lab.robot, robot.pose, &robot.proximity) {
-                    Command::Drive(wheels) => wheels,
-                    Command::Arrived => WheelSpeeds::default(),
-                };
-                Drive::Wheels {
-                    left: wheels.left_mm_s,
-                    right: wheels.right_mm_s,
-                }
-            }
-            _ => Drive::Velocity {
-                v: forward.clamp(-1.0, 1.0) * DRIVE_MM_S,
-                w: -turn.clamp(-1.0, 1.0) * TURN_RAD_S,
-            },
+        let along_path = match (&self.session.robot, &self.session.lab) {
+            (Some(robot), Some(lab)) if !by_hand => self.pilot.steer(lab, robot),
+            _ => None,
         };
+        let drive = along_path.unwrap_or(Drive::Velocity {
+            v: forward.clamp(-1.0, 1.0) * DRIVE_MM_S,
+            w: -turn.clamp(-1.0, 1.0) * TURN_RAD_S,
+        });
         if let Some(command) = self.session.next_command(drive) {
             self.connection.send(command);
         }
     }
 
-    fn status_bar(&self, ui: &mut egui::Ui) {
+    fn status_bar(&mut self, ui: &mut egui::Ui) {
+        let mut reconnect = false;
         let s = &self.session;
-        ui.horizontal(|ui| {
-            let (text, colour) = match &s.link {
-                Link::Connecting => ("connecting…".to_owned(), Color32::YELLOW),
-                Link::Open => ("connected".to_owned(), Color32::GREEN),
-                Link::Closed(why) => (format!("disconnected: {why}"), Color32::RED),
-            };
-            ui.colored_label(colour, text);
+        ui.horizontal_wrapped(|ui| {
+            match &s.link {
+                Link::Connecting => {
+                    ui.colored_label(
+                        Color32::YELLOW,
+                        format!("connecting to {}…", self.address.url),
+                    );
+                }
+                Link::Open => {
+                    ui.colored_label(Color32::GREEN, "connected");
+                }
+                Link::Closed(why) => {
+                    reconnect = ui.button("Reconnect").clicked();
+                    ui.colored_label(Color32::RED, format!("not connected: {why}"));
+                }
+            }
             if let (Some(role), Some(id)) = (s.role, s.session_id) {
-                ui.label(format!("{role:?} · session {id}"));
+                ui.label(format!("{role} · session {id}"));
             }
             ui.separator();
             let rtt = &s.round_trips;
@@ -168,6 +200,9 @@ impl GuestApp {
             let acknowledged = s.robot.as_ref().map_or(0, |r| r.event);
             ui.label(format!("event {acknowledged} (sent {})", s.sent_event));
         });
+        if reconnect {
+            self.reconnect();
+        }
     }
 
     fn controls(&mut self, ui: &mut egui::Ui) {
@@ -185,7 +220,7 @@ impl GuestApp {
                 .clicked()
             {
                 self.connection.send(GuestMessage::Mount {
-                    experiment: experiment.id.clone(),
+                    experiment: experiment.id.to_string(),
                 });
             }
         }
@@ -227,7 +262,9 @@ impl GuestApp {
                     .add_enabled(can_start, egui::Button::new("Start"))
                     .clicked()
                 {
-                    self.follow_definition();
+                    if let Some(definition) = &self.session.definition {
+                        self.pilot.follow(definition);
+                    }
                     self.connection.send(GuestMessage::Start);
                 }
                 if ui
@@ -239,7 +276,7 @@ impl GuestApp {
             });
             if let Some(done) = &self.session.done {
                 ui.label(format!(
-                    "last run: {:?}, {} events, {:.1} s, {:.0} mm driven",
+                    "last run: {}, {} events, {:.1} s, {:.0} mm driven",
                     done.reason, done.events, done.seconds, done.distance_mm
                 ));
             }
@@ -271,8 +308,8 @@ impl GuestApp {
         if !self.session.errors.is_empty() {
             ui.separator();
             ui.heading("Host said");
-            for (code, message) in self.session.errors.iter().rev() {
-                ui.colored_label(Color32::LIGHT_RED, format!("{code:?}: {message}"));
+            for (_, message) in self.session.errors.iter().rev() {
+                ui.colored_label(Color32::LIGHT_RED, message);
             }
         }
     }
@@ -286,54 +323,24 @@ impl GuestApp {
             .robot
             .as_ref()
             .map_or(lab.arena.start, |r| r.pose);
-        let planned = plan_in_arena(
-            &lab.arena,
-            &[],
-            lab.robot.radius_mm,
-            PLAN_MARGIN_MM,
-            start,
-            self.goal.point(),
-        );
-        let path = match planned {
-            Ok(plan) => {
-                let path: Vec<Point> = plan.points();
-                let body_gap = path
-                    .iter()
-                    .map(|&p| lab.arena.clearance(p) - lab.robot.radius_mm)
-                    .fold(f64::INFINITY, f64::min);
+        let definition = match Route::plan(lab, start, self.goal, Vec::new()) {
+            Ok(route) => {
                 self.plan_note = Some(format!(
-                    "path {:.0} mm; the body keeps {body_gap:.0} mm from obstacles",
-                    plan.length_mm
+                    "path {:.0} mm; the body keeps {:.0} mm from obstacles",
+                    route.plan.length_mm,
+                    route.body_clearance_mm(lab)
                 ));
-                path
+                route.definition
             }
             Err(e) => {
                 self.plan_note = Some(format!("no path ({e}): drive by hand"));
-                Vec::new()
+                Definition {
+                    goal: Some(self.goal),
+                    ..Definition::default()
+                }
             }
         };
-        self.connection.send(GuestMessage::Define {
-            definition: Definition {
-                goal: Some(self.goal),
-                path,
-                ..Definition::default()
-            },
-        });
-    }
-
-    /// Prepares to steer along the defined path, if there is one.
-    fn follow_definition(&mut self) {
-        let Some(definition) = &self.session.definition else {
-            return;
-        };
-        let tolerance_mm = definition.goal.map_or(10.0, |g| g.tolerance_mm / 2.0);
-        self.follower = Follower::new(
-            definition.path.clone(),
-            Following {
-                tolerance_mm,
-                ..Following::default()
-            },
-        );
+        self.connection.send(GuestMessage::Define { definition });
     }
 
     fn joystick(&mut self, ui: &mut egui::Ui) {
@@ -581,22 +588,26 @@ impl eframe::App for GuestApp {
     }
 }
 
-/// Opens the Guest window on `connection` and runs it until it is closed.
-/// Needs a tokio runtime alive on another thread for the connection.
-pub fn run_window(
-    connection: Connection,
-    role: Role,
-    token: Option<String>,
-) -> Result<(), eframe::Error> {
+/// Opens the Guest window on the Host at `url` and runs it until it is
+/// closed. Needs a tokio runtime entered, alive on another thread, for the
+/// connection.
+pub fn run_window(url: &str, role: Role, token: Option<String>) -> Result<(), WindowError> {
+    let app = GuestApp::new(url, role, token)?;
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title("vl guest")
             .with_inner_size([1100.0, 720.0]),
         ..Default::default()
     };
-    eframe::run_native(
-        "vl guest",
-        options,
-        Box::new(move |_cc| Ok(Box::new(GuestApp::new(connection, role, token)))),
-    )
+    eframe::run_native("vl guest", options, Box::new(move |_cc| Ok(Box::new(app))))
+        .map_err(|e| WindowError::Window(e.to_string()))
+}
+
+/// Why the window did not run.
+#[derive(Debug, thiserror::Error)]
+pub enum WindowError {
+    #[error(transparent)]
+    Address(#[from] ClientError),
+    #[error("the Guest window failed: {0}")]
+    Window(String),
 }

@@ -1,6 +1,10 @@
 //! The Guest's side of the Media: a WebSocket connection to a Host that
 //! turns the socket into channels of typed messages. It answers the Host's
 //! pings itself and measures the round-trip time with its own.
+//!
+//! Opening a connection returns at once; connecting happens on the
+//! connection's task, and a Host that cannot be reached arrives as
+//! [`Incoming::Unreachable`], so a window can show it and offer to retry.
 
 use std::time::{Duration, Instant};
 
@@ -9,11 +13,12 @@ use thiserror::Error;
 use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::tungstenite::{self, Message};
-use vl_core::frame::{FrameHeader, MAX_FRAME_BYTES};
-use vl_core::protocol::{GuestMessage, HostMessage, MAX_TEXT_BYTES, Wire};
+use vl_core::{FrameHeader, GuestMessage, HostMessage, MAX_FRAME_BYTES, MAX_TEXT_BYTES, Wire};
 
 /// How often the Guest measures the round trip.
 const PING_EVERY: Duration = Duration::from_millis(200);
+/// How long a Host has to accept the connection.
+const CONNECT_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// What arrives from the Host.
 #[derive(Debug, Clone)]
@@ -23,17 +28,56 @@ pub enum Incoming {
     Frame(FrameHeader, Vec<u8>),
     /// A round trip (ping → pong) took this many ms.
     RoundTrip(f64),
+    /// The Host could not be reached.
+    Unreachable(ClientError),
     /// The connection ended, and why.
     Closed(String),
 }
 
-#[derive(Debug, Error)]
+/// Why there is no connection to a Host.
+#[derive(Debug, Clone, Error, PartialEq, Eq)]
 pub enum ClientError {
-    #[error("cannot connect to {url}: {source}")]
-    Connect {
-        url: String,
-        source: tungstenite::Error,
-    },
+    #[error("'{url}' is not a Host's address: {why}")]
+    BadUrl { url: String, why: String },
+    #[error("cannot connect to {url}: {cause}")]
+    Connect { url: String, cause: String },
+}
+
+/// Checks that `url` is one a Host listens on, with a hint when it is not.
+fn check_url(url: &str) -> Result<(), ClientError> {
+    let bad = |why: String| ClientError::BadUrl {
+        url: url.to_owned(),
+        why,
+    };
+    match url.split_once("://") {
+        Some(("ws", rest)) if !rest.is_empty() => Ok(()),
+        Some(("wss", rest)) => Err(bad(format!(
+            "wss:// (WebSocket over TLS) is not supported yet: connect with ws://{rest}, \
+             and where the link must be encrypted, through an SSH tunnel or a TLS proxy in \
+             front of the Host"
+        ))),
+        Some(("ws", _)) => Err(bad("it names no host".into())),
+        Some((scheme, rest)) => Err(bad(format!(
+            "a Host speaks WebSocket, not {scheme}://: try ws://{rest}"
+        ))),
+        None => Err(bad(format!("it has no scheme: try ws://{url}"))),
+    }
+}
+
+/// What went wrong connecting, said once: tungstenite's errors repeat
+/// their cause in their source chain.
+fn cause(error: &tungstenite::Error) -> String {
+    match error {
+        tungstenite::Error::Io(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => {
+            "connection refused: is a vl Host listening there?".into()
+        }
+        tungstenite::Error::Io(e) => e.to_string(),
+        tungstenite::Error::Http(response) => format!(
+            "it answered HTTP {} instead of a WebSocket handshake: is it a vl Host?",
+            response.status()
+        ),
+        other => other.to_string(),
+    }
 }
 
 /// An open connection: send on `outgoing`, receive on `incoming`.
@@ -49,21 +93,38 @@ impl Connection {
     }
 }
 
-/// Connects to the Host at `url` (ws://host:port) and starts the
-/// connection's task on the current tokio runtime.
-pub async fn connect(url: &str) -> Result<Connection, ClientError> {
+/// Opens a connection to the Host at `url` (ws://host:port): connecting
+/// and then serving the socket run on a task of the current tokio runtime.
+/// Messages sent before the connection is up wait for it. Only an address
+/// that cannot be a Host's is refused here.
+pub fn open(url: &str) -> Result<Connection, ClientError> {
+    check_url(url)?;
     let config = WebSocketConfig::default()
         .max_message_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)))
         .max_frame_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)));
-    let (ws, _) = tokio_tungstenite::connect_async_with_config(url, Some(config), true)
-        .await
-        .map_err(|source| ClientError::Connect {
-            url: url.to_owned(),
-            source,
-        })?;
     let (outgoing, mut to_send) = mpsc::unbounded_channel::<GuestMessage>();
     let (deliver, incoming) = mpsc::unbounded_channel();
+    let url = url.to_owned();
     tokio::spawn(async move {
+        let unreachable = |cause: String| {
+            Incoming::Unreachable(ClientError::Connect {
+                url: url.clone(),
+                cause,
+            })
+        };
+        let connecting = tokio_tungstenite::connect_async_with_config(&url, Some(config), true);
+        let ws = match tokio::time::timeout(CONNECT_TIMEOUT, connecting).await {
+            Ok(Ok((ws, _))) => ws,
+            Ok(Err(e)) => {
+                let _ = deliver.send(unreachable(cause(&e)));
+                return;
+            }
+            Err(_) => {
+                let waited = CONNECT_TIMEOUT.as_secs();
+                let _ = deliver.send(unreachable(format!("no answer within {waited} s")));
+                return;
+            }
+        };
         let (mut sink, mut source) = ws.split();
         let clock = Instant::now();
         let mut ping = tokio::time::interval(PING_EVERY);
@@ -125,4 +186,22 @@ pub async fn connect(url: &str) -> Result<Connection, ClientError> {
         let _ = deliver.send(Incoming::Closed(reason));
     });
     Ok(Connection { outgoing, incoming })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn addresses_that_cannot_be_a_host_get_a_hint() {
+        assert_eq!(check_url("ws://127.0.0.1:7400"), Ok(()));
+        let hint = |url: &str| check_url(url).unwrap_err().to_string();
+        assert_eq!(
+            hint("127.0.0.1:7400"),
+            "'127.0.0.1:7400' is not a Host's address: it has no scheme: try ws://127.0.0.1:7400"
+        );
+        assert!(hint("wss://lab.example:7400").contains("ws://lab.example:7400"));
+        assert!(hint("http://lab:7400").contains("try ws://lab:7400"));
+        assert!(hint("ws://").contains("names no host"));
+    }
 }

@@ -1,33 +1,30 @@
 //! The headless Guest: scripts a whole session — mount, plan a path to the
 //! goal on the lab's map and define it, then execute it under event-based
 //! control, steering along the path — with no window, for demos, tests and
-//! unattended runs.
+//! unattended runs; or watches one as an observer.
 
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use thiserror::Error;
-use vl_core::experiment::{Definition, Goal};
-use vl_core::follow::{Command, Follower, Following, PLAN_MARGIN_MM};
-use vl_core::plan::{ArenaPlanError, plan_in_arena};
-use vl_core::protocol::{
-    Drive, EndReason, ErrorCode, GuestMessage, HostMessage, PROTOCOL_VERSION, Role,
+use vl_core::{
+    ArenaPlanError, EndReason, ErrorCode, Experiment, Goal, GuestMessage, HostMessage,
+    PROTOCOL_VERSION, Pose, Role, Summary,
 };
-use vl_core::robot::{Pose, WheelSpeeds};
 
-use crate::client::{ClientError, Connection, Incoming, connect};
-use crate::session::Session;
+use crate::client::{ClientError, Connection, Incoming, open};
+use crate::pilot::{Pilot, Route};
+use crate::session::{RoundTrips, Session};
 
 /// What the scripted session does.
 #[derive(Debug, Clone)]
 pub struct Script {
-    pub experiment: String,
+    pub experiment: Experiment,
     /// Where to drive; the arena's suggested goal when absent.
     pub goal: Option<Goal>,
     pub token: Option<String>,
     /// The whole session must finish within this.
     pub timeout: Duration,
-    pub following: Following,
     /// Print a line of progress to stderr every second.
     pub progress: bool,
 }
@@ -35,11 +32,10 @@ pub struct Script {
 impl Default for Script {
     fn default() -> Self {
         Script {
-            experiment: "navigation".into(),
+            experiment: Experiment::Navigation,
             goal: None,
             token: None,
             timeout: Duration::from_secs(60),
-            following: Following::default(),
             progress: false,
         }
     }
@@ -50,6 +46,15 @@ impl Default for Script {
 pub struct RoundTripMs {
     pub p50: f64,
     pub p99: f64,
+}
+
+impl From<&RoundTrips> for RoundTripMs {
+    fn from(rtt: &RoundTrips) -> RoundTripMs {
+        RoundTripMs {
+            p50: rtt.quantile(0.5).unwrap_or(f64::NAN),
+            p99: rtt.quantile(0.99).unwrap_or(f64::NAN),
+        }
+    }
 }
 
 /// What the scripted session achieved.
@@ -70,7 +75,7 @@ pub struct Report {
 pub enum ScriptError {
     #[error(transparent)]
     Connect(#[from] ClientError),
-    #[error("the Host refused to {step}: {message} ({code:?})")]
+    #[error("the Host refused to {step}: {message} ({code})")]
     Refused {
         step: &'static str,
         code: ErrorCode,
@@ -80,8 +85,8 @@ pub enum ScriptError {
     Closed { step: &'static str, reason: String },
     #[error("gave up waiting to {step} after {seconds:.0} s")]
     Timeout { step: &'static str, seconds: f64 },
-    #[error("experiment \"{0}\" suggests no goal and none was given")]
-    NoGoal(String),
+    #[error("the {0} experiment's arena suggests no goal and none was given")]
+    NoGoal(Experiment),
     #[error("no path to the goal: {0}")]
     NoPath(#[from] ArenaPlanError),
 }
@@ -128,6 +133,7 @@ impl Scripted {
                     }
                     other => self.session.apply(Incoming::Message(Box::new(other))),
                 },
+                Some(Incoming::Unreachable(e)) => return Err(ScriptError::Connect(e)),
                 Some(Incoming::Closed(reason)) => return Err(ScriptError::Closed { step, reason }),
                 Some(other) => self.session.apply(other),
             }
@@ -137,68 +143,49 @@ impl Scripted {
     }
 }
 
-/// Connects to `url` as operator and drives the robot to the goal.
-pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptError> {
-    let connection = connect(url).await?;
+/// Connects to `url` and says hello as `role`.
+async fn welcomed(url: &str, role: Role, script: &Script) -> Result<Scripted, ScriptError> {
+    let connection = open(url)?;
+    connection.send(GuestMessage::Hello {
+        protocol: PROTOCOL_VERSION,
+        role,
+        token: script.token.clone(),
+    });
     let mut guest = Scripted {
         connection,
         session: Session::default(),
         deadline: Instant::now() + script.timeout,
         timeout: script.timeout,
     };
-    let ignore = |_: &mut Session, _: &Connection| {};
-    guest.connection.send(GuestMessage::Hello {
-        protocol: PROTOCOL_VERSION,
-        role: Role::Operator,
-        token: script.token.clone(),
-    });
     guest
-        .until("say hello", ignore, |s| s.role.is_some())
+        .until("say hello", |_, _| {}, |s| s.role.is_some())
         .await?;
+    Ok(guest)
+}
 
+/// Connects to `url` as operator and drives the robot to the goal.
+pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptError> {
+    let mut guest = welcomed(url, Role::Operator, script).await?;
+    let ignore = |_: &mut Session, _: &Connection| {};
     guest.connection.send(GuestMessage::Mount {
-        experiment: script.experiment.clone(),
+        experiment: script.experiment.to_string(),
     });
     guest.until("mount", ignore, |s| s.lab.is_some()).await?;
     let lab = guest.session.lab.clone().expect("mounted");
 
     let goal = match (script.goal, lab.arena.goal) {
         (Some(goal), _) => goal,
-        (None, Some(p)) => Goal {
-            x_mm: p.x_mm,
-            y_mm: p.y_mm,
-            tolerance_mm: 15.0,
-        },
-        (None, None) => return Err(ScriptError::NoGoal(script.experiment.clone())),
+        (None, Some(p)) => Goal::at(p),
+        (None, None) => return Err(ScriptError::NoGoal(script.experiment)),
     };
     // Plan from where the robot is, as a user does on the camera view.
     guest
         .until("see the robot", ignore, |s| s.robot.is_some())
         .await?;
     let start = guest.session.robot.as_ref().expect("seen").pose;
-    let plan = plan_in_arena(
-        &lab.arena,
-        &[],
-        lab.robot.radius_mm,
-        PLAN_MARGIN_MM,
-        start,
-        goal.point(),
-    )?;
-    let path: Vec<_> = plan.points();
-    let mut follower = Follower::new(
-        path.clone(),
-        Following {
-            tolerance_mm: goal.tolerance_mm / 2.0,
-            ..script.following
-        },
-    )
-    .expect("a plan has samples");
+    let route = Route::plan(&lab, start, goal, Vec::new())?;
     guest.connection.send(GuestMessage::Define {
-        definition: Definition {
-            goal: Some(goal),
-            path,
-            ..Definition::default()
-        },
+        definition: route.definition.clone(),
     });
     guest
         .until("define the goal", ignore, |s| s.definition.is_some())
@@ -207,13 +194,14 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
     guest.connection.send(GuestMessage::Start);
     guest.until("start", ignore, |s| s.running).await?;
 
+    let mut pilot = Pilot::default();
+    pilot.follow(&route.definition);
     let mut last_progress = Instant::now();
     let progress = script.progress;
     let steer = move |session: &mut Session, connection: &Connection| {
         let Some(robot) = &session.robot else { return };
-        let wheels = match follower.step(&lab.robot, robot.pose, &robot.proximity) {
-            Command::Drive(wheels) => wheels,
-            Command::Arrived => WheelSpeeds::default(),
+        let Some(drive) = pilot.steer(&lab, robot) else {
+            return;
         };
         if progress && last_progress.elapsed() >= Duration::from_secs(1) {
             last_progress = Instant::now();
@@ -225,10 +213,6 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
                 robot.pose.point().distance(goal.point())
             );
         }
-        let drive = Drive::Wheels {
-            left: wheels.left_mm_s,
-            right: wheels.right_mm_s,
-        };
         if let Some(command) = session.next_command(drive) {
             connection.send(command);
         }
@@ -238,7 +222,6 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
         .await?;
 
     let summary = guest.session.done.clone().expect("done");
-    let rtt = &guest.session.round_trips;
     guest.connection.send(GuestMessage::Bye);
     Ok(Report {
         reached_goal: summary.reached_goal,
@@ -249,9 +232,79 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
         distance_mm: summary.distance_mm,
         collisions: summary.collisions,
         frames: guest.session.frames_received,
-        round_trip_ms: RoundTripMs {
-            p50: rtt.quantile(0.5).unwrap_or(f64::NAN),
-            p99: rtt.quantile(0.99).unwrap_or(f64::NAN),
-        },
+        round_trip_ms: RoundTripMs::from(&guest.session.round_trips),
+    })
+}
+
+/// What an observer saw.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Watched {
+    /// The experiment mounted when it left, if any.
+    pub experiment: Option<Experiment>,
+    /// How the run it saw end ended, if one did.
+    pub run: Option<Summary>,
+    pub feedback: u64,
+    pub frames: u64,
+    pub round_trip_ms: RoundTripMs,
+}
+
+/// Connects to `url` as an observer and watches until a run ends or
+/// `script.timeout` passes, telling what happens on stderr when
+/// `script.progress`.
+pub async fn watch(url: &str, script: &Script) -> Result<Watched, ScriptError> {
+    let mut guest = welcomed(url, Role::Observer, script).await?;
+    let progress = script.progress;
+    let mut feedback = 0u64;
+    let mut last_feedback_ms = None;
+    let mut shown: (Option<Experiment>, bool) = (None, false);
+    let mut last_line = Instant::now();
+    let on_each = |session: &mut Session, _: &Connection| {
+        if let Some(robot) = &session.robot
+            && last_feedback_ms != Some(robot.t_ms)
+        {
+            last_feedback_ms = Some(robot.t_ms);
+            feedback += 1;
+        }
+        let now = (
+            session.lab.as_ref().map(|lab| lab.experiment),
+            session.running,
+        );
+        if progress {
+            if let Some(experiment) = now.0.filter(|_| now.0 != shown.0) {
+                eprintln!("mounted: {}", experiment.title());
+            }
+            if now.1 && !shown.1 {
+                eprintln!("run started");
+            }
+            if let Some(robot) = session.robot.as_ref().filter(|_| now.1)
+                && last_line.elapsed() >= Duration::from_secs(1)
+            {
+                last_line = Instant::now();
+                eprintln!(
+                    "event {:>5}  pose ({:>5.0}, {:>5.0}) mm",
+                    robot.event, robot.pose.x_mm, robot.pose.y_mm
+                );
+            }
+        }
+        shown = now;
+    };
+    match guest.until("watch", on_each, |s| s.done.is_some()).await {
+        Ok(()) | Err(ScriptError::Timeout { .. }) => {}
+        Err(e) => return Err(e),
+    }
+    let run = guest.session.done.clone();
+    if let Some(done) = run.as_ref().filter(|_| progress) {
+        eprintln!(
+            "run ended: {} after {:.1} s, {} events",
+            done.reason, done.seconds, done.events
+        );
+    }
+    guest.connection.send(GuestMessage::Bye);
+    Ok(Watched {
+        experiment: guest.session.lab.as_ref().map(|lab| lab.experiment),
+        run,
+        feedback,
+        frames: guest.session.frames_received,
+        round_trip_ms: RoundTripMs::from(&guest.session.round_trips),
     })
 }

@@ -1,8 +1,15 @@
-//! The vl Guest: the user's side of the lab. [`client`] speaks to a Host,
-//! [`session`] holds what the Guest knows, [`app`] draws it in a window and
-//! [`headless`] scripts it without one.
+//! The vl Guest: the user's side of the lab. `client` speaks to a Host,
+//! `session` holds what the Guest knows, `pilot` plans and follows paths,
+//! `app` draws it all in a window and `headless` scripts it without one.
 
-pub mod app;
-pub mod client;
-pub mod headless;
-pub mod session;
+mod app;
+mod client;
+mod headless;
+mod pilot;
+mod session;
+
+pub use app::{GuestApp, WindowError, run_window};
+pub use client::{ClientError, Connection, Incoming, open};
+pub use headless::{Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, watch};
+pub use pilot::{Pilot, Route};
+pub use session::{CameraFrame, Link, MountedLab, RobotState, RoundTrips, Session};

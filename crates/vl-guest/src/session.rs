@@ -3,12 +3,10 @@
 //! arrives from the Host.
 
 use image::RgbaImage;
-use vl_core::arena::Arena;
-use vl_core::camera::CameraModel;
-use vl_core::experiment::{Definition, ExperimentInfo};
-use vl_core::frame::{FrameHeader, ImageFormat};
-use vl_core::protocol::{Drive, ErrorCode, GuestMessage, HostMessage, Role, Summary};
-use vl_core::robot::{Pose, RobotModel, WheelSpeeds};
+use vl_core::{
+    Arena, CameraModel, Definition, Drive, ErrorCode, Experiment, ExperimentInfo, FrameHeader,
+    GuestMessage, HostMessage, ImageFormat, Pose, RobotModel, Role, Summary, WheelSpeeds,
+};
 
 use crate::client::Incoming;
 
@@ -20,7 +18,7 @@ const RTT_KEPT: usize = 10_000;
 /// The lab as mounted.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MountedLab {
-    pub experiment: String,
+    pub experiment: Experiment,
     pub arena: Arena,
     pub robot: RobotModel,
     pub camera: CameraModel,
@@ -100,6 +98,7 @@ pub struct Session {
     pub frame: Option<CameraFrame>,
     pub frames_received: u64,
     pub round_trips: RoundTrips,
+    /// What the Host refused since the last thing that went through.
     pub errors: Vec<(ErrorCode, String)>,
     /// The last run's summary.
     pub done: Option<Summary>,
@@ -135,6 +134,10 @@ impl Session {
             Incoming::Message(message) => self.apply_message(*message),
             Incoming::Frame(header, bytes) => self.apply_frame(header, &bytes),
             Incoming::RoundTrip(ms) => self.round_trips.push(ms),
+            Incoming::Unreachable(error) => {
+                self.link = Link::Closed(error.to_string());
+                self.running = false;
+            }
             Incoming::Closed(reason) => {
                 self.link = Link::Closed(reason);
                 self.running = false;
@@ -173,9 +176,14 @@ impl Session {
                     camera,
                 });
                 self.definition = None;
+                self.errors.clear();
             }
-            HostMessage::Defined { definition } => self.definition = Some(definition),
+            HostMessage::Defined { definition } => {
+                self.definition = Some(definition);
+                self.errors.clear();
+            }
             HostMessage::Started { event } => {
+                self.errors.clear();
                 self.running = true;
                 self.done = None;
                 self.sent_event = event;

@@ -4,13 +4,20 @@
 
 use image::RgbImage;
 use thiserror::Error;
-use vl_core::camera::CameraModel;
-use vl_core::robot::{Pose, RobotModel, WheelSpeeds};
+use vl_core::{CameraModel, Pose, RobotModel, WheelSpeeds};
 
-/// A robot that stopped answering or answered nonsense.
+/// A robot that cannot be reached, stopped answering or answered nonsense.
 #[derive(Debug, Error)]
-#[error("robot: {0}")]
-pub struct RobotError(pub String);
+pub enum RobotError {
+    #[error("cannot open the robot's line {device}: {reason}")]
+    Open { device: String, reason: String },
+    #[error("the robot did not answer {sent} within {waited_ms} ms")]
+    Timeout { sent: String, waited_ms: u128 },
+    #[error("the robot answered {sent} with '{got}'")]
+    Garbled { sent: String, got: String },
+    #[error("the robot's line failed: {0}")]
+    Io(std::io::Error),
+}
 
 /// A camera that vanished or sent an unreadable frame.
 #[derive(Debug, Error)]

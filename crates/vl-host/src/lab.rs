@@ -17,15 +17,11 @@ use std::time::{Duration, Instant};
 use tokio::sync::{mpsc as async_mpsc, watch};
 use tokio_tungstenite::tungstenite::Bytes;
 use tracing::{debug, warn};
-use vl_core::arena::Arena;
-use vl_core::camera::CameraModel;
-use vl_core::cspace::{CSpace, Footprint, Grid};
-use vl_core::experiment::Definition;
-use vl_core::frame::{FrameHeader, ImageFormat};
-use vl_core::plan::ARENA_CELL_MM;
-use vl_core::protocol::{Drive, EndReason, HostMessage, Summary};
-use vl_core::robot::{Point, RobotModel, WheelSpeeds};
-use vl_core::teleop::{MapField, Teleop, Vector};
+use vl_core::{
+    ARENA_CELL_MM, Arena, CSpace, CameraModel, Definition, Drive, EndReason, Footprint,
+    FrameHeader, Grid, HostMessage, ImageFormat, MapField, Point, RobotModel, Summary, Teleop,
+    Vector, WheelSpeeds,
+};
 
 use crate::drivers::{Camera, Robot, RobotReading};
 
@@ -492,8 +488,7 @@ impl CameraLoop {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use vl_core::arena::Shape;
-    use vl_core::robot::Pose;
+    use vl_core::{Pose, Shape};
 
     #[test]
     fn the_guard_turns_instead_of_entering_a_virtual_obstacle() {

@@ -1,24 +1,23 @@
 //! The vl Host: the lab machine's side. It drives the robot and camera
-//! (behind the traits in [`drivers`]: simulated in [`sim`], a real Khepera
-//! on a serial line in [`khepera`]), runs the
-//! experiment control loop ([`lab`]) and serves Guests over WebSocket
-//! ([`server`]).
+//! (behind the traits in `drivers`: simulated in `sim`, a real Khepera on
+//! a serial line in `khepera`), runs the experiment control loop (`lab`)
+//! and serves Guests over WebSocket (`server`).
 
-pub mod drivers;
-pub mod khepera;
-pub mod lab;
-pub mod server;
-pub mod sim;
+mod drivers;
+mod khepera;
+mod lab;
+mod server;
+mod sim;
 
 use std::net::SocketAddr;
 
 use tokio::net::TcpListener;
-use vl_core::arena::Arena;
-use vl_core::robot::RobotModel;
+use vl_core::{Arena, RobotModel};
 
+pub use drivers::{Camera, CameraError, Robot, RobotError, RobotReading};
+pub use khepera::KheperaSerial;
+pub use lab::WATCHDOG;
 pub use server::HostConfig;
-
-use drivers::{Camera, Robot};
 
 /// Why a Host could not start.
 #[derive(Debug, thiserror::Error)]

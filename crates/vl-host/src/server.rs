@@ -15,12 +15,10 @@ use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::tungstenite::{self, Message};
 use tracing::{debug, info, warn};
-use vl_core::experiment::{Definition, ExperimentInfo};
-use vl_core::frame::MAX_FRAME_BYTES;
-use vl_core::protocol::{
-    EndReason, ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES, PROTOCOL_VERSION, Role, Wire,
+use vl_core::{
+    Action, Definition, EndReason, ErrorCode, Experiment, GuestMessage, HostMessage,
+    MAX_FRAME_BYTES, MAX_TEXT_BYTES, Named, PROTOCOL_VERSION, Role, Supervisor, Wire,
 };
-use vl_core::session::{Action, Phase, Supervisor};
 
 use crate::lab::{Finished, Lab, LabRequest};
 
@@ -32,23 +30,15 @@ const PING_EVERY: Duration = Duration::from_secs(1);
 pub struct HostConfig {
     /// When set, an operator's `hello` must carry this token.
     pub token: Option<String>,
-    pub experiments: Vec<ExperimentInfo>,
+    /// What the lab offers, in the order Guests list it.
+    pub experiments: Vec<Experiment>,
 }
 
 impl Default for HostConfig {
     fn default() -> Self {
         HostConfig {
             token: None,
-            experiments: vec![
-                ExperimentInfo {
-                    id: "navigation".into(),
-                    title: "Navigate to a goal among obstacles".into(),
-                },
-                ExperimentInfo {
-                    id: "teleoperation".into(),
-                    title: "Drive the robot by joystick".into(),
-                },
-            ],
+            experiments: Experiment::ALL.to_vec(),
         }
     }
 }
@@ -237,8 +227,8 @@ struct Hub {
     supervisor: Supervisor,
     clients: HashMap<u64, Client>,
     operator: Option<u64>,
-    /// The mounted experiment's id.
-    experiment: Option<String>,
+    /// The mounted experiment.
+    experiment: Option<Experiment>,
     definition: Option<Definition>,
     /// Event number of the last command accepted in this run.
     last_event: u64,
@@ -343,7 +333,7 @@ impl Hub {
             HostMessage::Welcome {
                 session: id,
                 role,
-                experiments: self.config.experiments.clone(),
+                experiments: self.config.experiments.iter().map(|e| e.info()).collect(),
             },
         );
         // A late observer catches up on what is mounted and defined.
@@ -357,20 +347,19 @@ impl Hub {
 
     fn mounted(&self) -> Option<HostMessage> {
         let info = &self.lab.info;
-        self.experiment
-            .as_ref()
-            .map(|experiment| HostMessage::Mounted {
-                experiment: experiment.clone(),
-                arena: info.arena.clone(),
-                robot: info.robot.clone(),
-                camera: info.camera,
-            })
+        self.experiment.map(|experiment| HostMessage::Mounted {
+            experiment,
+            arena: info.arena.clone(),
+            robot: info.robot.clone(),
+            camera: info.camera,
+        })
     }
 
-    /// Fires `action` in the supervisor, or tells the operator why not.
-    fn supervise(&mut self, id: u64, action: Action) -> bool {
-        match self.supervisor.fire(action) {
-            Ok(_) => true,
+    /// Whether the supervisor enables `action` now; if not, tells the
+    /// operator why.
+    fn permitted(&self, id: u64, action: Action) -> bool {
+        match self.supervisor.check(action) {
+            Ok(()) => true,
             Err(e) => {
                 self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
                 false
@@ -378,16 +367,29 @@ impl Hub {
         }
     }
 
+    /// Fires `action` in the supervisor, or tells the operator why not.
+    fn supervise(&mut self, id: u64, action: Action) -> bool {
+        self.permitted(id, action) && self.supervisor.fire(action).is_ok()
+    }
+
     fn operate(&mut self, id: u64, message: GuestMessage) {
         match message {
             GuestMessage::Mount { experiment } => {
-                if !self.config.experiments.iter().any(|e| e.id == experiment) {
+                let offered = &self.config.experiments;
+                let Some(experiment) = Experiment::from_id(&experiment)
+                    .ok()
+                    .filter(|e| offered.contains(e))
+                else {
+                    let ids: Vec<&str> = offered.iter().map(|e| e.id()).collect();
                     return self.refuse(
                         id,
                         ErrorCode::UnknownExperiment,
-                        format!("this Host has no experiment \"{experiment}\""),
+                        format!(
+                            "this Host has no experiment \"{experiment}\"; it offers {}",
+                            ids.join(", ")
+                        ),
                     );
-                }
+                };
                 if self.supervise(id, Action::Mount) {
                     self.experiment = Some(experiment);
                     self.definition = None;
@@ -397,8 +399,7 @@ impl Hub {
                 }
             }
             GuestMessage::Define { definition } => {
-                if !self.supervisor.allows(Action::Define) {
-                    let _ = self.supervise(id, Action::Define);
+                if !self.permitted(id, Action::Define) {
                     return;
                 }
                 if let Err(why) = definition.validate(&self.lab.info.arena, &self.lab.info.robot) {
@@ -412,8 +413,9 @@ impl Hub {
                 if self.supervise(id, Action::Start) {
                     self.last_event = 0;
                     let definition = self.definition.clone().unwrap_or_default();
-                    // The teleoperation experiment is the force-feedback one.
-                    let assisted = self.experiment.as_deref() == Some("teleoperation");
+                    let assisted = self
+                        .experiment
+                        .is_some_and(Experiment::assists_the_operator);
                     self.lab.request(LabRequest::Start {
                         definition,
                         assisted,
@@ -422,20 +424,14 @@ impl Hub {
                 }
             }
             GuestMessage::Stop => {
-                if self.supervisor.phase() == Phase::Running {
+                if self.supervise(id, Action::Stop) {
                     // The lab answers with the run's summary; `done` follows.
                     self.lab.request(LabRequest::Finish(EndReason::Stopped));
-                } else {
-                    self.refuse(id, ErrorCode::NotAllowedNow, "no run to stop");
                 }
             }
             GuestMessage::Command { event, drive } => {
-                if self.supervisor.phase() != Phase::Running {
-                    return self.refuse(
-                        id,
-                        ErrorCode::NotAllowedNow,
-                        "start a run before commanding",
-                    );
+                if !self.permitted(id, Action::Command) {
+                    return;
                 }
                 if event <= self.last_event {
                     return self.refuse(
@@ -454,6 +450,7 @@ impl Hub {
                         "command speeds must be finite numbers",
                     );
                 }
+                self.supervise(id, Action::Command);
                 self.last_event = event;
                 self.lab.request(LabRequest::Drive { event, drive });
             }
@@ -473,7 +470,8 @@ impl Hub {
         }
         self.operator = None;
         info!(connection = id, "operator left");
-        if self.supervisor.phase() == Phase::Running {
+        // A run the operator could stop is stopped for them.
+        if self.supervisor.allows(Action::Stop) {
             self.lab
                 .request(LabRequest::Finish(EndReason::OperatorLeft));
         }

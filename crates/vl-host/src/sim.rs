@@ -6,9 +6,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
 
 use image::RgbImage;
-use vl_core::arena::Arena;
-use vl_core::camera::CameraModel;
-use vl_core::robot::{RobotModel, WheelSpeeds};
+use vl_core::{Arena, CameraModel, RobotModel, WheelSpeeds};
 use vl_sim::{Optics, SimError, World, camera_for};
 
 use crate::drivers::{Camera, CameraError, Robot, RobotError, RobotReading};

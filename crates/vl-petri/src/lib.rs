@@ -1,27 +1,37 @@
 //! Petri nets for `vl`: the formalism the thesis designs every lab in.
 //!
-//! [`net`] holds the model and its firing rule (the session supervisor in
-//! `vl-core` runs it live), [`pnml`] moves nets in and out, [`explore`]
-//! builds the reachability graph and [`analysis`] reads properties off it;
-//! [`coverability`] decides boundedness with Karp–Miller; [`dot`] draws.
+//! The model and its firing rule (`net`; the session supervisor in
+//! `vl-core` runs it live), PNML in and out (`pnml`), statecharts to nets
+//! (`scxml`), the reachability graph (`explore`) and the properties read
+//! off it (`analysis`), Karp–Miller coverability (`coverability`), P- and
+//! T-invariants (`invariants`), composition (`compose`), controller
+//! synthesis (`control`), pictures (`dot`), and benchmarks on the Model
+//! Checking Contest's models (`bench`). Modules are private; what other
+//! crates use is re-exported here.
 
-pub mod analysis;
-pub mod compose;
-pub mod control;
-pub mod coverability;
-pub mod dot;
-pub mod explore;
-pub mod invariants;
+mod analysis;
+mod bench;
+mod compose;
+mod control;
+mod coverability;
+mod dot;
+mod explore;
+mod invariants;
 mod linalg;
-pub mod net;
-pub mod pnml;
-pub mod scxml;
+mod net;
+mod pnml;
+mod scxml;
 
 pub use analysis::{Analysis, Liveness, analyze, incidence_rank};
+pub use bench::{BenchRow, CorpusModel, Manifest, ManifestError, PeakMemory, bench_model};
+pub use compose::{ComposeError, compose, fuse_parallel_places};
+pub use control::{Added, Constraint, ControlError, Limits, synthesize};
 pub use coverability::{Coverability, CoverabilityError, OMEGA, coverability};
 pub use dot::{graph_to_dot, net_to_dot};
 pub use explore::{ExploreError, Options, Progress, StateSpace, explore};
+pub use invariants::{Invariant, TooManyInvariants, is_conservative, p_invariants, t_invariants};
 pub use net::{
     Arc, ArcKind, Marking, MarkingDisplay, Net, NetError, Place, PlaceId, Transition, TransitionId,
 };
 pub use pnml::{PnmlError, from_pnml, to_pnml};
+pub use scxml::{ScxmlError, from_scxml};

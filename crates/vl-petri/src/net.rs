@@ -226,11 +226,6 @@ impl Net {
         Marking(self.places.iter().map(|p| p.initial).collect())
     }
 
-    /// Whether the net has inhibitor arcs (some analyses are unsound with them).
-    pub fn has_inhibitors(&self) -> bool {
-        self.transitions.iter().any(|t| !t.inhibit.is_empty())
-    }
-
     /// Whether `t` may fire at `m`: every input place holds the arc weight,
     /// every inhibiting place holds less than its weight, and no capacity
     /// would be exceeded.

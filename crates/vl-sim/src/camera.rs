@@ -4,9 +4,7 @@ use image::{Rgb, RgbImage};
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
-use vl_core::arena::Arena;
-use vl_core::camera::CameraModel;
-use vl_core::robot::Point;
+use vl_core::{Arena, CameraModel, Point};
 
 use crate::noise::gaussian;
 use crate::world::World;
@@ -234,8 +232,7 @@ fn shade(image: &mut RgbImage, optics: &Optics, seed: u64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use vl_core::arena::Arena;
-    use vl_core::robot::RobotModel;
+    use vl_core::{Arena, RobotModel};
 
     #[test]
     fn the_robot_appears_where_it_is() {
@@ -248,7 +245,7 @@ mod tests {
         assert_eq!(*img.get_pixel(c as u32 - 8, r as u32), BODY);
         assert_eq!(*img.get_pixel(c as u32 + 6, r as u32), MARKER);
         // The box at x = 250..310, y = 0..230 is dark.
-        let (bc, br) = cam.to_pixel(vl_core::robot::Point {
+        let (bc, br) = cam.to_pixel(vl_core::Point {
             x_mm: 280.0,
             y_mm: 100.0,
         });

@@ -7,7 +7,14 @@
 //! pseudo-terminal in real time.
 
 use crate::world::World;
-use vl_core::robot::{MAX_PULSES_PER_PERIOD as MAX_SPEED, WheelSpeeds};
+use vl_core::{
+    CommandError, KheperaCommand, KheperaReply, LedAction, MAX_PULSES_PER_PERIOD as MAX_SPEED,
+    MotorMode, MotorStatus, WheelSpeeds,
+};
+
+/// What `B` answers: BIOS 5.02, protocol 5.01.
+const BIOS: &str = "5.02";
+const PROTOCOL: &str = "5.01";
 
 /// Ambient light reading in the simulated arena's even lighting (lower = brighter).
 const AMBIENT: u16 = 480;
@@ -116,109 +123,106 @@ impl Khepera {
     /// The reply to one command line (without its line ending), or None for
     /// an empty line, which the firmware ignores.
     pub fn handle(&mut self, line: &str) -> Option<String> {
-        let line = line.trim();
-        let mut parts = line.split(',');
-        let command = parts.next().filter(|c| !c.is_empty())?;
-        let args: Result<Vec<i64>, _> = parts.map(|a| a.trim().parse::<i64>()).collect();
-        let Ok(args) = args else {
-            return Some("z,Bad arguments".to_owned());
+        let reply = match KheperaCommand::parse(line) {
+            Ok(None) => return None,
+            Ok(Some(command)) => self.execute(command),
+            Err(refused) => KheperaReply::Refused(refused.to_string()),
         };
-        let reply = match (command, args.as_slice()) {
-            ("A" | "F", [_, _, _]) => command.to_lowercase(),
-            ("J", [top_l, acc_l, top_r, acc_r]) => {
-                self.profile = [
-                    [(*top_l).clamp(0, MAX_SPEED), (*acc_l).clamp(1, 255)],
-                    [(*top_r).clamp(0, MAX_SPEED), (*acc_r).clamp(1, 255)],
-                ];
-                "j".to_owned()
+        Some(reply.encode())
+    }
+
+    /// Carries out one command as the firmware does.
+    pub fn execute(&mut self, command: KheperaCommand) -> KheperaReply {
+        use KheperaCommand as K;
+        match command {
+            K::SpeedGains { .. } | K::PositionGains { .. } => {}
+            K::SpeedProfile { top, accel } => {
+                for wheel in 0..2 {
+                    self.profile[wheel] =
+                        [top[wheel].clamp(0, MAX_SPEED), accel[wheel].clamp(1, 255)];
+                }
             }
-            ("C", [left, right]) => {
-                self.mode = [Mode::Position(*left), Mode::Position(*right)];
+            K::MoveTo { left, right } => {
+                self.mode = [Mode::Position(left), Mode::Position(right)];
                 self.ramp = [self.speed[0].abs() as f64, self.speed[1].abs() as f64];
-                "c".to_owned()
             }
-            ("B", []) => "b,5.02,5.01".to_owned(),
-            ("D", [left, right]) => {
+            K::Version => {
+                return KheperaReply::Version {
+                    bios: BIOS.to_owned(),
+                    protocol: PROTOCOL.to_owned(),
+                };
+            }
+            K::SetSpeed { left, right } => {
                 self.speed = [
-                    (*left).clamp(-MAX_SPEED, MAX_SPEED),
-                    (*right).clamp(-MAX_SPEED, MAX_SPEED),
+                    left.clamp(-MAX_SPEED, MAX_SPEED),
+                    right.clamp(-MAX_SPEED, MAX_SPEED),
                 ];
                 self.mode = [Mode::Speed; 2];
                 self.command_speeds();
-                "d".to_owned()
             }
-            ("E", []) => {
-                let w = self.world.wheels();
-                format!(
-                    "e,{},{}",
-                    self.world.robot().pulses_per_period(w.left_mm_s),
-                    self.world.robot().pulses_per_period(w.right_mm_s)
-                )
-            }
-            ("G", [left, right]) => {
+            K::ReadSpeed => return KheperaReply::Speed(self.wheel_pulses()),
+            K::SetCounters { left, right } => {
                 let now = self.counters();
                 self.counter_origin[0] += now[0] - left;
                 self.counter_origin[1] += now[1] - right;
-                "g".to_owned()
             }
-            ("H", []) => {
-                let [l, r] = self.counters();
-                format!("h,{l},{r}")
-            }
-            ("K", []) => {
-                // On target: at the commanded speed, or near the commanded position.
-                let w = self.world.wheels();
-                let actual = [
-                    self.world.robot().pulses_per_period(w.left_mm_s),
-                    self.world.robot().pulses_per_period(w.right_mm_s),
-                ];
+            K::ReadCounters => return KheperaReply::Counters(self.counters()),
+            K::ReadStatus => {
+                let actual = self.wheel_pulses();
                 let counts = self.counters();
                 let motor = |i: usize| match self.mode[i] {
                     Mode::Speed => {
                         let error = self.speed[i] - actual[i];
-                        format!("{},1,{}", u8::from(error == 0), error)
+                        MotorStatus {
+                            on_target: error == 0,
+                            mode: MotorMode::Speed,
+                            error,
+                        }
                     }
                     Mode::Position(target) => {
                         let error = target - counts[i];
-                        format!("{},0,{}", u8::from(error.abs() <= ON_TARGET_PULSES), error)
+                        MotorStatus {
+                            on_target: error.abs() <= ON_TARGET_PULSES,
+                            mode: MotorMode::Position,
+                            error,
+                        }
                     }
                 };
-                format!("k,{},{}", motor(0), motor(1))
+                return KheperaReply::Status([motor(0), motor(1)]);
             }
-            ("L", [n, action]) if (0..=1).contains(n) && (0..=2).contains(action) => {
-                let led = &mut self.leds[*n as usize];
-                *led = match action {
-                    0 => false,
-                    1 => true,
-                    _ => !*led,
+            K::Led { led, action } => {
+                let Some(lit) = self.leds.get_mut(usize::from(led)) else {
+                    return KheperaReply::Refused(CommandError::BadArguments.to_string());
                 };
-                "l".to_owned()
+                *lit = match action {
+                    LedAction::Off => false,
+                    LedAction::On => true,
+                    LedAction::Toggle => !*lit,
+                };
             }
-            ("N", []) => {
-                let values: Vec<String> =
-                    self.world.proximity().iter().map(u16::to_string).collect();
-                format!("n,{}", values.join(","))
+            K::ReadProximity => return KheperaReply::Proximity(self.world.proximity()),
+            K::ReadAmbient => {
+                return KheperaReply::Ambient(vec![AMBIENT; self.world.robot().sensors.len()]);
             }
-            ("O", []) => {
-                let values: Vec<String> = (0..self.world.robot().sensors.len())
-                    .map(|_| AMBIENT.to_string())
-                    .collect();
-                format!("o,{}", values.join(","))
-            }
-            ("A" | "B" | "C" | "D" | "E" | "F" | "G" | "H" | "J" | "K" | "L" | "N" | "O", _) => {
-                "z,Bad arguments".to_owned()
-            }
-            _ => "z,Command not found".to_owned(),
-        };
-        Some(reply)
+        }
+        KheperaReply::Done(command.letter().to_ascii_lowercase())
+    }
+
+    /// The wheels' actual speeds, pulses per 10 ms.
+    fn wheel_pulses(&self) -> [i64; 2] {
+        let w = self.world.wheels();
+        let robot = self.world.robot();
+        [
+            robot.pulses_per_period(w.left_mm_s),
+            robot.pulses_per_period(w.right_mm_s),
+        ]
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use vl_core::arena::Arena;
-    use vl_core::robot::RobotModel;
+    use vl_core::{Arena, RobotModel};
 
     fn khepera() -> Khepera {
         Khepera::new(World::new(Arena::navigation(), RobotModel::khepera_ii(), 1).unwrap())

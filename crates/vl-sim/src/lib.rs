@@ -2,18 +2,27 @@
 //! its proximity sensors and the overhead camera. Everything advances on a
 //! virtual clock in fixed steps with a seeded random source, so the same
 //! seed and inputs give the same run on any machine.
+//!
+//! Also here: the Khepera's serial protocol answered by the simulated
+//! robot (and put on a pseudo-terminal), the Internet link as a model, and
+//! scripted or path-following runs with a fingerprint of their trace.
 
+mod bench;
 mod camera;
 mod emulator;
 mod khepera;
-pub mod link;
+mod link;
 mod noise;
 mod proximity;
-pub mod script;
+mod script;
 mod world;
 
+pub use bench::{SimBench, bench};
 pub use camera::{Optics, camera_for};
 pub use emulator::{Emulator, EmulatorError, Line};
 pub use khepera::Khepera;
-pub use proximity::proximity_value;
+pub use link::{
+    Distribution, Expected, Link, LinkModel, LinkReport, LinkStats, Loss, Profile, measure,
+};
+pub use script::{Driver, RunReport, Script, ScriptError, Tracking, run};
 pub use world::{STEP_S, SimError, World};

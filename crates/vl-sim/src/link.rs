@@ -13,7 +13,7 @@
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
-use thiserror::Error;
+use vl_core::Named;
 
 use crate::noise::gaussian;
 
@@ -67,19 +67,42 @@ pub struct LinkModel {
     pub disconnects: Vec<(f64, f64)>,
 }
 
-#[derive(Debug, Error, PartialEq, Eq)]
-#[error("unknown link profile '{0}' (known: {known})", known = PROFILES.join(", "))]
-pub struct UnknownProfile(pub String);
+/// The named links between a Guest and a Host, from a lab's LAN to a
+/// geostationary satellite hop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Profile {
+    Lan,
+    Internet2,
+    Internet2005,
+    Intercontinental,
+    Congested,
+    GeoSatellite,
+}
 
-/// The named profiles of `docs/network.md`.
-pub const PROFILES: [&str; 6] = [
-    "lan",
-    "internet2",
-    "internet-2005",
-    "intercontinental",
-    "congested",
-    "geo-satellite",
-];
+impl Named for Profile {
+    const KIND: &'static str = "link profile";
+    const ALL: &'static [Self] = &[
+        Profile::Lan,
+        Profile::Internet2,
+        Profile::Internet2005,
+        Profile::Intercontinental,
+        Profile::Congested,
+        Profile::GeoSatellite,
+    ];
+
+    fn id(self) -> &'static str {
+        match self {
+            Profile::Lan => "lan",
+            Profile::Internet2 => "internet2",
+            Profile::Internet2005 => "internet-2005",
+            Profile::Intercontinental => "intercontinental",
+            Profile::Congested => "congested",
+            Profile::GeoSatellite => "geo-satellite",
+        }
+    }
+}
+
+vl_core::named_by_id!(Profile);
 
 impl LinkModel {
     fn delay(
@@ -111,13 +134,13 @@ impl LinkModel {
     }
 
     /// A named profile: one-way delay per direction, as netem arguments.
-    pub fn profile(name: &str) -> Result<LinkModel, UnknownProfile> {
+    pub fn profile(profile: Profile) -> LinkModel {
         use Distribution::*;
-        Ok(match name {
+        match profile {
             // delay 0.5ms 0.1ms
-            "lan" => LinkModel::delay(0.5, 0.1, 0.0, Uniform),
+            Profile::Lan => LinkModel::delay(0.5, 0.1, 0.0, Uniform),
             // delay 12ms 2ms 25% distribution normal loss 0.1%
-            "internet2" => LinkModel {
+            Profile::Internet2 => LinkModel {
                 loss: Loss::Random {
                     p: 0.001,
                     correlation: 0.0,
@@ -125,31 +148,30 @@ impl LinkModel {
                 ..LinkModel::delay(12.0, 2.0, 0.25, Normal)
             },
             // delay 40ms 15ms 25% distribution paretonormal loss gemodel 0.505% 50%
-            "internet-2005" => LinkModel {
+            Profile::Internet2005 => LinkModel {
                 loss: LinkModel::gemodel(0.00505, 0.5),
                 ..LinkModel::delay(40.0, 15.0, 0.25, ParetoNormal)
             },
             // delay 75ms 15ms 25% distribution normal loss gemodel 0.505% 50%
-            "intercontinental" => LinkModel {
+            Profile::Intercontinental => LinkModel {
                 loss: LinkModel::gemodel(0.00505, 0.5),
                 ..LinkModel::delay(75.0, 15.0, 0.25, Normal)
             },
             // delay 100ms 50ms distribution pareto loss gemodel 1% 33% reorder 2% 50%
-            "congested" => LinkModel {
+            Profile::Congested => LinkModel {
                 loss: LinkModel::gemodel(0.01, 0.33),
                 reorder: 0.02,
                 ..LinkModel::delay(100.0, 50.0, 0.0, Pareto)
             },
             // delay 280ms 10ms loss 0.5%
-            "geo-satellite" => LinkModel {
+            Profile::GeoSatellite => LinkModel {
                 loss: Loss::Random {
                     p: 0.005,
                     correlation: 0.0,
                 },
                 ..LinkModel::delay(280.0, 10.0, 0.0, Uniform)
             },
-            other => return Err(UnknownProfile(other.to_owned())),
-        })
+        }
     }
 
     /// The long-run fraction of packets lost (disconnects aside).
@@ -423,6 +445,51 @@ pub struct LinkStats {
     pub reorders: usize,
 }
 
+/// What the profile promises, beside what [`measure`] found.
+#[derive(Debug, Clone, Serialize)]
+pub struct Expected {
+    pub delay_mean_ms: f64,
+    pub jitter_ms: f64,
+    pub loss_rate: f64,
+    pub mean_loss_burst: f64,
+}
+
+/// A profile's packets measured against the profile.
+#[derive(Debug, Clone, Serialize)]
+pub struct LinkReport {
+    pub profile: Profile,
+    pub packets: usize,
+    pub interval_ms: f64,
+    pub seed: u64,
+    pub model: LinkModel,
+    pub measured: LinkStats,
+    pub expected: Expected,
+}
+
+impl LinkReport {
+    /// Sends `packets` 100-byte packets, one every `interval_ms`, through
+    /// `profile`'s link seeded with `seed`.
+    pub fn measure(profile: Profile, packets: usize, interval_ms: f64, seed: u64) -> LinkReport {
+        let model = LinkModel::profile(profile);
+        let expected = Expected {
+            delay_mean_ms: model.expected_delay(),
+            jitter_ms: model.expected_jitter(),
+            loss_rate: model.expected_loss(),
+            mean_loss_burst: model.expected_burst(),
+        };
+        let mut link = Link::new(model.clone(), seed);
+        LinkReport {
+            profile,
+            packets,
+            interval_ms,
+            seed,
+            measured: measure(&mut link, packets, interval_ms, 100),
+            model,
+            expected,
+        }
+    }
+}
+
 /// Sends `packets` packets of `bytes` every `interval_ms` and measures.
 pub fn measure(link: &mut Link, packets: usize, interval_ms: f64, bytes: usize) -> LinkStats {
     let mut arrivals: Vec<(f64, usize)> = Vec::new();
@@ -496,10 +563,11 @@ mod tests {
 
     #[test]
     fn unknown_profiles_are_named() {
-        let e = LinkModel::profile("dialup").unwrap_err();
-        assert!(
-            e.to_string().contains("unknown link profile 'dialup'"),
-            "{e}"
+        let e = "dialup".parse::<Profile>().unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "unknown link profile 'dialup' (known: lan, internet2, internet-2005, \
+             intercontinental, congested, geo-satellite)"
         );
     }
 }

@@ -3,7 +3,7 @@
 /// Reading (0–1023, higher = nearer) of a sensor `distance_mm` from a white
 /// obstacle: the closed form 52 + 108929 / (d + 5)^1.75, within ~5 % of
 /// K-Team's calibration table over its 8–100 mm range.
-pub fn proximity_value(distance_mm: f64) -> f64 {
+pub(crate) fn proximity_value(distance_mm: f64) -> f64 {
     (52.0 + 108_929.0 / (distance_mm.max(0.0) + 5.0).powf(1.75)).clamp(0.0, 1023.0)
 }
 

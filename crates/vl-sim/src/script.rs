@@ -4,8 +4,9 @@
 
 use serde::Serialize;
 use thiserror::Error;
-use vl_core::follow::{Command, Follower};
-use vl_core::robot::{Pose, WheelSpeeds};
+use vl_core::{
+    ArenaPlanError, Definition, Follower, Goal, Point, Pose, Steer, WheelSpeeds, plan_route,
+};
 
 use crate::world::{STEP_S, World};
 
@@ -83,6 +84,40 @@ pub enum Driver {
     Idle,
 }
 
+/// How long an idle run, or a scripted one past its last line, lasts
+/// unless told otherwise, s.
+const SCRIPT_TAIL_S: f64 = 10.0;
+
+impl Driver {
+    /// A follower of the path a Guest would plan from the robot to `goal`
+    /// (the arena's suggested one when absent); idle when there is neither.
+    pub fn to_goal(world: &World, goal: Option<Point>) -> Result<Driver, ArenaPlanError> {
+        let Some(goal) = goal.or(world.arena().goal) else {
+            return Ok(Driver::Idle);
+        };
+        let plan = plan_route(world.arena(), &[], world.robot(), world.pose(), goal)?;
+        let definition = Definition {
+            goal: Some(Goal::at(goal)),
+            path: plan.points(),
+            ..Definition::default()
+        };
+        let follower = Follower::for_definition(&definition).expect("a plan has samples");
+        Ok(Driver::Path(follower))
+    }
+
+    /// How long a run needs: twice the path's time at cruising speed plus
+    /// turning room; a script's last line and then [`SCRIPT_TAIL_S`].
+    pub fn duration_s(&self) -> f64 {
+        match self {
+            Driver::Path(follower) => 2.0 * follower.expected_seconds() + 5.0,
+            Driver::Script(script) => {
+                script.0.last().map_or(0.0, |&(t, _)| t.max(0.0)) + SCRIPT_TAIL_S
+            }
+            Driver::Idle => SCRIPT_TAIL_S,
+        }
+    }
+}
+
 /// What a run did.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct RunReport {
@@ -134,13 +169,9 @@ pub fn run(world: &mut World, driver: &mut Driver, seconds: f64) -> RunReport {
         let wheels = match driver {
             Driver::Script(script) => script.at(world.time_s()),
             Driver::Path(follower) => {
-                match follower.step(world.robot(), world.pose(), &proximity) {
-                    Command::Drive(wheels) => wheels,
-                    Command::Arrived => {
-                        arrived = true;
-                        WheelSpeeds::default()
-                    }
-                }
+                let steer = follower.step(world.robot(), world.pose(), &proximity);
+                arrived = steer == Steer::Arrived;
+                steer.wheels()
             }
             Driver::Idle => WheelSpeeds::default(),
         };
@@ -178,8 +209,7 @@ pub fn run(world: &mut World, driver: &mut Driver, seconds: f64) -> RunReport {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use vl_core::arena::Arena;
-    use vl_core::robot::RobotModel;
+    use vl_core::{Arena, RobotModel};
 
     fn world(seed: u64) -> World {
         World::new(Arena::navigation(), RobotModel::khepera_ii(), seed).unwrap()
@@ -187,19 +217,7 @@ mod tests {
 
     #[test]
     fn same_seed_same_trace_other_seed_other_trace() {
-        let path = |w: &World| {
-            let plan = vl_core::plan::plan_in_arena(
-                w.arena(),
-                &[],
-                w.robot().radius_mm,
-                vl_core::follow::PLAN_MARGIN_MM,
-                w.pose(),
-                w.arena().goal.unwrap(),
-            )
-            .unwrap();
-            let points = plan.points();
-            Driver::Path(Follower::new(points, Default::default()).unwrap())
-        };
+        let path = |w: &World| Driver::to_goal(w, None).unwrap();
         let (mut w3, mut w3b, mut w4) = (world(3), world(3), world(4));
         let (mut p3, mut p3b, mut p4) = (path(&w3), path(&w3b), path(&w4));
         let a = run(&mut w3, &mut p3, 5.0);
@@ -207,6 +225,29 @@ mod tests {
         let c = run(&mut w4, &mut p4, 5.0);
         assert_eq!(a, b);
         assert_ne!(a.trace_hash, c.trace_hash);
+    }
+
+    #[test]
+    fn runs_last_as_long_as_their_driver_needs() {
+        let w = world(1);
+        let follow = Driver::to_goal(&w, None).unwrap();
+        assert!(
+            (10.0..30.0).contains(&follow.duration_s()),
+            "{}",
+            follow.duration_s()
+        );
+        let script = Driver::Script(Script::parse("0 10 10\n12 0 0").unwrap());
+        assert_eq!(script.duration_s(), 22.0);
+        assert!(matches!(
+            Driver::to_goal(
+                &w,
+                Some(Point {
+                    x_mm: 280.0,
+                    y_mm: 100.0
+                })
+            ),
+            Err(ArenaPlanError::NoPath(_))
+        ));
     }
 
     #[test]

@@ -3,8 +3,7 @@
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use thiserror::Error;
-use vl_core::arena::Arena;
-use vl_core::robot::{Pose, RobotModel, WheelSpeeds};
+use vl_core::{Arena, Pose, RobotModel, WheelSpeeds};
 
 use crate::noise::gaussian;
 use crate::proximity::proximity_value;
@@ -214,7 +213,7 @@ impl World {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use vl_core::robot::Point;
+    use vl_core::Point;
 
     fn world(seed: u64) -> World {
         World::new(Arena::navigation(), RobotModel::khepera_ii(), seed).unwrap()

@@ -4,13 +4,58 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::arena::{Arena, Shape};
-use crate::robot::{Point, RobotModel};
+use crate::{Arena, Named, Point, RobotModel, Shape};
 
-/// An experiment the Host offers.
+/// The experiments a lab can offer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Experiment {
+    /// Plan a path to a goal among obstacles and follow it (thesis ch. 5).
+    Navigation,
+    /// Drive by joystick with the obstacles pushing back (thesis ch. 6).
+    Teleoperation,
+}
+
+impl Named for Experiment {
+    const KIND: &'static str = "experiment";
+    const ALL: &'static [Self] = &[Experiment::Navigation, Experiment::Teleoperation];
+
+    fn id(self) -> &'static str {
+        match self {
+            Experiment::Navigation => "navigation",
+            Experiment::Teleoperation => "teleoperation",
+        }
+    }
+}
+
+crate::named_by_id!(Experiment);
+
+impl Experiment {
+    /// What the user sees it called.
+    pub fn title(self) -> &'static str {
+        match self {
+            Experiment::Navigation => "Navigate to a goal among obstacles",
+            Experiment::Teleoperation => "Drive the robot by joystick",
+        }
+    }
+
+    /// Whether the Host adds potential fields to the operator's commands
+    /// and feeds the push back as a force.
+    pub fn assists_the_operator(self) -> bool {
+        self == Experiment::Teleoperation
+    }
+
+    pub fn info(self) -> ExperimentInfo {
+        ExperimentInfo {
+            id: self,
+            title: self.title().to_owned(),
+        }
+    }
+}
+
+/// An experiment the Host offers, as the Guest lists it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ExperimentInfo {
-    pub id: String,
+    pub id: Experiment,
     pub title: String,
 }
 
@@ -23,6 +68,18 @@ pub struct Goal {
 }
 
 impl Goal {
+    /// How close to a goal counts as there, unless the user says otherwise.
+    pub const DEFAULT_TOLERANCE_MM: f64 = 15.0;
+
+    /// A goal at `p` with the default tolerance.
+    pub fn at(p: Point) -> Goal {
+        Goal {
+            x_mm: p.x_mm,
+            y_mm: p.y_mm,
+            tolerance_mm: Goal::DEFAULT_TOLERANCE_MM,
+        }
+    }
+
     pub fn point(&self) -> Point {
         Point {
             x_mm: self.x_mm,
@@ -144,5 +201,19 @@ mod tests {
                 .unwrap_err()
                 .contains("speed limit")
         );
+    }
+
+    #[test]
+    fn experiments_travel_as_their_ids() {
+        for &e in Experiment::ALL {
+            assert_eq!(e.id().parse(), Ok(e));
+            assert_eq!(serde_json::to_string(&e).unwrap(), format!("\"{e}\""));
+        }
+        let e = "juggling".parse::<Experiment>().unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "unknown experiment 'juggling' (known: navigation, teleoperation)"
+        );
+        assert!(serde_json::from_str::<Experiment>("\"juggling\"").is_err());
     }
 }

@@ -2,7 +2,7 @@
 //!
 //! Each WebSocket text message is one JSON object whose `"type"` field names
 //! the message in snake_case; camera images travel as binary messages (see
-//! [`crate::frame`]). `docs/protocol.md` shows one example of each message.
+//! [`FrameHeader`](crate::FrameHeader)). `docs/protocol.md` shows one example of each message.
 //! Every message that reports the lab's state carries the event number or
 //! time it refers to, so a receiver can always tell stale from fresh.
 
@@ -10,10 +10,9 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::arena::Arena;
-use crate::camera::CameraModel;
-use crate::experiment::{Definition, ExperimentInfo};
-use crate::robot::{Pose, RobotModel, WheelSpeeds};
+use crate::{
+    Arena, CameraModel, Definition, Experiment, ExperimentInfo, Pose, RobotModel, WheelSpeeds,
+};
 
 /// The protocol version a `hello` must name.
 pub const PROTOCOL_VERSION: u32 = 1;
@@ -29,6 +28,15 @@ pub enum Role {
     Observer,
 }
 
+impl std::fmt::Display for Role {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Role::Operator => "operator",
+            Role::Observer => "observer",
+        })
+    }
+}
+
 /// How a command asks the robot to move.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
@@ -37,6 +45,15 @@ pub enum Drive {
     Wheels { left: f64, right: f64 },
     /// Linear speed mm/s and turn rate rad/s.
     Velocity { v: f64, w: f64 },
+}
+
+impl From<WheelSpeeds> for Drive {
+    fn from(wheels: WheelSpeeds) -> Drive {
+        Drive::Wheels {
+            left: wheels.left_mm_s,
+            right: wheels.right_mm_s,
+        }
+    }
 }
 
 impl Drive {
@@ -68,6 +85,18 @@ pub enum EndReason {
     TimeLimit,
     OperatorLeft,
     Fault,
+}
+
+impl std::fmt::Display for EndReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            EndReason::GoalReached => "goal reached",
+            EndReason::Stopped => "stopped",
+            EndReason::TimeLimit => "time limit",
+            EndReason::OperatorLeft => "operator left",
+            EndReason::Fault => "fault",
+        })
+    }
 }
 
 /// What a finished run achieved.
@@ -105,7 +134,14 @@ pub enum ErrorCode {
     NotAllowedNow,
     /// A command whose event number is not the next one.
     StaleCommand,
-    RobotFault,
+}
+
+/// As on the wire: `unknown_experiment`.
+impl std::fmt::Display for ErrorCode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let id = serde_json::to_value(self).expect("codes serialise");
+        f.write_str(id.as_str().expect("codes serialise as strings"))
+    }
 }
 
 /// Messages the Guest sends.
@@ -125,6 +161,8 @@ pub enum GuestMessage {
     Pong {
         t: f64,
     },
+    /// The experiment's id. A name the Host does not offer is answered
+    /// `unknown_experiment` with the ones it does, so it travels as text.
     Mount {
         experiment: String,
     },
@@ -163,7 +201,7 @@ pub enum HostMessage {
         t: f64,
     },
     Mounted {
-        experiment: String,
+        experiment: Experiment,
         arena: Arena,
         robot: RobotModel,
         camera: CameraModel,

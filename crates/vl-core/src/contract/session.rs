@@ -12,6 +12,11 @@ pub enum Action {
     Mount,
     Define,
     Start,
+    /// The operator asks the running experiment to stop; `Finish` follows
+    /// when the lab has stopped it.
+    Stop,
+    /// A drive command, during a run.
+    Command,
     /// A run ends: stopped by the operator, goal reached, time limit or fault.
     Finish,
     /// The operator leaves; the lab returns to idle from wherever it was.
@@ -24,6 +29,8 @@ impl Action {
             Action::Mount => "mount",
             Action::Define => "define",
             Action::Start => "start",
+            Action::Stop => "stop",
+            Action::Command => "command",
             Action::Finish => "finish",
             Action::Release => "release",
         }
@@ -46,8 +53,34 @@ const PHASES: [(&str, Phase); 4] = [
     ("running", Phase::Running),
 ];
 
+impl std::fmt::Display for Action {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Action::Mount => "mount an experiment",
+            Action::Define => "define the experiment",
+            Action::Start => "start a run",
+            Action::Stop => "stop a run",
+            Action::Command => "drive",
+            Action::Finish => "finish a run",
+            Action::Release => "release the lab",
+        })
+    }
+}
+
+impl std::fmt::Display for Phase {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Phase::Idle => "no experiment is mounted",
+            Phase::Mounted => "the experiment is not defined yet",
+            Phase::Defined => "no run is going",
+            Phase::Running => "a run is going",
+        })
+    }
+}
+
+/// An action the session net does not enable now.
 #[derive(Debug, Error, PartialEq, Eq)]
-#[error("{action:?} is not allowed while the lab is {phase:?}")]
+#[error("cannot {action} now: {phase}")]
 pub struct NotAllowed {
     pub action: Action,
     pub phase: Phase,
@@ -74,13 +107,15 @@ impl Supervisor {
             net.add_place(name, u32::from(phase == Phase::Idle))
                 .expect("phase names are distinct");
         }
-        let moves: [(&str, Action, &str, &str); 10] = [
+        let moves: [(&str, Action, &str, &str); 12] = [
             ("mount", Action::Mount, "idle", "mounted"),
             ("remount_mounted", Action::Mount, "mounted", "mounted"),
             ("remount_defined", Action::Mount, "defined", "mounted"),
             ("define", Action::Define, "mounted", "defined"),
             ("redefine", Action::Define, "defined", "defined"),
             ("start", Action::Start, "defined", "running"),
+            ("stop", Action::Stop, "running", "running"),
+            ("command", Action::Command, "running", "running"),
             ("finish", Action::Finish, "running", "defined"),
             ("release_mounted", Action::Release, "mounted", "idle"),
             ("release_defined", Action::Release, "defined", "idle"),
@@ -116,6 +151,14 @@ impl Supervisor {
         self.enabled_for(action).is_some()
     }
 
+    /// Says why `action` may not happen now, if it may not.
+    pub fn check(&self, action: Action) -> Result<(), NotAllowed> {
+        self.enabled_for(action).map(drop).ok_or(NotAllowed {
+            action,
+            phase: self.phase(),
+        })
+    }
+
     /// Performs `action`, or says why it may not happen now.
     pub fn fire(&mut self, action: Action) -> Result<Phase, NotAllowed> {
         let t = self.enabled_for(action).ok_or(NotAllowed {
@@ -141,6 +184,15 @@ mod tests {
     use super::*;
 
     #[test]
+    fn refusals_say_what_stands_in_the_way() {
+        let refused = Supervisor::new().fire(Action::Start).unwrap_err();
+        assert_eq!(
+            refused.to_string(),
+            "cannot start a run now: no experiment is mounted"
+        );
+    }
+
+    #[test]
     fn the_experiment_cycle() {
         let mut s = Supervisor::new();
         assert_eq!(s.phase(), Phase::Idle);
@@ -153,8 +205,16 @@ mod tests {
         );
         assert_eq!(s.fire(Action::Mount), Ok(Phase::Mounted));
         assert!(!s.allows(Action::Start));
+        assert!(!s.allows(Action::Command), "no commands before a run");
         assert_eq!(s.fire(Action::Define), Ok(Phase::Defined));
+        assert!(!s.allows(Action::Stop), "nothing to stop");
         assert_eq!(s.fire(Action::Start), Ok(Phase::Running));
+        assert_eq!(s.fire(Action::Command), Ok(Phase::Running));
+        assert_eq!(
+            s.fire(Action::Stop),
+            Ok(Phase::Running),
+            "until the lab finishes"
+        );
         assert!(!s.allows(Action::Define), "no redefinition mid-run");
         assert!(!s.allows(Action::Mount), "no remount mid-run");
         assert_eq!(s.fire(Action::Finish), Ok(Phase::Defined));

@@ -6,7 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::robot::Point;
+use crate::Point;
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct CameraModel {

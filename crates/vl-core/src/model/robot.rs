@@ -2,7 +2,11 @@
 //! draw and predict the robot, and the differential-drive kinematics both
 //! the simulator and the Guest's predictor use.
 
+use std::str::FromStr;
+
 use serde::{Deserialize, Serialize};
+
+use crate::Named;
 
 /// A planar pose in the arena frame: mm, origin at the arena's bottom-left
 /// corner, x right, y up, θ counter-clockwise from +x.
@@ -50,6 +54,36 @@ pub struct RobotModel {
     pub sensors: Vec<SensorMount>,
 }
 
+/// The robots `vl` knows by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RobotKind {
+    KheperaII,
+    KheperaI,
+}
+
+impl Named for RobotKind {
+    const KIND: &'static str = "robot";
+    const ALL: &'static [Self] = &[RobotKind::KheperaII, RobotKind::KheperaI];
+
+    fn id(self) -> &'static str {
+        match self {
+            RobotKind::KheperaII => "khepera-ii",
+            RobotKind::KheperaI => "khepera-i",
+        }
+    }
+}
+
+crate::named_by_id!(RobotKind);
+
+impl RobotKind {
+    pub fn model(self) -> RobotModel {
+        match self {
+            RobotKind::KheperaII => RobotModel::khepera_ii(),
+            RobotKind::KheperaI => RobotModel::khepera_i(),
+        }
+    }
+}
+
 /// The Khepera's speed unit is encoder pulses per this period (its on-board
 /// speed controller's), s.
 pub const SPEED_PERIOD_S: f64 = 0.01;
@@ -75,15 +109,6 @@ impl RobotModel {
     /// K-Team Khepera I: 55 mm body, IR reaching ≈50 mm.
     pub fn khepera_i() -> Self {
         Self::khepera("khepera-i", 27.5, 50.0)
-    }
-
-    /// A robot model by name: khepera-ii or khepera-i.
-    pub fn named(name: &str) -> Option<Self> {
-        match name {
-            "khepera-ii" => Some(Self::khepera_ii()),
-            "khepera-i" => Some(Self::khepera_i()),
-            _ => None,
-        }
     }
 
     /// The same robot built to another size: the body's radius and the
@@ -214,6 +239,73 @@ impl Point {
     pub fn distance(&self, other: Point) -> f64 {
         (self.x_mm - other.x_mm).hypot(self.y_mm - other.y_mm)
     }
+
+    /// Distance to the segment from `a` to `b`.
+    pub fn distance_to_segment(&self, a: Point, b: Point) -> f64 {
+        let (dx, dy) = (b.x_mm - a.x_mm, b.y_mm - a.y_mm);
+        let len2 = dx * dx + dy * dy;
+        let t = if len2 == 0.0 {
+            0.0
+        } else {
+            (((self.x_mm - a.x_mm) * dx + (self.y_mm - a.y_mm) * dy) / len2).clamp(0.0, 1.0)
+        };
+        (self.x_mm - (a.x_mm + t * dx)).hypot(self.y_mm - (a.y_mm + t * dy))
+    }
+}
+
+/// Comma-separated finite numbers: how positions are written on a command line.
+pub(crate) fn parse_numbers(text: &str) -> Result<Vec<f64>, String> {
+    text.split(',')
+        .map(|n| {
+            let v: f64 = n
+                .trim()
+                .parse()
+                .map_err(|_| format!("'{n}' is not a number"))?;
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(format!("'{n}' is not a finite number"))
+            }
+        })
+        .collect()
+}
+
+/// Points `x,y;x,y;…`, mm.
+pub(crate) fn parse_points(text: &str) -> Result<Vec<Point>, String> {
+    text.split(';').map(|pair| pair.parse()).collect()
+}
+
+/// `x,y` in mm.
+impl FromStr for Point {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Point, String> {
+        match *parse_numbers(text)?.as_slice() {
+            [x_mm, y_mm] => Ok(Point { x_mm, y_mm }),
+            _ => Err(format!("expected a point x,y in mm, not '{text}'")),
+        }
+    }
+}
+
+/// `x,y` or `x,y,θ`: mm, and radians counter-clockwise from +x.
+impl FromStr for Pose {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Pose, String> {
+        match *parse_numbers(text)?.as_slice() {
+            [x_mm, y_mm] => Ok(Pose {
+                x_mm,
+                y_mm,
+                theta_rad: 0.0,
+            }),
+            [x_mm, y_mm, theta_rad] => Ok(Pose {
+                x_mm,
+                y_mm,
+                theta_rad,
+            }),
+            _ => Err(format!("expected x,y or x,y,θ, not '{text}'")),
+        }
+    }
 }
 
 /// `a` folded into (−π, π].
@@ -264,10 +356,48 @@ mod tests {
         let e = RobotModel::khepera_ii().resized(20.0, 53.0).unwrap_err();
         assert!(e.contains("does not fit"), "{e}");
         assert_eq!(
-            RobotModel::named("khepera-i"),
-            Some(RobotModel::khepera_i())
+            "khepera-i".parse::<RobotKind>().map(RobotKind::model),
+            Ok(RobotModel::khepera_i())
         );
-        assert_eq!(RobotModel::named("roomba"), None);
+        let e = "roomba".parse::<RobotKind>().unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "unknown robot 'roomba' (known: khepera-ii, khepera-i)"
+        );
+    }
+
+    #[test]
+    fn poses_and_points_are_written_as_numbers() {
+        assert_eq!(
+            "1,2".parse(),
+            Ok(Pose {
+                x_mm: 1.0,
+                y_mm: 2.0,
+                theta_rad: 0.0
+            })
+        );
+        assert_eq!("1, 2, 0.5".parse::<Pose>().map(|p| p.theta_rad), Ok(0.5));
+        assert!("1".parse::<Pose>().unwrap_err().contains("x,y or x,y,θ"));
+        assert!(
+            "1,inf"
+                .parse::<Pose>()
+                .unwrap_err()
+                .contains("not a finite")
+        );
+        assert!("1,2,3".parse::<Point>().is_err());
+        let p = Point {
+            x_mm: 5.0,
+            y_mm: 5.0,
+        };
+        let (a, b) = (
+            Point::default(),
+            Point {
+                x_mm: 10.0,
+                y_mm: 0.0,
+            },
+        );
+        assert_eq!(p.distance_to_segment(a, b), 5.0);
+        assert_eq!(p.distance_to_segment(a, a), p.distance(a));
     }
 
     proptest! {

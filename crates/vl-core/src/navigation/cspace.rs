@@ -10,8 +10,7 @@
 use image::GrayImage;
 use thiserror::Error;
 
-use crate::arena::{Arena, Shape};
-use crate::robot::Point;
+use crate::{Arena, Point, Shape};
 
 /// Why a grid or C-space could not be built.
 #[derive(Debug, Error, Clone, PartialEq)]

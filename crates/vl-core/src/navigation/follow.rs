@@ -4,7 +4,7 @@
 //! near the goal, stops within a tolerance, and defers to its proximity
 //! sensors when something the map did not show comes close.
 
-use crate::robot::{Point, Pose, RobotModel, WheelSpeeds, wrap_angle};
+use crate::{Definition, Point, Pose, RobotModel, WheelSpeeds, wrap_angle};
 
 /// Room to leave between the robot's body and mapped obstacles when
 /// planning a path to follow: there the proximity readings stay under
@@ -52,10 +52,20 @@ impl Default for Following {
 
 /// What the follower asks of the robot this period.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Command {
+pub enum Steer {
     Drive(WheelSpeeds),
     /// Within tolerance of the goal: stop.
     Arrived,
+}
+
+impl Steer {
+    /// The wheel speeds this asks for: none once arrived.
+    pub fn wheels(self) -> WheelSpeeds {
+        match self {
+            Steer::Drive(wheels) => wheels,
+            Steer::Arrived => WheelSpeeds::default(),
+        }
+    }
 }
 
 /// Follows one path, remembering how far along it the robot has come so it
@@ -71,6 +81,21 @@ pub struct Follower {
 }
 
 impl Follower {
+    /// A follower along a defined path, stopping within half the goal's
+    /// tolerance so the Host counts the run as arrived; None without a path.
+    pub fn for_definition(definition: &Definition) -> Option<Follower> {
+        let tolerance_mm = definition
+            .goal
+            .map_or(Following::default().tolerance_mm, |g| g.tolerance_mm / 2.0);
+        Follower::new(
+            definition.path.clone(),
+            Following {
+                tolerance_mm,
+                ..Following::default()
+            },
+        )
+    }
+
     /// A follower for `path` (start to goal); None for an empty path.
     pub fn new(path: Vec<Point>, gains: Following) -> Option<Follower> {
         path.first()?;
@@ -90,18 +115,23 @@ impl Follower {
         })
     }
 
+    /// How long the path takes at cruising speed, s.
+    pub fn expected_seconds(&self) -> f64 {
+        self.arc.last().copied().unwrap_or(0.0) / self.gains.cruise_mm_s.max(1e-9)
+    }
+
     pub fn goal(&self) -> Point {
         *self.path.last().expect("a follower's path is never empty")
     }
 
     /// Wheel speeds for the robot at `pose` with its latest `proximity`
     /// readings.
-    pub fn step(&mut self, robot: &RobotModel, pose: Pose, proximity: &[u16]) -> Command {
+    pub fn step(&mut self, robot: &RobotModel, pose: Pose, proximity: &[u16]) -> Steer {
         let g = self.gains;
         let here = pose.point();
         let to_goal = here.distance(self.goal());
         if to_goal <= g.tolerance_mm {
-            return Command::Arrived;
+            return Steer::Arrived;
         }
         self.advance(here);
         let aim = self.lookahead_point();
@@ -115,7 +145,7 @@ impl Follower {
         v *= 1.0 - sensed.nearest_front;
         let near = Avoidance::sense(robot, proximity, g.cautious_above).nearest;
         v *= 1.0 - 0.6 * near;
-        Command::Drive(robot.wheels_for(v, w))
+        Steer::Drive(robot.wheels_for(v, w))
     }
 
     /// Moves `progress` to the nearest path point within reach ahead.
@@ -148,23 +178,9 @@ impl Follower {
         }
         self.path
             .windows(2)
-            .map(|s| segment_distance(p, s[0], s[1]))
+            .map(|s| p.distance_to_segment(s[0], s[1]))
             .fold(f64::INFINITY, f64::min)
     }
-}
-
-fn segment_distance(p: Point, a: Point, b: Point) -> f64 {
-    let (dx, dy) = (b.x_mm - a.x_mm, b.y_mm - a.y_mm);
-    let len2 = dx * dx + dy * dy;
-    let t = if len2 > 0.0 {
-        (((p.x_mm - a.x_mm) * dx + (p.y_mm - a.y_mm) * dy) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    p.distance(Point {
-        x_mm: a.x_mm + t * dx,
-        y_mm: a.y_mm + t * dy,
-    })
 }
 
 /// What the forward and side proximity sensors say about nearby obstacles,
@@ -229,11 +245,11 @@ mod tests {
         let mut arrived = false;
         for _ in 0..3000 {
             match follower.step(&robot, pose, &[0; 8]) {
-                Command::Arrived => {
+                Steer::Arrived => {
                     arrived = true;
                     break;
                 }
-                Command::Drive(wheels) => pose = pose.advance(wheels, robot.wheel_base_mm, 0.01),
+                Steer::Drive(wheels) => pose = pose.advance(wheels, robot.wheel_base_mm, 0.01),
             }
             worst = worst.max(follower.distance_to_path(pose.point()));
         }
@@ -248,8 +264,8 @@ mod tests {
         let mut follower = Follower::new(ell(), Following::default()).unwrap();
         let pose = Pose::default();
         let mut drive = |proximity: [u16; 8]| match follower.step(&robot, pose, &proximity) {
-            Command::Drive(wheels) => wheels,
-            Command::Arrived => panic!("not there yet"),
+            Steer::Drive(wheels) => wheels,
+            Steer::Arrived => panic!("not there yet"),
         };
         let clear = drive([0; 8]);
         assert_eq!(

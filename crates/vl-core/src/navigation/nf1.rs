@@ -7,8 +7,7 @@
 //! robot never squeezes between two obstacle corners). With several θ
 //! slices, turning to the next slice in the same cell is a step too.
 
-use crate::cspace::CSpace;
-use crate::vision::Connectivity;
+use crate::{CSpace, Connectivity};
 
 /// A cell of the C-space: column, row, θ slice.
 pub type Cell = (u32, u32, u32);

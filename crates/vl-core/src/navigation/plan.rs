@@ -6,12 +6,11 @@
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::arena::{Arena, Shape};
-use crate::cspace::{CSpace, CSpaceError, Footprint, Grid};
-use crate::nf1::{Cell, Nf1};
-use crate::robot::{Point, Pose, wrap_angle};
-use crate::spline::{Knot, Spline};
-use crate::vision::Connectivity;
+use super::spline::{Knot, Spline};
+use crate::{
+    Arena, CSpace, CSpaceError, Cell, Connectivity, Footprint, Grid, Nf1, PLAN_MARGIN_MM, Point,
+    Pose, RobotModel, Shape, wrap_angle,
+};
 
 /// Cells of the descent between spline knots, before refinement.
 const KNOT_STRIDE: usize = 6;
@@ -23,7 +22,7 @@ const SAMPLES_PER_CELL: f64 = 4.0;
 pub enum NoPath {
     #[error("the {which} ({x:.1}, {y:.1}) mm is off the map, which spans 0–{w:.1} × 0–{h:.1} mm")]
     OffMap {
-        which: End,
+        which: PathEnd,
         x: f64,
         y: f64,
         w: f64,
@@ -32,23 +31,23 @@ pub enum NoPath {
     #[error(
         "the {which} ({x:.1}, {y:.1}) mm lies in an obstacle of the C-space (the robot would touch one there)"
     )]
-    Blocked { which: End, x: f64, y: f64 },
+    Blocked { which: PathEnd, x: f64, y: f64 },
     #[error("the start and the goal are not connected in free C-space")]
     Disconnected,
 }
 
 /// The start or the goal of a plan.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum End {
+pub enum PathEnd {
     Start,
     Goal,
 }
 
-impl std::fmt::Display for End {
+impl std::fmt::Display for PathEnd {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
-            End::Start => "start",
-            End::Goal => "goal",
+            PathEnd::Start => "start",
+            PathEnd::Goal => "goal",
         })
     }
 }
@@ -90,7 +89,7 @@ impl Plan {
 }
 
 /// The cell the robot stands in at `pose`, if it is free.
-pub fn locate(cspace: &CSpace, pose: Pose, which: End) -> Result<Cell, NoPath> {
+pub fn locate(cspace: &CSpace, pose: Pose, which: PathEnd) -> Result<Cell, NoPath> {
     let grid = cspace.grid();
     let (w, h) = grid.size_mm();
     let (c, r) = grid.cell_of(pose.point()).ok_or(NoPath::OffMap {
@@ -160,6 +159,27 @@ pub fn plan_in_arena(
     result
 }
 
+/// The path a Guest defines for `robot` from `start` to `goal`: planned on
+/// the arena's map around the virtual obstacles, keeping
+/// [`PLAN_MARGIN_MM`] from mapped obstacles where the passages allow, so
+/// that only what the map does not show makes the sensors take over.
+pub fn plan_route(
+    arena: &Arena,
+    virtual_obstacles: &[Shape],
+    robot: &RobotModel,
+    start: Pose,
+    goal: Point,
+) -> Result<Plan, ArenaPlanError> {
+    plan_in_arena(
+        arena,
+        virtual_obstacles,
+        robot.radius_mm,
+        PLAN_MARGIN_MM,
+        start,
+        goal,
+    )
+}
+
 /// Plans from `start` to `goal`.
 pub fn plan(
     cspace: &CSpace,
@@ -167,8 +187,8 @@ pub fn plan(
     goal: Pose,
     connectivity: Connectivity,
 ) -> Result<Plan, NoPath> {
-    let from = locate(cspace, start, End::Start)?;
-    let to = locate(cspace, goal, End::Goal)?;
+    let from = locate(cspace, start, PathEnd::Start)?;
+    let to = locate(cspace, goal, PathEnd::Goal)?;
     let nf1 = Nf1::from_goal(cspace, to, connectivity);
     let nf1_start_value = nf1.value(from).ok_or(NoPath::Disconnected)?;
     let grid_path = nf1.descend(from, to).ok_or(NoPath::Disconnected)?;

@@ -58,7 +58,8 @@ impl Spline {
     }
 
     /// The point at parameter `t` (clamped to the ends).
-    pub fn at(&self, t: f64) -> Knot {
+    #[cfg(test)]
+    fn at(&self, t: f64) -> Knot {
         if self.knots.len() < 2 {
             return self.knots.first().copied().unwrap_or_default();
         }
@@ -131,7 +132,8 @@ impl Spline {
     }
 
     /// The parameter of knot `i`.
-    pub fn knot_t(&self, i: usize) -> f64 {
+    #[cfg(test)]
+    fn knot_t(&self, i: usize) -> f64 {
         self.t[i]
     }
 }

@@ -8,8 +8,8 @@
 //! Velocities here are vectors in the robot's frame (x forward, y left,
 //! mm/s); a differential drive turns the sideways part into a turn.
 
-use crate::cspace::Grid;
-use crate::robot::{Point, Pose, RobotModel, WheelSpeeds};
+use crate::Grid;
+use crate::{Point, Pose, RobotModel, WheelSpeeds};
 
 /// A planar vector, mm/s unless said otherwise.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -1,0 +1,8 @@
+//! What Guest and Host agree on: the messages of protocol v1 and the
+//! camera frames between them, the experiments and their definitions, and
+//! the session supervisor that says which action may happen when.
+
+pub(crate) mod experiment;
+pub(crate) mod frame;
+pub(crate) mod protocol;
+pub(crate) mod session;

@@ -1,0 +1,211 @@
+//! Speed on the Model Checking Contest's models: the corpus manifest with
+//! each model's certified answers, and one model's exploration and
+//! analysis timed against them (`vl petri bench`; the corpus test reads
+//! the same manifest).
+
+use std::time::Instant;
+
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::{ExploreError, Net, Options, analyze, explore};
+
+/// The corpus's `manifest.csv`: one row per model.
+#[derive(Debug, Clone)]
+pub struct Manifest {
+    pub models: Vec<CorpusModel>,
+}
+
+/// One model of the corpus and what is certified about it, by column.
+#[derive(Debug, Clone)]
+pub struct CorpusModel {
+    columns: Vec<(String, String)>,
+}
+
+#[derive(Debug, Error, PartialEq, Eq)]
+pub enum ManifestError {
+    #[error("the manifest has no header line")]
+    Empty,
+    #[error("the manifest has no column '{0}'")]
+    MissingColumn(&'static str),
+    #[error("manifest line {line} has {got} columns, not {want}")]
+    Ragged {
+        line: usize,
+        got: usize,
+        want: usize,
+    },
+}
+
+/// Columns every row must have.
+const REQUIRED: [&str; 3] = ["model", "tier", "pnml"];
+
+impl Manifest {
+    /// Parses the CSV. Only the last column (the source, quoted) may hold commas.
+    pub fn parse(text: &str) -> Result<Manifest, ManifestError> {
+        let mut lines = text.lines();
+        let header: Vec<&str> = lines
+            .next()
+            .ok_or(ManifestError::Empty)?
+            .split(',')
+            .collect();
+        for column in REQUIRED {
+            if !header.contains(&column) {
+                return Err(ManifestError::MissingColumn(column));
+            }
+        }
+        let models = lines
+            .enumerate()
+            .filter(|(_, line)| !line.trim().is_empty())
+            .map(|(i, line)| {
+                let cells: Vec<&str> = line.splitn(header.len(), ',').collect();
+                if cells.len() != header.len() {
+                    return Err(ManifestError::Ragged {
+                        line: i + 2,
+                        got: cells.len(),
+                        want: header.len(),
+                    });
+                }
+                let columns = header
+                    .iter()
+                    .zip(cells)
+                    .map(|(h, c)| ((*h).to_owned(), c.to_owned()))
+                    .collect();
+                Ok(CorpusModel { columns })
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Manifest { models })
+    }
+
+    /// The models of one tier (small, medium, large).
+    pub fn tier<'a>(&'a self, tier: &'a str) -> impl Iterator<Item = &'a CorpusModel> + 'a {
+        self.models.iter().filter(move |m| m.tier() == tier)
+    }
+}
+
+impl CorpusModel {
+    /// The cell in `column`, if the manifest has that column.
+    pub fn get(&self, column: &str) -> Option<&str> {
+        self.columns
+            .iter()
+            .find(|(h, _)| h == column)
+            .map(|(_, v)| v.as_str())
+    }
+
+    /// The cell in `column` as a count.
+    pub fn count(&self, column: &str) -> Option<usize> {
+        self.get(column)?.parse().ok()
+    }
+
+    pub fn name(&self) -> &str {
+        self.get("model").expect("checked on parsing")
+    }
+
+    pub fn tier(&self) -> &str {
+        self.get("tier").expect("checked on parsing")
+    }
+
+    /// The model's PNML file, relative to the corpus directory.
+    pub fn pnml(&self) -> &str {
+        self.get("pnml").expect("checked on parsing")
+    }
+}
+
+/// Where the peak heap use of a benchmark comes from: the binary's
+/// allocator, which a library cannot own.
+pub trait PeakMemory {
+    /// Starts a new peak measurement from what is live now.
+    fn reset_peak(&self);
+    /// The most bytes live at once since the last reset.
+    fn peak_bytes(&self) -> usize;
+}
+
+/// One model's benchmark figures.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchRow {
+    pub model: String,
+    pub states: usize,
+    pub edges: usize,
+    pub certified_states: Option<usize>,
+    pub certified_edges: Option<usize>,
+    pub explore_seconds: f64,
+    pub analyze_seconds: f64,
+    pub states_per_second: f64,
+    pub store_bytes_per_state: f64,
+    pub graph_bytes_per_state: f64,
+    pub peak_bytes: usize,
+    /// verifypn 3.1.1's time as the manifest recorded it, s.
+    pub verifypn_seconds: Option<f64>,
+    /// verifypn's recorded time over ours for exploring: above 1 means we are faster.
+    pub speedup_vs_verifypn: Option<f64>,
+}
+
+impl BenchRow {
+    /// Whether the states and edges found equal the certified counts.
+    pub fn certified(&self) -> bool {
+        self.certified_states == Some(self.states) && self.certified_edges == Some(self.edges)
+    }
+}
+
+/// Explores and analyses `net`, the corpus's `model`, timing each.
+pub fn bench_model(
+    model: &CorpusModel,
+    net: &Net,
+    memory: &dyn PeakMemory,
+) -> Result<BenchRow, ExploreError> {
+    memory.reset_peak();
+    let started = Instant::now();
+    let space = explore(net, Options::default())?;
+    let explore_seconds = started.elapsed().as_secs_f64();
+    let analyzed = Instant::now();
+    std::hint::black_box(analyze(net, &space));
+    let analyze_seconds = analyzed.elapsed().as_secs_f64();
+    let states = space.states();
+    let verifypn_seconds = model
+        .get("verifypn_wall_s")
+        .and_then(|v| v.parse::<f64>().ok())
+        .filter(|&v| v > 0.0);
+    Ok(BenchRow {
+        model: model.name().to_owned(),
+        states,
+        edges: space.edges(),
+        certified_states: model.count("states"),
+        certified_edges: model.count("rg_edges"),
+        explore_seconds,
+        analyze_seconds,
+        states_per_second: states as f64 / explore_seconds,
+        store_bytes_per_state: space.store_bytes() as f64 / states as f64,
+        graph_bytes_per_state: space.graph_bytes() as f64 / states as f64,
+        peak_bytes: memory.peak_bytes(),
+        verifypn_seconds,
+        speedup_vs_verifypn: verifypn_seconds.map(|v| v / explore_seconds),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_manifest_reads_by_column_with_a_quoted_last_one() {
+        let text = "model,tier,pnml,states,source\n\
+                    A,small,a/model.pnml,13,\"x, y (z)\"\n\
+                    B,large,b/model.pnml,,\"w\"\n";
+        let m = Manifest::parse(text).unwrap();
+        assert_eq!(m.models.len(), 2);
+        assert_eq!(m.models[0].get("source"), Some("\"x, y (z)\""));
+        assert_eq!(m.models[0].count("states"), Some(13));
+        assert_eq!(m.models[1].count("states"), None);
+        assert_eq!(
+            m.tier("large").map(CorpusModel::name).collect::<Vec<_>>(),
+            ["B"]
+        );
+        assert_eq!(
+            Manifest::parse("model,pnml\n").unwrap_err(),
+            ManifestError::MissingColumn("tier")
+        );
+        assert!(matches!(
+            Manifest::parse("model,tier,pnml\nA,small\n"),
+            Err(ManifestError::Ragged { line: 2, .. })
+        ));
+    }
+}

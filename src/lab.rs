@@ -1,0 +1,367 @@
+//! The lab's own commands: `vl host` serves it, `vl guest` uses it,
+//! `vl demo` runs both on the simulated lab, `vl khepera-emu` stands in for
+//! the robot.
+
+use std::net::SocketAddr;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use vl_core::{Arena, Experiment, Role};
+use vl_guest::{ClientError, Report as RunReport, Script, ScriptError, Watched, WindowError};
+use vl_host::{Host, HostConfig, KheperaSerial};
+
+use crate::report::{Report, Table, count, emit};
+use crate::sim::RobotArgs;
+use crate::{BadInput, named};
+
+#[derive(clap::Args)]
+pub(crate) struct KheperaArgs {
+    /// The arena the simulated robot drives in: a shipped one or a JSON file.
+    #[arg(long, default_value = "navigation")]
+    arena: String,
+    #[command(flatten)]
+    robot: RobotArgs,
+    /// The line speed to emulate (with --line-timing).
+    #[arg(long, default_value_t = 38_400)]
+    baud: u32,
+    /// Also make a symlink to the device here.
+    #[arg(long)]
+    link: Option<std::path::PathBuf>,
+    /// Delay replies by the time their characters take at --baud.
+    #[arg(long)]
+    line_timing: bool,
+    /// Seed for the sensors' noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+#[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
+enum RobotDriver {
+    /// The simulated Khepera II.
+    Sim,
+    /// A Khepera I/II on the serial line --port.
+    Khepera,
+}
+
+#[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
+enum CameraDriver {
+    /// The simulated overhead camera (watches the simulated robot only).
+    Sim,
+    /// No camera: Guests get feedback but no frames.
+    None,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct HostArgs {
+    /// Which robot to drive.
+    #[arg(long, value_enum, default_value = "sim")]
+    robot: RobotDriver,
+    /// The serial device of a Khepera (with --robot khepera).
+    #[arg(long, required_if_eq("robot", "khepera"))]
+    port: Option<String>,
+    /// The serial line's speed (with --robot khepera).
+    #[arg(long, default_value_t = 38_400)]
+    baud: u32,
+    /// Which camera to watch the arena with; a real robot has no simulated
+    /// camera, so the default there is none.
+    #[arg(
+        long,
+        value_enum,
+        default_value_if("robot", "khepera", "none"),
+        default_value = "sim"
+    )]
+    camera: CameraDriver,
+    /// The arena the robot is in: a shipped one or a JSON file. A real robot
+    /// starts dead reckoning at its start pose.
+    #[arg(long, default_value = "navigation")]
+    arena: String,
+    /// The experiments to offer, comma-separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_parser = named::<Experiment>(),
+        default_value = "navigation,teleoperation"
+    )]
+    experiments: Vec<Experiment>,
+    /// Address to listen on; port 0 picks a free one.
+    #[arg(long, default_value = "127.0.0.1:7400")]
+    listen: SocketAddr,
+    /// Operators must present this token in their hello.
+    #[arg(long)]
+    token: Option<String>,
+    /// Seed for the simulator's noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct GuestArgs {
+    /// The Host's WebSocket URL.
+    #[arg(long, default_value = "ws://127.0.0.1:7400")]
+    connect: String,
+    /// Watch only; another person drives.
+    #[arg(long)]
+    observer: bool,
+    /// The operator token the Host asks for.
+    #[arg(long)]
+    token: Option<String>,
+    /// No window: drive the robot to the experiment's goal and report; as
+    /// an observer, watch until a run ends (or --timeout) and report.
+    #[arg(long)]
+    headless: bool,
+    /// With --headless: print the report as JSON.
+    #[arg(long, requires = "headless")]
+    json: bool,
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct DemoArgs {
+    /// No window: a scripted Guest drives the robot to the goal and reports.
+    #[arg(long)]
+    headless: bool,
+    /// Print the headless report as JSON.
+    #[arg(long)]
+    json: bool,
+    /// Seed for the simulator's noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct RunArgs {
+    /// Experiment to mount for a headless run.
+    #[arg(long, value_parser = named::<Experiment>(), default_value = "navigation")]
+    experiment: Experiment,
+    /// Give up a headless run (stop watching, as an observer) after this many seconds.
+    #[arg(long, default_value_t = 60.0)]
+    timeout: f64,
+}
+
+pub(crate) fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
+    let model = args.robot.model()?;
+    let name = model.name.clone();
+    let arena = Arena::load(&args.arena).map_err(|e| BadInput(e.to_string()))?;
+    let world = vl_sim::World::new(arena, model, args.seed).map_err(|e| BadInput(e.to_string()))?;
+    let line = vl_sim::Line {
+        baud: args.baud,
+        timing: args.line_timing,
+    };
+    let mut emulator =
+        vl_sim::Emulator::open(vl_sim::Khepera::new(world), line, args.link.as_deref())?;
+    // Scripts and tests read the device from this first line.
+    println!("vl khepera-emu: {name} on {}", emulator.device());
+    use std::io::Write as _;
+    std::io::stdout().flush()?;
+    emulator.run()?;
+    Ok(ExitCode::SUCCESS)
+}
+
+pub(crate) async fn host(args: HostArgs) -> Result<()> {
+    if args.experiments.is_empty() {
+        bail!(BadInput("--experiments names none to offer".into()));
+    }
+    let config = HostConfig {
+        token: args.token,
+        experiments: args.experiments,
+    };
+    let arena = Arena::load(&args.arena).map_err(|e| BadInput(e.to_string()))?;
+    let host = match (args.robot, args.camera) {
+        (RobotDriver::Sim, camera) => {
+            let with_camera = camera == CameraDriver::Sim;
+            Host::start_sim(args.listen, arena, args.seed, with_camera, config).await
+        }
+        (RobotDriver::Khepera, CameraDriver::Sim) => {
+            return Err(BadInput(
+                "the simulated camera watches only the simulated robot; use --camera none".into(),
+            )
+            .into());
+        }
+        (RobotDriver::Khepera, CameraDriver::None) => {
+            let Some(port) = args.port.as_deref() else {
+                bail!(BadInput("--robot khepera needs --port DEVICE".into()));
+            };
+            let robot = KheperaSerial::open(
+                port,
+                args.baud,
+                vl_core::RobotModel::khepera_ii(),
+                arena.start,
+            )
+            .context("no Khepera to drive")?;
+            Host::start(args.listen, Box::new(robot), None, arena, config).await
+        }
+    }
+    .context("cannot start the Host")?;
+    // Scripts and tests read the bound address from this first line.
+    println!("vl host listening on {}", host.url());
+    tokio::select! {
+        () = host.wait() => bail!("the server stopped"),
+        signal = tokio::signal::ctrl_c() => {
+            signal.context("cannot wait for Ctrl-C")?;
+            eprintln!("vl host: stopping");
+            Ok(())
+        }
+    }
+}
+
+/// A Guest error: an address that cannot be a Host's is the user's input.
+fn guest_error(e: impl Into<anyhow::Error>) -> anyhow::Error {
+    let e = e.into();
+    let bad_url = |c: &ClientError| matches!(c, ClientError::BadUrl { .. });
+    let is_bad_url = match e.downcast_ref::<ScriptError>() {
+        Some(ScriptError::Connect(c)) => bad_url(c),
+        _ => match e.downcast_ref::<WindowError>() {
+            Some(WindowError::Address(c)) => bad_url(c),
+            _ => false,
+        },
+    };
+    if is_bad_url {
+        BadInput(e.to_string()).into()
+    } else {
+        e
+    }
+}
+
+pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Result<ExitCode> {
+    let role = if args.observer {
+        Role::Observer
+    } else {
+        Role::Operator
+    };
+    if args.headless {
+        let script = script(&args.run, args.token, !args.json);
+        if role == Role::Observer {
+            let watched = runtime
+                .block_on(vl_guest::watch(&args.connect, &script))
+                .map_err(guest_error)?;
+            emit(&watched, args.json)?;
+            return Ok(ExitCode::SUCCESS);
+        }
+        let report = runtime
+            .block_on(vl_guest::drive_to_goal(&args.connect, &script))
+            .map_err(guest_error)?;
+        return finish(&report, args.json);
+    }
+    let _entered = runtime.enter();
+    vl_guest::run_window(&args.connect, role, args.token).map_err(guest_error)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<ExitCode> {
+    let listen: SocketAddr = ([127, 0, 0, 1], 0).into();
+    let host = runtime
+        .block_on(Host::start_sim(
+            listen,
+            Arena::navigation(),
+            args.seed,
+            true,
+            HostConfig::default(),
+        ))
+        .context("cannot start the simulated Host")?;
+    let has_display =
+        std::env::var_os("DISPLAY").is_some() || std::env::var_os("WAYLAND_DISPLAY").is_some();
+    if !args.headless && !has_display {
+        eprintln!(
+            "vl demo: no display (neither DISPLAY nor WAYLAND_DISPLAY is set); running headless"
+        );
+    }
+    if args.headless || !has_display {
+        let script = script(&args.run, None, !args.json);
+        let report = runtime.block_on(vl_guest::drive_to_goal(&host.url(), &script))?;
+        return finish(&report, args.json);
+    }
+    eprintln!("vl demo: simulated lab at {}", host.url());
+    let _entered = runtime.enter();
+    vl_guest::run_window(&host.url(), Role::Operator, None)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn script(run: &RunArgs, token: Option<String>, progress: bool) -> Script {
+    Script {
+        experiment: run.experiment,
+        token,
+        timeout: Duration::from_secs_f64(run.timeout.clamp(0.0, 1e6)),
+        progress,
+        ..Script::default()
+    }
+}
+
+/// Prints the run's report; success means the robot reached its goal.
+fn finish(report: &RunReport, json: bool) -> Result<ExitCode> {
+    emit(report, json)?;
+    if report.reached_goal {
+        Ok(ExitCode::SUCCESS)
+    } else {
+        eprintln!("vl: the robot did not reach the goal ({})", report.reason);
+        Ok(ExitCode::FAILURE)
+    }
+}
+
+impl Report for RunReport {
+    fn table(&self) -> Table {
+        let pose = self.final_pose;
+        Table::pairs([
+            (
+                "reached goal",
+                crate::report::yes(self.reached_goal).to_owned(),
+            ),
+            ("end", self.reason.to_string()),
+            ("events", self.events.to_string()),
+            (
+                "final pose",
+                format!(
+                    "({:.1}, {:.1}) mm, {:.1}°",
+                    pose.x_mm,
+                    pose.y_mm,
+                    pose.theta_rad.to_degrees()
+                ),
+            ),
+            ("lab time", format!("{:.2} s", self.sim_seconds)),
+            ("distance", format!("{:.0} mm", self.distance_mm)),
+            ("collisions", self.collisions.to_string()),
+            ("frames", self.frames.to_string()),
+            (
+                "round trip",
+                format!(
+                    "p50 {:.2} ms, p99 {:.2} ms",
+                    self.round_trip_ms.p50, self.round_trip_ms.p99
+                ),
+            ),
+        ])
+    }
+}
+
+impl Report for Watched {
+    fn table(&self) -> Table {
+        let run = match &self.run {
+            Some(done) => format!(
+                "{} after {:.1} s, {}",
+                done.reason,
+                done.seconds,
+                count(done.events, "event", "events")
+            ),
+            None => "none ended while watching".into(),
+        };
+        Table::pairs([
+            (
+                "mounted",
+                self.experiment
+                    .map_or("nothing".to_owned(), |e| e.title().to_owned()),
+            ),
+            ("run", run),
+            ("feedback", self.feedback.to_string()),
+            ("frames", self.frames.to_string()),
+            (
+                "round trip",
+                format!(
+                    "p50 {:.2} ms, p99 {:.2} ms",
+                    self.round_trip_ms.p50, self.round_trip_ms.p99
+                ),
+            ),
+        ])
+    }
+}

@@ -1,0 +1,132 @@
+//! What the integration tests share: running `vl` as a user would, keeping
+//! long-running `vl` processes (a Host, the Khepera emulator) alive for a
+//! test and killing them however it ends, and scratch directories.
+#![allow(dead_code)] // each test binary uses its own part of this
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+
+/// The `vl` binary under test.
+pub fn vl_bin() -> &'static str {
+    env!("CARGO_BIN_EXE_vl")
+}
+
+/// Runs `vl ARGS…` to the end with no display, as on a headless machine.
+pub fn vl(args: &[&str]) -> Output {
+    Command::new(vl_bin())
+        .args(args)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("vl runs")
+}
+
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Runs `vl ARGS…`, which must succeed, and parses its stdout as JSON.
+pub fn vl_json(args: &[&str]) -> serde_json::Value {
+    let out = vl(args);
+    assert!(
+        out.status.success(),
+        "vl {args:?} exited {:?}: {}",
+        out.status,
+        stderr(&out)
+    );
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("vl {args:?} printed no JSON ({e}): {}", stdout(&out)))
+}
+
+/// Runs `vl ARGS…`, which must refuse with exit code 2 and say `needle`.
+pub fn refused(args: &[&str], needle: &str) {
+    let out = vl(args);
+    assert_eq!(out.status.code(), Some(2), "vl {args:?}: {}", stderr(&out));
+    assert!(
+        stderr(&out).contains(needle),
+        "vl {args:?} should say {needle:?}: {}",
+        stderr(&out)
+    );
+    assert!(!stderr(&out).contains("panicked"), "{}", stderr(&out));
+}
+
+/// A `vl` process that is killed when the test ends, pass or fail.
+pub struct VlProcess(pub Child);
+
+impl Drop for VlProcess {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Starts `vl ARGS…` (in `dir`, if given) and returns it with the end of
+/// its first line after `prefix`: where it listens, or its device.
+pub fn start_vl_in(dir: Option<&Path>, args: &[&str], prefix: &str) -> (VlProcess, String) {
+    let mut command = Command::new(vl_bin());
+    command.args(args).stdout(Stdio::piped());
+    if let Some(dir) = dir {
+        command.current_dir(dir);
+    }
+    let mut child = command.spawn().expect("vl starts");
+    let stdout = child.stdout.take().expect("piped stdout");
+    let process = VlProcess(child);
+    let mut line = String::new();
+    BufReader::new(stdout)
+        .read_line(&mut line)
+        .expect("vl prints its first line");
+    let rest = line
+        .trim()
+        .strip_prefix(prefix)
+        .unwrap_or_else(|| panic!("vl {args:?}: unexpected first line {line:?}"))
+        .to_owned();
+    (process, rest)
+}
+
+pub fn start_vl(args: &[&str], prefix: &str) -> (VlProcess, String) {
+    start_vl_in(None, args, prefix)
+}
+
+/// Starts `vl host` on the simulated lab on a free port; returns its URL.
+pub fn start_host(extra: &[&str]) -> (VlProcess, String) {
+    let args = [
+        &["host", "--robot", "sim", "--listen", "127.0.0.1:0"],
+        extra,
+    ]
+    .concat();
+    start_vl(&args, "vl host listening on ")
+}
+
+/// Starts `vl khepera-emu ARGS…`; returns its pseudo-terminal's device.
+pub fn start_emulator(extra: &[&str]) -> (VlProcess, String) {
+    let args = [&["khepera-emu"], extra].concat();
+    let (process, rest) = start_vl(&args, "vl khepera-emu: ");
+    let device = rest.rsplit(' ').next().expect("a device").to_owned();
+    (process, device)
+}
+
+/// A fresh, empty directory for one test's files.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("a scratch directory");
+    dir
+}
+
+/// A path as the `&str` an argument list wants.
+pub fn s(p: &Path) -> &str {
+    p.to_str().expect("scratch paths are UTF-8")
+}
+
+/// A port nothing listens on right now.
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("a free port")
+        .port()
+}
