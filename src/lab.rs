@@ -8,7 +8,9 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use vl_core::{Arena, Experiment, Role};
-use vl_guest::{ClientError, Report as RunReport, Script, ScriptError, Watched, WindowError};
+use vl_guest::{
+    ClientError, Report as RunReport, RoundTripMs, Script, ScriptError, Watched, WindowError,
+};
 use vl_host::{Host, HostConfig, KheperaSerial};
 
 use crate::report::{Report, Table, count, emit};
@@ -301,6 +303,10 @@ fn finish(report: &RunReport, json: bool) -> Result<ExitCode> {
     }
 }
 
+fn round_trip(rtt: &RoundTripMs) -> String {
+    format!("p50 {:.2} ms, p99 {:.2} ms", rtt.p50, rtt.p99)
+}
+
 impl Report for RunReport {
     fn table(&self) -> Table {
         let pose = self.final_pose;
@@ -324,13 +330,7 @@ impl Report for RunReport {
             ("distance", format!("{:.0} mm", self.distance_mm)),
             ("collisions", self.collisions.to_string()),
             ("frames", self.frames.to_string()),
-            (
-                "round trip",
-                format!(
-                    "p50 {:.2} ms, p99 {:.2} ms",
-                    self.round_trip_ms.p50, self.round_trip_ms.p99
-                ),
-            ),
+            ("round trip", round_trip(&self.round_trip_ms)),
         ])
     }
 }
@@ -355,13 +355,7 @@ impl Report for Watched {
             ("run", run),
             ("feedback", self.feedback.to_string()),
             ("frames", self.frames.to_string()),
-            (
-                "round trip",
-                format!(
-                    "p50 {:.2} ms, p99 {:.2} ms",
-                    self.round_trip_ms.p50, self.round_trip_ms.p99
-                ),
-            ),
+            ("round trip", round_trip(&self.round_trip_ms)),
         ])
     }
 }

@@ -172,6 +172,7 @@ fn an_unreachable_host_is_shown_and_reconnect_brings_it_back() {
     harness.get_by_label_contains(&format!(
         "not connected: cannot connect to {url}: connection refused"
     ));
+    harness.get_by_label("not connected to a Host");
     let image = harness.render().expect("the window renders");
     let _ = image.save(concat!(
         env!("CARGO_TARGET_TMPDIR"),

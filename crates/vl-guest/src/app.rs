@@ -389,7 +389,12 @@ impl GuestApp {
             (Some((_, texture)), _) => texture.size_vec2(),
             (None, Some(lab)) => Vec2::new(lab.camera.width_px as f32, lab.camera.height_px as f32),
             (None, None) => {
-                ui.centered_and_justified(|ui| ui.label("waiting for the camera…"));
+                let waiting = match &self.session.link {
+                    Link::Connecting => "connecting to the Host…",
+                    Link::Open => "mount an experiment to see the lab",
+                    Link::Closed(_) => "not connected to a Host",
+                };
+                ui.centered_and_justified(|ui| ui.label(waiting));
                 return;
             }
         };
@@ -514,18 +519,13 @@ impl<'a> View<'a> {
     /// or a polygon's corners.
     fn outline_of(&self, shape: &Shape) -> ScreenShape {
         match *shape {
-            Shape::Rect {
-                x_mm,
-                y_mm,
-                width_mm,
-                height_mm,
-            } => ScreenShape::Box(Rect::from_two_pos(
-                self.to_screen(Point { x_mm, y_mm }),
-                self.to_screen(Point {
-                    x_mm: x_mm + width_mm,
-                    y_mm: y_mm + height_mm,
-                }),
-            )),
+            Shape::Rect { .. } => {
+                let (low, high) = shape.bounds();
+                ScreenShape::Box(Rect::from_two_pos(
+                    self.to_screen(low),
+                    self.to_screen(high),
+                ))
+            }
             Shape::Circle {
                 x_mm,
                 y_mm,
