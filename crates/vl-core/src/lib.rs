@@ -18,7 +18,7 @@ mod teleop;
 mod vision;
 
 pub use contract::experiment::{Definition, Experiment, ExperimentInfo, Goal};
-pub use contract::frame::{FrameError, FrameHeader, HEADER_LEN, ImageFormat, MAX_FRAME_BYTES};
+pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::protocol::{
     DecodeError, Drive, EndReason, ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES,
     PROTOCOL_VERSION, Role, Summary, Wire,
@@ -30,17 +30,15 @@ pub use model::khepera::{
     CommandError, KheperaCommand, KheperaReply, LedAction, MalformedReply, MotorMode, MotorStatus,
 };
 pub use model::robot::{
-    MAX_PULSES_PER_PERIOD, Point, Pose, RobotKind, RobotModel, SPEED_PERIOD_S, SensorMount,
-    WheelSpeeds, wrap_angle,
+    MAX_PULSES_PER_PERIOD, Point, Pose, RobotKind, RobotModel, SensorMount, WheelSpeeds, wrap_angle,
 };
 pub use named::{Named, UnknownName};
-pub use navigation::bench::{MIN_BENCH_CELLS, PlanBench, PlanBenchError, bench as bench_planning};
-pub use navigation::cspace::{CSpace, CSpaceError, Footprint, Grid, MAX_CELLS};
-pub use navigation::follow::{Avoidance, Follower, Following, PLAN_MARGIN_MM, Steer};
+pub use navigation::bench::{PlanBench, PlanBenchError, bench as bench_planning};
+pub use navigation::cspace::{CSpace, CSpaceError, Footprint, Grid};
+pub use navigation::follow::{Follower, Following, Steer};
 pub use navigation::nf1::{Cell, Nf1};
 pub use navigation::plan::{
-    ARENA_CELL_MM, ArenaPlanError, NoPath, PathEnd, Plan, Smoothing, clearance, plan,
-    plan_in_arena, plan_route,
+    ARENA_CELL_MM, ArenaPlanError, NoPath, PathEnd, Plan, Smoothing, clearance, plan, plan_route,
 };
 pub use navigation::svg::plan_svg;
 pub use teleop::{Assisted, Joystick, MapField, Teleop, Vector, predict};

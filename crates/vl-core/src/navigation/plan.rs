@@ -6,10 +6,11 @@
 use serde::Serialize;
 use thiserror::Error;
 
+use super::follow::PLAN_MARGIN_MM;
 use super::spline::{Knot, Spline};
 use crate::{
-    Arena, CSpace, CSpaceError, Cell, Connectivity, Footprint, Grid, Nf1, PLAN_MARGIN_MM, Point,
-    Pose, RobotModel, Shape, wrap_angle,
+    Arena, CSpace, CSpaceError, Cell, Connectivity, Footprint, Grid, Nf1, Point, Pose, RobotModel,
+    Shape, wrap_angle,
 };
 
 /// Cells of the descent between spline knots, before refinement.
@@ -126,7 +127,7 @@ pub enum ArenaPlanError {
 /// obstacles), on cells of [`ARENA_CELL_MM`], keeping `margin_mm` more than
 /// the radius from obstacles, or as much of it as the narrowest passage on
 /// the way (and the start and goal) allow.
-pub fn plan_in_arena(
+pub(crate) fn plan_in_arena(
     arena: &Arena,
     virtual_obstacles: &[Shape],
     radius_mm: f64,
