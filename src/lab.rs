@@ -7,14 +7,14 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use vl_core::{Arena, Experiment, Role};
+use vl_core::{Arena, Experiment, RobotModel, Role};
 use vl_guest::{
     ClientError, Report as RunReport, RoundTripMs, Script, ScriptError, Watched, WindowError,
 };
-use vl_host::{Host, HostConfig, KheperaSerial};
+use vl_host::{Host, HostConfig, KheperaSerial, SimLab};
 
 use crate::report::{Report, Table, count, emit};
-use crate::sim::RobotArgs;
+use crate::sim::{RobotArgs, load_robot_model};
 use crate::{BadInput, named};
 
 #[derive(clap::Args)]
@@ -95,6 +95,15 @@ pub(crate) struct HostArgs {
     /// Seed for the simulator's noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Where the robot starts, x,y[,θ] mm and rad: the simulated robot is
+    /// put there, a real one starts dead reckoning there (default: the
+    /// arena's start).
+    #[arg(long, allow_hyphen_values = true)]
+    start: Option<vl_core::Pose>,
+    /// The robot's model from a JSON file (`vl khepera characterise`
+    /// writes one; default: the Khepera II's).
+    #[arg(long)]
+    robot_model: Option<std::path::PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -171,11 +180,26 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
         token: args.token,
         experiments: args.experiments,
     };
-    let arena = Arena::load(&args.arena).map_err(|e| BadInput(e.to_string()))?;
+    let mut arena = Arena::load(&args.arena).map_err(|e| BadInput(e.to_string()))?;
+    if let Some(start) = args.start {
+        arena.start = start;
+        arena
+            .check()
+            .map_err(|e| BadInput(format!("--start: {e}")))?;
+    }
+    let model = match &args.robot_model {
+        Some(file) => load_robot_model(file)?,
+        None => RobotModel::khepera_ii(),
+    };
     let host = match (args.robot, args.camera) {
         (RobotDriver::Sim, camera) => {
-            let with_camera = camera == CameraDriver::Sim;
-            Host::start_sim(args.listen, arena, args.seed, with_camera, config).await
+            let lab = SimLab {
+                arena,
+                robot: model,
+                seed: args.seed,
+                camera: camera == CameraDriver::Sim,
+            };
+            Host::start_sim(args.listen, lab, config).await
         }
         (RobotDriver::Khepera, CameraDriver::Sim) => {
             return Err(BadInput(
@@ -187,13 +211,8 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             let Some(port) = args.port.as_deref() else {
                 bail!(BadInput("--robot khepera needs --port DEVICE".into()));
             };
-            let robot = KheperaSerial::open(
-                port,
-                args.baud,
-                vl_core::RobotModel::khepera_ii(),
-                arena.start,
-            )
-            .context("no Khepera to drive")?;
+            let robot = KheperaSerial::open(port, args.baud, model, arena.start)
+                .context("no Khepera to drive")?;
             Host::start(args.listen, Box::new(robot), None, arena, config).await
         }
     }
@@ -258,9 +277,10 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
     let host = runtime
         .block_on(Host::start_sim(
             listen,
-            Arena::navigation(),
-            args.seed,
-            true,
+            SimLab {
+                seed: args.seed,
+                ..SimLab::new(Arena::navigation())
+            },
             HostConfig::default(),
         ))
         .context("cannot start the simulated Host")?;

@@ -23,16 +23,28 @@ pub(crate) struct RobotArgs {
     /// … and this distance between its wheels, mm.
     #[arg(long, requires = "radius_mm")]
     wheel_base_mm: Option<f64>,
+    /// Or a whole robot model from a JSON file (`vl khepera characterise` writes one).
+    #[arg(long, conflicts_with_all = ["robot", "radius_mm"])]
+    robot_model: Option<PathBuf>,
 }
 
 impl RobotArgs {
     pub(crate) fn model(&self) -> Result<RobotModel> {
+        if let Some(file) = &self.robot_model {
+            return load_robot_model(file);
+        }
         let model = self.robot.model();
         Ok(match (self.radius_mm, self.wheel_base_mm) {
             (Some(radius), Some(base)) => model.resized(radius, base).map_err(BadInput)?,
             _ => model,
         })
     }
+}
+
+/// A robot model file; any problem with it is the user's input.
+pub(crate) fn load_robot_model(path: &Path) -> Result<RobotModel> {
+    let text = read_input(path)?;
+    Ok(RobotModel::from_json(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?)
 }
 
 /// How the simulated camera departs from an ideal one.

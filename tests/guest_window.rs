@@ -12,7 +12,7 @@ mod common;
 
 use vl_core::{Arena, Role};
 use vl_guest::{GuestApp, Link};
-use vl_host::{Host, HostConfig};
+use vl_host::{Host, HostConfig, SimLab};
 
 /// The simulated camera paints the robot's body this colour.
 const BODY: [u8; 3] = [170, 36, 32];
@@ -40,13 +40,21 @@ fn window(url: &str) -> Harness<'static, GuestApp> {
 /// Host (with or without its camera), with the navigation experiment
 /// being mounted.
 fn with_mounting_window(camera: bool, test: impl FnOnce(&mut Harness<'_, GuestApp>)) {
+    with_window_on(camera, "Navigate to a goal among obstacles", test);
+}
+
+/// Runs `test` on a Guest window connected as operator to a simulated Host
+/// (with or without its camera), with the experiment titled `experiment`
+/// being mounted.
+fn with_window_on(camera: bool, experiment: &str, test: impl FnOnce(&mut Harness<'_, GuestApp>)) {
     let runtime = tokio::runtime::Runtime::new().unwrap();
     let host = runtime
         .block_on(Host::start_sim(
             "127.0.0.1:0".parse().unwrap(),
-            Arena::navigation(),
-            1,
-            camera,
+            SimLab {
+                camera,
+                ..SimLab::new(Arena::navigation())
+            },
             HostConfig::default(),
         ))
         .unwrap();
@@ -55,9 +63,7 @@ fn with_mounting_window(camera: bool, test: impl FnOnce(&mut Harness<'_, GuestAp
     step_until(&mut harness, "be welcomed", |app| {
         app.session().role.is_some()
     });
-    harness
-        .get_by_label("Navigate to a goal among obstacles")
-        .click();
+    harness.get_by_label(experiment).click();
     test(&mut harness);
 }
 
@@ -182,9 +188,10 @@ fn an_unreachable_host_is_shown_and_reconnect_brings_it_back() {
     let _host = runtime
         .block_on(Host::start_sim(
             ([127, 0, 0, 1], port).into(),
-            Arena::navigation(),
-            1,
-            false,
+            SimLab {
+                camera: false,
+                ..SimLab::new(Arena::navigation())
+            },
             HostConfig::default(),
         ))
         .unwrap();
@@ -195,4 +202,75 @@ fn an_unreachable_host_is_shown_and_reconnect_brings_it_back() {
     assert!(harness.query_by_label_contains("not connected").is_none());
     assert!(harness.query_by_label("Reconnect").is_none());
     harness.get_by_label("Navigate to a goal among obstacles");
+}
+
+/// The force the obstacles push back with is drawn on the stick and on the
+/// robot: nothing in the open, an arrow when driving at the box ahead.
+#[test]
+fn the_force_arrow_appears_at_an_obstacle_and_vanishes_in_the_open() {
+    with_window_on(false, "Drive the robot by joystick", force_arrow);
+}
+
+/// The force arrow's colour.
+const FORCE: [u8; 3] = [255, 70, 90];
+
+fn force_pixels(harness: &mut Harness<'_, GuestApp>, name: &str) -> usize {
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(format!("{}/{name}.png", env!("CARGO_TARGET_TMPDIR")));
+    image
+        .pixels()
+        .filter(|p| p.0[..3].iter().zip(FORCE).all(|(a, b)| a.abs_diff(b) <= 6))
+        .count()
+}
+
+fn force_arrow(harness: &mut Harness<'_, GuestApp>) {
+    step_until(harness, "mount and see the robot", |app| {
+        app.session().lab.is_some() && app.session().robot.is_some()
+    });
+    // No definition needed: Start hands the robot to the stick.
+    harness.get_by_label("Start").click();
+    step_until(harness, "start the run", |app| app.session().running);
+    step_until(harness, "feel the open arena", |app| {
+        app.session()
+            .robot
+            .as_ref()
+            .is_some_and(|r| r.force.is_some())
+    });
+    assert_eq!(
+        force_pixels(harness, "force-open"),
+        0,
+        "no push in the open"
+    );
+    // The box is 150 mm ahead of the start: drive at it.
+    harness.key_down(egui::Key::ArrowUp);
+    step_until(harness, "feel the box ahead", |app| {
+        app.session()
+            .robot
+            .as_ref()
+            .and_then(|r| r.force)
+            .is_some_and(|[_, ahead]| ahead < -0.3)
+    });
+    harness.key_up(egui::Key::ArrowUp);
+    let near = force_pixels(harness, "force-near-box");
+    assert!(near > 150, "only {near} force-coloured pixels near the box");
+    let robot = harness.state().session().robot.clone().unwrap();
+    assert!(!robot.contact);
+    // Back into the open: the arrow goes.
+    harness.key_down(egui::Key::ArrowDown);
+    step_until(harness, "back away", |app| {
+        app.session()
+            .robot
+            .as_ref()
+            .and_then(|r| r.force)
+            .is_some_and(|[x, y]| x.hypot(y) < 0.01)
+    });
+    harness.key_up(egui::Key::ArrowDown);
+    assert_eq!(force_pixels(harness, "force-backed-off"), 0);
+    // Space is the emergency stop: the run ends.
+    harness.key_press(egui::Key::Space);
+    step_until(harness, "stop on Space", |app| !app.session().running);
+    assert_eq!(
+        harness.state().session().done.as_ref().map(|d| d.reason),
+        Some(vl_core::EndReason::EmergencyStop)
+    );
 }

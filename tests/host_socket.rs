@@ -402,15 +402,80 @@ async fn the_session_net_says_why_an_action_must_wait() {
     assert_eq!(op.expect("mounted").await["experiment"], "teleoperation");
     op.send(json!({"type": "stop"})).await;
     let e = op.expect_error("not_allowed_now").await;
-    assert_eq!(
-        e["message"],
-        "cannot stop a run now: the experiment is not defined yet"
-    );
+    assert_eq!(e["message"], "cannot stop a run now: no run is going");
     op.send(json!({"type": "command", "event": 1, "v": 10, "w": 0}))
         .await;
     let e = op.expect_error("not_allowed_now").await;
-    assert_eq!(
-        e["message"],
-        "cannot drive now: the experiment is not defined yet"
+    assert_eq!(e["message"], "cannot drive now: no run is going");
+}
+
+/// Anyone watching may press the emergency stop: the robot stops, the run
+/// ends, and the operator's commands go nowhere until a new Start.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_observer_s_emergency_stop_halts_the_run_until_the_next_start() {
+    let (_host, url) = start_host(&["--camera", "none"]);
+    let mut op = Peer::connect(&url).await;
+    op.hello("operator").await;
+    let mut watcher = Peer::connect(&url).await;
+    watcher.hello("observer").await;
+    start_teleoperation(&mut op).await;
+    let moving = drive(&mut op, 1, 20, 200.0, 200.0).await;
+    assert!(
+        moving["wheels"]["left_mm_s"].as_f64().unwrap() > 50.0,
+        "{moving}"
     );
+    watcher.send(json!({"type": "emergency_stop"})).await;
+    let done = op.expect("done").await;
+    assert_eq!(done["summary"]["reason"], "emergency_stop", "{done}");
+    op.send(json!({"type": "command", "event": 21, "left": 200, "right": 200}))
+        .await;
+    let e = op.expect_error("not_allowed_now").await;
+    assert_eq!(e["message"], "cannot drive now: no run is going");
+    let stopping = op.expect("feedback").await;
+    let rest = op.feedback_after(&stopping, 400.0).await;
+    assert_eq!(rest["wheels"]["left_mm_s"], 0.0, "{rest}");
+    // A new Start hands the robot back.
+    op.send(json!({"type": "start"})).await;
+    op.expect("started").await;
+    let again = drive(&mut op, 1, 10, 150.0, 150.0).await;
+    assert!(
+        again["wheels"]["left_mm_s"].as_f64().unwrap() > 50.0,
+        "{again}"
+    );
+}
+
+/// In teleoperation the stick drives: released, the robot stops at once
+/// and stays put, whatever the fields around it say; and no goal ends the
+/// run however near the robot comes to it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn releasing_the_stick_stops_the_robot_within_one_event() {
+    let (_host, url) = start_host(&["--camera", "none"]);
+    let mut op = Peer::connect(&url).await;
+    op.hello("operator").await;
+    op.send(json!({"type": "mount", "experiment": "teleoperation"}))
+        .await;
+    op.expect("mounted").await;
+    // A goal right where the robot stands: a target, not an end.
+    op.send(json!({"type": "define", "goal": {"x_mm": 100, "y_mm": 120, "tolerance_mm": 30}}))
+        .await;
+    op.expect("defined").await;
+    op.send(json!({"type": "start"})).await;
+    op.expect("started").await;
+    let moving = drive(&mut op, 1, 30, 200.0, 200.0).await;
+    let speed = moving["wheels"]["left_mm_s"].as_f64().unwrap();
+    assert!(speed > 150.0, "{moving}");
+    // Stick at rest: command 31 asks for nothing; its feedback already
+    // shows the wheels slowing, and soon the robot is at rest.
+    let released = drive(&mut op, 31, 1, 0.0, 0.0).await;
+    assert!(
+        released["wheels"]["left_mm_s"].as_f64().unwrap() < speed,
+        "{released}"
+    );
+    let rest = op.feedback_after(&released, 300.0).await;
+    assert_eq!(rest["wheels"]["left_mm_s"], 0.0, "{rest}");
+    let later = op.feedback_after(&rest, 300.0).await;
+    assert_eq!(rest["pose"], later["pose"], "it stays put");
+    op.send(json!({"type": "stop"})).await;
+    let done = op.expect("done").await;
+    assert_eq!(done["summary"]["reason"], "stopped", "{done}");
 }

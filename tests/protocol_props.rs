@@ -7,7 +7,7 @@ use serde_json::{Value, json};
 use vl_core::{
     Arena, CameraModel, Definition, Drive, EndReason, ErrorCode, Experiment, ExperimentInfo, Goal,
     GuestMessage, HostMessage, Material, Named, Obstacle, Point, Pose, RobotModel, Role,
-    SensorMount, Shape, Summary, WheelSpeeds, Wire,
+    SensorMount, Shape, SpeedResponse, Summary, WheelSpeeds, Wire,
 };
 
 fn num() -> impl Strategy<Value = f64> {
@@ -123,6 +123,7 @@ fn robot() -> impl Strategy<Value = RobotModel> {
         num(),
         num(),
         proptest::collection::vec((num(), num(), num()), 0..9),
+        (num(), num(), num(), num()),
     )
         .prop_map(
             |(
@@ -133,6 +134,7 @@ fn robot() -> impl Strategy<Value = RobotModel> {
                 max_wheel_speed_mm_s,
                 sensor_range_mm,
                 sensors,
+                (gain, time_constant_s, max_accel_mm_s2, dead_time_s),
             )| {
                 RobotModel {
                     name,
@@ -149,6 +151,12 @@ fn robot() -> impl Strategy<Value = RobotModel> {
                             angle_rad,
                         })
                         .collect(),
+                    response: SpeedResponse {
+                        gain,
+                        time_constant_s,
+                        max_accel_mm_s2,
+                        dead_time_s,
+                    },
                 }
             },
         )
@@ -197,16 +205,31 @@ fn error_code() -> impl Strategy<Value = ErrorCode> {
 fn summary() -> impl Strategy<Value = Summary> {
     use EndReason::*;
     (
-        proptest::sample::select(vec![GoalReached, Stopped, TimeLimit, OperatorLeft, Fault]),
+        proptest::sample::select(vec![
+            GoalReached,
+            Stopped,
+            TimeLimit,
+            OperatorLeft,
+            Fault,
+            EmergencyStop,
+        ]),
         any::<bool>(),
         any::<u64>(),
         pose(),
-        num(),
-        num(),
+        (num(), num()),
         any::<u64>(),
+        (proptest::option::of(num()), proptest::option::of(num())),
     )
         .prop_map(
-            |(reason, reached_goal, events, final_pose, seconds, distance_mm, collisions)| {
+            |(
+                reason,
+                reached_goal,
+                events,
+                final_pose,
+                (seconds, distance_mm),
+                collisions,
+                (closest_mm, speed_kept),
+            )| {
                 Summary {
                     reason,
                     reached_goal,
@@ -215,6 +238,8 @@ fn summary() -> impl Strategy<Value = Summary> {
                     seconds,
                     distance_mm,
                     collisions,
+                    closest_mm,
+                    speed_kept,
                 }
             },
         )
@@ -235,6 +260,7 @@ fn guest_message() -> impl Strategy<Value = GuestMessage> {
         definition().prop_map(|definition| GuestMessage::Define { definition }),
         Just(GuestMessage::Start),
         Just(GuestMessage::Stop),
+        Just(GuestMessage::EmergencyStop),
         (any::<u64>(), drive()).prop_map(|(event, drive)| GuestMessage::Command { event, drive }),
         Just(GuestMessage::Bye),
     ]
@@ -277,18 +303,22 @@ fn host_message() -> impl Strategy<Value = HostMessage> {
             proptest::collection::vec(any::<u16>(), 0..9),
             any::<bool>(),
             proptest::option::of((num(), num())),
+            any::<bool>(),
         )
-            .prop_map(|(event, t_ms, pose, wheels, proximity, contact, force)| {
-                HostMessage::Feedback {
-                    event,
-                    t_ms,
-                    pose,
-                    wheels,
-                    proximity,
-                    contact,
-                    force: force.map(|(x, y)| [x, y]),
-                }
-            }),
+            .prop_map(
+                |(event, t_ms, pose, wheels, proximity, contact, force, limited)| {
+                    HostMessage::Feedback {
+                        event,
+                        t_ms,
+                        pose,
+                        wheels,
+                        proximity,
+                        contact,
+                        force: force.map(|(x, y)| [x, y]),
+                        limited,
+                    }
+                },
+            ),
         summary().prop_map(|summary| HostMessage::Done { summary }),
         Just(HostMessage::Bye),
     ]

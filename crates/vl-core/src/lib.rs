@@ -6,7 +6,8 @@
 //!   camera;
 //! - vision on the overhead camera's frames;
 //! - navigation: C-space, NF1, splines, path following;
-//! - teleoperation: potential fields, force feedback, prediction.
+//! - teleoperation: potential fields, force feedback, prediction;
+//! - the safety layer every wheel command passes on the Host.
 //!
 //! Modules are private; what other crates use is re-exported here.
 
@@ -14,6 +15,7 @@ mod contract;
 mod model;
 mod named;
 mod navigation;
+mod safety;
 mod teleop;
 mod vision;
 
@@ -29,8 +31,10 @@ pub use model::camera::CameraModel;
 pub use model::khepera::{
     CommandError, KheperaCommand, KheperaReply, LedAction, MalformedReply, MotorMode, MotorStatus,
 };
+pub use model::proximity::{MAX_READING, ir_distance, ir_reading};
 pub use model::robot::{
-    MAX_PULSES_PER_PERIOD, Point, Pose, RobotKind, RobotModel, SensorMount, WheelSpeeds, wrap_angle,
+    MAX_PULSES_PER_PERIOD, Point, Pose, RobotKind, RobotModel, SensorMount, SpeedResponse,
+    WheelSpeeds, wrap_angle,
 };
 pub use named::{Named, UnknownName};
 pub use navigation::bench::{PlanBench, PlanBenchError, bench as bench_planning};
@@ -41,6 +45,7 @@ pub use navigation::plan::{
     ARENA_CELL_MM, ArenaPlanError, NoPath, PathEnd, Plan, Smoothing, clearance, plan, plan_route,
 };
 pub use navigation::svg::plan_svg;
+pub use safety::{Guarded, Safety, Situation, Surroundings};
 pub use teleop::{Assisted, Joystick, MapField, Teleop, Vector, predict};
 pub use vision::{
     Centroid, Component, Connectivity, Mask, RobotPose, Scene, Threshold, ThresholdError,

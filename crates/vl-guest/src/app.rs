@@ -10,21 +10,25 @@
 use std::time::Duration;
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Vec2};
-use vl_core::{Definition, Drive, Goal, GuestMessage, PROTOCOL_VERSION, Point, Role, Shape};
+use vl_core::{
+    Definition, Drive, Goal, GuestMessage, Joystick, PROTOCOL_VERSION, Point, Pose, Role, Shape,
+    Teleop, Vector,
+};
 
 use crate::client::{ClientError, Connection, Incoming, open};
 use crate::pilot::{Pilot, Route};
 use crate::session::{Link, MountedLab, Session};
 
-/// Top speed the joystick and arrow keys ask for, mm/s.
-const DRIVE_MM_S: f64 = 300.0;
-/// Top turn rate the joystick and arrow keys ask for, rad/s.
-const TURN_RAD_S: f64 = 3.0;
 const JOYSTICK_PX: f32 = 140.0;
 const ROBOT_COLOUR: Color32 = Color32::from_rgb(40, 200, 255);
 const GOAL_COLOUR: Color32 = Color32::from_rgb(40, 190, 60);
 const PATH_COLOUR: Color32 = Color32::from_rgb(250, 220, 40);
 const VIRTUAL_COLOUR: Color32 = Color32::from_rgb(255, 150, 0);
+/// The obstacles' push, on the stick and on the robot.
+const FORCE_COLOUR: Color32 = Color32::from_rgb(255, 70, 90);
+const STOP_COLOUR: Color32 = Color32::from_rgb(200, 30, 30);
+/// The force arrow on the robot at full force, mm.
+const FORCE_ARROW_MM: f64 = 80.0;
 /// The arena drawn from its model when the lab has no camera.
 const FLOOR_COLOUR: Color32 = Color32::from_rgb(226, 224, 218);
 const OBSTACLE_COLOUR: Color32 = Color32::from_rgb(45, 48, 56);
@@ -50,6 +54,8 @@ pub struct GuestApp {
     plan_note: Option<String>,
     /// Steers along the defined path during a run.
     pilot: Pilot,
+    /// The one joystick → velocity mapping, as the Host reads it back.
+    teleop: Teleop,
 }
 
 impl GuestApp {
@@ -72,6 +78,7 @@ impl GuestApp {
             goal: Goal::at(Point::default()),
             plan_note: None,
             pilot: Pilot::default(),
+            teleop: Teleop::default(),
         })
     }
 
@@ -135,38 +142,88 @@ impl GuestApp {
     }
 
     /// Sends the next event-paced command: from the joystick or arrow keys
-    /// while they are in use, otherwise along the defined path.
+    /// while they are in use, otherwise along the defined path. Space and
+    /// Esc are the emergency stop.
     fn drive(&mut self, ctx: &egui::Context) {
+        let typing = ctx.memory(|m| m.focused().is_some());
+        let stop = ctx.input(|i| {
+            i.key_pressed(egui::Key::Escape) || (!typing && i.key_pressed(egui::Key::Space))
+        });
+        if stop {
+            self.emergency_stop();
+        }
         if !self.session.is_operator() {
             return;
         }
         if !self.session.running {
             self.pilot.release();
         }
+        let stick = self.stick(ctx);
+        let by_hand = stick != Joystick::default();
+        let Some(lab) = &self.session.lab else { return };
+        let along_path = match &self.session.robot {
+            Some(robot) if !by_hand => self.pilot.steer(lab, robot),
+            _ => None,
+        };
+        let by_stick = || {
+            let asked = self.teleop.desired(stick);
+            Drive::from(self.teleop.wheels(&lab.robot, asked))
+        };
+        let drive = along_path.unwrap_or_else(by_stick);
+        if let Some(command) = self.session.next_command(drive) {
+            self.connection.send(command);
+        }
+    }
+
+    /// Where the stick is: the dragged virtual stick plus the arrow keys,
+    /// x to the right and y forward, each within −1..1.
+    fn stick(&self, ctx: &egui::Context) -> Joystick {
         let (mut forward, mut turn) = (f64::from(self.joystick.y), f64::from(self.joystick.x));
         ctx.input(|i| {
             let key = |k| if i.key_down(k) { 1.0 } else { 0.0 };
             forward += key(egui::Key::ArrowUp) - key(egui::Key::ArrowDown);
             turn += key(egui::Key::ArrowRight) - key(egui::Key::ArrowLeft);
         });
-        let by_hand = forward != 0.0 || turn != 0.0;
-        let along_path = match (&self.session.robot, &self.session.lab) {
-            (Some(robot), Some(lab)) if !by_hand => self.pilot.steer(lab, robot),
-            _ => None,
-        };
-        let drive = along_path.unwrap_or(Drive::Velocity {
-            v: forward.clamp(-1.0, 1.0) * DRIVE_MM_S,
-            w: -turn.clamp(-1.0, 1.0) * TURN_RAD_S,
-        });
-        if let Some(command) = self.session.next_command(drive) {
-            self.connection.send(command);
+        Joystick {
+            x: turn.clamp(-1.0, 1.0),
+            y: forward.clamp(-1.0, 1.0),
         }
+    }
+
+    /// Asks the Host to stop the robot now and end the run.
+    fn emergency_stop(&mut self) {
+        self.pilot.release();
+        self.joystick = Vec2::ZERO;
+        self.connection.send(GuestMessage::EmergencyStop);
+    }
+
+    /// What the robot is doing, as a stick position: its measured wheel
+    /// speeds through the inverse of the stick's mapping.
+    fn doing(&self) -> Option<Vec2> {
+        let (robot, lab) = (self.session.robot.as_ref()?, self.session.lab.as_ref()?);
+        let w = robot.wheels;
+        let v = (w.left_mm_s + w.right_mm_s) / 2.0;
+        let turn = (w.right_mm_s - w.left_mm_s) / lab.robot.wheel_base_mm;
+        let Vector { x, y } = self.teleop.velocity_for(&lab.robot, v, turn);
+        let top = self.teleop.max_speed_mm_s;
+        Some(Vec2::new((-y / top) as f32, (x / top) as f32))
     }
 
     fn status_bar(&mut self, ui: &mut egui::Ui) {
         let mut reconnect = false;
+        let mut stop = false;
         let s = &self.session;
         ui.horizontal_wrapped(|ui| {
+            let button = egui::Button::new(
+                egui::RichText::new("STOP (Space)")
+                    .strong()
+                    .color(Color32::WHITE),
+            )
+            .fill(STOP_COLOUR);
+            stop = ui
+                .add_enabled(s.link == Link::Open, button)
+                .on_hover_text("Emergency stop: the robot stops and the run ends (Space or Esc)")
+                .clicked();
             match &s.link {
                 Link::Connecting => {
                     ui.colored_label(
@@ -202,6 +259,9 @@ impl GuestApp {
         });
         if reconnect {
             self.reconnect();
+        }
+        if stop {
+            self.emergency_stop();
         }
     }
 
@@ -256,8 +316,8 @@ impl GuestApp {
             ui.separator();
             ui.heading("Execute");
             ui.horizontal(|ui| {
-                let can_start =
-                    operator && self.session.definition.is_some() && !self.session.running;
+                // Defining is optional: a run may start on the defaults.
+                let can_start = operator && !self.session.running;
                 if ui
                     .add_enabled(can_start, egui::Button::new("Start"))
                     .clicked()
@@ -357,9 +417,32 @@ impl GuestApp {
                 self.joystick = Vec2::ZERO;
             }
             painter.circle_stroke(centre, radius, Stroke::new(2.0, Color32::GRAY));
-            let knob = centre + Vec2::new(self.joystick.x, -self.joystick.y) * radius;
-            painter.circle_filled(knob, 14.0, ROBOT_COLOUR);
-            ui.label("Drag the stick or hold the arrow keys to drive\n(commands flow while a run is started).");
+            // Screen y runs down; the stick's y is forward.
+            let on_pad = |v: Vec2| centre + Vec2::new(v.x, -v.y) * radius;
+            if let Some(doing) = self.doing() {
+                painter.circle_stroke(on_pad(doing), 10.0, Stroke::new(2.0, Color32::WHITE));
+            }
+            let asked = self.stick(ui.ctx());
+            painter.circle_filled(
+                on_pad(Vec2::new(asked.x as f32, asked.y as f32)),
+                14.0,
+                ROBOT_COLOUR,
+            );
+            let force = self.session.robot.as_ref().and_then(|r| r.force);
+            if let Some([fx, fy]) = force.filter(|f| f[0].hypot(f[1]) > 0.02) {
+                let tip = on_pad(Vec2::new(fx as f32, fy as f32));
+                painter.arrow(centre, tip - centre, Stroke::new(4.0, FORCE_COLOUR));
+            }
+            ui.vertical(|ui| {
+                ui.label("Drag the stick or hold the arrow keys to drive\n(commands flow while a run is started).");
+                ui.label("Filled: what you ask. Ring: what the robot does.");
+                if force.is_some() {
+                    ui.label("Red arrow: the obstacles' push you would feel.");
+                }
+                if self.session.robot.as_ref().is_some_and(|r| r.limited) {
+                    ui.colored_label(Color32::YELLOW, "The Host's safety layer is holding the robot back.");
+                }
+            });
         });
     }
 
@@ -483,8 +566,23 @@ impl GuestApp {
             painter.circle_stroke(centre, r, Stroke::new(2.0, ROBOT_COLOUR));
             let nose = to_screen(robot.pose.to_world(lab.robot.radius_mm * 1.6, 0.0));
             painter.line_segment([centre, nose], Stroke::new(2.0, ROBOT_COLOUR));
+            if let Some(tip) = robot.force.and_then(|f| force_tip(robot.pose, f)) {
+                painter.arrow(
+                    centre,
+                    to_screen(tip) - centre,
+                    Stroke::new(3.0, FORCE_COLOUR),
+                );
+            }
         }
     }
+}
+
+/// Where the force arrow drawn on the robot at `pose` ends: the force is in
+/// joystick axes (x to the robot's right, y ahead); none when it is too
+/// weak to see.
+fn force_tip(pose: Pose, [right, ahead]: [f64; 2]) -> Option<Point> {
+    (right.hypot(ahead) > 0.02)
+        .then(|| pose.to_world(ahead * FORCE_ARROW_MM, -right * FORCE_ARROW_MM))
 }
 
 /// Where the arena lands on screen: the camera model's pixels scaled into

@@ -113,6 +113,8 @@ mod tests {
             wheels: WheelSpeeds::default(),
             proximity: vec![0; 8],
             contact: false,
+            force: None,
+            limited: false,
         };
         assert_eq!(pilot.steer(&lab, &robot), None, "nothing to follow yet");
         pilot.follow(&route.definition);

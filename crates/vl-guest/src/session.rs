@@ -33,6 +33,11 @@ pub struct RobotState {
     pub wheels: WheelSpeeds,
     pub proximity: Vec<u16>,
     pub contact: bool,
+    /// The obstacles' push, in joystick axes (x right, y forward, −1 to
+    /// 1), when the experiment feeds it back.
+    pub force: Option<[f64; 2]>,
+    /// The Host's safety layer is holding the robot back.
+    pub limited: bool,
 }
 
 /// The latest camera image, decoded.
@@ -195,7 +200,8 @@ impl Session {
                 wheels,
                 proximity,
                 contact,
-                force: _,
+                force,
+                limited,
             } => {
                 // Feedback can only move forward in time; an older one is stale.
                 if self.robot.as_ref().is_some_and(|r| r.t_ms > t_ms) {
@@ -208,6 +214,8 @@ impl Session {
                     wheels,
                     proximity,
                     contact,
+                    force,
+                    limited,
                 });
             }
             HostMessage::Done { summary } => {
@@ -277,6 +285,7 @@ mod tests {
             proximity: vec![0; 8],
             contact: false,
             force: None,
+            limited: false,
         }))
     }
 

@@ -18,9 +18,9 @@ use tokio::sync::{mpsc as async_mpsc, watch};
 use tokio_tungstenite::tungstenite::Bytes;
 use tracing::{debug, warn};
 use vl_core::{
-    ARENA_CELL_MM, Arena, CSpace, CameraModel, Definition, Drive, EndReason, Footprint,
-    FrameHeader, Grid, HostMessage, ImageFormat, MapField, Point, RobotModel, Summary, Teleop,
-    Vector, WheelSpeeds,
+    ARENA_CELL_MM, Arena, CSpace, CameraModel, Definition, Drive, EndReason, Experiment, Footprint,
+    FrameHeader, Grid, HostMessage, ImageFormat, MapField, RobotModel, Safety, Situation, Summary,
+    Surroundings, Teleop, Vector, WheelSpeeds,
 };
 
 use crate::drivers::{Camera, Robot, RobotReading};
@@ -33,8 +33,11 @@ const FEEDBACK_EVERY: Duration = Duration::from_millis(20);
 pub const WATCHDOG: Duration = Duration::from_millis(500);
 /// Width of the arena drawing a Guest gets when the lab has no camera.
 const NO_CAMERA_WIDTH_PX: u32 = 640;
-/// How far ahead the virtual-obstacle guard looks.
-const GUARD_LOOKAHEAD_S: f64 = 0.15;
+/// The safety layer assumes a command lasts at least this long before the
+/// next can brake it: three control periods.
+const REACTION: Duration = Duration::from_millis(30);
+/// A command asks the robot to move when its mean wheel speed is above this, mm/s.
+const MOVING_MM_S: f64 = 1.0;
 /// Distance from the body within which the map's potential field pushes.
 const MAP_FIELD_INFLUENCE_MM: f64 = 40.0;
 /// Its strength: about 100 mm/s of push with the body 10 mm from a wall.
@@ -51,11 +54,12 @@ pub struct LabInfo {
 /// Requests from the session to the control loop.
 #[derive(Debug)]
 pub enum LabRequest {
-    /// A run begins; `assisted` runs add the potential fields to the
-    /// operator's commands and feed the push back as a force.
+    /// A run of `experiment` begins. Teleoperation adds the potential
+    /// fields to the operator's commands and feeds the push back as a
+    /// force; navigation ends when the robot reaches the goal.
     Start {
         definition: Definition,
-        assisted: bool,
+        experiment: Experiment,
     },
     Drive {
         event: u64,
@@ -114,6 +118,8 @@ impl Lab {
             sent: None,
             teleop: Teleop::default(),
             map_field: map_field(&info),
+            surroundings: Surroundings::new(&info.arena),
+            period: TICK,
         };
         thread::Builder::new()
             .name("vl-control".into())
@@ -158,14 +164,45 @@ impl Drop for Lab {
 /// One run of an experiment, from `start` to its end.
 struct Run {
     definition: Definition,
+    experiment: Experiment,
+    /// The arena and the definition's virtual obstacles, for the safety layer.
+    surroundings: Surroundings,
     started: Instant,
     last_command: Instant,
     distance_mm: f64,
     collisions: u64,
+    /// The wheel speeds the last command asks for.
     wheels: WheelSpeeds,
     /// For an assisted run: the velocity the operator asks for, and the
     /// force last fed back.
     assist: Option<(Vector, [f64; 2])>,
+    /// Whether the safety layer changed the last command it saw.
+    limited: bool,
+    /// The body's least clearance seen, mm.
+    closest_mm: f64,
+    /// Sum and count, over periods in which a command asked to move, of the
+    /// forward speed the layer let through over the speed asked.
+    kept: (f64, u64),
+}
+
+impl Run {
+    fn summary(&self, reason: EndReason, events: u64, reading: Option<&RobotReading>) -> Summary {
+        let pose = reading.map(|r| r.pose).unwrap_or_default();
+        Summary {
+            reason,
+            reached_goal: self
+                .definition
+                .goal
+                .is_some_and(|g| pose.point().distance(g.point()) <= g.tolerance_mm),
+            events,
+            final_pose: pose,
+            seconds: self.started.elapsed().as_secs_f64(),
+            distance_mm: self.distance_mm,
+            collisions: self.collisions,
+            closest_mm: self.closest_mm.is_finite().then_some(self.closest_mm),
+            speed_kept: (self.kept.1 > 0).then(|| self.kept.0 / self.kept.1 as f64),
+        }
+    }
 }
 
 struct Control {
@@ -184,12 +221,17 @@ struct Control {
     teleop: Teleop,
     /// The arena's repulsive field, over the C-space of the robot's body.
     map_field: Option<MapField>,
+    /// The arena's walls and obstacles, to which each run adds its virtual ones.
+    surroundings: Surroundings,
+    /// How long the last control period really took.
+    period: Duration,
 }
 
 impl Control {
     fn run(mut self) {
         let mut next_tick = Instant::now();
         let mut last_feedback = Instant::now();
+        let mut last_read = Instant::now();
         loop {
             let mut commanded = false;
             loop {
@@ -207,6 +249,8 @@ impl Control {
             if next_tick < Instant::now() {
                 next_tick = Instant::now() + TICK;
             }
+            self.period = last_read.elapsed();
+            last_read = Instant::now();
             match self.robot.read() {
                 Ok(reading) => self.observe(reading),
                 Err(e) => {
@@ -227,18 +271,25 @@ impl Control {
         match request {
             LabRequest::Start {
                 definition,
-                assisted,
+                experiment,
             } => {
                 self.event.store(0, Ordering::Relaxed);
                 let now = Instant::now();
                 self.run = Some(Run {
+                    surroundings: self.surroundings.with(&definition.virtual_obstacles),
                     definition,
+                    experiment,
                     started: now,
                     last_command: now,
                     distance_mm: 0.0,
                     collisions: 0,
                     wheels: WheelSpeeds::default(),
-                    assist: assisted.then_some((Vector::default(), [0.0; 2])),
+                    assist: experiment
+                        .assists_the_operator()
+                        .then_some((Vector::default(), [0.0; 2])),
+                    limited: false,
+                    closest_mm: f64::INFINITY,
+                    kept: (0.0, 0),
                 });
                 false
             }
@@ -271,13 +322,21 @@ impl Control {
         }
     }
 
-    /// Sends the run's wheel speeds, unless the virtual-obstacle guard or
-    /// the watchdog says otherwise.
+    /// Sends the run's wheel speeds, as the watchdog, the assistance and
+    /// then the safety layer leave them; between runs, holds the robot.
     fn drive(&mut self) {
         let Some(run) = &mut self.run else { return };
+        let Some(reading) = &self.last else {
+            // Nothing is known of where the robot is yet: it stays put.
+            return;
+        };
         let stale = run.last_command.elapsed() > WATCHDOG;
-        let mut wheels = run.wheels;
-        if let (Some((desired, force)), Some(reading)) = (&mut run.assist, &self.last) {
+        let mut wanted = if stale {
+            WheelSpeeds::default()
+        } else {
+            run.wheels
+        };
+        if let Some((desired, force)) = &mut run.assist {
             let robot = &self.info.robot;
             let ahead = self.map_field.as_ref().map_or(Vector::default(), |f| {
                 f.guidance(reading.pose.point())
@@ -288,17 +347,31 @@ impl Control {
                 x: sensed.x + ahead.x,
                 y: sensed.y + ahead.y,
             };
-            let wanted = if stale { Vector::default() } else { *desired };
-            let assisted = self.teleop.assist(robot, wanted, field);
+            let asked = if stale { Vector::default() } else { *desired };
+            let assisted = self.teleop.assist(robot, asked, field);
             *force = assisted.force;
-            wheels = assisted.wheels;
+            wanted = assisted.wheels;
         }
-        if stale {
-            wheels = WheelSpeeds::default();
+        // Whatever asked for `wanted`, the robot must be able to stop in time.
+        let safety = Safety {
+            reaction_s: REACTION.max(self.period.mul_f64(1.5)).as_secs_f64(),
+            ..Safety::default()
+        };
+        let situation = Situation {
+            pose: reading.pose,
+            wheels: reading.wheels,
+            proximity: &reading.proximity,
+        };
+        let guarded = safety.guard(&self.info.robot, &run.surroundings, situation, wanted);
+        run.limited = guarded.limited;
+        run.closest_mm = run.closest_mm.min(guarded.clearance_mm);
+        let asked = (wanted.left_mm_s + wanted.right_mm_s) / 2.0;
+        if asked.abs() > MOVING_MM_S {
+            let let_through = (guarded.wheels.left_mm_s + guarded.wheels.right_mm_s) / 2.0;
+            run.kept.0 += (let_through / asked).clamp(0.0, 1.0);
+            run.kept.1 += 1;
         }
-        if let Some(reading) = &self.last {
-            wheels = guard(&self.info, &run.definition, reading, wheels);
-        }
+        let wheels = guarded.wheels;
         if self.sent == Some(wheels) {
             return;
         }
@@ -319,12 +392,19 @@ impl Control {
             run.distance_mm += prev.pose.point().distance(reading.pose.point());
             if reading.contact && !prev.contact {
                 run.collisions += 1;
+                warn!(
+                    "contact at ({:.0}, {:.0}) mm: the safety layer lets only moves away through",
+                    reading.pose.x_mm, reading.pose.y_mm
+                );
             }
         }
-        let reached = run
-            .definition
-            .goal
-            .is_some_and(|g| reading.pose.point().distance(g.point()) <= g.tolerance_mm);
+        // A navigation run ends at its goal; in teleoperation a goal is a
+        // target the summary reports on, and the operator ends the run.
+        let reached = run.experiment == Experiment::Navigation
+            && run
+                .definition
+                .goal
+                .is_some_and(|g| reading.pose.point().distance(g.point()) <= g.tolerance_mm);
         let timed_out = run
             .definition
             .time_limit_s
@@ -334,7 +414,7 @@ impl Control {
         } else if timed_out {
             self.finish(EndReason::TimeLimit);
         } else {
-            // Re-applying every tick lets the watchdog and guard act between commands.
+            // Re-applying every tick lets the watchdog and the safety layer act between commands.
             self.drive();
         }
     }
@@ -343,20 +423,11 @@ impl Control {
     fn finish(&mut self, reason: EndReason) {
         self.halt();
         let Some(run) = self.run.take() else { return };
-        let pose = self.last.as_ref().map(|r| r.pose).unwrap_or_default();
-        let reached_goal = run
-            .definition
-            .goal
-            .is_some_and(|g| pose.point().distance(g.point()) <= g.tolerance_mm);
-        let summary = Summary {
+        let summary = run.summary(
             reason,
-            reached_goal,
-            events: self.event.load(Ordering::Relaxed),
-            final_pose: pose,
-            seconds: run.started.elapsed().as_secs_f64(),
-            distance_mm: run.distance_mm,
-            collisions: run.collisions,
-        };
+            self.event.load(Ordering::Relaxed),
+            self.last.as_ref(),
+        );
         debug!(?summary, "run finished");
         let _ = self.finished.send(Finished(summary));
         self.publish();
@@ -382,6 +453,7 @@ impl Control {
             proximity: reading.proximity.clone(),
             contact: reading.contact,
             force: self.run.as_ref().and_then(|r| r.assist).map(|(_, f)| f),
+            limited: self.run.as_ref().is_some_and(|r| r.limited),
         };
         self.feedback.send_replace(Some(message));
     }
@@ -408,37 +480,6 @@ fn map_field(info: &LabInfo) -> Option<MapField> {
             warn!("no map field for assisted teleoperation: {e}");
             None
         }
-    }
-}
-
-/// Keeps the robot out of the definition's virtual obstacles: if driving on
-/// would bring the body into one, only the turning part of the motion is kept.
-fn guard(
-    info: &LabInfo,
-    definition: &Definition,
-    reading: &RobotReading,
-    wheels: WheelSpeeds,
-) -> WheelSpeeds {
-    if definition.virtual_obstacles.is_empty() {
-        return wheels;
-    }
-    let ahead = reading
-        .pose
-        .advance(wheels, info.robot.wheel_base_mm, GUARD_LOOKAHEAD_S);
-    let blocked = |p: Point| {
-        definition
-            .virtual_obstacles
-            .iter()
-            .any(|o| o.distance(p) <= info.robot.radius_mm)
-    };
-    if blocked(ahead.point()) && !blocked(reading.pose.point()) {
-        let turn = (wheels.right_mm_s - wheels.left_mm_s) / 2.0;
-        WheelSpeeds {
-            left_mm_s: -turn,
-            right_mm_s: turn,
-        }
-    } else {
-        wheels
     }
 }
 
@@ -482,54 +523,5 @@ impl CameraLoop {
             }
             thread::sleep(period.saturating_sub(started.elapsed()));
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use vl_core::{Pose, Shape};
-
-    #[test]
-    fn the_guard_turns_instead_of_entering_a_virtual_obstacle() {
-        let info = LabInfo {
-            arena: Arena::navigation(),
-            robot: RobotModel::khepera_ii(),
-            camera: CameraModel {
-                width_px: 320,
-                height_px: 240,
-                mm_per_px: 2.5,
-                fps: 10.0,
-            },
-        };
-        let definition = Definition {
-            virtual_obstacles: vec![Shape::Circle {
-                x_mm: 200.0,
-                y_mm: 120.0,
-                radius_mm: 20.0,
-            }],
-            ..Definition::default()
-        };
-        let reading = RobotReading {
-            pose: Pose {
-                x_mm: 130.0,
-                y_mm: 120.0,
-                theta_rad: 0.0,
-            },
-            wheels: WheelSpeeds::default(),
-            proximity: vec![0; 8],
-            contact: false,
-        };
-        let ahead = WheelSpeeds {
-            left_mm_s: 300.0,
-            right_mm_s: 300.0,
-        };
-        let guarded = guard(&info, &definition, &reading, ahead);
-        assert_eq!(guarded.left_mm_s + guarded.right_mm_s, 0.0);
-        let away = WheelSpeeds {
-            left_mm_s: -300.0,
-            right_mm_s: -300.0,
-        };
-        assert_eq!(guard(&info, &definition, &reading, away), away);
     }
 }

@@ -33,6 +33,28 @@ const SIM_FPS: f64 = 15.0;
 /// Width of the simulated camera's image.
 const SIM_CAMERA_WIDTH_PX: u32 = 320;
 
+/// A simulated lab: the robot in its arena (starting at the arena's start
+/// pose), the simulator's seed, and whether a camera watches.
+#[derive(Debug, Clone)]
+pub struct SimLab {
+    pub arena: Arena,
+    pub robot: RobotModel,
+    pub seed: u64,
+    pub camera: bool,
+}
+
+impl SimLab {
+    /// A Khepera II in `arena`, watched by the camera, seed 1.
+    pub fn new(arena: Arena) -> SimLab {
+        SimLab {
+            arena,
+            robot: RobotModel::khepera_ii(),
+            seed: 1,
+            camera: true,
+        }
+    }
+}
+
 /// A Host, bound and serving its lab in the background.
 pub struct Host {
     pub addr: SocketAddr,
@@ -59,24 +81,21 @@ impl Host {
         Ok(Host { addr, task })
     }
 
-    /// Binds `listen` and serves a simulated Khepera II on `arena`, watched
-    /// by the simulated camera if `with_camera`.
+    /// Binds `listen` and serves the simulated `lab`.
     pub async fn start_sim(
         listen: SocketAddr,
-        arena: Arena,
-        seed: u64,
-        with_camera: bool,
+        lab: SimLab,
         config: HostConfig,
     ) -> Result<Host, HostError> {
         let (robot, camera) = sim::sim_lab(
-            arena.clone(),
-            RobotModel::khepera_ii(),
-            seed,
+            lab.arena.clone(),
+            lab.robot,
+            lab.seed,
             SIM_CAMERA_WIDTH_PX,
             SIM_FPS,
         )?;
-        let camera = with_camera.then(|| Box::new(camera) as Box<dyn Camera>);
-        Host::start(listen, Box::new(robot), camera, arena, config).await
+        let camera = lab.camera.then(|| Box::new(camera) as Box<dyn Camera>);
+        Host::start(listen, Box::new(robot), camera, lab.arena, config).await
     }
 
     /// The WebSocket URL Guests connect to.

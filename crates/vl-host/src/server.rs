@@ -293,6 +293,8 @@ impl Hub {
             (Some(_), GuestMessage::Hello { .. }) => {
                 self.refuse(id, ErrorCode::NotAllowedNow, "already said hello")
             }
+            // Anyone watching may stop the robot: safety before roles.
+            (Some(_), GuestMessage::EmergencyStop) => self.emergency_stop(id),
             (Some(Role::Observer), other) => self.refuse(
                 id,
                 ErrorCode::NotOperator,
@@ -410,15 +412,14 @@ impl Hub {
                 self.broadcast(&HostMessage::Defined { definition });
             }
             GuestMessage::Start => {
-                if self.supervise(id, Action::Start) {
+                if self.supervise(id, Action::Start)
+                    && let Some(experiment) = self.experiment
+                {
                     self.last_event = 0;
                     let definition = self.definition.clone().unwrap_or_default();
-                    let assisted = self
-                        .experiment
-                        .is_some_and(Experiment::assists_the_operator);
                     self.lab.request(LabRequest::Start {
                         definition,
-                        assisted,
+                        experiment,
                     });
                     self.broadcast(&HostMessage::Started { event: 0 });
                 }
@@ -455,9 +456,20 @@ impl Hub {
                 self.lab.request(LabRequest::Drive { event, drive });
             }
             GuestMessage::Hello { .. }
+            | GuestMessage::EmergencyStop
             | GuestMessage::Ping { .. }
             | GuestMessage::Pong { .. }
             | GuestMessage::Bye => {}
+        }
+    }
+
+    /// Stops the running robot at once and ends the run; the next run needs
+    /// the operator's Start.
+    fn emergency_stop(&mut self, id: u64) {
+        warn!(connection = id, "emergency stop");
+        if self.supervisor.allows(Action::Stop) {
+            self.lab
+                .request(LabRequest::Finish(EndReason::EmergencyStop));
         }
     }
 

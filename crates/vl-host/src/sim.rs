@@ -1,6 +1,8 @@
 //! The simulated lab behind the driver traits: one `vl_sim::World` shared
 //! by a robot and a camera, advanced to the wall clock whenever the robot
-//! is read, so the simulated robot lives in real time like a real one.
+//! is read, so the simulated robot lives in real time like a real one —
+//! except that a Host starved of the processor finds its lab's clock slowed
+//! rather than the robot moved on unwatched by a long stride.
 
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
@@ -11,11 +13,17 @@ use vl_sim::{Optics, SimError, World, camera_for};
 
 use crate::drivers::{Camera, CameraError, Robot, RobotError, RobotReading};
 
+/// The longest stretch of simulated time one read catches up, s: three
+/// control periods.
+const MAX_CATCH_UP_S: f64 = 0.03;
+
 /// The simulated robot.
 pub struct SimRobot {
     world: Arc<Mutex<World>>,
     model: RobotModel,
     since: Instant,
+    /// Wall-clock time the simulation has given up catching up, s.
+    slipped_s: f64,
 }
 
 /// The simulated overhead camera.
@@ -40,6 +48,7 @@ pub fn sim_lab(
             world: world.clone(),
             model: robot,
             since: Instant::now(),
+            slipped_s: 0.0,
         },
         SimCamera {
             world,
@@ -68,7 +77,11 @@ impl Robot for SimRobot {
 
     fn read(&mut self) -> Result<RobotReading, RobotError> {
         let mut world = lock(&self.world);
-        let now = self.since.elapsed().as_secs_f64();
+        let mut now = self.since.elapsed().as_secs_f64() - self.slipped_s;
+        if now - world.time_s() > MAX_CATCH_UP_S {
+            self.slipped_s += now - world.time_s() - MAX_CATCH_UP_S;
+            now = world.time_s() + MAX_CATCH_UP_S;
+        }
         while world.time_s() < now {
             world.step();
         }

@@ -13,7 +13,6 @@ mod emulator;
 mod khepera;
 mod link;
 mod noise;
-mod proximity;
 mod script;
 mod world;
 

@@ -3,19 +3,14 @@
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use thiserror::Error;
-use vl_core::{Arena, Pose, RobotModel, WheelSpeeds};
+use vl_core::{Arena, Pose, RobotModel, WheelSpeeds, ir_reading};
 
 use crate::noise::gaussian;
-use crate::proximity::proximity_value;
 
 /// The simulator's step: the Khepera's speed-control period.
 pub const STEP_S: f64 = 0.01;
-/// Time constant of the on-board speed controller's first-order response.
-const SPEED_TAU_S: f64 = 0.03;
-/// Largest wheel acceleration, mm/s².
-const MAX_ACCEL_MM_S2: f64 = 4000.0;
-/// Below this difference the speed controller holds its target exactly.
-const SETTLED_MM_S: f64 = 1.0;
+/// Commands held back by the dead time, at most.
+const MAX_PENDING: usize = 256;
 /// Readings past the sensor's range are this noise floor, at most.
 const NOISE_FLOOR: f64 = 10.0;
 /// Relative noise on an in-range reading.
@@ -43,6 +38,9 @@ pub struct World {
     pose: Pose,
     wheels: WheelSpeeds,
     target: WheelSpeeds,
+    /// Commands still within the controller's dead time: when each takes
+    /// effect, in order.
+    pending: std::collections::VecDeque<(f64, WheelSpeeds)>,
     steps: u64,
     contact: bool,
     collisions: u64,
@@ -74,6 +72,7 @@ impl World {
             pose: start,
             wheels: WheelSpeeds::default(),
             target: WheelSpeeds::default(),
+            pending: std::collections::VecDeque::new(),
             steps: 0,
             contact: false,
             collisions: 0,
@@ -127,22 +126,33 @@ impl World {
     }
 
     /// Asks the speed controller for `target` (clamped to the robot's limits).
+    /// It takes over after the response's dead time.
     pub fn set_wheels(&mut self, target: WheelSpeeds) {
-        self.target = self.robot.clamp(target);
+        let target = self.robot.clamp(target);
+        let dead = self.robot.response.dead_time_s;
+        if dead <= 0.0 {
+            self.target = target;
+        } else {
+            // Commands come a control period apart at most; a flood only
+            // ever needs the latest within the dead time.
+            if self.pending.len() >= MAX_PENDING {
+                self.pending.pop_front();
+            }
+            self.pending.push_back((self.time_s() + dead, target));
+        }
     }
 
     /// Advances the clock by one step.
     pub fn step(&mut self) {
-        let respond = |now: f64, want: f64| {
-            let change = (want - now) * (1.0 - (-STEP_S / SPEED_TAU_S).exp());
-            let next = now + change.clamp(-MAX_ACCEL_MM_S2 * STEP_S, MAX_ACCEL_MM_S2 * STEP_S);
-            // The controller settles on its target once within a pulse per 10 ms.
-            if (want - next).abs() < SETTLED_MM_S {
-                want
-            } else {
-                next
+        while let Some(&(due, target)) = self.pending.front() {
+            if due > self.time_s() + 1e-9 {
+                break;
             }
-        };
+            self.target = target;
+            self.pending.pop_front();
+        }
+        let response = self.robot.response;
+        let respond = |now: f64, want: f64| response.step(now, want, STEP_S);
         self.wheels = WheelSpeeds {
             left_mm_s: respond(self.wheels.left_mm_s, self.target.left_mm_s),
             right_mm_s: respond(self.wheels.right_mm_s, self.target.right_mm_s),
@@ -199,7 +209,7 @@ impl World {
                 let hit = arena.ray_hit(origin, pose.theta_rad + mount.angle_rad);
                 let value = if hit.distance_mm <= robot.sensor_range_mm {
                     hit.reflectivity
-                        * proximity_value(hit.distance_mm)
+                        * ir_reading(hit.distance_mm)
                         * (1.0 + READING_NOISE * rng.random_range(-1.0..1.0))
                 } else {
                     NOISE_FLOOR * rng.random::<f64>()

@@ -85,6 +85,8 @@ pub enum EndReason {
     TimeLimit,
     OperatorLeft,
     Fault,
+    /// Someone pressed the emergency stop.
+    EmergencyStop,
 }
 
 impl std::fmt::Display for EndReason {
@@ -95,6 +97,7 @@ impl std::fmt::Display for EndReason {
             EndReason::TimeLimit => "time limit",
             EndReason::OperatorLeft => "operator left",
             EndReason::Fault => "fault",
+            EndReason::EmergencyStop => "emergency stop",
         })
     }
 }
@@ -112,6 +115,13 @@ pub struct Summary {
     /// Sum of distances driven, mm.
     pub distance_mm: f64,
     pub collisions: u64,
+    /// The least room the body had to anything the Host knows of, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub closest_mm: Option<f64>,
+    /// Of the forward speed commands asked for, the share the safety layer
+    /// let through (1: it never had to slow the robot).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_kept: Option<f64>,
 }
 
 /// Machine-readable reason in an `error` message.
@@ -172,6 +182,9 @@ pub enum GuestMessage {
     },
     Start,
     Stop,
+    /// Stop the robot now and end the run, from anyone welcomed, observers
+    /// too; nothing moves until the operator starts a new run.
+    EmergencyStop,
     /// Drive command number `event` (1, 2, …) of the current run.
     Command {
         event: u64,
@@ -226,6 +239,9 @@ pub enum HostMessage {
         /// Force to render on a haptic joystick, when the experiment has one.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         force: Option<[f64; 2]>,
+        /// The safety layer is holding the robot back from what was asked.
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        limited: bool,
     },
     Done {
         summary: Summary,
@@ -311,6 +327,7 @@ impl GuestMessage {
             GuestMessage::Define { .. } => "define",
             GuestMessage::Start => "start",
             GuestMessage::Stop => "stop",
+            GuestMessage::EmergencyStop => "emergency_stop",
             GuestMessage::Command { .. } => "command",
             GuestMessage::Bye => "bye",
         }
@@ -319,7 +336,16 @@ impl GuestMessage {
 
 impl Wire for GuestMessage {
     const TYPES: &'static [&'static str] = &[
-        "hello", "ping", "pong", "mount", "define", "start", "stop", "command", "bye",
+        "hello",
+        "ping",
+        "pong",
+        "mount",
+        "define",
+        "start",
+        "stop",
+        "emergency_stop",
+        "command",
+        "bye",
     ];
 }
 

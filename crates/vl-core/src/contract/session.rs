@@ -71,7 +71,7 @@ impl std::fmt::Display for Phase {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
             Phase::Idle => "no experiment is mounted",
-            Phase::Mounted => "the experiment is not defined yet",
+            Phase::Mounted => "no run is going",
             Phase::Defined => "no run is going",
             Phase::Running => "a run is going",
         })
@@ -107,13 +107,15 @@ impl Supervisor {
             net.add_place(name, u32::from(phase == Phase::Idle))
                 .expect("phase names are distinct");
         }
-        let moves: [(&str, Action, &str, &str); 12] = [
+        let moves: [(&str, Action, &str, &str); 13] = [
             ("mount", Action::Mount, "idle", "mounted"),
             ("remount_mounted", Action::Mount, "mounted", "mounted"),
             ("remount_defined", Action::Mount, "defined", "mounted"),
             ("define", Action::Define, "mounted", "defined"),
             ("redefine", Action::Define, "defined", "defined"),
             ("start", Action::Start, "defined", "running"),
+            // Defining is optional: a run may start on the default definition.
+            ("start_undefined", Action::Start, "mounted", "running"),
             ("stop", Action::Stop, "running", "running"),
             ("command", Action::Command, "running", "running"),
             ("finish", Action::Finish, "running", "defined"),
@@ -204,7 +206,7 @@ mod tests {
             })
         );
         assert_eq!(s.fire(Action::Mount), Ok(Phase::Mounted));
-        assert!(!s.allows(Action::Start));
+        assert!(s.allows(Action::Start), "defining is optional");
         assert!(!s.allows(Action::Command), "no commands before a run");
         assert_eq!(s.fire(Action::Define), Ok(Phase::Defined));
         assert!(!s.allows(Action::Stop), "nothing to stop");

@@ -5,4 +5,5 @@
 pub(crate) mod arena;
 pub(crate) mod camera;
 pub(crate) mod khepera;
+pub(crate) mod proximity;
 pub(crate) mod robot;

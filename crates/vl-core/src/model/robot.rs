@@ -52,6 +52,86 @@ pub struct RobotModel {
     /// Beyond this distance the proximity sensors read only noise.
     pub sensor_range_mm: f64,
     pub sensors: Vec<SensorMount>,
+    /// How the wheels follow a commanded speed.
+    #[serde(default)]
+    pub response: SpeedResponse,
+}
+
+/// How a wheel's speed follows its command: the on-board controller's
+/// first-order response, limited in acceleration, after a dead time. The
+/// simulator moves its wheels by it, the Host's safety layer brakes by it,
+/// and `vl khepera characterise` measures it on a real robot.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SpeedResponse {
+    /// Steady speed over commanded speed.
+    pub gain: f64,
+    /// Time constant of the first-order response, s.
+    pub time_constant_s: f64,
+    /// The largest change of speed per second the motors manage, mm/s².
+    pub max_accel_mm_s2: f64,
+    /// Time from a command to the first change of speed, s.
+    pub dead_time_s: f64,
+}
+
+/// Within this of its target a wheel has settled on it, mm/s (less than a
+/// pulse per 10 ms).
+const SETTLED_MM_S: f64 = 1.0;
+
+impl Default for SpeedResponse {
+    /// The Khepera's controller: 30 ms, 4 m/s².
+    fn default() -> Self {
+        SpeedResponse {
+            gain: 1.0,
+            time_constant_s: 0.03,
+            max_accel_mm_s2: 4000.0,
+            dead_time_s: 0.0,
+        }
+    }
+}
+
+impl SpeedResponse {
+    /// A wheel's speed `dt_s` after it ran at `now` with `command` in force
+    /// (the dead time aside).
+    pub fn step(&self, now: f64, command: f64, dt_s: f64) -> f64 {
+        let want = command * self.gain;
+        let change = (want - now) * (1.0 - (-dt_s / self.time_constant_s.max(1e-6)).exp());
+        let limit = self.max_accel_mm_s2 * dt_s;
+        let next = now + change.clamp(-limit, limit);
+        if (want - next).abs() < SETTLED_MM_S {
+            want
+        } else {
+            next
+        }
+    }
+
+    /// How far a wheel at `speed_mm_s` rolls once commanded to stop, mm.
+    pub fn stopping_distance_mm(&self, speed_mm_s: f64) -> f64 {
+        let v = speed_mm_s.abs();
+        let (a, tau) = (self.max_accel_mm_s2, self.time_constant_s);
+        // Rate-limited down to a·τ, then exponential.
+        let braking = if v > a * tau {
+            (v * v - (a * tau).powi(2)) / (2.0 * a) + a * tau * tau
+        } else {
+            v * tau
+        };
+        v * self.dead_time_s + braking
+    }
+
+    /// Whether every figure is one a motor can have.
+    pub fn check(&self) -> Result<(), String> {
+        let figures = [
+            ("gain", self.gain, false),
+            ("time constant", self.time_constant_s, true),
+            ("acceleration", self.max_accel_mm_s2, false),
+            ("dead time", self.dead_time_s, true),
+        ];
+        for (what, v, zero_ok) in figures {
+            if !(v.is_finite() && (v > 0.0 || (zero_ok && v == 0.0))) {
+                return Err(format!("the speed response's {what} cannot be {v}"));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The robots `vl` knows by name.
@@ -111,6 +191,47 @@ impl RobotModel {
         Self::khepera("khepera-i", 27.5, 50.0)
     }
 
+    /// A robot model from its JSON file (as `vl khepera characterise`
+    /// writes), checked to be one that can exist.
+    pub fn from_json(text: &str) -> Result<RobotModel, String> {
+        let model: RobotModel =
+            serde_json::from_str(text).map_err(|e| format!("robot model file: {e}"))?;
+        model.check()?;
+        Ok(model)
+    }
+
+    /// Whether every figure is one a robot can have.
+    pub fn check(&self) -> Result<(), String> {
+        let sizes = [
+            ("radius", self.radius_mm),
+            ("wheel base", self.wheel_base_mm),
+            ("mm per pulse", self.mm_per_pulse),
+            ("top wheel speed", self.max_wheel_speed_mm_s),
+            ("sensor range", self.sensor_range_mm),
+        ];
+        for (what, v) in sizes {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!(
+                    "the robot's {what} must be a positive number, not {v}"
+                ));
+            }
+        }
+        if self.wheel_base_mm > 2.0 * self.radius_mm {
+            return Err(format!(
+                "a wheel base of {} mm does not fit a body of radius {} mm",
+                self.wheel_base_mm, self.radius_mm
+            ));
+        }
+        if let Some(i) = self
+            .sensors
+            .iter()
+            .position(|s| !(s.x_mm.is_finite() && s.y_mm.is_finite() && s.angle_rad.is_finite()))
+        {
+            return Err(format!("sensor {i} is not at a finite place"));
+        }
+        self.response.check()
+    }
+
     /// The same robot built to another size: the body's radius and the
     /// distance between the wheels; the sensors move out with the body.
     pub fn resized(mut self, radius_mm: f64, wheel_base_mm: f64) -> Result<Self, String> {
@@ -157,6 +278,7 @@ impl RobotModel {
             mm_per_pulse,
             max_wheel_speed_mm_s: MAX_PULSES_PER_PERIOD as f64 * mm_per_pulse / SPEED_PERIOD_S,
             sensor_range_mm,
+            response: SpeedResponse::default(),
             sensors: layout
                 .iter()
                 .map(|&(x_mm, y_mm, deg)| SensorMount {
@@ -169,8 +291,12 @@ impl RobotModel {
     }
 
     /// Scales `wheels` down (keeping their ratio, so the path's curvature)
-    /// until both are within the speed limit.
+    /// until both are within the speed limit; speeds that are not finite
+    /// numbers stop the robot.
     pub fn clamp(&self, wheels: WheelSpeeds) -> WheelSpeeds {
+        if !(wheels.left_mm_s.is_finite() && wheels.right_mm_s.is_finite()) {
+            return WheelSpeeds::default();
+        }
         let peak = wheels.left_mm_s.abs().max(wheels.right_mm_s.abs());
         if peak <= self.max_wheel_speed_mm_s || peak == 0.0 {
             return wheels;
@@ -414,6 +540,21 @@ mod tests {
             prop_assert!(wrap_angle(once.theta_rad - stepped.theta_rad).abs() < 1e-9);
         }
 
+        /// Braking by the response law, stepped finely, rolls as far as
+        /// the closed form says.
+        #[test]
+        fn stopping_distance_is_what_braking_rolls(v in 0.0f64..2000.0, tau in 0.005f64..0.2, a in 500.0f64..20000.0) {
+            let r = SpeedResponse { gain: 1.0, time_constant_s: tau, max_accel_mm_s2: a, dead_time_s: 0.0 };
+            let (mut speed, mut rolled, dt) = (v, 0.0, 1e-5);
+            while speed > 0.0 {
+                let next = r.step(speed, 0.0, dt);
+                rolled += (speed + next) / 2.0 * dt;
+                speed = next;
+            }
+            let want = r.stopping_distance_mm(v);
+            prop_assert!((rolled - want).abs() <= 0.01 * want + SETTLED_MM_S * tau + 1e-6, "{} vs {}", rolled, want);
+        }
+
         #[test]
         fn clamp_keeps_ratio_and_limit(l in -5000.0f64..5000.0, r in -5000.0f64..5000.0) {
             let m = RobotModel::khepera_ii();
@@ -421,6 +562,16 @@ mod tests {
             prop_assert!(c.left_mm_s.abs() <= m.max_wheel_speed_mm_s + 1e-9);
             prop_assert!(c.right_mm_s.abs() <= m.max_wheel_speed_mm_s + 1e-9);
             prop_assert!((c.left_mm_s * r - c.right_mm_s * l).abs() < 1e-6 * (1.0 + l.abs() * r.abs()));
+        }
+
+        /// Whatever numbers arrive, the wheels get finite speeds within the limit.
+        #[test]
+        fn any_numbers_become_finite_limited_speeds(v in prop::num::f64::ANY, w in prop::num::f64::ANY) {
+            let m = RobotModel::khepera_ii();
+            let c = m.wheels_for(v, w);
+            prop_assert!(c.left_mm_s.is_finite() && c.right_mm_s.is_finite());
+            prop_assert!(c.left_mm_s.abs() <= m.max_wheel_speed_mm_s + 1e-9);
+            prop_assert!(c.right_mm_s.abs() <= m.max_wheel_speed_mm_s + 1e-9);
         }
     }
 }

@@ -62,6 +62,10 @@ pub struct Teleop {
     pub sensor_floor: u16,
     /// rad/s of turn per mm/s of sideways velocity, per mm of wheel base.
     pub turn_per_sideways: f64,
+    /// How much of the fields' sideways push turns the robot (0–1): a
+    /// differential drive cannot slide, and turning by the whole push
+    /// steers it away from where the stick points.
+    pub turn_guidance: f64,
 }
 
 impl Default for Teleop {
@@ -71,6 +75,7 @@ impl Default for Teleop {
             sensor_gain: 300.0,
             sensor_floor: 100,
             turn_per_sideways: 1.0,
+            turn_guidance: 0.3,
         }
     }
 }
@@ -123,13 +128,38 @@ impl Teleop {
     }
 
     /// Desired plus field, within the robot's limits; the field, scaled to
-    /// the joystick, is the force fed back.
+    /// the joystick, is the force fed back. The field acts only while the
+    /// stick asks for motion (at rest the robot stops), may slow the robot
+    /// down to a stop but never drives it against the stick or faster than
+    /// asked, and turns it by a share of its sideways push.
     pub fn assist(&self, robot: &RobotModel, desired: Vector, field: Vector) -> Assisted {
-        let wheels = self.wheels(robot, desired.add(field));
+        let finite = |v: Vector| {
+            if v.x.is_finite() && v.y.is_finite() {
+                v
+            } else {
+                Vector::default()
+            }
+        };
+        let (desired, field) = (finite(desired), finite(field));
         let to_stick = |v: f64| (v / self.max_speed_mm_s).clamp(-1.0, 1.0);
+        let force = [to_stick(-field.y), to_stick(field.x)];
+        if desired == Vector::default() {
+            return Assisted {
+                wheels: WheelSpeeds::default(),
+                force,
+            };
+        }
+        let forward = (desired.x + field.x).clamp(desired.x.min(0.0), desired.x.max(0.0));
+        let sideways = desired.y + self.turn_guidance * field.y;
         Assisted {
-            wheels,
-            force: [to_stick(-field.y), to_stick(field.x)],
+            wheels: self.wheels(
+                robot,
+                Vector {
+                    x: forward,
+                    y: sideways,
+                },
+            ),
+            force,
         }
     }
 
@@ -222,6 +252,7 @@ pub fn predict(robot: &RobotModel, pose: Pose, history: &[(WheelSpeeds, f64)]) -
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
 
     #[test]
     fn with_nothing_near_the_robot_does_what_the_stick_says() {
@@ -248,7 +279,10 @@ mod tests {
         assert!(field.x < -100.0 && field.y.abs() < 1e-6, "{field:?}");
         let full = t.desired(Joystick { x: 0.0, y: 1.0 });
         let a = t.assist(&robot, full, field);
-        assert!(a.wheels.left_mm_s < 200.0 + field.x + 1e-6, "{a:?}");
+        assert!(
+            a.wheels.left_mm_s <= (200.0 + field.x).max(0.0) + 1e-6,
+            "{a:?}"
+        );
         assert!(a.force[1] < -0.5, "pushed back toward the operator: {a:?}");
         // Full deflection into a wall at full reading: the robot is held.
         let wall = t.sensor_field(&robot, &[0, 0, 1023, 1023, 0, 0, 0, 0]);
@@ -282,6 +316,59 @@ mod tests {
             y_mm: 50.0,
         });
         assert_eq!(far, Vector::default());
+    }
+
+    fn vector() -> impl Strategy<Value = Vector> {
+        (-2000.0f64..2000.0, -2000.0f64..2000.0).prop_map(|(x, y)| Vector { x, y })
+    }
+
+    proptest! {
+        /// The stick at rest stops the robot whatever the fields say, and
+        /// the force felt is the field, within the stick's range.
+        #[test]
+        fn at_rest_the_robot_stops_and_the_field_is_felt(field in vector()) {
+            let t = Teleop::default();
+            let robot = RobotModel::khepera_ii();
+            let a = t.assist(&robot, Vector::default(), field);
+            prop_assert_eq!(a.wheels, WheelSpeeds::default());
+            prop_assert!(a.force.iter().all(|f| (-1.0..=1.0).contains(f)));
+            let expect = (field.x / t.max_speed_mm_s).clamp(-1.0, 1.0);
+            prop_assert!((a.force[1] - expect).abs() < 1e-12);
+        }
+
+        /// The fields may slow the robot, never push it faster than asked
+        /// or against the stick.
+        #[test]
+        fn the_fields_never_drive_against_the_stick(stick_x in -1.0f64..1.0, stick_y in -1.0f64..1.0, field in vector()) {
+            let t = Teleop::default();
+            let robot = RobotModel::khepera_ii();
+            let desired = t.desired(Joystick { x: stick_x, y: stick_y });
+            prop_assume!(desired != Vector::default());
+            let a = t.assist(&robot, desired, field);
+            let forward = (a.wheels.left_mm_s + a.wheels.right_mm_s) / 2.0;
+            prop_assert!(forward * desired.x >= -1e-9, "{:?} for {:?}", a, desired);
+            prop_assert!(forward.abs() <= desired.x.abs() + 1e-9);
+        }
+
+        /// Each reading sensor pushes away from where it looks.
+        #[test]
+        fn the_sensor_field_pushes_away_from_what_is_seen(readings in proptest::collection::vec(0u16..=1023, 8)) {
+            let t = Teleop::default();
+            let robot = RobotModel::khepera_ii();
+            let field = t.sensor_field(&robot, &readings);
+            let mut toward = 0.0;
+            for (mount, &r) in robot.sensors.iter().zip(&readings) {
+                if r > t.sensor_floor {
+                    toward += field.x * mount.angle_rad.cos() + field.y * mount.angle_rad.sin();
+                }
+            }
+            prop_assert!(field.x.is_finite() && field.y.is_finite());
+            if readings.iter().all(|&r| r <= t.sensor_floor) {
+                prop_assert_eq!(field, Vector::default());
+            } else if readings.iter().filter(|&&r| r > t.sensor_floor).count() == 1 {
+                prop_assert!(toward < 0.0, "{:?}", field);
+            }
+        }
     }
 
     #[test]
