@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use vl_core::{Arena, Experiment, RobotModel, Role};
+use vl_core::{Arena, Experiment, RobotKind, RobotModel, Role};
 use vl_guest::{
     ClientError, Report as RunReport, RoundTripMs, Script, ScriptError, Watched, WindowError,
 };
@@ -36,6 +36,95 @@ pub(crate) struct KheperaArgs {
     /// Seed for the sensors' noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+}
+
+/// `vl khepera …`: tools for a real Khepera on its serial line.
+#[derive(clap::Subcommand)]
+pub(crate) enum KheperaTool {
+    /// Measure the speed controller's step response through the serial
+    /// driver (thesis C.2) and write a robot model file for `vl host`,
+    /// `vl sim` and `vl khepera-emu` (--robot-model). The robot drives back
+    /// and forth up to about 100 mm along its heading: give it room.
+    Characterise(CharacteriseArgs),
+}
+
+#[derive(clap::Args)]
+pub(crate) struct CharacteriseArgs {
+    /// The robot's serial device.
+    #[arg(long)]
+    port: String,
+    #[arg(long, default_value_t = 38_400)]
+    baud: u32,
+    /// Which Khepera it is (its size and sensors).
+    #[arg(long, value_parser = named::<RobotKind>(), default_value = "khepera-ii")]
+    robot: RobotKind,
+    /// Where to write the robot model with the fitted response.
+    #[arg(short, long, default_value = "khepera-model.json")]
+    output: std::path::PathBuf,
+    #[arg(long)]
+    json: bool,
+}
+
+/// What `vl khepera characterise` found.
+#[derive(serde::Serialize)]
+struct Characterised {
+    fit: vl_core::Fit,
+    model_file: std::path::PathBuf,
+}
+
+impl Report for Characterised {
+    fn table(&self) -> Table {
+        let r = self.fit.response;
+        Table::pairs([
+            ("gain", format!("{:.3}", r.gain)),
+            (
+                "time constant",
+                format!("{:.1} ms", r.time_constant_s * 1e3),
+            ),
+            ("acceleration", format!("{:.0} mm/s²", r.max_accel_mm_s2)),
+            ("dead time", format!("{:.1} ms", r.dead_time_s * 1e3)),
+            (
+                "fit",
+                format!(
+                    "{:.1} mm/s RMS over {}",
+                    self.fit.rms_mm_s,
+                    count(self.fit.samples as u64, "sample", "samples")
+                ),
+            ),
+            ("model", format!("wrote {}", self.model_file.display())),
+        ])
+    }
+}
+
+pub(crate) fn khepera(tool: KheperaTool) -> Result<ExitCode> {
+    let KheperaTool::Characterise(args) = tool;
+    let mut model = args.robot.model();
+    let mut robot = KheperaSerial::open(
+        &args.port,
+        args.baud,
+        model.clone(),
+        vl_core::Pose::default(),
+    )
+    .context("no Khepera to characterise")?;
+    let quiet = args.json;
+    let fit = vl_host::characterise(&mut robot, &mut |step: &str| {
+        if !quiet {
+            eprintln!("{step} …");
+        }
+    })?;
+    model.response = fit.response;
+    model.name = format!("{} (characterised)", model.name);
+    let text = serde_json::to_string_pretty(&model)?;
+    std::fs::write(&args.output, text + "\n")
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    emit(
+        &Characterised {
+            fit,
+            model_file: args.output,
+        },
+        args.json,
+    )?;
+    Ok(ExitCode::SUCCESS)
 }
 
 #[derive(Clone, Copy, PartialEq, clap::ValueEnum)]

@@ -44,6 +44,9 @@ enum Command {
     Petri(petri::PetriCommand),
     /// Emulate a Khepera II on a pseudo-terminal, backed by the simulator.
     KheperaEmu(lab::KheperaArgs),
+    /// Tools for a real Khepera on its serial line.
+    #[command(subcommand)]
+    Khepera(lab::KheperaTool),
     /// The simulator's tools: scripted runs, camera frames, link models, speed.
     #[command(subcommand)]
     Sim(sim::SimCommand),
@@ -150,6 +153,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Demo(args) => lab::demo(&runtime()?, args),
         Command::Petri(command) => petri::run(command),
         Command::KheperaEmu(args) => lab::khepera_emu(args),
+        Command::Khepera(tool) => lab::khepera(tool),
         Command::Sim(command) => sim::run(command),
         Command::Vision(command) => vision::run(command),
         Command::Plan(args) => plan::run(args),

@@ -106,3 +106,47 @@ fn line_timing_takes_as_long_as_the_baud_rate_says() {
         reply.len() + 2
     );
 }
+
+/// `vl khepera characterise` through the Host's serial driver against the
+/// emulator, whose speed controller is known (gain 1, 30 ms, 4 m/s²):
+/// the fit recovers it, and the model file it writes drives the simulator.
+#[test]
+fn characterising_the_emulator_recovers_its_speed_response() {
+    let (_emu, device) = start_emulator(&["--arena", "open"]);
+    let dir = common::scratch("characterise");
+    let file = dir.join("model.json");
+    let report = common::vl_json(&[
+        "khepera",
+        "characterise",
+        "--port",
+        &device,
+        "-o",
+        common::s(&file),
+        "--json",
+    ]);
+    let r = &report["fit"]["response"];
+    let truth = vl_core::SpeedResponse::default();
+    let (gain, tau, accel) = (
+        r["gain"].as_f64().unwrap(),
+        r["time_constant_s"].as_f64().unwrap(),
+        r["max_accel_mm_s2"].as_f64().unwrap(),
+    );
+    println!(
+        "gain {gain:.3}, time constant {:.1} ms, acceleration {accel:.0} mm/s², dead time {:.1} ms",
+        tau * 1e3,
+        r["dead_time_s"].as_f64().unwrap() * 1e3
+    );
+    assert!((gain - truth.gain).abs() <= 0.05 * truth.gain, "{report}");
+    assert!(
+        (tau - truth.time_constant_s).abs() <= 0.05 * truth.time_constant_s,
+        "{report}"
+    );
+    assert!(
+        (accel - truth.max_accel_mm_s2).abs() <= 0.1 * truth.max_accel_mm_s2,
+        "{report}"
+    );
+    let model = vl_core::RobotModel::from_json(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    assert_eq!(model.response.time_constant_s, tau);
+    let run = common::vl_json(&["sim", "run", "--robot-model", common::s(&file), "--json"]);
+    assert_eq!(run["following"]["reached_goal"], true, "{run}");
+}

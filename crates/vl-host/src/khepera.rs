@@ -115,6 +115,16 @@ impl KheperaSerial {
         }
     }
 
+    /// The wheels' speeds now (`E`), without the rest of a reading: what
+    /// characterising the speed controller samples as fast as it can.
+    pub fn wheel_speeds(&mut self) -> Result<WheelSpeeds, RobotError> {
+        let [left, right] = self.pair(KheperaCommand::ReadSpeed)?;
+        Ok(WheelSpeeds {
+            left_mm_s: self.model.speed_mm_s(left),
+            right_mm_s: self.model.speed_mm_s(right),
+        })
+    }
+
     fn counters(&mut self) -> Result<[i64; 2], RobotError> {
         self.pair(KheperaCommand::ReadCounters)
     }

@@ -1,8 +1,10 @@
 //! The vl Host: the lab machine's side. It drives the robot and camera
 //! (behind the traits in `drivers`: simulated in `sim`, a real Khepera on
-//! a serial line in `khepera`), runs the experiment control loop (`lab`)
-//! and serves Guests over WebSocket (`server`).
+//! a serial line in `khepera`, whose speed controller `characterise`
+//! measures), runs the experiment control loop (`lab`) and serves Guests
+//! over WebSocket (`server`).
 
+mod characterise;
 mod drivers;
 mod khepera;
 mod lab;
@@ -14,9 +16,9 @@ use std::net::SocketAddr;
 use tokio::net::TcpListener;
 use vl_core::{Arena, RobotModel};
 
+pub use characterise::{CharacteriseError, characterise};
 pub use drivers::{Camera, CameraError, Robot, RobotError, RobotReading};
 pub use khepera::KheperaSerial;
-pub use lab::WATCHDOG;
 pub use server::HostConfig;
 
 /// Why a Host could not start.

@@ -104,9 +104,10 @@ impl Emulator {
         }
     }
 
-    /// Steps the simulated robot until its clock reaches `seconds`.
+    /// Steps the simulated robot as far as its clock can go without
+    /// passing `seconds`: what it reports has happened, not what is about to.
     fn catch_up(&mut self, seconds: f64) {
-        while self.khepera.world().time_s() < seconds {
+        while self.khepera.world().time_s() + crate::STEP_S <= seconds {
             self.khepera.step();
         }
     }

@@ -6,4 +6,5 @@ pub(crate) mod arena;
 pub(crate) mod camera;
 pub(crate) mod khepera;
 pub(crate) mod proximity;
+pub(crate) mod response_fit;
 pub(crate) mod robot;
