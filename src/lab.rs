@@ -213,8 +213,73 @@ pub(crate) struct GuestArgs {
     /// With --headless: print the report as JSON.
     #[arg(long, requires = "headless")]
     json: bool,
+    /// A real gamepad or joystick to drive with and feel the force on:
+    /// auto (the first one found), none, or its /dev/input/eventN device.
+    #[arg(long, default_value = "auto")]
+    gamepad: GamepadChoice,
+    /// Count the gamepad's stick only while its dead-man button (left
+    /// shoulder or trigger) is held.
+    #[arg(long)]
+    dead_man: bool,
     #[command(flatten)]
     run: RunArgs,
+}
+
+/// Which gamepad the window reads.
+#[derive(Clone, Debug)]
+enum GamepadChoice {
+    Auto,
+    None,
+    Device(std::path::PathBuf),
+}
+
+impl std::str::FromStr for GamepadChoice {
+    type Err = std::convert::Infallible;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        Ok(match text {
+            "auto" => GamepadChoice::Auto,
+            "none" => GamepadChoice::None,
+            path => GamepadChoice::Device(path.into()),
+        })
+    }
+}
+
+/// The gamepad asked for: gamepads are read through Linux's evdev.
+fn gamepad(choice: &GamepadChoice, dead_man: bool) -> Result<Option<Box<dyn vl_guest::Pad>>> {
+    #[cfg(target_os = "linux")]
+    {
+        use vl_guest::Gamepad;
+        let pad = match choice {
+            GamepadChoice::None => None,
+            GamepadChoice::Auto => Gamepad::find(dead_man),
+            GamepadChoice::Device(path) => {
+                Some(Gamepad::open(path, dead_man).map_err(|e| BadInput(e.to_string()))?)
+            }
+        };
+        if let Some(pad) = &pad {
+            let feel = if pad.has_force_feedback() {
+                "with force feedback"
+            } else {
+                "without force feedback"
+            };
+            eprintln!(
+                "vl guest: driving with {} ({feel})",
+                vl_guest::Pad::name(pad)
+            );
+        }
+        Ok(pad.map(|p| Box::new(p) as Box<dyn vl_guest::Pad>))
+    }
+    #[cfg(not(target_os = "linux"))]
+    match choice {
+        GamepadChoice::Device(_) => {
+            Err(BadInput("gamepads are read through Linux's evdev only".into()).into())
+        }
+        _ => {
+            let _ = dead_man;
+            Ok(None)
+        }
+    }
 }
 
 #[derive(clap::Args)]
@@ -356,8 +421,9 @@ pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Resul
             .map_err(guest_error)?;
         return finish(&report, args.json);
     }
+    let pad = gamepad(&args.gamepad, args.dead_man)?;
     let _entered = runtime.enter();
-    vl_guest::run_window(&args.connect, role, args.token).map_err(guest_error)?;
+    vl_guest::run_window(&args.connect, role, args.token, pad).map_err(guest_error)?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -387,7 +453,8 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
     }
     eprintln!("vl demo: simulated lab at {}", host.url());
     let _entered = runtime.enter();
-    vl_guest::run_window(&host.url(), Role::Operator, None)?;
+    let pad = gamepad(&GamepadChoice::Auto, false)?;
+    vl_guest::run_window(&host.url(), Role::Operator, None, pad)?;
     Ok(ExitCode::SUCCESS)
 }
 

@@ -16,6 +16,7 @@ use vl_core::{
 };
 
 use crate::client::{ClientError, Connection, Incoming, open};
+use crate::gamepad::Pad;
 use crate::pilot::{Pilot, Route};
 use crate::session::{Link, MountedLab, Session};
 
@@ -56,6 +57,10 @@ pub struct GuestApp {
     pilot: Pilot,
     /// The one joystick → velocity mapping, as the Host reads it back.
     teleop: Teleop,
+    /// A real stick, when there is one, and whether its stop button was down.
+    pad: Option<(Box<dyn Pad>, bool)>,
+    /// The stick that drove in the last frame, from whichever device.
+    asked: Joystick,
 }
 
 impl GuestApp {
@@ -79,7 +84,15 @@ impl GuestApp {
             plan_note: None,
             pilot: Pilot::default(),
             teleop: Teleop::default(),
+            pad: None,
+            asked: Joystick::default(),
         })
+    }
+
+    /// The window with a real stick beside the virtual one.
+    pub fn with_pad(mut self, pad: Box<dyn Pad>) -> Self {
+        self.pad = Some((pad, false));
+        self
     }
 
     /// Opens a connection that says hello as soon as it is up.
@@ -149,7 +162,15 @@ impl GuestApp {
         let stop = ctx.input(|i| {
             i.key_pressed(egui::Key::Escape) || (!typing && i.key_pressed(egui::Key::Space))
         });
-        if stop {
+        let pad = self.pad.as_mut().map(|(pad, was_down)| {
+            let input = pad.poll();
+            let pressed = input.emergency_stop && !*was_down;
+            *was_down = input.emergency_stop;
+            let force = self.session.robot.as_ref().and_then(|r| r.force);
+            pad.render(force.unwrap_or_default());
+            (input, pressed)
+        });
+        if stop || pad.is_some_and(|(_, pressed)| pressed) {
             self.emergency_stop();
         }
         if !self.session.is_operator() {
@@ -158,7 +179,13 @@ impl GuestApp {
         if !self.session.running {
             self.pilot.release();
         }
-        let stick = self.stick(ctx);
+        let by_pad = pad.map(|(input, _)| input.drive()).unwrap_or_default();
+        let stick = if by_pad != Joystick::default() {
+            by_pad
+        } else {
+            self.stick(ctx)
+        };
+        self.asked = stick;
         let by_hand = stick != Joystick::default();
         let Some(lab) = &self.session.lab else { return };
         let along_path = match &self.session.robot {
@@ -241,6 +268,9 @@ impl GuestApp {
             }
             if let (Some(role), Some(id)) = (s.role, s.session_id) {
                 ui.label(format!("{role} · session {id}"));
+            }
+            if let Some((pad, _)) = &self.pad {
+                ui.label(format!("stick: {}", pad.name()));
             }
             ui.separator();
             let rtt = &s.round_trips;
@@ -422,7 +452,7 @@ impl GuestApp {
             if let Some(doing) = self.doing() {
                 painter.circle_stroke(on_pad(doing), 10.0, Stroke::new(2.0, Color32::WHITE));
             }
-            let asked = self.stick(ui.ctx());
+            let asked = self.asked;
             painter.circle_filled(
                 on_pad(Vec2::new(asked.x as f32, asked.y as f32)),
                 14.0,
@@ -689,8 +719,16 @@ impl eframe::App for GuestApp {
 /// Opens the Guest window on the Host at `url` and runs it until it is
 /// closed. Needs a tokio runtime entered, alive on another thread, for the
 /// connection.
-pub fn run_window(url: &str, role: Role, token: Option<String>) -> Result<(), WindowError> {
-    let app = GuestApp::new(url, role, token)?;
+pub fn run_window(
+    url: &str,
+    role: Role,
+    token: Option<String>,
+    pad: Option<Box<dyn Pad>>,
+) -> Result<(), WindowError> {
+    let mut app = GuestApp::new(url, role, token)?;
+    if let Some(pad) = pad {
+        app = app.with_pad(pad);
+    }
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title("vl guest")

@@ -1,15 +1,20 @@
 //! The vl Guest: the user's side of the lab. `client` speaks to a Host,
 //! `session` holds what the Guest knows, `pilot` plans and follows paths,
+//! `gamepad` reads a real stick and renders the force on it,
 //! `app` draws it all in a window and `headless` scripts it without one.
 
 mod app;
 mod client;
+mod gamepad;
 mod headless;
 mod pilot;
 mod session;
 
 pub use app::{GuestApp, WindowError, run_window};
 pub use client::{ClientError, Connection, Incoming, open};
+pub use gamepad::{Effect, Pad, PadInput, effect};
+#[cfg(target_os = "linux")]
+pub use gamepad::{Gamepad, GamepadError};
 pub use headless::{Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, watch};
 pub use pilot::{Pilot, Route};
 pub use session::{CameraFrame, Link, MountedLab, RobotState, RoundTrips, Session};
