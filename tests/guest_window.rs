@@ -274,3 +274,85 @@ fn force_arrow(harness: &mut Harness<'_, GuestApp>) {
         Some(vl_core::EndReason::EmergencyStop)
     );
 }
+
+/// A stick the test holds: it drives forward until told to press its stop
+/// button, and records the forces the window renders on it.
+struct TestPad {
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    felt: std::sync::Arc<std::sync::Mutex<Vec<[f64; 2]>>>,
+}
+
+impl vl_guest::Pad for TestPad {
+    fn name(&self) -> &str {
+        "test pad"
+    }
+
+    fn poll(&mut self) -> vl_guest::PadInput {
+        vl_guest::PadInput {
+            stick: vl_core::Joystick { x: 0.0, y: 1.0 },
+            emergency_stop: self.stop.load(std::sync::atomic::Ordering::Relaxed),
+            dead_man: true,
+        }
+    }
+
+    fn render(&mut self, force: [f64; 2]) {
+        self.felt.lock().unwrap().push(force);
+    }
+}
+
+/// A gamepad drives the robot from the window and feels the box ahead; its
+/// stop button ends the run.
+#[test]
+fn a_gamepad_drives_feels_and_stops() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let host = runtime
+        .block_on(Host::start_sim(
+            "127.0.0.1:0".parse().unwrap(),
+            SimLab {
+                camera: false,
+                ..SimLab::new(Arena::navigation())
+            },
+            HostConfig::default(),
+        ))
+        .unwrap();
+    let _entered = runtime.enter();
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let felt = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let pad = TestPad {
+        stop: stop.clone(),
+        felt: felt.clone(),
+    };
+    let app = GuestApp::new(&host.url(), Role::Operator, None)
+        .unwrap()
+        .with_pad(Box::new(pad));
+    let mut harness = Harness::builder()
+        .with_size(Vec2::new(1100.0, 720.0))
+        .wgpu()
+        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
+    step_until(&mut harness, "be welcomed", |app| {
+        app.session().role.is_some()
+    });
+    harness.get_by_label_contains("stick: test pad");
+    harness.get_by_label("Drive the robot by joystick").click();
+    step_until(&mut harness, "mount", |app| app.session().lab.is_some());
+    harness.get_by_label("Start").click();
+    step_until(&mut harness, "feel the box ahead", |app| {
+        app.session()
+            .robot
+            .as_ref()
+            .and_then(|r| r.force)
+            .is_some_and(|[_, ahead]| ahead < -0.3)
+    });
+    assert!(
+        felt.lock().unwrap().iter().any(|&[_, ahead]| ahead < -0.3),
+        "the pad was given the push to render"
+    );
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    step_until(&mut harness, "stop on the pad's button", |app| {
+        !app.session().running
+    });
+    assert_eq!(
+        harness.state().session().done.as_ref().map(|d| d.reason),
+        Some(vl_core::EndReason::EmergencyStop)
+    );
+}
