@@ -222,7 +222,10 @@ mod tests {
             let large = [measured(&truth, 0.0, 800.0, 0.002, 1.0)];
             let fit = fit_response(&small, &large).unwrap();
             let r = fit.response;
-            prop_assert!((r.gain - gain).abs() < 0.02 * gain, "{:?}", r);
+            // A plateau read in whole pulses is off by up to half a pulse
+            // in every sample: no fit can know the gain better than that.
+            let resolution = 0.5 / small_to;
+            prop_assert!((r.gain - gain).abs() < 0.02 * gain + resolution, "{:?}", r);
             prop_assert!((r.time_constant_s - tau).abs() < 0.05 * tau + 5e-4, "{:?}", r);
             prop_assert!((r.dead_time_s - dead).abs() < 2e-3, "{:?}", r);
             prop_assert!((r.max_accel_mm_s2 - accel).abs() < 0.1 * accel, "{:?}", r);
