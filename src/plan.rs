@@ -139,7 +139,7 @@ fn load_map(name: &str) -> Result<GrayImage> {
     if let Some(map) = Arena::shipped_map(name) {
         return Ok(map);
     }
-    let image = image::open(name)
+    let image = vl_core::load_image(std::path::Path::new(name))
         .map_err(|e| BadInput(format!("cannot read the map image {name}: {e}")))?;
     Ok(vl_core::grey(&image.to_rgb8()))
 }

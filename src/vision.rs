@@ -53,7 +53,7 @@ pub(crate) fn run(command: VisionCommand) -> Result<ExitCode> {
 }
 
 fn load(path: &Path) -> Result<RgbImage> {
-    Ok(image::open(path)
+    Ok(vl_core::load_image(path)
         .map_err(|e| BadInput(format!("cannot read the image {}: {e}", path.display())))?
         .to_rgb8())
 }

@@ -152,6 +152,19 @@ fn the_cli_reports_json_and_refuses_bad_input() {
         &["vision", "inspect", not_png.to_str().unwrap()],
         "cannot read the image",
     );
+    // A small PNG that declares 20000 × 20000 pixels is refused at once.
+    let mut png = Vec::new();
+    image::GrayImage::new(1, 1)
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    png[16..24].copy_from_slice(&[0, 0, 0x4e, 0x20, 0, 0, 0x4e, 0x20]);
+    let crc = crc32(&png[12..29]);
+    png[29..33].copy_from_slice(&crc.to_be_bytes());
+    let huge = Path::new(env!("CARGO_TARGET_TMPDIR")).join("declares-huge.png");
+    std::fs::write(&huge, &png).unwrap();
+    let started = std::time::Instant::now();
+    refused(&["vision", "inspect", s(&huge)], "limit");
+    assert!(started.elapsed().as_secs_f64() < 2.0);
     refused(
         &[
             "vision",
@@ -162,4 +175,20 @@ fn the_cli_reports_json_and_refuses_bad_input() {
         ],
         "invalid value '300' for '--threshold <THRESHOLD>': a threshold is 'otsu' or a grey level 0–255, not '300'",
     );
+}
+
+/// PNG's CRC-32, to forge a header.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
 }

@@ -12,6 +12,7 @@
 //! Modules are private; what other crates use is re-exported here.
 
 mod contract;
+mod images;
 mod model;
 mod named;
 mod navigation;
@@ -26,6 +27,7 @@ pub use contract::protocol::{
     PROTOCOL_VERSION, Role, Summary, Wire,
 };
 pub use contract::session::{Action, NotAllowed, Phase, Supervisor};
+pub use images::{MAX_IMAGE_SIDE, decode_image, load_image};
 pub use model::arena::{Arena, ArenaError, Hit, Material, Obstacle, Shape};
 pub use model::camera::CameraModel;
 pub use model::khepera::{

@@ -239,7 +239,7 @@ impl Session {
             ImageFormat::Jpeg => image::ImageFormat::Jpeg,
             ImageFormat::Png => image::ImageFormat::Png,
         };
-        match image::load_from_memory_with_format(bytes, format) {
+        match vl_core::decode_image(bytes, Some(format)) {
             Ok(decoded) => {
                 self.frames_received += 1;
                 self.frame = Some(CameraFrame {

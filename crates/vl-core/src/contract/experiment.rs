@@ -105,6 +105,12 @@ pub struct Definition {
     pub time_limit_s: Option<f64>,
 }
 
+/// The most path points a definition may carry: a path across the largest
+/// arena at a quarter-cell spacing has a few thousand.
+pub const MAX_PATH_POINTS: usize = 10_000;
+/// The most virtual obstacles a definition may carry.
+pub const MAX_VIRTUAL_OBSTACLES: usize = 64;
+
 impl Definition {
     /// Checks the definition against the arena and robot it will run on,
     /// saying what is wrong in words a user can act on.
@@ -116,6 +122,18 @@ impl Definition {
                 Err(format!("{what} must be a positive number, got {v}"))
             }
         };
+        if self.path.len() > MAX_PATH_POINTS {
+            return Err(format!(
+                "the path has {} points, more than the {MAX_PATH_POINTS} a definition may carry",
+                self.path.len()
+            ));
+        }
+        if self.virtual_obstacles.len() > MAX_VIRTUAL_OBSTACLES {
+            return Err(format!(
+                "there are {} virtual obstacles, more than the {MAX_VIRTUAL_OBSTACLES} a definition may carry",
+                self.virtual_obstacles.len()
+            ));
+        }
         for (i, o) in self.virtual_obstacles.iter().enumerate() {
             o.check()
                 .map_err(|why| format!("virtual obstacle {i}: {why}"))?;

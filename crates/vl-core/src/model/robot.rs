@@ -309,7 +309,16 @@ impl RobotModel {
     }
 
     /// Wheel speeds for a linear speed `v` (mm/s) and turn rate `w` (rad/s).
+    /// Each is first saturated to what the wheels can do (a turn rate no
+    /// faster than both wheels at full speed in opposite directions), so
+    /// that a huge number means "as fast as possible", not infinity.
     pub fn wheels_for(&self, v_mm_s: f64, w_rad_s: f64) -> WheelSpeeds {
+        let top = self.max_wheel_speed_mm_s;
+        let v_mm_s = v_mm_s.clamp(-top, top);
+        let w_rad_s = w_rad_s.clamp(
+            -2.0 * top / self.wheel_base_mm,
+            2.0 * top / self.wheel_base_mm,
+        );
         let half = w_rad_s * self.wheel_base_mm / 2.0;
         self.clamp(WheelSpeeds {
             left_mm_s: v_mm_s - half,

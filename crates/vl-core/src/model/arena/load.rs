@@ -39,11 +39,7 @@ impl Arena {
     /// A shipped arena by name: navigation, corridor, open or maze.
     pub fn named(name: &str) -> Option<Arena> {
         let (_, text, map) = SHIPPED.iter().find(|(n, ..)| *n == name)?;
-        let load = |_: &str| {
-            image::load_from_memory(map)
-                .map(|i| i.to_luma8())
-                .map_err(|e| e.to_string())
-        };
+        let load = |_: &str| crate::decode_image(map, None).map(|i| i.to_luma8());
         Some(Arena::from_json_with(text, load).expect("shipped arenas are valid"))
     }
 
@@ -132,7 +128,7 @@ impl Arena {
         let dir = path.parent().unwrap_or(Path::new("."));
         let load = |image: &str| {
             let file: PathBuf = dir.join(image);
-            image::open(&file)
+            crate::load_image(&file)
                 .map(|i| i.to_luma8())
                 .map_err(|e| format!("cannot read the map image {}: {e}", file.display()))
         };
@@ -142,7 +138,7 @@ impl Arena {
     /// A shipped map image by the name of its arena (`maze`), in grey.
     pub fn shipped_map(name: &str) -> Option<GrayImage> {
         let (_, _, map) = SHIPPED.iter().find(|(n, ..)| *n == name)?;
-        image::load_from_memory(map).ok().map(|i| i.to_luma8())
+        crate::decode_image(map, None).ok().map(|i| i.to_luma8())
     }
 }
 
