@@ -33,9 +33,30 @@ pub(crate) struct KheperaArgs {
     /// Delay replies by the time their characters take at --baud.
     #[arg(long)]
     line_timing: bool,
+    /// Print each command line received, with the milliseconds since start.
+    #[arg(long)]
+    log_commands: bool,
     /// Seed for the sensors' noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+}
+
+/// `vl serial-guard`: holds a robot's serial line for `vl host` and stops
+/// the robot when the Host's end closes.
+#[derive(clap::Args)]
+pub(crate) struct GuardArgs {
+    #[arg(long)]
+    port: String,
+    #[arg(long, default_value_t = 38_400)]
+    baud: u32,
+}
+
+pub(crate) fn serial_guard(args: GuardArgs) -> Result<ExitCode> {
+    // The Host heard of any failure through the pipe already.
+    Ok(match vl_host::run_guard(&args.port, args.baud) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(_) => ExitCode::FAILURE,
+    })
 }
 
 /// `vl khepera …`: tools for a real Khepera on its serial line.
@@ -181,6 +202,14 @@ pub(crate) struct HostArgs {
     /// Operators must present this token in their hello.
     #[arg(long)]
     token: Option<String>,
+    /// An operator who sends no command for this many seconds during a run
+    /// loses the run and the role.
+    #[arg(long, default_value_t = 30.0)]
+    lease: f64,
+    /// A client the Host hears nothing from for this many seconds (no
+    /// answer to its pings) is disconnected.
+    #[arg(long, default_value_t = 10.0)]
+    ping_timeout: f64,
     /// Seed for the simulator's noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -315,6 +344,7 @@ pub(crate) fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
     let line = vl_sim::Line {
         baud: args.baud,
         timing: args.line_timing,
+        log_commands: args.log_commands,
     };
     let mut emulator =
         vl_sim::Emulator::open(vl_sim::Khepera::new(world), line, args.link.as_deref())?;
@@ -330,9 +360,21 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
     if args.experiments.is_empty() {
         bail!(BadInput("--experiments names none to offer".into()));
     }
+    let seconds = |what: &str, s: f64| {
+        if s.is_finite() && s > 0.0 && s <= 86_400.0 {
+            Ok(std::time::Duration::from_secs_f64(s))
+        } else {
+            Err(BadInput(format!(
+                "{what} must be a number of seconds from 0 to a day, not {s}"
+            )))
+        }
+    };
     let config = HostConfig {
         token: args.token,
         experiments: args.experiments,
+        lease: seconds("--lease", args.lease)?,
+        ping_timeout: seconds("--ping-timeout", args.ping_timeout)?,
+        ..HostConfig::default()
     };
     let mut arena = Arena::load(&args.arena).map_err(|e| BadInput(e.to_string()))?;
     if let Some(start) = args.start {
@@ -365,7 +407,9 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             let Some(port) = args.port.as_deref() else {
                 bail!(BadInput("--robot khepera needs --port DEVICE".into()));
             };
-            let robot = KheperaSerial::open(port, args.baud, model, arena.start)
+            // A guard process holds the line and stops the robot if this one dies.
+            let program = std::env::current_exe().context("cannot find the vl binary")?;
+            let robot = KheperaSerial::guarded(program, port, args.baud, model, arena.start)
                 .context("no Khepera to drive")?;
             Host::start(args.listen, Box::new(robot), None, arena, config).await
         }

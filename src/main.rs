@@ -47,6 +47,9 @@ enum Command {
     /// Tools for a real Khepera on its serial line.
     #[command(subcommand)]
     Khepera(lab::KheperaTool),
+    /// Holds a robot's serial line for `vl host` (started by it).
+    #[command(hide = true)]
+    SerialGuard(lab::GuardArgs),
     /// The simulator's tools: scripted runs, camera frames, link models, speed.
     #[command(subcommand)]
     Sim(sim::SimCommand),
@@ -154,6 +157,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Petri(command) => petri::run(command),
         Command::KheperaEmu(args) => lab::khepera_emu(args),
         Command::Khepera(tool) => lab::khepera(tool),
+        Command::SerialGuard(args) => lab::serial_guard(args),
         Command::Sim(command) => sim::run(command),
         Command::Vision(command) => vision::run(command),
         Command::Plan(args) => plan::run(args),

@@ -6,82 +6,12 @@ mod common;
 
 use std::time::Duration;
 
-use common::{start_emulator, start_host, start_vl};
+use common::peer::Peer;
+use common::{start_emulator, start_host, start_khepera_host};
 
 use futures_util::{SinkExt, StreamExt};
 use serde_json::{Value, json};
-use tokio::net::TcpStream;
 use tokio_tungstenite::tungstenite::Message;
-use tokio_tungstenite::{MaybeTlsStream, WebSocketStream, connect_async};
-
-type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
-
-struct Peer {
-    ws: Socket,
-    frames: usize,
-}
-
-impl Peer {
-    async fn connect(url: &str) -> Peer {
-        let (ws, _) = connect_async(url).await.expect("connects");
-        Peer { ws, frames: 0 }
-    }
-
-    async fn send(&mut self, message: Value) {
-        self.send_text(&message.to_string()).await;
-    }
-
-    async fn send_text(&mut self, text: &str) {
-        self.ws.send(Message::text(text)).await.expect("sends");
-    }
-
-    /// The next text message whose type is `kind`, skipping others; panics
-    /// after 5 s.
-    async fn expect(&mut self, kind: &str) -> Value {
-        tokio::time::timeout(Duration::from_secs(5), async {
-            loop {
-                match self.ws.next().await {
-                    Some(Ok(Message::Text(t))) => {
-                        let v: Value = serde_json::from_str(&t).expect("host sends JSON");
-                        if v["type"] == kind {
-                            return v;
-                        }
-                    }
-                    Some(Ok(Message::Binary(_))) => self.frames += 1,
-                    Some(Ok(_)) => {}
-                    other => panic!("connection ended waiting for {kind}: {other:?}"),
-                }
-            }
-        })
-        .await
-        .unwrap_or_else(|_| panic!("no {kind} within 5 s"))
-    }
-
-    /// The next `error`, which must carry `code`.
-    async fn expect_error(&mut self, code: &str) -> Value {
-        let e = self.expect("error").await;
-        assert_eq!(e["code"], code, "{e}");
-        assert!(!e["message"].as_str().unwrap_or("").is_empty());
-        e
-    }
-
-    /// The first feedback the Host produced at least `ms` after `since`.
-    async fn feedback_after(&mut self, since: &Value, ms: f64) -> Value {
-        let t0 = since["t_ms"].as_f64().expect("feedback has t_ms");
-        loop {
-            let f = self.expect("feedback").await;
-            if f["t_ms"].as_f64().unwrap() >= t0 + ms {
-                return f;
-            }
-        }
-    }
-
-    async fn hello(&mut self, role: &str) -> Value {
-        self.send(json!({"type": "hello", "protocol": 1, "role": role}))
-            .await;
-        self.expect("welcome").await
-    }
-}
 
 /// Drives the running robot with `n` event-paced commands and returns the
 /// last feedback.
@@ -328,18 +258,7 @@ async fn the_watchdog_stops_a_silent_operator() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_khepera_on_a_serial_line_drives_and_its_loss_is_a_fault() {
     let (emulator, device) = start_emulator(&[]);
-    let (_host, url) = start_vl(
-        &[
-            "host",
-            "--robot",
-            "khepera",
-            "--port",
-            &device,
-            "--listen",
-            "127.0.0.1:0",
-        ],
-        "vl host listening on ",
-    );
+    let (_host, url) = start_khepera_host(&device);
     let mut op = Peer::connect(&url).await;
     op.hello("operator").await;
     start_teleoperation(&mut op).await;

@@ -3,6 +3,8 @@
 //! test and killing them however it ends, and scratch directories.
 #![allow(dead_code)] // each test binary uses its own part of this
 
+pub mod peer;
+
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
@@ -94,12 +96,17 @@ pub fn start_vl(args: &[&str], prefix: &str) -> (VlProcess, String) {
 
 /// Starts `vl host` on the simulated lab on a free port; returns its URL.
 pub fn start_host(extra: &[&str]) -> (VlProcess, String) {
-    let args = [
-        &["host", "--robot", "sim", "--listen", "127.0.0.1:0"],
-        extra,
-    ]
-    .concat();
+    start_host_on(&[&["--robot", "sim"], extra].concat())
+}
+
+fn start_host_on(args: &[&str]) -> (VlProcess, String) {
+    let args = [&["host", "--listen", "127.0.0.1:0"], args].concat();
     start_vl(&args, "vl host listening on ")
+}
+
+/// Starts `vl host` driving the Khepera on serial `device`; returns its URL.
+pub fn start_khepera_host(device: &str) -> (VlProcess, String) {
+    start_host_on(&["--robot", "khepera", "--port", device])
 }
 
 /// Starts `vl khepera-emu ARGS…`; returns its pseudo-terminal's device.

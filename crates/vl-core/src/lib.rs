@@ -23,8 +23,8 @@ mod vision;
 pub use contract::experiment::{Definition, Experiment, ExperimentInfo, Goal};
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::protocol::{
-    DecodeError, Drive, EndReason, ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES,
-    PROTOCOL_VERSION, Role, Summary, Wire,
+    DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HostMessage,
+    MAX_TEXT_BYTES, PROTOCOL_VERSION, Role, Summary, Wire,
 };
 pub use contract::session::{Action, NotAllowed, Phase, Supervisor};
 pub use images::{MAX_IMAGE_SIDE, decode_image, load_image};

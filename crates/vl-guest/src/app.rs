@@ -269,6 +269,15 @@ impl GuestApp {
             if let (Some(role), Some(id)) = (s.role, s.session_id) {
                 ui.label(format!("{role} · session {id}"));
             }
+            if let Some(devices) = s.devices {
+                use vl_core::DeviceState::Offline;
+                if devices.robot == Offline {
+                    ui.colored_label(Color32::RED, "robot offline: the Host is retrying");
+                }
+                if devices.camera == Offline {
+                    ui.colored_label(Color32::YELLOW, "camera offline");
+                }
+            }
             if let Some((pad, _)) = &self.pad {
                 ui.label(format!("stick: {}", pad.name()));
             }

@@ -4,8 +4,9 @@
 
 use image::RgbaImage;
 use vl_core::{
-    Arena, CameraModel, Definition, Drive, ErrorCode, Experiment, ExperimentInfo, FrameHeader,
-    GuestMessage, HostMessage, ImageFormat, Pose, RobotModel, Role, Summary, WheelSpeeds,
+    Arena, CameraModel, Definition, DeviceState, Drive, ErrorCode, Experiment, ExperimentInfo,
+    FrameHeader, GuestMessage, HostMessage, ImageFormat, Pose, RobotModel, Role, Summary,
+    WheelSpeeds,
 };
 
 use crate::client::Incoming;
@@ -38,6 +39,13 @@ pub struct RobotState {
     pub force: Option<[f64; 2]>,
     /// The Host's safety layer is holding the robot back.
     pub limited: bool,
+}
+
+/// Whether the lab's devices answer, as the Host last said.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Devices {
+    pub robot: DeviceState,
+    pub camera: DeviceState,
 }
 
 /// The latest camera image, decoded.
@@ -109,6 +117,7 @@ pub struct Session {
     pub done: Option<Summary>,
     /// Event number of the last command sent in this run.
     pub sent_event: u64,
+    pub devices: Option<Devices>,
 }
 
 impl Default for Session {
@@ -128,6 +137,7 @@ impl Default for Session {
             errors: Vec::new(),
             done: None,
             sent_event: 0,
+            devices: None,
         }
     }
 }
@@ -221,6 +231,9 @@ impl Session {
             HostMessage::Done { summary } => {
                 self.running = false;
                 self.done = Some(summary);
+            }
+            HostMessage::Status { robot, camera } => {
+                self.devices = Some(Devices { robot, camera });
             }
             // The connection answers pings and bye itself.
             HostMessage::Ping { .. } | HostMessage::Pong { .. } | HostMessage::Bye => {}

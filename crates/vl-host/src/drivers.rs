@@ -41,6 +41,10 @@ pub trait Robot: Send {
     /// Sets wheel speeds; they hold until the next call.
     fn set_wheels(&mut self, wheels: WheelSpeeds) -> Result<(), RobotError>;
     fn read(&mut self) -> Result<RobotReading, RobotError>;
+    /// Tries to reach the robot again after its link failed.
+    fn reconnect(&mut self) -> Result<(), RobotError> {
+        Ok(())
+    }
 }
 
 /// An overhead camera.

@@ -7,24 +7,52 @@
 //! dead reckoning from the wheel encoders, starting at the pose the robot
 //! was placed in.
 
-use std::io::{Read, Write};
-use std::time::Duration;
+use std::path::PathBuf;
 
-use serialport::{ClearBuffer, DataBits, FlowControl, Parity, SerialPort, StopBits};
 use vl_core::{KheperaCommand, KheperaReply, MAX_PULSES_PER_PERIOD, Pose, RobotModel, WheelSpeeds};
 
 use crate::drivers::{Robot, RobotError, RobotReading};
+use crate::line::{GuardedLine, Line, SerialLine};
 
-/// How long the robot has to answer one command.
-const REPLY_TIMEOUT: Duration = Duration::from_millis(300);
 /// A proximity reading this high means the body is touching something.
 const TOUCHING: u16 = 1000;
-/// The longest reply line the protocol has (`n,` and eight values) with room to spare.
-const LONGEST_REPLY: usize = 256;
 
-/// A Khepera answering the BIOS 5.x protocol on a serial port.
+/// How a Khepera's line is opened, and opened again after it is lost.
+#[derive(Debug, Clone)]
+enum Opening {
+    /// The port itself.
+    Direct { device: String, baud: u32 },
+    /// A guard process, the program given, holding the port.
+    Guarded {
+        program: PathBuf,
+        device: String,
+        baud: u32,
+    },
+}
+
+impl Opening {
+    fn open(&self) -> Result<Box<dyn Line>, RobotError> {
+        Ok(match self {
+            Opening::Direct { device, baud } => Box::new(SerialLine::open(device, *baud)?),
+            Opening::Guarded {
+                program,
+                device,
+                baud,
+            } => Box::new(GuardedLine::spawn(program, device, *baud)?),
+        })
+    }
+
+    fn device(&self) -> &str {
+        match self {
+            Opening::Direct { device, .. } | Opening::Guarded { device, .. } => device,
+        }
+    }
+}
+
+/// A Khepera answering the BIOS 5.x protocol on a serial line.
 pub struct KheperaSerial {
-    port: Box<dyn SerialPort>,
+    line: Box<dyn Line>,
+    opening: Opening,
     model: RobotModel,
     pose: Pose,
     /// Encoder counts at the last read.
@@ -32,72 +60,65 @@ pub struct KheperaSerial {
 }
 
 impl KheperaSerial {
-    /// Opens `device` at `baud` (8 data bits, no parity, 2 stop bits),
-    /// checks that a Khepera answers, and starts dead reckoning from `start`.
+    /// Opens `device` at `baud` directly, checks that a Khepera answers,
+    /// and starts dead reckoning from `start`.
     pub fn open(
         device: &str,
         baud: u32,
         model: RobotModel,
         start: Pose,
     ) -> Result<KheperaSerial, RobotError> {
-        let port = serialport::new(device, baud)
-            .data_bits(DataBits::Eight)
-            .parity(Parity::None)
-            .stop_bits(StopBits::Two)
-            .flow_control(FlowControl::None)
-            .timeout(REPLY_TIMEOUT)
-            .open()
-            .map_err(|e| RobotError::Open {
-                device: device.to_owned(),
-                reason: e.to_string(),
-            })?;
+        let opening = Opening::Direct {
+            device: device.to_owned(),
+            baud,
+        };
+        KheperaSerial::with(opening, model, start)
+    }
+
+    /// The same through a guard process — `program serial-guard` — that
+    /// stops the robot if this process dies: what the Host drives through.
+    pub fn guarded(
+        program: PathBuf,
+        device: &str,
+        baud: u32,
+        model: RobotModel,
+        start: Pose,
+    ) -> Result<KheperaSerial, RobotError> {
+        let opening = Opening::Guarded {
+            program,
+            device: device.to_owned(),
+            baud,
+        };
+        KheperaSerial::with(opening, model, start)
+    }
+
+    fn with(opening: Opening, model: RobotModel, start: Pose) -> Result<KheperaSerial, RobotError> {
         let mut robot = KheperaSerial {
-            port,
+            line: opening.open()?,
+            opening,
             model,
             pose: start,
             counts: [0; 2],
         };
-        if let KheperaReply::Version { bios, .. } = robot.exchange(KheperaCommand::Version)? {
-            tracing::info!("Khepera BIOS {bios} on {device}");
-        }
-        robot.exchange(KheperaCommand::SetSpeed { left: 0, right: 0 })?;
-        robot.counts = robot.counters()?;
+        robot.greet()?;
         Ok(robot)
+    }
+
+    /// Checks that a Khepera answers, stops it, and takes its counters as
+    /// the origin of dead reckoning.
+    fn greet(&mut self) -> Result<(), RobotError> {
+        if let KheperaReply::Version { bios, .. } = self.exchange(KheperaCommand::Version)? {
+            tracing::info!("Khepera BIOS {bios} on {}", self.opening.device());
+        }
+        self.exchange(KheperaCommand::SetSpeed { left: 0, right: 0 })?;
+        self.counts = self.counters()?;
+        Ok(())
     }
 
     /// Sends one command and returns the robot's reply to it.
     fn exchange(&mut self, command: KheperaCommand) -> Result<KheperaReply, RobotError> {
         let sent = command.encode();
-        // A late reply to an earlier command must not pass for this one's.
-        self.port.clear(ClearBuffer::Input).map_err(|e| {
-            RobotError::Io(std::io::Error::other(format!("cannot clear the line: {e}")))
-        })?;
-        self.port
-            .write_all(format!("{sent}\n").as_bytes())
-            .and_then(|()| self.port.flush())
-            .map_err(RobotError::Io)?;
-        let mut line = Vec::new();
-        let mut byte = [0u8; 1];
-        loop {
-            match self.port.read(&mut byte) {
-                Ok(0) => {
-                    return Err(RobotError::Io(std::io::ErrorKind::UnexpectedEof.into()));
-                }
-                Ok(_) if byte[0] == b'\n' => break,
-                Ok(_) => line.push(byte[0]),
-                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {
-                    return Err(RobotError::Timeout {
-                        sent,
-                        waited_ms: REPLY_TIMEOUT.as_millis(),
-                    });
-                }
-                Err(e) => return Err(RobotError::Io(e)),
-            }
-            if line.len() > LONGEST_REPLY {
-                break;
-            }
-        }
-        let got = String::from_utf8_lossy(&line).trim().to_owned();
+        let got = self.line.exchange(&sent)?;
         match KheperaReply::parse(&got) {
             Ok(reply) if reply.answers(&command) => Ok(reply),
             _ => Err(RobotError::Garbled { sent, got }),
@@ -163,6 +184,12 @@ impl Robot for KheperaSerial {
             right: self.pulses(wheels.right_mm_s),
         };
         self.exchange(command).map(drop)
+    }
+
+    /// Opens the line afresh; dead reckoning carries on from the last pose.
+    fn reconnect(&mut self) -> Result<(), RobotError> {
+        self.line = self.opening.open()?;
+        self.greet()
     }
 
     fn read(&mut self) -> Result<RobotReading, RobotError> {

@@ -16,11 +16,11 @@ use std::time::{Duration, Instant};
 
 use tokio::sync::{mpsc as async_mpsc, watch};
 use tokio_tungstenite::tungstenite::Bytes;
-use tracing::{debug, warn};
+use tracing::{debug, info, warn};
 use vl_core::{
-    ARENA_CELL_MM, Arena, CSpace, CameraModel, Definition, Drive, EndReason, Experiment, Footprint,
-    FrameHeader, Grid, HostMessage, ImageFormat, MapField, RobotModel, Safety, Situation, Summary,
-    Surroundings, Teleop, Vector, WheelSpeeds,
+    ARENA_CELL_MM, Arena, CSpace, CameraModel, Definition, DeviceState, Drive, EndReason,
+    Experiment, Footprint, FrameHeader, Grid, HostMessage, ImageFormat, MapField, RobotModel,
+    Safety, Situation, Summary, Surroundings, Teleop, Vector, WheelSpeeds,
 };
 
 use crate::drivers::{Camera, Robot, RobotReading};
@@ -43,6 +43,52 @@ const MAP_FIELD_INFLUENCE_MM: f64 = 40.0;
 /// Its strength: about 100 mm/s of push with the body 10 mm from a wall.
 const MAP_FIELD_ETA: f64 = 1.0e5;
 
+/// How long the first retry of a lost robot or camera waits; each next
+/// waits twice as long, up to `RETRY_MAX`.
+const RETRY_FIRST: Duration = Duration::from_millis(100);
+const RETRY_MAX: Duration = Duration::from_secs(5);
+
+/// Whether the lab's devices answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LabStatus {
+    pub robot: DeviceState,
+    pub camera: DeviceState,
+}
+
+impl LabStatus {
+    pub fn message(&self) -> HostMessage {
+        HostMessage::Status {
+            robot: self.robot,
+            camera: self.camera,
+        }
+    }
+}
+
+/// Retries with back-off, and says so once per change of state.
+struct Retry {
+    next: Instant,
+    wait: Duration,
+}
+
+impl Retry {
+    fn new() -> Retry {
+        Retry {
+            next: Instant::now() + RETRY_FIRST,
+            wait: RETRY_FIRST,
+        }
+    }
+
+    /// Whether it is time for the next try; each try doubles the wait.
+    fn due(&mut self) -> bool {
+        if Instant::now() < self.next {
+            return false;
+        }
+        self.wait = (self.wait * 2).min(RETRY_MAX);
+        self.next = Instant::now() + self.wait;
+        true
+    }
+}
+
 /// What the lab is, as the Guest needs it at mount.
 #[derive(Debug, Clone)]
 pub struct LabInfo {
@@ -58,6 +104,8 @@ pub enum LabRequest {
     /// fields to the operator's commands and feeds the push back as a
     /// force; navigation ends when the robot reaches the goal.
     Start {
+        /// The run's number, which its `Finished` carries back.
+        run: u64,
         definition: Definition,
         experiment: Experiment,
     },
@@ -68,9 +116,9 @@ pub enum LabRequest {
     Finish(EndReason),
 }
 
-/// A run ended; the session reports it.
+/// Run number `.0` ended; the session reports it.
 #[derive(Debug, Clone)]
-pub struct Finished(pub Summary);
+pub struct Finished(pub u64, pub Summary);
 
 /// The session's handle on the running lab.
 pub struct Lab {
@@ -82,6 +130,8 @@ pub struct Lab {
     pub frames: watch::Receiver<Option<Bytes>>,
     /// Runs that ended.
     pub finished: async_mpsc::UnboundedReceiver<Finished>,
+    /// Whether the robot and the camera answer.
+    pub status: watch::Receiver<LabStatus>,
     running: Arc<AtomicBool>,
 }
 
@@ -102,6 +152,15 @@ impl Lab {
         let (feedback_tx, feedback) = watch::channel(None);
         let (frames_tx, frames) = watch::channel(None);
         let (finished_tx, finished) = async_mpsc::unbounded_channel();
+        let (status_tx, status) = watch::channel(LabStatus {
+            robot: DeviceState::Online,
+            camera: if camera.is_some() {
+                DeviceState::Online
+            } else {
+                DeviceState::Absent
+            },
+        });
+        let status_tx = Arc::new(status_tx);
         let running = Arc::new(AtomicBool::new(true));
         let event = Arc::new(AtomicU64::new(0));
         let since = Instant::now();
@@ -120,6 +179,8 @@ impl Lab {
             map_field: map_field(&info),
             surroundings: Surroundings::new(&info.arena),
             period: TICK,
+            status: status_tx.clone(),
+            retry: None,
         };
         thread::Builder::new()
             .name("vl-control".into())
@@ -132,6 +193,7 @@ impl Lab {
                 event,
                 since,
                 running: running.clone(),
+                status: status_tx,
             };
             thread::Builder::new()
                 .name("vl-camera".into())
@@ -144,6 +206,7 @@ impl Lab {
             feedback,
             frames,
             finished,
+            status,
             running,
         }
     }
@@ -163,6 +226,7 @@ impl Drop for Lab {
 
 /// One run of an experiment, from `start` to its end.
 struct Run {
+    number: u64,
     definition: Definition,
     experiment: Experiment,
     /// The arena and the definition's virtual obstacles, for the safety layer.
@@ -225,6 +289,10 @@ struct Control {
     surroundings: Surroundings,
     /// How long the last control period really took.
     period: Duration,
+    /// Whether the robot and camera answer, shared with the camera loop.
+    status: Arc<watch::Sender<LabStatus>>,
+    /// While the robot's link is down: when to try it again.
+    retry: Option<Retry>,
 }
 
 impl Control {
@@ -251,15 +319,34 @@ impl Control {
             }
             self.period = last_read.elapsed();
             last_read = Instant::now();
+            if let Some(retry) = &mut self.retry {
+                if !retry.due() {
+                    continue;
+                }
+                match self.robot.reconnect() {
+                    Ok(()) => {
+                        info!("the robot answers again");
+                        self.retry = None;
+                        self.status.send_modify(|s| s.robot = DeviceState::Online);
+                    }
+                    Err(e) => {
+                        debug!("the robot still does not answer: {e}");
+                        continue;
+                    }
+                }
+            }
             match self.robot.read() {
                 Ok(reading) => self.observe(reading),
                 Err(e) => {
-                    warn!("{e}; stopping the run");
+                    warn!("{e}; the robot is offline until it answers again");
+                    self.retry = Some(Retry::new());
+                    self.status.send_modify(|s| s.robot = DeviceState::Offline);
                     self.finish(EndReason::Fault);
                     continue;
                 }
             }
-            if commanded || last_feedback.elapsed() >= FEEDBACK_EVERY {
+            // Ticks come every TICK: publish on the one nearest the period.
+            if commanded || last_feedback.elapsed() + TICK / 2 >= FEEDBACK_EVERY {
                 self.publish();
                 last_feedback = Instant::now();
             }
@@ -270,12 +357,14 @@ impl Control {
     fn handle(&mut self, request: LabRequest) -> bool {
         match request {
             LabRequest::Start {
+                run,
                 definition,
                 experiment,
             } => {
                 self.event.store(0, Ordering::Relaxed);
                 let now = Instant::now();
                 self.run = Some(Run {
+                    number: run,
                     surroundings: self.surroundings.with(&definition.virtual_obstacles),
                     definition,
                     experiment,
@@ -429,17 +518,18 @@ impl Control {
             self.last.as_ref(),
         );
         debug!(?summary, "run finished");
-        let _ = self.finished.send(Finished(summary));
+        let _ = self.finished.send(Finished(run.number, summary));
         self.publish();
     }
 
     /// Stops the wheels; on failure there is nothing more software can do
-    /// but say so.
+    /// but say so (once: an offline robot is retried, not shouted at).
     fn halt(&mut self) {
         self.sent = None;
         match self.robot.set_wheels(WheelSpeeds::default()) {
             Ok(()) => self.sent = Some(WheelSpeeds::default()),
-            Err(e) => warn!("{e}: could not stop the robot"),
+            Err(e) if self.retry.is_none() => warn!("{e}: could not stop the robot"),
+            Err(_) => {}
         }
     }
 
@@ -489,6 +579,7 @@ struct CameraLoop {
     event: Arc<AtomicU64>,
     since: Instant,
     running: Arc<AtomicBool>,
+    status: Arc<watch::Sender<LabStatus>>,
 }
 
 impl CameraLoop {
@@ -519,7 +610,18 @@ impl CameraLoop {
                         self.frames.send_replace(Some(Bytes::from(wire)));
                     }
                 }
-                Err(e) => warn!("{e}; no frame this period"),
+                Err(e) => {
+                    if self.status.borrow().camera == DeviceState::Online {
+                        warn!("{e}; the camera is offline until it answers again");
+                        self.status.send_modify(|s| s.camera = DeviceState::Offline);
+                    }
+                    thread::sleep(RETRY_MAX.min(period * 10));
+                    continue;
+                }
+            }
+            if self.status.borrow().camera == DeviceState::Offline {
+                info!("the camera answers again");
+                self.status.send_modify(|s| s.camera = DeviceState::Online);
             }
             thread::sleep(period.saturating_sub(started.elapsed()));
         }

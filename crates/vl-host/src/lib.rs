@@ -8,6 +8,7 @@ mod characterise;
 mod drivers;
 mod khepera;
 mod lab;
+mod line;
 mod server;
 mod sim;
 
@@ -19,6 +20,7 @@ use vl_core::{Arena, RobotModel};
 pub use characterise::{CharacteriseError, characterise};
 pub use drivers::{Camera, CameraError, Robot, RobotError, RobotReading};
 pub use khepera::KheperaSerial;
+pub use line::run_guard;
 pub use server::HostConfig;
 
 /// Why a Host could not start.

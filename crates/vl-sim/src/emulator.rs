@@ -12,6 +12,8 @@ use thiserror::Error;
 
 use crate::khepera::Khepera;
 
+/// The longest command line the emulator holds while waiting for its end.
+const MAX_LINE: usize = 256;
 /// Bits on the wire per character: start, 8 data, 2 stop (Khepera: 8N2).
 const BITS_PER_CHAR: f64 = 11.0;
 
@@ -35,6 +37,8 @@ pub struct Line {
     pub baud: u32,
     /// Delay each reply by the time its characters take at `baud`.
     pub timing: bool,
+    /// Print each command line received, with the ms since the start.
+    pub log_commands: bool,
 }
 
 /// An emulated Khepera waiting on a pty.
@@ -93,10 +97,24 @@ impl Emulator {
                 Err(e) => return Err(e.into()),
             };
             pending.extend_from_slice(&buf[..n]);
+            // No command is this long: a line without an end is noise, dropped.
+            if pending.len() > MAX_LINE && !pending.iter().any(|&b| b == b'\r' || b == b'\n') {
+                pending.clear();
+                self.send("z,Command not found")?;
+            }
             self.catch_up(started.elapsed().as_secs_f64());
             while let Some(end) = pending.iter().position(|&b| b == b'\r' || b == b'\n') {
                 let line: Vec<u8> = pending.drain(..=end).collect();
                 let text = String::from_utf8_lossy(&line[..line.len() - 1]).into_owned();
+                if self.line.log_commands && !text.trim().is_empty() {
+                    println!(
+                        "{:.1} {}",
+                        started.elapsed().as_secs_f64() * 1e3,
+                        text.trim()
+                    );
+                    use std::io::Write as _;
+                    let _ = std::io::stdout().flush();
+                }
                 if let Some(reply) = self.khepera.handle(&text) {
                     self.send(&reply)?;
                 }

@@ -87,6 +87,8 @@ pub enum EndReason {
     Fault,
     /// Someone pressed the emergency stop.
     EmergencyStop,
+    /// The operator sent no command for the lease time.
+    OperatorSilent,
 }
 
 impl std::fmt::Display for EndReason {
@@ -98,6 +100,7 @@ impl std::fmt::Display for EndReason {
             EndReason::OperatorLeft => "operator left",
             EndReason::Fault => "fault",
             EndReason::EmergencyStop => "emergency stop",
+            EndReason::OperatorSilent => "operator silent",
         })
     }
 }
@@ -144,6 +147,12 @@ pub enum ErrorCode {
     NotAllowedNow,
     /// A command whose event number is not the next one.
     StaleCommand,
+    /// A stage (handshake, hello, pings, the operator's lease) took too long.
+    Timeout,
+    /// The robot's link is down: no run can start until it is back.
+    RobotOffline,
+    /// The client did not read what the Host sent fast enough.
+    SlowReader,
 }
 
 /// As on the wire: `unknown_experiment`.
@@ -152,6 +161,16 @@ impl std::fmt::Display for ErrorCode {
         let id = serde_json::to_value(self).expect("codes serialise");
         f.write_str(id.as_str().expect("codes serialise as strings"))
     }
+}
+
+/// Whether a device of the lab answers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DeviceState {
+    Online,
+    Offline,
+    /// The lab has none (a lab without a camera).
+    Absent,
 }
 
 /// Messages the Guest sends.
@@ -245,6 +264,11 @@ pub enum HostMessage {
     },
     Done {
         summary: Summary,
+    },
+    /// The lab's devices: sent on welcome and whenever one changes.
+    Status {
+        robot: DeviceState,
+        camera: DeviceState,
     },
     Bye,
 }
@@ -352,7 +376,7 @@ impl Wire for GuestMessage {
 impl Wire for HostMessage {
     const TYPES: &'static [&'static str] = &[
         "welcome", "error", "ping", "pong", "mounted", "defined", "started", "feedback", "done",
-        "bye",
+        "status", "bye",
     ];
 }
 

@@ -1,229 +1,55 @@
-//! The Host's side of the Media: a WebSocket server speaking protocol v1.
-//!
-//! One task per connection reads and writes its socket; one hub task owns
-//! the session (who is operator, the supervisor net, the current
-//! definition) and is the only place that changes it, so there are no locks
-//! around session state. Feedback and frames bypass the hub: every
-//! connection watches the lab's newest values directly.
+//! The hub: the one owner of session state. It decides who is operator,
+//! runs the supervisor net that says which action may happen when, keeps
+//! the definition, relays commands to the lab, and enforces the operator's
+//! lease. It never waits on a client: each has a bounded outbox, and a
+//! client that lets it fill is let go.
 
 use std::collections::HashMap;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use futures_util::{SinkExt, StreamExt};
-use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc;
-use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
-use tokio_tungstenite::tungstenite::{self, Message};
+use tokio_tungstenite::tungstenite::Message;
 use tracing::{debug, info, warn};
 use vl_core::{
-    Action, Definition, EndReason, ErrorCode, Experiment, GuestMessage, HostMessage,
-    MAX_FRAME_BYTES, MAX_TEXT_BYTES, Named, PROTOCOL_VERSION, Role, Supervisor, Wire,
+    Action, Definition, DeviceState, EndReason, ErrorCode, Experiment, GuestMessage, HostMessage,
+    Named, PROTOCOL_VERSION, Role, Supervisor, Wire,
 };
 
+use super::HostConfig;
+use super::connection::error;
 use crate::lab::{Finished, Lab, LabRequest};
 
-/// How often the Host measures each connection's round-trip time.
-const PING_EVERY: Duration = Duration::from_secs(1);
-
-/// How the Host admits people.
-#[derive(Debug, Clone)]
-pub struct HostConfig {
-    /// When set, an operator's `hello` must carry this token.
-    pub token: Option<String>,
-    /// What the lab offers, in the order Guests list it.
-    pub experiments: Vec<Experiment>,
-}
-
-impl Default for HostConfig {
-    fn default() -> Self {
-        HostConfig {
-            token: None,
-            experiments: Experiment::ALL.to_vec(),
-        }
-    }
-}
-
-/// Accepts connections on `listener` and serves the lab until the task is dropped.
-pub async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
-    let (hub_tx, hub_rx) = mpsc::unbounded_channel();
-    let feedback = lab.feedback.clone();
-    let frames = lab.frames.clone();
-    let hub = Hub {
-        lab,
-        config,
-        supervisor: Supervisor::new(),
-        clients: HashMap::new(),
-        operator: None,
-        experiment: None,
-        definition: None,
-        last_event: 0,
-    };
-    // The hub lives exactly as long as the server: dropping this future
-    // drops the lab, which stops the robot.
-    tokio::select! {
-        () = hub.run(hub_rx) => {}
-        () = accept(listener, hub_tx, feedback, frames) => {}
-    }
-}
-
-async fn accept(
-    listener: TcpListener,
-    hub_tx: mpsc::UnboundedSender<ToHub>,
-    feedback: tokio::sync::watch::Receiver<Option<HostMessage>>,
-    frames: tokio::sync::watch::Receiver<Option<tungstenite::Bytes>>,
-) {
-    let mut next_id = 1u64;
-    loop {
-        let (stream, peer) = match listener.accept().await {
-            Ok(accepted) => accepted,
-            Err(e) => {
-                warn!("accept failed: {e}");
-                tokio::time::sleep(Duration::from_millis(50)).await;
-                continue;
-            }
-        };
-        let id = next_id;
-        next_id += 1;
-        let connection = Connection {
-            id,
-            hub: hub_tx.clone(),
-            feedback: feedback.clone(),
-            frames: frames.clone(),
-        };
-        tokio::spawn(async move {
-            if let Err(e) = connection.run(stream).await {
-                debug!(%peer, "connection {id} ended: {e}");
-            }
-        });
-    }
-}
+/// Messages waiting for one client, at most; feedback and frames are not
+/// queued (each connection takes only the newest).
+pub(crate) const OUTBOX: usize = 64;
+/// How often the hub looks at the operator's lease.
+const LEASE_CHECK: Duration = Duration::from_millis(250);
 
 /// What a connection tells the hub.
-enum ToHub {
-    Join(u64, mpsc::UnboundedSender<ToConnection>),
+pub(crate) enum ToHub {
+    Join(u64, mpsc::Sender<ToConnection>),
     Message(u64, GuestMessage),
     Leave(u64),
 }
 
 /// What the hub tells a connection.
-enum ToConnection {
-    Send(Box<HostMessage>),
+pub(crate) enum ToConnection {
+    /// A message, encoded once for every client it goes to.
+    Send(Message),
     /// The client was welcomed: start streaming feedback and frames.
     Subscribe,
 }
 
-struct Connection {
-    id: u64,
-    hub: mpsc::UnboundedSender<ToHub>,
-    feedback: tokio::sync::watch::Receiver<Option<HostMessage>>,
-    frames: tokio::sync::watch::Receiver<Option<tungstenite::Bytes>>,
-}
-
-impl Connection {
-    async fn run(mut self, stream: TcpStream) -> Result<(), tungstenite::Error> {
-        let _ = stream.set_nodelay(true);
-        let config = WebSocketConfig::default()
-            .max_message_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)))
-            .max_frame_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)));
-        let ws = tokio_tungstenite::accept_async_with_config(stream, Some(config)).await?;
-        let (mut sink, mut source) = ws.split();
-        let (to_me, mut inbox) = mpsc::unbounded_channel();
-        let _ = self.hub.send(ToHub::Join(self.id, to_me));
-        let clock = Instant::now();
-        let mut ping = tokio::time::interval(PING_EVERY);
-        let mut subscribed = false;
-        let result = loop {
-            tokio::select! {
-                incoming = source.next() => match incoming {
-                    None | Some(Ok(Message::Close(_))) => break Ok(()),
-                    Some(Ok(Message::Text(text))) => {
-                        match GuestMessage::decode(text.as_str()) {
-                            Ok(GuestMessage::Ping { t }) => {
-                                sink.send(text_of(&HostMessage::Pong { t })).await?;
-                            }
-                            Ok(GuestMessage::Pong { t }) => {
-                                let rtt_ms = clock.elapsed().as_secs_f64() * 1e3 - t;
-                                debug!(connection = self.id, rtt_ms, "round trip");
-                            }
-                            Ok(GuestMessage::Bye) => break Ok(()),
-                            Ok(message) => {
-                                let _ = self.hub.send(ToHub::Message(self.id, message));
-                            }
-                            Err(e) => {
-                                sink.send(text_of(&error(e.code(), e.to_string()))).await?;
-                            }
-                        }
-                    }
-                    Some(Ok(Message::Binary(_))) => {
-                        let reply = error(ErrorCode::BadMessage, "binary messages flow only from Host to Guest");
-                        sink.send(text_of(&reply)).await?;
-                    }
-                    Some(Ok(_)) => {} // WebSocket pings are answered by tungstenite
-                    Some(Err(tungstenite::Error::Capacity(e))) => {
-                        // The rest of that message cannot be skipped: say why, then close.
-                        let reply = error(ErrorCode::TooLarge, format!("message too large: {e}"));
-                        let _ = sink.send(text_of(&reply)).await;
-                        let _ = sink.send(Message::Close(None)).await;
-                        break Ok(());
-                    }
-                    Some(Err(e)) => break Err(e),
-                },
-                Some(out) = inbox.recv() => match out {
-                    ToConnection::Send(message) => sink.send(text_of(&message)).await?,
-                    ToConnection::Subscribe => {
-                        subscribed = true;
-                        self.feedback.mark_changed();
-                        self.frames.mark_changed();
-                    }
-                },
-                Ok(()) = self.feedback.changed(), if subscribed => {
-                    let latest = self.feedback.borrow_and_update().clone();
-                    if let Some(message) = latest {
-                        sink.send(text_of(&message)).await?;
-                    }
-                }
-                Ok(()) = self.frames.changed(), if subscribed => {
-                    let latest = self.frames.borrow_and_update().clone();
-                    if let Some(frame) = latest {
-                        sink.send(Message::Binary(frame)).await?;
-                    }
-                }
-                () = self.hub.closed() => {
-                    let _ = sink.send(text_of(&HostMessage::Bye)).await;
-                    let _ = sink.send(Message::Close(None)).await;
-                    break Ok(());
-                }
-                _ = ping.tick() => {
-                    let t = clock.elapsed().as_secs_f64() * 1e3;
-                    sink.send(text_of(&HostMessage::Ping { t })).await?;
-                }
-            }
-        };
-        let _ = self.hub.send(ToHub::Leave(self.id));
-        result
-    }
-}
-
-fn text_of(message: &HostMessage) -> Message {
-    Message::text(message.encode())
-}
-
-fn error(code: ErrorCode, message: impl Into<String>) -> HostMessage {
-    HostMessage::Error {
-        code,
-        message: message.into(),
-    }
-}
-
 struct Client {
-    out: mpsc::UnboundedSender<ToConnection>,
+    out: mpsc::Sender<ToConnection>,
     role: Option<Role>,
 }
 
 /// The one owner of session state.
-struct Hub {
+pub(crate) struct Hub {
     lab: Lab,
-    config: HostConfig,
+    config: Arc<HostConfig>,
     supervisor: Supervisor,
     clients: HashMap<u64, Client>,
     operator: Option<u64>,
@@ -232,12 +58,61 @@ struct Hub {
     definition: Option<Definition>,
     /// Event number of the last command accepted in this run.
     last_event: u64,
+    /// When the operator last started or commanded the run under way.
+    last_command: Instant,
+    /// The number of the run under way (kept until the lab reports its end).
+    run: Option<u64>,
+    /// How many runs have started.
+    runs: u64,
 }
 
 impl Hub {
-    async fn run(mut self, mut inbox: mpsc::UnboundedReceiver<ToHub>) {
+    pub(crate) fn new(lab: Lab, config: Arc<HostConfig>) -> Hub {
+        Hub {
+            lab,
+            config,
+            supervisor: Supervisor::new(),
+            clients: HashMap::new(),
+            operator: None,
+            experiment: None,
+            definition: None,
+            last_event: 0,
+            last_command: Instant::now(),
+            run: None,
+            runs: 0,
+        }
+    }
+
+    pub(crate) async fn run(mut self, mut inbox: mpsc::Receiver<ToHub>) {
+        let mut lease = tokio::time::interval(LEASE_CHECK);
+        let mut status = self.lab.status.clone();
         loop {
             tokio::select! {
+                // The lab sets a device's state before it ends the run that
+                // state ended: polling status first keeps that order on the
+                // wire, so a Guest reads the cause before the `done` it explains.
+                // Clients come last: however busy they keep the Hub, a run's
+                // end and a silent operator's lease are still seen.
+                biased;
+                Ok(()) = status.changed() => {
+                    let now = *status.borrow_and_update();
+                    self.broadcast(&now.message());
+                }
+                Some(Finished(run, summary)) = self.lab.finished.recv() => {
+                    // Only the run under way may end: a previous operator's
+                    // run that ends late must not end the next one's.
+                    if self.run != Some(run) {
+                        debug!(run, "a past run's end, after the next began");
+                        continue;
+                    }
+                    self.run = None;
+                    if self.supervisor.allows(Action::Finish) {
+                        let _ = self.supervisor.fire(Action::Finish);
+                    }
+                    info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
+                    self.broadcast(&HostMessage::Done { summary });
+                }
+                _ = lease.tick() => self.check_lease(),
                 message = inbox.recv() => match message {
                     Some(ToHub::Join(id, out)) => {
                         self.clients.insert(id, Client { out, role: None });
@@ -246,34 +121,81 @@ impl Hub {
                     Some(ToHub::Leave(id)) => self.leave(id),
                     None => return,
                 },
-                Some(Finished(summary)) = self.lab.finished.recv() => {
-                    if self.supervisor.allows(Action::Finish) {
-                        let _ = self.supervisor.fire(Action::Finish);
-                    }
-                    info!(reason = ?summary.reason, reached_goal = summary.reached_goal, "run ended");
-                    self.broadcast(&HostMessage::Done { summary });
-                }
             }
         }
     }
 
-    fn send(&self, id: u64, message: HostMessage) {
-        if let Some(client) = self.clients.get(&id) {
-            let _ = client.out.send(ToConnection::Send(Box::new(message)));
+    /// Queues `message` for client `id`; a client whose outbox is full is
+    /// let go (its connection says why and closes).
+    fn send_encoded(&mut self, id: u64, message: Message) {
+        let Some(client) = self.clients.get(&id) else {
+            return;
+        };
+        if let Err(mpsc::error::TrySendError::Full(_)) =
+            client.out.try_send(ToConnection::Send(message))
+        {
+            debug!(connection = id, "a client that does not read: let go");
+            self.clients.remove(&id);
+            self.leave(id);
         }
     }
 
-    fn refuse(&self, id: u64, code: ErrorCode, message: impl Into<String>) {
+    fn send(&mut self, id: u64, message: HostMessage) {
+        self.send_encoded(id, Message::text(message.encode()));
+    }
+
+    fn refuse(&mut self, id: u64, code: ErrorCode, message: impl Into<String>) {
         self.send(id, error(code, message));
     }
 
-    /// Sends to every welcomed client.
-    fn broadcast(&self, message: &HostMessage) {
-        for client in self.clients.values().filter(|c| c.role.is_some()) {
-            let _ = client
-                .out
-                .send(ToConnection::Send(Box::new(message.clone())));
+    /// Sends to every welcomed client, encoded once.
+    fn broadcast(&mut self, message: &HostMessage) {
+        let encoded = Message::text(message.encode());
+        let welcomed: Vec<u64> = self
+            .clients
+            .iter()
+            .filter(|(_, c)| c.role.is_some())
+            .map(|(id, _)| *id)
+            .collect();
+        for id in welcomed {
+            self.send_encoded(id, encoded.clone());
         }
+    }
+
+    /// An operator who has sent no command for the lease time during a run
+    /// loses the run and the role, and stays on as an observer.
+    fn check_lease(&mut self) {
+        let Some(id) = self.operator else { return };
+        if !self.supervisor.allows(Action::Stop) || self.last_command.elapsed() < self.config.lease
+        {
+            return;
+        }
+        let lease = self.config.lease.as_secs_f64();
+        info!(
+            connection = id,
+            "operator silent for {lease} s: the role is free"
+        );
+        self.lab
+            .request(LabRequest::Finish(EndReason::OperatorSilent));
+        self.release_operator();
+        if let Some(client) = self.clients.get_mut(&id) {
+            client.role = Some(Role::Observer);
+        }
+        self.refuse(
+            id,
+            ErrorCode::Timeout,
+            format!("no command for {lease} s: the run ended and you watch now; say hello as operator to drive again"),
+        );
+    }
+
+    /// The operator role is free again and the lab back to idle.
+    fn release_operator(&mut self) {
+        self.operator = None;
+        if self.supervisor.allows(Action::Release) {
+            let _ = self.supervisor.fire(Action::Release);
+        }
+        self.experiment = None;
+        self.definition = None;
     }
 
     fn handle(&mut self, id: u64, message: GuestMessage) {
@@ -290,6 +212,15 @@ impl Hub {
                 },
             ) => self.hello(id, protocol, role, token),
             (None, _) => self.refuse(id, ErrorCode::HelloFirst, "send hello first"),
+            // An observer (or an operator who lost the lease) may ask to drive.
+            (
+                Some(Role::Observer),
+                GuestMessage::Hello {
+                    protocol,
+                    role: Role::Operator,
+                    token,
+                },
+            ) => self.hello(id, protocol, Role::Operator, token),
             (Some(_), GuestMessage::Hello { .. }) => {
                 self.refuse(id, ErrorCode::NotAllowedNow, "already said hello")
             }
@@ -327,7 +258,7 @@ impl Hub {
         }
         if let Some(client) = self.clients.get_mut(&id) {
             client.role = Some(role);
-            let _ = client.out.send(ToConnection::Subscribe);
+            let _ = client.out.try_send(ToConnection::Subscribe);
         }
         info!(connection = id, ?role, "welcomed");
         self.send(
@@ -345,6 +276,8 @@ impl Hub {
         if let Some(definition) = self.definition.clone() {
             self.send(id, HostMessage::Defined { definition });
         }
+        let status = *self.lab.status.borrow();
+        self.send(id, status.message());
     }
 
     fn mounted(&self) -> Option<HostMessage> {
@@ -359,7 +292,7 @@ impl Hub {
 
     /// Whether the supervisor enables `action` now; if not, tells the
     /// operator why.
-    fn permitted(&self, id: u64, action: Action) -> bool {
+    fn permitted(&mut self, id: u64, action: Action) -> bool {
         match self.supervisor.check(action) {
             Ok(()) => true,
             Err(e) => {
@@ -412,12 +345,23 @@ impl Hub {
                 self.broadcast(&HostMessage::Defined { definition });
             }
             GuestMessage::Start => {
+                if self.lab.status.borrow().robot != DeviceState::Online {
+                    return self.refuse(
+                        id,
+                        ErrorCode::RobotOffline,
+                        "the robot does not answer: a run can start when it is back",
+                    );
+                }
                 if self.supervise(id, Action::Start)
                     && let Some(experiment) = self.experiment
                 {
                     self.last_event = 0;
+                    self.last_command = Instant::now();
+                    self.runs += 1;
+                    self.run = Some(self.runs);
                     let definition = self.definition.clone().unwrap_or_default();
                     self.lab.request(LabRequest::Start {
+                        run: self.runs,
                         definition,
                         experiment,
                     });
@@ -453,6 +397,7 @@ impl Hub {
                 }
                 self.supervise(id, Action::Command);
                 self.last_event = event;
+                self.last_command = Instant::now();
                 self.lab.request(LabRequest::Drive { event, drive });
             }
             GuestMessage::Hello { .. }
@@ -480,17 +425,12 @@ impl Hub {
         if self.operator != Some(id) {
             return;
         }
-        self.operator = None;
         info!(connection = id, "operator left");
         // A run the operator could stop is stopped for them.
         if self.supervisor.allows(Action::Stop) {
             self.lab
                 .request(LabRequest::Finish(EndReason::OperatorLeft));
         }
-        if self.supervisor.allows(Action::Release) {
-            let _ = self.supervisor.fire(Action::Release);
-        }
-        self.experiment = None;
-        self.definition = None;
+        self.release_operator();
     }
 }

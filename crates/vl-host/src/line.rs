@@ -1,0 +1,265 @@
+//! The serial line to a robot: one command line out, one reply line back.
+//! Either the port itself ([`SerialLine`]), or a guard process that holds
+//! the port for the Host ([`GuardedLine`]): when the Host's end of the pipe
+//! closes — a crash, `kill -9`, the kernel's OOM killer — the guard stops
+//! the robot at once and exits; when the Host goes silent (frozen), it
+//! stops the robot too.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::Path;
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use serialport::{ClearBuffer, DataBits, FlowControl, Parity, SerialPort, StopBits};
+
+use crate::drivers::RobotError;
+
+/// How long the robot has to answer one command.
+pub(crate) const REPLY_TIMEOUT: Duration = Duration::from_millis(300);
+/// The longest reply line the protocol has (`n,` and eight values), with room to spare.
+const LONGEST_REPLY: usize = 256;
+/// The command that stops both wheels.
+const STOP: &str = "D,0,0";
+/// A Host that sends nothing for this long is taken to be stuck: the guard
+/// stops the robot (the Host reads it every control period).
+const SILENCE: Duration = Duration::from_millis(500);
+/// How long a starting guard has to open the port.
+const GUARD_START: Duration = Duration::from_secs(3);
+
+/// One exchange at a time with a robot.
+pub trait Line: Send {
+    /// Sends `command` (without a line ending) and returns the reply line.
+    fn exchange(&mut self, command: &str) -> Result<String, RobotError>;
+}
+
+/// A robot's serial port, opened directly.
+pub struct SerialLine {
+    port: Box<dyn SerialPort>,
+}
+
+impl SerialLine {
+    /// Opens `device` at `baud`: 8 data bits, no parity, 2 stop bits.
+    pub fn open(device: &str, baud: u32) -> Result<SerialLine, RobotError> {
+        let port = serialport::new(device, baud)
+            .data_bits(DataBits::Eight)
+            .parity(Parity::None)
+            .stop_bits(StopBits::Two)
+            .flow_control(FlowControl::None)
+            .timeout(REPLY_TIMEOUT)
+            .open()
+            .map_err(|e| RobotError::Open {
+                device: device.to_owned(),
+                reason: e.to_string(),
+            })?;
+        Ok(SerialLine { port })
+    }
+}
+
+impl Line for SerialLine {
+    fn exchange(&mut self, command: &str) -> Result<String, RobotError> {
+        // A late reply to an earlier command must not pass for this one's.
+        self.port.clear(ClearBuffer::Input).map_err(|e| {
+            RobotError::Io(std::io::Error::other(format!("cannot clear the line: {e}")))
+        })?;
+        self.port
+            .write_all(format!("{command}\n").as_bytes())
+            .and_then(|()| self.port.flush())
+            .map_err(RobotError::Io)?;
+        let mut line = Vec::new();
+        let mut byte = [0u8; 1];
+        loop {
+            match self.port.read(&mut byte) {
+                Ok(0) => return Err(RobotError::Io(std::io::ErrorKind::UnexpectedEof.into())),
+                Ok(_) if byte[0] == b'\n' => break,
+                Ok(_) => line.push(byte[0]),
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {
+                    return Err(RobotError::Timeout {
+                        sent: command.to_owned(),
+                        waited_ms: REPLY_TIMEOUT.as_millis(),
+                    });
+                }
+                Err(e) => return Err(RobotError::Io(e)),
+            }
+            if line.len() > LONGEST_REPLY {
+                break;
+            }
+        }
+        Ok(String::from_utf8_lossy(&line).trim().to_owned())
+    }
+}
+
+/// The Host's end of a guard process holding the port.
+pub struct GuardedLine {
+    guard: Child,
+    to_guard: Option<ChildStdin>,
+    replies: mpsc::Receiver<String>,
+}
+
+/// What the guard says instead of a reply when the robot gave none.
+const GUARD_TIMEOUT: &str = "!timeout";
+const GUARD_ERROR: &str = "!error ";
+
+impl GuardedLine {
+    /// Starts `program serial-guard --port DEVICE --baud BAUD` (the `vl`
+    /// binary) and waits for it to hold the port.
+    pub fn spawn(program: &Path, device: &str, baud: u32) -> Result<GuardedLine, RobotError> {
+        let mut guard = Command::new(program)
+            .args([
+                "serial-guard",
+                "--port",
+                device,
+                "--baud",
+                &baud.to_string(),
+            ])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .map_err(|e| RobotError::Open {
+                device: device.to_owned(),
+                reason: format!("cannot start the serial guard {}: {e}", program.display()),
+            })?;
+        let stdout = guard.stdout.take().expect("piped stdout");
+        let (tx, replies) = mpsc::channel();
+        std::thread::Builder::new()
+            .name("vl-guard-replies".into())
+            .spawn(move || {
+                for line in BufReader::new(stdout).lines() {
+                    let Ok(line) = line else { break };
+                    if tx.send(line).is_err() {
+                        break;
+                    }
+                }
+            })
+            .map_err(RobotError::Io)?;
+        let mut line = GuardedLine {
+            to_guard: guard.stdin.take(),
+            guard,
+            replies,
+        };
+        match line.replies.recv_timeout(GUARD_START) {
+            Ok(ready) if ready == "ready" => Ok(line),
+            Ok(said) => Err(RobotError::Open {
+                device: device.to_owned(),
+                reason: said.strip_prefix(GUARD_ERROR).unwrap_or(&said).to_owned(),
+            }),
+            Err(_) => {
+                let _ = line.guard.kill();
+                Err(RobotError::Open {
+                    device: device.to_owned(),
+                    reason: "the serial guard did not start".into(),
+                })
+            }
+        }
+    }
+}
+
+impl Line for GuardedLine {
+    fn exchange(&mut self, command: &str) -> Result<String, RobotError> {
+        // A reply that came after its exchange gave up is not this one's.
+        while self.replies.try_recv().is_ok() {}
+        let ended = || RobotError::Io(std::io::Error::other("the serial guard has ended"));
+        let to_guard = self.to_guard.as_mut().ok_or_else(ended)?;
+        to_guard
+            .write_all(format!("{command}\n").as_bytes())
+            .and_then(|()| to_guard.flush())
+            .map_err(|_| ended())?;
+        // The guard answers within its own reply timeout.
+        let reply = self
+            .replies
+            .recv_timeout(REPLY_TIMEOUT * 2)
+            .map_err(|_| ended())?;
+        if reply == GUARD_TIMEOUT {
+            return Err(RobotError::Timeout {
+                sent: command.to_owned(),
+                waited_ms: REPLY_TIMEOUT.as_millis(),
+            });
+        }
+        if let Some(why) = reply.strip_prefix(GUARD_ERROR) {
+            return Err(RobotError::Io(std::io::Error::other(why.to_owned())));
+        }
+        Ok(reply)
+    }
+}
+
+impl Drop for GuardedLine {
+    fn drop(&mut self) {
+        // Closing its input is what tells the guard to stop the robot and go.
+        drop(self.to_guard.take());
+        let _ = self.guard.wait();
+    }
+}
+
+/// The guard process (`vl serial-guard`): holds the port, relays the
+/// Host's command lines and the robot's replies, and stops the robot when
+/// the Host's end closes (then exits) or goes silent. What goes wrong is
+/// said to the Host on the pipe, so an error returned here needs no more
+/// telling.
+pub fn run_guard(device: &str, baud: u32) -> Result<(), RobotError> {
+    let mut out = std::io::stdout().lock();
+    let mut say = |line: &str| -> Result<(), RobotError> {
+        writeln!(out, "{line}")
+            .and_then(|()| out.flush())
+            .map_err(RobotError::Io)
+    };
+    let mut line = match SerialLine::open(device, baud) {
+        Ok(line) => line,
+        Err(RobotError::Open { reason, .. }) => {
+            say(&format!("{GUARD_ERROR}{reason}"))?;
+            return Err(RobotError::Io(std::io::Error::other(reason)));
+        }
+        Err(e) => {
+            say(&format!("{GUARD_ERROR}{e}"))?;
+            return Err(e);
+        }
+    };
+    say("ready")?;
+    let (tx, commands) = mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        let mut input = BufReader::new(std::io::stdin().lock());
+        let mut text = String::new();
+        loop {
+            text.clear();
+            // A line is at most a command's length; anything longer is cut.
+            match input
+                .by_ref()
+                .take(LONGEST_REPLY as u64)
+                .read_line(&mut text)
+            {
+                Ok(0) | Err(_) => break,
+                Ok(_) => {
+                    if tx.send(text.trim().to_owned()).is_err() {
+                        break;
+                    }
+                }
+            }
+        }
+    });
+    let mut silent_stop = false;
+    loop {
+        match commands.recv_timeout(SILENCE) {
+            Ok(command) => {
+                silent_stop = false;
+                let reply = match line.exchange(&command) {
+                    Ok(reply) => reply,
+                    Err(RobotError::Timeout { .. }) => GUARD_TIMEOUT.to_owned(),
+                    // The Host says what failed; the guard passes the cause.
+                    Err(RobotError::Io(e)) => format!("{GUARD_ERROR}{e}"),
+                    Err(e) => format!("{GUARD_ERROR}{e}"),
+                };
+                say(&reply)?;
+            }
+            Err(mpsc::RecvTimeoutError::Timeout) => {
+                if !silent_stop {
+                    silent_stop = true;
+                    let _ = line.exchange(STOP);
+                }
+            }
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                // The Host is gone: stop the robot, whatever it was doing.
+                let _ = line.exchange(STOP);
+                return Ok(());
+            }
+        }
+    }
+}

@@ -1,0 +1,313 @@
+//! One connection's task: the WebSocket handshake, reading and decoding
+//! what the client sends (within size and rate limits, off the hub), and
+//! writing what the hub, the lab's feedback and the camera have for it —
+//! each stage with a timeout.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use futures_util::stream::SplitSink;
+use futures_util::{SinkExt, StreamExt};
+use tokio::net::TcpStream;
+use tokio::sync::{mpsc, watch};
+use tokio_tungstenite::WebSocketStream;
+use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
+use tokio_tungstenite::tungstenite::{self, Bytes, Message};
+use tracing::debug;
+use vl_core::{ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES, Wire};
+
+use super::HostConfig;
+use super::admission::Ticket;
+use super::hub::{ToConnection, ToHub};
+
+/// The WebSocket handshake must be done within this.
+const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
+/// A client must take each message within this, or it is too slow to serve.
+const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
+/// How often the Host pings: to measure the round trip and hear the client.
+const PING_EVERY: Duration = Duration::from_secs(1);
+/// Bytes of messages waiting to be written to one client, at most.
+const WRITE_BUFFER: usize = 4 << 20;
+/// Messages a client may send per second, and in a burst.
+const RATE_PER_S: f64 = 200.0;
+const BURST: f64 = 400.0;
+/// Bytes a client may send per second, and in a burst: a definition at its
+/// largest fits in the burst.
+const BYTES_PER_S: f64 = 1024.0 * 1024.0;
+const BYTES_BURST: f64 = 2.0 * 1024.0 * 1024.0;
+/// Messages refused before hello, in all, before the client is cut off.
+const MAX_BEFORE_HELLO: u32 = 16;
+/// How long a client refused before hello is held before it is closed.
+const REFUSED_HOLD: Duration = Duration::from_secs(1);
+/// The largest message taken before hello: a hello is a few dozen bytes.
+const MAX_BEFORE_HELLO_BYTES: usize = 4096;
+
+/// A connection's task and what it shares.
+pub(crate) struct Connection {
+    pub(crate) id: u64,
+    pub(crate) hub: mpsc::Sender<ToHub>,
+    pub(crate) feedback: watch::Receiver<Option<HostMessage>>,
+    pub(crate) frames: watch::Receiver<Option<Bytes>>,
+    pub(crate) config: Arc<HostConfig>,
+    pub(crate) ticket: Ticket,
+}
+
+/// How a connection ends.
+#[derive(Debug)]
+enum End {
+    /// Quietly: the client closed or said bye, or the Host is stopping.
+    Closed,
+    /// With an `error` to the client saying why, then a close.
+    Refused(ErrorCode, String),
+    /// The socket failed.
+    Failed(tungstenite::Error),
+}
+
+/// A token bucket, `rate` a second and `burst` at once, that may be
+/// overdrawn: the overdraft says how long to wait before taking more.
+struct Bucket {
+    rate: f64,
+    burst: f64,
+    tokens: f64,
+    last: Instant,
+}
+
+impl Bucket {
+    fn new(rate: f64, burst: f64) -> Bucket {
+        Bucket {
+            rate,
+            burst,
+            tokens: burst,
+            last: Instant::now(),
+        }
+    }
+
+    /// Takes `amount`; how long until the bucket is out of debt.
+    fn take(&mut self, amount: f64) -> Duration {
+        let now = Instant::now();
+        let refill = now.duration_since(self.last).as_secs_f64() * self.rate;
+        self.tokens = (self.tokens + refill).min(self.burst) - amount;
+        self.last = now;
+        Duration::from_secs_f64((-self.tokens).max(0.0) / self.rate)
+    }
+}
+
+type Sink = SplitSink<WebSocketStream<TcpStream>, Message>;
+
+/// Writes `message`, within the write timeout.
+async fn put(sink: &mut Sink, message: Message) -> Result<(), End> {
+    match tokio::time::timeout(WRITE_TIMEOUT, sink.send(message)).await {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(End::Failed(e)),
+        // It cannot be told why: it is not reading.
+        Err(_) => Err(End::Closed),
+    }
+}
+
+fn text_of(message: &HostMessage) -> Message {
+    Message::text(message.encode())
+}
+
+pub(crate) fn error(code: ErrorCode, message: impl Into<String>) -> HostMessage {
+    HostMessage::Error {
+        code,
+        message: message.into(),
+    }
+}
+
+impl Connection {
+    pub(crate) async fn run(mut self, stream: TcpStream) -> Result<(), tungstenite::Error> {
+        let _ = stream.set_nodelay(true);
+        // Guests send only text: nothing larger than a text message may come.
+        let ws_config = WebSocketConfig::default()
+            .max_message_size(Some(MAX_TEXT_BYTES))
+            .max_frame_size(Some(MAX_TEXT_BYTES))
+            .max_write_buffer_size(WRITE_BUFFER);
+        let handshake = tokio_tungstenite::accept_async_with_config(stream, Some(ws_config));
+        let mut evicted = self.ticket.evicted.clone();
+        let ws = tokio::select! {
+            ws = tokio::time::timeout(HANDSHAKE_TIMEOUT, handshake) => match ws {
+                Ok(ws) => ws?,
+                Err(_) => {
+                    debug!(connection = self.id, "no handshake within {HANDSHAKE_TIMEOUT:?}");
+                    return Ok(());
+                }
+            },
+            // A newer connection needed the slot of one still shaking hands.
+            _ = evicted.wait_for(|out| *out) => return Ok(()),
+        };
+        let (mut sink, mut source) = ws.split();
+        let (to_me, mut inbox) = mpsc::channel(super::hub::OUTBOX);
+        if self.hub.send(ToHub::Join(self.id, to_me)).await.is_err() {
+            return Ok(());
+        }
+        let end = self.serve(&mut sink, &mut source, &mut inbox).await;
+        let _ = self.hub.send(ToHub::Leave(self.id)).await;
+        match end {
+            End::Closed => {}
+            End::Refused(code, why) => {
+                debug!(connection = self.id, %code, "closing: {why}");
+                let _ = put(&mut sink, text_of(&error(code, why))).await;
+                // A client refused before it was welcomed is held, unread,
+                // for a while: one that reconnects at once to try again
+                // would otherwise cost a handshake each time.
+                if !*self.ticket.evicted.borrow() && !self.ticket.is_welcomed() {
+                    let mut evicted = self.ticket.evicted.clone();
+                    let _ = tokio::time::timeout(REFUSED_HOLD, evicted.wait_for(|out| *out)).await;
+                }
+            }
+            End::Failed(e) => return Err(e),
+        }
+        let _ = put(&mut sink, Message::Close(None)).await;
+        Ok(())
+    }
+
+    async fn serve(
+        &mut self,
+        sink: &mut Sink,
+        source: &mut futures_util::stream::SplitStream<WebSocketStream<TcpStream>>,
+        inbox: &mut mpsc::Receiver<ToConnection>,
+    ) -> End {
+        let clock = Instant::now();
+        let hello_by = tokio::time::Instant::now() + self.config.hello_timeout;
+        let mut ping = tokio::time::interval(PING_EVERY);
+        let mut heard = Instant::now();
+        let mut welcomed = false;
+        // A client faster than its rate is not read until it is within it
+        // again: its own socket then holds it back, at no cost to the Host.
+        let mut messages = Bucket::new(RATE_PER_S, BURST);
+        let mut bytes = Bucket::new(BYTES_PER_S, BYTES_BURST);
+        let mut paused_until: Option<tokio::time::Instant> = None;
+        let mut before_hello = 0u32;
+        let mut evicted = self.ticket.evicted.clone();
+        loop {
+            tokio::select! {
+                () = async { tokio::time::sleep_until(paused_until.unwrap_or_else(tokio::time::Instant::now)).await }, if paused_until.is_some() => {
+                    paused_until = None;
+                }
+                incoming = source.next(), if paused_until.is_none() => {
+                    let message = match incoming {
+                        None | Some(Ok(Message::Close(_))) => return End::Closed,
+                        Some(Err(tungstenite::Error::Capacity(e))) => {
+                            // The rest of that message cannot be skipped.
+                            return End::Refused(ErrorCode::TooLarge, format!("message too large: {e}"));
+                        }
+                        Some(Err(e)) => return End::Failed(e),
+                        Some(Ok(message)) => message,
+                    };
+                    heard = Instant::now();
+                    let wait = messages.take(1.0).max(bytes.take(message.len() as f64));
+                    if !wait.is_zero() {
+                        paused_until = Some(tokio::time::Instant::now() + wait);
+                    }
+                    if !welcomed && message.len() > MAX_BEFORE_HELLO_BYTES {
+                        return End::Refused(ErrorCode::TooLarge, "a message this large before hello".into());
+                    }
+                    let text = match message {
+                        Message::Text(text) => text,
+                        Message::Binary(_) => {
+                            let reply = error(ErrorCode::BadMessage, "binary messages flow only from Host to Guest");
+                            if let Err(end) = put(sink, text_of(&reply)).await {
+                                return end;
+                            }
+                            continue;
+                        }
+                        // WebSocket pings are answered by tungstenite.
+                        _ => continue,
+                    };
+                    let reply = match GuestMessage::decode(text.as_str()) {
+                        Ok(GuestMessage::Ping { t }) => Some(HostMessage::Pong { t }),
+                        Ok(GuestMessage::Pong { t }) => {
+                            let rtt_ms = clock.elapsed().as_secs_f64() * 1e3 - t;
+                            debug!(connection = self.id, rtt_ms, "round trip");
+                            None
+                        }
+                        Ok(GuestMessage::Bye) => return End::Closed,
+                        Ok(message @ GuestMessage::Hello { .. }) => {
+                            if self.hub.send(ToHub::Message(self.id, message)).await.is_err() {
+                                return End::Closed;
+                            }
+                            None
+                        }
+                        // Before hello nothing else reaches the hub.
+                        Ok(_) if !welcomed => {
+                            before_hello += 1;
+                            if before_hello >= MAX_BEFORE_HELLO {
+                                return End::Refused(ErrorCode::HelloFirst, "nothing but hello before hello".into());
+                            }
+                            Some(error(ErrorCode::HelloFirst, "send hello first"))
+                        }
+                        Ok(message) => {
+                            if self.hub.send(ToHub::Message(self.id, message)).await.is_err() {
+                                return End::Closed;
+                            }
+                            None
+                        }
+                        Err(e) => Some(error(e.code(), e.to_string())),
+                    };
+                    if let Some(reply) = reply
+                        && let Err(end) = put(sink, text_of(&reply)).await
+                    {
+                        return end;
+                    }
+                }
+                out = inbox.recv() => match out {
+                    Some(ToConnection::Send(message)) => {
+                        if let Err(end) = put(sink, message).await {
+                            return end;
+                        }
+                    }
+                    Some(ToConnection::Subscribe) => {
+                        welcomed = true;
+                        self.ticket.welcomed();
+                        self.feedback.mark_changed();
+                        self.frames.mark_changed();
+                    }
+                    // The hub let go of this client: it could not keep up.
+                    None => {
+                        return End::Refused(ErrorCode::SlowReader, "messages for you piled up unread".into());
+                    }
+                },
+                Ok(()) = self.feedback.changed(), if welcomed => {
+                    let latest = self.feedback.borrow_and_update().clone();
+                    if let Some(message) = latest
+                        && let Err(end) = put(sink, text_of(&message)).await
+                    {
+                        return end;
+                    }
+                }
+                Ok(()) = self.frames.changed(), if welcomed => {
+                    let latest = self.frames.borrow_and_update().clone();
+                    if let Some(frame) = latest
+                        && let Err(end) = put(sink, Message::Binary(frame)).await
+                    {
+                        return end;
+                    }
+                }
+                () = tokio::time::sleep_until(hello_by), if !welcomed => {
+                    let why = format!("no hello within {} s", self.config.hello_timeout.as_secs_f64());
+                    return End::Refused(ErrorCode::Timeout, why);
+                }
+                Ok(()) = evicted.changed() => {
+                    if *evicted.borrow() {
+                        return End::Refused(ErrorCode::Timeout, "pushed out by a newer connection: say hello sooner".into());
+                    }
+                }
+                () = self.hub.closed() => {
+                    let _ = put(sink, text_of(&HostMessage::Bye)).await;
+                    return End::Closed;
+                }
+                _ = ping.tick() => {
+                    if heard.elapsed() > self.config.ping_timeout {
+                        let why = format!("nothing heard for {} s", self.config.ping_timeout.as_secs_f64());
+                        return End::Refused(ErrorCode::Timeout, why);
+                    }
+                    let t = clock.elapsed().as_secs_f64() * 1e3;
+                    if let Err(end) = put(sink, text_of(&HostMessage::Ping { t })).await {
+                        return end;
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,119 @@
+//! The Host's side of the Media: a WebSocket server speaking protocol v1.
+//!
+//! One task per connection reads and writes its socket (`connection`); one
+//! hub task owns the session — who is operator, the supervisor net, the
+//! current definition — and is the only place that changes it, so there
+//! are no locks around session state (`hub`). Feedback and frames bypass
+//! the hub: every connection watches the lab's newest values directly.
+//!
+//! Everything a client can make the Host hold is bounded (`admission`
+//! caps connections and evicts the oldest that never said hello; queues
+//! are bounded; messages are limited in size and rate), and every stage
+//! has a timeout, so no client, however careless or hostile, can slow the
+//! operator's loop or lock anyone out.
+
+mod admission;
+mod connection;
+mod hub;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::net::TcpListener;
+use tokio::sync::mpsc;
+use tracing::{debug, warn};
+use vl_core::{Experiment, Named};
+
+use crate::lab::Lab;
+use admission::Admission;
+use connection::Connection;
+use hub::Hub;
+
+/// How the Host admits people and how long it waits for them.
+#[derive(Debug, Clone)]
+pub struct HostConfig {
+    /// When set, an operator's `hello` must carry this token.
+    pub token: Option<String>,
+    /// What the lab offers, in the order Guests list it.
+    pub experiments: Vec<Experiment>,
+    /// An operator who sends no command for this long during a run loses
+    /// the run and the role.
+    pub lease: Duration,
+    /// A client that answers none of the Host's pings for this long is
+    /// disconnected (a frozen or vanished Guest).
+    pub ping_timeout: Duration,
+    /// A client that has not said hello this long after connecting is
+    /// disconnected.
+    pub hello_timeout: Duration,
+}
+
+impl Default for HostConfig {
+    fn default() -> Self {
+        HostConfig {
+            token: None,
+            experiments: Experiment::ALL.to_vec(),
+            lease: Duration::from_secs(30),
+            ping_timeout: Duration::from_secs(10),
+            hello_timeout: Duration::from_secs(10),
+        }
+    }
+}
+
+/// Messages waiting for the hub, from every connection together.
+const HUB_QUEUE: usize = 256;
+
+/// Accepts connections on `listener` and serves the lab until the task is dropped.
+pub async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
+    let (hub_tx, hub_rx) = mpsc::channel(HUB_QUEUE);
+    let feedback = lab.feedback.clone();
+    let frames = lab.frames.clone();
+    let config = Arc::new(config);
+    let hub = Hub::new(lab, config.clone());
+    // The hub lives exactly as long as the server: dropping this future
+    // drops the lab, which stops the robot.
+    tokio::select! {
+        () = hub.run(hub_rx) => {}
+        () = accept(listener, hub_tx, feedback, frames, config) => {}
+    }
+}
+
+async fn accept(
+    listener: TcpListener,
+    hub: mpsc::Sender<hub::ToHub>,
+    feedback: tokio::sync::watch::Receiver<Option<vl_core::HostMessage>>,
+    frames: tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
+    config: Arc<HostConfig>,
+) {
+    let admission = Admission::new();
+    let mut next_id = 1u64;
+    loop {
+        let (stream, peer) = match listener.accept().await {
+            Ok(accepted) => accepted,
+            Err(e) => {
+                // Out of file descriptors, most likely: wait for some to close.
+                warn!("accept failed: {e}");
+                tokio::time::sleep(Duration::from_millis(50)).await;
+                continue;
+            }
+        };
+        let id = next_id;
+        next_id += 1;
+        let Some(ticket) = admission.admit(id) else {
+            debug!(%peer, "refused: the Host holds as many connections as it serves");
+            continue;
+        };
+        let connection = Connection {
+            id,
+            hub: hub.clone(),
+            feedback: feedback.clone(),
+            frames: frames.clone(),
+            config: config.clone(),
+            ticket,
+        };
+        tokio::spawn(async move {
+            if let Err(e) = connection.run(stream).await {
+                debug!(%peer, "connection {id} ended: {e}");
+            }
+        });
+    }
+}

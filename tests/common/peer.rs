@@ -1,0 +1,142 @@
+//! A raw protocol client: JSON over a WebSocket, as the protocol page
+//! describes it and as a careless or hostile client could send it.
+
+use std::time::Duration;
+
+use futures_util::{SinkExt, StreamExt};
+use serde_json::{Value, json};
+use tokio::net::TcpStream;
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::{MaybeTlsStream, WebSocketStream, connect_async};
+
+pub type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
+
+pub struct Peer {
+    pub ws: Socket,
+    /// Camera frames seen while waiting for text messages.
+    pub frames: usize,
+}
+
+impl Peer {
+    pub async fn connect(url: &str) -> Peer {
+        let (ws, _) = connect_async(url).await.expect("connects");
+        Peer { ws, frames: 0 }
+    }
+
+    pub async fn send(&mut self, message: Value) {
+        self.send_text(&message.to_string()).await;
+    }
+
+    pub async fn send_text(&mut self, text: &str) {
+        self.ws.send(Message::text(text)).await.expect("sends");
+    }
+
+    /// The next text message of `kind`, skipping others; `None` when none
+    /// comes within `wait` or the connection ends.
+    pub async fn next_of(&mut self, kind: &str, wait: Duration) -> Option<Value> {
+        tokio::time::timeout(wait, async {
+            loop {
+                match self.ws.next().await {
+                    Some(Ok(Message::Text(t))) => {
+                        let v: Value = serde_json::from_str(&t).expect("the Host sends JSON");
+                        if v["type"] == kind {
+                            return Some(v);
+                        }
+                    }
+                    Some(Ok(Message::Binary(_))) => self.frames += 1,
+                    Some(Ok(_)) => {}
+                    _ => return None,
+                }
+            }
+        })
+        .await
+        .ok()
+        .flatten()
+    }
+
+    /// The next text message of `kind`; panics after 5 s.
+    pub async fn expect(&mut self, kind: &str) -> Value {
+        self.next_of(kind, Duration::from_secs(5))
+            .await
+            .unwrap_or_else(|| panic!("no {kind} within 5 s"))
+    }
+
+    /// The next `error`, which must carry `code`.
+    pub async fn expect_error(&mut self, code: &str) -> Value {
+        let e = self.expect("error").await;
+        assert_eq!(e["code"], code, "{e}");
+        assert!(!e["message"].as_str().unwrap_or("").is_empty());
+        e
+    }
+
+    /// The first feedback the Host produced at least `ms` after `since`.
+    pub async fn feedback_after(&mut self, since: &Value, ms: f64) -> Value {
+        let t0 = since["t_ms"].as_f64().expect("feedback has t_ms");
+        loop {
+            let f = self.expect("feedback").await;
+            if f["t_ms"].as_f64().unwrap() >= t0 + ms {
+                return f;
+            }
+        }
+    }
+
+    pub async fn hello(&mut self, role: &str) -> Value {
+        self.send(json!({"type": "hello", "protocol": 1, "role": role}))
+            .await;
+        self.expect("welcome").await
+    }
+
+    /// Mounts `experiment` and starts a run on the defaults.
+    pub async fn start(&mut self, experiment: &str) {
+        self.send(json!({"type": "mount", "experiment": experiment}))
+            .await;
+        self.expect("mounted").await;
+        self.send(json!({"type": "start"})).await;
+        self.expect("started").await;
+    }
+
+    /// Sends command `event` (`drive` holds its speeds) and waits for its feedback.
+    pub async fn command(&mut self, event: u64, drive: Value) -> Value {
+        let mut message = drive;
+        message["type"] = json!("command");
+        message["event"] = json!(event);
+        self.send(message).await;
+        loop {
+            let f = self.expect("feedback").await;
+            if f["event"].as_u64() >= Some(event) {
+                return f;
+            }
+        }
+    }
+}
+
+/// Whether every number in `v` is finite (and none is null where a number was).
+pub fn finite(v: &Value) -> bool {
+    match v {
+        Value::Number(n) => n.as_f64().is_some_and(f64::is_finite),
+        Value::Object(o) => o.values().all(finite),
+        Value::Array(a) => a.iter().all(finite),
+        _ => true,
+    }
+}
+
+/// Feedback whose pose and wheels are finite numbers.
+pub fn assert_finite_feedback(f: &Value) {
+    for key in ["pose", "wheels"] {
+        assert!(f[key].is_object() && finite(&f[key]), "{key} in {f}");
+    }
+}
+
+/// Resident and peak memory of process `pid`, MB.
+pub fn memory_mb(pid: u32) -> (f64, f64) {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
+    let field = |name: &str| {
+        status
+            .lines()
+            .find(|l| l.starts_with(name))
+            .and_then(|l| l.split_whitespace().nth(1))
+            .and_then(|kb| kb.parse::<f64>().ok())
+            .map_or(0.0, |kb| kb / 1024.0)
+    };
+    (field("VmRSS:"), field("VmHWM:"))
+}

@@ -1,0 +1,173 @@
+//! Floods from clients that hold no token, and a hundred half-sent 8 MiB
+//! frames, against one Host, while an operator is welcomed and drives. The
+//! attackers run in their own threads and runtime; this file has this one
+//! test, so no other test's Hosts share the machine with it.
+
+mod common;
+
+use std::io::{BufRead, BufReader, Write};
+use std::net::TcpStream as StdTcp;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use futures_util::SinkExt;
+use serde_json::json;
+use tokio_tungstenite::connect_async;
+use tokio_tungstenite::tungstenite::Message;
+
+use common::peer::{Peer, memory_mb};
+use common::start_host;
+
+/// Sends a WebSocket handshake by hand, then the start of a frame that
+/// claims 8 MiB − 1 bytes, and stalls.
+fn half_frame(addr: &str) -> Option<StdTcp> {
+    let mut s = StdTcp::connect(addr).ok()?;
+    let request = format!(
+        "GET / HTTP/1.1\r\nHost: {addr}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+         Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
+    );
+    s.write_all(request.as_bytes()).ok()?;
+    let mut reader = BufReader::new(s.try_clone().ok()?);
+    let mut line = String::new();
+    while reader.read_line(&mut line).ok()? > 2 {
+        line.clear();
+    }
+    let len: u64 = (8 << 20) - 1;
+    let mut header = vec![0x81, 0xFF];
+    header.extend_from_slice(&len.to_be_bytes());
+    header.extend_from_slice(&[1, 2, 3, 4]);
+    header.extend(std::iter::repeat_n(b'x', 64 << 10));
+    let _ = s.write_all(&header);
+    Some(s)
+}
+
+/// Floods from clients with no token, and a hundred half-sent 8 MiB
+/// frames, while an operator is welcomed and drives.
+/// The attackers: two clients pipelining tiny messages as fast as they
+/// can, two sending 1 MiB of JSON again and again (both reconnecting when
+/// cut off), and a hundred half-sent 8 MiB frames renewed as the Host drops
+/// them — on their own threads and runtime, until `stop`.
+fn attack(url: String, stop: Arc<AtomicBool>) -> Vec<std::thread::JoinHandle<()>> {
+    let mut threads = Vec::new();
+    {
+        let (url, stop) = (url.clone(), stop.clone());
+        threads.push(std::thread::spawn(move || {
+            let runtime = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .unwrap();
+            runtime.block_on(async move {
+                let mut tasks = Vec::new();
+                for _ in 0..2 {
+                    let (url, stop) = (url.clone(), stop.clone());
+                    tasks.push(tokio::spawn(async move {
+                        while !stop.load(Ordering::Relaxed) {
+                            let Ok((mut ws, _)) = connect_async(&url).await else {
+                                continue;
+                            };
+                            // Until the Host cuts it off: a full socket holds it back.
+                            for i in 0u64.. {
+                                if stop.load(Ordering::Relaxed) {
+                                    break;
+                                }
+                                let tiny = if i % 2 == 0 {
+                                    r#"{"type":"ping","t":1}"#
+                                } else {
+                                    "x"
+                                };
+                                if ws.feed(Message::text(tiny)).await.is_err() {
+                                    break;
+                                }
+                                if i % 64 == 0 && ws.flush().await.is_err() {
+                                    break;
+                                }
+                            }
+                        }
+                    }));
+                }
+                for _ in 0..2 {
+                    let (url, stop) = (url.clone(), stop.clone());
+                    tasks.push(tokio::spawn(async move {
+                        let pad = "y".repeat((1 << 20) - 80);
+                        let big = format!(
+                            r#"{{"type":"hello","protocol":1,"role":"observer","pad":"{pad}"}}"#
+                        );
+                        while !stop.load(Ordering::Relaxed) {
+                            let Ok((mut ws, _)) = connect_async(&url).await else {
+                                continue;
+                            };
+                            while !stop.load(Ordering::Relaxed) {
+                                if ws.send(Message::text(big.clone())).await.is_err() {
+                                    break;
+                                }
+                            }
+                        }
+                    }));
+                }
+                for task in tasks {
+                    let _ = task.await;
+                }
+            });
+        }));
+    }
+    let addr = url.trim_start_matches("ws://").to_owned();
+    threads.push(std::thread::spawn(move || {
+        // A hundred of them open at once; one the Host has closed is opened again.
+        let mut held: Vec<Option<StdTcp>> = (0..100).map(|_| None).collect();
+        while !stop.load(Ordering::Relaxed) {
+            for slot in &mut held {
+                let closed = slot.as_ref().is_none_or(|s| {
+                    let _ = s.set_nonblocking(true);
+                    let mut byte = [0u8; 1];
+                    matches!(std::io::Read::read(&mut &*s, &mut byte), Ok(0))
+                        || matches!(std::io::Read::read(&mut &*s, &mut byte), Err(e) if e.kind() != std::io::ErrorKind::WouldBlock)
+                });
+                if closed {
+                    *slot = half_frame(&addr);
+                }
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }));
+    threads
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn floods_and_half_frames_do_not_slow_the_operator() {
+    let (host, url) = start_host(&["--camera", "sim"]);
+    let pid = host.0.id();
+    let stop = Arc::new(AtomicBool::new(false));
+    let attackers = attack(url.clone(), stop.clone());
+    tokio::time::sleep(Duration::from_secs(2)).await;
+
+    let started = Instant::now();
+    let mut op = Peer::connect(&url).await;
+    op.hello("operator").await;
+    let welcome_ms = started.elapsed().as_secs_f64() * 1e3;
+    op.start("teleoperation").await;
+    // The operator's round trips, while it drives.
+    let mut rtts = Vec::new();
+    for event in 1..=500u64 {
+        let t = Instant::now();
+        op.send(json!({"type": "ping", "t": 0.0})).await;
+        op.expect("pong").await;
+        rtts.push(t.elapsed().as_secs_f64() * 1e3);
+        op.command(event, json!({"v": 50.0, "w": 0.5})).await;
+    }
+    rtts.sort_by(f64::total_cmp);
+    let p50 = rtts[rtts.len() / 2];
+    let p99 = rtts[rtts.len() * 99 / 100];
+    let (rss, peak) = memory_mb(pid);
+    stop.store(true, Ordering::Relaxed);
+    for a in attackers {
+        let _ = a.join();
+    }
+    println!(
+        "welcomed in {welcome_ms:.1} ms; operator round trip p50 {p50:.2} ms, p99 {p99:.2} ms; \
+         Host memory {rss:.0} MB resident, {peak:.0} MB peak"
+    );
+    assert!(welcome_ms < 100.0, "welcomed after {welcome_ms:.1} ms");
+    assert!(p99 < 5.0, "round trip p99 {p99:.2} ms");
+    assert!(peak < 256.0, "the Host grew to {peak:.0} MB");
+}
