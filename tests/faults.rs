@@ -101,10 +101,13 @@ async fn silent_and_frozen_operators_lose_the_role() {
     silent.start("teleoperation").await;
     silent.command(1, json!({"v": 100.0, "w": 0.0})).await;
     let started = Instant::now();
-    let done = silent.expect("done").await;
-    assert_eq!(done["summary"]["reason"], "operator_silent", "{done}");
+    // It answers the Host's pings (Peer does while it waits): only the
+    // lease can end its run.
     let e = silent.expect("error").await;
     assert_eq!(e["code"], "timeout", "{e}");
+    assert!(e["message"].as_str().unwrap().contains("no command"), "{e}");
+    let done = silent.expect("done").await;
+    assert_eq!(done["summary"]["reason"], "operator_silent", "{done}");
     println!(
         "a silent operator lost the run after {:.2} s",
         started.elapsed().as_secs_f64()

@@ -32,7 +32,8 @@ impl Peer {
     }
 
     /// The next text message of `kind`, skipping others; `None` when none
-    /// comes within `wait` or the connection ends.
+    /// comes within `wait` or the connection ends. While it reads it answers
+    /// the Host's pings, as a live Guest does (a frozen one does not read).
     pub async fn next_of(&mut self, kind: &str, wait: Duration) -> Option<Value> {
         tokio::time::timeout(wait, async {
             loop {
@@ -41,6 +42,12 @@ impl Peer {
                         let v: Value = serde_json::from_str(&t).expect("the Host sends JSON");
                         if v["type"] == kind {
                             return Some(v);
+                        }
+                        if v["type"] == "ping" {
+                            let pong = json!({"type": "pong", "t": v["t"]}).to_string();
+                            if self.ws.send(Message::text(pong)).await.is_err() {
+                                return None;
+                            }
                         }
                     }
                     Some(Ok(Message::Binary(_))) => self.frames += 1,
