@@ -4,6 +4,7 @@
 //! This crate only parses, dispatches and prints.
 
 mod alloc;
+mod camera;
 mod lab;
 mod petri;
 mod plan;
@@ -58,6 +59,9 @@ enum Command {
     Vision(vision::VisionCommand),
     /// Plan a path on a top-view map: C-space, NF1, spline, clearance.
     Plan(plan::PlanArgs),
+    /// Calibrate the overhead camera: its map from floor mm to pixels.
+    #[command(subcommand)]
+    Camera(camera::CameraCommand),
 }
 
 #[global_allocator]
@@ -161,5 +165,6 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Sim(command) => sim::run(command),
         Command::Vision(command) => vision::run(command),
         Command::Plan(args) => plan::run(args),
+        Command::Camera(command) => camera::run(command),
     }
 }

@@ -62,6 +62,25 @@ pub(crate) struct OpticsArgs {
     /// How much darker the bottom-right corner is (0–1).
     #[arg(long, default_value_t = 0.0)]
     lighting: f64,
+    /// How far the camera leans from looking straight down, degrees.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    tilt_deg: f64,
+}
+
+impl OpticsArgs {
+    /// The simulator's optics these flags ask for, checked.
+    pub(crate) fn optics(&self, seed: u64) -> Result<Optics> {
+        let optics = Optics {
+            lens_offset_px: [self.lens_offset.x_mm, self.lens_offset.y_mm],
+            blur_px: self.blur,
+            noise: self.noise,
+            lighting_gradient: self.lighting,
+            seed,
+            tilt_rad: self.tilt_deg.to_radians(),
+        };
+        optics.check().map_err(BadInput)?;
+        Ok(optics)
+    }
 }
 
 #[derive(Subcommand)]
@@ -105,6 +124,10 @@ pub(crate) enum SimCommand {
         /// Seed of the camera noise.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Instead of the arena, a calibration dot target (JSON, as `vl
+        /// camera calibrate --target` takes) laid on its empty floor.
+        #[arg(long)]
+        target: Option<PathBuf>,
         #[arg(short, long)]
         output: PathBuf,
     },
@@ -153,19 +176,17 @@ pub(crate) fn run(command: SimCommand) -> Result<ExitCode> {
             robot,
             optics,
             seed,
+            target,
             output,
         } => {
-            let optics = Optics {
-                lens_offset_px: [optics.lens_offset.x_mm, optics.lens_offset.y_mm],
-                blur_px: optics.blur,
-                noise: optics.noise,
-                lighting_gradient: optics.lighting,
-                seed,
-            };
-            optics.check().map_err(BadInput)?;
+            let optics = optics.optics(seed)?;
             let world = World::new(load_arena(&arena)?, robot.model()?, seed)
                 .map_err(|e| BadInput(e.to_string()))?;
-            render(&world, width, &optics, &output)
+            let target = target
+                .as_deref()
+                .map(crate::camera::load_target)
+                .transpose()?;
+            render(&world, width, &optics, target.as_ref(), &output)
         }
         SimCommand::Bench { seconds, json } => {
             if !(seconds.is_finite() && seconds > 0.0) {
@@ -324,17 +345,29 @@ impl Report for SimBench {
     }
 }
 
-fn render(world: &World, width: u32, optics: &Optics, output: &Path) -> Result<ExitCode> {
+fn render(
+    world: &World,
+    width: u32,
+    optics: &Optics,
+    target: Option<&vl_core::DotTarget>,
+    output: &Path,
+) -> Result<ExitCode> {
     let camera = camera_for(world, width.max(1), 15.0);
-    world
-        .render(&camera, optics)
+    let image = match target {
+        Some(target) => {
+            let arena = world.arena();
+            vl_sim::render_target(target, &camera, optics, arena.width_mm, arena.height_mm)
+        }
+        None => world.render(&camera, optics),
+    };
+    image
         .save(output)
         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", output.display()))?;
     println!(
-        "{}×{} px, {} mm per px; wrote {}",
+        "{}×{} px, {:.3} mm per px at the centre; wrote {}",
         camera.width_px,
         camera.height_px,
-        camera.mm_per_px,
+        camera.mm_per_px(),
         output.display()
     );
     Ok(ExitCode::SUCCESS)

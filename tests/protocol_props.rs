@@ -6,8 +6,8 @@ use proptest::prelude::*;
 use serde_json::{Value, json};
 use vl_core::{
     Arena, CameraModel, Definition, Drive, EndReason, ErrorCode, Experiment, ExperimentInfo, Goal,
-    GuestMessage, HostMessage, Material, Named, Obstacle, Point, Pose, RobotModel, Role,
-    SensorMount, Shape, SpeedResponse, Summary, WheelSpeeds, Wire,
+    GuestMessage, HostMessage, Material, MountedLab, Named, Obstacle, Point, Pose, RobotModel,
+    Role, SensorMount, Shape, SpeedResponse, Summary, WheelSpeeds, Wire,
 };
 
 fn num() -> impl Strategy<Value = f64> {
@@ -163,14 +163,17 @@ fn robot() -> impl Strategy<Value = RobotModel> {
 }
 
 fn camera() -> impl Strategy<Value = CameraModel> {
-    (any::<u32>(), any::<u32>(), num(), num()).prop_map(|(width_px, height_px, mm_per_px, fps)| {
-        CameraModel {
-            width_px,
-            height_px,
-            mm_per_px,
-            fps,
-        }
-    })
+    (
+        1u32..4000,
+        1u32..4000,
+        100.0f64..4000.0,
+        0.0f64..120.0,
+        -0.7f64..0.7,
+    )
+        .prop_map(|(width_px, height_px, width_mm, fps, tilt)| {
+            CameraModel::tilted(width_mm, 0.75 * width_mm, width_px, height_px, tilt, fps)
+                .expect("within ±0.7 rad the camera sees the floor")
+        })
 }
 
 fn role() -> impl Strategy<Value = Role> {
@@ -285,12 +288,12 @@ fn host_message() -> impl Strategy<Value = HostMessage> {
         num().prop_map(|t| HostMessage::Pong { t }),
         (experiment(), arena(), robot(), camera()).prop_map(
             |(experiment, arena, robot, camera)| {
-                HostMessage::Mounted {
+                HostMessage::Mounted(Box::new(MountedLab {
                     experiment,
                     arena,
                     robot,
                     camera,
-                }
+                }))
             }
         ),
         definition().prop_map(|definition| HostMessage::Defined { definition }),

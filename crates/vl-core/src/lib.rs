@@ -24,12 +24,13 @@ pub use contract::experiment::{Definition, Experiment, ExperimentInfo, Goal};
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::protocol::{
     DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HostMessage,
-    MAX_TEXT_BYTES, PROTOCOL_VERSION, Role, Summary, Wire,
+    MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Role, Summary, Wire,
 };
 pub use contract::session::{Action, NotAllowed, Phase, Supervisor};
 pub use images::{MAX_IMAGE_SIDE, decode_image, load_image};
 pub use model::arena::{Arena, ArenaError, Hit, Material, Obstacle, Shape};
-pub use model::camera::CameraModel;
+pub use model::camera::{Calibration, CameraModel, Reprojection};
+pub use model::homography::{CalibrationError, Homography};
 pub use model::khepera::{
     CommandError, KheperaCommand, KheperaReply, LedAction, MalformedReply, MotorMode, MotorStatus,
 };
@@ -51,7 +52,7 @@ pub use navigation::svg::plan_svg;
 pub use safety::{Guarded, Safety, Situation, Surroundings};
 pub use teleop::{Assisted, Joystick, MapField, Teleop, Vector, predict};
 pub use vision::{
-    Centroid, Component, Connectivity, Mask, RobotPose, Scene, Threshold, ThresholdError,
-    VisionBench, bench as bench_vision, binarise, components, grey, inspect, is_robot, label, otsu,
-    robot_pose,
+    Centroid, Component, Connectivity, DotTarget, Mask, RobotPose, Scene, Threshold,
+    ThresholdError, VisionBench, bench as bench_vision, binarise, components, grey, inspect,
+    is_robot, label, otsu, robot_pose,
 };

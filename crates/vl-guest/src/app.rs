@@ -18,7 +18,8 @@ use vl_core::{
 use crate::client::{ClientError, Connection, Incoming, open};
 use crate::gamepad::Pad;
 use crate::pilot::{Pilot, Route};
-use crate::session::{Link, MountedLab, Session};
+use crate::session::{Link, Session};
+use vl_core::MountedLab;
 
 const JOYSTICK_PX: f32 = 140.0;
 const ROBOT_COLOUR: Color32 = Color32::from_rgb(40, 200, 255);
@@ -634,7 +635,9 @@ struct View<'a> {
 
 impl<'a> View<'a> {
     fn new(rect: Rect, lab: &'a MountedLab) -> View<'a> {
-        let px_per_mm = rect.width() / (lab.camera.width_px as f32 * lab.camera.mm_per_px as f32);
+        // Lengths drawn as circles (the robot, the goal) take the scale at
+        // the image's centre.
+        let px_per_mm = rect.width() / (lab.camera.width_px as f32 * lab.camera.mm_per_px() as f32);
         View {
             rect,
             lab,
@@ -652,71 +655,54 @@ impl<'a> View<'a> {
             )
     }
 
-    /// The screen outline of `shape`: a box, a circle (centre and radius)
-    /// or a polygon's corners.
-    fn outline_of(&self, shape: &Shape) -> ScreenShape {
+    /// The screen outline of `shape`. Through a tilted camera a box is a
+    /// quadrilateral and a circle an ellipse, so both are drawn as the
+    /// image of their outline.
+    fn outline_of(&self, shape: &Shape) -> Vec<Pos2> {
         match *shape {
             Shape::Rect { .. } => {
-                let (low, high) = shape.bounds();
-                ScreenShape::Box(Rect::from_two_pos(
-                    self.to_screen(low),
-                    self.to_screen(high),
-                ))
+                let (lo, hi) = shape.bounds();
+                [
+                    (lo.x_mm, lo.y_mm),
+                    (hi.x_mm, lo.y_mm),
+                    (hi.x_mm, hi.y_mm),
+                    (lo.x_mm, hi.y_mm),
+                ]
+                .map(|(x_mm, y_mm)| self.to_screen(Point { x_mm, y_mm }))
+                .to_vec()
             }
             Shape::Circle {
                 x_mm,
                 y_mm,
                 radius_mm,
-            } => ScreenShape::Disc(
-                self.to_screen(Point { x_mm, y_mm }),
-                radius_mm as f32 * self.px_per_mm,
-            ),
-            Shape::Polygon { ref points } => {
-                ScreenShape::Corners(points.iter().map(|&p| self.to_screen(p)).collect())
-            }
+            } => (0..32)
+                .map(|i| {
+                    let a = f64::from(i) * std::f64::consts::TAU / 32.0;
+                    self.to_screen(Point {
+                        x_mm: x_mm + radius_mm * a.cos(),
+                        y_mm: y_mm + radius_mm * a.sin(),
+                    })
+                })
+                .collect(),
+            Shape::Polygon { ref points } => points.iter().map(|&p| self.to_screen(p)).collect(),
         }
     }
 
     fn outline(&self, painter: &egui::Painter, shape: &Shape, stroke: Stroke) {
-        match self.outline_of(shape) {
-            ScreenShape::Box(r) => {
-                painter.rect_stroke(r, 0.0, stroke, egui::StrokeKind::Middle);
-            }
-            ScreenShape::Disc(c, radius) => {
-                painter.circle_stroke(c, radius, stroke);
-            }
-            ScreenShape::Corners(mut corners) => {
-                corners.extend(corners.first().copied());
-                painter.line(corners, stroke);
-            }
-        }
+        let mut corners = self.outline_of(shape);
+        corners.extend(corners.first().copied());
+        painter.line(corners, stroke);
     }
 
+    /// egui fills convex outlines; arena polygons are checked simple, and a
+    /// concave one still shows its outline.
     fn fill(&self, painter: &egui::Painter, shape: &Shape, colour: Color32) {
-        match self.outline_of(shape) {
-            ScreenShape::Box(r) => {
-                painter.rect_filled(r, 0.0, colour);
-            }
-            ScreenShape::Disc(c, radius) => {
-                painter.circle_filled(c, radius, colour);
-            }
-            // egui fills convex outlines; arena polygons are checked simple,
-            // and a concave one still shows its outline.
-            ScreenShape::Corners(corners) => {
-                painter.add(egui::Shape::convex_polygon(
-                    corners,
-                    colour,
-                    Stroke::new(1.0, colour),
-                ));
-            }
-        }
+        painter.add(egui::Shape::convex_polygon(
+            self.outline_of(shape),
+            colour,
+            Stroke::new(1.0, colour),
+        ));
     }
-}
-
-enum ScreenShape {
-    Box(Rect),
-    Disc(Pos2, f32),
-    Corners(Vec<Pos2>),
 }
 
 impl eframe::App for GuestApp {

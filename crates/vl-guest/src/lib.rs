@@ -17,4 +17,4 @@ pub use gamepad::{Effect, Pad, PadInput, effect};
 pub use gamepad::{Gamepad, GamepadError};
 pub use headless::{Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, watch};
 pub use pilot::{Pilot, Route};
-pub use session::{CameraFrame, Devices, Link, MountedLab, RobotState, RoundTrips, Session};
+pub use session::{CameraFrame, Devices, Link, RobotState, RoundTrips, Session};

@@ -5,7 +5,8 @@
 
 use vl_core::{ArenaPlanError, Definition, Drive, Follower, Goal, Plan, Pose, Shape, plan_route};
 
-use crate::session::{MountedLab, RobotState};
+use crate::session::RobotState;
+use vl_core::MountedLab;
 
 /// A definition that reaches a goal, with the plan behind its path.
 #[derive(Debug, Clone)]

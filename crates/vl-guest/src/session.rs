@@ -4,9 +4,8 @@
 
 use image::RgbaImage;
 use vl_core::{
-    Arena, CameraModel, Definition, DeviceState, Drive, ErrorCode, Experiment, ExperimentInfo,
-    FrameHeader, GuestMessage, HostMessage, ImageFormat, Pose, RobotModel, Role, Summary,
-    WheelSpeeds,
+    Definition, DeviceState, Drive, ErrorCode, ExperimentInfo, FrameHeader, GuestMessage,
+    HostMessage, ImageFormat, MountedLab, Pose, Role, Summary, WheelSpeeds,
 };
 
 use crate::client::Incoming;
@@ -15,15 +14,6 @@ use crate::client::Incoming;
 const ERRORS_KEPT: usize = 8;
 /// Round-trip samples kept for the percentiles.
 const RTT_KEPT: usize = 10_000;
-
-/// The lab as mounted.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MountedLab {
-    pub experiment: Experiment,
-    pub arena: Arena,
-    pub robot: RobotModel,
-    pub camera: CameraModel,
-}
 
 /// The robot's latest reported state.
 #[derive(Debug, Clone, PartialEq)]
@@ -178,18 +168,8 @@ impl Session {
                 }
                 self.errors.push((code, message));
             }
-            HostMessage::Mounted {
-                experiment,
-                arena,
-                robot,
-                camera,
-            } => {
-                self.lab = Some(MountedLab {
-                    experiment,
-                    arena,
-                    robot,
-                    camera,
-                });
+            HostMessage::Mounted(lab) => {
+                self.lab = Some(*lab);
                 self.definition = None;
                 self.errors.clear();
             }

@@ -4,7 +4,7 @@ use image::{Rgb, RgbImage};
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
-use vl_core::{Arena, CameraModel, Point};
+use vl_core::{Calibration, CalibrationError, CameraModel, DotTarget, Point};
 
 use crate::noise::gaussian;
 use crate::world::World;
@@ -32,11 +32,54 @@ pub struct Optics {
     pub lighting_gradient: f64,
     /// Seed of the noise; each frame also mixes in the virtual time.
     pub seed: u64,
+    /// How far the camera leans from looking straight down, rad (towards
+    /// the floor's +y side, which then looks narrower).
+    pub tilt_rad: f64,
 }
 
 impl Optics {
+    /// Lens offset, blur, sensor noise and a lighting gradient together, as
+    /// an inexpensive webcam over a lab bench shows the floor.
+    pub fn noisy(seed: u64) -> Optics {
+        Optics {
+            lens_offset_px: [5.0, -3.0],
+            blur_px: 0.8,
+            noise: 4.0,
+            lighting_gradient: 0.3,
+            seed,
+            tilt_rad: 0.0,
+        }
+    }
+
+    /// The camera that really takes the picture when the lab believes in
+    /// `nominal`, over a `width_mm` × `height_mm` floor: tilted if the
+    /// optics say so (the lens offset shifts its images on top).
+    pub fn view(&self, nominal: &CameraModel, width_mm: f64, height_mm: f64) -> CameraModel {
+        if self.tilt_rad == 0.0 {
+            return *nominal;
+        }
+        CameraModel::tilted(
+            width_mm,
+            height_mm,
+            nominal.width_px,
+            nominal.height_px,
+            self.tilt_rad,
+            nominal.fps,
+        )
+        // `check` keeps the tilt within what looks at the floor.
+        .unwrap_or(*nominal)
+    }
+
     /// Whether the options make sense, naming the one that does not.
     pub fn check(&self) -> Result<(), String> {
+        if !(self.tilt_rad.is_finite()
+            && self.tilt_rad.abs() <= std::f64::consts::FRAC_PI_4 + 1e-12)
+        {
+            return Err(format!(
+                "the camera may lean at most 45° from looking straight down, not {:.1}°",
+                self.tilt_rad.to_degrees()
+            ));
+        }
         let [dx, dy] = self.lens_offset_px;
         if !(dx.is_finite() && dy.is_finite()) {
             return Err("the lens offset must be finite".into());
@@ -64,119 +107,199 @@ pub fn camera_for(world: &World, width_px: u32, fps: f64) -> CameraModel {
 
 impl World {
     /// The overhead camera's view of the arena and the robot now. Each shape
-    /// is painted over its own bounding box only, so a frame costs about one
-    /// pass over the image whatever the arena holds.
+    /// is painted over the pixels its bounding box covers only, so a frame
+    /// costs about one pass over the image whatever the arena holds.
     pub fn render(&self, camera: &CameraModel, optics: &Optics) -> RgbImage {
         let arena = self.arena();
         let robot = self.robot();
         let pose = self.pose();
-        let [dx, dy] = optics.lens_offset_px;
-        // The camera shifted by the lens offset sees these arena points.
-        let sample =
-            |c: u32, r: u32| camera.to_arena(f64::from(c) + 0.5 - dx, f64::from(r) + 0.5 - dy);
-        let shifted = |p: Point| Point {
-            x_mm: p.x_mm + dx * camera.mm_per_px,
-            y_mm: p.y_mm - dy * camera.mm_per_px,
-        };
-        let mut image = RgbImage::from_pixel(camera.width_px, camera.height_px, FLOOR);
-        paint_walls(&mut image, camera, arena, optics.lens_offset_px);
+        let camera = &optics.view(camera, arena.width_mm, arena.height_mm);
+        let mut image = floor_and_walls(
+            camera,
+            optics,
+            arena.width_mm,
+            arena.height_mm,
+            Rgb(arena.walls.colour),
+        );
         for obstacle in &arena.obstacles {
-            let (lo, hi) = obstacle.shape.bounds();
             let colour = Rgb(obstacle.material.colour);
-            paint(
-                &mut image,
-                camera,
-                (shifted(lo), shifted(hi)),
-                &sample,
-                |p| (obstacle.shape.distance(p) <= 0.0).then_some(colour),
-            );
+            paint(&mut image, camera, optics, obstacle.shape.bounds(), |p| {
+                (obstacle.shape.distance(p) <= 0.0).then_some(colour)
+            });
         }
         let marker = pose.to_world(robot.radius_mm * 0.45, 0.0);
         let marker_r = robot.radius_mm * 0.35;
         let r = robot.radius_mm;
         let body = (
-            shifted(Point {
+            Point {
                 x_mm: pose.x_mm - r,
                 y_mm: pose.y_mm - r,
-            }),
-            shifted(Point {
+            },
+            Point {
                 x_mm: pose.x_mm + r,
                 y_mm: pose.y_mm + r,
-            }),
+            },
         );
-        paint(&mut image, camera, body, &sample, |p| {
+        paint(&mut image, camera, optics, body, |p| {
             if p.distance(marker) <= marker_r {
                 Some(MARKER)
             } else {
                 (p.distance(pose.point()) <= r).then_some(BODY)
             }
         });
-        if optics.blur_px > 0.0 {
-            blur(&mut image, optics.blur_px);
-        }
-        if optics.lighting_gradient > 0.0 || optics.noise > 0.0 {
-            let seed = optics.seed ^ (self.time_s() * 1e3).round() as u64;
-            shade(&mut image, optics, seed);
-        }
+        finish(&mut image, optics, self.time_s());
         image
     }
 }
 
-/// Paints the walls' colour on the pixels whose centre, shifted by the
-/// lens offset, lies beyond the floor: whole columns and rows, computed
-/// rather than tested pixel by pixel.
-fn paint_walls(image: &mut RgbImage, camera: &CameraModel, arena: &Arena, [dx, dy]: [f64; 2]) {
-    let (w, h) = (camera.width_px, camera.height_px);
-    // The first and one-past-last index in 0..n whose centre + shift lies in 0..=extent px.
-    let span = |n: u32, shift: f64, extent: f64| {
-        let first = (shift - 0.5).ceil().clamp(0.0, f64::from(n)) as u32;
-        let end = ((extent + shift - 0.5).floor() + 1.0).clamp(0.0, f64::from(n)) as u32;
-        (first, end.max(first))
-    };
-    // Pixel c sees x = (c + 0.5 − dx)·S; row r sees y = (H − r − 0.5 + dy)·S.
-    let (c0, c1) = span(w, dx, arena.width_mm / camera.mm_per_px);
-    let (r0, r1) = span(
-        h,
-        f64::from(h) - arena.height_mm / camera.mm_per_px + dy,
-        arena.height_mm / camera.mm_per_px,
-    );
-    let walls = Rgb(arena.walls.colour);
-    for r in 0..h {
-        if (r0..r1).contains(&r) {
-            for c in (0..c0).chain(c1..w) {
-                image.put_pixel(c, r, walls);
-            }
+/// What `camera` with `optics` shows of a calibration `target` laid on an
+/// empty `width_mm` × `height_mm` floor.
+pub fn render_target(
+    target: &DotTarget,
+    camera: &CameraModel,
+    optics: &Optics,
+    width_mm: f64,
+    height_mm: f64,
+) -> RgbImage {
+    let camera = &optics.view(camera, width_mm, height_mm);
+    let mut image = floor_and_walls(camera, optics, width_mm, height_mm, Rgb([30, 30, 30]));
+    let dot = Rgb([20, 20, 24]);
+    for centre in target.points() {
+        let r = target.radius_mm;
+        let bounds = (
+            Point {
+                x_mm: centre.x_mm - r,
+                y_mm: centre.y_mm - r,
+            },
+            Point {
+                x_mm: centre.x_mm + r,
+                y_mm: centre.y_mm + r,
+            },
+        );
+        paint(&mut image, camera, optics, bounds, |p| {
+            (p.distance(centre) <= r).then_some(dot)
+        });
+    }
+    finish(&mut image, optics, 0.0);
+    image
+}
+
+/// A simulated camera calibrated as lab staff calibrate a real one, and
+/// how far the result is from the truth the simulator knows.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SimCalibration {
+    pub calibration: Calibration,
+    /// The largest distance, over a grid across the floor, between where
+    /// the calibrated model and the true camera put a floor point, px.
+    pub truth_max_px: f64,
+}
+
+/// Lays `DotTarget::spread_over` the floor, takes its picture through
+/// `optics`, and fits the camera from it.
+pub fn calibrate(
+    nominal: &CameraModel,
+    optics: &Optics,
+    width_mm: f64,
+    height_mm: f64,
+) -> Result<SimCalibration, CalibrationError> {
+    let target = DotTarget::spread_over(width_mm, height_mm);
+    let image = render_target(&target, nominal, optics, width_mm, height_mm);
+    let calibration = target.calibrate(&image, nominal.fps)?;
+    let truth = optics.view(nominal, width_mm, height_mm);
+    let [dx, dy] = optics.lens_offset_px;
+    let mut truth_max_px = 0.0f64;
+    for i in 0..=16 {
+        for j in 0..=12 {
+            let p = Point {
+                x_mm: f64::from(i) * width_mm / 16.0,
+                y_mm: f64::from(j) * height_mm / 12.0,
+            };
+            let (c, r) = calibration.camera.to_pixel(p);
+            let (c0, r0) = truth.to_pixel(p);
+            truth_max_px = truth_max_px.max((c - c0 - dx).hypot(r - r0 - dy));
+        }
+    }
+    Ok(SimCalibration {
+        calibration,
+        truth_max_px,
+    })
+}
+
+/// The floor point pixel (c, r)'s centre sees, through the lens offset.
+fn sample(camera: &CameraModel, optics: &Optics, c: u32, r: u32) -> Point {
+    let [dx, dy] = optics.lens_offset_px;
+    camera.to_arena(f64::from(c) + 0.5 - dx, f64::from(r) + 0.5 - dy)
+}
+
+/// An image of the bare floor, with the walls' colour wherever a pixel
+/// sees beyond it.
+fn floor_and_walls(
+    camera: &CameraModel,
+    optics: &Optics,
+    width_mm: f64,
+    height_mm: f64,
+    walls: Rgb<u8>,
+) -> RgbImage {
+    RgbImage::from_fn(camera.width_px, camera.height_px, |c, r| {
+        let p = sample(camera, optics, c, r);
+        if (0.0..=width_mm).contains(&p.x_mm) && (0.0..=height_mm).contains(&p.y_mm) {
+            FLOOR
         } else {
-            for c in 0..w {
-                image.put_pixel(c, r, walls);
+            walls
+        }
+    })
+}
+
+/// Paints the pixels that see a floor point within `bounds` (mm) that
+/// `colour` gives a colour.
+fn paint(
+    image: &mut RgbImage,
+    camera: &CameraModel,
+    optics: &Optics,
+    (lo, hi): (Point, Point),
+    colour: impl Fn(Point) -> Option<Rgb<u8>>,
+) {
+    let (w, h) = (camera.width_px, camera.height_px);
+    let [dx, dy] = optics.lens_offset_px;
+    // A homography takes the box to a quadrilateral inside its corners' box.
+    let corners = [
+        (lo.x_mm, lo.y_mm),
+        (hi.x_mm, lo.y_mm),
+        (lo.x_mm, hi.y_mm),
+        (hi.x_mm, hi.y_mm),
+    ]
+    .map(|(x_mm, y_mm)| camera.to_pixel(Point { x_mm, y_mm }));
+    let extent = |f: fn(f64, f64) -> f64, start: f64, pick: fn(&(f64, f64)) -> f64| {
+        corners.iter().map(pick).fold(start, f)
+    };
+    let clamp = |v: f64, max: u32| {
+        if v.is_nan() {
+            0
+        } else {
+            v.floor().clamp(0.0, f64::from(max)) as u32
+        }
+    };
+    let cols = clamp(extent(f64::min, f64::INFINITY, |p| p.0) + dx, w)
+        ..clamp(extent(f64::max, f64::NEG_INFINITY, |p| p.0) + dx + 1.0, w);
+    let rows = clamp(extent(f64::min, f64::INFINITY, |p| p.1) + dy, h)
+        ..clamp(extent(f64::max, f64::NEG_INFINITY, |p| p.1) + dy + 1.0, h);
+    for r in rows {
+        for c in cols.clone() {
+            if let Some(colour) = colour(sample(camera, optics, c, r)) {
+                image.put_pixel(c, r, colour);
             }
         }
     }
 }
 
-/// Paints the pixels whose centre falls in `bounds` (mm) that `colour`
-/// gives a colour; `sample` says which arena point a pixel sees.
-fn paint(
-    image: &mut RgbImage,
-    camera: &CameraModel,
-    (lo, hi): (Point, Point),
-    sample: &impl Fn(u32, u32) -> Point,
-    colour: impl Fn(Point) -> Option<Rgb<u8>>,
-) {
-    let (w, h) = (camera.width_px, camera.height_px);
-    let (c0, r1) = camera.to_pixel(lo);
-    let (c1, r0) = camera.to_pixel(hi);
-    let clamp = |v: f64, max: u32| v.floor().clamp(0.0, f64::from(max)) as u32;
-    let (cols, rows) = (
-        clamp(c0, w)..clamp(c1 + 1.0, w),
-        clamp(r0, h)..clamp(r1 + 1.0, h),
-    );
-    for r in rows {
-        for c in cols.clone() {
-            if let Some(colour) = colour(sample(c, r)) {
-                image.put_pixel(c, r, colour);
-            }
-        }
+/// Blur, lighting and noise, in that order (as lens, lamp and sensor).
+fn finish(image: &mut RgbImage, optics: &Optics, time_s: f64) {
+    if optics.blur_px > 0.0 {
+        blur(image, optics.blur_px);
+    }
+    if optics.lighting_gradient > 0.0 || optics.noise > 0.0 {
+        let seed = optics.seed ^ (time_s * 1e3).round() as u64;
+        shade(image, optics, seed);
     }
 }
 
@@ -253,6 +376,27 @@ mod tests {
             *img.get_pixel(bc as u32, br as u32),
             Rgb(w.arena().obstacles[0].material.colour)
         );
+    }
+
+    /// A dot target seen through a tilted, offset, blurred, noisy camera
+    /// under a lamp calibrates the camera to within half a pixel
+    /// everywhere on the floor.
+    #[test]
+    fn a_dot_target_calibrates_a_tilted_noisy_camera() {
+        let nominal = CameraModel::overhead(800.0, 600.0, 640, 15.0);
+        for (tilt, seed) in [(0.0, 1), (0.25, 2), (0.45, 3)] {
+            let optics = Optics {
+                tilt_rad: tilt,
+                ..Optics::noisy(seed)
+            };
+            let fit = calibrate(&nominal, &optics, 800.0, 600.0).unwrap();
+            println!(
+                "tilt {tilt}: rms {:.3} px, {:.3} px from the truth at worst",
+                fit.calibration.reprojection.rms_px, fit.truth_max_px
+            );
+            assert!(fit.calibration.reprojection.rms_px < 0.5, "{fit:?}");
+            assert!(fit.truth_max_px < 0.5, "{fit:?}");
+        }
     }
 
     #[test]

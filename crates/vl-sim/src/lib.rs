@@ -17,7 +17,7 @@ mod script;
 mod world;
 
 pub use bench::{SimBench, bench};
-pub use camera::{Optics, camera_for};
+pub use camera::{Optics, SimCalibration, calibrate, camera_for, render_target};
 pub use emulator::{Emulator, EmulatorError, Line};
 pub use khepera::Khepera;
 pub use link::{

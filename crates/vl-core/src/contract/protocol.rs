@@ -213,6 +213,17 @@ pub enum GuestMessage {
     Bye,
 }
 
+/// The lab as mounted: what the Guest needs to show and plan on it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MountedLab {
+    pub experiment: Experiment,
+    /// The floor and its obstacles: as the camera sees them when the lab
+    /// has one, else as configured.
+    pub arena: Arena,
+    pub robot: RobotModel,
+    pub camera: CameraModel,
+}
+
 /// Messages the Host sends.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
@@ -232,12 +243,7 @@ pub enum HostMessage {
     Pong {
         t: f64,
     },
-    Mounted {
-        experiment: Experiment,
-        arena: Arena,
-        robot: RobotModel,
-        camera: CameraModel,
-    },
+    Mounted(Box<MountedLab>),
     Defined {
         #[serde(flatten)]
         definition: Definition,

@@ -1,50 +1,252 @@
-//! The overhead camera's model: how arena millimetres map to image pixels.
+//! The overhead camera's model: how floor millimetres map to image pixels.
 //!
-//! The frame follows ROS map files: the image's bottom-left corner is the
-//! arena origin, x right, y up, so pixel (column c, row r) of an H-row
-//! image has its centre at ((c + 0.5)·S, (H − r − 0.5)·S) for S mm per pixel.
+//! A real lab's camera is never exactly overhead: it is tilted, off-centre,
+//! its lens sits off the sensor's axis. Whatever its pose, a flat floor
+//! appears through a homography, which calibration fits from floor points
+//! whose pixels are known. The floor frame follows ROS map files: origin
+//! bottom-left, x right, y up; images have rows going down. Pixel (c, r)
+//! covers [c, c+1) × [r, r+1).
 
 use serde::{Deserialize, Serialize};
 
 use crate::Point;
+use crate::model::homography::{CalibrationError, Homography};
 
+/// A camera: its image size and frame rate, and where each floor point
+/// appears in its images.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "CameraWire", into = "CameraWire")]
 pub struct CameraModel {
     pub width_px: u32,
     pub height_px: u32,
-    pub mm_per_px: f64,
     /// Frames per second the Host captures at.
     pub fps: f64,
+    floor_to_image: Homography,
+    image_to_floor: Homography,
+}
+
+/// How a camera model travels: the map one way; the other is derived.
+#[derive(Serialize, Deserialize)]
+struct CameraWire {
+    width_px: u32,
+    height_px: u32,
+    fps: f64,
+    /// Floor mm (x, y, 1) → image (column, row, 1) up to scale, row by row.
+    floor_to_image: Homography,
+}
+
+impl TryFrom<CameraWire> for CameraModel {
+    type Error = String;
+
+    fn try_from(wire: CameraWire) -> Result<Self, String> {
+        if !(wire.fps.is_finite() && wire.fps >= 0.0) {
+            return Err(format!(
+                "a camera's frame rate must be zero or more, not {}",
+                wire.fps
+            ));
+        }
+        if wire.width_px == 0 || wire.height_px == 0 {
+            return Err("a camera's image must have pixels".into());
+        }
+        Ok(CameraModel::new(
+            wire.width_px,
+            wire.height_px,
+            wire.fps,
+            wire.floor_to_image,
+        ))
+    }
+}
+
+impl From<CameraModel> for CameraWire {
+    fn from(camera: CameraModel) -> Self {
+        CameraWire {
+            width_px: camera.width_px,
+            height_px: camera.height_px,
+            fps: camera.fps,
+            floor_to_image: camera.floor_to_image,
+        }
+    }
+}
+
+/// How well a calibration fits the points it was made from, px.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Reprojection {
+    pub points: usize,
+    pub rms_px: f64,
+    pub max_px: f64,
+}
+
+/// A lab's camera as calibration found it: what `vl camera calibrate`
+/// writes and `vl host --camera-calibration` reads.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Calibration {
+    pub camera: CameraModel,
+    pub reprojection: Reprojection,
 }
 
 impl CameraModel {
+    pub fn new(width_px: u32, height_px: u32, fps: f64, floor_to_image: Homography) -> CameraModel {
+        CameraModel {
+            width_px,
+            height_px,
+            fps,
+            floor_to_image,
+            image_to_floor: floor_to_image.inverse(),
+        }
+    }
+
     /// A camera looking straight down at a `width_mm` × `height_mm` floor,
     /// seeing all of it across `width_px` columns.
     pub fn overhead(width_mm: f64, height_mm: f64, width_px: u32, fps: f64) -> CameraModel {
-        let mm_per_px = width_mm / f64::from(width_px);
-        CameraModel {
-            width_px,
-            height_px: (height_mm / mm_per_px).ceil() as u32,
-            mm_per_px,
-            fps,
-        }
+        let s = width_mm / f64::from(width_px);
+        let height_px = (height_mm / s).ceil() as u32;
+        let map = Homography::from_rows([
+            [1.0 / s, 0.0, 0.0],
+            [0.0, -1.0 / s, f64::from(height_px)],
+            [0.0, 0.0, 1.0],
+        ])
+        .expect("a positive scale is invertible");
+        CameraModel::new(width_px, height_px.max(1), fps, map)
     }
 
-    /// Continuous image coordinates (column, row) of an arena point: pixel
-    /// (c, r) covers [c, c+1) × [r, r+1).
+    /// A pinhole camera above the middle of a `width_mm` × `height_mm`
+    /// floor, tilted `tilt_rad` from vertical towards +y (so the far side of
+    /// the floor looks narrower), its focal length chosen so the floor
+    /// fills a `width_px` × `height_px` image less a 2 % border.
+    pub fn tilted(
+        width_mm: f64,
+        height_mm: f64,
+        width_px: u32,
+        height_px: u32,
+        tilt_rad: f64,
+        fps: f64,
+    ) -> Result<CameraModel, CalibrationError> {
+        if !(tilt_rad.is_finite() && tilt_rad.abs() < 1.2) {
+            return Err(CalibrationError::FloorOutOfView(format!(
+                "a tilt of {tilt_rad} rad does not look at the floor"
+            )));
+        }
+        // Camera axes in floor coordinates: x along the floor's x, rows
+        // going down the image (towards −y), the optical axis down and
+        // forward; the camera stands back along that axis.
+        let (s, c) = tilt_rad.sin_cos();
+        let (ax, ay, az) = ([1.0, 0.0, 0.0], [0.0, -c, -s], [0.0, s, -c]);
+        let distance = 1.5 * width_mm.hypot(height_mm);
+        let centre = [
+            width_mm / 2.0 - distance * az[0],
+            height_mm / 2.0 - distance * az[1],
+            -distance * az[2],
+        ];
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        // A floor point (x, y, 0) in camera coordinates: R·(p − centre).
+        let t = [-dot(ax, centre), -dot(ay, centre), -dot(az, centre)];
+        let unit = [
+            [ax[0], ax[1], t[0]],
+            [ay[0], ay[1], t[1]],
+            [az[0], az[1], t[2]],
+        ];
+        let unit = Homography::from_rows(unit)?;
+        // Fit the floor's image into the frame.
+        let corners = [
+            [0.0, 0.0],
+            [width_mm, 0.0],
+            [0.0, height_mm],
+            [width_mm, height_mm],
+        ]
+        .map(|[x, y]| unit.apply(x, y));
+        let lo = |i: usize| corners.iter().map(|p| p[i]).fold(f64::INFINITY, f64::min);
+        let hi = |i: usize| {
+            corners
+                .iter()
+                .map(|p| p[i])
+                .fold(f64::NEG_INFINITY, f64::max)
+        };
+        let (w, h) = (f64::from(width_px), f64::from(height_px));
+        let f = (0.96 * w / (hi(0) - lo(0))).min(0.96 * h / (hi(1) - lo(1)));
+        let (cx, cy) = (
+            w / 2.0 - f * (lo(0) + hi(0)) / 2.0,
+            h / 2.0 - f * (lo(1) + hi(1)) / 2.0,
+        );
+        let k = Homography::from_rows([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])?;
+        Ok(CameraModel::new(width_px, height_px, fps, k.after(&unit)))
+    }
+
+    /// The camera whose map best takes each floor point of `pairs` to its
+    /// pixel, and how far off its pixels are.
+    pub fn calibrated(
+        width_px: u32,
+        height_px: u32,
+        fps: f64,
+        pairs: &[(Point, [f64; 2])],
+    ) -> Result<Calibration, CalibrationError> {
+        let map = Homography::fit(pairs)?;
+        let residuals = map.residuals(pairs);
+        let n = residuals.len();
+        let reprojection = Reprojection {
+            points: n,
+            rms_px: (residuals.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
+            max_px: residuals.iter().copied().fold(0.0, f64::max),
+        };
+        Ok(Calibration {
+            camera: CameraModel::new(width_px, height_px, fps, map),
+            reprojection,
+        })
+    }
+
+    /// The same camera capturing at `fps`.
+    pub fn at_fps(self, fps: f64) -> CameraModel {
+        CameraModel { fps, ..self }
+    }
+
+    pub fn floor_to_image(&self) -> &Homography {
+        &self.floor_to_image
+    }
+
+    /// Continuous image coordinates (column, row) of a floor point.
     pub fn to_pixel(&self, p: Point) -> (f64, f64) {
-        (
-            p.x_mm / self.mm_per_px,
-            f64::from(self.height_px) - p.y_mm / self.mm_per_px,
-        )
+        let [c, r] = self.floor_to_image.apply(p.x_mm, p.y_mm);
+        (c, r)
     }
 
-    /// The arena point at continuous image coordinates (column, row).
+    /// The floor point at continuous image coordinates (column, row).
     pub fn to_arena(&self, col: f64, row: f64) -> Point {
-        Point {
-            x_mm: col * self.mm_per_px,
-            y_mm: (f64::from(self.height_px) - row) * self.mm_per_px,
+        let [x_mm, y_mm] = self.image_to_floor.apply(col, row);
+        Point { x_mm, y_mm }
+    }
+
+    /// The size of a pixel on the floor at the image's centre, mm: the
+    /// scale for drawing and for choosing grid resolutions.
+    pub fn mm_per_px(&self) -> f64 {
+        let (c, r) = (
+            f64::from(self.width_px) / 2.0,
+            f64::from(self.height_px) / 2.0,
+        );
+        let o = self.to_arena(c, r);
+        let right = self.to_arena(c + 1.0, r).distance(o);
+        let down = self.to_arena(c, r + 1.0).distance(o);
+        (right * down).sqrt()
+    }
+
+    /// Whether every point of a `width_mm` × `height_mm` floor falls inside
+    /// the image, saying which corner does not.
+    pub fn sees_floor(&self, width_mm: f64, height_mm: f64) -> Result<(), CalibrationError> {
+        for (x, y) in [
+            (0.0, 0.0),
+            (width_mm, 0.0),
+            (0.0, height_mm),
+            (width_mm, height_mm),
+        ] {
+            let (c, r) = self.to_pixel(Point { x_mm: x, y_mm: y });
+            let inside = (-0.5..=f64::from(self.width_px) + 0.5).contains(&c)
+                && (-0.5..=f64::from(self.height_px) + 0.5).contains(&r);
+            if !inside {
+                return Err(CalibrationError::FloorOutOfView(format!(
+                    "the floor's corner ({x:.0}, {y:.0}) mm appears at pixel ({c:.0}, {r:.0}), outside the {}×{} image",
+                    self.width_px, self.height_px
+                )));
+            }
         }
+        Ok(())
     }
 }
 
@@ -54,20 +256,104 @@ mod tests {
 
     #[test]
     fn pixel_centres_follow_the_ros_convention() {
-        let cam = CameraModel {
-            width_px: 320,
-            height_px: 240,
-            mm_per_px: 2.5,
-            fps: 10.0,
-        };
+        let cam = CameraModel::overhead(800.0, 600.0, 320, 10.0);
+        assert_eq!((cam.width_px, cam.height_px), (320, 240));
+        assert!((cam.mm_per_px() - 2.5).abs() < 1e-12);
         let centre = cam.to_arena(0.5, 239.5);
-        assert_eq!(
-            centre,
-            Point {
-                x_mm: 1.25,
-                y_mm: 1.25
-            }
+        assert!((centre.x_mm - 1.25).abs() < 1e-9 && (centre.y_mm - 1.25).abs() < 1e-9);
+        let (c, r) = cam.to_pixel(centre);
+        assert!((c - 0.5).abs() < 1e-9 && (r - 239.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_tilted_camera_sees_the_far_side_smaller_and_the_whole_floor() {
+        let cam = CameraModel::tilted(800.0, 600.0, 640, 480, 0.35, 15.0).unwrap();
+        cam.sees_floor(800.0, 600.0).unwrap();
+        let width_at = |y| {
+            let (a, _) = cam.to_pixel(Point { x_mm: 0.0, y_mm: y });
+            let (b, _) = cam.to_pixel(Point {
+                x_mm: 800.0,
+                y_mm: y,
+            });
+            b - a
+        };
+        assert!(
+            width_at(600.0) < 0.9 * width_at(0.0),
+            "{} {}",
+            width_at(600.0),
+            width_at(0.0)
         );
-        assert_eq!(cam.to_pixel(centre), (0.5, 239.5));
+        // The far side is at the top of the image.
+        let (_, near) = cam.to_pixel(Point {
+            x_mm: 400.0,
+            y_mm: 0.0,
+        });
+        let (_, far) = cam.to_pixel(Point {
+            x_mm: 400.0,
+            y_mm: 600.0,
+        });
+        assert!(far < near);
+        let straight = CameraModel::tilted(800.0, 600.0, 640, 480, 0.0, 15.0).unwrap();
+        let (a, _) = straight.to_pixel(Point {
+            x_mm: 0.0,
+            y_mm: 0.0,
+        });
+        let (b, _) = straight.to_pixel(Point {
+            x_mm: 0.0,
+            y_mm: 600.0,
+        });
+        assert!(
+            (a - b).abs() < 1e-9,
+            "untilted: parallel edges stay parallel"
+        );
+        assert!(CameraModel::tilted(800.0, 600.0, 640, 480, f64::NAN, 15.0).is_err());
+    }
+
+    #[test]
+    fn the_wire_carries_one_map_and_rebuilds_the_other() {
+        let cam = CameraModel::tilted(800.0, 600.0, 640, 480, 0.3, 15.0).unwrap();
+        let json = serde_json::to_string(&cam).unwrap();
+        assert!(json.contains("floor_to_image"), "{json}");
+        let back: CameraModel = serde_json::from_str(&json).unwrap();
+        let p = Point {
+            x_mm: 123.0,
+            y_mm: 456.0,
+        };
+        let (c, r) = back.to_pixel(p);
+        let q = back.to_arena(c, r);
+        assert!(q.distance(p) < 1e-6);
+        let bad = json.replace("\"fps\":15.0", "\"fps\":-1.0");
+        assert!(serde_json::from_str::<CameraModel>(&bad).is_err());
+    }
+
+    #[test]
+    fn calibration_recovers_a_camera_from_its_points() {
+        let truth = CameraModel::tilted(800.0, 600.0, 640, 480, 0.4, 15.0).unwrap();
+        let pairs: Vec<_> = (0..5)
+            .flat_map(|i| {
+                (0..4).map(move |j| Point {
+                    x_mm: 80.0 + 160.0 * f64::from(i),
+                    y_mm: 60.0 + 160.0 * f64::from(j),
+                })
+            })
+            .map(|p| {
+                let (c, r) = truth.to_pixel(p);
+                (p, [c, r])
+            })
+            .collect();
+        let Calibration {
+            camera: fitted,
+            reprojection: fit,
+        } = CameraModel::calibrated(640, 480, 15.0, &pairs).unwrap();
+        assert!(fit.max_px < 1e-6, "{fit:?}");
+        let (c, r) = fitted.to_pixel(Point {
+            x_mm: 5.0,
+            y_mm: 595.0,
+        });
+        let (c0, r0) = truth.to_pixel(Point {
+            x_mm: 5.0,
+            y_mm: 595.0,
+        });
+        assert!((c - c0).hypot(r - r0) < 1e-6);
     }
 }

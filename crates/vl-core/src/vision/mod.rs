@@ -10,6 +10,7 @@
 
 mod components;
 mod robot;
+mod target;
 mod threshold;
 
 use std::time::Instant;
@@ -21,6 +22,7 @@ use crate::Named;
 
 pub use components::{Centroid, Component, components, label};
 pub use robot::{RobotPose, is_robot, robot_pose};
+pub use target::DotTarget;
 pub use threshold::{Mask, Threshold, ThresholdError, binarise, grey, otsu};
 
 /// Which pixels touch: edges only, or edges and corners.

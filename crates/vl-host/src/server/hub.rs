@@ -13,7 +13,7 @@ use tokio_tungstenite::tungstenite::Message;
 use tracing::{debug, info, warn};
 use vl_core::{
     Action, Definition, DeviceState, EndReason, ErrorCode, Experiment, GuestMessage, HostMessage,
-    Named, PROTOCOL_VERSION, Role, Supervisor, Wire,
+    MountedLab, Named, PROTOCOL_VERSION, Role, Supervisor, Wire,
 };
 
 use super::HostConfig;
@@ -282,11 +282,13 @@ impl Hub {
 
     fn mounted(&self) -> Option<HostMessage> {
         let info = &self.lab.info;
-        self.experiment.map(|experiment| HostMessage::Mounted {
-            experiment,
-            arena: info.arena.clone(),
-            robot: info.robot.clone(),
-            camera: info.camera,
+        self.experiment.map(|experiment| {
+            HostMessage::Mounted(Box::new(MountedLab {
+                experiment,
+                arena: info.arena.clone(),
+                robot: info.robot.clone(),
+                camera: info.camera,
+            }))
         })
     }
 

@@ -1,0 +1,120 @@
+//! Calibrating the camera from a picture of a dot target: a sheet of dark
+//! dots at known floor points. The dots are found by the same binarisation
+//! and components as everything else the camera sees, matched to the
+//! target's points in reading order, and the camera's homography fitted.
+
+use image::RgbImage;
+use serde::{Deserialize, Serialize};
+
+use super::{Connectivity, binarise, components, grey, otsu};
+use crate::Point;
+use crate::model::camera::{Calibration, CameraModel};
+use crate::model::homography::CalibrationError;
+
+/// A calibration target: `cols` × `rows` dark dots laid on the floor, with
+/// the target's rows running roughly along the image's rows.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DotTarget {
+    pub cols: u32,
+    pub rows: u32,
+    /// The bottom-left dot's centre, mm.
+    pub first_mm: Point,
+    /// From one dot to the next, along x and along y, mm.
+    pub spacing_mm: [f64; 2],
+    pub radius_mm: f64,
+}
+
+impl DotTarget {
+    /// A 5 × 4 grid of 12 mm dots spread over a `width_mm` × `height_mm`
+    /// floor, a tenth of it in from each side.
+    pub fn spread_over(width_mm: f64, height_mm: f64) -> DotTarget {
+        let (cols, rows) = (5, 4);
+        DotTarget {
+            cols,
+            rows,
+            first_mm: Point {
+                x_mm: width_mm / 10.0,
+                y_mm: height_mm / 10.0,
+            },
+            spacing_mm: [
+                0.8 * width_mm / f64::from(cols - 1),
+                0.8 * height_mm / f64::from(rows - 1),
+            ],
+            radius_mm: 12.0,
+        }
+    }
+
+    /// The dots' centres in reading order: top row (largest y) first, each
+    /// row left to right, as an image shows them.
+    pub fn points(&self) -> Vec<Point> {
+        (0..self.rows)
+            .rev()
+            .flat_map(|j| {
+                (0..self.cols).map(move |i| Point {
+                    x_mm: self.first_mm.x_mm + f64::from(i) * self.spacing_mm[0],
+                    y_mm: self.first_mm.y_mm + f64::from(j) * self.spacing_mm[1],
+                })
+            })
+            .collect()
+    }
+
+    /// Each dot's floor point paired with where `image` shows its centre.
+    pub fn find(&self, image: &RgbImage) -> Result<Vec<(Point, [f64; 2])>, CalibrationError> {
+        let wanted = (self.cols * self.rows) as usize;
+        if wanted < 4 {
+            return Err(CalibrationError::TooFewPoints(wanted));
+        }
+        let grey = grey(image);
+        let mask = binarise(&grey, otsu(&grey), true);
+        let (found, _) = components(&mask, Connectivity::Eight);
+        let (w, h) = image.dimensions();
+        // Round, solid, and clear of the image's edge (walls touch it).
+        let mut dots: Vec<_> = found
+            .iter()
+            .filter(|c| {
+                let [x, y, bw, bh] = c.bbox;
+                let inside = x > 0 && y > 0 && x + bw < w && y + bh < h;
+                let fill = c.area as f64 / (f64::from(bw) * f64::from(bh));
+                let square = f64::from(bw.min(bh)) / f64::from(bw.max(bh));
+                inside
+                    && c.area >= 5
+                    && c.hole_area == 0
+                    && (0.55..0.95).contains(&fill)
+                    && square > 0.5
+            })
+            .collect();
+        // The dots are one size: drop specks and blobs far from the median.
+        let mut areas: Vec<u64> = dots.iter().map(|c| c.area).collect();
+        areas.sort_unstable();
+        if let Some(&median) = areas.get(areas.len() / 2) {
+            let m = median as f64;
+            dots.retain(|c| (0.4 * m..=2.5 * m).contains(&(c.area as f64)));
+        }
+        if dots.len() != wanted {
+            return Err(CalibrationError::Target(format!(
+                "found {} dots where the target has {} ({} × {}): is all of it in view and evenly lit?",
+                dots.len(),
+                wanted,
+                self.cols,
+                self.rows
+            )));
+        }
+        // Reading order: by rows of `cols` dots from the top, each row left to right.
+        // Pixel (c, r) covers [c, c+1) × [r, r+1): its centre is c + ½.
+        let mut centres: Vec<[f64; 2]> = dots
+            .iter()
+            .map(|c| [c.centroid.x + 0.5, c.centroid.y + 0.5])
+            .collect();
+        centres.sort_by(|a, b| a[1].total_cmp(&b[1]));
+        for row in centres.chunks_mut(self.cols as usize) {
+            row.sort_by(|a, b| a[0].total_cmp(&b[0]));
+        }
+        Ok(self.points().into_iter().zip(centres).collect())
+    }
+
+    /// The camera that took `image` of this target, at `fps`.
+    pub fn calibrate(&self, image: &RgbImage, fps: f64) -> Result<Calibration, CalibrationError> {
+        let pairs = self.find(image)?;
+        CameraModel::calibrated(image.width(), image.height(), fps, &pairs)
+    }
+}

@@ -1,0 +1,228 @@
+//! `vl camera …`: calibrating the lab's overhead camera, so a tilted or
+//! off-centre camera maps its pixels to floor millimetres.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand};
+use serde::{Deserialize, Serialize};
+use vl_core::{Calibration, CameraModel, DotTarget, Point};
+use vl_sim::SimCalibration;
+
+use crate::BadInput;
+use crate::report::{Report, Table, emit};
+use crate::sim::{OpticsArgs, load_arena};
+
+#[derive(Subcommand)]
+pub(crate) enum CameraCommand {
+    /// Fit the camera's floor-to-image map from floor points whose pixels
+    /// are known: a file of point pairs, a picture of a dot target, or the
+    /// simulated camera looking at one. Writes the calibration `vl host
+    /// --camera-calibration` reads.
+    Calibrate(CalibrateArgs),
+}
+
+#[derive(Args)]
+pub(crate) struct CalibrateArgs {
+    /// A JSON list of pairs: [{"floor_mm": [x, y], "pixel": [column, row]}, …],
+    /// at least four, no three on a line.
+    #[arg(long, conflicts_with_all = ["image", "sim"], requires = "image_size")]
+    points: Option<PathBuf>,
+    /// The size of the camera's images the points were read from, WxH.
+    #[arg(long, value_parser = parse_size)]
+    image_size: Option<(u32, u32)>,
+    /// A picture of a dot target laid on the floor (with --target).
+    #[arg(long, conflicts_with = "sim", requires = "target")]
+    image: Option<PathBuf>,
+    /// The dot target as JSON: {"cols", "rows", "first_mm": {"x_mm", "y_mm"},
+    /// "spacing_mm": [x, y], "radius_mm"}; its rows must run along the
+    /// image's rows.
+    #[arg(long)]
+    target: Option<PathBuf>,
+    /// Calibrate the simulated camera: render a dot target on the arena's
+    /// floor through the optics below, find it, fit, and compare with the
+    /// camera the simulator really used.
+    #[arg(long)]
+    sim: bool,
+    /// The arena whose floor the simulated camera looks at.
+    #[arg(long, default_value = "navigation")]
+    arena: String,
+    /// The simulated camera's image width, px.
+    #[arg(long, default_value_t = 640)]
+    width: u32,
+    #[command(flatten)]
+    optics: OpticsArgs,
+    /// Seed of the simulated camera's noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// The frame rate the calibrated camera captures at.
+    #[arg(long, default_value_t = 15.0)]
+    fps: f64,
+    /// Where to write the calibration (JSON).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    #[arg(long)]
+    json: bool,
+}
+
+fn parse_size(text: &str) -> Result<(u32, u32), String> {
+    let (w, h) = text
+        .split_once(['x', '×'])
+        .ok_or_else(|| format!("'{text}' is not WxH, e.g. 640x480"))?;
+    let px = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|&v| (1..=vl_core::MAX_IMAGE_SIDE).contains(&v))
+            .ok_or_else(|| {
+                format!(
+                    "'{v}' is not a size in pixels from 1 to {}",
+                    vl_core::MAX_IMAGE_SIDE
+                )
+            })
+    };
+    Ok((px(w)?, px(h)?))
+}
+
+/// One known point: where it is on the floor and where the image shows it.
+#[derive(Deserialize)]
+struct PointPair {
+    floor_mm: [f64; 2],
+    pixel: [f64; 2],
+}
+
+/// What calibration found.
+#[derive(Serialize)]
+struct Calibrated {
+    #[serde(flatten)]
+    calibration: Calibration,
+    /// Against the simulator's true camera, when it was simulated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    truth_max_px: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    written_to: Option<PathBuf>,
+}
+
+impl Report for Calibrated {
+    fn table(&self) -> Table {
+        let camera = &self.calibration.camera;
+        let fit = &self.calibration.reprojection;
+        let mut rows = vec![
+            (
+                "image",
+                format!(
+                    "{} × {} px at {} fps",
+                    camera.width_px, camera.height_px, camera.fps
+                ),
+            ),
+            ("points", fit.points.to_string()),
+            ("reprojection rms", format!("{:.3} px", fit.rms_px)),
+            ("reprojection max", format!("{:.3} px", fit.max_px)),
+            (
+                "scale at the centre",
+                format!("{:.3} mm per px", camera.mm_per_px()),
+            ),
+        ];
+        if let Some(truth) = self.truth_max_px {
+            rows.push(("off the true camera", format!("{truth:.3} px at worst")));
+        }
+        let mut table = Table::pairs(rows).title("camera calibration");
+        if let Some(path) = &self.written_to {
+            table = table.note(format!("wrote {}", path.display()));
+        }
+        table
+    }
+}
+
+pub(crate) fn run(command: CameraCommand) -> Result<ExitCode> {
+    match command {
+        CameraCommand::Calibrate(args) => calibrate(args),
+    }
+}
+
+fn calibrate(args: CalibrateArgs) -> Result<ExitCode> {
+    if !(args.fps.is_finite() && args.fps > 0.0) {
+        return Err(BadInput(format!("--fps must be a positive number, not {}", args.fps)).into());
+    }
+    let bad = |e: vl_core::CalibrationError| BadInput(e.to_string());
+    let (calibration, truth_max_px) = if let Some(path) = &args.points {
+        let (w, h) = args.image_size.expect("clap requires --image-size");
+        let pairs: Vec<PointPair> = read_json(path)?;
+        let pairs: Vec<(Point, [f64; 2])> = pairs
+            .into_iter()
+            .map(|p| {
+                let [x_mm, y_mm] = p.floor_mm;
+                (Point { x_mm, y_mm }, p.pixel)
+            })
+            .collect();
+        (
+            CameraModel::calibrated(w, h, args.fps, &pairs).map_err(bad)?,
+            None,
+        )
+    } else if let Some(path) = &args.image {
+        let target = load_target(args.target.as_ref().expect("clap requires --target"))?;
+        let image = vl_core::load_image(path)
+            .map_err(|e| BadInput(format!("cannot read the image {}: {e}", path.display())))?
+            .to_rgb8();
+        (target.calibrate(&image, args.fps).map_err(bad)?, None)
+    } else if args.sim {
+        let arena = load_arena(&args.arena)?;
+        let optics = args.optics.optics(args.seed)?;
+        let nominal =
+            CameraModel::overhead(arena.width_mm, arena.height_mm, args.width.max(1), args.fps);
+        let SimCalibration {
+            calibration,
+            truth_max_px,
+        } = vl_sim::calibrate(&nominal, &optics, arena.width_mm, arena.height_mm).map_err(bad)?;
+        (calibration, Some(truth_max_px))
+    } else {
+        return Err(BadInput(
+            "say what to calibrate from: --points FILE --image-size WxH, --image PHOTO --target FILE, or --sim"
+                .into(),
+        )
+        .into());
+    };
+    if let Some(path) = &args.output {
+        let text = serde_json::to_string_pretty(&calibration)?;
+        std::fs::write(path, text + "\n")
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    emit(
+        &Calibrated {
+            calibration,
+            truth_max_px,
+            written_to: args.output,
+        },
+        args.json,
+    )?;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())))?;
+    Ok(serde_json::from_str(&text)
+        .map_err(|e| BadInput(format!("{} is not what was expected: {e}", path.display())))?)
+}
+
+/// A dot target described in `path`.
+pub(crate) fn load_target(path: &Path) -> Result<DotTarget> {
+    let target: DotTarget = read_json(path)?;
+    let sized = |v: f64| v.is_finite() && v > 0.0;
+    if !(sized(target.radius_mm)
+        && sized(target.spacing_mm[0])
+        && sized(target.spacing_mm[1])
+        && target.first_mm.x_mm.is_finite()
+        && target.first_mm.y_mm.is_finite()
+        && (1..=100).contains(&target.cols)
+        && (1..=100).contains(&target.rows))
+    {
+        return Err(BadInput(format!(
+            "{}: a target needs 1 to 100 columns and rows and positive, finite sizes",
+            path.display()
+        ))
+        .into());
+    }
+    Ok(target)
+}
