@@ -44,6 +44,7 @@ pub use named::{Named, UnknownName};
 pub use navigation::bench::{PlanBench, PlanBenchError, bench as bench_planning};
 pub use navigation::cspace::{CSpace, CSpaceError, Footprint, Grid};
 pub use navigation::follow::{Follower, Following, Steer};
+pub use navigation::localise::{Fold, Localiser, Uncertainty};
 pub use navigation::nf1::{Cell, Nf1};
 pub use navigation::plan::{
     ARENA_CELL_MM, ArenaPlanError, NoPath, PathEnd, Plan, Smoothing, clearance, plan, plan_route,
@@ -52,7 +53,7 @@ pub use navigation::svg::plan_svg;
 pub use safety::{Guarded, Safety, Situation, Surroundings};
 pub use teleop::{Assisted, Joystick, MapField, Teleop, Vector, predict};
 pub use vision::{
-    Centroid, Component, Connectivity, DotTarget, Mask, RobotPose, Scene, Threshold,
-    ThresholdError, VisionBench, bench as bench_vision, binarise, components, grey, inspect,
-    is_robot, label, otsu, robot_pose,
+    Centroid, Component, Connectivity, DotTarget, Look, Mask, RobotPose, Scene, Threshold,
+    ThresholdError, VisionBench, arena_of, bench as bench_vision, binarise, changed_cells,
+    components, grey, inspect, is_robot, label, look, otsu, robot_pose,
 };

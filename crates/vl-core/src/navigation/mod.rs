@@ -5,6 +5,7 @@
 pub(crate) mod bench;
 pub(crate) mod cspace;
 pub(crate) mod follow;
+pub(crate) mod localise;
 pub(crate) mod nf1;
 pub(crate) mod plan;
 pub(crate) mod spline;

@@ -9,6 +9,7 @@
 //! down).
 
 mod components;
+mod floor;
 mod robot;
 mod target;
 mod threshold;
@@ -21,6 +22,7 @@ use serde::Serialize;
 use crate::Named;
 
 pub use components::{Centroid, Component, components, label};
+pub use floor::{Look, arena_of, changed_cells, look};
 pub use robot::{RobotPose, is_robot, robot_pose};
 pub use target::DotTarget;
 pub use threshold::{Mask, Threshold, ThresholdError, binarise, grey, otsu};

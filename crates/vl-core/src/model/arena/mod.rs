@@ -3,7 +3,7 @@
 //! Host validates a definition's goal against it, the Guest draws it.
 
 mod load;
-mod map;
+pub(crate) mod map;
 mod material;
 mod shape;
 

@@ -1,0 +1,334 @@
+//! Where the robot is (thesis B.3): the wheels' odometry carries the pose
+//! between camera frames, and each frame's sighting is folded in by an
+//! extended Kalman filter. A sighting arrives after the frame was taken;
+//! it is compared with the estimate of that moment and its correction
+//! applied to the estimate of now.
+
+use std::collections::VecDeque;
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::{Pose, wrap_angle};
+
+/// How far back sightings may reach, s: a frame is grabbed, processed and
+/// handed over well within this.
+const HISTORY_S: f64 = 0.5;
+/// A sighting this unlikely (squared Mahalanobis distance; χ² with 3
+/// degrees of freedom is above it once in 10⁵) is not folded in…
+const GATE: f64 = 25.0;
+/// …unless this many come in a row: then the robot was moved (or the
+/// estimate lost), and the camera is believed outright.
+const REJECTS_BEFORE_RESET: u32 = 3;
+
+/// How much each source is trusted.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Uncertainty {
+    /// Standard deviation of odometry per mm travelled, mm (wheel slip).
+    pub odometry_per_mm: f64,
+    /// Standard deviation of the heading per mm travelled, rad.
+    pub heading_per_mm: f64,
+    /// Standard deviation of a sighting's position, mm.
+    pub camera_mm: f64,
+    /// Standard deviation of a sighting's heading, rad.
+    pub camera_rad: f64,
+}
+
+impl Default for Uncertainty {
+    fn default() -> Self {
+        Uncertainty {
+            odometry_per_mm: 0.03,
+            heading_per_mm: 0.0015,
+            camera_mm: 1.0,
+            camera_rad: 0.03,
+        }
+    }
+}
+
+/// What became of a sighting.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fold {
+    /// Folded into the estimate.
+    Folded,
+    /// Too far from the estimate to believe, for now.
+    Rejected,
+    /// The estimate was replaced by it (the first sighting, or after
+    /// several in a row disagreed).
+    Reset,
+    /// Older than the history kept.
+    TooOld,
+}
+
+/// The robot's pose, estimated from odometry and sightings.
+#[derive(Debug, Clone)]
+pub struct Localiser {
+    state: Vector3<f64>,
+    covariance: Matrix3<f64>,
+    uncertainty: Uncertainty,
+    /// The last odometry reading, to take the next one's difference from.
+    odometry: Option<Pose>,
+    /// Recent estimates, oldest first: (time, state).
+    history: VecDeque<(f64, Vector3<f64>)>,
+    last_sighting: Option<f64>,
+    rejects: u32,
+}
+
+impl Localiser {
+    /// Believes the robot is at `start`, give or take 50 mm and 0.5 rad,
+    /// until the camera says otherwise.
+    pub fn new(start: Pose, uncertainty: Uncertainty) -> Localiser {
+        Localiser {
+            state: Vector3::new(start.x_mm, start.y_mm, start.theta_rad),
+            covariance: Matrix3::from_diagonal(&Vector3::new(2500.0, 2500.0, 0.25)),
+            uncertainty,
+            odometry: None,
+            history: VecDeque::new(),
+            last_sighting: None,
+            rejects: 0,
+        }
+    }
+
+    pub fn pose(&self) -> Pose {
+        Pose {
+            x_mm: self.state.x,
+            y_mm: self.state.y,
+            theta_rad: self.state.z,
+        }
+    }
+
+    /// Seconds from the last sighting folded in to `now_s`; None before any.
+    pub fn since_sighting(&self, now_s: f64) -> Option<f64> {
+        self.last_sighting.map(|t| now_s - t)
+    }
+
+    /// Moves the estimate as the robot moved between the previous
+    /// odometry reading and `odometry`, read at `now_s`.
+    pub fn odometry(&mut self, now_s: f64, odometry: Pose) {
+        let finite = odometry.x_mm.is_finite()
+            && odometry.y_mm.is_finite()
+            && odometry.theta_rad.is_finite();
+        if let (Some(previous), true) = (self.odometry, finite) {
+            // The motion in the robot's own frame, carried onto the estimate.
+            let (s, c) = previous.theta_rad.sin_cos();
+            let (dx, dy) = (odometry.x_mm - previous.x_mm, odometry.y_mm - previous.y_mm);
+            let forward = c * dx + s * dy;
+            let left = -s * dx + c * dy;
+            let turn = wrap_angle(odometry.theta_rad - previous.theta_rad);
+            let (s, c) = self.state.z.sin_cos();
+            self.state.x += c * forward - s * left;
+            self.state.y += s * forward + c * left;
+            self.state.z = wrap_angle(self.state.z + turn);
+            // Jacobian of the motion with respect to the heading.
+            let f = Matrix3::new(
+                1.0,
+                0.0,
+                -s * forward - c * left,
+                0.0,
+                1.0,
+                c * forward - s * left,
+                0.0,
+                0.0,
+                1.0,
+            );
+            let travelled = forward.hypot(left) + turn.abs() * 30.0;
+            let q = self.uncertainty.odometry_per_mm.powi(2) * travelled;
+            let q_heading = self.uncertainty.heading_per_mm.powi(2) * travelled;
+            self.covariance = f * self.covariance * f.transpose()
+                + Matrix3::from_diagonal(&Vector3::new(q, q, q_heading));
+        }
+        if finite {
+            self.odometry = Some(odometry);
+        }
+        self.history.push_back((now_s, self.state));
+        while self
+            .history
+            .front()
+            .is_some_and(|&(t, _)| t < now_s - HISTORY_S)
+        {
+            self.history.pop_front();
+        }
+    }
+
+    /// Folds in the camera's sighting of the robot at `seen`, in a frame
+    /// taken at `taken_s`.
+    pub fn sighting(&mut self, taken_s: f64, seen: Pose) -> Fold {
+        if !(seen.x_mm.is_finite() && seen.y_mm.is_finite() && seen.theta_rad.is_finite()) {
+            return Fold::Rejected;
+        }
+        let z = Vector3::new(seen.x_mm, seen.y_mm, seen.theta_rad);
+        if self.last_sighting.is_none() {
+            return self.reset(taken_s, z);
+        }
+        // The estimate when the frame was taken.
+        let then = match self.history.iter().rev().find(|&&(t, _)| t <= taken_s) {
+            Some(&(_, state)) => state,
+            None if self.history.is_empty() => self.state,
+            None => return Fold::TooOld,
+        };
+        let mut innovation = z - then;
+        innovation.z = wrap_angle(innovation.z);
+        let u = &self.uncertainty;
+        let r = Matrix3::from_diagonal(&Vector3::new(
+            u.camera_mm.powi(2),
+            u.camera_mm.powi(2),
+            u.camera_rad.powi(2),
+        ));
+        let s = self.covariance + r;
+        let Some(s_inv) = s.try_inverse() else {
+            return self.reset(taken_s, z);
+        };
+        if (innovation.transpose() * s_inv * innovation)[0] > GATE {
+            self.rejects += 1;
+            if self.rejects >= REJECTS_BEFORE_RESET {
+                return self.reset(taken_s, z);
+            }
+            return Fold::Rejected;
+        }
+        self.rejects = 0;
+        let gain = self.covariance * s_inv;
+        let correction = gain * innovation;
+        self.state += correction;
+        self.state.z = wrap_angle(self.state.z);
+        for (t, state) in self.history.iter_mut() {
+            if *t >= taken_s {
+                *state += correction;
+            }
+        }
+        self.covariance = (Matrix3::identity() - gain) * self.covariance;
+        self.last_sighting = Some(taken_s);
+        Fold::Folded
+    }
+
+    /// Believes the sighting outright: the robot is where the camera saw
+    /// it, moved on by the odometry since.
+    fn reset(&mut self, taken_s: f64, z: Vector3<f64>) -> Fold {
+        let then = self
+            .history
+            .iter()
+            .rev()
+            .find(|&&(t, _)| t <= taken_s)
+            .map_or(self.state, |&(_, s)| s);
+        // What odometry added since the frame, kept on top of the sighting.
+        let since = self.state - then;
+        self.state = z;
+        self.state.x += since.x;
+        self.state.y += since.y;
+        self.state.z = wrap_angle(z.z + since.z);
+        let u = &self.uncertainty;
+        self.covariance = Matrix3::from_diagonal(&Vector3::new(
+            u.camera_mm.powi(2) * 4.0,
+            u.camera_mm.powi(2) * 4.0,
+            u.camera_rad.powi(2) * 4.0,
+        ));
+        self.history.clear();
+        self.rejects = 0;
+        self.last_sighting = Some(taken_s);
+        Fold::Reset
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::WheelSpeeds;
+    use proptest::prelude::*;
+
+    fn pose(x_mm: f64, y_mm: f64, theta_rad: f64) -> Pose {
+        Pose {
+            x_mm,
+            y_mm,
+            theta_rad,
+        }
+    }
+
+    proptest! {
+        /// Odometry alone moves the estimate by the robot's own motion,
+        /// whatever frame the odometry counts in.
+        #[test]
+        fn odometry_alone_carries_the_motion(
+            start in (0.0f64..800.0, 0.0f64..600.0, -3.0f64..3.0),
+            origin in (-500.0f64..500.0, -500.0f64..500.0, -3.0f64..3.0),
+            drives in prop::collection::vec((-300.0f64..300.0, -300.0f64..300.0), 1..40),
+        ) {
+            let start = pose(start.0, start.1, start.2);
+            let mut truth = start;
+            let mut odometry = pose(origin.0, origin.1, origin.2);
+            let mut loc = Localiser::new(start, Uncertainty::default());
+            loc.odometry(0.0, odometry);
+            for (i, &(l, r)) in drives.iter().enumerate() {
+                let wheels = WheelSpeeds { left_mm_s: l, right_mm_s: r };
+                truth = truth.advance(wheels, 53.0, 0.05);
+                odometry = odometry.advance(wheels, 53.0, 0.05);
+                loc.odometry(0.05 * (i + 1) as f64, odometry);
+            }
+            let p = loc.pose();
+            prop_assert!(p.point().distance(truth.point()) < 1e-6, "{p:?} vs {truth:?}");
+            prop_assert!(wrap_angle(p.theta_rad - truth.theta_rad).abs() < 1e-9);
+        }
+
+        /// Sightings, however noisy or late, keep the estimate finite and
+        /// closer to the truth than drifting odometry alone.
+        #[test]
+        fn sightings_beat_drifting_odometry(seed in any::<u64>(), delay_ticks in 0usize..8) {
+            let mut rng = seed | 1;
+            let mut noise = move || {
+                rng ^= rng << 13; rng ^= rng >> 7; rng ^= rng << 17;
+                (rng % 20001) as f64 / 10000.0 - 1.0
+            };
+            let start = pose(100.0, 100.0, 0.3);
+            let (mut truth, mut odometry) = (start, start);
+            let mut fused = Localiser::new(start, Uncertainty::default());
+            let mut blind = Localiser::new(start, Uncertainty::default());
+            fused.sighting(0.0, start);
+            let mut frames = VecDeque::new();
+            let (mut err_fused, mut err_blind) = (0.0f64, 0.0f64);
+            for k in 0..600 {
+                let t = k as f64 * 0.01;
+                let wheels = WheelSpeeds { left_mm_s: 150.0 + 60.0 * (t * 0.7).sin(), right_mm_s: 150.0 };
+                truth = truth.advance(wheels, 53.0, 0.01);
+                // Odometry counts slipping wheels: 3 % off, biased.
+                let slipping = WheelSpeeds { left_mm_s: wheels.left_mm_s * 1.03, right_mm_s: wheels.right_mm_s };
+                odometry = odometry.advance(slipping, 53.0, 0.01);
+                fused.odometry(t, odometry);
+                blind.odometry(t, odometry);
+                if k % 7 == 0 {
+                    let seen = pose(truth.x_mm + noise(), truth.y_mm + noise(), truth.theta_rad + 0.02 * noise());
+                    frames.push_back((t, seen));
+                }
+                // Frames arrive `delay_ticks` after they were taken.
+                while frames.front().is_some_and(|&(taken, _)| taken <= t - delay_ticks as f64 * 0.01) {
+                    let (taken, seen) = frames.pop_front().unwrap();
+                    fused.sighting(taken, seen);
+                }
+                let p = fused.pose();
+                prop_assert!(p.x_mm.is_finite() && p.y_mm.is_finite() && p.theta_rad.is_finite());
+                err_fused = err_fused.max(p.point().distance(truth.point()));
+                err_blind = err_blind.max(blind.pose().point().distance(truth.point()));
+            }
+            prop_assert!(err_fused < 4.0, "fused {err_fused:.2} mm");
+            prop_assert!(err_blind > 3.0 * err_fused, "blind {err_blind:.2} mm, fused {err_fused:.2} mm");
+        }
+    }
+
+    #[test]
+    fn the_first_sighting_and_a_moved_robot_reset_the_estimate() {
+        let mut loc = Localiser::new(pose(0.0, 0.0, 0.0), Uncertainty::default());
+        loc.odometry(0.0, pose(0.0, 0.0, 0.0));
+        assert_eq!(loc.since_sighting(1.0), None);
+        assert_eq!(loc.sighting(0.0, pose(300.0, 200.0, 1.0)), Fold::Reset);
+        assert!(loc.pose().point().distance(pose(300.0, 200.0, 0.0).point()) < 1e-9);
+        assert_eq!(loc.since_sighting(0.5), Some(0.5));
+        // Someone carries the robot 200 mm: the first sightings there are
+        // doubted, then believed.
+        let far = pose(500.0, 200.0, 1.0);
+        for t in 1..=2 {
+            loc.odometry(f64::from(t) * 0.1, pose(0.0, 0.0, 0.0));
+            assert_eq!(loc.sighting(f64::from(t) * 0.1, far), Fold::Rejected);
+        }
+        loc.odometry(0.3, pose(0.0, 0.0, 0.0));
+        assert_eq!(loc.sighting(0.3, far), Fold::Reset);
+        assert!(loc.pose().point().distance(far.point()) < 1e-9);
+        assert_eq!(loc.sighting(0.3, pose(f64::NAN, 0.0, 0.0)), Fold::Rejected);
+        loc.odometry(5.0, pose(0.0, 0.0, 0.0));
+        assert_eq!(loc.sighting(1.0, far), Fold::TooOld);
+    }
+}
