@@ -206,6 +206,17 @@ fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
         .map_err(|e| BadInput(format!("{} is not what was expected: {e}", path.display())))?)
 }
 
+/// The camera model a calibration file (what `vl camera calibrate -o`
+/// writes) holds.
+pub(crate) fn load_calibration(path: &Path) -> Result<CameraModel> {
+    #[derive(Deserialize)]
+    struct File {
+        camera: CameraModel,
+    }
+    let file: File = read_json(path)?;
+    Ok(file.camera)
+}
+
 /// A dot target described in `path`.
 pub(crate) fn load_target(path: &Path) -> Result<DotTarget> {
     let target: DotTarget = read_json(path)?;

@@ -11,10 +11,11 @@ use vl_core::{Arena, Experiment, RobotKind, RobotModel, Role};
 use vl_guest::{
     ClientError, Report as RunReport, RoundTripMs, Script, ScriptError, Watched, WindowError,
 };
-use vl_host::{Host, HostConfig, KheperaSerial, SimLab};
+use vl_host::{Devices, FramePolicy, Host, HostConfig, KheperaSerial, SimCamera, SimLab};
+use vl_sim::Scheduled;
 
 use crate::report::{Report, Table, count, emit};
-use crate::sim::{RobotArgs, load_robot_model};
+use crate::sim::{OpticsArgs, RobotArgs, load_robot_model};
 use crate::{BadInput, named};
 
 #[derive(clap::Args)]
@@ -222,6 +223,72 @@ pub(crate) struct HostArgs {
     /// writes one; default: the Khepera II's).
     #[arg(long)]
     robot_model: Option<std::path::PathBuf>,
+    /// The camera's calibration (`vl camera calibrate -o` writes one).
+    /// Without it a simulated camera is calibrated from a dot target when
+    /// the Host starts.
+    #[arg(long)]
+    camera_calibration: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    optics: OpticsArgs,
+    #[command(flatten)]
+    frames: FramesArgs,
+    #[command(flatten)]
+    scene: SceneArgs,
+}
+
+/// A duration the user gave, in seconds: above 0 and at most a day.
+fn seconds(what: &str, s: f64) -> Result<Duration, BadInput> {
+    if s.is_finite() && s > 0.0 && s <= 86_400.0 {
+        Ok(Duration::from_secs_f64(s))
+    } else {
+        Err(BadInput(format!(
+            "{what} must be a number of seconds from 0 to a day, not {s}"
+        )))
+    }
+}
+
+/// Which camera frames the Host sends (thesis appendix G).
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum Frames {
+    /// Every frame the camera takes: live video.
+    EveryFrame,
+    /// Only when the scene changes beyond the robot, when a Guest asks, and
+    /// at least every --frame-interval; Guests draw the robot from its pose.
+    OnChange,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct FramesArgs {
+    #[arg(long, value_enum, default_value = "every-frame")]
+    frames: Frames,
+    /// With --frames on-change: the longest time between two frames, s.
+    #[arg(long, default_value_t = 5.0)]
+    frame_interval: f64,
+}
+
+impl FramesArgs {
+    pub(crate) fn policy(&self) -> Result<FramePolicy> {
+        Ok(match self.frames {
+            Frames::EveryFrame => FramePolicy::EveryFrame,
+            Frames::OnChange => FramePolicy::OnChange {
+                max_interval: seconds("--frame-interval", self.frame_interval)?,
+            },
+        })
+    }
+}
+
+/// What people do in the simulated lab while it runs.
+#[derive(clap::Args)]
+pub(crate) struct SceneArgs {
+    /// At T s on the lab's clock, put an obstacle down (`T:place:SHAPE`,
+    /// e.g. 3:place:rect:400,100,40,40) or hold a hand over the robot
+    /// (`T:cover:SECONDS`); repeatable.
+    #[arg(long = "scene-event", value_parser = parse_scene_event)]
+    pub(crate) events: Vec<Scheduled>,
+}
+
+fn parse_scene_event(text: &str) -> Result<Scheduled, String> {
+    text.parse()
 }
 
 #[derive(clap::Args)]
@@ -360,20 +427,12 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
     if args.experiments.is_empty() {
         bail!(BadInput("--experiments names none to offer".into()));
     }
-    let seconds = |what: &str, s: f64| {
-        if s.is_finite() && s > 0.0 && s <= 86_400.0 {
-            Ok(std::time::Duration::from_secs_f64(s))
-        } else {
-            Err(BadInput(format!(
-                "{what} must be a number of seconds from 0 to a day, not {s}"
-            )))
-        }
-    };
     let config = HostConfig {
         token: args.token,
         experiments: args.experiments,
         lease: seconds("--lease", args.lease)?,
         ping_timeout: seconds("--ping-timeout", args.ping_timeout)?,
+        frames: args.frames.policy()?,
         ..HostConfig::default()
     };
     let mut arena = Arena::load(&args.arena).map_err(|e| BadInput(e.to_string()))?;
@@ -383,17 +442,26 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             .check()
             .map_err(|e| BadInput(format!("--start: {e}")))?;
     }
+    let optics = args.optics.optics(args.seed)?;
     let model = match &args.robot_model {
         Some(file) => load_robot_model(file)?,
         None => RobotModel::khepera_ii(),
     };
     let host = match (args.robot, args.camera) {
         (RobotDriver::Sim, camera) => {
+            let calibration = match &args.camera_calibration {
+                Some(path) => Some(crate::camera::load_calibration(path)?),
+                None => None,
+            };
             let lab = SimLab {
                 arena,
                 robot: model,
                 seed: args.seed,
-                camera: camera == CameraDriver::Sim,
+                camera: (camera == CameraDriver::Sim).then_some(SimCamera {
+                    optics,
+                    calibration,
+                }),
+                scene: args.scene.events,
             };
             Host::start_sim(args.listen, lab, config).await
         }
@@ -411,7 +479,12 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             let program = std::env::current_exe().context("cannot find the vl binary")?;
             let robot = KheperaSerial::guarded(program, port, args.baud, model, arena.start)
                 .context("no Khepera to drive")?;
-            Host::start(args.listen, Box::new(robot), None, arena, config).await
+            let devices = Devices {
+                robot: Box::new(robot),
+                camera: None,
+                witness: None,
+            };
+            Host::start(args.listen, devices, arena, config).await
         }
     }
     .context("cannot start the Host")?;
@@ -549,10 +622,32 @@ impl Report for RunReport {
             ("lab time", format!("{:.2} s", self.sim_seconds)),
             ("distance", format!("{:.0} mm", self.distance_mm)),
             ("collisions", self.collisions.to_string()),
-            ("frames", self.frames.to_string()),
+            ("pose from", self.pose_source.to_string()),
+            (
+                "path error",
+                error_mm(self.path.as_ref().and_then(|p| p.path_error_mm)),
+            ),
+            (
+                "estimate error",
+                error_mm(self.path.as_ref().and_then(|p| p.estimate_error_mm)),
+            ),
+            (
+                "frames",
+                format!("{} ({:.0} kB)", self.frames, self.video_bytes as f64 / 1e3),
+            ),
             ("round trip", round_trip(&self.round_trip_ms)),
         ])
     }
+}
+
+/// Error statistics in a table cell; a dash when nothing was measured.
+pub(crate) fn error_mm(e: Option<vl_core::ErrorMm>) -> String {
+    e.map_or("–".into(), |e| {
+        format!(
+            "mean {:.1} mm, max {:.1} mm, rms {:.1} mm",
+            e.mean, e.max, e.rms
+        )
+    })
 }
 
 impl Report for Watched {

@@ -5,6 +5,7 @@
 
 mod alloc;
 mod camera;
+mod experiment;
 mod lab;
 mod petri;
 mod plan;
@@ -62,6 +63,9 @@ enum Command {
     /// Calibrate the overhead camera: its map from floor mm to pixels.
     #[command(subcommand)]
     Camera(camera::CameraCommand),
+    /// Run the lab's experiments headless on the simulator and measure them.
+    #[command(subcommand)]
+    Experiment(experiment::ExperimentCommand),
 }
 
 #[global_allocator]
@@ -166,5 +170,6 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Vision(command) => vision::run(command),
         Command::Plan(args) => plan::run(args),
         Command::Camera(command) => camera::run(command),
+        Command::Experiment(command) => experiment::run(&runtime()?, command),
     }
 }

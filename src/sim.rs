@@ -47,37 +47,58 @@ pub(crate) fn load_robot_model(path: &Path) -> Result<RobotModel> {
     Ok(RobotModel::from_json(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?)
 }
 
-/// How the simulated camera departs from an ideal one.
+/// A simulated camera's optics to start from.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum OpticsPreset {
+    /// An ideal camera looking straight down.
+    None,
+    /// Lens offset, blur, noise and a lighting gradient together, as an
+    /// inexpensive webcam over a lab bench.
+    Noisy,
+}
+
+/// How the simulated camera departs from an ideal one: a preset, and any
+/// of its figures changed.
 #[derive(clap::Args)]
 pub(crate) struct OpticsArgs {
+    #[arg(long, value_enum, default_value = "none")]
+    optics: OpticsPreset,
     /// Image shift in px, as DX,DY (lens off the sensor's axis).
-    #[arg(long, default_value = "0,0", allow_hyphen_values = true)]
-    lens_offset: Point,
+    #[arg(long, allow_hyphen_values = true)]
+    lens_offset: Option<Point>,
     /// Gaussian blur, standard deviation in px.
-    #[arg(long, default_value_t = 0.0)]
-    blur: f64,
+    #[arg(long)]
+    blur: Option<f64>,
     /// Per-pixel noise, standard deviation in grey levels.
-    #[arg(long, default_value_t = 0.0)]
-    noise: f64,
+    #[arg(long)]
+    noise: Option<f64>,
     /// How much darker the bottom-right corner is (0–1).
-    #[arg(long, default_value_t = 0.0)]
-    lighting: f64,
+    #[arg(long)]
+    lighting: Option<f64>,
     /// How far the camera leans from looking straight down, degrees.
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    tilt_deg: f64,
+    #[arg(long, allow_hyphen_values = true)]
+    tilt_deg: Option<f64>,
 }
 
 impl OpticsArgs {
     /// The simulator's optics these flags ask for, checked.
     pub(crate) fn optics(&self, seed: u64) -> Result<Optics> {
-        let optics = Optics {
-            lens_offset_px: [self.lens_offset.x_mm, self.lens_offset.y_mm],
-            blur_px: self.blur,
-            noise: self.noise,
-            lighting_gradient: self.lighting,
-            seed,
-            tilt_rad: self.tilt_deg.to_radians(),
+        let mut optics = match self.optics {
+            OpticsPreset::None => Optics {
+                seed,
+                ..Optics::default()
+            },
+            OpticsPreset::Noisy => Optics::noisy(seed),
         };
+        if let Some(p) = self.lens_offset {
+            optics.lens_offset_px = [p.x_mm, p.y_mm];
+        }
+        optics.blur_px = self.blur.unwrap_or(optics.blur_px);
+        optics.noise = self.noise.unwrap_or(optics.noise);
+        optics.lighting_gradient = self.lighting.unwrap_or(optics.lighting_gradient);
+        if let Some(deg) = self.tilt_deg {
+            optics.tilt_rad = deg.to_radians();
+        }
         optics.check().map_err(BadInput)?;
         Ok(optics)
     }

@@ -12,7 +12,7 @@ mod common;
 
 use vl_core::{Arena, Role};
 use vl_guest::{GuestApp, Link};
-use vl_host::{Host, HostConfig, SimLab};
+use vl_host::{Host, HostConfig, SimCamera, SimLab};
 
 /// The simulated camera paints the robot's body this colour.
 const BODY: [u8; 3] = [170, 36, 32];
@@ -52,7 +52,7 @@ fn with_window_on(camera: bool, experiment: &str, test: impl FnOnce(&mut Harness
         .block_on(Host::start_sim(
             "127.0.0.1:0".parse().unwrap(),
             SimLab {
-                camera,
+                camera: camera.then(SimCamera::default),
                 ..SimLab::new(Arena::navigation())
             },
             HostConfig::default(),
@@ -189,7 +189,7 @@ fn an_unreachable_host_is_shown_and_reconnect_brings_it_back() {
         .block_on(Host::start_sim(
             ([127, 0, 0, 1], port).into(),
             SimLab {
-                camera: false,
+                camera: None,
                 ..SimLab::new(Arena::navigation())
             },
             HostConfig::default(),
@@ -309,7 +309,7 @@ fn a_gamepad_drives_feels_and_stops() {
         .block_on(Host::start_sim(
             "127.0.0.1:0".parse().unwrap(),
             SimLab {
-                camera: false,
+                camera: None,
                 ..SimLab::new(Arena::navigation())
             },
             HostConfig::default(),

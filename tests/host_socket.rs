@@ -58,7 +58,7 @@ async fn operator_drives_observer_watches_garbage_is_refused() {
     let mounted = op.expect("mounted").await;
     assert_eq!(mounted["arena"]["width_mm"], 800.0);
     assert_eq!(mounted["robot"]["sensors"].as_array().unwrap().len(), 8);
-    assert_eq!(mounted["camera"]["width_px"], 320);
+    assert_eq!(mounted["camera"]["width_px"], 640);
 
     // An impossible goal is refused with the reason; a good one accepted.
     op.send(json!({"type": "define", "goal": {"x_mm": 280, "y_mm": 100, "tolerance_mm": 10}}))
@@ -228,8 +228,11 @@ async fn the_robot_stops_when_the_operator_leaves() {
         rest["wheels"]["left_mm_s"].as_f64().unwrap().abs() < 1.0,
         "{rest}"
     );
+    // The pose stays put (the camera's sightings may nudge the estimate by
+    // a fraction of a millimetre).
     let later = watcher.feedback_after(&rest, 300.0).await;
-    assert_eq!(rest["pose"]["x_mm"], later["pose"]["x_mm"]);
+    let x = |f: &serde_json::Value| f["pose"]["x_mm"].as_f64().unwrap();
+    assert!((x(&rest) - x(&later)).abs() < 0.5, "{rest} then {later}");
 
     // The lab is free for the next operator.
     let mut next = Peer::connect(&url).await;

@@ -5,9 +5,10 @@
 use proptest::prelude::*;
 use serde_json::{Value, json};
 use vl_core::{
-    Arena, CameraModel, Definition, Drive, EndReason, ErrorCode, Experiment, ExperimentInfo, Goal,
-    GuestMessage, HostMessage, Material, MountedLab, Named, Obstacle, Point, Pose, RobotModel,
-    Role, SensorMount, Shape, SpeedResponse, Summary, WheelSpeeds, Wire,
+    Arena, CameraModel, Definition, Drive, EndReason, ErrorCode, ErrorMm, Experiment,
+    ExperimentInfo, Goal, GuestMessage, HostMessage, Material, MountedLab, Named, Obstacle,
+    PathAnalysis, Point, Pose, PoseSource, RobotModel, Role, SensorMount, Shape, SpeedResponse,
+    Summary, WheelSpeeds, Wire,
 };
 
 fn num() -> impl Strategy<Value = f64> {
@@ -215,13 +216,20 @@ fn summary() -> impl Strategy<Value = Summary> {
             OperatorLeft,
             Fault,
             EmergencyStop,
+            OperatorSilent,
+            RobotLost,
         ]),
         any::<bool>(),
         any::<u64>(),
         pose(),
         (num(), num()),
         any::<u64>(),
-        (proptest::option::of(num()), proptest::option::of(num())),
+        (
+            proptest::option::of(num()),
+            proptest::option::of(num()),
+            pose_source(),
+            proptest::option::of(path_analysis()),
+        ),
     )
         .prop_map(
             |(
@@ -231,7 +239,7 @@ fn summary() -> impl Strategy<Value = Summary> {
                 final_pose,
                 (seconds, distance_mm),
                 collisions,
-                (closest_mm, speed_kept),
+                (closest_mm, speed_kept, pose_source, path),
             )| {
                 Summary {
                     reason,
@@ -243,6 +251,37 @@ fn summary() -> impl Strategy<Value = Summary> {
                     collisions,
                     closest_mm,
                     speed_kept,
+                    pose_source,
+                    path,
+                }
+            },
+        )
+}
+
+fn pose_source() -> impl Strategy<Value = PoseSource> {
+    proptest::sample::select(vec![PoseSource::Camera, PoseSource::Odometry])
+}
+
+fn error_mm() -> impl Strategy<Value = ErrorMm> {
+    (num(), num(), num()).prop_map(|(mean, max, rms)| ErrorMm { mean, max, rms })
+}
+
+fn path_analysis() -> impl Strategy<Value = PathAnalysis> {
+    (
+        proptest::collection::vec(point(), 0..6),
+        proptest::collection::vec(point(), 0..6),
+        proptest::option::of(error_mm()),
+        proptest::option::of(error_mm()),
+        proptest::option::of(error_mm()),
+    )
+        .prop_map(
+            |(estimated, truth, tracking_error_mm, path_error_mm, estimate_error_mm)| {
+                PathAnalysis {
+                    estimated,
+                    truth,
+                    tracking_error_mm,
+                    path_error_mm,
+                    estimate_error_mm,
                 }
             },
         )
@@ -306,10 +345,10 @@ fn host_message() -> impl Strategy<Value = HostMessage> {
             proptest::collection::vec(any::<u16>(), 0..9),
             any::<bool>(),
             proptest::option::of((num(), num())),
-            any::<bool>(),
+            (any::<bool>(), pose_source()),
         )
             .prop_map(
-                |(event, t_ms, pose, wheels, proximity, contact, force, limited)| {
+                |(event, t_ms, pose, wheels, proximity, contact, force, (limited, source))| {
                     HostMessage::Feedback {
                         event,
                         t_ms,
@@ -319,6 +358,7 @@ fn host_message() -> impl Strategy<Value = HostMessage> {
                         contact,
                         force: force.map(|(x, y)| [x, y]),
                         limited,
+                        source,
                     }
                 },
             ),

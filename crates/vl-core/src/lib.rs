@@ -41,6 +41,9 @@ pub use model::robot::{
     WheelSpeeds, wrap_angle,
 };
 pub use named::{Named, UnknownName};
+pub use navigation::analysis::{
+    ErrorMm, PathAnalysis, PathRecorder, PoseSource, distance_to_polyline,
+};
 pub use navigation::bench::{PlanBench, PlanBenchError, bench as bench_planning};
 pub use navigation::cspace::{CSpace, CSpaceError, Footprint, Grid};
 pub use navigation::follow::{Follower, Following, Steer};
@@ -49,7 +52,7 @@ pub use navigation::nf1::{Cell, Nf1};
 pub use navigation::plan::{
     ARENA_CELL_MM, ArenaPlanError, NoPath, PathEnd, Plan, Smoothing, clearance, plan, plan_route,
 };
-pub use navigation::svg::plan_svg;
+pub use navigation::svg::{plan_svg, run_svg};
 pub use safety::{Guarded, Safety, Situation, Surroundings};
 pub use teleop::{Assisted, Joystick, MapField, Teleop, Vector, predict};
 pub use vision::{

@@ -17,7 +17,7 @@ use vl_core::{
 
 use crate::client::{ClientError, Connection, Incoming, open};
 use crate::gamepad::Pad;
-use crate::pilot::{Pilot, Route};
+use crate::route::Route;
 use crate::session::{Link, Session};
 use vl_core::MountedLab;
 
@@ -55,7 +55,6 @@ pub struct GuestApp {
     /// What planning the defined goal gave: the path's length, or why none.
     plan_note: Option<String>,
     /// Steers along the defined path during a run.
-    pilot: Pilot,
     /// The one joystick → velocity mapping, as the Host reads it back.
     teleop: Teleop,
     /// A real stick, when there is one, and whether its stop button was down.
@@ -83,7 +82,6 @@ impl GuestApp {
             joystick: Vec2::ZERO,
             goal: Goal::at(Point::default()),
             plan_note: None,
-            pilot: Pilot::default(),
             teleop: Teleop::default(),
             pad: None,
             asked: Joystick::default(),
@@ -112,7 +110,6 @@ impl GuestApp {
         self.session = Session::default();
         self.texture = None;
         self.plan_note = None;
-        self.pilot.release();
         match GuestApp::connect(&self.address) {
             Ok(connection) => self.connection = connection,
             Err(e) => self.session.apply(Incoming::Unreachable(e)),
@@ -177,9 +174,6 @@ impl GuestApp {
         if !self.session.is_operator() {
             return;
         }
-        if !self.session.running {
-            self.pilot.release();
-        }
         let by_pad = pad.map(|(input, _)| input.drive()).unwrap_or_default();
         let stick = if by_pad != Joystick::default() {
             by_pad
@@ -189,15 +183,13 @@ impl GuestApp {
         self.asked = stick;
         let by_hand = stick != Joystick::default();
         let Some(lab) = &self.session.lab else { return };
-        let along_path = match &self.session.robot {
-            Some(robot) if !by_hand => self.pilot.steer(lab, robot),
-            _ => None,
-        };
-        let by_stick = || {
-            let asked = self.teleop.desired(stick);
-            Drive::from(self.teleop.wheels(&lab.robot, asked))
-        };
-        let drive = along_path.unwrap_or_else(by_stick);
+        // The Host follows a defined path by itself; the stick, while
+        // held, takes over from it.
+        if self.session.host_follows() && !by_hand {
+            return;
+        }
+        let asked = self.teleop.desired(stick);
+        let drive = Drive::from(self.teleop.wheels(&lab.robot, asked));
         if let Some(command) = self.session.next_command(drive) {
             self.connection.send(command);
         }
@@ -220,7 +212,6 @@ impl GuestApp {
 
     /// Asks the Host to stop the robot now and end the run.
     fn emergency_stop(&mut self) {
-        self.pilot.release();
         self.joystick = Vec2::ZERO;
         self.connection.send(GuestMessage::EmergencyStop);
     }
@@ -362,9 +353,6 @@ impl GuestApp {
                     .add_enabled(can_start, egui::Button::new("Start"))
                     .clicked()
                 {
-                    if let Some(definition) = &self.session.definition {
-                        self.pilot.follow(definition);
-                    }
                     self.connection.send(GuestMessage::Start);
                 }
                 if ui

@@ -9,11 +9,11 @@ use serde::Serialize;
 use thiserror::Error;
 use vl_core::{
     ArenaPlanError, EndReason, ErrorCode, Experiment, Goal, GuestMessage, HostMessage,
-    PROTOCOL_VERSION, Pose, Role, Summary,
+    PROTOCOL_VERSION, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
 };
 
 use crate::client::{ClientError, Connection, Incoming, open};
-use crate::pilot::{Pilot, Route};
+use crate::route::Route;
 use crate::session::{RoundTrips, Session};
 
 /// What the scripted session does.
@@ -68,7 +68,15 @@ pub struct Report {
     pub distance_mm: f64,
     pub collisions: u64,
     pub frames: u64,
+    /// Bytes of camera images received.
+    pub video_bytes: u64,
     pub round_trip_ms: RoundTripMs,
+    /// Where the pose the Host steered by came from.
+    pub pose_source: PoseSource,
+    /// The path the Guest planned and defined.
+    pub planned: Vec<Point>,
+    /// The followed path against the planned one, as the Host measured it.
+    pub path: Option<PathAnalysis>,
 }
 
 #[derive(Debug, Error)]
@@ -163,7 +171,12 @@ async fn welcomed(url: &str, role: Role, script: &Script) -> Result<Scripted, Sc
     Ok(guest)
 }
 
-/// Connects to `url` as operator and drives the robot to the goal.
+/// How long a run that ran out of time is given to report its end.
+const STOP_WAIT: Duration = Duration::from_secs(5);
+
+/// Connects to `url` as operator, defines a path to the goal and starts
+/// the run, which the Host follows; reports the run's end. A run that
+/// outlasts `script.timeout` is stopped and reported as stopped.
 pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptError> {
     let mut guest = welcomed(url, Role::Operator, script).await?;
     let ignore = |_: &mut Session, _: &Connection| {};
@@ -194,15 +207,11 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
     guest.connection.send(GuestMessage::Start);
     guest.until("start", ignore, |s| s.running).await?;
 
-    let mut pilot = Pilot::default();
-    pilot.follow(&route.definition);
+    // The Host follows the path; the Guest watches it go.
     let mut last_progress = Instant::now();
     let progress = script.progress;
-    let steer = move |session: &mut Session, connection: &Connection| {
+    let watch = move |session: &mut Session, _: &Connection| {
         let Some(robot) = &session.robot else { return };
-        let Some(drive) = pilot.steer(&lab, robot) else {
-            return;
-        };
         if progress && last_progress.elapsed() >= Duration::from_secs(1) {
             last_progress = Instant::now();
             eprintln!(
@@ -213,13 +222,19 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
                 robot.pose.point().distance(goal.point())
             );
         }
-        if let Some(command) = session.next_command(drive) {
-            connection.send(command);
-        }
     };
-    guest
-        .until("reach the goal", steer, |s| s.done.is_some())
-        .await?;
+    match guest
+        .until("reach the goal", watch, |s| s.done.is_some())
+        .await
+    {
+        // Out of time: the run is stopped, and its summary still says how it went.
+        Err(ScriptError::Timeout { .. }) => {
+            guest.connection.send(GuestMessage::Stop);
+            guest.deadline = Instant::now() + STOP_WAIT;
+            guest.until("stop", ignore, |s| s.done.is_some()).await?;
+        }
+        other => other?,
+    }
 
     let summary = guest.session.done.clone().expect("done");
     guest.connection.send(GuestMessage::Bye);
@@ -232,7 +247,11 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
         distance_mm: summary.distance_mm,
         collisions: summary.collisions,
         frames: guest.session.frames_received,
+        video_bytes: guest.session.video_bytes,
         round_trip_ms: RoundTripMs::from(&guest.session.round_trips),
+        pose_source: summary.pose_source,
+        planned: route.definition.path,
+        path: summary.path,
     })
 }
 

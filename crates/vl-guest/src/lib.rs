@@ -1,5 +1,5 @@
 //! The vl Guest: the user's side of the lab. `client` speaks to a Host,
-//! `session` holds what the Guest knows, `pilot` plans and follows paths,
+//! `session` holds what the Guest knows, `route` plans paths for the Host to follow,
 //! `gamepad` reads a real stick and renders the force on it,
 //! `app` draws it all in a window and `headless` scripts it without one.
 
@@ -7,7 +7,7 @@ mod app;
 mod client;
 mod gamepad;
 mod headless;
-mod pilot;
+mod route;
 mod session;
 
 pub use app::{GuestApp, WindowError, run_window};
@@ -16,5 +16,5 @@ pub use gamepad::{Effect, Pad, PadInput, effect};
 #[cfg(target_os = "linux")]
 pub use gamepad::{Gamepad, GamepadError};
 pub use headless::{Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, watch};
-pub use pilot::{Pilot, Route};
+pub use route::Route;
 pub use session::{CameraFrame, Devices, Link, RobotState, RoundTrips, Session};

@@ -5,7 +5,7 @@
 use image::RgbaImage;
 use vl_core::{
     Definition, DeviceState, Drive, ErrorCode, ExperimentInfo, FrameHeader, GuestMessage,
-    HostMessage, ImageFormat, MountedLab, Pose, Role, Summary, WheelSpeeds,
+    HostMessage, ImageFormat, MountedLab, Pose, PoseSource, Role, Summary, WheelSpeeds,
 };
 
 use crate::client::Incoming;
@@ -29,6 +29,8 @@ pub struct RobotState {
     pub force: Option<[f64; 2]>,
     /// The Host's safety layer is holding the robot back.
     pub limited: bool,
+    /// Whether `pose` rests on the camera or on odometry alone.
+    pub source: PoseSource,
 }
 
 /// Whether the lab's devices answer, as the Host last said.
@@ -100,6 +102,8 @@ pub struct Session {
     pub robot: Option<RobotState>,
     pub frame: Option<CameraFrame>,
     pub frames_received: u64,
+    /// Bytes of camera images received (the video the link carried).
+    pub video_bytes: u64,
     pub round_trips: RoundTrips,
     /// What the Host refused since the last thing that went through.
     pub errors: Vec<(ErrorCode, String)>,
@@ -123,6 +127,7 @@ impl Default for Session {
             robot: None,
             frame: None,
             frames_received: 0,
+            video_bytes: 0,
             round_trips: RoundTrips::default(),
             errors: Vec::new(),
             done: None,
@@ -192,6 +197,7 @@ impl Session {
                 contact,
                 force,
                 limited,
+                source,
             } => {
                 // Feedback can only move forward in time; an older one is stale.
                 if self.robot.as_ref().is_some_and(|r| r.t_ms > t_ms) {
@@ -206,6 +212,7 @@ impl Session {
                     contact,
                     force,
                     limited,
+                    source,
                 });
             }
             HostMessage::Done { summary } => {
@@ -221,6 +228,7 @@ impl Session {
     }
 
     fn apply_frame(&mut self, header: FrameHeader, bytes: &[u8]) {
+        self.video_bytes += bytes.len() as u64;
         if self
             .frame
             .as_ref()
@@ -259,6 +267,14 @@ impl Session {
         })
     }
 
+    /// Whether the run under way, or the next, follows its path on the Host.
+    pub fn host_follows(&self) -> bool {
+        match (&self.lab, &self.definition) {
+            (Some(lab), Some(definition)) => definition.host_follows(lab.experiment),
+            _ => false,
+        }
+    }
+
     /// Whether this Guest may drive.
     pub fn is_operator(&self) -> bool {
         self.role == Some(Role::Operator)
@@ -279,6 +295,7 @@ mod tests {
             contact: false,
             force: None,
             limited: false,
+            source: PoseSource::Camera,
         }))
     }
 

@@ -27,8 +27,9 @@ pub struct CameraError(pub String);
 /// What one read of the robot tells.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RobotReading {
-    /// Best estimate of the pose (odometry on a real robot, truth on the simulator).
-    pub pose: Pose,
+    /// Dead reckoning from the wheel encoders since the lab started: it
+    /// drifts, and the camera corrects it.
+    pub odometry: Pose,
     pub wheels: WheelSpeeds,
     pub proximity: Vec<u16>,
     /// Pressing against something.
@@ -49,6 +50,14 @@ pub trait Robot: Send {
 
 /// An overhead camera.
 pub trait Camera: Send {
+    /// The camera as calibrated: how its pixels map to the floor.
     fn model(&self) -> CameraModel;
     fn grab(&mut self) -> Result<RgbImage, CameraError>;
+}
+
+/// Where the robot truly is, which only a simulator knows. The Host hands
+/// it to nothing but a run's record, to measure afterwards how far the run
+/// strayed: it never steers, guards or ends a run by it.
+pub trait Witness: Send {
+    fn true_pose(&mut self) -> Pose;
 }

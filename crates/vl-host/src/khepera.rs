@@ -205,7 +205,7 @@ impl Robot for KheperaSerial {
         let speed = self.pair(KheperaCommand::ReadSpeed)?;
         let proximity = self.proximity()?;
         Ok(RobotReading {
-            pose: self.pose,
+            odometry: self.pose,
             wheels: WheelSpeeds {
                 left_mm_s: self.model.speed_mm_s(speed[0]),
                 right_mm_s: self.model.speed_mm_s(speed[1]),

@@ -15,11 +15,13 @@ mod sim;
 use std::net::SocketAddr;
 
 use tokio::net::TcpListener;
-use vl_core::{Arena, RobotModel};
+use vl_core::{Arena, CalibrationError, CameraModel, RobotModel};
+use vl_sim::{Optics, Scheduled};
 
 pub use characterise::{CharacteriseError, characterise};
-pub use drivers::{Camera, CameraError, Robot, RobotError, RobotReading};
+pub use drivers::{Camera, CameraError, Robot, RobotError, RobotReading, Witness};
 pub use khepera::KheperaSerial;
+pub use lab::{Devices, FramePolicy};
 pub use line::run_guard;
 pub use server::HostConfig;
 
@@ -30,31 +32,45 @@ pub enum HostError {
     Bind(SocketAddr, std::io::Error),
     #[error(transparent)]
     Sim(#[from] vl_sim::SimError),
+    #[error("cannot calibrate the simulated camera: {0}")]
+    Calibration(#[from] CalibrationError),
 }
 
 /// Camera frames per second on the simulated lab.
 const SIM_FPS: f64 = 15.0;
-/// Width of the simulated camera's image.
-const SIM_CAMERA_WIDTH_PX: u32 = 320;
+/// Width of the simulated camera's image: a VGA webcam's.
+const SIM_CAMERA_WIDTH_PX: u32 = 640;
 
 /// A simulated lab: the robot in its arena (starting at the arena's start
-/// pose), the simulator's seed, and whether a camera watches.
+/// pose), the simulator's seed, and the camera that watches, if any.
 #[derive(Debug, Clone)]
 pub struct SimLab {
     pub arena: Arena,
     pub robot: RobotModel,
     pub seed: u64,
-    pub camera: bool,
+    pub camera: Option<SimCamera>,
+    /// What people do in the lab while it runs.
+    pub scene: Vec<Scheduled>,
+}
+
+/// The simulated camera: how its optics spoil the ideal overhead view, and
+/// the calibration the lab believes (none: the lab calibrates the camera
+/// itself from a dot target on the floor, as lab staff do when it is set up).
+#[derive(Debug, Clone, Default)]
+pub struct SimCamera {
+    pub optics: Optics,
+    pub calibration: Option<CameraModel>,
 }
 
 impl SimLab {
-    /// A Khepera II in `arena`, watched by the camera, seed 1.
+    /// A Khepera II in `arena`, watched by an ideal camera, seed 1.
     pub fn new(arena: Arena) -> SimLab {
         SimLab {
             arena,
             robot: RobotModel::khepera_ii(),
             seed: 1,
-            camera: true,
+            camera: Some(SimCamera::default()),
+            scene: Vec::new(),
         }
     }
 }
@@ -69,12 +85,11 @@ impl Host {
     /// Binds `listen` and serves `robot` (and `camera`, if there is one) on `arena`.
     pub async fn start(
         listen: SocketAddr,
-        robot: Box<dyn Robot>,
-        camera: Option<Box<dyn Camera>>,
+        devices: Devices,
         arena: Arena,
         config: HostConfig,
     ) -> Result<Host, HostError> {
-        let lab = lab::Lab::spawn(robot, camera, arena);
+        let lab = lab::Lab::spawn(devices, arena, config.frames);
         let listener = TcpListener::bind(listen)
             .await
             .map_err(|e| HostError::Bind(listen, e))?;
@@ -91,15 +106,38 @@ impl Host {
         lab: SimLab,
         config: HostConfig,
     ) -> Result<Host, HostError> {
-        let (robot, camera) = sim::sim_lab(
-            lab.arena.clone(),
-            lab.robot,
-            lab.seed,
-            SIM_CAMERA_WIDTH_PX,
-            SIM_FPS,
-        )?;
-        let camera = lab.camera.then(|| Box::new(camera) as Box<dyn Camera>);
-        Host::start(listen, Box::new(robot), camera, lab.arena, config).await
+        let (width_mm, height_mm) = (lab.arena.width_mm, lab.arena.height_mm);
+        let nominal = CameraModel::overhead(width_mm, height_mm, SIM_CAMERA_WIDTH_PX, SIM_FPS);
+        let camera = lab.camera.clone().unwrap_or_default();
+        let ideal = Optics {
+            seed: camera.optics.seed,
+            ..Optics::default()
+        };
+        let believed = match camera.calibration {
+            Some(model) => model,
+            None if camera.optics == ideal => nominal,
+            None => {
+                vl_sim::calibrate(&nominal, &camera.optics, width_mm, height_mm)?
+                    .calibration
+                    .camera
+            }
+        };
+        let setup = sim::SimCameraSetup {
+            nominal,
+            optics: camera.optics,
+            believed,
+        };
+        let (robot, sim_camera, witness) =
+            sim::sim_lab(lab.arena.clone(), lab.robot, lab.seed, setup, lab.scene)?;
+        let devices = Devices {
+            robot: Box::new(robot),
+            camera: lab
+                .camera
+                .is_some()
+                .then(|| Box::new(sim_camera) as Box<dyn Camera>),
+            witness: Some(Box::new(witness)),
+        };
+        Host::start(listen, devices, lab.arena, config).await
     }
 
     /// The WebSocket URL Guests connect to.

@@ -3,15 +3,20 @@
 //! is read, so the simulated robot lives in real time like a real one —
 //! except that a Host starved of the processor finds its lab's clock slowed
 //! rather than the robot moved on unwatched by a long stride.
+//!
+//! The robot reports what a real one can: odometry from its wheels'
+//! travel (which slips), never the world's true pose; the camera renders
+//! through its optics and reports the model the lab *believes*. Only the
+//! `SimWitness` sees the truth, for judging a run afterwards.
 
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
 
 use image::RgbImage;
-use vl_core::{Arena, CameraModel, RobotModel, WheelSpeeds};
-use vl_sim::{Optics, SimError, World, camera_for};
+use vl_core::{Arena, CameraModel, Pose, RobotModel, WheelSpeeds};
+use vl_sim::{Optics, Scheduled, SimError, World};
 
-use crate::drivers::{Camera, CameraError, Robot, RobotError, RobotReading};
+use crate::drivers::{Camera, CameraError, Robot, RobotError, RobotReading, Witness};
 
 /// The longest stretch of simulated time one read catches up, s: three
 /// control periods.
@@ -24,24 +29,48 @@ pub struct SimRobot {
     since: Instant,
     /// Wall-clock time the simulation has given up catching up, s.
     slipped_s: f64,
+    /// Dead reckoning from the wheels' travel, as a real robot's encoders.
+    odometry: Pose,
+    travel_mm: [f64; 2],
 }
 
 /// The simulated overhead camera.
-pub struct SimCamera {
+pub struct RenderedCamera {
     world: Arc<Mutex<World>>,
-    model: CameraModel,
+    /// The camera as built: what renders the frames.
+    nominal: CameraModel,
+    optics: Optics,
+    /// The camera as the lab believes it is (its calibration).
+    believed: CameraModel,
 }
 
-/// A simulated robot and camera on `arena`, with `seed` for the sensor noise.
+/// The simulator's knowledge of where the robot truly is.
+pub struct SimWitness {
+    world: Arc<Mutex<World>>,
+}
+
+/// How the simulated camera is set up: `nominal` looks straight down over
+/// the arena; `optics` spoil it; the lab believes `believed`.
+pub struct SimCameraSetup {
+    pub nominal: CameraModel,
+    pub optics: Optics,
+    pub believed: CameraModel,
+}
+
+/// A simulated robot, camera and witness on `arena`, with `seed` for the
+/// sensor noise, and what people will do in the lab.
 pub fn sim_lab(
     arena: Arena,
     robot: RobotModel,
     seed: u64,
-    camera_width_px: u32,
-    fps: f64,
-) -> Result<(SimRobot, SimCamera), SimError> {
-    let world = World::new(arena, robot.clone(), seed)?;
-    let camera = camera_for(&world, camera_width_px, fps);
+    camera: SimCameraSetup,
+    scene: Vec<Scheduled>,
+) -> Result<(SimRobot, RenderedCamera, SimWitness), SimError> {
+    let start = arena.start;
+    let mut world = World::new(arena, robot.clone(), seed)?;
+    for event in scene {
+        world.schedule(event);
+    }
     let world = Arc::new(Mutex::new(world));
     Ok((
         SimRobot {
@@ -49,11 +78,16 @@ pub fn sim_lab(
             model: robot,
             since: Instant::now(),
             slipped_s: 0.0,
+            odometry: start,
+            travel_mm: [0.0; 2],
         },
-        SimCamera {
-            world,
-            model: camera,
+        RenderedCamera {
+            world: world.clone(),
+            nominal: camera.nominal,
+            optics: camera.optics,
+            believed: camera.believed,
         },
+        SimWitness { world },
     ))
 }
 
@@ -85,8 +119,15 @@ impl Robot for SimRobot {
         while world.time_s() < now {
             world.step();
         }
+        let travel = world.wheel_travel_mm();
+        let moved = WheelSpeeds {
+            left_mm_s: travel[0] - self.travel_mm[0],
+            right_mm_s: travel[1] - self.travel_mm[1],
+        };
+        self.travel_mm = travel;
+        self.odometry = self.odometry.advance(moved, self.model.wheel_base_mm, 1.0);
         Ok(RobotReading {
-            pose: world.pose(),
+            odometry: self.odometry,
             wheels: world.wheels(),
             proximity: world.proximity(),
             contact: world.contact(),
@@ -94,12 +135,18 @@ impl Robot for SimRobot {
     }
 }
 
-impl Camera for SimCamera {
+impl Camera for RenderedCamera {
     fn model(&self) -> CameraModel {
-        self.model
+        self.believed
     }
 
     fn grab(&mut self) -> Result<RgbImage, CameraError> {
-        Ok(lock(&self.world).render(&self.model, &Optics::default()))
+        Ok(lock(&self.world).render(&self.nominal, &self.optics))
+    }
+}
+
+impl Witness for SimWitness {
+    fn true_pose(&mut self) -> Pose {
+        lock(&self.world).pose()
     }
 }

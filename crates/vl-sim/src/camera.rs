@@ -13,6 +13,9 @@ const FLOOR: Rgb<u8> = Rgb([226, 224, 216]);
 const BODY: Rgb<u8> = Rgb([170, 36, 32]);
 /// A light disc on the front half of the body shows the heading.
 const MARKER: Rgb<u8> = Rgb([250, 250, 250]);
+/// A hand held over the robot: lighter than the camera's threshold, so the
+/// robot vanishes into the floor.
+const HAND: Rgb<u8> = Rgb([214, 176, 150]);
 
 /// How the simulated camera departs from an ideal one. All zero (the
 /// default) renders the ideal image; with any of them the frame is still
@@ -140,8 +143,11 @@ impl World {
                 y_mm: pose.y_mm + r,
             },
         );
+        let covered = self.robot_covered();
         paint(&mut image, camera, optics, body, |p| {
-            if p.distance(marker) <= marker_r {
+            if covered {
+                (p.distance(pose.point()) <= r).then_some(HAND)
+            } else if p.distance(marker) <= marker_r {
                 Some(MARKER)
             } else {
                 (p.distance(pose.point()) <= r).then_some(BODY)

@@ -13,6 +13,7 @@ mod emulator;
 mod khepera;
 mod link;
 mod noise;
+mod scene;
 mod script;
 mod world;
 
@@ -23,5 +24,6 @@ pub use khepera::Khepera;
 pub use link::{
     Distribution, Expected, Link, LinkModel, LinkReport, LinkStats, Loss, Profile, measure,
 };
+pub use scene::{SceneEvent, Scheduled};
 pub use script::{Driver, RunReport, Script, ScriptError, Tracking, run};
 pub use world::{STEP_S, SimError, World};

@@ -3,9 +3,10 @@
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use thiserror::Error;
-use vl_core::{Arena, Pose, RobotModel, WheelSpeeds, ir_reading};
+use vl_core::{Arena, Material, Obstacle, Pose, RobotModel, WheelSpeeds, ir_reading};
 
 use crate::noise::gaussian;
+use crate::scene::{SceneEvent, Scheduled};
 
 /// The simulator's step: the Khepera's speed-control period.
 pub const STEP_S: f64 = 0.01;
@@ -49,6 +50,10 @@ pub struct World {
     /// it keeps turning when the body is stopped against a wall (slip).
     wheel_travel_mm: [f64; 2],
     rng: Pcg64Mcg,
+    /// What people will do, latest first.
+    scene: Vec<Scheduled>,
+    /// A hand covers the robot from the camera until this time, s.
+    covered_until_s: f64,
 }
 
 impl World {
@@ -79,6 +84,8 @@ impl World {
             odometer_mm: 0.0,
             wheel_travel_mm: [0.0; 2],
             rng: Pcg64Mcg::seed_from_u64(seed),
+            scene: Vec::new(),
+            covered_until_s: 0.0,
         })
     }
 
@@ -142,8 +149,31 @@ impl World {
         }
     }
 
+    /// Has `event` happen when the clock reaches its time.
+    pub fn schedule(&mut self, event: Scheduled) {
+        self.scene.push(event);
+        self.scene.sort_by(|a, b| b.at_s.total_cmp(&a.at_s));
+    }
+
+    /// Whether a hand hides the robot from the camera now.
+    pub fn robot_covered(&self) -> bool {
+        self.time_s() < self.covered_until_s
+    }
+
     /// Advances the clock by one step.
     pub fn step(&mut self) {
+        while self.scene.last().is_some_and(|e| e.at_s <= self.time_s()) {
+            let Some(Scheduled { at_s, event }) = self.scene.pop() else {
+                break;
+            };
+            match event {
+                SceneEvent::Place(shape) => self.arena.obstacles.push(Obstacle {
+                    shape,
+                    material: Material::default(),
+                }),
+                SceneEvent::Cover(seconds) => self.covered_until_s = at_s + seconds,
+            }
+        }
         while let Some(&(due, target)) = self.pending.front() {
             if due > self.time_s() + 1e-9 {
                 break;

@@ -112,6 +112,13 @@ pub const MAX_PATH_POINTS: usize = 10_000;
 pub const MAX_VIRTUAL_OBSTACLES: usize = 64;
 
 impl Definition {
+    /// Whether the Host follows this definition's path by itself in a run
+    /// of `experiment`: a navigation run with a planned path. The
+    /// operator's commands then only take over while they keep coming.
+    pub fn host_follows(&self, experiment: Experiment) -> bool {
+        experiment == Experiment::Navigation && !self.path.is_empty()
+    }
+
     /// Checks the definition against the arena and robot it will run on,
     /// saying what is wrong in words a user can act on.
     pub fn validate(&self, arena: &Arena, robot: &RobotModel) -> Result<(), String> {

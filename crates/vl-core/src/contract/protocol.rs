@@ -11,7 +11,8 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::{
-    Arena, CameraModel, Definition, Experiment, ExperimentInfo, Pose, RobotModel, WheelSpeeds,
+    Arena, CameraModel, Definition, Experiment, ExperimentInfo, PathAnalysis, Pose, PoseSource,
+    RobotModel, WheelSpeeds,
 };
 
 /// The protocol version a `hello` must name.
@@ -89,6 +90,9 @@ pub enum EndReason {
     EmergencyStop,
     /// The operator sent no command for the lease time.
     OperatorSilent,
+    /// The camera lost sight of the robot for longer than odometry alone
+    /// may carry a run.
+    RobotLost,
 }
 
 impl std::fmt::Display for EndReason {
@@ -101,6 +105,7 @@ impl std::fmt::Display for EndReason {
             EndReason::Fault => "fault",
             EndReason::EmergencyStop => "emergency stop",
             EndReason::OperatorSilent => "operator silent",
+            EndReason::RobotLost => "the camera lost the robot",
         })
     }
 }
@@ -125,6 +130,13 @@ pub struct Summary {
     /// let through (1: it never had to slow the robot).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub speed_kept: Option<f64>,
+    /// Where the pose the Host steered and judged by came from.
+    #[serde(default)]
+    pub pose_source: PoseSource,
+    /// The followed path against the planned one, for runs that had a plan
+    /// or a witness of the truth.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path: Option<PathAnalysis>,
 }
 
 /// Machine-readable reason in an `error` message.
@@ -210,6 +222,9 @@ pub enum GuestMessage {
         #[serde(flatten)]
         drive: Drive,
     },
+    /// Send a camera frame now, from anyone welcomed: a Host that sends
+    /// frames only when the scene changes answers with the next one.
+    RequestFrame,
     Bye,
 }
 
@@ -267,6 +282,9 @@ pub enum HostMessage {
         /// The safety layer is holding the robot back from what was asked.
         #[serde(default, skip_serializing_if = "std::ops::Not::not")]
         limited: bool,
+        /// Whether `pose` rests on a recent camera sighting or on odometry alone.
+        #[serde(default)]
+        source: PoseSource,
     },
     Done {
         summary: Summary,
@@ -359,6 +377,7 @@ impl GuestMessage {
             GuestMessage::Stop => "stop",
             GuestMessage::EmergencyStop => "emergency_stop",
             GuestMessage::Command { .. } => "command",
+            GuestMessage::RequestFrame => "request_frame",
             GuestMessage::Bye => "bye",
         }
     }
@@ -375,6 +394,7 @@ impl Wire for GuestMessage {
         "stop",
         "emergency_stop",
         "command",
+        "request_frame",
         "bye",
     ];
 }

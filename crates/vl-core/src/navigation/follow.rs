@@ -4,7 +4,7 @@
 //! near the goal, stops within a tolerance, and defers to its proximity
 //! sensors when something the map did not show comes close.
 
-use crate::{Definition, Point, Pose, RobotModel, WheelSpeeds, wrap_angle};
+use crate::{Definition, Point, Pose, RobotModel, WheelSpeeds, distance_to_polyline, wrap_angle};
 
 /// Room to leave between the robot's body and mapped obstacles when
 /// planning a path to follow: there the proximity readings stay under
@@ -39,8 +39,8 @@ impl Default for Following {
     fn default() -> Self {
         Following {
             cruise_mm_s: 200.0,
-            lookahead_mm: 40.0,
-            turn_gain: 4.0,
+            lookahead_mm: 30.0,
+            turn_gain: 10.0,
             slow_radius_mm: 80.0,
             tolerance_mm: 10.0,
             unmapped_above: 600,
@@ -173,13 +173,7 @@ impl Follower {
 
     /// Distance from `p` to the path (its polyline): the tracking error.
     pub fn distance_to_path(&self, p: Point) -> f64 {
-        if self.path.len() == 1 {
-            return p.distance(self.path[0]);
-        }
-        self.path
-            .windows(2)
-            .map(|s| p.distance_to_segment(s[0], s[1]))
-            .fold(f64::INFINITY, f64::min)
+        distance_to_polyline(&self.path, p)
     }
 }
 

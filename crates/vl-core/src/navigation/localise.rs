@@ -87,12 +87,33 @@ impl Localiser {
         }
     }
 
+    /// Knows the robot is at `start`, as when it was put there by hand
+    /// (within a millimetre and a degree or so), with no camera to say.
+    pub fn placed(start: Pose, uncertainty: Uncertainty) -> Localiser {
+        Localiser {
+            covariance: Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 3e-4)),
+            ..Localiser::new(start, uncertainty)
+        }
+    }
+
     pub fn pose(&self) -> Pose {
         Pose {
             x_mm: self.state.x,
             y_mm: self.state.y,
             theta_rad: self.state.z,
         }
+    }
+
+    /// Standard deviation of the position along its least certain
+    /// direction, mm: how far the robot may be from the estimate.
+    pub fn position_sd_mm(&self) -> f64 {
+        let (a, b, c) = (
+            self.covariance[(0, 0)],
+            self.covariance[(0, 1)],
+            self.covariance[(1, 1)],
+        );
+        let largest = (a + c) / 2.0 + (((a - c) / 2.0).powi(2) + b * b).sqrt();
+        largest.max(0.0).sqrt()
     }
 
     /// Seconds from the last sighting folded in to `now_s`; None before any.

@@ -2,6 +2,7 @@
 //! of a map grown by the robot's footprint, the NF1 navigation function and
 //! its descent, a cubic spline through it, and following the smooth path.
 
+pub(crate) mod analysis;
 pub(crate) mod bench;
 pub(crate) mod cspace;
 pub(crate) mod follow;

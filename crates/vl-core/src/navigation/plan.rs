@@ -10,7 +10,7 @@ use super::follow::PLAN_MARGIN_MM;
 use super::spline::{Knot, Spline};
 use crate::{
     Arena, CSpace, CSpaceError, Cell, Connectivity, Footprint, Grid, Nf1, Point, Pose, RobotModel,
-    Shape, wrap_angle,
+    Shape, Surroundings, wrap_angle,
 };
 
 /// Cells of the descent between spline knots, before refinement.
@@ -144,7 +144,7 @@ pub(crate) fn plan_in_arena(
         y_mm: goal.y_mm,
         theta_rad: 0.0,
     };
-    let mut result = Err(NoPath::Disconnected.into());
+    let mut result: Result<Plan, ArenaPlanError> = Err(NoPath::Disconnected.into());
     // Narrow passages, or a start or goal close to an obstacle, may leave
     // room for less margin; the robot's body must still fit.
     for extra in [1.0, 0.6, 0.4, 0.2, 0.0].map(|f| f * margin_mm) {
@@ -157,7 +157,101 @@ pub(crate) fn plan_in_arena(
             break;
         }
     }
-    result
+    let mut plan = result?;
+    let surroundings = Surroundings::new(arena).with(virtual_obstacles);
+    keep_clear(
+        &mut plan.path,
+        |p| surroundings.clearance(p) - radius_mm,
+        margin_mm,
+    );
+    plan.length_mm = length_mm(&plan.path);
+    Ok(plan)
+}
+
+/// The length of the polyline through `path`'s positions, mm.
+fn length_mm(path: &[Pose]) -> f64 {
+    path.windows(2)
+        .map(|w| w[0].point().distance(w[1].point()))
+        .sum()
+}
+
+/// Rounds of [`keep_clear`], and the most one round moves a point, mm.
+const CLEARING_ROUNDS: usize = 60;
+const CLEARING_STEP_MM: f64 = 0.5;
+
+/// Moves the path's inner samples away from whatever is nearer than
+/// `margin_mm` (by `room`, the body's clearance at a point), as far as the
+/// room allows, keeping the path smooth. The margin lowered for a narrow
+/// passage is then lowered there only: elsewhere the path keeps its margin,
+/// and in the passage it runs down the middle, where a guard that keeps a
+/// few millimetres lets it through. A path that would come out nearer to
+/// anything than it went in is left as it was.
+fn keep_clear(path: &mut [Pose], room: impl Fn(Point) -> f64, margin_mm: f64) {
+    let n = path.len();
+    if n < 3 {
+        return;
+    }
+    let least = |path: &[Pose]| {
+        path.iter()
+            .map(|p| room(p.point()))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let before = least(path);
+    let mut points: Vec<Point> = path.iter().map(|p| p.point()).collect();
+    let h = 0.5;
+    for _ in 0..CLEARING_ROUNDS {
+        let mut moved = false;
+        for point in &mut points[1..n - 1] {
+            let p = *point;
+            let c = room(p);
+            if c >= margin_mm {
+                continue;
+            }
+            let at = |dx: f64, dy: f64| {
+                room(Point {
+                    x_mm: p.x_mm + dx,
+                    y_mm: p.y_mm + dy,
+                })
+            };
+            let (gx, gy) = (
+                (at(h, 0.0) - at(-h, 0.0)) / (2.0 * h),
+                (at(0.0, h) - at(0.0, -h)) / (2.0 * h),
+            );
+            let norm = gx.hypot(gy);
+            if norm < 1e-6 {
+                continue;
+            }
+            let step = (margin_mm - c).min(CLEARING_STEP_MM);
+            *point = Point {
+                x_mm: p.x_mm + gx / norm * step,
+                y_mm: p.y_mm + gy / norm * step,
+            };
+            moved = true;
+        }
+        // A light smoothing keeps the pushed samples a smooth curve.
+        let pushed = points.clone();
+        for i in 1..n - 1 {
+            points[i] = Point {
+                x_mm: 0.5 * pushed[i].x_mm + 0.25 * (pushed[i - 1].x_mm + pushed[i + 1].x_mm),
+                y_mm: 0.5 * pushed[i].y_mm + 0.25 * (pushed[i - 1].y_mm + pushed[i + 1].y_mm),
+            };
+        }
+        if !moved {
+            break;
+        }
+    }
+    let mut cleared: Vec<Pose> = path.to_vec();
+    for i in 1..n - 1 {
+        let (a, b) = (points[i - 1], points[i + 1]);
+        cleared[i] = Pose {
+            x_mm: points[i].x_mm,
+            y_mm: points[i].y_mm,
+            theta_rad: (b.y_mm - a.y_mm).atan2(b.x_mm - a.x_mm),
+        };
+    }
+    if least(&cleared) >= before {
+        path.copy_from_slice(&cleared);
+    }
 }
 
 /// The path a Guest defines for `robot` from `start` to `goal`: planned on
@@ -194,10 +288,7 @@ pub fn plan(
     let nf1_start_value = nf1.value(from).ok_or(NoPath::Disconnected)?;
     let grid_path = nf1.descend(from, to).ok_or(NoPath::Disconnected)?;
     let (path, smoothing) = smooth(cspace, start, goal, &grid_path);
-    let length_mm = path
-        .windows(2)
-        .map(|w| w[0].point().distance(w[1].point()))
-        .sum();
+    let length_mm = length_mm(&path);
     Ok(Plan {
         nf1_start_value,
         min_clearance_mm: clearance(cspace, &path),

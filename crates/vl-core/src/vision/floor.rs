@@ -80,6 +80,71 @@ impl Look {
     }
 }
 
+/// How far around the robot's blob `erase_robot` paints, px: blur and
+/// antialiasing leave a rim that would still show a ghost of the body.
+const ERASE_RIM_PX: i64 = 3;
+
+impl Look {
+    /// Paints the robot out of `frame` (the frame this look was taken
+    /// of) with the floor's colour around it, so a frame kept on screen
+    /// while the robot moves on shows no stale robot: the viewer draws it
+    /// from its pose.
+    pub fn erase_robot(&self, frame: &mut RgbImage) {
+        let Some(label) = self.robot_label else {
+            return;
+        };
+        let (w, h) = (i64::from(self.mask.width), i64::from(self.mask.height));
+        let mut lo = (w, h);
+        let mut hi = (-1, -1);
+        for (i, &l) in self.labels.iter().enumerate() {
+            if l == label {
+                let (c, r) = (i as i64 % w, i as i64 / w);
+                lo = (lo.0.min(c), lo.1.min(r));
+                hi = (hi.0.max(c), hi.1.max(r));
+            }
+        }
+        if hi.0 < 0 {
+            return;
+        }
+        let rim = ERASE_RIM_PX;
+        let (c0, r0) = ((lo.0 - rim).max(0), (lo.1 - rim).max(0));
+        let (c1, r1) = ((hi.0 + rim).min(w - 1), (hi.1 + rim).min(h - 1));
+        let is_robot = |c: i64, r: i64| self.labels[(r * w + c) as usize] == label;
+        let near_robot = |c: i64, r: i64| {
+            (r - rim..=r + rim).any(|rr| {
+                (c - rim..=c + rim)
+                    .any(|cc| (0..w).contains(&cc) && (0..h).contains(&rr) && is_robot(cc, rr))
+            })
+        };
+        // The floor's colour: the mean of the light pixels on the box's edge.
+        let mut sum = [0u64; 3];
+        let mut n = 0u64;
+        for r in r0..=r1 {
+            for c in c0..=c1 {
+                let edge = r == r0 || r == r1 || c == c0 || c == c1;
+                if edge && !self.mask.pixels[(r * w + c) as usize] && !near_robot(c, r) {
+                    let p = frame.get_pixel(c as u32, r as u32).0;
+                    for k in 0..3 {
+                        sum[k] += u64::from(p[k]);
+                    }
+                    n += 1;
+                }
+            }
+        }
+        if n == 0 {
+            return;
+        }
+        let floor = image::Rgb(sum.map(|v| (v / n) as u8));
+        for r in r0..=r1 {
+            for c in c0..=c1 {
+                if near_robot(c, r) {
+                    frame.put_pixel(c as u32, r as u32, floor);
+                }
+            }
+        }
+    }
+}
+
 /// The arena `grid` describes: its blocked cells as few rectangles, on a
 /// floor of its size, the robot (if seen) at `start`.
 pub fn arena_of(grid: &Grid, name: &str, start: Option<Pose>) -> Arena {

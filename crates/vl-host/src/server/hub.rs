@@ -164,9 +164,14 @@ impl Hub {
 
     /// An operator who has sent no command for the lease time during a run
     /// loses the run and the role, and stays on as an observer.
+    /// A run the Host itself steers along the defined path needs no
+    /// commands: its operator is not silent for sending none (a lost one
+    /// still ends it, through the connection's pings).
     fn check_lease(&mut self) {
         let Some(id) = self.operator else { return };
-        if !self.supervisor.allows(Action::Stop) || self.last_command.elapsed() < self.config.lease
+        if !self.supervisor.allows(Action::Stop)
+            || self.last_command.elapsed() < self.config.lease
+            || self.host_follows()
         {
             return;
         }
@@ -186,6 +191,14 @@ impl Hub {
             ErrorCode::Timeout,
             format!("no command for {lease} s: the run ended and you watch now; say hello as operator to drive again"),
         );
+    }
+
+    /// Whether runs of what is mounted and defined follow a path on the Host.
+    fn host_follows(&self) -> bool {
+        match (self.experiment, &self.definition) {
+            (Some(experiment), Some(definition)) => definition.host_follows(experiment),
+            _ => false,
+        }
     }
 
     /// The operator role is free again and the lab back to idle.
@@ -226,6 +239,8 @@ impl Hub {
             }
             // Anyone watching may stop the robot: safety before roles.
             (Some(_), GuestMessage::EmergencyStop) => self.emergency_stop(id),
+            // Anyone watching may want to see the scene.
+            (Some(_), GuestMessage::RequestFrame) => self.lab.request_frame(),
             (Some(Role::Observer), other) => self.refuse(
                 id,
                 ErrorCode::NotOperator,
@@ -404,6 +419,7 @@ impl Hub {
             }
             GuestMessage::Hello { .. }
             | GuestMessage::EmergencyStop
+            | GuestMessage::RequestFrame
             | GuestMessage::Ping { .. }
             | GuestMessage::Pong { .. }
             | GuestMessage::Bye => {}

@@ -24,7 +24,7 @@ use tokio::sync::mpsc;
 use tracing::{debug, warn};
 use vl_core::{Experiment, Named};
 
-use crate::lab::Lab;
+use crate::lab::{FramePolicy, Lab};
 use admission::Admission;
 use connection::Connection;
 use hub::Hub;
@@ -45,6 +45,8 @@ pub struct HostConfig {
     /// A client that has not said hello this long after connecting is
     /// disconnected.
     pub hello_timeout: Duration,
+    /// Which camera frames are sent.
+    pub frames: FramePolicy,
 }
 
 impl Default for HostConfig {
@@ -55,6 +57,7 @@ impl Default for HostConfig {
             lease: Duration::from_secs(30),
             ping_timeout: Duration::from_secs(10),
             hello_timeout: Duration::from_secs(10),
+            frames: FramePolicy::EveryFrame,
         }
     }
 }

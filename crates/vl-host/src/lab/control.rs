@@ -1,38 +1,31 @@
-//! Experiment control and sensed-data processing: the real-time loops that
-//! turn commands into wheel speeds and robot and camera readings into
-//! feedback and frames.
-//!
-//! Each loop runs on its own thread so a slow serial line or camera never
-//! stalls the network side. They publish through `watch` channels, which keep
-//! only the newest value: a slow client gets the latest feedback and frame,
-//! never a queue of stale ones.
+//! Experiment control (the thesis's Experiment Control, at the Host): every
+//! control period it folds the camera's sightings and the wheels' odometry
+//! into the pose estimate, follows the defined path or the operator's
+//! commands, and passes what the wheels are asked through the safety layer.
+//! It steers only by the estimate: nothing here can see the simulator's
+//! truth, which a `Witness` gives the run's record alone.
 
-use std::io::Cursor;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{self, RecvTimeoutError};
-use std::thread;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
 use tokio::sync::{mpsc as async_mpsc, watch};
-use tokio_tungstenite::tungstenite::Bytes;
 use tracing::{debug, info, warn};
 use vl_core::{
-    ARENA_CELL_MM, Arena, CSpace, CameraModel, Definition, DeviceState, Drive, EndReason,
-    Experiment, Footprint, FrameHeader, Grid, HostMessage, ImageFormat, MapField, RobotModel,
-    Safety, Situation, Summary, Surroundings, Teleop, Vector, WheelSpeeds,
+    ARENA_CELL_MM, CSpace, Definition, DeviceState, EndReason, Experiment, Follower, Footprint,
+    Grid, HostMessage, Localiser, MapField, PathRecorder, Pose, PoseSource, RobotModel, Safety,
+    Situation, Summary, Surroundings, Teleop, Uncertainty, Vector, WheelSpeeds,
 };
 
-use crate::drivers::{Camera, Robot, RobotReading};
+use super::camera::Sighting;
+use super::{Finished, LabInfo, LabRequest, LabStatus, Retry, TICK};
+use crate::drivers::{Robot, RobotReading, Witness};
 
-/// The control period: the Khepera's speed-controller period.
-const TICK: Duration = Duration::from_millis(10);
 /// Feedback is published at least this often while nothing else changes.
 const FEEDBACK_EVERY: Duration = Duration::from_millis(20);
 /// A running robot with no new command for this long stops by itself.
-pub const WATCHDOG: Duration = Duration::from_millis(500);
-/// Width of the arena drawing a Guest gets when the lab has no camera.
-const NO_CAMERA_WIDTH_PX: u32 = 640;
+const WATCHDOG: Duration = Duration::from_millis(500);
 /// The safety layer assumes a command lasts at least this long before the
 /// next can brake it: three control periods.
 const REACTION: Duration = Duration::from_millis(30);
@@ -42,187 +35,17 @@ const MOVING_MM_S: f64 = 1.0;
 const MAP_FIELD_INFLUENCE_MM: f64 = 40.0;
 /// Its strength: about 100 mm/s of push with the body 10 mm from a wall.
 const MAP_FIELD_ETA: f64 = 1.0e5;
-
-/// How long the first retry of a lost robot or camera waits; each next
-/// waits twice as long, up to `RETRY_MAX`.
-const RETRY_FIRST: Duration = Duration::from_millis(100);
-const RETRY_MAX: Duration = Duration::from_secs(5);
-
-/// Whether the lab's devices answer.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct LabStatus {
-    pub robot: DeviceState,
-    pub camera: DeviceState,
-}
-
-impl LabStatus {
-    pub fn message(&self) -> HostMessage {
-        HostMessage::Status {
-            robot: self.robot,
-            camera: self.camera,
-        }
-    }
-}
-
-/// Retries with back-off, and says so once per change of state.
-struct Retry {
-    next: Instant,
-    wait: Duration,
-}
-
-impl Retry {
-    fn new() -> Retry {
-        Retry {
-            next: Instant::now() + RETRY_FIRST,
-            wait: RETRY_FIRST,
-        }
-    }
-
-    /// Whether it is time for the next try; each try doubles the wait.
-    fn due(&mut self) -> bool {
-        if Instant::now() < self.next {
-            return false;
-        }
-        self.wait = (self.wait * 2).min(RETRY_MAX);
-        self.next = Instant::now() + self.wait;
-        true
-    }
-}
-
-/// What the lab is, as the Guest needs it at mount.
-#[derive(Debug, Clone)]
-pub struct LabInfo {
-    pub arena: Arena,
-    pub robot: RobotModel,
-    pub camera: CameraModel,
-}
-
-/// Requests from the session to the control loop.
-#[derive(Debug)]
-pub enum LabRequest {
-    /// A run of `experiment` begins. Teleoperation adds the potential
-    /// fields to the operator's commands and feeds the push back as a
-    /// force; navigation ends when the robot reaches the goal.
-    Start {
-        /// The run's number, which its `Finished` carries back.
-        run: u64,
-        definition: Definition,
-        experiment: Experiment,
-    },
-    Drive {
-        event: u64,
-        drive: Drive,
-    },
-    Finish(EndReason),
-}
-
-/// Run number `.0` ended; the session reports it.
-#[derive(Debug, Clone)]
-pub struct Finished(pub u64, pub Summary);
-
-/// The session's handle on the running lab.
-pub struct Lab {
-    pub info: LabInfo,
-    requests: mpsc::Sender<LabRequest>,
-    /// Newest robot feedback.
-    pub feedback: watch::Receiver<Option<HostMessage>>,
-    /// Newest camera frame, encoded for the wire.
-    pub frames: watch::Receiver<Option<Bytes>>,
-    /// Runs that ended.
-    pub finished: async_mpsc::UnboundedReceiver<Finished>,
-    /// Whether the robot and the camera answer.
-    pub status: watch::Receiver<LabStatus>,
-    running: Arc<AtomicBool>,
-}
-
-impl Lab {
-    /// Starts the control and camera loops on their own threads. Without a
-    /// camera no frames are sent; the model still maps the arena for drawing.
-    pub fn spawn(robot: Box<dyn Robot>, camera: Option<Box<dyn Camera>>, arena: Arena) -> Lab {
-        let model = match &camera {
-            Some(camera) => camera.model(),
-            None => CameraModel::overhead(arena.width_mm, arena.height_mm, NO_CAMERA_WIDTH_PX, 0.0),
-        };
-        let info = LabInfo {
-            arena,
-            robot: robot.model().clone(),
-            camera: model,
-        };
-        let (requests, request_rx) = mpsc::channel();
-        let (feedback_tx, feedback) = watch::channel(None);
-        let (frames_tx, frames) = watch::channel(None);
-        let (finished_tx, finished) = async_mpsc::unbounded_channel();
-        let (status_tx, status) = watch::channel(LabStatus {
-            robot: DeviceState::Online,
-            camera: if camera.is_some() {
-                DeviceState::Online
-            } else {
-                DeviceState::Absent
-            },
-        });
-        let status_tx = Arc::new(status_tx);
-        let running = Arc::new(AtomicBool::new(true));
-        let event = Arc::new(AtomicU64::new(0));
-        let since = Instant::now();
-        let control = Control {
-            robot,
-            info: info.clone(),
-            requests: request_rx,
-            feedback: feedback_tx,
-            finished: finished_tx,
-            event: event.clone(),
-            since,
-            run: None,
-            last: None,
-            sent: None,
-            teleop: Teleop::default(),
-            map_field: map_field(&info),
-            surroundings: Surroundings::new(&info.arena),
-            period: TICK,
-            status: status_tx.clone(),
-            retry: None,
-        };
-        thread::Builder::new()
-            .name("vl-control".into())
-            .spawn(move || control.run())
-            .expect("the OS starts a thread");
-        if let Some(camera) = camera {
-            let camera_loop = CameraLoop {
-                camera,
-                frames: frames_tx,
-                event,
-                since,
-                running: running.clone(),
-                status: status_tx,
-            };
-            thread::Builder::new()
-                .name("vl-camera".into())
-                .spawn(move || camera_loop.run())
-                .expect("the OS starts a thread");
-        }
-        Lab {
-            info,
-            requests,
-            feedback,
-            frames,
-            finished,
-            status,
-            running,
-        }
-    }
-
-    /// Passes a request to the control loop.
-    pub fn request(&self, request: LabRequest) {
-        // The control loop only ends when this handle is dropped.
-        let _ = self.requests.send(request);
-    }
-}
-
-impl Drop for Lab {
-    fn drop(&mut self) {
-        self.running.store(false, Ordering::Relaxed);
-    }
-}
+/// The safety margin widens by this many standard deviations of the pose
+/// estimate…
+const UNCERTAINTY_SIGMAS: f64 = 2.0;
+/// …of at most this, mm: an estimate this unsure keeps the robot well
+/// away from everything mapped, and its sensors guard the rest.
+const MAX_UNCERTAINTY_MM: f64 = 50.0;
+/// A pose is the camera's while its last sighting is this recent, s.
+const SIGHTING_FRESH_S: f64 = 0.5;
+/// A run whose robot the camera has not seen for this long, s, stops: the
+/// odometry it drove on meanwhile drifts too far to keep it off obstacles.
+const ROBOT_LOST_S: f64 = 2.0;
 
 /// One run of an experiment, from `start` to its end.
 struct Run {
@@ -233,6 +56,13 @@ struct Run {
     surroundings: Surroundings,
     started: Instant,
     last_command: Instant,
+    /// Whether the operator has commanded this run: a command that is
+    /// still fresh overrides the path being followed.
+    commanded: bool,
+    /// The Host follows the definition's path in a navigation run.
+    follower: Option<Follower>,
+    /// The estimated (and, in simulation, true) path against the plan.
+    record: PathRecorder,
     distance_mm: f64,
     collisions: u64,
     /// The wheel speeds the last command asks for.
@@ -250,8 +80,19 @@ struct Run {
 }
 
 impl Run {
-    fn summary(&self, reason: EndReason, events: u64, reading: Option<&RobotReading>) -> Summary {
-        let pose = reading.map(|r| r.pose).unwrap_or_default();
+    /// `wheels` within the robot's limits and the definition's speed cap.
+    fn capped(&self, robot: &RobotModel, wheels: WheelSpeeds) -> WheelSpeeds {
+        match self.definition.max_speed_mm_s {
+            Some(limit) => {
+                let mut capped = robot.clone();
+                capped.max_wheel_speed_mm_s = capped.max_wheel_speed_mm_s.min(limit);
+                capped.clamp(wheels)
+            }
+            None => robot.clamp(wheels),
+        }
+    }
+
+    fn summary(self, reason: EndReason, events: u64, pose: Pose, source: PoseSource) -> Summary {
         Summary {
             reason,
             reached_goal: self
@@ -265,21 +106,29 @@ impl Run {
             collisions: self.collisions,
             closest_mm: self.closest_mm.is_finite().then_some(self.closest_mm),
             speed_kept: (self.kept.1 > 0).then(|| self.kept.0 / self.kept.1 as f64),
+            pose_source: source,
+            path: Some(self.record.finish()),
         }
     }
 }
 
-struct Control {
+pub(crate) struct Control {
     robot: Box<dyn Robot>,
     info: LabInfo,
     requests: mpsc::Receiver<LabRequest>,
+    /// The robot as the camera loop locates it; none without a camera.
+    sightings: Option<Receiver<Sighting>>,
+    localiser: Localiser,
+    /// What only a simulator knows, for the run's record.
+    witness: Option<Box<dyn Witness>>,
     feedback: watch::Sender<Option<HostMessage>>,
     finished: async_mpsc::UnboundedSender<Finished>,
     /// The last command's event number, shared with the camera loop.
     event: Arc<AtomicU64>,
     since: Instant,
     run: Option<Run>,
-    last: Option<RobotReading>,
+    /// The last reading, and the pose estimated after it.
+    last: Option<(RobotReading, Pose)>,
     /// What the wheels were last told, so an unchanged command is not resent.
     sent: Option<WheelSpeeds>,
     teleop: Teleop,
@@ -295,8 +144,78 @@ struct Control {
     retry: Option<Retry>,
 }
 
+/// What the control loop is given to work with.
+pub(crate) struct Wiring {
+    pub requests: mpsc::Receiver<LabRequest>,
+    pub sightings: Option<Receiver<Sighting>>,
+    pub feedback: watch::Sender<Option<HostMessage>>,
+    pub finished: async_mpsc::UnboundedSender<Finished>,
+    pub event: Arc<AtomicU64>,
+    pub status: Arc<watch::Sender<LabStatus>>,
+    pub since: Instant,
+}
+
 impl Control {
-    fn run(mut self) {
+    /// Control of `robot` in the lab `info` describes, believing the robot
+    /// is at `seen` (a first sighting: when, and where) or else at the
+    /// map's start.
+    pub(crate) fn new(
+        robot: Box<dyn Robot>,
+        witness: Option<Box<dyn Witness>>,
+        info: LabInfo,
+        seen: Option<(Instant, Pose)>,
+        wiring: Wiring,
+    ) -> Control {
+        // Without a camera the robot is where the lab says it was put; with
+        // one, the camera says.
+        let start = info.arena.start;
+        let mut localiser = if wiring.sightings.is_some() {
+            Localiser::new(start, Uncertainty::default())
+        } else {
+            Localiser::placed(start, Uncertainty::default())
+        };
+        if let Some((taken, pose)) = seen {
+            let at = taken.saturating_duration_since(wiring.since).as_secs_f64();
+            localiser.sighting(at, pose);
+        }
+        Control {
+            robot,
+            map_field: map_field(&info),
+            surroundings: Surroundings::new(&info.arena),
+            info,
+            requests: wiring.requests,
+            sightings: wiring.sightings,
+            localiser,
+            witness,
+            feedback: wiring.feedback,
+            finished: wiring.finished,
+            event: wiring.event,
+            since: wiring.since,
+            run: None,
+            last: None,
+            sent: None,
+            teleop: Teleop::default(),
+            period: TICK,
+            status: wiring.status,
+            retry: None,
+        }
+    }
+
+    /// Seconds on the lab's clock at `t`.
+    fn clock(&self, t: Instant) -> f64 {
+        t.saturating_duration_since(self.since).as_secs_f64()
+    }
+
+    /// Where the pose estimate comes from now.
+    fn source(&self) -> PoseSource {
+        let now = self.clock(Instant::now());
+        match self.localiser.since_sighting(now) {
+            Some(age) if self.sightings.is_some() && age <= SIGHTING_FRESH_S => PoseSource::Camera,
+            _ => PoseSource::Odometry,
+        }
+    }
+
+    pub(crate) fn run(mut self) {
         let mut next_tick = Instant::now();
         let mut last_feedback = Instant::now();
         let mut last_read = Instant::now();
@@ -335,6 +254,7 @@ impl Control {
                     }
                 }
             }
+            self.take_sightings();
             match self.robot.read() {
                 Ok(reading) => self.observe(reading),
                 Err(e) => {
@@ -363,9 +283,19 @@ impl Control {
             } => {
                 self.event.store(0, Ordering::Relaxed);
                 let now = Instant::now();
+                let follower = definition
+                    .host_follows(experiment)
+                    .then(|| Follower::for_definition(&definition))
+                    .flatten();
+                if follower.is_some() {
+                    info!(run, "following the defined path from the camera's estimate");
+                }
                 self.run = Some(Run {
                     number: run,
                     surroundings: self.surroundings.with(&definition.virtual_obstacles),
+                    record: PathRecorder::new(definition.path.clone()),
+                    follower,
+                    commanded: false,
                     definition,
                     experiment,
                     started: now,
@@ -386,13 +316,9 @@ impl Control {
                 let Some(run) = self.run.as_mut() else {
                     return false;
                 };
-                let mut wheels = drive.wheels(&self.info.robot);
-                if let Some(limit) = run.definition.max_speed_mm_s {
-                    let mut capped = self.info.robot.clone();
-                    capped.max_wheel_speed_mm_s = capped.max_wheel_speed_mm_s.min(limit);
-                    wheels = capped.clamp(wheels);
-                }
+                let wheels = run.capped(&self.info.robot, drive.wheels(&self.info.robot));
                 run.wheels = wheels;
+                run.commanded = true;
                 if let Some((desired, _)) = &mut run.assist {
                     let robot = &self.info.robot;
                     let v = (wheels.left_mm_s + wheels.right_mm_s) / 2.0;
@@ -415,21 +341,25 @@ impl Control {
     /// then the safety layer leave them; between runs, holds the robot.
     fn drive(&mut self) {
         let Some(run) = &mut self.run else { return };
-        let Some(reading) = &self.last else {
+        let Some((reading, pose)) = &self.last else {
             // Nothing is known of where the robot is yet: it stays put.
             return;
         };
+        let pose = *pose;
         let stale = run.last_command.elapsed() > WATCHDOG;
-        let mut wanted = if stale {
-            WheelSpeeds::default()
-        } else {
-            run.wheels
+        let mut wanted = match &mut run.follower {
+            // The operator's fresh command takes over from the path.
+            Some(follower) if !run.commanded || stale => {
+                let along = follower.step(&self.info.robot, pose, &reading.proximity);
+                run.capped(&self.info.robot, along.wheels())
+            }
+            _ if stale => WheelSpeeds::default(),
+            _ => run.wheels,
         };
         if let Some((desired, force)) = &mut run.assist {
             let robot = &self.info.robot;
             let ahead = self.map_field.as_ref().map_or(Vector::default(), |f| {
-                f.guidance(reading.pose.point())
-                    .rotated(reading.pose.theta_rad)
+                f.guidance(pose.point()).rotated(pose.theta_rad)
             });
             let sensed = self.teleop.sensor_field(robot, &reading.proximity);
             let field = Vector {
@@ -442,12 +372,17 @@ impl Control {
             wanted = assisted.wheels;
         }
         // Whatever asked for `wanted`, the robot must be able to stop in time.
+        // The robot may be anywhere near the estimate: the margin grows by
+        // the estimate's uncertainty (a few tenths of a millimetre with the
+        // camera watching, more the longer odometry alone carries it).
+        let margin_mm = Safety::default().margin_mm
+            + UNCERTAINTY_SIGMAS * self.localiser.position_sd_mm().min(MAX_UNCERTAINTY_MM);
         let safety = Safety {
             reaction_s: REACTION.max(self.period.mul_f64(1.5)).as_secs_f64(),
-            ..Safety::default()
+            margin_mm,
         };
         let situation = Situation {
-            pose: reading.pose,
+            pose,
             wheels: reading.wheels,
             proximity: &reading.proximity,
         };
@@ -473,17 +408,35 @@ impl Control {
         }
     }
 
-    /// Takes in a reading: bookkeeping, goal, time limit, watchdog.
+    /// Folds the camera's newest sightings into the estimate.
+    fn take_sightings(&mut self) {
+        let Some(sightings) = &self.sightings else {
+            return;
+        };
+        let seen: Vec<Sighting> = sightings.try_iter().collect();
+        for sighting in seen {
+            let at = self.clock(sighting.taken);
+            self.localiser.sighting(at, sighting.pose);
+        }
+    }
+
+    /// Takes in a reading: estimate, bookkeeping, goal, time limit, lost
+    /// robot, watchdog.
     fn observe(&mut self, reading: RobotReading) {
-        let previous = self.last.replace(reading.clone());
+        let now = self.clock(Instant::now());
+        self.localiser.odometry(now, reading.odometry);
+        let pose = self.localiser.pose();
+        let previous = self.last.replace((reading.clone(), pose));
         let Some(run) = self.run.as_mut() else { return };
-        if let Some(prev) = previous {
-            run.distance_mm += prev.pose.point().distance(reading.pose.point());
+        let truth = self.witness.as_mut().map(|w| w.true_pose());
+        run.record.record(pose, truth);
+        if let Some((prev, prev_pose)) = previous {
+            run.distance_mm += prev_pose.point().distance(pose.point());
             if reading.contact && !prev.contact {
                 run.collisions += 1;
                 warn!(
                     "contact at ({:.0}, {:.0}) mm: the safety layer lets only moves away through",
-                    reading.pose.x_mm, reading.pose.y_mm
+                    pose.x_mm, pose.y_mm
                 );
             }
         }
@@ -493,15 +446,25 @@ impl Control {
             && run
                 .definition
                 .goal
-                .is_some_and(|g| reading.pose.point().distance(g.point()) <= g.tolerance_mm);
+                .is_some_and(|g| pose.point().distance(g.point()) <= g.tolerance_mm);
         let timed_out = run
             .definition
             .time_limit_s
             .is_some_and(|limit| run.started.elapsed().as_secs_f64() > limit);
+        // Unseen since the last sighting, or since the run began if later.
+        let unseen_s = self
+            .localiser
+            .since_sighting(now)
+            .unwrap_or(f64::INFINITY)
+            .min(run.started.elapsed().as_secs_f64());
+        let lost = self.sightings.is_some() && unseen_s > ROBOT_LOST_S;
         if reached {
             self.finish(EndReason::GoalReached);
         } else if timed_out {
             self.finish(EndReason::TimeLimit);
+        } else if lost {
+            warn!("the camera has not seen the robot for {unseen_s:.1} s: stopping the run");
+            self.finish(EndReason::RobotLost);
         } else {
             // Re-applying every tick lets the watchdog and the safety layer act between commands.
             self.drive();
@@ -512,13 +475,20 @@ impl Control {
     fn finish(&mut self, reason: EndReason) {
         self.halt();
         let Some(run) = self.run.take() else { return };
+        let pose = self
+            .last
+            .as_ref()
+            .map(|(_, pose)| *pose)
+            .unwrap_or_default();
+        let number = run.number;
         let summary = run.summary(
             reason,
             self.event.load(Ordering::Relaxed),
-            self.last.as_ref(),
+            pose,
+            self.source(),
         );
         debug!(?summary, "run finished");
-        let _ = self.finished.send(Finished(run.number, summary));
+        let _ = self.finished.send(Finished(number, summary));
         self.publish();
     }
 
@@ -534,11 +504,14 @@ impl Control {
     }
 
     fn publish(&self) {
-        let Some(reading) = &self.last else { return };
+        let Some((reading, pose)) = &self.last else {
+            return;
+        };
         let message = HostMessage::Feedback {
             event: self.event.load(Ordering::Relaxed),
             t_ms: self.since.elapsed().as_secs_f64() * 1e3,
-            pose: reading.pose,
+            pose: *pose,
+            source: self.source(),
             wheels: reading.wheels,
             proximity: reading.proximity.clone(),
             contact: reading.contact,
@@ -569,61 +542,6 @@ fn map_field(info: &LabInfo) -> Option<MapField> {
         Err(e) => {
             warn!("no map field for assisted teleoperation: {e}");
             None
-        }
-    }
-}
-
-struct CameraLoop {
-    camera: Box<dyn Camera>,
-    frames: watch::Sender<Option<Bytes>>,
-    event: Arc<AtomicU64>,
-    since: Instant,
-    running: Arc<AtomicBool>,
-    status: Arc<watch::Sender<LabStatus>>,
-}
-
-impl CameraLoop {
-    fn run(mut self) {
-        let model = self.camera.model();
-        let period = Duration::from_secs_f64(1.0 / model.fps.max(0.1));
-        let mut seq = 0u64;
-        while self.running.load(Ordering::Relaxed) {
-            let started = Instant::now();
-            let capture_us = self.since.elapsed().as_micros() as u64;
-            let event = self.event.load(Ordering::Relaxed);
-            match self.camera.grab() {
-                Ok(image) => {
-                    let mut png = Cursor::new(Vec::new());
-                    if let Err(e) = image.write_to(&mut png, image::ImageFormat::Png) {
-                        warn!("could not encode a camera frame: {e}");
-                    } else {
-                        seq += 1;
-                        let header = FrameHeader {
-                            format: ImageFormat::Png,
-                            width: image.width() as u16,
-                            height: image.height() as u16,
-                            seq,
-                            event,
-                            capture_us,
-                        };
-                        let wire = header.encode(png.get_ref());
-                        self.frames.send_replace(Some(Bytes::from(wire)));
-                    }
-                }
-                Err(e) => {
-                    if self.status.borrow().camera == DeviceState::Online {
-                        warn!("{e}; the camera is offline until it answers again");
-                        self.status.send_modify(|s| s.camera = DeviceState::Offline);
-                    }
-                    thread::sleep(RETRY_MAX.min(period * 10));
-                    continue;
-                }
-            }
-            if self.status.borrow().camera == DeviceState::Offline {
-                info!("the camera answers again");
-                self.status.send_modify(|s| s.camera = DeviceState::Online);
-            }
-            thread::sleep(period.saturating_sub(started.elapsed()));
         }
     }
 }

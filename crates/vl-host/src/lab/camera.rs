@@ -1,0 +1,242 @@
+//! The camera as the lab's sensor (thesis B.1, B.3): the first frame maps
+//! the floor, every frame locates the robot for the control loop, and the
+//! frames the policy picks (appendix G) go to the Guests as JPEG.
+
+use std::io::Cursor;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::SyncSender;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use image::RgbImage;
+use image::codecs::jpeg::JpegEncoder;
+use tokio::sync::watch;
+use tokio_tungstenite::tungstenite::Bytes;
+use tracing::{debug, info, warn};
+use vl_core::{
+    Arena, CameraModel, DeviceState, FrameHeader, Grid, ImageFormat, Look, Pose, arena_of,
+    changed_cells, look,
+};
+
+use super::{LabStatus, RETRY_MAX};
+use crate::drivers::Camera;
+
+/// The robot where a frame showed it, and when the frame was taken.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Sighting {
+    pub taken: Instant,
+    pub pose: Pose,
+}
+
+/// Sightings waiting for the control loop, at most: it takes them every
+/// control period, far more often than frames come.
+pub(crate) const SIGHTINGS: usize = 4;
+
+/// The camera map's cell, mm: finer than the planner's, so the obstacles
+/// the safety layer keeps the robot from are within a millimetre of where
+/// they are (a VGA camera over the largest arena sees about 1.3 mm per px).
+const MAP_CELL_MM: f64 = 2.0;
+
+/// Which camera frames the Host sends (thesis appendix G).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FramePolicy {
+    /// Every frame the camera takes: live video.
+    EveryFrame,
+    /// A frame when the scene changes beyond the robot (an obstacle placed
+    /// or moved, a hand), when a client asks, and at least every
+    /// `max_interval`; the robot is painted out of it, as Guests draw the
+    /// robot from the pose in the feedback.
+    OnChange { max_interval: Duration },
+}
+
+/// The cell of the grid frames are compared on, mm, and how many of its
+/// cells must differ for the scene to have changed: a 20 mm object
+/// anywhere on the floor, not the noise along an obstacle's edge.
+const CHANGE_CELL_MM: f64 = 10.0;
+const CHANGED_CELLS: usize = 4;
+/// JPEG quality of the frames sent: a webcam's own.
+const JPEG_QUALITY: u8 = 80;
+
+/// How often the first frame is tried before the lab falls back on its model.
+const FIRST_FRAME_TRIES: u32 = 5;
+
+/// The floor as the camera first sees it, and where it sees the robot.
+pub(crate) struct FirstLook {
+    pub map: Arena,
+    pub robot: Option<(Instant, Pose)>,
+}
+
+/// Maps the `floor` (the lab's arena, of which only the size, name and goal
+/// are used) from a frame of `camera`: the lab's obstacles are what the
+/// camera sees. Falls back on the model, saying why, when no frame comes
+/// or the robot is not in it (its body would count as an obstacle).
+pub(crate) fn first_look(camera: &mut dyn Camera, floor: &Arena) -> FirstLook {
+    let model = camera.model();
+    let fallback = |why: String| {
+        warn!("{why}: the lab's map is the arena model until the camera sees it");
+        FirstLook {
+            map: floor.clone(),
+            robot: None,
+        }
+    };
+    let mut last_error = None;
+    for _ in 0..FIRST_FRAME_TRIES {
+        let taken = Instant::now();
+        match camera.grab() {
+            Ok(frame) => return map_from(&frame, &model, floor, taken).unwrap_or_else(fallback),
+            Err(e) => last_error = Some(e),
+        }
+        thread::sleep(Duration::from_millis(100));
+    }
+    fallback(format!(
+        "no frame from the camera ({})",
+        last_error.map_or_else(String::new, |e| e.to_string())
+    ))
+}
+
+fn map_from(
+    frame: &RgbImage,
+    model: &CameraModel,
+    floor: &Arena,
+    taken: Instant,
+) -> Result<FirstLook, String> {
+    let seen = look(frame, model);
+    let robot = seen
+        .robot
+        .ok_or_else(|| "the camera does not see the robot".to_string())?;
+    let grid = seen
+        .obstacles(model, floor.width_mm, floor.height_mm, MAP_CELL_MM)
+        .map_err(|e| format!("cannot grid the floor: {e}"))?;
+    let mut map = arena_of(&grid, &floor.name, Some(robot));
+    map.goal = floor.goal;
+    info!(
+        obstacles = map.obstacles.len(),
+        "mapped the floor from the camera"
+    );
+    Ok(FirstLook {
+        map,
+        robot: Some((taken, robot)),
+    })
+}
+
+pub(crate) struct CameraLoop {
+    pub camera: Box<dyn Camera>,
+    pub frames: watch::Sender<Option<Bytes>>,
+    pub sightings: SyncSender<Sighting>,
+    pub event: Arc<AtomicU64>,
+    pub since: Instant,
+    pub running: Arc<AtomicBool>,
+    pub status: Arc<watch::Sender<LabStatus>>,
+    pub policy: FramePolicy,
+    /// A client asked for a frame.
+    pub wanted: Arc<AtomicBool>,
+    /// The floor's size, mm, over which scenes are compared.
+    pub floor_mm: (f64, f64),
+}
+
+/// What the last frame sent showed, to tell whether the scene changed.
+struct Sent {
+    at: Instant,
+    scene: Option<Grid>,
+}
+
+impl CameraLoop {
+    pub(crate) fn run(mut self) {
+        let model = self.camera.model();
+        let period = Duration::from_secs_f64(1.0 / model.fps.max(0.1));
+        let mut seq = 0u64;
+        let mut sent: Option<Sent> = None;
+        while self.running.load(Ordering::Relaxed) {
+            let started = Instant::now();
+            let capture_us = self.since.elapsed().as_micros() as u64;
+            let event = self.event.load(Ordering::Relaxed);
+            match self.camera.grab() {
+                Ok(mut image) => {
+                    let seen = look(&image, &model);
+                    if let Some(pose) = seen.robot {
+                        // A full queue means the control loop is behind: this
+                        // sighting would be stale by the time it is read.
+                        let _ = self.sightings.try_send(Sighting {
+                            taken: started,
+                            pose,
+                        });
+                    }
+                    if let Some(scene) = self.to_send(&seen, &model, sent.as_ref()) {
+                        if matches!(self.policy, FramePolicy::OnChange { .. }) {
+                            seen.erase_robot(&mut image);
+                        }
+                        match jpeg(&image) {
+                            Ok(bytes) => {
+                                seq += 1;
+                                let header = FrameHeader {
+                                    format: ImageFormat::Jpeg,
+                                    width: image.width() as u16,
+                                    height: image.height() as u16,
+                                    seq,
+                                    event,
+                                    capture_us,
+                                };
+                                let wire = header.encode(&bytes);
+                                self.frames.send_replace(Some(Bytes::from(wire)));
+                                sent = Some(Sent { at: started, scene });
+                            }
+                            Err(e) => warn!("could not encode a camera frame: {e}"),
+                        }
+                    }
+                }
+                Err(e) => {
+                    if self.status.borrow().camera == DeviceState::Online {
+                        warn!("{e}; the camera is offline until it answers again");
+                        self.status.send_modify(|s| s.camera = DeviceState::Offline);
+                    }
+                    thread::sleep(RETRY_MAX.min(period * 10));
+                    continue;
+                }
+            }
+            if self.status.borrow().camera == DeviceState::Offline {
+                info!("the camera answers again");
+                self.status.send_modify(|s| s.camera = DeviceState::Online);
+            }
+            thread::sleep(period.saturating_sub(started.elapsed()));
+        }
+    }
+
+    /// Whether the policy sends the frame `seen` was taken of: `Some` of
+    /// the scene it shows (for the next comparison) if so.
+    fn to_send(
+        &self,
+        seen: &Look,
+        model: &CameraModel,
+        last: Option<&Sent>,
+    ) -> Option<Option<Grid>> {
+        let FramePolicy::OnChange { max_interval } = self.policy else {
+            return Some(None);
+        };
+        let (w, h) = self.floor_mm;
+        let scene = seen.obstacles(model, w, h, CHANGE_CELL_MM).ok();
+        let asked = self.wanted.swap(false, Ordering::Relaxed);
+        let send = match last {
+            None => true,
+            Some(last) => {
+                let changed = match (&scene, &last.scene) {
+                    (Some(now), Some(then)) => changed_cells(now, then) >= CHANGED_CELLS,
+                    _ => true,
+                };
+                if changed {
+                    debug!("the scene changed: sending a frame");
+                }
+                asked || changed || last.at.elapsed() >= max_interval
+            }
+        };
+        send.then_some(scene)
+    }
+}
+
+/// `image` as JPEG, as webcams send it: a noisy frame is several times
+/// smaller than as PNG.
+fn jpeg(image: &RgbImage) -> Result<Vec<u8>, image::ImageError> {
+    let mut bytes = Vec::new();
+    JpegEncoder::new_with_quality(Cursor::new(&mut bytes), JPEG_QUALITY).encode_image(image)?;
+    Ok(bytes)
+}

@@ -1,0 +1,245 @@
+//! Experiment control and sensed-data processing: the real-time loops that
+//! turn commands into wheel speeds and robot and camera readings into
+//! feedback and frames.
+//!
+//! Each loop runs on its own thread so a slow serial line or camera never
+//! stalls the network side. They publish through `watch` channels, which keep
+//! only the newest value: a slow client gets the latest feedback and frame,
+//! never a queue of stale ones.
+
+mod camera;
+mod control;
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use tokio::sync::{mpsc as async_mpsc, watch};
+use tokio_tungstenite::tungstenite::Bytes;
+use vl_core::{
+    Arena, CameraModel, Definition, DeviceState, Drive, EndReason, Experiment, HostMessage,
+    RobotModel, Summary,
+};
+
+use crate::drivers::{Camera, Robot, Witness};
+pub use camera::FramePolicy;
+use camera::{CameraLoop, SIGHTINGS, first_look};
+use control::{Control, Wiring};
+
+/// The control period: the Khepera's speed-controller period.
+const TICK: Duration = Duration::from_millis(10);
+/// Width of the arena drawing a Guest gets when the lab has no camera.
+const NO_CAMERA_WIDTH_PX: u32 = 640;
+
+/// How long the first retry of a lost robot or camera waits; each next
+/// waits twice as long, up to `RETRY_MAX`.
+const RETRY_FIRST: Duration = Duration::from_millis(100);
+const RETRY_MAX: Duration = Duration::from_secs(5);
+
+/// Whether the lab's devices answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LabStatus {
+    pub robot: DeviceState,
+    pub camera: DeviceState,
+}
+
+impl LabStatus {
+    pub fn message(&self) -> HostMessage {
+        HostMessage::Status {
+            robot: self.robot,
+            camera: self.camera,
+        }
+    }
+}
+
+/// Retries with back-off, and says so once per change of state.
+struct Retry {
+    next: Instant,
+    wait: Duration,
+}
+
+impl Retry {
+    fn new() -> Retry {
+        Retry {
+            next: Instant::now() + RETRY_FIRST,
+            wait: RETRY_FIRST,
+        }
+    }
+
+    /// Whether it is time for the next try; each try doubles the wait.
+    fn due(&mut self) -> bool {
+        if Instant::now() < self.next {
+            return false;
+        }
+        self.wait = (self.wait * 2).min(RETRY_MAX);
+        self.next = Instant::now() + self.wait;
+        true
+    }
+}
+
+/// The lab's devices: a robot, and perhaps a camera and (in simulation)
+/// a witness of the truth.
+pub struct Devices {
+    pub robot: Box<dyn Robot>,
+    pub camera: Option<Box<dyn Camera>>,
+    pub witness: Option<Box<dyn Witness>>,
+}
+
+/// What the lab is, as the Guest needs it at mount.
+#[derive(Debug, Clone)]
+pub struct LabInfo {
+    /// The map: the floor as the camera saw it when the lab started (the
+    /// arena model when the lab has no camera).
+    pub arena: Arena,
+    pub robot: RobotModel,
+    pub camera: CameraModel,
+}
+
+/// Requests from the session to the control loop.
+#[derive(Debug)]
+pub enum LabRequest {
+    /// A run of `experiment` begins. Teleoperation adds the potential
+    /// fields to the operator's commands and feeds the push back as a
+    /// force; navigation ends when the robot reaches the goal.
+    Start {
+        /// The run's number, which its `Finished` carries back.
+        run: u64,
+        definition: Definition,
+        experiment: Experiment,
+    },
+    Drive {
+        event: u64,
+        drive: Drive,
+    },
+    Finish(EndReason),
+}
+
+/// Run number `.0` ended; the session reports it.
+#[derive(Debug, Clone)]
+pub struct Finished(pub u64, pub Summary);
+
+/// The session's handle on the running lab.
+pub struct Lab {
+    pub info: LabInfo,
+    requests: mpsc::Sender<LabRequest>,
+    /// Newest robot feedback.
+    pub feedback: watch::Receiver<Option<HostMessage>>,
+    /// Newest camera frame, encoded for the wire.
+    pub frames: watch::Receiver<Option<Bytes>>,
+    /// Runs that ended.
+    pub finished: async_mpsc::UnboundedReceiver<Finished>,
+    /// Whether the robot and the camera answer.
+    pub status: watch::Receiver<LabStatus>,
+    running: Arc<AtomicBool>,
+    frame_wanted: Arc<AtomicBool>,
+}
+
+impl Lab {
+    /// Starts the control and camera loops on their own threads. With a
+    /// camera, its first frame maps the floor of `arena` and locates the
+    /// robot; without one, the arena model is the map and odometry alone
+    /// says where the robot is.
+    pub fn spawn(devices: Devices, arena: Arena, policy: FramePolicy) -> Lab {
+        let since = Instant::now();
+        let Devices {
+            robot,
+            mut camera,
+            witness,
+        } = devices;
+        let floor_mm = (arena.width_mm, arena.height_mm);
+        let (map, seen, model) = match camera.as_mut() {
+            Some(camera) => {
+                let first = first_look(camera.as_mut(), &arena);
+                (first.map, first.robot, camera.model())
+            }
+            None => {
+                let model =
+                    CameraModel::overhead(arena.width_mm, arena.height_mm, NO_CAMERA_WIDTH_PX, 0.0);
+                (arena, None, model)
+            }
+        };
+        let info = LabInfo {
+            arena: map,
+            robot: robot.model().clone(),
+            camera: model,
+        };
+        let (requests, request_rx) = mpsc::channel();
+        let (sightings_tx, sightings) = mpsc::sync_channel(SIGHTINGS);
+        let (feedback_tx, feedback) = watch::channel(None);
+        let (frames_tx, frames) = watch::channel(None);
+        let (finished_tx, finished) = async_mpsc::unbounded_channel();
+        let (status_tx, status) = watch::channel(LabStatus {
+            robot: DeviceState::Online,
+            camera: if camera.is_some() {
+                DeviceState::Online
+            } else {
+                DeviceState::Absent
+            },
+        });
+        let status_tx = Arc::new(status_tx);
+        let running = Arc::new(AtomicBool::new(true));
+        let frame_wanted = Arc::new(AtomicBool::new(false));
+        let event = Arc::new(AtomicU64::new(0));
+        let wiring = Wiring {
+            requests: request_rx,
+            sightings: camera.is_some().then_some(sightings),
+            feedback: feedback_tx,
+            finished: finished_tx,
+            event: event.clone(),
+            status: status_tx.clone(),
+            since,
+        };
+        let control = Control::new(robot, witness, info.clone(), seen, wiring);
+        thread::Builder::new()
+            .name("vl-control".into())
+            .spawn(move || control.run())
+            .expect("the OS starts a thread");
+        if let Some(camera) = camera {
+            let camera_loop = CameraLoop {
+                camera,
+                frames: frames_tx,
+                sightings: sightings_tx,
+                event,
+                since,
+                running: running.clone(),
+                status: status_tx,
+                policy,
+                wanted: frame_wanted.clone(),
+                floor_mm,
+            };
+            thread::Builder::new()
+                .name("vl-camera".into())
+                .spawn(move || camera_loop.run())
+                .expect("the OS starts a thread");
+        }
+        Lab {
+            info,
+            requests,
+            feedback,
+            frames,
+            finished,
+            status,
+            running,
+            frame_wanted,
+        }
+    }
+
+    /// Has the camera loop send its next frame, whatever the policy.
+    pub fn request_frame(&self) {
+        self.frame_wanted.store(true, Ordering::Relaxed);
+    }
+
+    /// Passes a request to the control loop.
+    pub fn request(&self, request: LabRequest) {
+        // The control loop only ends when this handle is dropped.
+        let _ = self.requests.send(request);
+    }
+}
+
+impl Drop for Lab {
+    fn drop(&mut self) {
+        self.running.store(false, Ordering::Relaxed);
+    }
+}
