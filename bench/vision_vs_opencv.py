@@ -7,8 +7,9 @@
 OpenCV: grey, Otsu threshold, connectedComponentsWithStats (8-connected),
 also timed alone,
 and moments + Hu of each component (on its bounding-box ROI). vl: the same
-steps plus hole finding and the robot's pose (`vl vision bench`). Prints
-both times and vl/OpenCV (below 1 means vl is faster).
+steps plus hole finding and the robot's pose (`vl vision bench`), and
+the Host's in-loop `look` (the same steps, locating the robot). Prints the
+times and vl/OpenCV (below 1 means vl is faster).
 """
 import json
 import subprocess
@@ -55,9 +56,13 @@ out = subprocess.run(
     capture_output=True,
     text=True,
 )
-vl_ms = json.loads(out.stdout)["ms_per_frame"]
+bench = json.loads(out.stdout)
+vl_ms = bench["ms_per_frame"]
+look_ms = bench["look_ms_per_frame"]
 print(f"{'frame':<10} {frame}")
 print(f"{'OpenCV':<10} {opencv_ms:8.3f} ms/frame  (cv2 {cv2.__version__}, one thread)")
 print(f"{'  no Hu':<10} {labelling_ms:8.3f} ms/frame  (grey, Otsu, components with stats only)")
 print(f"{'vl':<10} {vl_ms:8.3f} ms/frame")
 print(f"{'vl/OpenCV':<10} {vl_ms / opencv_ms:8.2f}")
+print(f"{'vl look':<10} {look_ms:8.3f} ms/frame  (the Host's in-loop step: locate the robot, label the floor)")
+print(f"{'look/OpenCV':<10} {look_ms / opencv_ms:8.2f}")

@@ -205,18 +205,23 @@ pub(crate) fn run(
             };
             let run = record(arena, seed, report, svg);
             if !args.json {
+                let strayed = run.path_error_mm.map_or(String::new(), |e| {
+                    format!(
+                        ", {:.1} mm from the planned path on average, {:.1} at most",
+                        e.mean, e.max
+                    )
+                });
+                let outcome = if run.reached_goal {
+                    "reached the goal"
+                } else {
+                    "did not reach the goal"
+                };
                 eprintln!(
-                    "[{}/{total}] {} seed {seed}: {} in {:.1} s, {}, path error {}",
+                    "[{}/{total}] {} seed {seed}: {outcome} in {:.1} s, {}{strayed}",
                     runs.len() + 1,
                     run.arena,
-                    if run.reached_goal {
-                        "reached the goal"
-                    } else {
-                        "did not reach the goal"
-                    },
                     run.seconds,
                     count(run.collisions, "collision", "collisions"),
-                    crate::lab::error_mm(run.path_error_mm),
                 );
             }
             runs.push(run);

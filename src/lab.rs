@@ -11,7 +11,9 @@ use vl_core::{Arena, Experiment, RobotKind, RobotModel, Role};
 use vl_guest::{
     ClientError, Report as RunReport, RoundTripMs, Script, ScriptError, Watched, WindowError,
 };
-use vl_host::{Devices, FramePolicy, Host, HostConfig, KheperaSerial, SimCamera, SimLab};
+use vl_host::{
+    Devices, FramePolicy, Host, HostConfig, KheperaSerial, ReplayCamera, SimCamera, SimLab,
+};
 use vl_sim::Scheduled;
 
 use crate::report::{Report, Table, count, emit};
@@ -157,12 +159,31 @@ enum RobotDriver {
     Khepera,
 }
 
-#[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
+/// Frames per second recorded footage is played back at.
+const REPLAY_FPS: f64 = 15.0;
+
+/// Which camera watches the arena.
+#[derive(Clone, PartialEq, Debug)]
 enum CameraDriver {
     /// The simulated overhead camera (watches the simulated robot only).
     Sim,
     /// No camera: Guests get feedback but no frames.
     None,
+    /// Recorded footage: the images of a directory, played back in name order.
+    Replay(std::path::PathBuf),
+}
+
+fn parse_camera(text: &str) -> Result<CameraDriver, String> {
+    match text {
+        "sim" => Ok(CameraDriver::Sim),
+        "none" => Ok(CameraDriver::None),
+        _ => match text.strip_prefix("dir:") {
+            Some(dir) if !dir.is_empty() => Ok(CameraDriver::Replay(dir.into())),
+            _ => Err(format!(
+                "'{text}' is no camera: use sim, none or dir:PATH (recorded footage)"
+            )),
+        },
+    }
 }
 
 #[derive(clap::Args)]
@@ -176,11 +197,12 @@ pub(crate) struct HostArgs {
     /// The serial line's speed (with --robot khepera).
     #[arg(long, default_value_t = 38_400)]
     baud: u32,
-    /// Which camera to watch the arena with; a real robot has no simulated
-    /// camera, so the default there is none.
+    /// Which camera to watch the arena with: sim, none, or dir:PATH to play
+    /// recorded footage back (its images in name order, 15 a second); a real
+    /// robot has no simulated camera, so the default there is none.
     #[arg(
         long,
-        value_enum,
+        value_parser = parse_camera,
         default_value_if("robot", "khepera", "none"),
         default_value = "sim"
     )]
@@ -447,12 +469,18 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
         Some(file) => load_robot_model(file)?,
         None => RobotModel::khepera_ii(),
     };
+    let calibration = match &args.camera_calibration {
+        Some(path) => Some(crate::camera::load_calibration(path)?),
+        None => None,
+    };
     let host = match (args.robot, args.camera) {
+        (RobotDriver::Sim, CameraDriver::Replay(_)) => {
+            return Err(BadInput(
+                "recorded footage shows a recorded robot, not the simulated one: replay it with --robot khepera".into(),
+            )
+            .into());
+        }
         (RobotDriver::Sim, camera) => {
-            let calibration = match &args.camera_calibration {
-                Some(path) => Some(crate::camera::load_calibration(path)?),
-                None => None,
-            };
             let lab = SimLab {
                 arena,
                 robot: model,
@@ -471,9 +499,18 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             )
             .into());
         }
-        (RobotDriver::Khepera, CameraDriver::None) => {
+        (RobotDriver::Khepera, camera) => {
             let Some(port) = args.port.as_deref() else {
                 bail!(BadInput("--robot khepera needs --port DEVICE".into()));
+            };
+            let camera = match camera {
+                CameraDriver::Replay(dir) => {
+                    let floor = (arena.width_mm, arena.height_mm);
+                    let footage = ReplayCamera::open(&dir, calibration, floor, REPLAY_FPS)
+                        .map_err(|e| BadInput(e.to_string()))?;
+                    Some(Box::new(footage) as Box<dyn vl_host::Camera>)
+                }
+                _ => None,
             };
             // A guard process holds the line and stops the robot if this one dies.
             let program = std::env::current_exe().context("cannot find the vl binary")?;
@@ -481,7 +518,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
                 .context("no Khepera to drive")?;
             let devices = Devices {
                 robot: Box::new(robot),
-                camera: None,
+                camera,
                 witness: None,
             };
             Host::start(args.listen, devices, arena, config).await

@@ -97,6 +97,13 @@ impl Report for VisionBench {
                     self.ms_per_frame
                 ),
             ),
+            (
+                "in the loop",
+                format!(
+                    "{:.3} ms (locate the robot, label the floor: the Host's look at each frame)",
+                    self.look_ms_per_frame
+                ),
+            ),
         ])
     }
 }

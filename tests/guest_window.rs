@@ -10,8 +10,8 @@ use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 mod common;
 
-use vl_core::{Arena, Role};
-use vl_guest::{GuestApp, Link};
+use vl_core::{Arena, Point, Role};
+use vl_guest::{GuestApp, Link, check_path, drag_path};
 use vl_host::{Host, HostConfig, SimCamera, SimLab};
 
 /// The simulated camera paints the robot's body this colour.
@@ -354,5 +354,189 @@ fn a_gamepad_drives_feels_and_stops() {
     assert_eq!(
         harness.state().session().done.as_ref().map(|d| d.reason),
         Some(vl_core::EndReason::EmergencyStop)
+    );
+}
+
+/// Appendix F.2 and B.1 in the window: the C-space shows over the view at
+/// a click, and a box dragged on the view becomes a virtual obstacle that
+/// goes into the C-space and the definition.
+#[test]
+fn drawn_obstacles_enter_the_cspace_and_the_definition() {
+    with_mounting_window(false, draw_obstacle);
+}
+
+fn draw_obstacle(harness: &mut Harness<'_, GuestApp>) {
+    step_until(harness, "mount and see the robot", |app| {
+        app.session().lab.is_some() && app.session().robot.is_some()
+    });
+    let plain = harness.render().expect("the window renders");
+    harness.get_by_label("C-space").click();
+    harness.step();
+    harness.step();
+    let overlaid = harness.render().expect("the window renders");
+    let _ = overlaid.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-cspace.png"
+    ));
+    let changed = |a: &image::RgbaImage, b: &image::RgbaImage| {
+        a.pixels()
+            .zip(b.pixels())
+            .filter(|(p, q)| {
+                p.0[..3]
+                    .iter()
+                    .zip(&q.0[..3])
+                    .any(|(x, y)| x.abs_diff(*y) > 12)
+            })
+            .count()
+    };
+    // The obstacles grown by the robot's radius cover far more than the obstacles.
+    let shown = changed(&plain, &overlaid);
+    assert!(shown > 20_000, "the C-space changed only {shown} pixels");
+
+    harness.get_by_label("draw obstacles").click();
+    harness.step();
+    // A box on open floor between the robot and the bar.
+    let from = on_screen(
+        harness,
+        Point {
+            x_mm: 170.0,
+            y_mm: 230.0,
+        },
+    );
+    let to = on_screen(
+        harness,
+        Point {
+            x_mm: 230.0,
+            y_mm: 290.0,
+        },
+    );
+    drag(harness, from, to);
+    harness.get_by_label_contains("1 drawn");
+    let with_box = harness.render().expect("the window renders");
+    let _ = with_box.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-drawn.png"
+    ));
+    assert!(
+        changed(&overlaid, &with_box) > 5_000,
+        "the drawn box grew the C-space"
+    );
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
+        .click();
+    step_until(harness, "define with the drawn obstacle", |app| {
+        app.session()
+            .definition
+            .as_ref()
+            .is_some_and(|d| d.virtual_obstacles.len() == 1)
+    });
+}
+
+/// Where the floor point `p` is on screen, through the camera view's place
+/// and the mounted camera model.
+fn on_screen(harness: &Harness<'_, GuestApp>, p: Point) -> egui::Pos2 {
+    let rect = harness.get_by_label(vl_guest::CAMERA_VIEW).rect();
+    let camera = harness.state().session().lab.as_ref().unwrap().camera;
+    let (c, r) = camera.to_pixel(p);
+    rect.min
+        + Vec2::new(
+            (c / f64::from(camera.width_px)) as f32 * rect.width(),
+            (r / f64::from(camera.height_px)) as f32 * rect.height(),
+        )
+}
+
+/// A mouse drag from `from` to `to`, in steps a hand would make.
+fn drag(harness: &mut Harness<'_, GuestApp>, from: egui::Pos2, to: egui::Pos2) {
+    harness.hover_at(from);
+    harness.step();
+    harness.drag_at(from);
+    harness.step();
+    for k in 1..=5 {
+        harness.hover_at(from + (to - from) * (k as f32 / 5.0));
+        harness.step();
+    }
+    harness.drop_at(to);
+    harness.step();
+    harness.step();
+}
+
+/// Appendix F.4: a point of the planned path dragged to open floor bends
+/// the path, which is defined; dragged into an obstacle, the change is
+/// refused, saying where the path would enter the C-space.
+#[test]
+fn a_dragged_path_is_checked_against_the_cspace() {
+    with_mounting_window(false, edit_path);
+}
+
+fn edit_path(harness: &mut Harness<'_, GuestApp>) {
+    step_until(harness, "mount and see the robot", |app| {
+        app.session().lab.is_some() && app.session().robot.is_some()
+    });
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
+        .click();
+    step_until(harness, "define a planned path", |app| {
+        app.session()
+            .definition
+            .as_ref()
+            .is_some_and(|d| d.path.len() > 100)
+    });
+    let lab = harness.state().session().lab.clone().unwrap();
+    let planned = harness.state().session().definition.clone().unwrap().path;
+    let mid = planned.len() / 2;
+    // Somewhere 15 mm to one side that the robot can still pass.
+    let to = [(0.0, 15.0), (0.0, -15.0), (15.0, 0.0), (-15.0, 0.0)]
+        .into_iter()
+        .map(|(dx, dy)| Point {
+            x_mm: planned[mid].x_mm + dx,
+            y_mm: planned[mid].y_mm + dy,
+        })
+        .find(|&to| {
+            drag_path(&planned, mid, to).is_ok_and(|bent| check_path(&lab, &[], &bent).is_ok())
+        })
+        .expect("room beside the path");
+    let (from_px, to_px) = (on_screen(harness, planned[mid]), on_screen(harness, to));
+    drag(harness, from_px, to_px);
+    step_until(harness, "define the bent path", |app| {
+        app.session()
+            .definition
+            .as_ref()
+            .is_some_and(|d| d.path != planned)
+    });
+    harness.get_by_label("the changed path is clear: defined");
+    let bent = harness.state().session().definition.clone().unwrap().path;
+    let moved = bent
+        .iter()
+        .map(|p| p.distance(to))
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        moved < 3.0,
+        "the path passes {moved:.1} mm from where it was dragged"
+    );
+    assert_eq!(bent.first(), planned.first());
+    assert_eq!(bent.last(), planned.last());
+
+    // Into the round obstacle at (420, 170): refused, the path unchanged.
+    let obstacle = Point {
+        x_mm: 420.0,
+        y_mm: 170.0,
+    };
+    let near = bent
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.distance(obstacle).total_cmp(&b.1.distance(obstacle)))
+        .map(|(i, _)| i)
+        .unwrap();
+    let (from_px, to_px) = (on_screen(harness, bent[near]), on_screen(harness, obstacle));
+    drag(harness, from_px, to_px);
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-path-refused.png"
+    ));
+    harness.get_by_label_contains("not changed: the changed path enters the C-space at");
+    assert_eq!(
+        harness.state().session().definition.as_ref().unwrap().path,
+        bent
     );
 }

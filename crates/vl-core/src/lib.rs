@@ -50,7 +50,8 @@ pub use navigation::follow::{Follower, Following, Steer};
 pub use navigation::localise::{Fold, Localiser, Uncertainty};
 pub use navigation::nf1::{Cell, Nf1};
 pub use navigation::plan::{
-    ARENA_CELL_MM, ArenaPlanError, NoPath, PathEnd, Plan, Smoothing, clearance, plan, plan_route,
+    ARENA_CELL_MM, ArenaPlanError, NoPath, PathEnd, Plan, Smoothing, clearance, disc_cspace, plan,
+    plan_route,
 };
 pub use navigation::svg::{plan_svg, run_svg};
 pub use safety::{Guarded, Safety, Situation, Surroundings};

@@ -12,12 +12,12 @@ use std::time::Duration;
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Vec2};
 use vl_core::{
     Definition, Drive, Goal, GuestMessage, Joystick, PROTOCOL_VERSION, Point, Pose, Role, Shape,
-    Teleop, Vector,
+    Teleop, Vector, arena_of, disc_cspace,
 };
 
 use crate::client::{ClientError, Connection, Incoming, open};
 use crate::gamepad::Pad;
-use crate::route::Route;
+use crate::route::{Route, check_path, drag_path};
 use crate::session::{Link, Session};
 use vl_core::MountedLab;
 
@@ -34,6 +34,8 @@ const FORCE_ARROW_MM: f64 = 80.0;
 /// The arena drawn from its model when the lab has no camera.
 const FLOOR_COLOUR: Color32 = Color32::from_rgb(226, 224, 218);
 const OBSTACLE_COLOUR: Color32 = Color32::from_rgb(45, 48, 56);
+/// The C-space overlay: translucent, so the image shows through.
+const CSPACE_COLOUR: Color32 = Color32::from_rgba_premultiplied(60, 20, 80, 80);
 
 /// Who the window connects to, and as whom.
 #[derive(Debug, Clone)]
@@ -54,7 +56,18 @@ pub struct GuestApp {
     goal: Goal,
     /// What planning the defined goal gave: the path's length, or why none.
     plan_note: Option<String>,
-    /// Steers along the defined path during a run.
+    /// Obstacles drawn on the view (thesis F.2), for the next definition.
+    virtual_obstacles: Vec<Shape>,
+    /// Drags on the view draw virtual obstacles instead of placing the goal.
+    drawing: bool,
+    /// Where the drag drawing an obstacle began, floor mm.
+    drag_from: Option<Point>,
+    /// The defined path's sample being dragged (thesis F.4).
+    dragging_sample: Option<usize>,
+    /// Whether the C-space is shown over the view, and its cells as boxes
+    /// for the map and obstacles they were grown from.
+    show_cspace: bool,
+    cspace: Option<(CSpaceKey, Vec<Shape>)>,
     /// The one joystick → velocity mapping, as the Host reads it back.
     teleop: Teleop,
     /// A real stick, when there is one, and whether its stop button was down.
@@ -82,6 +95,12 @@ impl GuestApp {
             joystick: Vec2::ZERO,
             goal: Goal::at(Point::default()),
             plan_note: None,
+            virtual_obstacles: Vec::new(),
+            drawing: false,
+            drag_from: None,
+            dragging_sample: None,
+            show_cspace: false,
+            cspace: None,
             teleop: Teleop::default(),
             pad: None,
             asked: Joystick::default(),
@@ -110,6 +129,7 @@ impl GuestApp {
         self.session = Session::default();
         self.texture = None;
         self.plan_note = None;
+        self.cspace = None;
         match GuestApp::connect(&self.address) {
             Ok(connection) => self.connection = connection,
             Err(e) => self.session.apply(Incoming::Unreachable(e)),
@@ -341,6 +361,19 @@ impl GuestApp {
                     self.define();
                 }
             });
+            ui.horizontal(|ui| {
+                ui.checkbox(&mut self.drawing, "draw obstacles")
+                    .on_hover_text(
+                        "drag on the view to draw a virtual obstacle the robot must keep out of",
+                    );
+                let drawn = self.virtual_obstacles.len();
+                if drawn > 0 {
+                    ui.label(format!("{drawn} drawn"));
+                    if ui.button("Clear").clicked() {
+                        self.virtual_obstacles.clear();
+                    }
+                }
+            });
             if let Some(note) = &self.plan_note {
                 ui.label(note);
             }
@@ -411,7 +444,8 @@ impl GuestApp {
             .robot
             .as_ref()
             .map_or(lab.arena.start, |r| r.pose);
-        let definition = match Route::plan(lab, start, self.goal, Vec::new()) {
+        let obstacles = self.virtual_obstacles.clone();
+        let definition = match Route::plan(lab, start, self.goal, obstacles.clone()) {
             Ok(route) => {
                 self.plan_note = Some(format!(
                     "path {:.0} mm; the body keeps {:.0} mm from obstacles",
@@ -424,6 +458,7 @@ impl GuestApp {
                 self.plan_note = Some(format!("no path ({e}): drive by hand"));
                 Definition {
                     goal: Some(self.goal),
+                    virtual_obstacles: obstacles,
                     ..Definition::default()
                 }
             }
@@ -513,16 +548,43 @@ impl GuestApp {
         let scale = (available.x / image_size.x)
             .min(available.y / image_size.y)
             .max(0.1);
-        let (rect, response) = ui.allocate_exact_size(image_size * scale, Sense::click());
-        // A click on the floor places the goal there.
-        if let (Some(pos), Some(lab)) = (response.interact_pointer_pos(), &self.session.lab)
-            && response.clicked()
-            && !self.session.running
-        {
+        let (rect, response) = ui.allocate_exact_size(image_size * scale, Sense::click_and_drag());
+        response.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Image, true, CAMERA_VIEW));
+        let on_floor = |pos: Pos2, lab: &MountedLab| {
             let col = (pos.x - rect.min.x) / rect.width() * lab.camera.width_px as f32;
             let row = (pos.y - rect.min.y) / rect.height() * lab.camera.height_px as f32;
-            let p = lab.camera.to_arena(f64::from(col), f64::from(row));
-            (self.goal.x_mm, self.goal.y_mm) = (p.x_mm.round(), p.y_mm.round());
+            lab.camera.to_arena(f64::from(col), f64::from(row))
+        };
+        if let (Some(pos), Some(lab)) = (response.interact_pointer_pos(), &self.session.lab) {
+            let p = on_floor(pos, lab);
+            // A drag is seen to start only once the pointer has moved a
+            // little: it starts where the button went down.
+            let origin = ui.input(|i| i.pointer.press_origin()).unwrap_or(pos);
+            if self.drawing {
+                // A drag draws a box between where it began and where it ends.
+                if response.drag_started() {
+                    self.drag_from = Some(on_floor(origin, lab));
+                }
+                if response.drag_stopped()
+                    && let Some(from) = self.drag_from.take()
+                    && let Some(shape) = drawn_box(from, p)
+                {
+                    self.virtual_obstacles.push(shape);
+                }
+            } else if !self.session.running {
+                if response.drag_started() {
+                    // A drag that starts on the defined path bends it.
+                    self.dragging_sample = self.sample_near(origin, &View::new(rect, lab));
+                }
+                if response.drag_stopped()
+                    && let Some(index) = self.dragging_sample.take()
+                {
+                    self.edit_path(index, p);
+                } else if response.clicked() {
+                    // A click on the floor places the goal there.
+                    (self.goal.x_mm, self.goal.y_mm) = (p.x_mm.round(), p.y_mm.round());
+                }
+            }
         }
         let painter = ui.painter_at(rect);
         match (&self.texture, &self.session.lab) {
@@ -543,9 +605,41 @@ impl GuestApp {
             }
             (None, None) => {}
         }
-        if let Some(lab) = &self.session.lab {
-            self.overlay(&painter, &View::new(rect, lab), lab);
+        if let Some(lab) = self.session.lab.clone() {
+            let view = View::new(rect, &lab);
+            if self.show_cspace {
+                for cell in self.cspace_boxes(&lab) {
+                    view.fill(&painter, cell, CSPACE_COLOUR);
+                }
+            }
+            self.overlay(&painter, &view, &lab);
+            for obstacle in &self.virtual_obstacles {
+                view.outline(
+                    &painter,
+                    obstacle,
+                    Stroke::new(1.5, VIRTUAL_COLOUR.gamma_multiply(0.7)),
+                );
+            }
+            if let (Some(from), Some(pos)) = (self.drag_from, response.interact_pointer_pos())
+                && let Some(shape) = drawn_box(from, on_floor(pos, &lab))
+            {
+                view.outline(&painter, &shape, Stroke::new(1.5, VIRTUAL_COLOUR));
+            }
+            // The path as it would be bent, while a sample is dragged.
+            if let (Some(index), Some(pos), Some(definition)) = (
+                self.dragging_sample,
+                response.interact_pointer_pos(),
+                &self.session.definition,
+            ) && let Ok(bent) = drag_path(&definition.path, index, on_floor(pos, &lab))
+            {
+                let line: Vec<Pos2> = bent.iter().map(|&p| view.to_screen(p)).collect();
+                painter.line(line, Stroke::new(1.5, PATH_COLOUR.gamma_multiply(0.6)));
+            }
         }
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut self.show_cspace, "C-space")
+                .on_hover_text("where the robot's centre may not go: the map and the virtual obstacles grown by its radius");
+        });
         ui.label(match &self.session.frame {
             Some(frame) => format!(
                 "frame {} · event {} · captured at {:.2} s",
@@ -555,6 +649,64 @@ impl GuestApp {
             ),
             None => "no camera in this lab: the arena as its map describes it".into(),
         });
+    }
+
+    /// The defined path's sample nearest `pos` on screen, if within reach
+    /// of the pointer.
+    fn sample_near(&self, pos: Pos2, view: &View) -> Option<usize> {
+        let path = &self.session.definition.as_ref()?.path;
+        path.iter()
+            .enumerate()
+            .map(|(i, &p)| (i, view.to_screen(p).distance(pos)))
+            .filter(|&(_, d)| d <= GRAB_PX)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, _)| i)
+    }
+
+    /// Moves the defined path's sample `index` to `to`, bending the path
+    /// around it, and defines the result if the robot can follow it.
+    fn edit_path(&mut self, index: usize, to: Point) {
+        let (Some(lab), Some(definition)) = (&self.session.lab, &self.session.definition) else {
+            return;
+        };
+        let checked = drag_path(&definition.path, index, to)
+            .and_then(|path| check_path(lab, &definition.virtual_obstacles, &path).map(|()| path));
+        match checked {
+            Ok(path) => {
+                self.plan_note = Some("the changed path is clear: defined".into());
+                let definition = Definition {
+                    path,
+                    ..definition.clone()
+                };
+                self.connection.send(GuestMessage::Define { definition });
+            }
+            Err(why) => self.plan_note = Some(format!("not changed: {why}")),
+        }
+    }
+
+    /// The C-space of the mounted map and the virtual obstacles, as boxes,
+    /// computed again only when either changes.
+    fn cspace_boxes(&mut self, lab: &MountedLab) -> &[Shape] {
+        let key = CSpaceKey {
+            arena: lab.arena.clone(),
+            virtual_obstacles: self.virtual_obstacles.clone(),
+        };
+        if self.cspace.as_ref().is_none_or(|(k, _)| *k != key) {
+            let boxes = match disc_cspace(&lab.arena, &self.virtual_obstacles, lab.robot.radius_mm)
+            {
+                Ok(cspace) => arena_of(cspace.grid(), "cspace", None)
+                    .obstacles
+                    .into_iter()
+                    .map(|o| o.shape)
+                    .collect(),
+                Err(e) => {
+                    tracing::warn!("no C-space to show: {e}");
+                    Vec::new()
+                }
+            };
+            self.cspace = Some((key, boxes));
+        }
+        self.cspace.as_ref().map_or(&[], |(_, boxes)| boxes)
     }
 
     /// Draws what the Guest knows over the camera image: the robot's
@@ -603,6 +755,33 @@ impl GuestApp {
             }
         }
     }
+}
+
+/// The accessible name of the camera view, by which tests find it.
+pub const CAMERA_VIEW: &str = "camera view";
+/// How near the pointer must be to a path sample to grab it, px.
+const GRAB_PX: f32 = 10.0;
+
+/// What a C-space overlay was computed from.
+#[derive(Debug, Clone, PartialEq)]
+struct CSpaceKey {
+    arena: vl_core::Arena,
+    virtual_obstacles: Vec<Shape>,
+}
+
+/// The smallest virtual obstacle a drag draws, mm a side: anything smaller
+/// was a click.
+const MIN_DRAWN_MM: f64 = 5.0;
+
+/// The box a drag from `a` to `b` draws, if it is big enough to mean one.
+fn drawn_box(a: Point, b: Point) -> Option<Shape> {
+    let (w, h) = ((a.x_mm - b.x_mm).abs(), (a.y_mm - b.y_mm).abs());
+    (w >= MIN_DRAWN_MM && h >= MIN_DRAWN_MM).then(|| Shape::Rect {
+        x_mm: a.x_mm.min(b.x_mm).round(),
+        y_mm: a.y_mm.min(b.y_mm).round(),
+        width_mm: w.round(),
+        height_mm: h.round(),
+    })
 }
 
 /// Where the force arrow drawn on the robot at `pose` ends: the force is in

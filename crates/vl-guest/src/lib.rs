@@ -10,11 +10,11 @@ mod headless;
 mod route;
 mod session;
 
-pub use app::{GuestApp, WindowError, run_window};
+pub use app::{CAMERA_VIEW, GuestApp, WindowError, run_window};
 pub use client::{ClientError, Connection, Incoming, open};
 pub use gamepad::{Effect, Pad, PadInput, effect};
 #[cfg(target_os = "linux")]
 pub use gamepad::{Gamepad, GamepadError};
 pub use headless::{Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, watch};
-pub use route::Route;
+pub use route::{EditRefused, Route, check_path, drag_path};
 pub use session::{CameraFrame, Devices, Link, RobotState, RoundTrips, Session};

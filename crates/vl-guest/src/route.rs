@@ -2,7 +2,76 @@
 //! lab's map (the floor as the Host's camera saw it). The window and the
 //! headless client both plan through it; the Host follows the path.
 
-use vl_core::{ArenaPlanError, Definition, Goal, MountedLab, Plan, Pose, Shape, plan_route};
+use thiserror::Error;
+use vl_core::{
+    ArenaPlanError, CSpaceError, Definition, Goal, MountedLab, Plan, Point, Pose, Shape,
+    disc_cspace, plan_route,
+};
+
+/// How far along the path, each way, dragging one point bends it, mm.
+const EDIT_REACH_MM: f64 = 60.0;
+
+/// Why an edited path was not accepted (thesis F.4).
+#[derive(Debug, Error, PartialEq)]
+pub enum EditRefused {
+    #[error(
+        "the changed path enters the C-space at ({x_mm:.0}, {y_mm:.0}) mm: the robot's body would touch an obstacle there"
+    )]
+    Blocked { x_mm: f64, y_mm: f64 },
+    #[error("the path's ends stay where they are: the start is the robot, the end the goal")]
+    End,
+    #[error(transparent)]
+    Map(#[from] CSpaceError),
+}
+
+/// `path` with sample `index` moved to `to`, and the samples around it
+/// moved with it, less the further along the path they are (a cosine bump
+/// over [`EDIT_REACH_MM`] each way), so the path stays smooth. Its ends
+/// stay: the start is where the robot is, the end the goal.
+pub fn drag_path(path: &[Point], index: usize, to: Point) -> Result<Vec<Point>, EditRefused> {
+    if index == 0 || index + 1 >= path.len() {
+        return Err(EditRefused::End);
+    }
+    let (dx, dy) = (to.x_mm - path[index].x_mm, to.y_mm - path[index].y_mm);
+    let mut arc = vec![0.0; path.len()];
+    for k in 1..path.len() {
+        arc[k] = arc[k - 1] + path[k].distance(path[k - 1]);
+    }
+    let last = path.len() - 1;
+    Ok(path
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let s = (arc[k] - arc[index]).abs();
+            let w = if k == 0 || k == last || s >= EDIT_REACH_MM {
+                0.0
+            } else {
+                0.5 * (1.0 + (std::f64::consts::PI * s / EDIT_REACH_MM).cos())
+            };
+            Point {
+                x_mm: p.x_mm + w * dx,
+                y_mm: p.y_mm + w * dy,
+            }
+        })
+        .collect())
+}
+
+/// Whether the robot's centre may go along all of `path`: every sample
+/// outside the C-space of the lab's map and `virtual_obstacles`.
+pub fn check_path(
+    lab: &MountedLab,
+    virtual_obstacles: &[Shape],
+    path: &[Point],
+) -> Result<(), EditRefused> {
+    let cspace = disc_cspace(&lab.arena, virtual_obstacles, lab.robot.radius_mm)?;
+    match path.iter().find(|&&p| !cspace.is_free(p, 0.0)) {
+        Some(p) => Err(EditRefused::Blocked {
+            x_mm: p.x_mm,
+            y_mm: p.y_mm,
+        }),
+        None => Ok(()),
+    }
+}
 
 /// A definition that reaches a goal, with the plan behind its path.
 #[derive(Debug, Clone)]
@@ -59,6 +128,45 @@ mod tests {
             robot: RobotModel::khepera_ii(),
             arena,
         }
+    }
+
+    #[test]
+    fn a_dragged_path_bends_smoothly_and_is_checked_against_the_cspace() {
+        let lab = lab();
+        let goal = Goal::at(lab.arena.goal.unwrap());
+        let route = Route::plan(&lab, lab.arena.start, goal, Vec::new()).unwrap();
+        let path = route.definition.path.clone();
+        let mid = path.len() / 2;
+        let to = Point {
+            x_mm: path[mid].x_mm + 10.0,
+            y_mm: path[mid].y_mm - 10.0,
+        };
+        let bent = drag_path(&path, mid, to).unwrap();
+        assert_eq!(bent[mid], to);
+        assert_eq!(
+            (bent[0], bent[bent.len() - 1]),
+            (path[0], path[path.len() - 1])
+        );
+        // Neighbours follow less and less; far samples do not move.
+        let moved = |k: usize| bent[k].distance(path[k]);
+        assert!(moved(mid + 3) < moved(mid) && moved(mid + 3) > 0.0);
+        assert_eq!(moved(mid + 200), 0.0);
+        assert_eq!(check_path(&lab, &[], &bent), Ok(()));
+        // Onto the circular obstacle at (420, 170): refused, naming where.
+        let into = drag_path(
+            &path,
+            mid,
+            Point {
+                x_mm: 420.0,
+                y_mm: 170.0,
+            },
+        )
+        .unwrap();
+        assert!(matches!(
+            check_path(&lab, &[], &into),
+            Err(EditRefused::Blocked { .. })
+        ));
+        assert_eq!(drag_path(&path, 0, to), Err(EditRefused::End));
     }
 
     #[test]

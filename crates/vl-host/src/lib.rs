@@ -1,6 +1,6 @@
 //! The vl Host: the lab machine's side. It drives the robot and camera
 //! (behind the traits in `drivers`: simulated in `sim`, a real Khepera on
-//! a serial line in `khepera`, whose speed controller `characterise`
+//! a serial line in `khepera`, recorded footage played back in `replay`, whose speed controller `characterise`
 //! measures), runs the experiment control loop (`lab`) and serves Guests
 //! over WebSocket (`server`).
 
@@ -9,6 +9,7 @@ mod drivers;
 mod khepera;
 mod lab;
 mod line;
+mod replay;
 mod server;
 mod sim;
 
@@ -23,6 +24,7 @@ pub use drivers::{Camera, CameraError, Robot, RobotError, RobotReading, Witness}
 pub use khepera::KheperaSerial;
 pub use lab::{Devices, FramePolicy};
 pub use line::run_guard;
+pub use replay::ReplayCamera;
 pub use server::HostConfig;
 
 /// Why a Host could not start.

@@ -4,7 +4,7 @@ use image::{Rgb, RgbImage};
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
-use vl_core::{Calibration, CalibrationError, CameraModel, DotTarget, Point};
+use vl_core::{Calibration, CalibrationError, CameraModel, DotTarget, Point, Shape};
 
 use crate::noise::gaussian;
 use crate::world::World;
@@ -133,16 +133,7 @@ impl World {
         let marker = pose.to_world(robot.radius_mm * 0.45, 0.0);
         let marker_r = robot.radius_mm * 0.35;
         let r = robot.radius_mm;
-        let body = (
-            Point {
-                x_mm: pose.x_mm - r,
-                y_mm: pose.y_mm - r,
-            },
-            Point {
-                x_mm: pose.x_mm + r,
-                y_mm: pose.y_mm + r,
-            },
-        );
+        let body = disc_bounds(pose.point(), r);
         let covered = self.robot_covered();
         paint(&mut image, camera, optics, body, |p| {
             if covered {
@@ -172,16 +163,7 @@ pub fn render_target(
     let dot = Rgb([20, 20, 24]);
     for centre in target.points() {
         let r = target.radius_mm;
-        let bounds = (
-            Point {
-                x_mm: centre.x_mm - r,
-                y_mm: centre.y_mm - r,
-            },
-            Point {
-                x_mm: centre.x_mm + r,
-                y_mm: centre.y_mm + r,
-            },
-        );
+        let bounds = disc_bounds(centre, r);
         paint(&mut image, camera, optics, bounds, |p| {
             (p.distance(centre) <= r).then_some(dot)
         });
@@ -229,6 +211,16 @@ pub fn calibrate(
         calibration,
         truth_max_px,
     })
+}
+
+/// The box around a disc of radius `r` at `centre`: what painting it covers.
+fn disc_bounds(centre: Point, r: f64) -> (Point, Point) {
+    Shape::Circle {
+        x_mm: centre.x_mm,
+        y_mm: centre.y_mm,
+        radius_mm: r,
+    }
+    .bounds()
 }
 
 /// The floor point pixel (c, r)'s centre sees, through the lens offset.

@@ -254,6 +254,21 @@ fn keep_clear(path: &mut [Pose], room: impl Fn(Point) -> f64, margin_mm: f64) {
     }
 }
 
+/// The C-space of a disc robot of `radius_mm` on `arena` and its virtual
+/// obstacles, on cells of [`ARENA_CELL_MM`]: where the robot's centre may
+/// not go. The Host's map field pushes from it; the Guest shows it.
+pub fn disc_cspace(
+    arena: &Arena,
+    virtual_obstacles: &[Shape],
+    radius_mm: f64,
+) -> Result<CSpace, CSpaceError> {
+    let mut grid = Grid::from_arena(arena, ARENA_CELL_MM)?;
+    for shape in virtual_obstacles {
+        grid.block(shape);
+    }
+    CSpace::build(&grid, Footprint::Disc { radius_mm }, 1)
+}
+
 /// The path a Guest defines for `robot` from `start` to `goal`: planned on
 /// the arena's map around the virtual obstacles, keeping
 /// [`PLAN_MARGIN_MM`] from mapped obstacles where the passages allow, so

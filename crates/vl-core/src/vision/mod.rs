@@ -19,7 +19,7 @@ use std::time::Instant;
 use image::RgbImage;
 use serde::Serialize;
 
-use crate::Named;
+use crate::{CameraModel, Named};
 
 pub use components::{Centroid, Component, components, label};
 pub use floor::{Look, arena_of, changed_cells, look};
@@ -75,29 +75,49 @@ pub fn inspect(image: &RgbImage, threshold: Threshold, invert: bool) -> Scene {
     }
 }
 
-/// How fast [`inspect`] runs on one frame.
+/// How fast [`inspect`] and [`look`] run on one frame.
 #[derive(Debug, Clone, Serialize)]
 pub struct VisionBench {
     pub width: u32,
     pub height: u32,
     pub runs: u32,
+    /// The whole pipeline: every component's moments and Hu invariants.
     pub ms_per_frame: f64,
+    /// What the Host does with every frame in the loop: locate the robot
+    /// (and label the floor for the map).
+    pub look_ms_per_frame: f64,
 }
 
-/// Times the whole pipeline on `frame` over `runs` runs (dark objects on a
-/// light floor, Otsu's threshold), after one untimed run that warms caches
-/// and the allocator.
+/// Times the whole pipeline and the in-loop look on `frame` over `runs`
+/// runs each (dark objects on a light floor, Otsu's threshold), after one
+/// untimed run that warms caches and the allocator.
 pub fn bench(frame: &RgbImage, runs: u32) -> VisionBench {
     let runs = runs.max(1);
-    std::hint::black_box(inspect(frame, Threshold::Otsu, true));
-    let started = Instant::now();
-    for _ in 0..runs {
+    let per_frame = |work: &dyn Fn()| {
+        work();
+        let started = Instant::now();
+        for _ in 0..runs {
+            work();
+        }
+        started.elapsed().as_secs_f64() * 1e3 / f64::from(runs)
+    };
+    let camera = CameraModel::overhead(
+        f64::from(frame.width()),
+        f64::from(frame.height()),
+        frame.width(),
+        15.0,
+    );
+    let ms_per_frame = per_frame(&|| {
         std::hint::black_box(inspect(std::hint::black_box(frame), Threshold::Otsu, true));
-    }
+    });
+    let look_ms_per_frame = per_frame(&|| {
+        std::hint::black_box(look(std::hint::black_box(frame), &camera));
+    });
     VisionBench {
         width: frame.width(),
         height: frame.height(),
         runs,
-        ms_per_frame: started.elapsed().as_secs_f64() * 1e3 / f64::from(runs),
+        ms_per_frame,
+        look_ms_per_frame,
     }
 }

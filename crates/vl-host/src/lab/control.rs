@@ -13,9 +13,9 @@ use std::time::{Duration, Instant};
 use tokio::sync::{mpsc as async_mpsc, watch};
 use tracing::{debug, info, warn};
 use vl_core::{
-    ARENA_CELL_MM, CSpace, Definition, DeviceState, EndReason, Experiment, Follower, Footprint,
-    Grid, HostMessage, Localiser, MapField, PathRecorder, Pose, PoseSource, RobotModel, Safety,
-    Situation, Summary, Surroundings, Teleop, Uncertainty, Vector, WheelSpeeds,
+    Definition, DeviceState, EndReason, Experiment, Follower, HostMessage, Localiser, MapField,
+    PathRecorder, Pose, PoseSource, RobotModel, Safety, Situation, Summary, Surroundings, Teleop,
+    Uncertainty, Vector, WheelSpeeds, disc_cspace,
 };
 
 use super::camera::Sighting;
@@ -526,12 +526,7 @@ impl Control {
 /// the C-space obstacles of the robot's body, so the push depends on how far
 /// the body (not its centre) is from a wall.
 fn map_field(info: &LabInfo) -> Option<MapField> {
-    let footprint = Footprint::Disc {
-        radius_mm: info.robot.radius_mm,
-    };
-    let grown = Grid::from_arena(&info.arena, ARENA_CELL_MM)
-        .and_then(|grid| CSpace::build(&grid, footprint, 1));
-    match grown {
+    match disc_cspace(&info.arena, &[], info.robot.radius_mm) {
         Ok(cspace) => Some(MapField::new(
             cspace.grid(),
             MAP_FIELD_INFLUENCE_MM,
