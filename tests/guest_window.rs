@@ -540,3 +540,65 @@ fn edit_path(harness: &mut Harness<'_, GuestApp>) {
         bent
     );
 }
+
+/// Appendix F.6: the settings a user tuned in an earlier session are read
+/// from their file, go into the next definition, and a change in the panel
+/// is written back.
+#[test]
+fn settings_are_remembered_between_sessions() {
+    let dir = common::scratch("guest-settings");
+    let file = dir.join("vl").join("settings.toml");
+    std::fs::create_dir_all(file.parent().unwrap()).unwrap();
+    std::fs::write(
+        &file,
+        "lookahead_mm = 45.0\nmargin_mm = 15.0\nmax_speed_mm_s = 150.0\n",
+    )
+    .unwrap();
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let host = runtime
+        .block_on(Host::start_sim(
+            "127.0.0.1:0".parse().unwrap(),
+            SimLab {
+                camera: None,
+                ..SimLab::new(Arena::navigation())
+            },
+            HostConfig::default(),
+        ))
+        .unwrap();
+    let _entered = runtime.enter();
+    let app = GuestApp::new(&host.url(), Role::Operator, None)
+        .expect("a Host's address")
+        .with_settings_file(file.clone());
+    let mut harness = Harness::builder()
+        .with_size(Vec2::new(1100.0, 720.0))
+        .wgpu()
+        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
+    step_until(&mut harness, "be welcomed", |app| {
+        app.session().role.is_some()
+    });
+    harness
+        .get_by_label("Navigate to a goal among obstacles")
+        .click();
+    step_until(&mut harness, "mount and see the robot", |app| {
+        app.session().lab.is_some() && app.session().robot.is_some()
+    });
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
+        .click();
+    step_until(&mut harness, "define", |app| {
+        app.session().definition.is_some()
+    });
+    let definition = harness.state().session().definition.clone().unwrap();
+    assert_eq!(definition.lookahead_mm, Some(45.0));
+    assert_eq!(definition.max_speed_mm_s, Some(150.0));
+
+    // Lifting the speed limit in the panel is kept for the next session.
+    harness.get_by_label("Settings").click();
+    harness.step();
+    harness.get_by_label("speed limit").click();
+    harness.step();
+    harness.step();
+    let kept = std::fs::read_to_string(&file).unwrap();
+    assert!(!kept.contains("max_speed_mm_s"), "{kept}");
+    assert!(kept.contains("lookahead_mm = 45.0"), "{kept}");
+}

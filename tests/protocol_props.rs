@@ -70,26 +70,33 @@ fn goal() -> impl Strategy<Value = Goal> {
     })
 }
 
-fn definition() -> impl Strategy<Value = Definition> {
+// The composite strategies are boxed: nested unboxed, their types outgrow a
+// debug test thread's stack.
+fn definition() -> BoxedStrategy<Definition> {
     (
         proptest::option::of(goal()),
         proptest::collection::vec(point(), 0..4),
         proptest::collection::vec(shape(), 0..3),
         proptest::option::of(num()),
         proptest::option::of(num()),
+        proptest::option::of(num()),
     )
         .prop_map(
-            |(goal, path, virtual_obstacles, max_speed_mm_s, time_limit_s)| Definition {
-                goal,
-                path,
-                virtual_obstacles,
-                max_speed_mm_s,
-                time_limit_s,
+            |(goal, path, virtual_obstacles, max_speed_mm_s, time_limit_s, lookahead_mm)| {
+                Definition {
+                    goal,
+                    path,
+                    virtual_obstacles,
+                    max_speed_mm_s,
+                    time_limit_s,
+                    lookahead_mm,
+                }
             },
         )
+        .boxed()
 }
 
-fn arena() -> impl Strategy<Value = Arena> {
+fn arena() -> BoxedStrategy<Arena> {
     (
         text(),
         num(),
@@ -113,9 +120,10 @@ fn arena() -> impl Strategy<Value = Arena> {
                 goal,
             },
         )
+        .boxed()
 }
 
-fn robot() -> impl Strategy<Value = RobotModel> {
+fn robot() -> BoxedStrategy<RobotModel> {
     (
         text(),
         num(),
@@ -161,9 +169,10 @@ fn robot() -> impl Strategy<Value = RobotModel> {
                 }
             },
         )
+        .boxed()
 }
 
-fn camera() -> impl Strategy<Value = CameraModel> {
+fn camera() -> BoxedStrategy<CameraModel> {
     (
         1u32..4000,
         1u32..4000,
@@ -175,6 +184,7 @@ fn camera() -> impl Strategy<Value = CameraModel> {
             CameraModel::tilted(width_mm, 0.75 * width_mm, width_px, height_px, tilt, fps)
                 .expect("within ±0.7 rad the camera sees the floor")
         })
+        .boxed()
 }
 
 fn role() -> impl Strategy<Value = Role> {
@@ -206,7 +216,7 @@ fn error_code() -> impl Strategy<Value = ErrorCode> {
     ])
 }
 
-fn summary() -> impl Strategy<Value = Summary> {
+fn summary() -> BoxedStrategy<Summary> {
     use EndReason::*;
     (
         proptest::sample::select(vec![
@@ -256,6 +266,7 @@ fn summary() -> impl Strategy<Value = Summary> {
                 }
             },
         )
+        .boxed()
 }
 
 fn pose_source() -> impl Strategy<Value = PoseSource> {
@@ -266,7 +277,7 @@ fn error_mm() -> impl Strategy<Value = ErrorMm> {
     (num(), num(), num()).prop_map(|(mean, max, rms)| ErrorMm { mean, max, rms })
 }
 
-fn path_analysis() -> impl Strategy<Value = PathAnalysis> {
+fn path_analysis() -> BoxedStrategy<PathAnalysis> {
     (
         proptest::collection::vec(point(), 0..6),
         proptest::collection::vec(point(), 0..6),
@@ -285,6 +296,7 @@ fn path_analysis() -> impl Strategy<Value = PathAnalysis> {
                 }
             },
         )
+        .boxed()
 }
 
 fn guest_message() -> impl Strategy<Value = GuestMessage> {

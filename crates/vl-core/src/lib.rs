@@ -20,7 +20,7 @@ mod safety;
 mod teleop;
 mod vision;
 
-pub use contract::experiment::{Definition, Experiment, ExperimentInfo, Goal};
+pub use contract::experiment::{Definition, Experiment, ExperimentInfo, Goal, LOOKAHEAD_MM};
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::protocol::{
     DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HostMessage,
@@ -51,7 +51,7 @@ pub use navigation::localise::{Fold, Localiser, Uncertainty};
 pub use navigation::nf1::{Cell, Nf1};
 pub use navigation::plan::{
     ARENA_CELL_MM, ArenaPlanError, NoPath, PathEnd, Plan, Smoothing, clearance, disc_cspace, plan,
-    plan_route,
+    plan_route, plan_route_with_margin,
 };
 pub use navigation::svg::{plan_svg, run_svg};
 pub use safety::{Guarded, Safety, Situation, Surroundings};

@@ -7,18 +7,20 @@
 //! The window opens whether or not the Host answers, says why when it does
 //! not, and reconnects on request.
 
+use std::path::PathBuf;
 use std::time::Duration;
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Vec2};
 use vl_core::{
-    Definition, Drive, Goal, GuestMessage, Joystick, PROTOCOL_VERSION, Point, Pose, Role, Shape,
-    Teleop, Vector, arena_of, disc_cspace,
+    Definition, Drive, Goal, GuestMessage, Joystick, LOOKAHEAD_MM, PROTOCOL_VERSION, Point, Pose,
+    Role, Shape, Teleop, Vector, arena_of, disc_cspace,
 };
 
 use crate::client::{ClientError, Connection, Incoming, open};
 use crate::gamepad::Pad;
 use crate::route::{Route, check_path, drag_path};
 use crate::session::{Link, Session};
+use crate::settings::{MARGIN_MM, MAX_SPEED_MM_S, Settings};
 use vl_core::MountedLab;
 
 const JOYSTICK_PX: f32 = 140.0;
@@ -56,6 +58,10 @@ pub struct GuestApp {
     goal: Goal,
     /// What planning the defined goal gave: the path's length, or why none.
     plan_note: Option<String>,
+    /// What the user tuned, and where it is kept between sessions (none:
+    /// not kept).
+    settings: Settings,
+    settings_file: Option<PathBuf>,
     /// Obstacles drawn on the view (thesis F.2), for the next definition.
     virtual_obstacles: Vec<Shape>,
     /// Drags on the view draw virtual obstacles instead of placing the goal.
@@ -95,6 +101,8 @@ impl GuestApp {
             joystick: Vec2::ZERO,
             goal: Goal::at(Point::default()),
             plan_note: None,
+            settings: Settings::default(),
+            settings_file: None,
             virtual_obstacles: Vec::new(),
             drawing: false,
             drag_from: None,
@@ -105,6 +113,14 @@ impl GuestApp {
             pad: None,
             asked: Joystick::default(),
         })
+    }
+
+    /// The window with the settings kept in `file` (loaded now, saved on
+    /// every change).
+    pub fn with_settings_file(mut self, file: PathBuf) -> Self {
+        self.settings = Settings::load(&file);
+        self.settings_file = Some(file);
+        self
     }
 
     /// The window with a real stick beside the virtual one.
@@ -377,6 +393,7 @@ impl GuestApp {
             if let Some(note) = &self.plan_note {
                 ui.label(note);
             }
+            self.settings_panel(ui);
             ui.separator();
             ui.heading("Execute");
             ui.horizontal(|ui| {
@@ -445,7 +462,8 @@ impl GuestApp {
             .as_ref()
             .map_or(lab.arena.start, |r| r.pose);
         let obstacles = self.virtual_obstacles.clone();
-        let definition = match Route::plan(lab, start, self.goal, obstacles.clone()) {
+        let definition = match Route::plan(lab, start, self.goal, obstacles.clone(), &self.settings)
+        {
             Ok(route) => {
                 self.plan_note = Some(format!(
                     "path {:.0} mm; the body keeps {:.0} mm from obstacles",
@@ -459,6 +477,7 @@ impl GuestApp {
                 Definition {
                     goal: Some(self.goal),
                     virtual_obstacles: obstacles,
+                    max_speed_mm_s: self.settings.max_speed_mm_s,
                     ..Definition::default()
                 }
             }
@@ -649,6 +668,48 @@ impl GuestApp {
             ),
             None => "no camera in this lab: the arena as its map describes it".into(),
         });
+    }
+
+    /// The settings the next definition takes (thesis F.6), kept on change.
+    fn settings_panel(&mut self, ui: &mut egui::Ui) {
+        let before = self.settings;
+        egui::CollapsingHeader::new("Settings").show(ui, |ui| {
+            let s = &mut self.settings;
+            ui.horizontal(|ui| {
+                ui.label("look-ahead");
+                ui.add(
+                    egui::DragValue::new(&mut s.lookahead_mm)
+                        .range(LOOKAHEAD_MM)
+                        .suffix(" mm"),
+                );
+            });
+            ui.horizontal(|ui| {
+                ui.label("margin");
+                ui.add(
+                    egui::DragValue::new(&mut s.margin_mm)
+                        .range(MARGIN_MM)
+                        .suffix(" mm"),
+                );
+            });
+            ui.horizontal(|ui| {
+                let mut limited = s.max_speed_mm_s.is_some();
+                ui.checkbox(&mut limited, "speed limit");
+                let mut v = s.max_speed_mm_s.unwrap_or(200.0);
+                ui.add_enabled(
+                    limited,
+                    egui::DragValue::new(&mut v)
+                        .range(MAX_SPEED_MM_S)
+                        .suffix(" mm/s"),
+                );
+                s.max_speed_mm_s = limited.then_some(v);
+            });
+        });
+        if self.settings != before
+            && let Some(file) = &self.settings_file
+            && let Err(e) = self.settings.save(file)
+        {
+            self.plan_note = Some(e.to_string());
+        }
     }
 
     /// The defined path's sample nearest `pos` on screen, if within reach
@@ -888,6 +949,9 @@ pub fn run_window(
     pad: Option<Box<dyn Pad>>,
 ) -> Result<(), WindowError> {
     let mut app = GuestApp::new(url, role, token)?;
+    if let Some(file) = Settings::default_path() {
+        app = app.with_settings_file(file);
+    }
     if let Some(pad) = pad {
         app = app.with_pad(pad);
     }

@@ -15,6 +15,7 @@ use vl_core::{
 use crate::client::{ClientError, Connection, Incoming, open};
 use crate::route::Route;
 use crate::session::{RoundTrips, Session};
+use crate::settings::Settings;
 
 /// What the scripted session does.
 #[derive(Debug, Clone)]
@@ -196,7 +197,7 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
         .until("see the robot", ignore, |s| s.robot.is_some())
         .await?;
     let start = guest.session.robot.as_ref().expect("seen").pose;
-    let route = Route::plan(&lab, start, goal, Vec::new())?;
+    let route = Route::plan(&lab, start, goal, Vec::new(), &Settings::default())?;
     guest.connection.send(GuestMessage::Define {
         definition: route.definition.clone(),
     });

@@ -9,6 +9,7 @@ mod gamepad;
 mod headless;
 mod route;
 mod session;
+mod settings;
 
 pub use app::{CAMERA_VIEW, GuestApp, WindowError, run_window};
 pub use client::{ClientError, Connection, Incoming, open};
@@ -18,3 +19,4 @@ pub use gamepad::{Gamepad, GamepadError};
 pub use headless::{Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, watch};
 pub use route::{EditRefused, Route, check_path, drag_path};
 pub use session::{CameraFrame, Devices, Link, RobotState, RoundTrips, Session};
+pub use settings::{Settings, SettingsError};

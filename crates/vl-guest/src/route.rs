@@ -5,8 +5,10 @@
 use thiserror::Error;
 use vl_core::{
     ArenaPlanError, CSpaceError, Definition, Goal, MountedLab, Plan, Point, Pose, Shape,
-    disc_cspace, plan_route,
+    disc_cspace, plan_route_with_margin,
 };
+
+use crate::settings::Settings;
 
 /// How far along the path, each way, dragging one point bends it, mm.
 const EDIT_REACH_MM: f64 = 60.0;
@@ -82,24 +84,29 @@ pub struct Route {
 
 impl Route {
     /// Plans from `start` to `goal` on the mounted lab's map around the
-    /// virtual obstacles, and defines the goal with the planned path.
+    /// virtual obstacles, keeping the settings' margin, and defines the
+    /// goal with the planned path and the settings' speed and look-ahead.
     pub fn plan(
         lab: &MountedLab,
         start: Pose,
         goal: Goal,
         virtual_obstacles: Vec<Shape>,
+        settings: &Settings,
     ) -> Result<Route, ArenaPlanError> {
-        let plan = plan_route(
+        let plan = plan_route_with_margin(
             &lab.arena,
             &virtual_obstacles,
             &lab.robot,
             start,
             goal.point(),
+            settings.margin_mm,
         )?;
         let definition = Definition {
             goal: Some(goal),
             path: plan.points(),
             virtual_obstacles,
+            max_speed_mm_s: settings.max_speed_mm_s,
+            lookahead_mm: Some(settings.lookahead_mm),
             ..Definition::default()
         };
         Ok(Route { definition, plan })
@@ -134,7 +141,14 @@ mod tests {
     fn a_dragged_path_bends_smoothly_and_is_checked_against_the_cspace() {
         let lab = lab();
         let goal = Goal::at(lab.arena.goal.unwrap());
-        let route = Route::plan(&lab, lab.arena.start, goal, Vec::new()).unwrap();
+        let route = Route::plan(
+            &lab,
+            lab.arena.start,
+            goal,
+            Vec::new(),
+            &Settings::default(),
+        )
+        .unwrap();
         let path = route.definition.path.clone();
         let mid = path.len() / 2;
         let to = Point {
@@ -173,7 +187,14 @@ mod tests {
     fn routes_define_the_goal_and_a_clear_path_to_it() {
         let lab = lab();
         let goal = Goal::at(lab.arena.goal.unwrap());
-        let route = Route::plan(&lab, lab.arena.start, goal, Vec::new()).unwrap();
+        let route = Route::plan(
+            &lab,
+            lab.arena.start,
+            goal,
+            Vec::new(),
+            &Settings::default(),
+        )
+        .unwrap();
         assert_eq!(route.definition.goal, Some(goal));
         assert_eq!(route.definition.path.last(), Some(&goal.point()));
         assert!(route.body_clearance_mm(&lab) > 0.0);
@@ -181,6 +202,15 @@ mod tests {
             x_mm: 280.0,
             y_mm: 100.0,
         });
-        assert!(Route::plan(&lab, lab.arena.start, blocked, Vec::new()).is_err());
+        assert!(
+            Route::plan(
+                &lab,
+                lab.arena.start,
+                blocked,
+                Vec::new(),
+                &Settings::default()
+            )
+            .is_err()
+        );
     }
 }

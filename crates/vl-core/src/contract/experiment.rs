@@ -103,7 +103,15 @@ pub struct Definition {
     pub max_speed_mm_s: Option<f64>,
     /// The run is stopped when it lasts longer than this.
     pub time_limit_s: Option<f64>,
+    /// How far ahead on the path the Host's follower aims, mm (thesis F.6:
+    /// shorter tracks tighter, longer cuts corners smoother).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lookahead_mm: Option<f64>,
 }
+
+/// The look-ahead a definition may ask for, mm: from a fraction of the
+/// robot to a few bodies ahead.
+pub const LOOKAHEAD_MM: std::ops::RangeInclusive<f64> = 5.0..=200.0;
 
 /// The most path points a definition may carry: a path across the largest
 /// arena at a quarter-cell spacing has a few thousand.
@@ -170,6 +178,15 @@ impl Definition {
         }
         if let Some(v) = self.max_speed_mm_s {
             positive("the speed limit", v)?;
+        }
+        if let Some(l) = self.lookahead_mm
+            && !LOOKAHEAD_MM.contains(&l)
+        {
+            return Err(format!(
+                "the look-ahead must be from {} to {} mm, not {l}",
+                LOOKAHEAD_MM.start(),
+                LOOKAHEAD_MM.end()
+            ));
         }
         if let Some(t) = self.time_limit_s {
             positive("the time limit", t)?;

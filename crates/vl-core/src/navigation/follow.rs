@@ -91,6 +91,9 @@ impl Follower {
             definition.path.clone(),
             Following {
                 tolerance_mm,
+                lookahead_mm: definition
+                    .lookahead_mm
+                    .unwrap_or(Following::default().lookahead_mm),
                 ..Following::default()
             },
         )

@@ -280,11 +280,24 @@ pub fn plan_route(
     start: Pose,
     goal: Point,
 ) -> Result<Plan, ArenaPlanError> {
+    plan_route_with_margin(arena, virtual_obstacles, robot, start, goal, PLAN_MARGIN_MM)
+}
+
+/// [`plan_route`], keeping `margin_mm` instead where the passages allow
+/// (a user's setting, thesis F.6).
+pub fn plan_route_with_margin(
+    arena: &Arena,
+    virtual_obstacles: &[Shape],
+    robot: &RobotModel,
+    start: Pose,
+    goal: Point,
+    margin_mm: f64,
+) -> Result<Plan, ArenaPlanError> {
     plan_in_arena(
         arena,
         virtual_obstacles,
         robot.radius_mm,
-        PLAN_MARGIN_MM,
+        margin_mm,
         start,
         goal,
     )
