@@ -141,7 +141,9 @@ impl Camera for RenderedCamera {
     }
 
     fn grab(&mut self) -> Result<RgbImage, CameraError> {
-        Ok(lock(&self.world).render(&self.nominal, &self.optics))
+        // Rendered from a copy: the control loop must not wait on a frame.
+        let world = lock(&self.world).clone();
+        Ok(world.render(&self.nominal, &self.optics))
     }
 }
 

@@ -143,6 +143,7 @@ struct Sent {
 
 impl CameraLoop {
     pub(crate) fn run(mut self) {
+        yield_to_control();
         let model = self.camera.model();
         let period = Duration::from_secs_f64(1.0 / model.fps.max(0.1));
         let mut seq = 0u64;
@@ -230,6 +231,29 @@ impl CameraLoop {
             }
         };
         send.then_some(scene)
+    }
+}
+
+/// How much less the camera thread's work counts than the Host's other
+/// threads, in nice levels: rendering, vision and encoding take
+/// milliseconds a frame, and must not delay commands, pings or the control
+/// loop when the machine is busy.
+#[cfg(target_os = "linux")]
+const CAMERA_NICE: libc::c_int = 10;
+
+/// Lowers the calling thread's priority (Linux sets nice per thread).
+fn yield_to_control() {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: gettid and setpriority only read their arguments; a
+        // failure leaves the priority as it was, which is only slower.
+        let done = unsafe {
+            let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
+            libc::setpriority(libc::PRIO_PROCESS, tid, CAMERA_NICE)
+        };
+        if done != 0 {
+            debug!("the camera thread keeps its priority");
+        }
     }
 }
 
