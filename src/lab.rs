@@ -12,10 +12,11 @@ use vl_guest::{
     ClientError, Report as RunReport, RoundTripMs, Script, ScriptError, Watched, WindowError,
 };
 use vl_host::{
-    Devices, FramePolicy, Host, HostConfig, KheperaSerial, ReplayCamera, SimCamera, SimLab,
+    Devices, FramePolicy, Host, HostConfig, KheperaSerial, Media, ReplayCamera, SimCamera, SimLab,
 };
 use vl_sim::Scheduled;
 
+use crate::media::LinkArgs;
 use crate::report::{Report, Table, count, emit};
 use crate::sim::{OpticsArgs, RobotArgs, load_robot_model};
 use crate::{BadInput, named};
@@ -256,6 +257,8 @@ pub(crate) struct HostArgs {
     frames: FramesArgs,
     #[command(flatten)]
     scene: SceneArgs,
+    #[command(flatten)]
+    link: LinkArgs,
 }
 
 /// A duration the user gave, in seconds: above 0 and at most a day.
@@ -412,6 +415,8 @@ pub(crate) struct DemoArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     #[command(flatten)]
+    link: LinkArgs,
+    #[command(flatten)]
     run: RunArgs,
 }
 
@@ -473,6 +478,14 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
         Some(path) => Some(crate::camera::load_calibration(path)?),
         None => None,
     };
+    // Behind a modelled link the Host listens privately and the Media on --listen.
+    let linked = args.link.model()?.is_some();
+    let public = args.listen;
+    let listen: SocketAddr = if linked {
+        ([127, 0, 0, 1], 0).into()
+    } else {
+        public
+    };
     let host = match (args.robot, args.camera) {
         (RobotDriver::Sim, CameraDriver::Replay(_)) => {
             return Err(BadInput(
@@ -491,7 +504,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
                 }),
                 scene: args.scene.events,
             };
-            Host::start_sim(args.listen, lab, config).await
+            Host::start_sim(listen, lab, config).await
         }
         (RobotDriver::Khepera, CameraDriver::Sim) => {
             return Err(BadInput(
@@ -521,14 +534,29 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
                 camera,
                 witness: None,
             };
-            Host::start(args.listen, devices, arena, config).await
+            Host::start(listen, devices, arena, config).await
         }
     }
     .context("cannot start the Host")?;
+    let media = args.link.front(public, &host.url()).await?;
     // Scripts and tests read the bound address from this first line.
-    println!("vl host listening on {}", host.url());
+    match &media {
+        Some(media) => println!(
+            "vl host listening on {} (through a modelled link to {})",
+            media.url(),
+            host.url()
+        ),
+        None => println!("vl host listening on {}", host.url()),
+    }
+    let relaying = async {
+        match media {
+            Some(media) => media.wait().await,
+            None => std::future::pending().await,
+        }
+    };
     tokio::select! {
         () = host.wait() => bail!("the server stopped"),
+        () = relaying => bail!("the Media stopped"),
         signal = tokio::signal::ctrl_c() => {
             signal.context("cannot wait for Ctrl-C")?;
             eprintln!("vl host: stopping");
@@ -593,6 +621,8 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
             HostConfig::default(),
         ))
         .context("cannot start the simulated Host")?;
+    let media = runtime.block_on(args.link.front(listen, &host.url()))?;
+    let url = media.as_ref().map_or_else(|| host.url(), Media::url);
     let has_display =
         std::env::var_os("DISPLAY").is_some() || std::env::var_os("WAYLAND_DISPLAY").is_some();
     if !args.headless && !has_display {
@@ -602,13 +632,13 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
     }
     if args.headless || !has_display {
         let script = script(&args.run, None, !args.json);
-        let report = runtime.block_on(vl_guest::drive_to_goal(&host.url(), &script))?;
+        let report = runtime.block_on(vl_guest::drive_to_goal(&url, &script))?;
         return finish(&report, args.json);
     }
-    eprintln!("vl demo: simulated lab at {}", host.url());
+    eprintln!("vl demo: simulated lab at {url}");
     let _entered = runtime.enter();
     let pad = gamepad(&GamepadChoice::Auto, false)?;
-    vl_guest::run_window(&host.url(), Role::Operator, None, pad)?;
+    vl_guest::run_window(&url, Role::Operator, None, pad)?;
     Ok(ExitCode::SUCCESS)
 }
 

@@ -7,6 +7,7 @@ mod alloc;
 mod camera;
 mod experiment;
 mod lab;
+mod media;
 mod petri;
 mod plan;
 mod report;
@@ -41,6 +42,8 @@ enum Command {
     Guest(lab::GuestArgs),
     /// Run a Host on the simulated lab and a Guest against it, in one process.
     Demo(lab::DemoArgs),
+    /// Relay Guests to a Host through a modelled Internet link (the Media).
+    Media(media::MediaCommand),
     /// Analyse Petri nets (PNML).
     #[command(subcommand)]
     Petri(petri::PetriCommand),
@@ -162,6 +165,9 @@ fn run(cli: Cli) -> Result<ExitCode> {
             .map(|()| ExitCode::SUCCESS),
         Command::Guest(args) => lab::guest(&runtime()?, args),
         Command::Demo(args) => lab::demo(&runtime()?, args),
+        Command::Media(args) => runtime()?
+            .block_on(media::run(args))
+            .map(|()| ExitCode::SUCCESS),
         Command::Petri(command) => petri::run(command),
         Command::KheperaEmu(args) => lab::khepera_emu(args),
         Command::Khepera(tool) => lab::khepera(tool),

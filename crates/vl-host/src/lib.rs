@@ -2,13 +2,15 @@
 //! (behind the traits in `drivers`: simulated in `sim`, a real Khepera on
 //! a serial line in `khepera`, recorded footage played back in `replay`, whose speed controller `characterise`
 //! measures), runs the experiment control loop (`lab`) and serves Guests
-//! over WebSocket (`server`).
+//! over WebSocket (`server`); and the Media, a relay that puts a modelled
+//! Internet link between Guests and a Host (`media`).
 
 mod characterise;
 mod drivers;
 mod khepera;
 mod lab;
 mod line;
+mod media;
 mod replay;
 mod server;
 mod sim;
@@ -24,6 +26,7 @@ pub use drivers::{Camera, CameraError, Robot, RobotError, RobotReading, Witness}
 pub use khepera::KheperaSerial;
 pub use lab::{Devices, FramePolicy};
 pub use line::run_guard;
+pub use media::{Media, MediaBench, MediaConfig, MediaError, RoundTrip, bench as media_bench};
 pub use replay::ReplayCamera;
 pub use server::HostConfig;
 

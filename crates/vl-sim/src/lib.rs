@@ -15,6 +15,7 @@ mod link;
 mod noise;
 mod scene;
 mod script;
+mod tcp;
 mod world;
 
 pub use bench::{SimBench, bench};
@@ -26,4 +27,5 @@ pub use link::{
 };
 pub use scene::{SceneEvent, Scheduled};
 pub use script::{Driver, RunReport, Script, ScriptError, Tracking, run};
+pub use tcp::{Delivery, LinkSpecError, MessageLink, RTO_MS};
 pub use world::{STEP_S, SimError, World};

@@ -12,13 +12,13 @@
 
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use vl_core::Named;
 
 use crate::noise::gaussian;
 
 /// How delays spread around their mean.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Distribution {
     /// Uniform on [mean − jitter, mean + jitter].
@@ -32,7 +32,7 @@ pub enum Distribution {
 }
 
 /// When packets are lost.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum Loss {
     None,
     /// Each packet with probability `p`, successive decisions correlated by `correlation`.
@@ -51,7 +51,8 @@ pub enum Loss {
 }
 
 /// One direction of a link, as netem would be configured.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct LinkModel {
     pub delay_ms: f64,
     pub jitter_ms: f64,
@@ -299,6 +300,18 @@ impl Link {
     /// Sends a packet of `bytes` at `t_ms`: the times (ms) its copies arrive —
     /// none if it is lost, two if it is duplicated — never before `t_ms`.
     pub fn send(&mut self, t_ms: f64, bytes: usize) -> Vec<f64> {
+        let lost = self.lost();
+        self.deliver(t_ms, bytes, lost)
+    }
+
+    /// Sends a retransmission: it is lost at the long-run rate, as a burst
+    /// of losses has passed by the time a retransmission timer fires.
+    pub(crate) fn resend(&mut self, t_ms: f64, bytes: usize) -> Vec<f64> {
+        let lost = self.rng.random::<f64>() < self.model.expected_loss();
+        self.deliver(t_ms, bytes, lost)
+    }
+
+    fn deliver(&mut self, t_ms: f64, bytes: usize, lost: bool) -> Vec<f64> {
         let mut departs = t_ms;
         if let Some(rate) = self.model.rate_bytes_s {
             departs = departs.max(self.busy_until) + bytes as f64 / rate * 1e3;
@@ -309,7 +322,7 @@ impl Link {
             .disconnects
             .iter()
             .any(|&(a, b)| (a..b).contains(&t_ms));
-        if self.lost() || disconnected {
+        if lost || disconnected {
             return Vec::new();
         }
         let reordered = self.rng.random::<f64>() < self.model.reorder;

@@ -1,0 +1,376 @@
+//! The Media in the loop: a WebSocket relay between Guests and a Host that
+//! holds every message for the delay the link model gives it (thesis §3.5:
+//! the Internet's random delay is what event-based control must survive).
+//! Each connection's two directions are separate `MessageLink`s, so a
+//! message keeps TCP's order and a lost packet shows as a retransmission's
+//! wait; a scheduled disconnect closes every connection and refuses new ones
+//! until it ends.
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+use futures_util::stream::{SplitSink, SplitStream};
+use futures_util::{SinkExt, StreamExt};
+use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::{Semaphore, mpsc};
+use tokio_tungstenite::WebSocketStream;
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
+use tracing::debug;
+use vl_core::{MAX_FRAME_BYTES, MAX_TEXT_BYTES};
+use vl_sim::{Delivery, LinkModel, MessageLink};
+
+/// Connections the relay carries at once: as many as a Host serves.
+const CONNECTIONS: usize = 64;
+/// Bytes one direction of a connection may hold in flight; a link slower
+/// than what is sent into it closes rather than grow without end.
+const IN_FLIGHT_BYTES: usize = 64 << 20;
+/// How long the handshakes on either side may take.
+const HANDSHAKE: Duration = Duration::from_secs(10);
+/// Timers wake within a millisecond; the last stretch before a message is
+/// due is waited out by yielding, so delays are kept to a few microseconds.
+const SPIN: Duration = Duration::from_micros(1500);
+
+/// Why the relay could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum MediaError {
+    #[error("cannot listen on {0}: {1}")]
+    Bind(SocketAddr, std::io::Error),
+    #[error("the upstream Host's address '{0}' is not ws://HOST:PORT")]
+    Upstream(String),
+}
+
+/// What the relay puts between its clients and the Host.
+#[derive(Debug, Clone)]
+pub struct MediaConfig {
+    /// The Host's WebSocket URL.
+    pub upstream: String,
+    /// Each direction's link.
+    pub model: LinkModel,
+    /// Connection k's links are seeded `seed + 2k` (to the Host) and `seed + 2k + 1`.
+    pub seed: u64,
+}
+
+/// A relay, listening and relaying in the background.
+pub struct Media {
+    pub addr: SocketAddr,
+    task: tokio::task::JoinHandle<()>,
+}
+
+impl Media {
+    /// Binds `listen` and relays every connection to `config.upstream`.
+    pub async fn start(listen: SocketAddr, config: MediaConfig) -> Result<Media, MediaError> {
+        if !config.upstream.starts_with("ws://") {
+            return Err(MediaError::Upstream(config.upstream));
+        }
+        let listener = TcpListener::bind(listen)
+            .await
+            .map_err(|e| MediaError::Bind(listen, e))?;
+        let addr = listener
+            .local_addr()
+            .map_err(|e| MediaError::Bind(listen, e))?;
+        let task = tokio::spawn(relay(listener, Arc::new(config)));
+        Ok(Media { addr, task })
+    }
+
+    /// The URL Guests connect to instead of the Host's.
+    pub fn url(&self) -> String {
+        format!("ws://{}", self.addr)
+    }
+
+    /// Relays until the process ends.
+    pub async fn wait(mut self) {
+        let _ = (&mut self.task).await;
+    }
+}
+
+impl Drop for Media {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}
+
+/// The relay's clock: disconnects are scheduled on it.
+#[derive(Clone, Copy)]
+struct Clock(Instant);
+
+impl Clock {
+    fn ms(self) -> f64 {
+        self.0.elapsed().as_secs_f64() * 1e3
+    }
+
+    fn at(self, ms: f64) -> Instant {
+        self.0 + Duration::from_secs_f64(ms.max(0.0) / 1e3)
+    }
+}
+
+async fn relay(listener: TcpListener, config: Arc<MediaConfig>) {
+    let clock = Clock(Instant::now());
+    let slots = Arc::new(Semaphore::new(CONNECTIONS));
+    let mut k = 0u64;
+    loop {
+        let Ok((stream, peer)) = listener.accept().await else {
+            tokio::time::sleep(Duration::from_millis(50)).await;
+            continue;
+        };
+        let up = MessageLink::new(config.model.clone(), config.seed.wrapping_add(2 * k));
+        let down = MessageLink::new(config.model.clone(), config.seed.wrapping_add(2 * k + 1));
+        k += 1;
+        if up.down(clock.ms()) {
+            debug!(%peer, "refused: the link is down");
+            continue;
+        }
+        let Ok(slot) = slots.clone().try_acquire_owned() else {
+            debug!(%peer, "refused: the relay carries as many connections as it can");
+            continue;
+        };
+        let config = config.clone();
+        tokio::spawn(async move {
+            let _slot = slot;
+            match connection(stream, &config, clock, up, down).await {
+                Ok(why) => debug!(%peer, "relay ended: {why}"),
+                Err(why) => debug!(%peer, "relay failed: {why}"),
+            }
+        });
+    }
+}
+
+fn ws_config() -> WebSocketConfig {
+    let most = MAX_TEXT_BYTES.max(MAX_FRAME_BYTES);
+    WebSocketConfig::default()
+        .max_message_size(Some(most))
+        .max_frame_size(Some(most))
+}
+
+/// Relays one Guest's connection until either end closes or the link goes down.
+async fn connection(
+    stream: TcpStream,
+    config: &MediaConfig,
+    clock: Clock,
+    up: MessageLink,
+    down: MessageLink,
+) -> Result<&'static str, String> {
+    let _ = stream.set_nodelay(true);
+    let guest = tokio::time::timeout(
+        HANDSHAKE,
+        tokio_tungstenite::accept_async_with_config(stream, Some(ws_config())),
+    )
+    .await
+    .map_err(|_| "the Guest's handshake timed out".to_owned())?
+    .map_err(|e| format!("the Guest's handshake failed: {e}"))?;
+    let (host, _) = tokio::time::timeout(
+        HANDSHAKE,
+        tokio_tungstenite::connect_async_with_config(&config.upstream, Some(ws_config()), true),
+    )
+    .await
+    .map_err(|_| "the Host did not answer".to_owned())?
+    .map_err(|e| format!("cannot reach the Host: {e}"))?;
+    let (to_guest, from_guest) = guest.split();
+    let (to_host, from_host) = host.split();
+    let outage = next_outage(&config.model, clock);
+    tokio::select! {
+        r = carry(from_guest, to_host, up, clock) => r,
+        r = carry(from_host, to_guest, down, clock) => r,
+        () = outage => Ok("the link went down"),
+    }
+}
+
+/// When the link next goes down (never, if no disconnect is scheduled).
+async fn next_outage(model: &LinkModel, clock: Clock) {
+    let now = clock.ms();
+    match model
+        .disconnects
+        .iter()
+        .map(|&(start, _)| start)
+        .filter(|&start| start > now)
+        .min_by(f64::total_cmp)
+    {
+        Some(start) => tokio::time::sleep_until(clock.at(start).into()).await,
+        None => std::future::pending().await,
+    }
+}
+
+type Source<S> = SplitStream<WebSocketStream<S>>;
+type Sink<S> = SplitSink<WebSocketStream<S>, Message>;
+
+/// Carries one direction: each message is read at once, given its arrival
+/// time by `link`, and written when that time comes.
+async fn carry<A, B>(
+    mut from: Source<A>,
+    mut to: Sink<B>,
+    mut link: MessageLink,
+    clock: Clock,
+) -> Result<&'static str, String>
+where
+    A: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin,
+    B: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin,
+{
+    let (queue, mut due) = mpsc::unbounded_channel::<(Instant, Message)>();
+    let in_flight = AtomicUsize::new(0);
+    let read = async {
+        while let Some(message) = from.next().await {
+            let message = message.map_err(|e| format!("read failed: {e}"))?;
+            // Pings and pongs of the WebSocket itself are each hop's own.
+            if matches!(
+                message,
+                Message::Ping(_) | Message::Pong(_) | Message::Frame(_)
+            ) {
+                continue;
+            }
+            let closing = message.is_close();
+            let bytes = message.len();
+            if in_flight.fetch_add(bytes, Ordering::Relaxed) + bytes > IN_FLIGHT_BYTES {
+                return Err("more in flight than the link can hold".to_owned());
+            }
+            match link.send(clock.ms(), bytes) {
+                Delivery::At(ms) => {
+                    let _ = queue.send((clock.at(ms), message));
+                }
+                Delivery::Disconnected => return Ok("the link went down"),
+            }
+            if closing {
+                break;
+            }
+        }
+        drop(queue);
+        // Everything sent before the close is still delivered.
+        std::future::pending::<Result<&'static str, String>>().await
+    };
+    let write = async {
+        while let Some((at, message)) = due.recv().await {
+            wait_until(at).await;
+            in_flight.fetch_sub(message.len(), Ordering::Relaxed);
+            let closing = message.is_close();
+            to.send(message)
+                .await
+                .map_err(|e| format!("write failed: {e}"))?;
+            if closing {
+                return Ok("closed");
+            }
+        }
+        Ok("closed")
+    };
+    tokio::select! {
+        r = read => r,
+        r = write => r,
+    }
+}
+
+/// Waits until `at`, to within microseconds.
+async fn wait_until(at: Instant) {
+    if let Some(early) = at.checked_sub(SPIN)
+        && Instant::now() < early
+    {
+        tokio::time::sleep_until(early.into()).await;
+    }
+    while Instant::now() < at {
+        tokio::task::yield_now().await;
+    }
+}
+
+/// Round-trip percentiles, ms.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct RoundTrip {
+    pub p50_ms: f64,
+    pub p99_ms: f64,
+}
+
+impl RoundTrip {
+    fn of(mut ms: Vec<f64>) -> RoundTrip {
+        ms.sort_by(f64::total_cmp);
+        let at = |q: f64| ms[((q * ms.len() as f64).ceil() as usize).clamp(1, ms.len()) - 1];
+        RoundTrip {
+            p50_ms: at(0.5),
+            p99_ms: at(0.99),
+        }
+    }
+}
+
+/// What the relay costs by itself: round trips to an echo server, straight
+/// and through a relay whose link has no delay, taken in turn.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct MediaBench {
+    pub messages: usize,
+    pub direct: RoundTrip,
+    pub relayed: RoundTrip,
+    /// Relayed minus direct, at each percentile.
+    pub added: RoundTrip,
+}
+
+/// Times `messages` round trips each way; `messages` must be at least 1.
+pub async fn bench(messages: usize) -> Result<MediaBench, String> {
+    let echo = TcpListener::bind(("127.0.0.1", 0))
+        .await
+        .map_err(|e| e.to_string())?;
+    let echo_url = format!("ws://{}", echo.local_addr().map_err(|e| e.to_string())?);
+    let server = tokio::spawn(async move {
+        while let Ok((stream, _)) = echo.accept().await {
+            let _ = stream.set_nodelay(true);
+            tokio::spawn(async move {
+                let Ok(mut ws) = tokio_tungstenite::accept_async(stream).await else {
+                    return;
+                };
+                while let Some(Ok(m)) = ws.next().await {
+                    if m.is_text() && ws.send(m).await.is_err() {
+                        return;
+                    }
+                }
+            });
+        }
+    });
+    let zero = LinkModel {
+        delay_ms: 0.0,
+        jitter_ms: 0.0,
+        ..LinkModel::profile(vl_sim::Profile::Lan)
+    };
+    let media = Media::start(
+        ([127, 0, 0, 1], 0).into(),
+        MediaConfig {
+            upstream: echo_url.clone(),
+            model: zero,
+            seed: 0,
+        },
+    )
+    .await
+    .map_err(|e| e.to_string())?;
+    let connect = |url: String| async move {
+        tokio_tungstenite::connect_async_with_config(url, None, true)
+            .await
+            .map(|(ws, _)| ws)
+            .map_err(|e| e.to_string())
+    };
+    let mut direct_ws = connect(echo_url).await?;
+    let mut relayed_ws = connect(media.url()).await?;
+    let (mut direct, mut relayed) = (Vec::new(), Vec::new());
+    let text = Message::text("x".repeat(100));
+    for _ in 0..messages.max(1) {
+        for (ws, times) in [
+            (&mut direct_ws, &mut direct),
+            (&mut relayed_ws, &mut relayed),
+        ] {
+            let sent = Instant::now();
+            ws.send(text.clone()).await.map_err(|e| e.to_string())?;
+            loop {
+                match ws.next().await {
+                    Some(Ok(m)) if m.is_text() => break,
+                    Some(Ok(_)) => {}
+                    other => return Err(format!("the echo stopped: {other:?}")),
+                }
+            }
+            times.push(sent.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    server.abort();
+    let (direct, relayed) = (RoundTrip::of(direct), RoundTrip::of(relayed));
+    Ok(MediaBench {
+        messages: messages.max(1),
+        added: RoundTrip {
+            p50_ms: relayed.p50_ms - direct.p50_ms,
+            p99_ms: relayed.p99_ms - direct.p99_ms,
+        },
+        direct,
+        relayed,
+    })
+}

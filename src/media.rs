@@ -1,0 +1,156 @@
+//! `vl media`: the Media between Guests and a Host, a relay that gives real
+//! messages the delay, jitter, retransmissions and disconnects of a
+//! modelled link; and `--link`, the same relay in front of `vl host` and
+//! `vl demo`.
+
+use std::net::SocketAddr;
+
+use anyhow::{Context, Result};
+use vl_host::{Media, MediaConfig};
+use vl_sim::LinkModel;
+
+use crate::BadInput;
+use crate::report::{Report, Table, emit};
+
+/// A modelled link to put in front of a lab.
+#[derive(clap::Args)]
+pub(crate) struct LinkArgs {
+    /// Put a modelled Internet link between Guests and the lab: a profile
+    /// (lan, internet2, internet-2005, intercontinental, congested,
+    /// geo-satellite) or a JSON file of a link model.
+    #[arg(long)]
+    link: Option<String>,
+    /// Seed for the link's random delays.
+    #[arg(long, default_value_t = 1)]
+    link_seed: u64,
+}
+
+impl LinkArgs {
+    /// The link asked for, checked, if any.
+    pub(crate) fn model(&self) -> Result<Option<LinkModel>> {
+        self.link.as_deref().map(load).transpose()
+    }
+
+    /// Puts the link asked for in front of the Host at `upstream`, listening
+    /// on `listen`; None when no link was asked for.
+    pub(crate) async fn front(&self, listen: SocketAddr, upstream: &str) -> Result<Option<Media>> {
+        let Some(model) = self.model()? else {
+            return Ok(None);
+        };
+        let config = MediaConfig {
+            upstream: upstream.to_owned(),
+            model,
+            seed: self.link_seed,
+        };
+        Ok(Some(
+            Media::start(listen, config)
+                .await
+                .context("cannot start the Media")?,
+        ))
+    }
+}
+
+/// A link profile by name or file; a bad one is the user's input.
+pub(crate) fn load(spec: &str) -> Result<LinkModel> {
+    LinkModel::load(spec).map_err(|e| BadInput(format!("--link/--profile: {e}")).into())
+}
+
+/// `vl media`: relay, or measure the relay.
+#[derive(clap::Args)]
+#[command(args_conflicts_with_subcommands = true)]
+pub(crate) struct MediaCommand {
+    #[command(subcommand)]
+    tool: Option<MediaTool>,
+    #[command(flatten)]
+    relay: MediaArgs,
+}
+
+#[derive(clap::Subcommand)]
+enum MediaTool {
+    /// Measure what the relay adds to a round trip by itself: an echo
+    /// server's round trips straight and through a zero-delay relay, in turn.
+    Bench {
+        #[arg(long, default_value_t = 5000, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+        messages: u64,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+impl Report for vl_host::MediaBench {
+    fn table(&self) -> Table {
+        let mut table = Table::columns(&["round trip", "p50 ms", "p99 ms"]);
+        for (name, rt) in [
+            ("straight", self.direct),
+            ("through the relay", self.relayed),
+            ("added by the relay", self.added),
+        ] {
+            table.row(vec![
+                name.into(),
+                format!("{:.3}", rt.p50_ms),
+                format!("{:.3}", rt.p99_ms),
+            ]);
+        }
+        table.note(format!(
+            "{} round trips each way, 100-byte messages, taken in turn",
+            self.messages
+        ))
+    }
+}
+
+pub(crate) async fn run(command: MediaCommand) -> Result<()> {
+    match command.tool {
+        Some(MediaTool::Bench { messages, json }) => {
+            let bench = vl_host::media_bench(messages as usize)
+                .await
+                .map_err(|e| anyhow::anyhow!("the relay bench failed: {e}"))?;
+            emit(&bench, json)
+        }
+        None => media(command.relay).await,
+    }
+}
+
+#[derive(clap::Args)]
+pub(crate) struct MediaArgs {
+    /// Address Guests connect to; port 0 picks a free one.
+    #[arg(long, default_value = "127.0.0.1:7401")]
+    listen: SocketAddr,
+    /// The Host's WebSocket URL.
+    #[arg(long, default_value = "ws://127.0.0.1:7400")]
+    upstream: String,
+    /// The link in each direction: a profile (lan, internet2, internet-2005,
+    /// intercontinental, congested, geo-satellite) or a JSON file of a link model.
+    #[arg(long, default_value = "lan")]
+    profile: String,
+    /// Seed for the link's random delays.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+async fn media(args: MediaArgs) -> Result<()> {
+    let config = MediaConfig {
+        upstream: args.upstream.clone(),
+        model: load(&args.profile)?,
+        seed: args.seed,
+    };
+    let media = Media::start(args.listen, config)
+        .await
+        .map_err(|e| match e {
+            vl_host::MediaError::Upstream(_) => anyhow::Error::from(BadInput(e.to_string())),
+            other => anyhow::Error::from(other).context("cannot start the Media"),
+        })?;
+    // Scripts and tests read the bound address from this first line.
+    println!(
+        "vl media listening on {} for {} through '{}'",
+        media.url(),
+        args.upstream,
+        args.profile
+    );
+    tokio::select! {
+        () = media.wait() => anyhow::bail!("the relay stopped"),
+        signal = tokio::signal::ctrl_c() => {
+            signal.context("cannot wait for Ctrl-C")?;
+            Ok(())
+        }
+    }
+}
