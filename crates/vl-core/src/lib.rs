@@ -24,7 +24,7 @@ pub use contract::experiment::{Definition, Experiment, ExperimentInfo, Goal, LOO
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::protocol::{
     DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HostMessage,
-    MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Role, Summary, Wire,
+    MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Role, Summary, WATCHDOG, Wire,
 };
 pub use contract::session::{Action, NotAllowed, Phase, Supervisor};
 pub use images::{MAX_IMAGE_SIDE, decode_image, load_image};

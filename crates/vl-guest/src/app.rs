@@ -226,7 +226,7 @@ impl GuestApp {
         }
         let asked = self.teleop.desired(stick);
         let drive = Drive::from(self.teleop.wheels(&lab.robot, asked));
-        if let Some(command) = self.session.next_command(drive) {
+        if let Some(command) = self.session.next_command(drive, std::time::Instant::now()) {
             self.connection.send(command);
         }
     }

@@ -2,13 +2,17 @@
 //! draws and the headless client scripts against, updated only by what
 //! arrives from the Host.
 
+use std::time::{Duration, Instant};
+
 use image::RgbaImage;
+use serde::Serialize;
 use vl_core::{
     Definition, DeviceState, Drive, ErrorCode, ExperimentInfo, FrameHeader, GuestMessage,
     HostMessage, ImageFormat, MountedLab, Pose, PoseSource, Role, Summary, WheelSpeeds,
 };
 
 use crate::client::Incoming;
+use crate::predict::Predictor;
 
 /// Errors kept for display; older ones are dropped.
 const ERRORS_KEPT: usize = 8;
@@ -81,6 +85,36 @@ impl RoundTrips {
     }
 }
 
+/// How the Guest paces its commands (thesis §3.5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ControlMode {
+    /// Command s + 1 only once feedback for s has come back: the reference
+    /// is the event, so Guest and Host stay within one event of each other.
+    Event,
+    /// A command every `period`, whatever has come back: the reference is
+    /// time, as in classic teleoperation.
+    Time { period: Duration },
+}
+
+/// The period of time-based control: the Host's feedback period.
+pub const TIME_PERIOD: Duration = Duration::from_millis(20);
+
+/// A running mean and maximum, mm.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Spread {
+    pub count: u64,
+    pub mean: f64,
+    pub max: f64,
+}
+
+impl Spread {
+    pub fn add(&mut self, v: f64) {
+        self.count += 1;
+        self.mean += (v - self.mean) / self.count as f64;
+        self.max = self.max.max(v);
+    }
+}
+
 /// Where the session stands.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Link {
@@ -112,6 +146,24 @@ pub struct Session {
     /// Event number of the last command sent in this run.
     pub sent_event: u64,
     pub devices: Option<Devices>,
+    /// How commands are paced.
+    pub control: ControlMode,
+    /// When the last command left.
+    last_sent: Option<Instant>,
+    /// The largest gap between a command sent and the feedback seen, and
+    /// how many commands went more than one event ahead, in this run.
+    pub max_event_gap: u64,
+    pub sync_violations: u64,
+    /// Where the robot is now, by the feedback and the commands since.
+    pub predictor: Predictor,
+    /// This run's prediction error (prediction against the feedback that
+    /// later told the truth) and, beside it, the error of showing the last
+    /// feedback alone.
+    pub prediction_error: Spread,
+    pub stale_error: Spread,
+    /// When the newest feedback and frame arrived.
+    pub feedback_at: Option<Instant>,
+    pub frame_at: Option<Instant>,
 }
 
 impl Default for Session {
@@ -133,6 +185,15 @@ impl Default for Session {
             done: None,
             sent_event: 0,
             devices: None,
+            control: ControlMode::Event,
+            last_sent: None,
+            max_event_gap: 0,
+            sync_violations: 0,
+            predictor: Predictor::default(),
+            prediction_error: Spread::default(),
+            stale_error: Spread::default(),
+            feedback_at: None,
+            frame_at: None,
         }
     }
 }
@@ -143,7 +204,10 @@ impl Session {
         match incoming {
             Incoming::Message(message) => self.apply_message(*message),
             Incoming::Frame(header, bytes) => self.apply_frame(header, &bytes),
-            Incoming::RoundTrip(ms) => self.round_trips.push(ms),
+            Incoming::RoundTrip(ms) => {
+                self.round_trips.push(ms);
+                self.predictor.round_trip(ms);
+            }
             Incoming::Unreachable(error) => {
                 self.link = Link::Closed(error.to_string());
                 self.running = false;
@@ -187,6 +251,12 @@ impl Session {
                 self.running = true;
                 self.done = None;
                 self.sent_event = event;
+                self.last_sent = None;
+                self.max_event_gap = 0;
+                self.sync_violations = 0;
+                self.prediction_error = Spread::default();
+                self.stale_error = Spread::default();
+                self.predictor.start();
             }
             HostMessage::Feedback {
                 event,
@@ -203,6 +273,19 @@ impl Session {
                 if self.robot.as_ref().is_some_and(|r| r.t_ms > t_ms) {
                     return;
                 }
+                let now = Instant::now();
+                if self.running
+                    && let Some(lab) = &self.lab
+                {
+                    if let Some(e) = self.predictor.error_mm(&lab.robot, pose, now) {
+                        self.prediction_error.add(e);
+                    }
+                    if let Some(e) = self.predictor.stale_mm(pose) {
+                        self.stale_error.add(e);
+                    }
+                }
+                self.predictor.feedback(event, pose, wheels, now);
+                self.feedback_at = Some(now);
                 self.robot = Some(RobotState {
                     event,
                     t_ms,
@@ -243,6 +326,7 @@ impl Session {
         match vl_core::decode_image(bytes, Some(format)) {
             Ok(decoded) => {
                 self.frames_received += 1;
+                self.frame_at = Some(Instant::now());
                 self.frame = Some(CameraFrame {
                     header,
                     image: decoded.to_rgba8(),
@@ -252,19 +336,46 @@ impl Session {
         }
     }
 
-    /// The next command under event-based control: command s + 1 goes out
-    /// only once feedback for command s has come back, so Guest and Host
-    /// never drift more than one event apart whatever the delay.
-    pub fn next_command(&mut self, drive: Drive) -> Option<GuestMessage> {
-        let acknowledged = self.robot.as_ref().map_or(0, |r| r.event);
-        if !self.running || acknowledged < self.sent_event {
+    /// The next command, if the pacing lets one go at `now`. Under
+    /// event-based control command s + 1 goes out only once feedback for
+    /// command s has come back, so Guest and Host never drift more than one
+    /// event apart whatever the delay; under time-based control one goes
+    /// every period.
+    pub fn next_command(&mut self, drive: Drive, now: Instant) -> Option<GuestMessage> {
+        let seen = self.robot.as_ref().map_or(0, |r| r.event);
+        if !self.running {
+            return None;
+        }
+        let due = match self.control {
+            ControlMode::Event => seen >= self.sent_event,
+            ControlMode::Time { period } => self
+                .last_sent
+                .is_none_or(|at| now.saturating_duration_since(at) >= period),
+        };
+        if !due {
             return None;
         }
         self.sent_event += 1;
+        self.last_sent = Some(now);
+        let gap = self.sent_event.saturating_sub(seen);
+        self.max_event_gap = self.max_event_gap.max(gap);
+        self.sync_violations += u64::from(gap > 1);
+        if let Some(lab) = &self.lab {
+            self.predictor
+                .sent(self.sent_event, drive.wheels(&lab.robot), now);
+        }
         Some(GuestMessage::Command {
             event: self.sent_event,
+            seen: Some(seen),
             drive,
         })
+    }
+
+    /// Where the robot is predicted to be now, when a lab is mounted and
+    /// feedback has come.
+    pub fn predicted(&self, now: Instant) -> Option<Pose> {
+        let lab = self.lab.as_ref()?;
+        self.predictor.predict(&lab.robot, now)
     }
 
     /// Whether the run under way, or the next, follows its path on the Host.
@@ -303,22 +414,22 @@ mod tests {
     fn commands_wait_for_their_feedback() {
         let mut s = Session::default();
         let drive = Drive::Velocity { v: 100.0, w: 0.0 };
-        assert_eq!(s.next_command(drive), None, "no run, no command");
+        assert_eq!(s.next_command(drive, Instant::now()), None, "no run, no command");
         s.apply(Incoming::Message(Box::new(HostMessage::Started {
             event: 0,
         })));
         assert!(matches!(
-            s.next_command(drive),
+            s.next_command(drive, Instant::now()),
             Some(GuestMessage::Command { event: 1, .. })
         ));
         assert_eq!(
-            s.next_command(drive),
+            s.next_command(drive, Instant::now()),
             None,
             "command 1 not yet acknowledged"
         );
         s.apply(feedback(1, 10.0));
         assert!(matches!(
-            s.next_command(drive),
+            s.next_command(drive, Instant::now()),
             Some(GuestMessage::Command { event: 2, .. })
         ));
     }

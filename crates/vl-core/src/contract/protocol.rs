@@ -21,6 +21,10 @@ pub const PROTOCOL_VERSION: u32 = 1;
 /// The largest text message either side accepts.
 pub const MAX_TEXT_BYTES: usize = 1 << 20;
 
+/// A robot an operator drives stops by itself when no command has come for
+/// this long: the Host's watchdog, which the Guest's prediction expects.
+pub const WATCHDOG: std::time::Duration = std::time::Duration::from_millis(500);
+
 /// Who a connection speaks for: one operator drives, observers watch.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -137,6 +141,14 @@ pub struct Summary {
     /// or a witness of the truth.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub path: Option<PathAnalysis>,
+    /// The largest gap between a command's event and the feedback event
+    /// its Guest had seen (commands that say what they had seen only).
+    #[serde(default)]
+    pub max_event_gap: u64,
+    /// Commands sent more than one event ahead of the feedback their
+    /// Guest had seen: losses of synchronisation.
+    #[serde(default)]
+    pub sync_violations: u64,
 }
 
 /// Machine-readable reason in an `error` message.
@@ -216,9 +228,14 @@ pub enum GuestMessage {
     /// Stop the robot now and end the run, from anyone welcomed, observers
     /// too; nothing moves until the operator starts a new run.
     EmergencyStop,
-    /// Drive command number `event` (1, 2, …) of the current run.
+    /// Drive command number `event` (1, 2, …) of the current run. `seen`
+    /// is the newest feedback's event the Guest had when it sent it: the
+    /// Host counts `event − seen` as the run's synchronisation (thesis §3.5:
+    /// event-based control keeps it at most 1 whatever the delay).
     Command {
         event: u64,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        seen: Option<u64>,
         #[serde(flatten)]
         drive: Drive,
     },
@@ -417,6 +434,7 @@ mod tests {
             wheels,
             Ok(GuestMessage::Command {
                 event: 3,
+                seen: None,
                 drive: Drive::Wheels {
                     left: 10.0,
                     right: -5.0
@@ -428,6 +446,7 @@ mod tests {
             velocity,
             Ok(GuestMessage::Command {
                 event: 4,
+                seen: None,
                 drive: Drive::Velocity { v: 100.0, w: 0.5 }
             })
         );

@@ -15,7 +15,7 @@ use tracing::{debug, info, warn};
 use vl_core::{
     Definition, DeviceState, EndReason, Experiment, Follower, HostMessage, Localiser, MapField,
     PathRecorder, Pose, PoseSource, RobotModel, Safety, Situation, Summary, Surroundings, Teleop,
-    Uncertainty, Vector, WheelSpeeds, disc_cspace,
+    Uncertainty, Vector, WATCHDOG, WheelSpeeds, disc_cspace,
 };
 
 use super::camera::Sighting;
@@ -24,8 +24,6 @@ use crate::drivers::{Robot, RobotReading, Witness};
 
 /// Feedback is published at least this often while nothing else changes.
 const FEEDBACK_EVERY: Duration = Duration::from_millis(20);
-/// A running robot with no new command for this long stops by itself.
-const WATCHDOG: Duration = Duration::from_millis(500);
 /// The safety layer assumes a command lasts at least this long before the
 /// next can brake it: three control periods.
 const REACTION: Duration = Duration::from_millis(30);
@@ -108,6 +106,9 @@ impl Run {
             speed_kept: (self.kept.1 > 0).then(|| self.kept.0 / self.kept.1 as f64),
             pose_source: source,
             path: Some(self.record.finish()),
+            // The hub, which sees the commands' events, fills these in.
+            max_event_gap: 0,
+            sync_violations: 0,
         }
     }
 }

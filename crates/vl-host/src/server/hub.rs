@@ -58,6 +58,10 @@ pub(crate) struct Hub {
     definition: Option<Definition>,
     /// Event number of the last command accepted in this run.
     last_event: u64,
+    /// The run's synchronisation so far: the largest `event − seen`, and
+    /// how many commands ran more than one event ahead.
+    max_event_gap: u64,
+    sync_violations: u64,
     /// When the operator last started or commanded the run under way.
     last_command: Instant,
     /// The number of the run under way (kept until the lab reports its end).
@@ -77,6 +81,8 @@ impl Hub {
             experiment: None,
             definition: None,
             last_event: 0,
+            max_event_gap: 0,
+            sync_violations: 0,
             last_command: Instant::now(),
             run: None,
             runs: 0,
@@ -98,7 +104,7 @@ impl Hub {
                     let now = *status.borrow_and_update();
                     self.broadcast(&now.message());
                 }
-                Some(Finished(run, summary)) = self.lab.finished.recv() => {
+                Some(Finished(run, mut summary)) = self.lab.finished.recv() => {
                     // Only the run under way may end: a previous operator's
                     // run that ends late must not end the next one's.
                     if self.run != Some(run) {
@@ -109,6 +115,8 @@ impl Hub {
                     if self.supervisor.allows(Action::Finish) {
                         let _ = self.supervisor.fire(Action::Finish);
                     }
+                    summary.max_event_gap = self.max_event_gap;
+                    summary.sync_violations = self.sync_violations;
                     info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
                     self.broadcast(&HostMessage::Done { summary });
                 }
@@ -373,6 +381,8 @@ impl Hub {
                     && let Some(experiment) = self.experiment
                 {
                     self.last_event = 0;
+                    self.max_event_gap = 0;
+                    self.sync_violations = 0;
                     self.last_command = Instant::now();
                     self.runs += 1;
                     self.run = Some(self.runs);
@@ -391,7 +401,7 @@ impl Hub {
                     self.lab.request(LabRequest::Finish(EndReason::Stopped));
                 }
             }
-            GuestMessage::Command { event, drive } => {
+            GuestMessage::Command { event, seen, drive } => {
                 if !self.permitted(id, Action::Command) {
                     return;
                 }
@@ -413,6 +423,11 @@ impl Hub {
                     );
                 }
                 self.supervise(id, Action::Command);
+                if let Some(seen) = seen {
+                    let gap = event.saturating_sub(seen);
+                    self.max_event_gap = self.max_event_gap.max(gap);
+                    self.sync_violations += u64::from(gap > 1);
+                }
                 self.last_event = event;
                 self.last_command = Instant::now();
                 self.lab.request(LabRequest::Drive { event, drive });
