@@ -36,7 +36,7 @@ fn every_arena_is_crossed_on_camera_estimates_through_noisy_optics() {
         assert_eq!(run["reached_goal"], true, "{run}");
         assert_eq!(run["collisions"], 0, "{run}");
         assert_eq!(run["pose_source"], "camera", "{run}");
-        let path = &run["path_error_mm"];
+        let path = &run["tracking_error_mm"];
         assert!(path["mean"].as_f64().unwrap() <= 5.0, "{run}");
         assert!(path["max"].as_f64().unwrap() <= 20.0, "{run}");
         assert!(
@@ -60,7 +60,7 @@ fn a_tilted_camera_maps_plans_and_follows() {
     assert_eq!(run["reached_goal"], true, "{run}");
     assert_eq!(run["collisions"], 0, "{run}");
     assert!(
-        run["path_error_mm"]["max"].as_f64().unwrap() <= 20.0,
+        run["tracking_error_mm"]["max"].as_f64().unwrap() <= 20.0,
         "{run}"
     );
 }
@@ -179,7 +179,7 @@ fn frames_on_change_send_a_tenth_of_the_video_and_show_a_new_obstacle() {
         change["frames_sent"], 1,
         "nothing changed: the first frame only"
     );
-    let error = |run: &Value| run["path_error_mm"]["mean"].as_f64().unwrap();
+    let error = |run: &Value| run["tracking_error_mm"]["mean"].as_f64().unwrap();
     assert!(
         error(change) <= error(every) * 1.05 + 0.2,
         "path error {} mm on change, {} mm every frame",
@@ -223,7 +223,7 @@ fn a_robot_the_camera_loses_is_stopped_with_the_reason() {
     let run = only_run(&report);
     assert_eq!(run["reached_goal"], false, "{run}");
     assert_eq!(run["end"], "the camera lost the robot", "{run}");
-    let seconds = run["seconds"].as_f64().unwrap();
+    let seconds = run["completion_s"].as_f64().unwrap();
     assert!(
         (2.5..5.0).contains(&seconds),
         "stopped {seconds} s into the run"

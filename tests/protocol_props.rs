@@ -233,7 +233,7 @@ fn summary() -> BoxedStrategy<Summary> {
         any::<u64>(),
         pose(),
         (num(), num()),
-        any::<u64>(),
+        (any::<u64>(), any::<u64>(), any::<u64>()),
         (
             proptest::option::of(num()),
             proptest::option::of(num()),
@@ -248,7 +248,7 @@ fn summary() -> BoxedStrategy<Summary> {
                 events,
                 final_pose,
                 (seconds, distance_mm),
-                collisions,
+                (collisions, max_event_gap, sync_violations),
                 (closest_mm, speed_kept, pose_source, path),
             )| {
                 Summary {
@@ -263,6 +263,8 @@ fn summary() -> BoxedStrategy<Summary> {
                     speed_kept,
                     pose_source,
                     path,
+                    max_event_gap,
+                    sync_violations,
                 }
             },
         )
@@ -315,7 +317,8 @@ fn guest_message() -> impl Strategy<Value = GuestMessage> {
         Just(GuestMessage::Start),
         Just(GuestMessage::Stop),
         Just(GuestMessage::EmergencyStop),
-        (any::<u64>(), drive()).prop_map(|(event, drive)| GuestMessage::Command { event, drive }),
+        (any::<u64>(), proptest::option::of(any::<u64>()), drive())
+            .prop_map(|(event, seen, drive)| GuestMessage::Command { event, seen, drive }),
         Just(GuestMessage::Bye),
     ]
 }

@@ -1,20 +1,22 @@
 //! The headless Guest: scripts a whole session — mount, plan a path to the
-//! goal on the lab's map and define it, then execute it under event-based
-//! control, steering along the path — with no window, for demos, tests and
-//! unattended runs; or watches one as an observer.
+//! goal on the lab's map and define it, then execute it: the Host follows
+//! the path (navigation), or a scripted operator steers along it from the
+//! feedback it sees, as a person at a joystick would (teleoperation) — with
+//! no window, for demos, tests and unattended runs; or watches one as an
+//! observer.
 
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use thiserror::Error;
 use vl_core::{
-    ArenaPlanError, EndReason, ErrorCode, Experiment, Goal, GuestMessage, HostMessage,
+    ArenaPlanError, Drive, EndReason, ErrorCode, Experiment, Goal, GuestMessage, HostMessage,
     PROTOCOL_VERSION, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
 };
 
 use crate::client::{ClientError, Connection, Incoming, open};
 use crate::route::Route;
-use crate::session::{RoundTrips, Session};
+use crate::session::{ControlMode, RoundTrips, Session, Spread};
 use crate::settings::Settings;
 
 /// What the scripted session does.
@@ -28,6 +30,8 @@ pub struct Script {
     pub timeout: Duration,
     /// Print a line of progress to stderr every second.
     pub progress: bool,
+    /// How an operator's commands are paced (teleoperation).
+    pub control: ControlMode,
 }
 
 impl Default for Script {
@@ -38,6 +42,7 @@ impl Default for Script {
             token: None,
             timeout: Duration::from_secs(60),
             progress: false,
+            control: ControlMode::Event,
         }
     }
 }
@@ -78,6 +83,21 @@ pub struct Report {
     pub planned: Vec<Point>,
     /// The followed path against the planned one, as the Host measured it.
     pub path: Option<PathAnalysis>,
+    /// Commands the operator sent.
+    pub commands: u64,
+    /// The synchronisation the Host counted: the largest gap between a
+    /// command and the feedback its Guest had seen, and the commands more
+    /// than one event ahead.
+    pub max_event_gap: u64,
+    pub sync_violations: u64,
+    /// The predicted pose against the feedback that later arrived, and the
+    /// last reported pose against it (what showing feedback alone is off by).
+    pub prediction_error_mm: Spread,
+    pub stale_error_mm: Spread,
+    /// Each command's gap as the Guest saw it, with the seconds since the
+    /// run started.
+    #[serde(skip)]
+    pub gaps: Vec<(f64, u64)>,
 }
 
 #[derive(Debug, Error)]
@@ -237,23 +257,172 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
         other => other?,
     }
 
-    let summary = guest.session.done.clone().expect("done");
-    guest.connection.send(GuestMessage::Bye);
-    Ok(Report {
-        reached_goal: summary.reached_goal,
-        reason: summary.reason,
-        events: summary.events,
-        final_pose: summary.final_pose,
-        sim_seconds: summary.seconds,
-        distance_mm: summary.distance_mm,
-        collisions: summary.collisions,
-        frames: guest.session.frames_received,
-        video_bytes: guest.session.video_bytes,
-        round_trip_ms: RoundTripMs::from(&guest.session.round_trips),
-        pose_source: summary.pose_source,
-        planned: route.definition.path,
-        path: summary.path,
-    })
+    Ok(guest.report(route))
+}
+
+impl Scripted {
+    /// The run's report, once its summary has come; says bye.
+    fn report(&mut self, route: Route) -> Report {
+        let guest = self;
+        let summary = guest.session.done.clone().expect("done");
+        guest.connection.send(GuestMessage::Bye);
+        Report {
+            reached_goal: summary.reached_goal,
+            reason: summary.reason,
+            events: summary.events,
+            final_pose: summary.final_pose,
+            sim_seconds: summary.seconds,
+            distance_mm: summary.distance_mm,
+            collisions: summary.collisions,
+            frames: guest.session.frames_received,
+            video_bytes: guest.session.video_bytes,
+            round_trip_ms: RoundTripMs::from(&guest.session.round_trips),
+            pose_source: summary.pose_source,
+            planned: route.definition.path,
+            path: summary.path,
+            commands: guest.session.sent_event,
+            max_event_gap: summary.max_event_gap,
+            sync_violations: summary.sync_violations,
+            prediction_error_mm: guest.session.prediction_error,
+            stale_error_mm: guest.session.stale_error,
+            gaps: std::mem::take(&mut guest.session.gaps),
+        }
+    }
+}
+
+/// How close to a waypoint the operator moves on to the next, mm.
+const WAYPOINT_REACHED_MM: f64 = 40.0;
+/// How far apart the operator's waypoints lie along the planned path, mm.
+const WAYPOINT_SPACING_MM: f64 = 80.0;
+/// The operator's cruising speed, mm/s, and turn gain, 1/s.
+const OPERATOR_SPEED_MM_S: f64 = 80.0;
+const OPERATOR_TURN_GAIN: f64 = 3.0;
+/// The shortest lag a person reacts within, s.
+const REACTION_S: f64 = 0.2;
+/// How often the operator looks and moves the stick.
+const OPERATOR_TICK: Duration = Duration::from_millis(10);
+
+/// Waypoints along `path`, about `WAYPOINT_SPACING_MM` apart, ending at its end.
+fn waypoints(path: &[Point]) -> Vec<Point> {
+    let mut out: Vec<Point> = Vec::new();
+    let mut last = path.first().copied();
+    for &p in path {
+        if last.is_some_and(|l| l.distance(p) >= WAYPOINT_SPACING_MM) {
+            out.push(p);
+            last = Some(p);
+        }
+    }
+    if let Some(&end) = path.last() {
+        out.push(end);
+    }
+    out
+}
+
+/// A person's steering toward `target` from where the robot was last
+/// seen: turn toward it, go forward only as far as it lies ahead, and —
+/// as people do on a laggy link — no faster than the lag lets them see
+/// the effect: a turn is taken out over about one lag, and the robot
+/// slows so that it covers the last stretch to the goal in a few lags.
+fn steer(seen: Pose, target: Point, to_goal_mm: f64, lag_s: f64) -> Drive {
+    let lag = lag_s.max(REACTION_S);
+    let bearing = (target.y_mm - seen.y_mm).atan2(target.x_mm - seen.x_mm);
+    let error = vl_core::wrap_angle(bearing - seen.theta_rad);
+    let ahead = error.cos().max(0.0);
+    Drive::Velocity {
+        v: (OPERATOR_SPEED_MM_S * ahead * ahead).min(0.5 * to_goal_mm / lag),
+        w: (OPERATOR_TURN_GAIN.min(0.8 / lag) * error).clamp(-2.0, 2.0),
+    }
+}
+
+/// Connects to `url` as operator, plans a path to the goal, defines it and
+/// drives the robot along it by commands — steering toward waypoints on
+/// the path from the feedback as it arrives, paced by `script.control` —
+/// and stops the run when the feedback shows the goal reached.
+pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptError> {
+    let mut guest = welcomed(url, Role::Operator, script).await?;
+    guest.session.control = script.control;
+    let ignore = |_: &mut Session, _: &Connection| {};
+    guest.connection.send(GuestMessage::Mount {
+        experiment: script.experiment.to_string(),
+    });
+    guest.until("mount", ignore, |s| s.lab.is_some()).await?;
+    let lab = guest.session.lab.clone().expect("mounted");
+    let goal = match (script.goal, lab.arena.goal) {
+        (Some(goal), _) => goal,
+        (None, Some(p)) => Goal::at(p),
+        (None, None) => return Err(ScriptError::NoGoal(script.experiment)),
+    };
+    guest
+        .until("see the robot", ignore, |s| s.robot.is_some())
+        .await?;
+    let start = guest.session.robot.as_ref().expect("seen").pose;
+    let route = Route::plan(&lab, start, goal, Vec::new(), &Settings::default())?;
+    guest.connection.send(GuestMessage::Define {
+        definition: route.definition.clone(),
+    });
+    guest
+        .until("define the goal", ignore, |s| s.definition.is_some())
+        .await?;
+    guest.connection.send(GuestMessage::Start);
+    guest.until("start", ignore, |s| s.running).await?;
+
+    let targets = waypoints(&route.definition.path);
+    let mut next = 0;
+    let mut tick = tokio::time::interval(OPERATOR_TICK);
+    let mut stopping = false;
+    let mut last_progress = Instant::now();
+    loop {
+        tokio::select! {
+            incoming = guest.connection.incoming.recv() => match incoming {
+                None => return Err(ScriptError::Closed { step: "drive", reason: "the connection task ended".into() }),
+                Some(Incoming::Closed(reason)) => return Err(ScriptError::Closed { step: "drive", reason }),
+                Some(Incoming::Unreachable(e)) => return Err(ScriptError::Connect(e)),
+                Some(other) => guest.session.apply(other),
+            },
+            _ = tick.tick() => {}
+            () = tokio::time::sleep_until(guest.deadline.into()) => {
+                if stopping {
+                    return Err(ScriptError::Timeout { step: "stop", seconds: script.timeout.as_secs_f64() });
+                }
+                guest.connection.send(GuestMessage::Stop);
+                stopping = true;
+                guest.deadline = Instant::now() + STOP_WAIT;
+            }
+        }
+        if guest.session.done.is_some() {
+            break;
+        }
+        let Some(seen) = guest.session.robot.as_ref().map(|r| r.pose) else {
+            continue;
+        };
+        while next + 1 < targets.len() && seen.point().distance(targets[next]) < WAYPOINT_REACHED_MM
+        {
+            next += 1;
+        }
+        let to_goal = seen.point().distance(goal.point());
+        if stopping {
+            continue;
+        }
+        if to_goal <= goal.tolerance_mm {
+            guest.connection.send(GuestMessage::Stop);
+            stopping = true;
+            guest.deadline = Instant::now() + STOP_WAIT;
+            continue;
+        }
+        let lag_s = guest.session.round_trips.last().unwrap_or(0.0) / 1e3;
+        let drive = steer(seen, targets[next], to_goal, lag_s);
+        if let Some(command) = guest.session.next_command(drive, Instant::now()) {
+            guest.connection.send(command);
+        }
+        if script.progress && last_progress.elapsed() >= Duration::from_secs(1) {
+            last_progress = Instant::now();
+            eprintln!(
+                "event {:>5}  pose ({:>5.0}, {:>5.0}) mm  {:>5.0} mm to go",
+                guest.session.sent_event, seen.x_mm, seen.y_mm, to_goal
+            );
+        }
+    }
+    Ok(guest.report(route))
 }
 
 /// What an observer saw.

@@ -17,8 +17,12 @@ pub use client::{ClientError, Connection, Incoming, open};
 pub use gamepad::{Effect, Pad, PadInput, effect};
 #[cfg(target_os = "linux")]
 pub use gamepad::{Gamepad, GamepadError};
-pub use headless::{Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, watch};
-pub use route::{EditRefused, Route, check_path, drag_path};
+pub use headless::{
+    Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, teleoperate, watch,
+};
 pub use predict::Predictor;
-pub use session::{CameraFrame, ControlMode, Devices, TIME_PERIOD, Link, RobotState, RoundTrips, Session, Spread};
+pub use route::{EditRefused, Route, check_path, drag_path};
+pub use session::{
+    CameraFrame, ControlMode, Devices, Link, RobotState, RoundTrips, Session, Spread, TIME_PERIOD,
+};
 pub use settings::{Settings, SettingsError};

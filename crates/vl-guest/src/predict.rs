@@ -17,6 +17,9 @@ const IN_FLIGHT: usize = 1024;
 const STEP_S: f64 = 0.01;
 /// How much a new round trip moves the one-way estimate.
 const SMOOTHING: f64 = 0.1;
+/// What was shown, kept until the feedback that tells the truth of it
+/// arrives: a few seconds of feedback on the slowest link.
+const SHOWN_KEPT: usize = 4096;
 
 /// What the Guest knows to predict from.
 #[derive(Debug, Clone, Default)]
@@ -29,6 +32,9 @@ pub struct Predictor {
     commanded: bool,
     /// Half the smoothed round trip, s.
     one_way_s: Option<f64>,
+    /// What the display showed and when: the ghost's pose and the last
+    /// reported pose, to be judged by the feedback describing that moment.
+    shown: VecDeque<(Instant, Pose, Pose)>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -42,6 +48,7 @@ impl Predictor {
     /// A run begins: nothing sent yet.
     pub fn start(&mut self) {
         self.sent.clear();
+        self.shown.clear();
         self.commanded = false;
     }
 
@@ -81,14 +88,42 @@ impl Predictor {
         Duration::from_secs_f64(self.one_way_s.unwrap_or(0.0))
     }
 
+    /// Remembers what the display shows at `now`: the ghost's pose and the
+    /// last reported one.
+    pub fn remember(&mut self, robot: &RobotModel, now: Instant) {
+        let (Some(ghost), Some(base)) = (self.predict(robot, now), self.base) else {
+            return;
+        };
+        if self.shown.len() == SHOWN_KEPT {
+            self.shown.pop_front();
+        }
+        self.shown.push_back((now, ghost, base.pose));
+    }
+
+    /// Judges what was shown by feedback `pose` arriving at `now`, which
+    /// tells where the robot was one one-way delay ago: how far the ghost
+    /// shown then was from it, and how far the last reported pose was.
+    pub fn judge(&mut self, pose: Pose, now: Instant) -> Option<(f64, f64)> {
+        let moment = now.checked_sub(self.one_way()).unwrap_or(now);
+        let mut then = None;
+        while let Some(&(at, ..)) = self.shown.front() {
+            if at > moment {
+                break;
+            }
+            then = self.shown.pop_front();
+        }
+        then.map(|(_, ghost, reported)| {
+            (
+                ghost.point().distance(pose.point()),
+                reported.point().distance(pose.point()),
+            )
+        })
+    }
+
     /// Where the robot is at `now`, by the newest feedback carried forward;
     /// none before the first feedback.
     pub fn predict(&self, robot: &RobotModel, now: Instant) -> Option<Pose> {
-        self.predict_at(robot, now)
-    }
-
-    /// Where the robot was (or will be) at `moment`, from what is known now.
-    fn predict_at(&self, robot: &RobotModel, moment: Instant) -> Option<Pose> {
+        let moment = now;
         let base = self.base?;
         let one_way = self.one_way();
         // The feedback's pose held one one-way delay before it arrived.
@@ -135,20 +170,6 @@ impl Predictor {
         }
         Some(pose)
     }
-
-    /// How far the prediction made before a feedback was off from it: call
-    /// with the feedback just arrived at `now`, before [`Predictor::feedback`].
-    pub fn error_mm(&self, robot: &RobotModel, pose: Pose, now: Instant) -> Option<f64> {
-        let moment = now.checked_sub(self.one_way()).unwrap_or(now);
-        self.predict_at(robot, moment)
-            .map(|p| p.point().distance(pose.point()))
-    }
-
-    /// How far the newest feedback itself was from a later one: what the
-    /// Guest would be off by showing the reported pose alone.
-    pub fn stale_mm(&self, pose: Pose) -> Option<f64> {
-        self.base.map(|b| b.pose.point().distance(pose.point()))
-    }
 }
 
 #[cfg(test)]
@@ -188,6 +209,9 @@ mod tests {
         p.sent(1, straight(100.0), t0);
         let a = p.predict(&robot, t0 + Duration::from_secs(1)).unwrap();
         let b = p.predict(&robot, t0 + Duration::from_secs(3)).unwrap();
-        assert!(a.x_mm > 40.0 && (b.x_mm - a.x_mm).abs() < 1e-6, "{a:?} {b:?}");
+        assert!(
+            a.x_mm > 40.0 && (b.x_mm - a.x_mm).abs() < 1e-6,
+            "{a:?} {b:?}"
+        );
     }
 }

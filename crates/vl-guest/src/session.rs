@@ -18,6 +18,8 @@ use crate::predict::Predictor;
 const ERRORS_KEPT: usize = 8;
 /// Round-trip samples kept for the percentiles.
 const RTT_KEPT: usize = 10_000;
+/// Commands' gaps kept per run, for a plot of synchronisation over time.
+const GAPS_KEPT: usize = 100_000;
 
 /// The robot's latest reported state.
 #[derive(Debug, Clone, PartialEq)]
@@ -154,11 +156,14 @@ pub struct Session {
     /// how many commands went more than one event ahead, in this run.
     pub max_event_gap: u64,
     pub sync_violations: u64,
+    /// Each command's gap, with the seconds since the run started.
+    pub gaps: Vec<(f64, u64)>,
+    run_started: Option<Instant>,
     /// Where the robot is now, by the feedback and the commands since.
     pub predictor: Predictor,
-    /// This run's prediction error (prediction against the feedback that
-    /// later told the truth) and, beside it, the error of showing the last
-    /// feedback alone.
+    /// This run's prediction error (the ghost shown at a moment against the
+    /// feedback that later told where the robot was at that moment) and,
+    /// beside it, the error of the last reported pose shown then.
     pub prediction_error: Spread,
     pub stale_error: Spread,
     /// When the newest feedback and frame arrived.
@@ -189,6 +194,8 @@ impl Default for Session {
             last_sent: None,
             max_event_gap: 0,
             sync_violations: 0,
+            gaps: Vec::new(),
+            run_started: None,
             predictor: Predictor::default(),
             prediction_error: Spread::default(),
             stale_error: Spread::default(),
@@ -254,6 +261,8 @@ impl Session {
                 self.last_sent = None;
                 self.max_event_gap = 0;
                 self.sync_violations = 0;
+                self.gaps.clear();
+                self.run_started = Some(Instant::now());
                 self.prediction_error = Spread::default();
                 self.stale_error = Spread::default();
                 self.predictor.start();
@@ -275,16 +284,15 @@ impl Session {
                 }
                 let now = Instant::now();
                 if self.running
-                    && let Some(lab) = &self.lab
+                    && let Some((ghost, reported)) = self.predictor.judge(pose, now)
                 {
-                    if let Some(e) = self.predictor.error_mm(&lab.robot, pose, now) {
-                        self.prediction_error.add(e);
-                    }
-                    if let Some(e) = self.predictor.stale_mm(pose) {
-                        self.stale_error.add(e);
-                    }
+                    self.prediction_error.add(ghost);
+                    self.stale_error.add(reported);
                 }
                 self.predictor.feedback(event, pose, wheels, now);
+                if let Some(lab) = &self.lab {
+                    self.predictor.remember(&lab.robot, now);
+                }
                 self.feedback_at = Some(now);
                 self.robot = Some(RobotState {
                     event,
@@ -360,6 +368,12 @@ impl Session {
         let gap = self.sent_event.saturating_sub(seen);
         self.max_event_gap = self.max_event_gap.max(gap);
         self.sync_violations += u64::from(gap > 1);
+        if self.gaps.len() < GAPS_KEPT {
+            let since = self
+                .run_started
+                .map_or(0.0, |t| now.saturating_duration_since(t).as_secs_f64());
+            self.gaps.push((since, gap));
+        }
         if let Some(lab) = &self.lab {
             self.predictor
                 .sent(self.sent_event, drive.wheels(&lab.robot), now);
@@ -414,7 +428,11 @@ mod tests {
     fn commands_wait_for_their_feedback() {
         let mut s = Session::default();
         let drive = Drive::Velocity { v: 100.0, w: 0.0 };
-        assert_eq!(s.next_command(drive, Instant::now()), None, "no run, no command");
+        assert_eq!(
+            s.next_command(drive, Instant::now()),
+            None,
+            "no run, no command"
+        );
         s.apply(Incoming::Message(Box::new(HostMessage::Started {
             event: 0,
         })));

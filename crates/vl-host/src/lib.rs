@@ -26,7 +26,9 @@ pub use drivers::{Camera, CameraError, Robot, RobotError, RobotReading, Witness}
 pub use khepera::KheperaSerial;
 pub use lab::{Devices, FramePolicy};
 pub use line::run_guard;
-pub use media::{Media, MediaBench, MediaConfig, MediaError, RoundTrip, bench as media_bench};
+pub use media::{
+    Delays, Media, MediaBench, MediaConfig, MediaError, RoundTrip, bench as media_bench,
+};
 pub use replay::ReplayCamera;
 pub use server::HostConfig;
 

@@ -7,8 +7,8 @@
 //! until it ends.
 
 use std::net::SocketAddr;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use futures_util::stream::{SplitSink, SplitStream};
@@ -53,10 +53,22 @@ pub struct MediaConfig {
     pub seed: u64,
 }
 
+/// Delays kept per direction for the time analysis; later ones are not kept.
+const DELAYS_KEPT: usize = 1 << 20;
+
+/// How long each message the relay carried was held, ms, measured at the
+/// relay on one clock: the one-way delay each leg saw.
+#[derive(Debug, Clone, Default)]
+pub struct Delays {
+    pub to_host: Vec<f64>,
+    pub to_guest: Vec<f64>,
+}
+
 /// A relay, listening and relaying in the background.
 pub struct Media {
     pub addr: SocketAddr,
     task: tokio::task::JoinHandle<()>,
+    delays: Arc<Mutex<Delays>>,
 }
 
 impl Media {
@@ -71,8 +83,14 @@ impl Media {
         let addr = listener
             .local_addr()
             .map_err(|e| MediaError::Bind(listen, e))?;
-        let task = tokio::spawn(relay(listener, Arc::new(config)));
-        Ok(Media { addr, task })
+        let delays = Arc::new(Mutex::new(Delays::default()));
+        let task = tokio::spawn(relay(listener, Arc::new(config), delays.clone()));
+        Ok(Media { addr, task, delays })
+    }
+
+    /// The delays of every message carried so far.
+    pub fn delays(&self) -> Delays {
+        self.delays.lock().map(|d| d.clone()).unwrap_or_default()
     }
 
     /// The URL Guests connect to instead of the Host's.
@@ -106,7 +124,7 @@ impl Clock {
     }
 }
 
-async fn relay(listener: TcpListener, config: Arc<MediaConfig>) {
+async fn relay(listener: TcpListener, config: Arc<MediaConfig>, delays: Arc<Mutex<Delays>>) {
     let clock = Clock(Instant::now());
     let slots = Arc::new(Semaphore::new(CONNECTIONS));
     let mut k = 0u64;
@@ -127,9 +145,10 @@ async fn relay(listener: TcpListener, config: Arc<MediaConfig>) {
             continue;
         };
         let config = config.clone();
+        let delays = delays.clone();
         tokio::spawn(async move {
             let _slot = slot;
-            match connection(stream, &config, clock, up, down).await {
+            match connection(stream, &config, clock, up, down, &delays).await {
                 Ok(why) => debug!(%peer, "relay ended: {why}"),
                 Err(why) => debug!(%peer, "relay failed: {why}"),
             }
@@ -151,6 +170,7 @@ async fn connection(
     clock: Clock,
     up: MessageLink,
     down: MessageLink,
+    delays: &Mutex<Delays>,
 ) -> Result<&'static str, String> {
     let _ = stream.set_nodelay(true);
     let guest = tokio::time::timeout(
@@ -171,9 +191,18 @@ async fn connection(
     let (to_host, from_host) = host.split();
     let outage = next_outage(&config.model, clock);
     tokio::select! {
-        r = carry(from_guest, to_host, up, clock) => r,
-        r = carry(from_host, to_guest, down, clock) => r,
+        r = carry(from_guest, to_host, up, clock, |ms| log(delays, ms, |d| &mut d.to_host)) => r,
+        r = carry(from_host, to_guest, down, clock, |ms| log(delays, ms, |d| &mut d.to_guest)) => r,
         () = outage => Ok("the link went down"),
+    }
+}
+
+fn log(delays: &Mutex<Delays>, ms: f64, leg: fn(&mut Delays) -> &mut Vec<f64>) {
+    if let Ok(mut d) = delays.lock() {
+        let leg = leg(&mut d);
+        if leg.len() < DELAYS_KEPT {
+            leg.push(ms);
+        }
     }
 }
 
@@ -202,12 +231,13 @@ async fn carry<A, B>(
     mut to: Sink<B>,
     mut link: MessageLink,
     clock: Clock,
+    held: impl Fn(f64),
 ) -> Result<&'static str, String>
 where
     A: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin,
     B: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin,
 {
-    let (queue, mut due) = mpsc::unbounded_channel::<(Instant, Message)>();
+    let (queue, mut due) = mpsc::unbounded_channel::<(Instant, Instant, Message)>();
     let in_flight = AtomicUsize::new(0);
     let read = async {
         while let Some(message) = from.next().await {
@@ -226,7 +256,7 @@ where
             }
             match link.send(clock.ms(), bytes) {
                 Delivery::At(ms) => {
-                    let _ = queue.send((clock.at(ms), message));
+                    let _ = queue.send((Instant::now(), clock.at(ms), message));
                 }
                 Delivery::Disconnected => return Ok("the link went down"),
             }
@@ -239,8 +269,9 @@ where
         std::future::pending::<Result<&'static str, String>>().await
     };
     let write = async {
-        while let Some((at, message)) = due.recv().await {
+        while let Some((read, at, message)) = due.recv().await {
             wait_until(at).await;
+            held(read.elapsed().as_secs_f64() * 1e3);
             in_flight.fetch_sub(message.len(), Ordering::Relaxed);
             let closing = message.is_close();
             to.send(message)

@@ -1,0 +1,336 @@
+//! The report's pictures, drawn once as SVG and once as PNG with `plotters`
+//! (its text in the Ubuntu font egui already ships, so nothing is needed
+//! from the system).
+
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+
+use anyhow::{Result, anyhow};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use vl_core::Point;
+
+const SIZE: (u32, u32) = (800, 480);
+const FONT: &str = "sans-serif";
+
+/// Series colours: the first for event-based runs, the second for time-based.
+pub(crate) const EVENT: RGBColor = RGBColor(0x1f, 0x77, 0xb4);
+pub(crate) const TIME: RGBColor = RGBColor(0xd6, 0x27, 0x28);
+const PLANNED: RGBColor = RGBColor(0x99, 0x99, 0x99);
+
+fn font() {
+    static REGISTER: Once = Once::new();
+    REGISTER.call_once(|| {
+        // Registration fails only for a malformed font, which this is not;
+        // text would then be left out rather than the picture.
+        let _ = plotters::style::register_font(
+            FONT,
+            FontStyle::Normal,
+            epaint_default_fonts::UBUNTU_LIGHT,
+        );
+    });
+}
+
+/// A picture drawn the same on any backend.
+trait Picture {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>;
+}
+
+/// Draws `picture` into `dir/name.svg` and `dir/name.png`; returns the PNG's name.
+fn both(dir: &Path, name: &str, picture: &impl Picture) -> Result<PathBuf> {
+    font();
+    let svg = dir.join(format!("{name}.svg"));
+    let png = dir.join(format!("{name}.png"));
+    {
+        let root = SVGBackend::new(&svg, SIZE).into_drawing_area();
+        picture.draw(&root)?;
+        root.present()
+            .map_err(|e| anyhow!("cannot write {}: {e}", svg.display()))?;
+    }
+    {
+        let root = BitMapBackend::new(&png, SIZE).into_drawing_area();
+        picture.draw(&root)?;
+        root.present()
+            .map_err(|e| anyhow!("cannot write {}: {e}", png.display()))?;
+    }
+    Ok(PathBuf::from(format!("{name}.png")))
+}
+
+fn err(e: impl std::fmt::Display) -> anyhow::Error {
+    anyhow!("cannot draw: {e}")
+}
+
+/// A histogram of each leg's one-way delays, ms.
+pub(crate) fn delays(
+    dir: &Path,
+    name: &str,
+    title: &str,
+    legs: &[(&str, &[f64])],
+) -> Result<PathBuf> {
+    let all: Vec<f64> = legs.iter().flat_map(|(_, v)| v.iter().copied()).collect();
+    let mut sorted = all.clone();
+    sorted.sort_by(f64::total_cmp);
+    let top = sorted
+        .get((sorted.len() as f64 * 0.995) as usize)
+        .copied()
+        .unwrap_or(1.0)
+        .max(1.0)
+        * 1.05;
+    const BINS: usize = 60;
+    let width = top / BINS as f64;
+    let counts: Vec<Vec<f64>> = legs
+        .iter()
+        .map(|(_, v)| {
+            let mut c = vec![0.0; BINS];
+            for &d in *v {
+                c[((d / width) as usize).min(BINS - 1)] += 1.0;
+            }
+            let n = v.len().max(1) as f64;
+            c.iter().map(|k| k / n).collect()
+        })
+        .collect();
+    let peak = counts.iter().flatten().fold(0.0f64, |a, &b| a.max(b)) * 1.1;
+    struct Histogram<'a> {
+        title: &'a str,
+        legs: &'a [(&'a str, &'a [f64])],
+        counts: Vec<Vec<f64>>,
+        top: f64,
+        width: f64,
+        peak: f64,
+    }
+    impl Picture for Histogram<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
+            let Histogram {
+                title,
+                legs,
+                counts,
+                top,
+                width,
+                peak,
+            } = self;
+            let (top, width, peak) = (*top, *width, *peak);
+            root.fill(&WHITE).map_err(err)?;
+            let mut chart = ChartBuilder::on(root)
+                .caption(title, (FONT, 20))
+                .margin(12)
+                .x_label_area_size(36)
+                .y_label_area_size(52)
+                .build_cartesian_2d(0.0..top, 0.0..peak.max(0.01))
+                .map_err(err)?;
+            chart
+                .configure_mesh()
+                .x_desc("one-way delay, ms (measured at the Media)")
+                .y_desc("share of messages")
+                .label_style((FONT, 13))
+                .draw()
+                .map_err(err)?;
+            for (k, ((leg, _), c)) in legs.iter().zip(counts.iter()).enumerate() {
+                let colour = if k == 0 { EVENT } else { TIME };
+                chart
+                    .draw_series(c.iter().enumerate().map(|(i, &share)| {
+                        let x0 = i as f64 * width;
+                        Rectangle::new([(x0, 0.0), (x0 + width, share)], colour.mix(0.45).filled())
+                    }))
+                    .map_err(err)?
+                    .label(*leg)
+                    .legend(move |(x, y)| {
+                        Rectangle::new([(x, y - 5), (x + 14, y + 5)], colour.filled())
+                    });
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font((FONT, 14))
+                .draw()
+                .map_err(err)?;
+            Ok(())
+        }
+    }
+    both(
+        dir,
+        name,
+        &Histogram {
+            title,
+            legs,
+            counts,
+            top,
+            width,
+            peak,
+        },
+    )
+}
+
+/// A labelled, coloured series of (x, y) points.
+pub(crate) type Series = (String, RGBColor, Vec<(f64, f64)>);
+
+/// Lines of (x, y) points, one per labelled series.
+pub(crate) fn lines(
+    dir: &Path,
+    name: &str,
+    title: &str,
+    axes: (&str, &str),
+    series: &[Series],
+    points: bool,
+) -> Result<PathBuf> {
+    let xs = series.iter().flat_map(|(_, _, v)| v.iter().map(|p| p.0));
+    let ys = series.iter().flat_map(|(_, _, v)| v.iter().map(|p| p.1));
+    let x_max = xs.fold(0.0f64, f64::max).max(1e-3) * 1.05;
+    let y_max = ys.fold(0.0f64, f64::max).max(1e-3) * 1.1;
+    struct Lines<'a> {
+        title: &'a str,
+        axes: (&'a str, &'a str),
+        series: &'a [Series],
+        points: bool,
+        x_max: f64,
+        y_max: f64,
+    }
+    impl Picture for Lines<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
+            let Lines {
+                title,
+                axes,
+                series,
+                points,
+                x_max,
+                y_max,
+            } = self;
+            let (x_max, y_max, points) = (*x_max, *y_max, *points);
+            root.fill(&WHITE).map_err(err)?;
+            let mut chart = ChartBuilder::on(root)
+                .caption(title, (FONT, 20))
+                .margin(12)
+                .x_label_area_size(36)
+                .y_label_area_size(52)
+                .build_cartesian_2d(0.0..x_max, 0.0..y_max)
+                .map_err(err)?;
+            chart
+                .configure_mesh()
+                .x_desc(axes.0)
+                .y_desc(axes.1)
+                .label_style((FONT, 13))
+                .draw()
+                .map_err(err)?;
+            for (label, colour, data) in series.iter() {
+                let colour = *colour;
+                chart
+                    .draw_series(LineSeries::new(
+                        data.iter().copied(),
+                        colour.stroke_width(2),
+                    ))
+                    .map_err(err)?
+                    .label(label.as_str())
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
+                    });
+                if points {
+                    chart
+                        .draw_series(data.iter().map(|&p| Circle::new(p, 4, colour.filled())))
+                        .map_err(err)?;
+                }
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperLeft)
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font((FONT, 14))
+                .draw()
+                .map_err(err)?;
+            Ok(())
+        }
+    }
+    both(
+        dir,
+        name,
+        &Lines {
+            title,
+            axes,
+            series,
+            points,
+            x_max,
+            y_max,
+        },
+    )
+}
+
+/// The planned path and the paths the robot truly took, on the arena's floor.
+pub(crate) fn paths(
+    dir: &Path,
+    name: &str,
+    title: &str,
+    floor_mm: (f64, f64),
+    planned: &[Point],
+    taken: &[(String, RGBColor, Vec<Point>)],
+) -> Result<PathBuf> {
+    struct Paths<'a> {
+        title: &'a str,
+        floor_mm: (f64, f64),
+        planned: &'a [Point],
+        taken: &'a [(String, RGBColor, Vec<Point>)],
+    }
+    impl Picture for Paths<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
+            let Paths {
+                title,
+                floor_mm,
+                planned,
+                taken,
+            } = self;
+            root.fill(&WHITE).map_err(err)?;
+            let mut chart = ChartBuilder::on(root)
+                .caption(title, (FONT, 20))
+                .margin(12)
+                .x_label_area_size(36)
+                .y_label_area_size(52)
+                .build_cartesian_2d(0.0..floor_mm.0, 0.0..floor_mm.1)
+                .map_err(err)?;
+            chart
+                .configure_mesh()
+                .x_desc("x, mm")
+                .y_desc("y, mm")
+                .label_style((FONT, 13))
+                .draw()
+                .map_err(err)?;
+            let xy = |p: &Point| (p.x_mm, p.y_mm);
+            chart
+                .draw_series(LineSeries::new(
+                    planned.iter().map(xy),
+                    PLANNED.stroke_width(6),
+                ))
+                .map_err(err)?
+                .label("planned")
+                .legend(|(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], PLANNED.stroke_width(6))
+                });
+            for (label, colour, path) in taken.iter() {
+                let colour = *colour;
+                chart
+                    .draw_series(LineSeries::new(path.iter().map(xy), colour.stroke_width(2)))
+                    .map_err(err)?
+                    .label(label.as_str())
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
+                    });
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font((FONT, 14))
+                .draw()
+                .map_err(err)?;
+            Ok(())
+        }
+    }
+    both(
+        dir,
+        name,
+        &Paths {
+            title,
+            floor_mm,
+            planned,
+            taken,
+        },
+    )
+}

@@ -1,0 +1,118 @@
+//! The thesis's chapter 7 through the CLI: every link profile through the
+//! Media, event-based against time-based control, both experiments
+//! (`vl experiment report`), and one run's JSON (`vl experiment run`).
+
+mod common;
+
+use common::{s, scratch, vl};
+use serde_json::Value;
+
+#[test]
+fn the_matrix_keeps_event_based_runs_synchronised_and_writes_its_report() {
+    let dir = scratch("experiment-report");
+    let out = vl(&[
+        "experiment",
+        "report",
+        "--out",
+        s(&dir),
+        "--seeds",
+        "1",
+        "--jobs",
+        "4",
+        "--json",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("[18/18]"), "progress is shown: {stderr}");
+    let summary: Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    assert_eq!(summary["event_based_synchronised"], true);
+    assert_eq!(summary["collisions"], 0);
+    let runs = summary["runs"].as_array().unwrap();
+    assert_eq!(
+        runs.len(),
+        18,
+        "6 profiles × mobile, teleop event, teleop time"
+    );
+    for run in runs {
+        assert_eq!(run["reached_goal"], true, "{run}");
+        for field in [
+            "max_event_gap",
+            "sync_violations",
+            "collisions",
+            "completion_s",
+        ] {
+            assert!(run[field].is_number(), "{field}: {run}");
+        }
+        for field in ["tracking_error_mm", "prediction_error_mm"] {
+            assert!(
+                run[field]["mean"].is_number() && run[field]["max"].is_number(),
+                "{field}: {run}"
+            );
+        }
+        let legs = &run["delays"];
+        assert!(legs["guest_to_host"]["p99"].is_number(), "{run}");
+        assert!(legs["host_to_guest"]["p50"].is_number(), "{run}");
+        if run["control"] == "event" {
+            assert!(run["max_event_gap"].as_u64() <= Some(1), "{run}");
+            assert_eq!(run["sync_violations"], 0, "{run}");
+        }
+    }
+    // Commands every 20 ms over a 150 ms round trip run ahead of their feedback.
+    let time_based = runs
+        .iter()
+        .find(|r| {
+            r["profile"] == "intercontinental"
+                && r["control"] == "time"
+                && r["experiment"] == "teleop"
+        })
+        .unwrap();
+    assert!(
+        time_based["max_event_gap"].as_u64().unwrap() > 1,
+        "{time_based}"
+    );
+    // The ghost is closer to where the robot was than the delayed pose shown beside it.
+    let event = runs
+        .iter()
+        .find(|r| {
+            r["profile"] == "geo-satellite"
+                && r["control"] == "event"
+                && r["experiment"] == "teleop"
+        })
+        .unwrap();
+    assert!(
+        event["prediction_error_mm"]["mean"].as_f64() < event["stale_error_mm"]["mean"].as_f64(),
+        "{event}"
+    );
+    let report = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    for needle in [
+        "## Results",
+        "## Time analysis",
+        "tracking-vs-delay.png",
+        "sync-geo-satellite.png",
+        "delays-congested.png",
+        "paths-lan.png",
+        "prediction-vs-delay.png",
+    ] {
+        assert!(report.contains(needle), "report.md lacks {needle}");
+    }
+    for picture in [
+        "tracking-vs-delay.png",
+        "tracking-vs-delay.svg",
+        "delays-lan.png",
+        "sync-lan.svg",
+    ] {
+        let bytes = std::fs::read(dir.join(picture)).unwrap();
+        assert!(bytes.len() > 1000, "{picture} is drawn");
+    }
+    let json: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
+    assert_eq!(json["runs"].as_array().unwrap().len(), 18);
+}
+
+#[test]
+fn a_bad_profile_is_named() {
+    common::refused(
+        &["experiment", "run", "teleop", "--profile", "carrier-pigeon"],
+        "'carrier-pigeon' is neither a link profile",
+    );
+}
