@@ -234,6 +234,10 @@ pub(crate) struct HostArgs {
     /// answer to its pings) is disconnected.
     #[arg(long, default_value_t = 10.0)]
     ping_timeout: f64,
+    /// An operator whose link drops keeps the role and the run this many
+    /// seconds (the robot held still) to reconnect; 0 frees them at once.
+    #[arg(long, default_value_t = 10.0)]
+    grace: f64,
     /// Seed for the simulator's noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -459,6 +463,11 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
         experiments: args.experiments,
         lease: seconds("--lease", args.lease)?,
         ping_timeout: seconds("--ping-timeout", args.ping_timeout)?,
+        grace: if args.grace == 0.0 {
+            Duration::ZERO
+        } else {
+            seconds("--grace", args.grace)?
+        },
         frames: args.frames.policy()?,
         ..HostConfig::default()
     };
@@ -599,7 +608,7 @@ pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Resul
             return Ok(ExitCode::SUCCESS);
         }
         let report = runtime
-            .block_on(vl_guest::drive_to_goal(&args.connect, &script))
+            .block_on(scripted(&args.connect, &script))
             .map_err(guest_error)?;
         return finish(&report, args.json);
     }
@@ -632,7 +641,7 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
     }
     if args.headless || !has_display {
         let script = script(&args.run, None, !args.json);
-        let report = runtime.block_on(vl_guest::drive_to_goal(&url, &script))?;
+        let report = runtime.block_on(scripted(&url, &script))?;
         return finish(&report, args.json);
     }
     eprintln!("vl demo: simulated lab at {url}");
@@ -640,6 +649,15 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
     let pad = gamepad(&GamepadChoice::Auto, false)?;
     vl_guest::run_window(&url, Role::Operator, None, pad)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// The scripted Guest for the experiment: the Host follows the planned
+/// path in navigation; an operator steers along it in teleoperation.
+async fn scripted(url: &str, script: &Script) -> Result<RunReport, ScriptError> {
+    match script.experiment {
+        Experiment::Teleoperation => vl_guest::teleoperate(url, script).await,
+        Experiment::Navigation => vl_guest::drive_to_goal(url, script).await,
+    }
 }
 
 fn script(run: &RunArgs, token: Option<String>, progress: bool) -> Script {

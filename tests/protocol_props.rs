@@ -303,13 +303,20 @@ fn path_analysis() -> BoxedStrategy<PathAnalysis> {
 
 fn guest_message() -> impl Strategy<Value = GuestMessage> {
     prop_oneof![
-        (any::<u32>(), role(), proptest::option::of(text())).prop_map(|(protocol, role, token)| {
-            GuestMessage::Hello {
-                protocol,
-                role,
-                token,
-            }
-        }),
+        (
+            any::<u32>(),
+            role(),
+            proptest::option::of(text()),
+            proptest::option::of(text())
+        )
+            .prop_map(|(protocol, role, token, resume)| {
+                GuestMessage::Hello {
+                    protocol,
+                    role,
+                    token,
+                    resume,
+                }
+            }),
         num().prop_map(|t| GuestMessage::Ping { t }),
         num().prop_map(|t| GuestMessage::Pong { t }),
         text().prop_map(|experiment| GuestMessage::Mount { experiment }),
@@ -330,13 +337,20 @@ fn experiment() -> impl Strategy<Value = Experiment> {
 fn host_message() -> impl Strategy<Value = HostMessage> {
     let info = (experiment(), text()).prop_map(|(id, title)| ExperimentInfo { id, title });
     prop_oneof![
-        (any::<u64>(), role(), proptest::collection::vec(info, 0..3)).prop_map(
-            |(session, role, experiments)| HostMessage::Welcome {
-                session,
-                role,
-                experiments
-            }
-        ),
+        (
+            any::<u64>(),
+            role(),
+            proptest::collection::vec(info, 0..3),
+            proptest::option::of(text())
+        )
+            .prop_map(
+                |(session, role, experiments, resume)| HostMessage::Welcome {
+                    session,
+                    role,
+                    experiments,
+                    resume,
+                }
+            ),
         (error_code(), text()).prop_map(|(code, message)| HostMessage::Error { code, message }),
         num().prop_map(|t| HostMessage::Ping { t }),
         num().prop_map(|t| HostMessage::Pong { t }),

@@ -136,6 +136,7 @@ impl GuestApp {
             protocol: PROTOCOL_VERSION,
             role: address.role,
             token: address.token.clone(),
+            resume: None,
         });
         Ok(connection)
     }
@@ -288,6 +289,12 @@ impl GuestApp {
                 }
                 Link::Open => {
                     ui.colored_label(Color32::GREEN, "connected");
+                }
+                Link::Reconnecting { attempt, reason } => {
+                    ui.colored_label(
+                        Color32::YELLOW,
+                        format!("link lost ({reason}): reconnecting, attempt {attempt}…"),
+                    );
                 }
                 Link::Closed(why) => {
                     reconnect = ui.button("Reconnect").clicked();
@@ -556,6 +563,7 @@ impl GuestApp {
             (None, None) => {
                 let waiting = match &self.session.link {
                     Link::Connecting => "connecting to the Host…",
+                    Link::Reconnecting { .. } => "reconnecting to the Host…",
                     Link::Open => "mount an experiment to see the lab",
                     Link::Closed(_) => "not connected to a Host",
                 };

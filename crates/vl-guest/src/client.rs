@@ -30,7 +30,13 @@ pub enum Incoming {
     RoundTrip(f64),
     /// The Host could not be reached.
     Unreachable(ClientError),
-    /// The connection ended, and why.
+    /// The link dropped: connecting again (attempt 1, 2, …) in `wait`.
+    Reconnecting {
+        attempt: u32,
+        wait: Duration,
+        reason: String,
+    },
+    /// The connection ended for good, and why.
     Closed(String),
 }
 
@@ -93,99 +99,226 @@ impl Connection {
     }
 }
 
+/// The first wait before reconnecting; it doubles up to `RECONNECT_MAX`.
+const RECONNECT_FIRST: Duration = Duration::from_millis(250);
+const RECONNECT_MAX: Duration = Duration::from_secs(4);
+
+type Socket =
+    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
+/// Why serving a connection stopped.
+enum Ended {
+    /// The Guest closed it or said bye: it is over.
+    Deliberately(String),
+    /// The link dropped or the Host went: worth connecting again.
+    Lost(String),
+}
+
+/// What a connection remembers across reconnections.
+#[derive(Default)]
+struct Remembered {
+    /// The last hello the Guest said.
+    hello: Option<GuestMessage>,
+    /// The operator's secret from the last welcome.
+    resume: Option<String>,
+}
+
+impl Remembered {
+    /// The hello to say on a new connection: the last one, with the secret.
+    fn hello_again(&self) -> Option<GuestMessage> {
+        match self.hello.clone()? {
+            GuestMessage::Hello {
+                protocol,
+                role,
+                token,
+                ..
+            } => Some(GuestMessage::Hello {
+                protocol,
+                role,
+                token,
+                resume: self.resume.clone(),
+            }),
+            _ => None,
+        }
+    }
+}
+
 /// Opens a connection to the Host at `url` (ws://host:port): connecting
 /// and then serving the socket run on a task of the current tokio runtime.
 /// Messages sent before the connection is up wait for it. Only an address
 /// that cannot be a Host's is refused here.
+///
+/// A connection that drops once it was up is made again by itself, with
+/// back-off, saying the last hello again (with the operator's `resume`
+/// from its welcome, so the Host gives the role and the run back);
+/// [`Incoming::Reconnecting`] says so meanwhile. What is sent while the
+/// link is down is dropped: a command must not arrive late.
 pub fn open(url: &str) -> Result<Connection, ClientError> {
     check_url(url)?;
-    let config = WebSocketConfig::default()
-        .max_message_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)))
-        .max_frame_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)));
     let (outgoing, mut to_send) = mpsc::unbounded_channel::<GuestMessage>();
     let (deliver, incoming) = mpsc::unbounded_channel();
     let url = url.to_owned();
     tokio::spawn(async move {
-        let unreachable = |cause: String| {
-            Incoming::Unreachable(ClientError::Connect {
-                url: url.clone(),
-                cause,
-            })
-        };
-        let connecting = tokio_tungstenite::connect_async_with_config(&url, Some(config), true);
-        let ws = match tokio::time::timeout(CONNECT_TIMEOUT, connecting).await {
-            Ok(Ok((ws, _))) => ws,
-            Ok(Err(e)) => {
-                let _ = deliver.send(unreachable(cause(&e)));
-                return;
-            }
-            Err(_) => {
-                let waited = CONNECT_TIMEOUT.as_secs();
-                let _ = deliver.send(unreachable(format!("no answer within {waited} s")));
-                return;
-            }
-        };
-        let (mut sink, mut source) = ws.split();
-        let clock = Instant::now();
-        let mut ping = tokio::time::interval(PING_EVERY);
-        let text = |m: &GuestMessage| Message::text(m.encode());
-        let reason = loop {
-            tokio::select! {
-                message = to_send.recv() => match message {
-                    Some(message) => {
-                        let bye = message == GuestMessage::Bye;
-                        if let Err(e) = sink.send(text(&message)).await {
-                            break format!("send failed: {e}");
+        let mut remembered = Remembered::default();
+        let mut ever_up = false;
+        let mut attempt = 0u32;
+        let mut wait = RECONNECT_FIRST;
+        loop {
+            let why = match connect(&url).await {
+                Err(cause) if !ever_up => {
+                    let _ = deliver.send(Incoming::Unreachable(ClientError::Connect {
+                        url: url.clone(),
+                        cause,
+                    }));
+                    return;
+                }
+                Err(cause) => cause,
+                Ok(ws) => {
+                    let again = if ever_up {
+                        remembered.hello_again()
+                    } else {
+                        None
+                    };
+                    ever_up = true;
+                    match serve(ws, again, &mut remembered, &mut to_send, &deliver).await {
+                        Ended::Deliberately(reason) => {
+                            let _ = deliver.send(Incoming::Closed(reason));
+                            return;
                         }
-                        if bye {
-                            let _ = sink.send(Message::Close(None)).await;
-                            break "said bye".to_owned();
+                        Ended::Lost(reason) => {
+                            // The link was up: back-off starts afresh.
+                            attempt = 0;
+                            wait = RECONNECT_FIRST;
+                            reason
                         }
-                    }
-                    None => {
-                        let _ = sink.send(Message::Close(None)).await;
-                        break "closed by the Guest".to_owned();
-                    }
-                },
-                received = source.next() => match received {
-                    None => break "the Host closed the connection".to_owned(),
-                    Some(Err(e)) => break format!("connection lost: {e}"),
-                    Some(Ok(Message::Text(t))) => match HostMessage::decode(t.as_str()) {
-                        Ok(HostMessage::Ping { t }) => {
-                            if let Err(e) = sink.send(text(&GuestMessage::Pong { t })).await {
-                                break format!("send failed: {e}");
-                            }
-                        }
-                        Ok(HostMessage::Pong { t }) => {
-                            let rtt = clock.elapsed().as_secs_f64() * 1e3 - t;
-                            let _ = deliver.send(Incoming::RoundTrip(rtt));
-                        }
-                        Ok(HostMessage::Bye) => break "the Host said bye".to_owned(),
-                        Ok(message) => {
-                            let _ = deliver.send(Incoming::Message(Box::new(message)));
-                        }
-                        Err(e) => tracing::warn!("ignoring a message from the Host: {e}"),
-                    },
-                    Some(Ok(Message::Binary(bytes))) => match FrameHeader::decode(&bytes) {
-                        Ok((header, image)) => {
-                            let _ = deliver.send(Incoming::Frame(header, image.to_vec()));
-                        }
-                        Err(e) => tracing::warn!("ignoring a frame from the Host: {e}"),
-                    },
-                    Some(Ok(Message::Close(_))) => break "the Host closed the connection".to_owned(),
-                    Some(Ok(_)) => {}
-                },
-                _ = ping.tick() => {
-                    let t = clock.elapsed().as_secs_f64() * 1e3;
-                    if let Err(e) = sink.send(text(&GuestMessage::Ping { t })).await {
-                        break format!("send failed: {e}");
                     }
                 }
+            };
+            attempt += 1;
+            let _ = deliver.send(Incoming::Reconnecting {
+                attempt,
+                wait,
+                reason: why,
+            });
+            if !drop_while_down(&mut to_send, wait).await {
+                let _ = deliver.send(Incoming::Closed("closed by the Guest".into()));
+                return;
             }
-        };
-        let _ = deliver.send(Incoming::Closed(reason));
+            wait = (wait * 2).min(RECONNECT_MAX);
+        }
     });
     Ok(Connection { outgoing, incoming })
+}
+
+/// Connects to `url`, within the connect timeout.
+async fn connect(url: &str) -> Result<Socket, String> {
+    let config = WebSocketConfig::default()
+        .max_message_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)))
+        .max_frame_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)));
+    let connecting = tokio_tungstenite::connect_async_with_config(url, Some(config), true);
+    match tokio::time::timeout(CONNECT_TIMEOUT, connecting).await {
+        Ok(Ok((ws, _))) => Ok(ws),
+        Ok(Err(e)) => Err(cause(&e)),
+        Err(_) => Err(format!("no answer within {} s", CONNECT_TIMEOUT.as_secs())),
+    }
+}
+
+/// Waits `wait` with the link down, dropping what the Guest sends
+/// meanwhile; false when the Guest closed or said bye.
+async fn drop_while_down(
+    to_send: &mut mpsc::UnboundedReceiver<GuestMessage>,
+    wait: Duration,
+) -> bool {
+    let until = tokio::time::Instant::now() + wait;
+    loop {
+        tokio::select! {
+            () = tokio::time::sleep_until(until) => return true,
+            message = to_send.recv() => match message {
+                None | Some(GuestMessage::Bye) => return false,
+                Some(_) => {}
+            },
+        }
+    }
+}
+
+/// Serves one connection: says `first` (a hello again) if given, then
+/// carries messages both ways until it ends.
+async fn serve(
+    ws: Socket,
+    first: Option<GuestMessage>,
+    remembered: &mut Remembered,
+    to_send: &mut mpsc::UnboundedReceiver<GuestMessage>,
+    deliver: &mpsc::UnboundedSender<Incoming>,
+) -> Ended {
+    let (mut sink, mut source) = ws.split();
+    let clock = Instant::now();
+    let mut ping = tokio::time::interval(PING_EVERY);
+    let text = |m: &GuestMessage| Message::text(m.encode());
+    if let Some(hello) = first
+        && let Err(e) = sink.send(text(&hello)).await
+    {
+        return Ended::Lost(format!("send failed: {e}"));
+    }
+    loop {
+        tokio::select! {
+            message = to_send.recv() => match message {
+                Some(message) => {
+                    let bye = message == GuestMessage::Bye;
+                    if matches!(message, GuestMessage::Hello { .. }) {
+                        remembered.hello = Some(message.clone());
+                    }
+                    if let Err(e) = sink.send(text(&message)).await {
+                        return Ended::Lost(format!("send failed: {e}"));
+                    }
+                    if bye {
+                        let _ = sink.send(Message::Close(None)).await;
+                        return Ended::Deliberately("said bye".to_owned());
+                    }
+                }
+                None => {
+                    let _ = sink.send(Message::Close(None)).await;
+                    return Ended::Deliberately("closed by the Guest".to_owned());
+                }
+            },
+            received = source.next() => match received {
+                None => return Ended::Lost("the Host closed the connection".to_owned()),
+                Some(Err(e)) => return Ended::Lost(format!("connection lost: {e}")),
+                Some(Ok(Message::Text(t))) => match HostMessage::decode(t.as_str()) {
+                    Ok(HostMessage::Ping { t }) => {
+                        if let Err(e) = sink.send(text(&GuestMessage::Pong { t })).await {
+                            return Ended::Lost(format!("send failed: {e}"));
+                        }
+                    }
+                    Ok(HostMessage::Pong { t }) => {
+                        let rtt = clock.elapsed().as_secs_f64() * 1e3 - t;
+                        let _ = deliver.send(Incoming::RoundTrip(rtt));
+                    }
+                    Ok(HostMessage::Bye) => return Ended::Lost("the Host said bye".to_owned()),
+                    Ok(message) => {
+                        if let HostMessage::Welcome { resume: Some(secret), .. } = &message {
+                            remembered.resume = Some(secret.clone());
+                        }
+                        let _ = deliver.send(Incoming::Message(Box::new(message)));
+                    }
+                    Err(e) => tracing::warn!("ignoring a message from the Host: {e}"),
+                },
+                Some(Ok(Message::Binary(bytes))) => match FrameHeader::decode(&bytes) {
+                    Ok((header, image)) => {
+                        let _ = deliver.send(Incoming::Frame(header, image.to_vec()));
+                    }
+                    Err(e) => tracing::warn!("ignoring a frame from the Host: {e}"),
+                },
+                Some(Ok(Message::Close(_))) => return Ended::Lost("the Host closed the connection".to_owned()),
+                Some(Ok(_)) => {}
+            },
+            _ = ping.tick() => {
+                let t = clock.elapsed().as_secs_f64() * 1e3;
+                if let Err(e) = sink.send(text(&GuestMessage::Ping { t })).await {
+                    return Ended::Lost(format!("send failed: {e}"));
+                }
+            }
+        }
+    }
 }
 
 #[cfg(test)]

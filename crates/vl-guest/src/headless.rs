@@ -120,10 +120,29 @@ pub enum ScriptError {
     NoPath(#[from] ArenaPlanError),
 }
 
+/// Says on stderr that the link dropped, when progress is shown.
+fn tell(progress: bool, incoming: &Incoming) {
+    if let (
+        true,
+        Incoming::Reconnecting {
+            attempt,
+            reason,
+            wait,
+        },
+    ) = (progress, incoming)
+    {
+        eprintln!(
+            "link lost ({reason}): reconnecting in {:.2} s, attempt {attempt}",
+            wait.as_secs_f64()
+        );
+    }
+}
+
 /// A Guest that waits for what it asked for.
 struct Scripted {
     connection: Connection,
     session: Session,
+    progress: bool,
     deadline: Instant,
     timeout: Duration,
 }
@@ -164,7 +183,10 @@ impl Scripted {
                 },
                 Some(Incoming::Unreachable(e)) => return Err(ScriptError::Connect(e)),
                 Some(Incoming::Closed(reason)) => return Err(ScriptError::Closed { step, reason }),
-                Some(other) => self.session.apply(other),
+                Some(other) => {
+                    tell(self.progress, &other);
+                    self.session.apply(other);
+                }
             }
             on_each(&mut self.session, &self.connection);
         }
@@ -179,10 +201,12 @@ async fn welcomed(url: &str, role: Role, script: &Script) -> Result<Scripted, Sc
         protocol: PROTOCOL_VERSION,
         role,
         token: script.token.clone(),
+        resume: None,
     });
     let mut guest = Scripted {
         connection,
         session: Session::default(),
+        progress: script.progress,
         deadline: Instant::now() + script.timeout,
         timeout: script.timeout,
     };
@@ -377,7 +401,10 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
                 None => return Err(ScriptError::Closed { step: "drive", reason: "the connection task ended".into() }),
                 Some(Incoming::Closed(reason)) => return Err(ScriptError::Closed { step: "drive", reason }),
                 Some(Incoming::Unreachable(e)) => return Err(ScriptError::Connect(e)),
-                Some(other) => guest.session.apply(other),
+                Some(other) => {
+                    tell(script.progress, &other);
+                    guest.session.apply(other);
+                }
             },
             _ = tick.tick() => {}
             () = tokio::time::sleep_until(guest.deadline.into()) => {

@@ -122,6 +122,11 @@ impl Spread {
 pub enum Link {
     Connecting,
     Open,
+    /// The link dropped; the connection is being made again.
+    Reconnecting {
+        attempt: u32,
+        reason: String,
+    },
     Closed(String),
 }
 
@@ -147,6 +152,8 @@ pub struct Session {
     pub done: Option<Summary>,
     /// Event number of the last command sent in this run.
     pub sent_event: u64,
+    /// A run was under way when the link dropped: the Host may give it back.
+    interrupted: bool,
     pub devices: Option<Devices>,
     /// How commands are paced.
     pub control: ControlMode,
@@ -189,6 +196,7 @@ impl Default for Session {
             errors: Vec::new(),
             done: None,
             sent_event: 0,
+            interrupted: false,
             devices: None,
             control: ControlMode::Event,
             last_sent: None,
@@ -219,6 +227,14 @@ impl Session {
                 self.link = Link::Closed(error.to_string());
                 self.running = false;
             }
+            Incoming::Reconnecting {
+                attempt, reason, ..
+            } => {
+                // Nothing goes out until the Host says the run is ours again.
+                self.link = Link::Reconnecting { attempt, reason };
+                self.interrupted |= self.running;
+                self.running = false;
+            }
             Incoming::Closed(reason) => {
                 self.link = Link::Closed(reason);
                 self.running = false;
@@ -232,6 +248,7 @@ impl Session {
                 session,
                 role,
                 experiments,
+                ..
             } => {
                 self.link = Link::Open;
                 self.session_id = Some(session);
@@ -252,6 +269,15 @@ impl Session {
             HostMessage::Defined { definition } => {
                 self.definition = Some(definition);
                 self.errors.clear();
+            }
+            // A run given back to an operator whose link dropped goes on,
+            // and so does its record.
+            HostMessage::Started { event } if self.interrupted => {
+                self.interrupted = false;
+                self.running = true;
+                self.sent_event = event;
+                self.last_sent = None;
+                self.predictor.start();
             }
             HostMessage::Started { event } => {
                 self.errors.clear();
@@ -307,6 +333,7 @@ impl Session {
                 });
             }
             HostMessage::Done { summary } => {
+                self.interrupted = false;
                 self.running = false;
                 self.done = Some(summary);
             }

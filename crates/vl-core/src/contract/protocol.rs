@@ -206,6 +206,11 @@ pub enum GuestMessage {
         role: Role,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         token: Option<String>,
+        /// The `resume` of an operator's earlier welcome: within the Host's
+        /// grace period after its link dropped, the role and the run are
+        /// theirs again.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        resume: Option<String>,
     },
     /// `t` is the sender's clock, ms; the peer echoes it in `pong`.
     Ping {
@@ -264,6 +269,10 @@ pub enum HostMessage {
         session: u64,
         role: Role,
         experiments: Vec<ExperimentInfo>,
+        /// For an operator: the secret to say hello with after a dropped
+        /// link, to get the role and the running experiment back.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        resume: Option<String>,
     },
     Error {
         code: ErrorCode,

@@ -65,6 +65,8 @@ struct Run {
     collisions: u64,
     /// The wheel speeds the last command asks for.
     wheels: WheelSpeeds,
+    /// The operator's link is down: the robot stays still until they are back.
+    held: bool,
     /// For an assisted run: the velocity the operator asks for, and the
     /// force last fed back.
     assist: Option<(Vector, [f64; 2])>,
@@ -304,6 +306,7 @@ impl Control {
                     distance_mm: 0.0,
                     collisions: 0,
                     wheels: WheelSpeeds::default(),
+                    held: false,
                     assist: experiment
                         .assists_the_operator()
                         .then_some((Vector::default(), [0.0; 2])),
@@ -331,6 +334,18 @@ impl Control {
                 self.drive();
                 true
             }
+            LabRequest::Hold(held) => {
+                let Some(run) = self.run.as_mut() else {
+                    return false;
+                };
+                run.held = held;
+                // Back from a dropped link, the operator starts afresh:
+                // nothing sent before counts as fresh.
+                run.commanded = false;
+                run.wheels = WheelSpeeds::default();
+                self.drive();
+                true
+            }
             LabRequest::Finish(reason) => {
                 self.finish(reason);
                 true
@@ -347,8 +362,10 @@ impl Control {
             return;
         };
         let pose = *pose;
-        let stale = run.last_command.elapsed() > WATCHDOG;
+        // A held run is as still as one whose commands went stale.
+        let stale = run.held || run.last_command.elapsed() > WATCHDOG;
         let mut wanted = match &mut run.follower {
+            _ if run.held => WheelSpeeds::default(),
             // The operator's fresh command takes over from the path.
             Some(follower) if !run.commanded || stale => {
                 let along = follower.step(&self.info.robot, pose, &reading.proximity);

@@ -113,6 +113,9 @@ pub enum LabRequest {
         event: u64,
         drive: Drive,
     },
+    /// Hold the running robot still (true) while its operator's link is
+    /// down, or let the run go on (false) once they are back.
+    Hold(bool),
     Finish(EndReason),
 }
 

@@ -55,8 +55,10 @@ pub(crate) struct Connection {
 /// How a connection ends.
 #[derive(Debug)]
 enum End {
-    /// Quietly: the client closed or said bye, or the Host is stopping.
+    /// Quietly: the client closed, or the Host is stopping.
     Closed,
+    /// The client said bye: it means to leave.
+    Bye,
     /// With an `error` to the client saying why, then a close.
     Refused(ErrorCode, String),
     /// The socket failed.
@@ -142,9 +144,10 @@ impl Connection {
             return Ok(());
         }
         let end = self.serve(&mut sink, &mut source, &mut inbox).await;
-        let _ = self.hub.send(ToHub::Leave(self.id)).await;
+        let said_bye = matches!(end, End::Bye);
+        let _ = self.hub.send(ToHub::Leave(self.id, said_bye)).await;
         match end {
-            End::Closed => {}
+            End::Closed | End::Bye => {}
             End::Refused(code, why) => {
                 debug!(connection = self.id, %code, "closing: {why}");
                 let _ = put(&mut sink, text_of(&error(code, why))).await;
@@ -222,7 +225,7 @@ impl Connection {
                             debug!(connection = self.id, rtt_ms, "round trip");
                             None
                         }
-                        Ok(GuestMessage::Bye) => return End::Closed,
+                        Ok(GuestMessage::Bye) => return End::Bye,
                         Ok(message @ GuestMessage::Hello { .. }) => {
                             if self.hub.send(ToHub::Message(self.id, message)).await.is_err() {
                                 return End::Closed;

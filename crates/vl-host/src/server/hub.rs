@@ -30,7 +30,8 @@ const LEASE_CHECK: Duration = Duration::from_millis(250);
 pub(crate) enum ToHub {
     Join(u64, mpsc::Sender<ToConnection>),
     Message(u64, GuestMessage),
-    Leave(u64),
+    /// The connection closed; true when the client said bye.
+    Leave(u64, bool),
 }
 
 /// What the hub tells a connection.
@@ -46,6 +47,33 @@ struct Client {
     role: Option<Role>,
 }
 
+/// An operator whose link dropped: the role is theirs until `until`, for
+/// a hello that carries `resume`.
+struct Away {
+    resume: String,
+    until: Instant,
+}
+
+/// A secret no client can guess: SipHash keyed afresh from the operating
+/// system's randomness by the standard library, over a counter and the
+/// clock, twice over for 128 bits.
+fn secret() -> String {
+    use std::hash::{BuildHasher, Hasher};
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static DRAWN: AtomicU64 = AtomicU64::new(0);
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    (0..2)
+        .map(|_| {
+            let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+            h.write_u64(DRAWN.fetch_add(1, Ordering::Relaxed));
+            h.write_u128(now);
+            format!("{:016x}", h.finish())
+        })
+        .collect()
+}
+
 /// The one owner of session state.
 pub(crate) struct Hub {
     lab: Lab,
@@ -53,6 +81,10 @@ pub(crate) struct Hub {
     supervisor: Supervisor,
     clients: HashMap<u64, Client>,
     operator: Option<u64>,
+    /// The operator's secret for coming back after a dropped link.
+    resume: Option<String>,
+    /// An operator whose link dropped, while their grace lasts.
+    away: Option<Away>,
     /// The mounted experiment.
     experiment: Option<Experiment>,
     definition: Option<Definition>,
@@ -78,6 +110,8 @@ impl Hub {
             supervisor: Supervisor::new(),
             clients: HashMap::new(),
             operator: None,
+            resume: None,
+            away: None,
             experiment: None,
             definition: None,
             last_event: 0,
@@ -126,7 +160,7 @@ impl Hub {
                         self.clients.insert(id, Client { out, role: None });
                     }
                     Some(ToHub::Message(id, message)) => self.handle(id, message),
-                    Some(ToHub::Leave(id)) => self.leave(id),
+                    Some(ToHub::Leave(id, said_bye)) => self.leave(id, said_bye),
                     None => return,
                 },
             }
@@ -144,7 +178,7 @@ impl Hub {
         {
             debug!(connection = id, "a client that does not read: let go");
             self.clients.remove(&id);
-            self.leave(id);
+            self.leave(id, false);
         }
     }
 
@@ -176,6 +210,19 @@ impl Hub {
     /// commands: its operator is not silent for sending none (a lost one
     /// still ends it, through the connection's pings).
     fn check_lease(&mut self) {
+        if self
+            .away
+            .as_ref()
+            .is_some_and(|a| a.until <= Instant::now())
+        {
+            self.away = None;
+            info!("the operator did not come back within the grace: the role is free");
+            if self.supervisor.allows(Action::Stop) {
+                self.lab
+                    .request(LabRequest::Finish(EndReason::OperatorLeft));
+            }
+            self.release_operator();
+        }
         let Some(id) = self.operator else { return };
         if !self.supervisor.allows(Action::Stop)
             || self.last_command.elapsed() < self.config.lease
@@ -212,6 +259,7 @@ impl Hub {
     /// The operator role is free again and the lab back to idle.
     fn release_operator(&mut self) {
         self.operator = None;
+        self.resume = None;
         if self.supervisor.allows(Action::Release) {
             let _ = self.supervisor.fire(Action::Release);
         }
@@ -230,8 +278,9 @@ impl Hub {
                     protocol,
                     role,
                     token,
+                    resume,
                 },
-            ) => self.hello(id, protocol, role, token),
+            ) => self.hello(id, protocol, role, token, resume),
             (None, _) => self.refuse(id, ErrorCode::HelloFirst, "send hello first"),
             // An observer (or an operator who lost the lease) may ask to drive.
             (
@@ -240,8 +289,9 @@ impl Hub {
                     protocol,
                     role: Role::Operator,
                     token,
+                    resume,
                 },
-            ) => self.hello(id, protocol, Role::Operator, token),
+            ) => self.hello(id, protocol, Role::Operator, token, resume),
             (Some(_), GuestMessage::Hello { .. }) => {
                 self.refuse(id, ErrorCode::NotAllowedNow, "already said hello")
             }
@@ -258,7 +308,14 @@ impl Hub {
         }
     }
 
-    fn hello(&mut self, id: u64, protocol: u32, role: Role, token: Option<String>) {
+    fn hello(
+        &mut self,
+        id: u64,
+        protocol: u32,
+        role: Role,
+        token: Option<String>,
+        resume: Option<String>,
+    ) {
         if protocol != PROTOCOL_VERSION {
             return self.refuse(
                 id,
@@ -270,6 +327,21 @@ impl Hub {
             if self.config.token.is_some() && token != self.config.token {
                 return self.refuse(id, ErrorCode::Unauthorized, "the operator token is wrong");
             }
+            let returning = match &self.away {
+                Some(away) if resume.as_deref() == Some(away.resume.as_str()) => true,
+                Some(away) => {
+                    let left = away.until.saturating_duration_since(Instant::now());
+                    return self.refuse(
+                        id,
+                        ErrorCode::OperatorTaken,
+                        format!(
+                            "the operator's link dropped; the role is held for them for {:.0} more s",
+                            left.as_secs_f64().ceil()
+                        ),
+                    );
+                }
+                None => false,
+            };
             if self.operator.is_some() {
                 return self.refuse(
                     id,
@@ -278,6 +350,12 @@ impl Hub {
                 );
             }
             self.operator = Some(id);
+            if returning {
+                self.away = None;
+                info!(connection = id, "the operator is back");
+            } else {
+                self.resume = Some(secret());
+            }
         }
         if let Some(client) = self.clients.get_mut(&id) {
             client.role = Some(role);
@@ -290,6 +368,9 @@ impl Hub {
                 session: id,
                 role,
                 experiments: self.config.experiments.iter().map(|e| e.info()).collect(),
+                resume: (role == Role::Operator)
+                    .then(|| self.resume.clone())
+                    .flatten(),
             },
         );
         // A late observer catches up on what is mounted and defined.
@@ -301,6 +382,17 @@ impl Hub {
         }
         let status = *self.lab.status.borrow();
         self.send(id, status.message());
+        // An operator back within the grace takes up the run where it stood.
+        if role == Role::Operator && self.supervisor.allows(Action::Stop) {
+            self.last_command = Instant::now();
+            self.lab.request(LabRequest::Hold(false));
+            self.send(
+                id,
+                HostMessage::Started {
+                    event: self.last_event,
+                },
+            );
+        }
     }
 
     fn mounted(&self) -> Option<HostMessage> {
@@ -451,16 +543,35 @@ impl Hub {
         }
     }
 
-    /// A connection closed: if it was the operator, the robot stops and the
-    /// lab returns to idle for the next person.
-    fn leave(&mut self, id: u64) {
+    /// A connection closed: if it was the operator, the robot stops; the
+    /// lab returns to idle for the next person at once if they said bye,
+    /// or after the grace if their link dropped and they do not come back.
+    fn leave(&mut self, id: u64, said_bye: bool) {
         self.clients.remove(&id);
         if self.operator != Some(id) {
             return;
         }
         info!(connection = id, "operator left");
+        let running = self.supervisor.allows(Action::Stop);
+        // A link that dropped may come back: the role and the run are held
+        // for the grace, the robot still; a lab with nothing on it is free.
+        if let Some(resume) = self.resume.take()
+            && !said_bye
+            && !self.config.grace.is_zero()
+            && self.experiment.is_some()
+        {
+            self.operator = None;
+            self.away = Some(Away {
+                resume,
+                until: Instant::now() + self.config.grace,
+            });
+            if running {
+                self.lab.request(LabRequest::Hold(true));
+            }
+            return;
+        }
         // A run the operator could stop is stopped for them.
-        if self.supervisor.allows(Action::Stop) {
+        if running {
             self.lab
                 .request(LabRequest::Finish(EndReason::OperatorLeft));
         }

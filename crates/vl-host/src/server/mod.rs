@@ -47,6 +47,9 @@ pub struct HostConfig {
     pub hello_timeout: Duration,
     /// Which camera frames are sent.
     pub frames: FramePolicy,
+    /// How long an operator whose link dropped keeps the role and the run
+    /// (the robot held still meanwhile), to say hello again with `resume`.
+    pub grace: Duration,
 }
 
 impl Default for HostConfig {
@@ -58,6 +61,7 @@ impl Default for HostConfig {
             ping_timeout: Duration::from_secs(10),
             hello_timeout: Duration::from_secs(10),
             frames: FramePolicy::EveryFrame,
+            grace: Duration::from_secs(10),
         }
     }
 }
