@@ -602,3 +602,95 @@ fn settings_are_remembered_between_sessions() {
     assert!(!kept.contains("max_speed_mm_s"), "{kept}");
     assert!(kept.contains("lookahead_mm = 45.0"), "{kept}");
 }
+
+/// The ghost's colour.
+const GHOST: [u8; 3] = [235, 90, 255];
+
+fn ghost_pixels(harness: &mut Harness<'_, GuestApp>, name: &str) -> usize {
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(format!("{}/{name}.png", env!("CARGO_TARGET_TMPDIR")));
+    image
+        .pixels()
+        .filter(|p| p.0[..3].iter().zip(GHOST).all(|(a, b)| a.abs_diff(b) <= 6))
+        .count()
+}
+
+/// Over a geostationary satellite's 560 ms round trip, driving forward:
+/// the ghost runs ahead of the delayed pose (along the robot's heading,
+/// where it truly is), the window says by how much and how old the
+/// feedback is, and the toggle takes the ghost away.
+#[test]
+fn the_predictive_display_runs_ahead_of_the_delayed_pose() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let (host, media) = runtime.block_on(async {
+        let host = Host::start_sim(
+            "127.0.0.1:0".parse().unwrap(),
+            SimLab {
+                camera: None,
+                ..SimLab::new(Arena::navigation())
+            },
+            HostConfig::default(),
+        )
+        .await
+        .unwrap();
+        let media = vl_host::Media::start(
+            "127.0.0.1:0".parse().unwrap(),
+            vl_host::MediaConfig {
+                upstream: host.url(),
+                model: vl_sim::LinkModel::profile(vl_sim::Profile::GeoSatellite),
+                seed: 3,
+            },
+        )
+        .await
+        .unwrap();
+        (host, media)
+    });
+    let _entered = runtime.enter();
+    let mut harness = window(&media.url());
+    step_until(&mut harness, "be welcomed", |app| {
+        app.session().role.is_some()
+    });
+    harness.get_by_label("Drive the robot by joystick").click();
+    step_until(&mut harness, "mount and see the robot", |app| {
+        app.session().lab.is_some() && app.session().robot.is_some()
+    });
+    harness.get_by_label("Start").click();
+    step_until(&mut harness, "start the run", |app| app.session().running);
+    harness.key_down(egui::Key::ArrowUp);
+    step_until(&mut harness, "drive ahead of the delayed feedback", |app| {
+        let s = app.session();
+        let (Some(robot), Some(ghost)) = (&s.robot, s.predicted(Instant::now())) else {
+            return false;
+        };
+        let ahead = (ghost.x_mm - robot.pose.x_mm) * robot.pose.theta_rad.cos()
+            + (ghost.y_mm - robot.pose.y_mm) * robot.pose.theta_rad.sin();
+        ahead > 15.0
+    });
+    let label = harness
+        .query_by_label_contains("mm from the reported pose")
+        .expect("the window says how far ahead the ghost is")
+        .value()
+        .unwrap_or_default();
+    // The pose shown is about one way old: half of 560 ms.
+    let old: f64 = label
+        .split("pose ")
+        .nth(1)
+        .and_then(|rest| rest.split(" s old").next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("{label:?}"));
+    assert!((0.2..0.6).contains(&old), "{label:?}");
+    let shown = ghost_pixels(&mut harness, "ghost-shown");
+    assert!(shown > 100, "only {shown} ghost-coloured pixels");
+    harness.key_up(egui::Key::ArrowUp);
+    harness.get_by_label("predictive display").click();
+    harness.step();
+    harness.step();
+    assert_eq!(ghost_pixels(&mut harness, "ghost-hidden"), 0);
+    assert!(
+        harness
+            .query_by_label_contains("mm from the reported pose")
+            .is_none()
+    );
+    drop(media);
+    drop(host);
+}

@@ -8,7 +8,7 @@
 //! not, and reconnects on request.
 
 use std::path::PathBuf;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Vec2};
 use vl_core::{
@@ -30,6 +30,8 @@ const PATH_COLOUR: Color32 = Color32::from_rgb(250, 220, 40);
 const VIRTUAL_COLOUR: Color32 = Color32::from_rgb(255, 150, 0);
 /// The obstacles' push, on the stick and on the robot.
 const FORCE_COLOUR: Color32 = Color32::from_rgb(255, 70, 90);
+/// The predictive display's ghost: where the robot is now, by prediction.
+const GHOST_COLOUR: Color32 = Color32::from_rgb(235, 90, 255);
 const STOP_COLOUR: Color32 = Color32::from_rgb(200, 30, 30);
 /// The force arrow on the robot at full force, mm.
 const FORCE_ARROW_MM: f64 = 80.0;
@@ -74,6 +76,8 @@ pub struct GuestApp {
     /// for the map and obstacles they were grown from.
     show_cspace: bool,
     cspace: Option<(CSpaceKey, Vec<Shape>)>,
+    /// Draw the predictive display's ghost (thesis C.1).
+    show_ghost: bool,
     /// The one joystick → velocity mapping, as the Host reads it back.
     teleop: Teleop,
     /// A real stick, when there is one, and whether its stop button was down.
@@ -109,6 +113,7 @@ impl GuestApp {
             dragging_sample: None,
             show_cspace: false,
             cspace: None,
+            show_ghost: true,
             teleop: Teleop::default(),
             pad: None,
             asked: Joystick::default(),
@@ -227,7 +232,7 @@ impl GuestApp {
         }
         let asked = self.teleop.desired(stick);
         let drive = Drive::from(self.teleop.wheels(&lab.robot, asked));
-        if let Some(command) = self.session.next_command(drive, std::time::Instant::now()) {
+        if let Some(command) = self.session.next_command(drive, Instant::now()) {
             self.connection.send(command);
         }
     }
@@ -666,6 +671,9 @@ impl GuestApp {
         ui.horizontal(|ui| {
             ui.checkbox(&mut self.show_cspace, "C-space")
                 .on_hover_text("where the robot's centre may not go: the map and the virtual obstacles grown by its radius");
+            ui.checkbox(&mut self.show_ghost, "predictive display")
+                .on_hover_text("a ghost of the robot where it is now, predicted from the last feedback and the commands sent since; the solid outline is where the last feedback put it");
+            ui.label(self.ages());
         });
         ui.label(match &self.session.frame {
             Some(frame) => format!(
@@ -780,6 +788,36 @@ impl GuestApp {
 
     /// Draws what the Guest knows over the camera image: the robot's
     /// reported pose, the goal, the planned path and the virtual obstacles.
+    /// How old what the window shows is (since it arrived, plus the
+    /// one-way delay it travelled: half the round trip), and how far ahead
+    /// the ghost is.
+    fn ages(&self) -> String {
+        let now = Instant::now();
+        let travelled = self.session.predictor.one_way();
+        let age = |at: Option<Instant>| {
+            at.map_or("–".to_owned(), |t| {
+                let old = now.saturating_duration_since(t) + travelled;
+                format!("{:.2} s", old.as_secs_f64())
+            })
+        };
+        let mut text = format!(
+            "pose {} old · frame {} old",
+            age(self.session.feedback_at),
+            age(self.session.frame_at)
+        );
+        if let (true, Some(ghost), Some(robot)) = (
+            self.show_ghost,
+            self.session.predicted(now),
+            &self.session.robot,
+        ) {
+            text += &format!(
+                " · ghost {:.0} mm from the reported pose",
+                ghost.point().distance(robot.pose.point())
+            );
+        }
+        text
+    }
+
     fn overlay(&self, painter: &egui::Painter, view: &View, lab: &MountedLab) {
         let to_screen = |p: Point| view.to_screen(p);
         let px_per_mm = view.px_per_mm;
@@ -821,6 +859,16 @@ impl GuestApp {
                     to_screen(tip) - centre,
                     Stroke::new(3.0, FORCE_COLOUR),
                 );
+            }
+            if self.show_ghost
+                && let Some(ghost) = self.session.predicted(Instant::now())
+            {
+                let at = to_screen(ghost.point());
+                painter.circle_filled(at, r, GHOST_COLOUR.gamma_multiply(0.35));
+                painter.circle_stroke(at, r, Stroke::new(1.5, GHOST_COLOUR));
+                let nose = to_screen(ghost.to_world(lab.robot.radius_mm * 1.6, 0.0));
+                painter.line_segment([at, nose], Stroke::new(1.5, GHOST_COLOUR));
+                painter.line_segment([centre, at], Stroke::new(1.0, GHOST_COLOUR));
             }
         }
     }

@@ -323,6 +323,11 @@ const OPERATOR_SPEED_MM_S: f64 = 80.0;
 const OPERATOR_TURN_GAIN: f64 = 3.0;
 /// The shortest lag a person reacts within, s.
 const REACTION_S: f64 = 0.2;
+/// The share of the goal's tolerance the operator aims within before
+/// letting go of the stick, so the robot's coasting keeps it inside.
+const ARRIVED: f64 = 0.6;
+/// Wheels slower than this, mm/s, are seen as stopped.
+const STILL_MM_S: f64 = 2.0;
 /// How often the operator looks and moves the stick.
 const OPERATOR_TICK: Duration = Duration::from_millis(10);
 
@@ -419,7 +424,13 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
         if guest.session.done.is_some() {
             break;
         }
-        let Some(seen) = guest.session.robot.as_ref().map(|r| r.pose) else {
+        let Some((seen, still)) = guest.session.robot.as_ref().map(|r| {
+            let w = r.wheels;
+            (
+                r.pose,
+                w.left_mm_s.abs().max(w.right_mm_s.abs()) < STILL_MM_S,
+            )
+        }) else {
             continue;
         };
         while next + 1 < targets.len() && seen.point().distance(targets[next]) < WAYPOINT_REACHED_MM
@@ -430,14 +441,20 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
         if stopping {
             continue;
         }
-        if to_goal <= goal.tolerance_mm {
+        // Seen stopped at the goal: the run is done.
+        if to_goal <= goal.tolerance_mm && still {
             guest.connection.send(GuestMessage::Stop);
             stopping = true;
             guest.deadline = Instant::now() + STOP_WAIT;
             continue;
         }
-        let lag_s = guest.session.round_trips.last().unwrap_or(0.0) / 1e3;
-        let drive = steer(seen, targets[next], to_goal, lag_s);
+        // Near enough: let go of the stick and wait to see it stop.
+        let drive = if to_goal <= ARRIVED * goal.tolerance_mm {
+            Drive::Velocity { v: 0.0, w: 0.0 }
+        } else {
+            let lag_s = guest.session.round_trips.last().unwrap_or(0.0) / 1e3;
+            steer(seen, targets[next], to_goal, lag_s)
+        };
         if let Some(command) = guest.session.next_command(drive, Instant::now()) {
             guest.connection.send(command);
         }
