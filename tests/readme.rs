@@ -4,7 +4,7 @@
 //! says an error.
 //!
 //! What differs from a person at a terminal, and only that:
-//! - commands that serve until stopped (`host`, `khepera-emu`) run in the
+//! - commands that serve until stopped (`host`, `media`, `khepera-emu`) run in the
 //!   background until the next one of their kind, or the end;
 //! - the window has a display-free variant: `guest` gets `--headless`
 //!   (an observer, also `--timeout 1`: nobody drives while it watches);
@@ -125,6 +125,10 @@ fn for_test(args: &mut Vec<String>, ports: &[(String, String)], link: &str) {
         Some("petri") if args.get(1).map(String::as_str) == Some("bench") => {
             args.extend(["--model", "SwimmingPool-PT-02"].map(String::from));
         }
+        // The whole matrix runs in tests/experiment_media.rs.
+        Some("experiment") if args.get(1).map(String::as_str) == Some("report") => {
+            args.extend(["--profiles", "lan,intercontinental"].map(String::from));
+        }
         _ => {}
     }
 }
@@ -144,7 +148,7 @@ fn complaint(said: &str) -> Option<&str> {
 fn every_command_in_readme_runs_as_written() {
     let readme = include_str!("../README.md");
     let dir = scratch("readme");
-    let ports: Vec<(String, String)> = ["7400", "7401"]
+    let ports: Vec<(String, String)> = ["7400", "7401", "7402"]
         .iter()
         .map(|p| {
             (
@@ -168,13 +172,13 @@ fn every_command_in_readme_runs_as_written() {
             let argv: Vec<&str> = args.iter().map(String::as_str).collect();
             println!("$ vl {}", argv.join(" "));
             let kind = argv[0];
-            if kind == "host" || kind == "khepera-emu" {
+            if kind == "host" || kind == "khepera-emu" || kind == "media" {
                 // One of each kind at a time, as one person would run them.
                 servers.retain(|(k, _)| k != kind);
-                let prefix = if kind == "host" {
-                    "vl host listening on "
-                } else {
-                    "vl khepera-emu: "
+                let prefix = match kind {
+                    "host" => "vl host listening on ",
+                    "media" => "vl media listening on ",
+                    _ => "vl khepera-emu: ",
                 };
                 let (process, said) = start_vl_in(Some(&dir), &argv, prefix);
                 println!("  {prefix}{said}");

@@ -150,6 +150,8 @@ impl Leg {
 pub(crate) struct Legs {
     pub guest_to_host: Option<Leg>,
     pub host_to_guest: Option<Leg>,
+    /// Camera frames: from leaving the Host to reaching the Guest.
+    pub frames_to_guest: Option<Leg>,
     /// Every delay, for the report's histograms (not in --json).
     #[serde(skip)]
     pub samples: vl_host::Delays,
@@ -341,6 +343,7 @@ pub(crate) async fn run_one(spec: &RunSpec) -> Result<Run> {
         Legs {
             guest_to_host: Leg::of(&samples.to_host),
             host_to_guest: Leg::of(&samples.to_guest),
+            frames_to_guest: Leg::of(&samples.frames_to_guest),
             samples,
         }
     });

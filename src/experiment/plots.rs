@@ -17,6 +17,8 @@ const FONT: &str = "sans-serif";
 pub(crate) const EVENT: RGBColor = RGBColor(0x1f, 0x77, 0xb4);
 pub(crate) const TIME: RGBColor = RGBColor(0xd6, 0x27, 0x28);
 const PLANNED: RGBColor = RGBColor(0x99, 0x99, 0x99);
+/// A third series where there is one.
+const THIRD: RGBColor = RGBColor(0x2c, 0xa0, 0x2c);
 
 fn font() {
     static REGISTER: Once = Once::new();
@@ -125,7 +127,7 @@ pub(crate) fn delays(
                 .draw()
                 .map_err(err)?;
             for (k, ((leg, _), c)) in legs.iter().zip(counts.iter()).enumerate() {
-                let colour = if k == 0 { EVENT } else { TIME };
+                let colour = [EVENT, TIME, THIRD][k % 3];
                 chart
                     .draw_series(c.iter().enumerate().map(|(i, &share)| {
                         let x0 = i as f64 * width;

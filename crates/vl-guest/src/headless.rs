@@ -192,6 +192,33 @@ impl Scripted {
         }
         Ok(())
     }
+
+    /// The run's report, once its summary has come; says bye.
+    fn report(&mut self, route: Route) -> Report {
+        let summary = self.session.done.clone().expect("done");
+        self.connection.send(GuestMessage::Bye);
+        Report {
+            reached_goal: summary.reached_goal,
+            reason: summary.reason,
+            events: summary.events,
+            final_pose: summary.final_pose,
+            sim_seconds: summary.seconds,
+            distance_mm: summary.distance_mm,
+            collisions: summary.collisions,
+            frames: self.session.frames_received,
+            video_bytes: self.session.video_bytes,
+            round_trip_ms: RoundTripMs::from(&self.session.round_trips),
+            pose_source: summary.pose_source,
+            planned: route.definition.path,
+            path: summary.path,
+            commands: self.session.sent_event,
+            max_event_gap: summary.max_event_gap,
+            sync_violations: summary.sync_violations,
+            prediction_error_mm: self.session.prediction_error,
+            stale_error_mm: self.session.stale_error,
+            gaps: std::mem::take(&mut self.session.gaps),
+        }
+    }
 }
 
 /// Connects to `url` and says hello as `role`.
@@ -284,36 +311,6 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
     Ok(guest.report(route))
 }
 
-impl Scripted {
-    /// The run's report, once its summary has come; says bye.
-    fn report(&mut self, route: Route) -> Report {
-        let guest = self;
-        let summary = guest.session.done.clone().expect("done");
-        guest.connection.send(GuestMessage::Bye);
-        Report {
-            reached_goal: summary.reached_goal,
-            reason: summary.reason,
-            events: summary.events,
-            final_pose: summary.final_pose,
-            sim_seconds: summary.seconds,
-            distance_mm: summary.distance_mm,
-            collisions: summary.collisions,
-            frames: guest.session.frames_received,
-            video_bytes: guest.session.video_bytes,
-            round_trip_ms: RoundTripMs::from(&guest.session.round_trips),
-            pose_source: summary.pose_source,
-            planned: route.definition.path,
-            path: summary.path,
-            commands: guest.session.sent_event,
-            max_event_gap: summary.max_event_gap,
-            sync_violations: summary.sync_violations,
-            prediction_error_mm: guest.session.prediction_error,
-            stale_error_mm: guest.session.stale_error,
-            gaps: std::mem::take(&mut guest.session.gaps),
-        }
-    }
-}
-
 /// How close to a waypoint the operator moves on to the next, mm.
 const WAYPOINT_REACHED_MM: f64 = 40.0;
 /// How far apart the operator's waypoints lie along the planned path, mm.
@@ -399,6 +396,8 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
     let mut next = 0;
     let mut tick = tokio::time::interval(OPERATOR_TICK);
     let mut stopping = false;
+    // The first command of the stick let go, while it stays let go.
+    let mut let_go: Option<u64> = None;
     let mut last_progress = Instant::now();
     loop {
         tokio::select! {
@@ -441,8 +440,9 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
         if stopping {
             continue;
         }
-        // Seen stopped at the goal: the run is done.
-        if to_goal <= goal.tolerance_mm && still {
+        // Seen stopped at the goal after letting go: the run is done.
+        let acknowledged = guest.session.robot.as_ref().map_or(0, |r| r.event);
+        if to_goal <= goal.tolerance_mm && still && let_go.is_some_and(|e| acknowledged >= e) {
             guest.connection.send(GuestMessage::Stop);
             stopping = true;
             guest.deadline = Instant::now() + STOP_WAIT;
@@ -456,6 +456,12 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
             steer(seen, targets[next], to_goal, lag_s)
         };
         if let Some(command) = guest.session.next_command(drive, Instant::now()) {
+            let resting = drive == Drive::Velocity { v: 0.0, w: 0.0 };
+            let_go = match (resting, let_go) {
+                (false, _) => None,
+                (true, None) => Some(guest.session.sent_event),
+                (true, kept) => kept,
+            };
             guest.connection.send(command);
         }
         if script.progress && last_progress.elapsed() >= Duration::from_secs(1) {

@@ -61,7 +61,10 @@ const DELAYS_KEPT: usize = 1 << 20;
 #[derive(Debug, Clone, Default)]
 pub struct Delays {
     pub to_host: Vec<f64>,
+    /// Text messages to the Guest: feedback, replies, pings.
     pub to_guest: Vec<f64>,
+    /// Camera frames to the Guest.
+    pub frames_to_guest: Vec<f64>,
 }
 
 /// A relay, listening and relaying in the background.
@@ -191,8 +194,12 @@ async fn connection(
     let (to_host, from_host) = host.split();
     let outage = next_outage(&config.model, clock);
     tokio::select! {
-        r = carry(from_guest, to_host, up, clock, |ms| log(delays, ms, |d| &mut d.to_host)) => r,
-        r = carry(from_host, to_guest, down, clock, |ms| log(delays, ms, |d| &mut d.to_guest)) => r,
+        r = carry(from_guest, to_host, up, clock, |ms, _| log(delays, ms, |d| &mut d.to_host)) => r,
+        r = carry(from_host, to_guest, down, clock, |ms, frame| if frame {
+            log(delays, ms, |d| &mut d.frames_to_guest)
+        } else {
+            log(delays, ms, |d| &mut d.to_guest)
+        }) => r,
         () = outage => Ok("the link went down"),
     }
 }
@@ -231,7 +238,7 @@ async fn carry<A, B>(
     mut to: Sink<B>,
     mut link: MessageLink,
     clock: Clock,
-    held: impl Fn(f64),
+    held: impl Fn(f64, bool),
 ) -> Result<&'static str, String>
 where
     A: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin,
@@ -271,7 +278,7 @@ where
     let write = async {
         while let Some((read, at, message)) = due.recv().await {
             wait_until(at).await;
-            held(read.elapsed().as_secs_f64() * 1e3);
+            held(read.elapsed().as_secs_f64() * 1e3, message.is_binary());
             in_flight.fetch_sub(message.len(), Ordering::Relaxed);
             let closing = message.is_close();
             to.send(message)
