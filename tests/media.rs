@@ -256,3 +256,14 @@ fn bad_profiles_and_upstreams_are_named() {
         "is not ws://",
     );
 }
+
+#[test]
+fn a_demo_behind_a_link_feels_its_delay() {
+    let report = common::vl_json(&["demo", "--headless", "--json", "--link", "intercontinental"]);
+    assert_eq!(report["reached_goal"], true, "{report}");
+    let rtt = report["round_trip_ms"]["p50"].as_f64().unwrap();
+    assert!(
+        (140.0..200.0).contains(&rtt),
+        "a 150 ms link, round trip {rtt} ms"
+    );
+}

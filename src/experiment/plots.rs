@@ -7,6 +7,7 @@ use std::sync::Once;
 
 use anyhow::{Result, anyhow};
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use vl_core::Point;
 
@@ -62,6 +63,48 @@ fn err(e: impl std::fmt::Display) -> anyhow::Error {
     anyhow!("cannot draw: {e}")
 }
 
+/// A chart with the report's look: white, titled, its axes labelled.
+type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+fn chart<'a, DB: DrawingBackend>(
+    root: &'a DrawingArea<DB, Shift>,
+    title: &str,
+    (x, y): (f64, f64),
+    (x_desc, y_desc): (&str, &str),
+) -> Result<Chart<'a, DB>> {
+    root.fill(&WHITE).map_err(err)?;
+    let mut chart = ChartBuilder::on(root)
+        .caption(title, (FONT, 20))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(52)
+        .build_cartesian_2d(0.0..x, 0.0..y)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style((FONT, 13))
+        .draw()
+        .map_err(err)?;
+    Ok(chart)
+}
+
+/// Draws the chart's legend at `position`.
+fn legend<'a, DB: DrawingBackend + 'a>(
+    chart: &mut Chart<'a, DB>,
+    position: SeriesLabelPosition,
+) -> Result<()> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((FONT, 14))
+        .draw()
+        .map_err(err)
+}
+
 /// A histogram of each leg's one-way delays, ms.
 pub(crate) fn delays(
     dir: &Path,
@@ -111,42 +154,31 @@ pub(crate) fn delays(
                 peak,
             } = self;
             let (top, width, peak) = (*top, *width, *peak);
-            root.fill(&WHITE).map_err(err)?;
-            let mut chart = ChartBuilder::on(root)
-                .caption(title, (FONT, 20))
-                .margin(12)
-                .x_label_area_size(36)
-                .y_label_area_size(52)
-                .build_cartesian_2d(0.0..top, 0.0..peak.max(0.01))
-                .map_err(err)?;
-            chart
-                .configure_mesh()
-                .x_desc("one-way delay, ms (measured at the Media)")
-                .y_desc("share of messages")
-                .label_style((FONT, 13))
-                .draw()
-                .map_err(err)?;
+            let mut chart = chart(
+                root,
+                title,
+                (top, peak.max(0.01)),
+                (
+                    "one-way delay, ms (measured at the Media)",
+                    "share of messages",
+                ),
+            )?;
             for (k, ((leg, _), c)) in legs.iter().zip(counts.iter()).enumerate() {
                 let colour = [EVENT, TIME, THIRD][k % 3];
+                // Each leg as a step outline, so overlapping legs stay readable.
+                let steps = c.iter().enumerate().flat_map(|(i, &share)| {
+                    let x0 = i as f64 * width;
+                    [(x0, share), (x0 + width, share)]
+                });
                 chart
-                    .draw_series(c.iter().enumerate().map(|(i, &share)| {
-                        let x0 = i as f64 * width;
-                        Rectangle::new([(x0, 0.0), (x0 + width, share)], colour.mix(0.45).filled())
-                    }))
+                    .draw_series(LineSeries::new(steps, colour.stroke_width(2)))
                     .map_err(err)?
                     .label(*leg)
                     .legend(move |(x, y)| {
-                        Rectangle::new([(x, y - 5), (x + 14, y + 5)], colour.filled())
+                        PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
                     });
             }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font((FONT, 14))
-                .draw()
-                .map_err(err)?;
-            Ok(())
+            legend(&mut chart, SeriesLabelPosition::UpperRight)
         }
     }
     both(
@@ -198,21 +230,7 @@ pub(crate) fn lines(
                 y_max,
             } = self;
             let (x_max, y_max, points) = (*x_max, *y_max, *points);
-            root.fill(&WHITE).map_err(err)?;
-            let mut chart = ChartBuilder::on(root)
-                .caption(title, (FONT, 20))
-                .margin(12)
-                .x_label_area_size(36)
-                .y_label_area_size(52)
-                .build_cartesian_2d(0.0..x_max, 0.0..y_max)
-                .map_err(err)?;
-            chart
-                .configure_mesh()
-                .x_desc(axes.0)
-                .y_desc(axes.1)
-                .label_style((FONT, 13))
-                .draw()
-                .map_err(err)?;
+            let mut chart = chart(root, title, (x_max, y_max), *axes)?;
             for (label, colour, data) in series.iter() {
                 let colour = *colour;
                 chart
@@ -231,15 +249,7 @@ pub(crate) fn lines(
                         .map_err(err)?;
                 }
             }
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperLeft)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font((FONT, 14))
-                .draw()
-                .map_err(err)?;
-            Ok(())
+            legend(&mut chart, SeriesLabelPosition::UpperLeft)
         }
     }
     both(
@@ -279,21 +289,7 @@ pub(crate) fn paths(
                 planned,
                 taken,
             } = self;
-            root.fill(&WHITE).map_err(err)?;
-            let mut chart = ChartBuilder::on(root)
-                .caption(title, (FONT, 20))
-                .margin(12)
-                .x_label_area_size(36)
-                .y_label_area_size(52)
-                .build_cartesian_2d(0.0..floor_mm.0, 0.0..floor_mm.1)
-                .map_err(err)?;
-            chart
-                .configure_mesh()
-                .x_desc("x, mm")
-                .y_desc("y, mm")
-                .label_style((FONT, 13))
-                .draw()
-                .map_err(err)?;
+            let mut chart = chart(root, title, *floor_mm, ("x, mm", "y, mm"))?;
             let xy = |p: &Point| (p.x_mm, p.y_mm);
             chart
                 .draw_series(LineSeries::new(
@@ -315,14 +311,7 @@ pub(crate) fn paths(
                         PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
                     });
             }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font((FONT, 14))
-                .draw()
-                .map_err(err)?;
-            Ok(())
+            legend(&mut chart, SeriesLabelPosition::UpperRight)
         }
     }
     both(

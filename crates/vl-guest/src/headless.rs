@@ -243,27 +243,23 @@ async fn welcomed(url: &str, role: Role, script: &Script) -> Result<Scripted, Sc
     Ok(guest)
 }
 
-/// How long a run that ran out of time is given to report its end.
-const STOP_WAIT: Duration = Duration::from_secs(5);
-
-/// Connects to `url` as operator, defines a path to the goal and starts
-/// the run, which the Host follows; reports the run's end. A run that
-/// outlasts `script.timeout` is stopped and reported as stopped.
-pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptError> {
+/// Connects to `url` as operator and mounts the experiment; plans a path
+/// from where the robot is seen to the goal on the lab's map, as a user does
+/// on the camera view, defines it and starts the run.
+async fn started(url: &str, script: &Script) -> Result<(Scripted, Route, Goal), ScriptError> {
     let mut guest = welcomed(url, Role::Operator, script).await?;
+    guest.session.control = script.control;
     let ignore = |_: &mut Session, _: &Connection| {};
     guest.connection.send(GuestMessage::Mount {
         experiment: script.experiment.to_string(),
     });
     guest.until("mount", ignore, |s| s.lab.is_some()).await?;
     let lab = guest.session.lab.clone().expect("mounted");
-
     let goal = match (script.goal, lab.arena.goal) {
         (Some(goal), _) => goal,
         (None, Some(p)) => Goal::at(p),
         (None, None) => return Err(ScriptError::NoGoal(script.experiment)),
     };
-    // Plan from where the robot is, as a user does on the camera view.
     guest
         .until("see the robot", ignore, |s| s.robot.is_some())
         .await?;
@@ -275,9 +271,20 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
     guest
         .until("define the goal", ignore, |s| s.definition.is_some())
         .await?;
-
     guest.connection.send(GuestMessage::Start);
     guest.until("start", ignore, |s| s.running).await?;
+    Ok((guest, route, goal))
+}
+
+/// How long a run that ran out of time is given to report its end.
+const STOP_WAIT: Duration = Duration::from_secs(5);
+
+/// Connects to `url` as operator, defines a path to the goal and starts
+/// the run, which the Host follows; reports the run's end. A run that
+/// outlasts `script.timeout` is stopped and reported as stopped.
+pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptError> {
+    let (mut guest, route, goal) = started(url, script).await?;
+    let ignore = |_: &mut Session, _: &Connection| {};
 
     // The Host follows the path; the Guest watches it go.
     let mut last_progress = Instant::now();
@@ -365,32 +372,7 @@ fn steer(seen: Pose, target: Point, to_goal_mm: f64, lag_s: f64) -> Drive {
 /// the path from the feedback as it arrives, paced by `script.control` —
 /// and stops the run when the feedback shows the goal reached.
 pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptError> {
-    let mut guest = welcomed(url, Role::Operator, script).await?;
-    guest.session.control = script.control;
-    let ignore = |_: &mut Session, _: &Connection| {};
-    guest.connection.send(GuestMessage::Mount {
-        experiment: script.experiment.to_string(),
-    });
-    guest.until("mount", ignore, |s| s.lab.is_some()).await?;
-    let lab = guest.session.lab.clone().expect("mounted");
-    let goal = match (script.goal, lab.arena.goal) {
-        (Some(goal), _) => goal,
-        (None, Some(p)) => Goal::at(p),
-        (None, None) => return Err(ScriptError::NoGoal(script.experiment)),
-    };
-    guest
-        .until("see the robot", ignore, |s| s.robot.is_some())
-        .await?;
-    let start = guest.session.robot.as_ref().expect("seen").pose;
-    let route = Route::plan(&lab, start, goal, Vec::new(), &Settings::default())?;
-    guest.connection.send(GuestMessage::Define {
-        definition: route.definition.clone(),
-    });
-    guest
-        .until("define the goal", ignore, |s| s.definition.is_some())
-        .await?;
-    guest.connection.send(GuestMessage::Start);
-    guest.until("start", ignore, |s| s.running).await?;
+    let (mut guest, route, goal) = started(url, script).await?;
 
     let targets = waypoints(&route.definition.path);
     let mut next = 0;
