@@ -32,7 +32,7 @@ async fn a_turn_of_1e307_leaves_every_later_feedback_finite() {
     ] {
         assert_finite_feedback(&op.command(event, drive).await);
     }
-    drop(op);
+    let _ = op.ws.close(None).await;
     // The next operator finds the lab as it should be.
     tokio::time::sleep(Duration::from_millis(200)).await;
     let mut next = Peer::connect(&url).await;
@@ -92,10 +92,20 @@ async fn idle_sockets_by_the_thousand_never_lock_a_client_out() {
 
 /// An operator who stops commanding loses the run and the role after the
 /// lease; one who freezes (reads and sends nothing) is dropped after the
-/// ping timeout; either way another client can take over.
+/// ping timeout and, its link as good as dropped, loses the role after the
+/// grace; either way another client can take over.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn silent_and_frozen_operators_lose_the_role() {
-    let (_host, url) = start_host(&["--camera", "none", "--lease", "1", "--ping-timeout", "1.5"]);
+    let (_host, url) = start_host(&[
+        "--camera",
+        "none",
+        "--lease",
+        "1",
+        "--ping-timeout",
+        "1.5",
+        "--grace",
+        "1",
+    ]);
     let mut silent = Peer::connect(&url).await;
     silent.hello("operator").await;
     silent.start("teleoperation").await;

@@ -217,7 +217,7 @@ async fn the_robot_stops_when_the_operator_leaves() {
     watcher.hello("observer").await;
     start_teleoperation(&mut op).await;
     drive(&mut op, 1, 20, 300.0, 300.0).await;
-    drop(op);
+    let _ = op.ws.close(None).await;
 
     let done = watcher.expect("done").await;
     assert_eq!(done["summary"]["reason"], "operator_left");

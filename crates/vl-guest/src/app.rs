@@ -864,8 +864,8 @@ impl GuestApp {
                 && let Some(ghost) = self.session.predicted(Instant::now())
             {
                 let at = to_screen(ghost.point());
-                painter.circle_filled(at, r, GHOST_COLOUR.gamma_multiply(0.35));
-                painter.circle_stroke(at, r, Stroke::new(1.5, GHOST_COLOUR));
+                // An outline only: the camera's image of the robot stays visible.
+                painter.circle_stroke(at, r, Stroke::new(2.0, GHOST_COLOUR));
                 let nose = to_screen(ghost.to_world(lab.robot.radius_mm * 1.6, 0.0));
                 painter.line_segment([at, nose], Stroke::new(1.5, GHOST_COLOUR));
                 painter.line_segment([centre, at], Stroke::new(1.0, GHOST_COLOUR));

@@ -55,10 +55,11 @@ pub(crate) struct Connection {
 /// How a connection ends.
 #[derive(Debug)]
 enum End {
-    /// Quietly: the client closed, or the Host is stopping.
+    /// Quietly: the socket ended without a word (a dropped link), or the
+    /// Host is stopping.
     Closed,
-    /// The client said bye: it means to leave.
-    Bye,
+    /// The client said bye or closed the WebSocket: it means to leave.
+    Left,
     /// With an `error` to the client saying why, then a close.
     Refused(ErrorCode, String),
     /// The socket failed.
@@ -144,10 +145,10 @@ impl Connection {
             return Ok(());
         }
         let end = self.serve(&mut sink, &mut source, &mut inbox).await;
-        let said_bye = matches!(end, End::Bye);
-        let _ = self.hub.send(ToHub::Leave(self.id, said_bye)).await;
+        let left = matches!(end, End::Left);
+        let _ = self.hub.send(ToHub::Leave(self.id, left)).await;
         match end {
-            End::Closed | End::Bye => {}
+            End::Closed | End::Left => {}
             End::Refused(code, why) => {
                 debug!(connection = self.id, %code, "closing: {why}");
                 let _ = put(&mut sink, text_of(&error(code, why))).await;
@@ -190,7 +191,8 @@ impl Connection {
                 }
                 incoming = source.next(), if paused_until.is_none() => {
                     let message = match incoming {
-                        None | Some(Ok(Message::Close(_))) => return End::Closed,
+                        None => return End::Closed,
+                        Some(Ok(Message::Close(_))) => return End::Left,
                         Some(Err(tungstenite::Error::Capacity(e))) => {
                             // The rest of that message cannot be skipped.
                             return End::Refused(ErrorCode::TooLarge, format!("message too large: {e}"));
@@ -225,7 +227,7 @@ impl Connection {
                             debug!(connection = self.id, rtt_ms, "round trip");
                             None
                         }
-                        Ok(GuestMessage::Bye) => return End::Bye,
+                        Ok(GuestMessage::Bye) => return End::Left,
                         Ok(message @ GuestMessage::Hello { .. }) => {
                             if self.hub.send(ToHub::Message(self.id, message)).await.is_err() {
                                 return End::Closed;

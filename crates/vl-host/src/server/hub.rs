@@ -30,7 +30,8 @@ const LEASE_CHECK: Duration = Duration::from_millis(250);
 pub(crate) enum ToHub {
     Join(u64, mpsc::Sender<ToConnection>),
     Message(u64, GuestMessage),
-    /// The connection closed; true when the client said bye.
+    /// The connection closed; true when the client meant to leave (said
+    /// bye or closed the WebSocket), false when its link dropped.
     Leave(u64, bool),
 }
 
@@ -160,7 +161,7 @@ impl Hub {
                         self.clients.insert(id, Client { out, role: None });
                     }
                     Some(ToHub::Message(id, message)) => self.handle(id, message),
-                    Some(ToHub::Leave(id, said_bye)) => self.leave(id, said_bye),
+                    Some(ToHub::Leave(id, meant)) => self.leave(id, meant),
                     None => return,
                 },
             }
@@ -544,9 +545,9 @@ impl Hub {
     }
 
     /// A connection closed: if it was the operator, the robot stops; the
-    /// lab returns to idle for the next person at once if they said bye,
+    /// lab returns to idle for the next person at once if they meant to leave,
     /// or after the grace if their link dropped and they do not come back.
-    fn leave(&mut self, id: u64, said_bye: bool) {
+    fn leave(&mut self, id: u64, meant: bool) {
         self.clients.remove(&id);
         if self.operator != Some(id) {
             return;
@@ -556,7 +557,7 @@ impl Hub {
         // A link that dropped may come back: the role and the run are held
         // for the grace, the robot still; a lab with nothing on it is free.
         if let Some(resume) = self.resume.take()
-            && !said_bye
+            && !meant
             && !self.config.grace.is_zero()
             && self.experiment.is_some()
         {
