@@ -16,6 +16,10 @@ use tokio_tungstenite::tungstenite::Message;
 use vl_core::Named;
 use vl_sim::{Delivery, LinkModel, MessageLink, Profile};
 
+/// The tests here time the relay, and one runs a whole lab: one at a
+/// time, so none measures another's load.
+static ONE_AT_A_TIME: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
 const CONNECTIONS: u64 = 8;
 const PINGS: usize = 25;
 const INTERVAL: Duration = Duration::from_millis(100);
@@ -145,6 +149,7 @@ fn zero_profile(dir: &std::path::Path) -> String {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_relay_gives_real_messages_each_profile_s_delay_and_jitter() {
+    let _alone = ONE_AT_A_TIME.lock().await;
     let upstream = echo().await;
     let dir = scratch("media-profiles");
     let (_zero, zero_url) = media(&upstream, &zero_profile(&dir));
@@ -197,6 +202,7 @@ async fn the_relay_gives_real_messages_each_profile_s_delay_and_jitter() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_disconnect_closes_connections_and_refuses_new_ones_until_it_ends() {
+    let _alone = ONE_AT_A_TIME.lock().await;
     let upstream = echo().await;
     let dir = scratch("media-disconnect");
     let file = dir.join("outage.json");
@@ -259,6 +265,7 @@ fn bad_profiles_and_upstreams_are_named() {
 
 #[test]
 fn a_demo_behind_a_link_feels_its_delay() {
+    let _alone = ONE_AT_A_TIME.blocking_lock();
     let report = common::vl_json(&["demo", "--headless", "--json", "--link", "intercontinental"]);
     assert_eq!(report["reached_goal"], true, "{report}");
     let rtt = report["round_trip_ms"]["p50"].as_f64().unwrap();

@@ -194,16 +194,7 @@ impl Safety {
             } else {
                 WheelSpeeds::default()
             };
-            let next = WheelSpeeds {
-                left_mm_s: response.step(wheels.left_mm_s, target.left_mm_s, CHECK_STEP_S),
-                right_mm_s: response.step(wheels.right_mm_s, target.right_mm_s, CHECK_STEP_S),
-            };
-            let mean = WheelSpeeds {
-                left_mm_s: (wheels.left_mm_s + next.left_mm_s) / 2.0,
-                right_mm_s: (wheels.right_mm_s + next.right_mm_s) / 2.0,
-            };
-            pose = pose.advance(mean, robot.wheel_base_mm, CHECK_STEP_S);
-            wheels = next;
+            (pose, wheels) = robot.respond(pose, wheels, target, CHECK_STEP_S);
             t += CHECK_STEP_S;
             if !clear(pose) {
                 return false;

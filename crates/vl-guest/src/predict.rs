@@ -155,17 +155,7 @@ impl Predictor {
                 asked = WheelSpeeds::default();
             }
             let dt = STEP_S.min(horizon - t);
-            let response = &robot.response;
-            let stepped = WheelSpeeds {
-                left_mm_s: response.step(actual.left_mm_s, asked.left_mm_s, dt),
-                right_mm_s: response.step(actual.right_mm_s, asked.right_mm_s, dt),
-            };
-            let mean = WheelSpeeds {
-                left_mm_s: (actual.left_mm_s + stepped.left_mm_s) / 2.0,
-                right_mm_s: (actual.right_mm_s + stepped.right_mm_s) / 2.0,
-            };
-            pose = pose.advance(mean, robot.wheel_base_mm, dt);
-            actual = stepped;
+            (pose, actual) = robot.respond(pose, actual, asked, dt);
             t += dt;
         }
         Some(pose)

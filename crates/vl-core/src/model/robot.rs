@@ -308,6 +308,30 @@ impl RobotModel {
         }
     }
 
+    /// Where the robot at `pose` with its wheels at `wheels` is `dt_s`
+    /// later with `asked` in force, and its wheels then: each wheel through
+    /// the speed response, the pose along the step's mean speeds. The one
+    /// way the safety layer's braking check and the Guest's prediction
+    /// carry the robot forward.
+    pub fn respond(
+        &self,
+        pose: Pose,
+        wheels: WheelSpeeds,
+        asked: WheelSpeeds,
+        dt_s: f64,
+    ) -> (Pose, WheelSpeeds) {
+        let response = &self.response;
+        let next = WheelSpeeds {
+            left_mm_s: response.step(wheels.left_mm_s, asked.left_mm_s, dt_s),
+            right_mm_s: response.step(wheels.right_mm_s, asked.right_mm_s, dt_s),
+        };
+        let mean = WheelSpeeds {
+            left_mm_s: (wheels.left_mm_s + next.left_mm_s) / 2.0,
+            right_mm_s: (wheels.right_mm_s + next.right_mm_s) / 2.0,
+        };
+        (pose.advance(mean, self.wheel_base_mm, dt_s), next)
+    }
+
     /// Wheel speeds for a linear speed `v` (mm/s) and turn rate `w` (rad/s).
     /// Each is first saturated to what the wheels can do (a turn rate no
     /// faster than both wheels at full speed in opposite directions), so
