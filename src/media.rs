@@ -6,8 +6,9 @@
 use std::net::SocketAddr;
 
 use anyhow::{Context, Result};
+use vl_core::Named;
 use vl_host::{Media, MediaConfig};
-use vl_sim::LinkModel;
+use vl_sim::{LinkModel, Profile};
 
 use crate::BadInput;
 use crate::report::{Report, Table, emit};
@@ -70,8 +71,13 @@ enum MediaTool {
     /// Measure what the relay adds to a round trip by itself: an echo
     /// server's round trips straight and through a zero-delay relay, in turn.
     Bench {
+        /// Round trips each way for the relay's own cost.
         #[arg(long, default_value_t = 5000, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
         messages: u64,
+        /// Profiles to check the relay against its model on, comma-separated
+        /// (names or files; default: every shipped one).
+        #[arg(long, value_delimiter = ',')]
+        profiles: Vec<String>,
         #[arg(long)]
         json: bool,
     },
@@ -79,29 +85,63 @@ enum MediaTool {
 
 impl Report for vl_host::MediaBench {
     fn table(&self) -> Table {
-        let mut table = Table::columns(&["round trip", "p50 ms", "p99 ms"]);
-        for (name, rt) in [
-            ("straight", self.direct),
-            ("through the relay", self.relayed),
-            ("added by the relay", self.added),
-        ] {
+        let mut table = Table::columns(&[
+            "profile",
+            "model rtt",
+            "relay rtt",
+            "ratio",
+            "model sd",
+            "relay sd",
+            "ratio",
+            "timing sd",
+        ]);
+        for p in &self.profiles {
             table.row(vec![
-                name.into(),
-                format!("{:.3}", rt.p50_ms),
-                format!("{:.3}", rt.p99_ms),
+                p.profile.clone(),
+                format!("{:.3}", p.model_mean_ms),
+                format!("{:.3}", p.relay_mean_ms),
+                format!("{:.3}", p.relay_mean_ms / p.model_mean_ms),
+                format!("{:.3}", p.model_sd_ms),
+                format!("{:.3}", p.relay_sd_ms),
+                format!("{:.3}", p.relay_sd_ms / p.model_sd_ms),
+                format!("{:.3}", p.timing_sd_ms),
             ]);
         }
-        table.note(format!(
-            "{} round trips each way, 100-byte messages, taken in turn",
-            self.messages
-        ))
+        let (d, r, a) = (self.direct, self.relayed, self.added);
+        table
+            .title(format!(
+                "the relay's own cost, {} round trips each way, taken in turn (p50 / p99 ms): \
+                 straight {:.3} / {:.3}, through a zero-delay relay {:.3} / {:.3}, added {:.3} / {:.3}",
+                self.messages, d.p50_ms, d.p99_ms, r.p50_ms, r.p99_ms, a.p50_ms, a.p99_ms
+            ))
+            .title("each profile's round trip through the relay (its own cost taken away) against the same-seeded model on the same send times, ms:")
+            .note(format!(
+                "{} messages per profile on 8 connections, one at a time; the relay's own round trip on that traffic: \
+                 mean {:.3} ms, sd {:.3} ms; timing sd: each round trip against its own model's, beyond the mean offset",
+                self.profiles.first().map_or(0, |p| p.messages),
+                self.own_mean_ms,
+                self.own_sd_ms
+            ))
     }
 }
 
 pub(crate) async fn run(command: MediaCommand) -> Result<()> {
     match command.tool {
-        Some(MediaTool::Bench { messages, json }) => {
-            let bench = vl_host::media_bench(messages as usize)
+        Some(MediaTool::Bench {
+            messages,
+            profiles,
+            json,
+        }) => {
+            let names: Vec<String> = if profiles.is_empty() {
+                Profile::ALL.iter().map(|p| p.id().to_owned()).collect()
+            } else {
+                profiles
+            };
+            let links = names
+                .iter()
+                .map(|n| Ok((n.clone(), load(n)?)))
+                .collect::<Result<Vec<_>>>()?;
+            let bench = vl_host::media_bench(messages as usize, &links)
                 .await
                 .map_err(|e| anyhow::anyhow!("the relay bench failed: {e}"))?;
             emit(&bench, json)

@@ -78,12 +78,14 @@ async fn round_trips(url: &str) -> Vec<Vec<(f64, f64)>> {
         sockets.push(ws);
     }
     let epoch = Instant::now();
-    let runs = sockets.into_iter().map(|ws| async move {
+    // Staggered, one message at a time: the link is timed, not a burst.
+    let runs = (0u32..).zip(sockets).map(|(k, ws)| async move {
+        let offset = INTERVAL * k / CONNECTIONS as u32;
         let (mut sink, mut source) = ws.split();
         let sender = async {
             let mut sent = Vec::new();
             for i in 0..PINGS {
-                tokio::time::sleep_until((epoch + INTERVAL * i as u32).into()).await;
+                tokio::time::sleep_until((epoch + offset + INTERVAL * i as u32).into()).await;
                 sent.push(epoch.elapsed().as_secs_f64() * 1e3);
                 sink.send(Message::text(format!("{i:0>64}"))).await.unwrap();
             }

@@ -125,6 +125,9 @@ fn for_test(args: &mut Vec<String>, ports: &[(String, String)], link: &str) {
         Some("petri") if args.get(1).map(String::as_str) == Some("bench") => {
             args.extend(["--model", "SwimmingPool-PT-02"].map(String::from));
         }
+        Some("media") if args.get(1).map(String::as_str) == Some("bench") => {
+            args.extend(["--messages", "200", "--profiles", "lan"].map(String::from));
+        }
         // The whole matrix runs in tests/experiment_media.rs.
         Some("experiment") if args.get(1).map(String::as_str) == Some("report") => {
             args.extend(["--profiles", "lan,intercontinental"].map(String::from));

@@ -4,7 +4,8 @@
 //! Each connection's two directions are separate `MessageLink`s, so a
 //! message keeps TCP's order and a lost packet shows as a retransmission's
 //! wait; a scheduled disconnect closes every connection and refuses new ones
-//! until it ends.
+//! until it ends. What the relay costs by itself, and whether it keeps to
+//! its model on real messages, is measured in `bench`.
 
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -21,6 +22,10 @@ use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tracing::debug;
 use vl_core::{MAX_FRAME_BYTES, MAX_TEXT_BYTES};
 use vl_sim::{Delivery, LinkModel, MessageLink};
+
+mod bench;
+
+pub use bench::{MediaBench, Reproduced, RoundTrip, bench};
 
 /// Connections the relay carries at once: as many as a Host serves.
 const CONNECTIONS: usize = 64;
@@ -306,109 +311,4 @@ async fn wait_until(at: Instant) {
     while Instant::now() < at {
         tokio::task::yield_now().await;
     }
-}
-
-/// Round-trip percentiles, ms.
-#[derive(Debug, Clone, Copy, serde::Serialize)]
-pub struct RoundTrip {
-    pub p50_ms: f64,
-    pub p99_ms: f64,
-}
-
-impl RoundTrip {
-    fn of(mut ms: Vec<f64>) -> RoundTrip {
-        ms.sort_by(f64::total_cmp);
-        let at = |q: f64| ms[((q * ms.len() as f64).ceil() as usize).clamp(1, ms.len()) - 1];
-        RoundTrip {
-            p50_ms: at(0.5),
-            p99_ms: at(0.99),
-        }
-    }
-}
-
-/// What the relay costs by itself: round trips to an echo server, straight
-/// and through a relay whose link has no delay, taken in turn.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct MediaBench {
-    pub messages: usize,
-    pub direct: RoundTrip,
-    pub relayed: RoundTrip,
-    /// Relayed minus direct, at each percentile.
-    pub added: RoundTrip,
-}
-
-/// Times `messages` round trips each way; `messages` must be at least 1.
-pub async fn bench(messages: usize) -> Result<MediaBench, String> {
-    let echo = TcpListener::bind(("127.0.0.1", 0))
-        .await
-        .map_err(|e| e.to_string())?;
-    let echo_url = format!("ws://{}", echo.local_addr().map_err(|e| e.to_string())?);
-    let server = tokio::spawn(async move {
-        while let Ok((stream, _)) = echo.accept().await {
-            let _ = stream.set_nodelay(true);
-            tokio::spawn(async move {
-                let Ok(mut ws) = tokio_tungstenite::accept_async(stream).await else {
-                    return;
-                };
-                while let Some(Ok(m)) = ws.next().await {
-                    if m.is_text() && ws.send(m).await.is_err() {
-                        return;
-                    }
-                }
-            });
-        }
-    });
-    let zero = LinkModel {
-        delay_ms: 0.0,
-        jitter_ms: 0.0,
-        ..LinkModel::profile(vl_sim::Profile::Lan)
-    };
-    let media = Media::start(
-        ([127, 0, 0, 1], 0).into(),
-        MediaConfig {
-            upstream: echo_url.clone(),
-            model: zero,
-            seed: 0,
-        },
-    )
-    .await
-    .map_err(|e| e.to_string())?;
-    let connect = |url: String| async move {
-        tokio_tungstenite::connect_async_with_config(url, None, true)
-            .await
-            .map(|(ws, _)| ws)
-            .map_err(|e| e.to_string())
-    };
-    let mut direct_ws = connect(echo_url).await?;
-    let mut relayed_ws = connect(media.url()).await?;
-    let (mut direct, mut relayed) = (Vec::new(), Vec::new());
-    let text = Message::text("x".repeat(100));
-    for _ in 0..messages.max(1) {
-        for (ws, times) in [
-            (&mut direct_ws, &mut direct),
-            (&mut relayed_ws, &mut relayed),
-        ] {
-            let sent = Instant::now();
-            ws.send(text.clone()).await.map_err(|e| e.to_string())?;
-            loop {
-                match ws.next().await {
-                    Some(Ok(m)) if m.is_text() => break,
-                    Some(Ok(_)) => {}
-                    other => return Err(format!("the echo stopped: {other:?}")),
-                }
-            }
-            times.push(sent.elapsed().as_secs_f64() * 1e3);
-        }
-    }
-    server.abort();
-    let (direct, relayed) = (RoundTrip::of(direct), RoundTrip::of(relayed));
-    Ok(MediaBench {
-        messages: messages.max(1),
-        added: RoundTrip {
-            p50_ms: relayed.p50_ms - direct.p50_ms,
-            p99_ms: relayed.p99_ms - direct.p99_ms,
-        },
-        direct,
-        relayed,
-    })
 }

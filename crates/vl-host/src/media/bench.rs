@@ -1,0 +1,283 @@
+//! What the relay costs by itself, and whether it gives real messages the
+//! delays its model says. An echo server's round trips are timed straight
+//! and through a zero-delay relay, taken in turn; then through each
+//! profile, on several connections at once, against the same-seeded model
+//! run in virtual time on the same send times (connection k's links are
+//! seeded `seed + 2k` and `seed + 2k + 1`, as the relay numbers them in the
+//! order they connect).
+
+use std::time::{Duration, Instant};
+
+use futures_util::{SinkExt, StreamExt};
+use serde::Serialize;
+use tokio::net::TcpListener;
+use tokio_tungstenite::tungstenite::Message;
+use vl_sim::{Delivery, LinkModel, MessageLink};
+
+use super::{Media, MediaConfig};
+
+/// Connections measured at once per profile, messages on each, and how
+/// often each sends: far enough apart that TCP's order rarely holds a
+/// message behind the one before.
+const CONNECTIONS: u64 = 8;
+const PER_CONNECTION: usize = 50;
+const INTERVAL: Duration = Duration::from_millis(100);
+/// The relays' seed.
+const SEED: u64 = 11;
+/// The timed messages' size, bytes.
+const MESSAGE_BYTES: usize = 100;
+
+/// Round-trip percentiles, ms.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct RoundTrip {
+    pub p50_ms: f64,
+    pub p99_ms: f64,
+}
+
+impl RoundTrip {
+    fn of(mut ms: Vec<f64>) -> RoundTrip {
+        ms.sort_by(f64::total_cmp);
+        let at = |q: f64| ms[((q * ms.len() as f64).ceil() as usize).clamp(1, ms.len()) - 1];
+        RoundTrip {
+            p50_ms: at(0.5),
+            p99_ms: at(0.99),
+        }
+    }
+}
+
+/// One profile's round trips through the relay against its model, ms.
+#[derive(Debug, Clone, Serialize)]
+pub struct Reproduced {
+    pub profile: String,
+    pub messages: usize,
+    pub model_mean_ms: f64,
+    pub model_sd_ms: f64,
+    /// What the relay added by its model: its own zero-delay cost taken
+    /// away (the mean subtracted, the variance too).
+    pub relay_mean_ms: f64,
+    pub relay_sd_ms: f64,
+    /// How far each round trip was from its own model's, beyond the mean
+    /// offset (the deviation of measured − modelled): the relay's timing
+    /// and the measurement's noise together.
+    pub timing_sd_ms: f64,
+}
+
+/// What the relay costs, and how closely it keeps to its model.
+#[derive(Debug, Clone, Serialize)]
+pub struct MediaBench {
+    pub messages: usize,
+    pub direct: RoundTrip,
+    pub relayed: RoundTrip,
+    /// Relayed minus direct, at each percentile.
+    pub added: RoundTrip,
+    /// The zero-delay relay's round trip on the profiles' traffic, ms.
+    pub own_mean_ms: f64,
+    pub own_sd_ms: f64,
+    pub profiles: Vec<Reproduced>,
+}
+
+/// An echo server on a free port: every text message goes straight back.
+async fn echo() -> Result<(String, tokio::task::JoinHandle<()>), String> {
+    let listener = TcpListener::bind(("127.0.0.1", 0))
+        .await
+        .map_err(|e| e.to_string())?;
+    let url = format!("ws://{}", listener.local_addr().map_err(|e| e.to_string())?);
+    let server = tokio::spawn(async move {
+        while let Ok((stream, _)) = listener.accept().await {
+            let _ = stream.set_nodelay(true);
+            tokio::spawn(async move {
+                let Ok(mut ws) = tokio_tungstenite::accept_async(stream).await else {
+                    return;
+                };
+                while let Some(Ok(m)) = ws.next().await {
+                    if m.is_text() && ws.send(m).await.is_err() {
+                        return;
+                    }
+                }
+            });
+        }
+    });
+    Ok((url, server))
+}
+
+type Socket =
+    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
+async fn connect(url: &str) -> Result<Socket, String> {
+    tokio_tungstenite::connect_async_with_config(url, None, true)
+        .await
+        .map(|(ws, _)| ws)
+        .map_err(|e| e.to_string())
+}
+
+/// Sends `text` and waits for it to come back.
+async fn round_trip(ws: &mut Socket, text: &Message) -> Result<f64, String> {
+    let sent = Instant::now();
+    ws.send(text.clone()).await.map_err(|e| e.to_string())?;
+    loop {
+        match ws.next().await {
+            Some(Ok(m)) if m.is_text() => return Ok(sent.elapsed().as_secs_f64() * 1e3),
+            Some(Ok(_)) => {}
+            other => return Err(format!("the echo stopped: {other:?}")),
+        }
+    }
+}
+
+fn relay(upstream: &str, model: LinkModel) -> MediaConfig {
+    MediaConfig {
+        upstream: upstream.to_owned(),
+        model,
+        seed: SEED,
+    }
+}
+
+fn zero() -> LinkModel {
+    LinkModel {
+        delay_ms: 0.0,
+        jitter_ms: 0.0,
+        ..LinkModel::profile(vl_sim::Profile::Lan)
+    }
+}
+
+/// Each connection's (send time ms from the first send, round trip ms)
+/// through the relay at `url`.
+async fn trips(url: &str) -> Result<Vec<Vec<(f64, f64)>>, String> {
+    let mut sockets = Vec::new();
+    // One at a time, so the relay numbers them in this order.
+    for _ in 0..CONNECTIONS {
+        sockets.push(connect(url).await?);
+    }
+    let epoch = Instant::now();
+    let text = Message::text("x".repeat(MESSAGE_BYTES));
+    // Connection k sends k/8 of an interval after the first: one message
+    // at a time, so what is timed is the link, not a burst's queueing.
+    let runs = (0u32..).zip(sockets).map(|(k, ws)| {
+        let text = text.clone();
+        let offset = INTERVAL * k / CONNECTIONS as u32;
+        async move {
+            let (mut sink, mut source) = ws.split();
+            let sender = async {
+                let mut sent = Vec::new();
+                for i in 0..PER_CONNECTION {
+                    tokio::time::sleep_until((epoch + offset + INTERVAL * i as u32).into()).await;
+                    sent.push(epoch.elapsed().as_secs_f64() * 1e3);
+                    sink.send(text.clone()).await.map_err(|e| e.to_string())?;
+                }
+                Ok::<_, String>(sent)
+            };
+            let receiver = async {
+                let mut back = Vec::new();
+                while back.len() < PER_CONNECTION {
+                    match source.next().await {
+                        Some(Ok(m)) if m.is_text() => {
+                            back.push(epoch.elapsed().as_secs_f64() * 1e3)
+                        }
+                        Some(Ok(_)) => {}
+                        other => return Err(format!("the relay ended a connection: {other:?}")),
+                    }
+                }
+                Ok(back)
+            };
+            let (sent, back) = tokio::join!(sender, receiver);
+            let (sent, back) = (sent?, back?);
+            Ok::<_, String>(sent.iter().zip(&back).map(|(s, b)| (*s, b - s)).collect())
+        }
+    });
+    futures_util::future::join_all(runs)
+        .await
+        .into_iter()
+        .collect()
+}
+
+/// Each of `measured`'s round trips beside what the model says it is, on
+/// the same send times: (measured, modelled).
+fn modelled(model: &LinkModel, measured: &[Vec<(f64, f64)>]) -> Vec<(f64, f64)> {
+    let mut all = Vec::new();
+    for (k, pings) in (0u64..).zip(measured) {
+        let mut up = MessageLink::new(model.clone(), SEED + 2 * k);
+        let mut down = MessageLink::new(model.clone(), SEED + 2 * k + 1);
+        for &(sent, rtt) in pings {
+            if let Delivery::At(there) = up.send(sent, MESSAGE_BYTES)
+                && let Delivery::At(back) = down.send(there, MESSAGE_BYTES)
+            {
+                all.push((rtt, back - sent));
+            }
+        }
+    }
+    all
+}
+
+fn mean_sd(v: &[f64]) -> (f64, f64) {
+    let n = v.len().max(1) as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    (
+        mean,
+        (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt(),
+    )
+}
+
+fn rtts(trips: Vec<Vec<(f64, f64)>>) -> Vec<f64> {
+    trips.into_iter().flatten().map(|(_, rtt)| rtt).collect()
+}
+
+/// Times `messages` round trips straight and through a zero-delay relay,
+/// in turn; then each of `profiles` (named) against its model.
+pub async fn bench(
+    messages: usize,
+    profiles: &[(String, LinkModel)],
+) -> Result<MediaBench, String> {
+    let (echo_url, server) = echo().await?;
+    let own_relay = Media::start(([127, 0, 0, 1], 0).into(), relay(&echo_url, zero()))
+        .await
+        .map_err(|e| e.to_string())?;
+    let mut direct_ws = connect(&echo_url).await?;
+    let mut relayed_ws = connect(&own_relay.url()).await?;
+    let (mut direct, mut relayed) = (Vec::new(), Vec::new());
+    let text = Message::text("x".repeat(MESSAGE_BYTES));
+    let messages = messages.max(1);
+    for _ in 0..messages {
+        direct.push(round_trip(&mut direct_ws, &text).await?);
+        relayed.push(round_trip(&mut relayed_ws, &text).await?);
+    }
+    let (direct, relayed) = (RoundTrip::of(direct), RoundTrip::of(relayed));
+    // The relay's own cost on the profiles' traffic, from a fresh relay
+    // (the relay numbers connections from 0).
+    let own = Media::start(([127, 0, 0, 1], 0).into(), relay(&echo_url, zero()))
+        .await
+        .map_err(|e| e.to_string())?;
+    let (own_mean_ms, own_sd_ms) = mean_sd(&rtts(trips(&own.url()).await?));
+    let mut reproduced = Vec::new();
+    for (name, model) in profiles {
+        let media = Media::start(([127, 0, 0, 1], 0).into(), relay(&echo_url, model.clone()))
+            .await
+            .map_err(|e| e.to_string())?;
+        let pairs = modelled(model, &trips(&media.url()).await?);
+        let all: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+        let expected: Vec<f64> = pairs.iter().map(|p| p.1).collect();
+        let apart: Vec<f64> = pairs.iter().map(|p| p.0 - p.1).collect();
+        let (model_mean_ms, model_sd_ms) = mean_sd(&expected);
+        let (mean, sd) = mean_sd(&all);
+        reproduced.push(Reproduced {
+            profile: name.clone(),
+            messages: all.len(),
+            model_mean_ms,
+            model_sd_ms,
+            relay_mean_ms: mean - own_mean_ms,
+            relay_sd_ms: (sd * sd - own_sd_ms * own_sd_ms).max(0.0).sqrt(),
+            timing_sd_ms: mean_sd(&apart).1,
+        });
+    }
+    server.abort();
+    Ok(MediaBench {
+        messages,
+        added: RoundTrip {
+            p50_ms: relayed.p50_ms - direct.p50_ms,
+            p99_ms: relayed.p99_ms - direct.p99_ms,
+        },
+        direct,
+        relayed,
+        own_mean_ms,
+        own_sd_ms,
+        profiles: reproduced,
+    })
+}
