@@ -266,7 +266,7 @@ pub(crate) struct HostArgs {
 }
 
 /// A duration the user gave, in seconds: above 0 and at most a day.
-fn seconds(what: &str, s: f64) -> Result<Duration, BadInput> {
+pub(crate) fn seconds(what: &str, s: f64) -> Result<Duration, BadInput> {
     if s.is_finite() && s > 0.0 && s <= 86_400.0 {
         Ok(Duration::from_secs_f64(s))
     } else {

@@ -17,7 +17,7 @@ use vl_host::FramePolicy;
 use vl_sim::{LinkModel, Optics, Profile};
 
 use super::plots::{self, EVENT, TIME};
-use super::{Control, Leg, Run, RunSpec, Which, line, run_one, timeout};
+use super::{Control, Leg, Run, RunSpec, Which, line, run_one};
 use crate::report::{Report, Table, emit, yes};
 use crate::sim::load_arena;
 
@@ -193,7 +193,7 @@ fn cell(runs: &[&Run]) -> Cell {
 }
 
 pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Result<ExitCode> {
-    let timeout = timeout(args.timeout)?;
+    let timeout = crate::lab::seconds("--timeout", args.timeout)?;
     let names: Vec<String> = if args.profiles.is_empty() {
         Profile::ALL.iter().map(|p| p.id().to_owned()).collect()
     } else {

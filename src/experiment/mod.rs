@@ -133,8 +133,7 @@ impl Leg {
         }
         let mut sorted = ms.to_vec();
         sorted.sort_by(f64::total_cmp);
-        let at =
-            |q: f64| sorted[((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len()) - 1];
+        let at = |q: f64| vl_core::nearest_rank(&sorted, q).unwrap_or(f64::NAN);
         Some(Leg {
             messages: sorted.len(),
             p50: at(0.5),
@@ -375,18 +374,6 @@ pub(crate) async fn run_one(spec: &RunSpec) -> Result<Run> {
     })
 }
 
-/// A timeout the user gave, checked.
-pub(crate) fn timeout(s: f64) -> Result<Duration> {
-    if s.is_finite() && s > 0.0 && s <= 86_400.0 {
-        Ok(Duration::from_secs_f64(s))
-    } else {
-        Err(BadInput(format!(
-            "--timeout must be a positive number of seconds up to a day, not {s}"
-        ))
-        .into())
-    }
-}
-
 pub(crate) fn run(
     runtime: &tokio::runtime::Runtime,
     command: ExperimentCommand,
@@ -395,7 +382,7 @@ pub(crate) fn run(
         ExperimentCommand::Run(args) => args,
         ExperimentCommand::Report(args) => return matrix::report(runtime, args),
     };
-    let timeout = timeout(args.timeout)?;
+    let timeout = crate::lab::seconds("--timeout", args.timeout)?;
     let names: Vec<String> = if args.arena.iter().any(|a| a == "all") {
         Arena::shipped().map(str::to_owned).collect()
     } else {

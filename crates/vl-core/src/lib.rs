@@ -42,7 +42,7 @@ pub use model::robot::{
 };
 pub use named::{Named, UnknownName};
 pub use navigation::analysis::{
-    ErrorMm, PathAnalysis, PathRecorder, PoseSource, distance_to_polyline,
+    ErrorMm, PathAnalysis, PathRecorder, PoseSource, distance_to_polyline, nearest_rank,
 };
 pub use navigation::bench::{PlanBench, PlanBenchError, bench as bench_planning};
 pub use navigation::cspace::{CSpace, CSpaceError, Footprint, Grid};

@@ -77,13 +77,9 @@ impl RoundTrips {
 
     /// The `q`-quantile (0..=1), nearest rank.
     pub fn quantile(&self, q: f64) -> Option<f64> {
-        if self.samples.is_empty() {
-            return None;
-        }
         let mut sorted = self.samples.clone();
         sorted.sort_by(f64::total_cmp);
-        let rank = ((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
-        Some(sorted[rank - 1])
+        vl_core::nearest_rank(&sorted, q)
     }
 }
 

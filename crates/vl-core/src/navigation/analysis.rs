@@ -61,6 +61,14 @@ impl Errors {
     }
 }
 
+/// The `q`-quantile (0..=1) of `sorted` (ascending) by nearest rank; none
+/// when there is nothing to rank. The one way round trips and delays are
+/// summarised.
+pub fn nearest_rank(sorted: &[f64], q: f64) -> Option<f64> {
+    let rank = ((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len().max(1));
+    sorted.get(rank - 1).copied()
+}
+
 /// Distance from `p` to the polyline through `path`; infinite for no path.
 pub fn distance_to_polyline(path: &[Point], p: Point) -> f64 {
     match path {

@@ -37,7 +37,7 @@ pub struct RoundTrip {
 impl RoundTrip {
     fn of(mut ms: Vec<f64>) -> RoundTrip {
         ms.sort_by(f64::total_cmp);
-        let at = |q: f64| ms[((q * ms.len() as f64).ceil() as usize).clamp(1, ms.len()) - 1];
+        let at = |q: f64| vl_core::nearest_rank(&ms, q).unwrap_or(f64::NAN);
         RoundTrip {
             p50_ms: at(0.5),
             p99_ms: at(0.99),
