@@ -93,7 +93,11 @@ impl Report for vl_host::MediaBench {
             "model sd",
             "relay sd",
             "ratio",
+            "tracked sd",
+            "ratio",
             "timing sd",
+            "hiccups",
+            "own rtt",
         ]);
         for p in &self.profiles {
             table.row(vec![
@@ -104,7 +108,11 @@ impl Report for vl_host::MediaBench {
                 format!("{:.3}", p.model_sd_ms),
                 format!("{:.3}", p.relay_sd_ms),
                 format!("{:.3}", p.relay_sd_ms / p.model_sd_ms),
+                format!("{:.3} ± {:.3}", p.tracked_sd_ms, p.tracked_se_ms),
+                format!("{:.3}", p.tracked_sd_ms / p.model_sd_ms),
                 format!("{:.3}", p.timing_sd_ms),
+                p.hiccups.to_string(),
+                format!("{:.3} ± {:.3}", p.own_mean_ms, p.own_sd_ms),
             ]);
         }
         let (d, r, a) = (self.direct, self.relayed, self.added);
@@ -115,13 +123,13 @@ impl Report for vl_host::MediaBench {
                 self.messages, d.p50_ms, d.p99_ms, r.p50_ms, r.p99_ms, a.p50_ms, a.p99_ms
             ))
             .title("each profile's round trip through the relay (its own cost taken away) against the same-seeded model on the same send times, ms:")
-            .note(format!(
-                "{} messages per profile on 8 connections, one at a time; the relay's own round trip on that traffic: \
-                 mean {:.3} ms, sd {:.3} ms; timing sd: each round trip against its own model's, beyond the mean offset",
-                self.profiles.first().map_or(0, |p| p.messages),
-                self.own_mean_ms,
-                self.own_sd_ms
-            ))
+            .note(
+                "8 connections for 5 s per profile, one message in flight on each; relay sd: the measured spread less \
+                 the zero-delay relay's (own rtt, mean ± sd, on the same traffic); tracked sd: the part of the spread \
+                 that follows the model message by message (± its standard error), leaving out hiccups: round trips more than 1 ms off their model's beyond \
+                 the usual offset; timing sd: each round trip \
+                 against its own model's, beyond the mean offset",
+            )
     }
 }
 

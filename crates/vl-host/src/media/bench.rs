@@ -16,12 +16,16 @@ use vl_sim::{Delivery, LinkModel, MessageLink};
 
 use super::{Media, MediaConfig};
 
-/// Connections measured at once per profile, messages on each, and how
-/// often each sends: far enough apart that TCP's order rarely holds a
-/// message behind the one before.
+/// Connections measured at once per profile, and how long each sends for.
 const CONNECTIONS: u64 = 8;
-const PER_CONNECTION: usize = 50;
-const INTERVAL: Duration = Duration::from_millis(100);
+const SENDING: Duration = Duration::from_secs(5);
+/// How often each connection sends: ten round trips apart, so TCP's order
+/// rarely holds a message behind the one before, but at least 10 ms (a
+/// fast link gets more messages, which its small jitter needs to be told
+/// from the measurement's noise) and at most 100 ms.
+fn interval(model: &LinkModel) -> Duration {
+    Duration::from_secs_f64((20.0 * model.delay_ms).clamp(10.0, 100.0) / 1e3)
+}
 /// The relays' seed.
 const SEED: u64 = 11;
 /// The timed messages' size, bytes.
@@ -60,6 +64,20 @@ pub struct Reproduced {
     /// offset (the deviation of measured − modelled): the relay's timing
     /// and the measurement's noise together.
     pub timing_sd_ms: f64,
+    /// The part of the measured round trips' spread that follows the
+    /// model message by message: cov(measured, modelled) / sd(modelled).
+    /// Noise that has nothing to do with the model averages out of it, so
+    /// it resolves a jitter smaller than the machine's timing noise.
+    pub tracked_sd_ms: f64,
+    /// Its standard error: timing sd / √messages.
+    pub tracked_se_ms: f64,
+    /// Messages left out of the tracked sd: their round trip was more than
+    /// [`HICCUP`] off its model's beyond the usual offset (the machine
+    /// paused the measurement; the model's own spread is far smaller).
+    pub hiccups: usize,
+    /// The zero-delay relay's round trip on this profile's traffic.
+    pub own_mean_ms: f64,
+    pub own_sd_ms: f64,
 }
 
 /// What the relay costs, and how closely it keeps to its model.
@@ -70,9 +88,6 @@ pub struct MediaBench {
     pub relayed: RoundTrip,
     /// Relayed minus direct, at each percentile.
     pub added: RoundTrip,
-    /// The zero-delay relay's round trip on the profiles' traffic, ms.
-    pub own_mean_ms: f64,
-    pub own_sd_ms: f64,
     pub profiles: Vec<Reproduced>,
 }
 
@@ -140,8 +155,10 @@ fn zero() -> LinkModel {
 }
 
 /// Each connection's (send time ms from the first send, round trip ms)
-/// through the relay at `url`.
-async fn trips(url: &str) -> Result<Vec<Vec<(f64, f64)>>, String> {
+/// through the relay at `url`, one message every `interval` for
+/// [`SENDING`].
+async fn trips(url: &str, interval: Duration) -> Result<Vec<Vec<(f64, f64)>>, String> {
+    let per_connection = (SENDING.as_secs_f64() / interval.as_secs_f64()) as usize;
     let mut sockets = Vec::new();
     // One at a time, so the relay numbers them in this order.
     for _ in 0..CONNECTIONS {
@@ -153,13 +170,13 @@ async fn trips(url: &str) -> Result<Vec<Vec<(f64, f64)>>, String> {
     // at a time, so what is timed is the link, not a burst's queueing.
     let runs = (0u32..).zip(sockets).map(|(k, ws)| {
         let text = text.clone();
-        let offset = INTERVAL * k / CONNECTIONS as u32;
+        let offset = interval * k / CONNECTIONS as u32;
         async move {
             let (mut sink, mut source) = ws.split();
             let sender = async {
                 let mut sent = Vec::new();
-                for i in 0..PER_CONNECTION {
-                    tokio::time::sleep_until((epoch + offset + INTERVAL * i as u32).into()).await;
+                for i in 0..per_connection {
+                    tokio::time::sleep_until((epoch + offset + interval * i as u32).into()).await;
                     sent.push(epoch.elapsed().as_secs_f64() * 1e3);
                     sink.send(text.clone()).await.map_err(|e| e.to_string())?;
                 }
@@ -167,7 +184,7 @@ async fn trips(url: &str) -> Result<Vec<Vec<(f64, f64)>>, String> {
             };
             let receiver = async {
                 let mut back = Vec::new();
-                while back.len() < PER_CONNECTION {
+                while back.len() < per_connection {
                     match source.next().await {
                         Some(Ok(m)) if m.is_text() => {
                             back.push(epoch.elapsed().as_secs_f64() * 1e3)
@@ -207,6 +224,41 @@ fn modelled(model: &LinkModel, measured: &[Vec<(f64, f64)>]) -> Vec<(f64, f64)> 
     all
 }
 
+/// How far a round trip may be from its model's, beyond the median
+/// offset, and still count toward the tracked sd.
+const HICCUP: f64 = 1.0;
+
+/// The tracked sd of `pairs` (measured, modelled) and its standard error,
+/// leaving out hiccups (`apart` is measured − modelled); and how many were
+/// left out. Which messages are left out does not depend on the model's
+/// value, so leaving them out does not bend the estimate toward it.
+fn tracked(pairs: &[(f64, f64)], apart: &[f64]) -> (f64, f64, usize) {
+    let mut sorted = apart.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let offset = vl_core::nearest_rank(&sorted, 0.5).unwrap_or(0.0);
+    let kept: Vec<(f64, f64)> = pairs
+        .iter()
+        .zip(apart)
+        .filter(|(_, a)| (*a - offset).abs() <= HICCUP)
+        .map(|(p, _)| *p)
+        .collect();
+    let measured: Vec<f64> = kept.iter().map(|p| p.0).collect();
+    let modelled: Vec<f64> = kept.iter().map(|p| p.1).collect();
+    let kept_apart: Vec<f64> = kept.iter().map(|p| p.0 - p.1).collect();
+    let ((got_mean, _), (want_mean, want_sd)) = (mean_sd(&measured), mean_sd(&modelled));
+    let n = kept.len().max(1) as f64;
+    let covariance = kept
+        .iter()
+        .map(|(got, want)| (got - got_mean) * (want - want_mean))
+        .sum::<f64>()
+        / n;
+    (
+        covariance / want_sd,
+        mean_sd(&kept_apart).1 / n.sqrt(),
+        pairs.len() - kept.len(),
+    )
+}
+
 fn mean_sd(v: &[f64]) -> (f64, f64) {
     let n = v.len().max(1) as f64;
     let mean = v.iter().sum::<f64>() / n;
@@ -240,23 +292,25 @@ pub async fn bench(
         relayed.push(round_trip(&mut relayed_ws, &text).await?);
     }
     let (direct, relayed) = (RoundTrip::of(direct), RoundTrip::of(relayed));
-    // The relay's own cost on the profiles' traffic, from a fresh relay
-    // (the relay numbers connections from 0).
-    let own = Media::start(([127, 0, 0, 1], 0).into(), relay(&echo_url, zero()))
-        .await
-        .map_err(|e| e.to_string())?;
-    let (own_mean_ms, own_sd_ms) = mean_sd(&rtts(trips(&own.url()).await?));
     let mut reproduced = Vec::new();
     for (name, model) in profiles {
+        // The relay's own cost on this profile's traffic, from a fresh
+        // relay (the relay numbers connections from 0).
+        let own = Media::start(([127, 0, 0, 1], 0).into(), relay(&echo_url, zero()))
+            .await
+            .map_err(|e| e.to_string())?;
+        let (own_mean_ms, own_sd_ms) = mean_sd(&rtts(trips(&own.url(), interval(model)).await?));
         let media = Media::start(([127, 0, 0, 1], 0).into(), relay(&echo_url, model.clone()))
             .await
             .map_err(|e| e.to_string())?;
-        let pairs = modelled(model, &trips(&media.url()).await?);
+        let pairs = modelled(model, &trips(&media.url(), interval(model)).await?);
         let all: Vec<f64> = pairs.iter().map(|p| p.0).collect();
         let expected: Vec<f64> = pairs.iter().map(|p| p.1).collect();
         let apart: Vec<f64> = pairs.iter().map(|p| p.0 - p.1).collect();
         let (model_mean_ms, model_sd_ms) = mean_sd(&expected);
         let (mean, sd) = mean_sd(&all);
+        let timing_sd_ms = mean_sd(&apart).1;
+        let (tracked_sd_ms, tracked_se_ms, hiccups) = tracked(&pairs, &apart);
         reproduced.push(Reproduced {
             profile: name.clone(),
             messages: all.len(),
@@ -264,7 +318,12 @@ pub async fn bench(
             model_sd_ms,
             relay_mean_ms: mean - own_mean_ms,
             relay_sd_ms: (sd * sd - own_sd_ms * own_sd_ms).max(0.0).sqrt(),
-            timing_sd_ms: mean_sd(&apart).1,
+            timing_sd_ms,
+            tracked_sd_ms,
+            tracked_se_ms,
+            hiccups,
+            own_mean_ms,
+            own_sd_ms,
         });
     }
     server.abort();
@@ -276,8 +335,6 @@ pub async fn bench(
         },
         direct,
         relayed,
-        own_mean_ms,
-        own_sd_ms,
         profiles: reproduced,
     })
 }
