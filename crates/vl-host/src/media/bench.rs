@@ -65,9 +65,10 @@ pub struct Reproduced {
     /// and the measurement's noise together.
     pub timing_sd_ms: f64,
     /// The part of the measured round trips' spread that follows the
-    /// model message by message: cov(measured, modelled) / sd(modelled).
-    /// Noise that has nothing to do with the model averages out of it, so
-    /// it resolves a jitter smaller than the machine's timing noise.
+    /// model message by message: the slope of measured on modelled times
+    /// the model's sd. Noise that has nothing to do with the model
+    /// averages out of it, so it resolves a jitter smaller than the
+    /// machine's timing noise.
     pub tracked_sd_ms: f64,
     /// Its standard error: timing sd / √messages.
     pub tracked_se_ms: f64,
@@ -229,10 +230,12 @@ fn modelled(model: &LinkModel, measured: &[Vec<(f64, f64)>]) -> Vec<(f64, f64)> 
 const HICCUP: f64 = 1.0;
 
 /// The tracked sd of `pairs` (measured, modelled) and its standard error,
-/// leaving out hiccups (`apart` is measured − modelled); and how many were
-/// left out. Which messages are left out does not depend on the model's
-/// value, so leaving them out does not bend the estimate toward it.
+/// the slope fitted leaving out hiccups (`apart` is measured − modelled);
+/// and how many were left out. Which messages are left out does not
+/// depend on the model's value, so leaving them out does not bend the
+/// slope toward 1.
 fn tracked(pairs: &[(f64, f64)], apart: &[f64]) -> (f64, f64, usize) {
+    let model_sd = mean_sd(&pairs.iter().map(|p| p.1).collect::<Vec<_>>()).1;
     let mut sorted = apart.to_vec();
     sorted.sort_by(f64::total_cmp);
     let offset = vl_core::nearest_rank(&sorted, 0.5).unwrap_or(0.0);
@@ -252,9 +255,11 @@ fn tracked(pairs: &[(f64, f64)], apart: &[f64]) -> (f64, f64, usize) {
         .map(|(got, want)| (got - got_mean) * (want - want_mean))
         .sum::<f64>()
         / n;
+    // The slope's standard error is timing sd / (sd(modelled) √n).
+    let scale = model_sd / want_sd;
     (
-        covariance / want_sd,
-        mean_sd(&kept_apart).1 / n.sqrt(),
+        covariance / (want_sd * want_sd) * model_sd,
+        mean_sd(&kept_apart).1 / n.sqrt() * scale,
         pairs.len() - kept.len(),
     )
 }
