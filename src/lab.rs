@@ -3,6 +3,7 @@
 //! the robot.
 
 use std::net::SocketAddr;
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
@@ -238,6 +239,10 @@ pub(crate) struct HostArgs {
     /// seconds (the robot held still) to reconnect; 0 frees them at once.
     #[arg(long, default_value_t = 10.0)]
     grace: f64,
+    /// Run the labs' controlled nets from this folder (as `vl lab nets
+    /// --out DIR` writes them) instead of the built-in ones.
+    #[arg(long)]
+    nets: Option<PathBuf>,
     /// Seed for the simulator's noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -469,8 +474,13 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             seconds("--grace", args.grace)?
         },
         frames: args.frames.policy()?,
+        nets: args.nets,
         ..HostConfig::default()
     };
+    // A folder of nets that cannot run is the user's to fix, before anything starts.
+    config
+        .supervisor()
+        .map_err(|e| BadInput(format!("--nets: {e}")))?;
     let mut arena = Arena::load(&args.arena).map_err(|e| BadInput(e.to_string()))?;
     if let Some(start) = args.start {
         arena.start = start;

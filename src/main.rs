@@ -8,6 +8,7 @@ mod camera;
 mod experiment;
 mod lab;
 mod media;
+mod nets;
 mod petri;
 mod plan;
 mod report;
@@ -37,13 +38,16 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Serve the lab to Guests over WebSocket (on the lab machine).
-    Host(lab::HostArgs),
+    Host(Box<lab::HostArgs>),
     /// Open the Guest window on a Host (on the user's desktop).
     Guest(lab::GuestArgs),
     /// Run a Host on the simulated lab and a Guest against it, in one process.
     Demo(lab::DemoArgs),
     /// Relay Guests to a Host through a modelled Internet link (the Media).
     Media(media::MediaCommand),
+    /// The labs' own nets: statecharts to the controlled nets the Host runs.
+    #[command(subcommand)]
+    Lab(nets::LabCommand),
     /// Analyse Petri nets (PNML).
     #[command(subcommand)]
     Petri(petri::PetriCommand),
@@ -161,13 +165,14 @@ fn run(cli: Cli) -> Result<ExitCode> {
     let runtime = || tokio::runtime::Runtime::new().context("cannot start the async runtime");
     match cli.command {
         Command::Host(args) => runtime()?
-            .block_on(lab::host(args))
+            .block_on(lab::host(*args))
             .map(|()| ExitCode::SUCCESS),
         Command::Guest(args) => lab::guest(&runtime()?, args),
         Command::Demo(args) => lab::demo(&runtime()?, args),
         Command::Media(args) => runtime()?
             .block_on(media::run(args))
             .map(|()| ExitCode::SUCCESS),
+        Command::Lab(command) => nets::run(command),
         Command::Petri(command) => petri::run(command),
         Command::KheperaEmu(args) => lab::khepera_emu(args),
         Command::Khepera(tool) => lab::khepera(tool),

@@ -12,6 +12,7 @@
 //! Modules are private; what other crates use is re-exported here.
 
 mod contract;
+mod design;
 mod images;
 mod model;
 mod named;
@@ -26,7 +27,8 @@ pub use contract::protocol::{
     DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HostMessage,
     MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Role, Summary, WATCHDOG, Wire,
 };
-pub use contract::session::{Action, NotAllowed, Phase, Supervisor};
+pub use contract::session::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
+pub use design::{DesignError, Designed, Interleaving, LabDesign, Rule, design};
 pub use images::{MAX_IMAGE_SIDE, decode_image, load_image};
 pub use model::arena::{Arena, ArenaError, Hit, Material, Obstacle, Shape};
 pub use model::camera::{Calibration, CameraModel, Reprojection};

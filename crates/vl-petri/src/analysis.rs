@@ -71,7 +71,7 @@ pub fn analyze(net: &Net, space: &StateSpace) -> Analysis {
 
     let dead_state = (0..n).find(|&s| space.successors(s).next().is_none());
     let deadlock_trace = dead_state.map(|d| {
-        shortest_path(space, d)
+        firing_sequence(space, d)
             .into_iter()
             .map(|t| net.transitions[t].id.clone())
             .collect()
@@ -104,7 +104,7 @@ pub fn analyze(net: &Net, space: &StateSpace) -> Analysis {
 /// The transitions of a shortest firing sequence from the initial state to
 /// `target`. States are numbered in breadth-first order, so the first state
 /// (lowest number) with an edge into a state is its BFS parent.
-fn shortest_path(space: &StateSpace, target: usize) -> Vec<usize> {
+pub fn firing_sequence(space: &StateSpace, target: usize) -> Vec<usize> {
     const NONE: u32 = u32::MAX;
     let mut parent = vec![(NONE, NONE); target + 1];
     for s in 0..=target {

@@ -22,7 +22,7 @@ mod net;
 mod pnml;
 mod scxml;
 
-pub use analysis::{Analysis, Liveness, analyze, incidence_rank};
+pub use analysis::{Analysis, Liveness, analyze, firing_sequence, incidence_rank};
 pub use bench::{BenchRow, CorpusModel, Manifest, ManifestError, PeakMemory, bench_model};
 pub use compose::{ComposeError, compose, fuse_parallel_places};
 pub use control::{Added, Constraint, ControlError, Limits, synthesize};

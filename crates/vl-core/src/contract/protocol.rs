@@ -11,8 +11,8 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::{
-    Arena, CameraModel, Definition, Experiment, ExperimentInfo, PathAnalysis, Pose, PoseSource,
-    RobotModel, WheelSpeeds,
+    Arena, CameraModel, Definition, Experiment, ExperimentInfo, NetState, PathAnalysis, Pose,
+    PoseSource, RobotModel, WheelSpeeds,
 };
 
 /// The protocol version a `hello` must name.
@@ -315,6 +315,9 @@ pub enum HostMessage {
     Done {
         summary: Summary,
     },
+    /// The supervisor's net: sent on welcome and whenever a firing changes
+    /// its marking.
+    State(Box<NetState>),
     /// The lab's devices: sent on welcome and whenever one changes.
     Status {
         robot: DeviceState,
@@ -428,7 +431,7 @@ impl Wire for GuestMessage {
 impl Wire for HostMessage {
     const TYPES: &'static [&'static str] = &[
         "welcome", "error", "ping", "pong", "mounted", "defined", "started", "feedback", "done",
-        "status", "bye",
+        "state", "status", "bye",
     ];
 }
 

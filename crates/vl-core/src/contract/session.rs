@@ -1,12 +1,19 @@
-//! The session supervisor: the lab's mount → define → execute cycle as a
-//! Petri net that runs live. An action is allowed exactly when a transition
-//! carrying its label is enabled, so the Host never has to reason about
-//! "which messages are valid now" in ad-hoc code.
+//! The session supervisor: each lab's controlled net, as `vl lab nets`
+//! designs it from the lab's statecharts (`docs/nets/<lab>/controlled.pnml`,
+//! built in), run live. An action is allowed exactly when a transition
+//! carrying its event is enabled in the mounted lab's net, so the Host and
+//! the Guest never reason about "which messages are valid now" in ad-hoc
+//! code, and changing a chart changes what they allow.
 
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
-use vl_petri::{Marking, Net};
+use vl_petri::{Marking, Net, TransitionId, from_pnml};
 
-/// What the operator (or the lab itself) asks the session to do.
+use crate::{Experiment, Named};
+
+/// What the operator or the lab does: each is an event of the labs' nets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Action {
     Mount,
@@ -21,10 +28,17 @@ pub enum Action {
     Finish,
     /// The operator leaves; the lab returns to idle from wherever it was.
     Release,
+    /// The Host has grown the mounted map into the robot's C-space.
+    CspaceBuilt,
+    /// The Host has checked (or planned) the defined path in its C-space.
+    PathPlanned,
+    /// The Host has built the map's potential field for assisted driving.
+    FieldBuilt,
 }
 
 impl Action {
-    fn label(self) -> &'static str {
+    /// The event its transitions carry in the nets.
+    pub fn event(self) -> &'static str {
         match self {
             Action::Mount => "mount",
             Action::Define => "define",
@@ -33,25 +47,12 @@ impl Action {
             Action::Command => "command",
             Action::Finish => "finish",
             Action::Release => "release",
+            Action::CspaceBuilt => "cspace_built",
+            Action::PathPlanned => "path_planned",
+            Action::FieldBuilt => "field_built",
         }
     }
 }
-
-/// Which phase of the experiment the lab is in (the marked place).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Phase {
-    Idle,
-    Mounted,
-    Defined,
-    Running,
-}
-
-const PHASES: [(&str, Phase); 4] = [
-    ("idle", Phase::Idle),
-    ("mounted", Phase::Mounted),
-    ("defined", Phase::Defined),
-    ("running", Phase::Running),
-];
 
 impl std::fmt::Display for Action {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -63,164 +64,404 @@ impl std::fmt::Display for Action {
             Action::Command => "drive",
             Action::Finish => "finish a run",
             Action::Release => "release the lab",
+            Action::CspaceBuilt => "finish the C-space",
+            Action::PathPlanned => "finish the path",
+            Action::FieldBuilt => "finish the potential field",
         })
     }
 }
 
-impl std::fmt::Display for Phase {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Phase::Idle => "no experiment is mounted",
-            Phase::Mounted => "no run is going",
-            Phase::Defined => "no run is going",
-            Phase::Running => "a run is going",
-        })
-    }
-}
-
-/// An action the session net does not enable now.
+/// An action the net does not enable now: which event, in which lab's
+/// net, at which marking.
 #[derive(Debug, Error, PartialEq, Eq)]
-#[error("cannot {action} now: {phase}")]
+#[error(
+    "cannot {action} now: no `{event}` transition of the {lab} net is enabled at marking {{{}}}",
+    marking.join(", ")
+)]
 pub struct NotAllowed {
     pub action: Action,
-    pub phase: Phase,
+    pub event: &'static str,
+    pub lab: &'static str,
+    /// The marked places, by id.
+    pub marking: Vec<String>,
 }
 
-/// The live session net and its current marking.
+#[derive(Debug, Error)]
+pub enum SupervisorError {
+    #[error("{lab}: cannot read {path}: {why}")]
+    Read {
+        lab: &'static str,
+        path: String,
+        why: String,
+    },
+    #[error("{lab}: {why}")]
+    Net { lab: &'static str, why: String },
+    #[error("no lab to supervise")]
+    NoLab,
+}
+
+/// What the supervisor did or is: the mounted lab, its marked places and
+/// enabled events, and the transitions fired since the last state told.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub struct NetState {
+    /// The lab whose net runs; none before the first mount.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lab: Option<Experiment>,
+    /// Marked places, by id (every place of these nets holds one token at most).
+    pub marking: Vec<String>,
+    /// Events with an enabled transition.
+    pub enabled: Vec<String>,
+    /// Transitions fired since the last state, in order; each lab's net
+    /// starts from its initial marking. Firings that leave the marking as
+    /// it was (a command during a run) are not listed.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub fired: Vec<Fired>,
+}
+
+/// A transition fired in a lab's net.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Fired {
+    pub lab: Experiment,
+    /// The transition's id.
+    pub transition: String,
+}
+
+/// One lab's net and its marking.
 #[derive(Debug, Clone)]
-pub struct Supervisor {
+struct LabNet {
+    lab: Experiment,
     net: Net,
     marking: Marking,
 }
 
-impl Default for Supervisor {
-    fn default() -> Self {
-        Self::new()
-    }
+/// The labs' controlled nets, as `vl lab nets` wrote them.
+const SHIPPED: [(Experiment, &str); 2] = [
+    (
+        Experiment::Navigation,
+        include_str!("../../../../docs/nets/navigation/controlled.pnml"),
+    ),
+    (
+        Experiment::Teleoperation,
+        include_str!("../../../../docs/nets/teleoperation/controlled.pnml"),
+    ),
+];
+
+/// The live nets of the labs a Host offers, and which one is mounted.
+#[derive(Debug, Clone)]
+pub struct Supervisor {
+    labs: Vec<LabNet>,
+    mounted: Option<usize>,
+    /// Fired since [`Supervisor::take_state`] last said.
+    fired: Vec<Fired>,
 }
 
 impl Supervisor {
-    /// The lab's session net: one place per phase, one transition per allowed move.
-    pub fn new() -> Self {
-        let mut net = Net::new("session");
-        for (name, phase) in PHASES {
-            net.add_place(name, u32::from(phase == Phase::Idle))
-                .expect("phase names are distinct");
-        }
-        let moves: [(&str, Action, &str, &str); 13] = [
-            ("mount", Action::Mount, "idle", "mounted"),
-            ("remount_mounted", Action::Mount, "mounted", "mounted"),
-            ("remount_defined", Action::Mount, "defined", "mounted"),
-            ("define", Action::Define, "mounted", "defined"),
-            ("redefine", Action::Define, "defined", "defined"),
-            ("start", Action::Start, "defined", "running"),
-            // Defining is optional: a run may start on the default definition.
-            ("start_undefined", Action::Start, "mounted", "running"),
-            ("stop", Action::Stop, "running", "running"),
-            ("command", Action::Command, "running", "running"),
-            ("finish", Action::Finish, "running", "defined"),
-            ("release_mounted", Action::Release, "mounted", "idle"),
-            ("release_defined", Action::Release, "defined", "idle"),
-            ("release_running", Action::Release, "running", "idle"),
-        ];
-        for (name, action, from, to) in moves {
-            net.add_transition_with(name, Some(action.label()), &[(from, 1)], &[(to, 1)])
-                .expect("session net arcs name its own places");
-        }
-        let marking = net.initial_marking();
-        Supervisor { net, marking }
-    }
-
-    /// The net being run, for analysis and pictures.
-    pub fn net(&self) -> &Net {
-        &self.net
-    }
-
-    /// The current phase.
-    pub fn phase(&self) -> Phase {
-        PHASES
+    /// The shipped nets of `labs`.
+    pub fn new(labs: &[Experiment]) -> Result<Supervisor, SupervisorError> {
+        let nets = labs
             .iter()
-            .find(|(name, _)| {
-                let place = self.net.place(name).expect("every phase has a place");
-                self.marking.tokens(place) > 0
+            .map(|&lab| {
+                let text = SHIPPED
+                    .iter()
+                    .find(|(l, _)| *l == lab)
+                    .map(|(_, text)| *text)
+                    .ok_or(SupervisorError::NoLab)?;
+                Ok((lab, parse(lab, text)?))
             })
-            .map(|&(_, phase)| phase)
-            .expect("the session net always marks one phase")
+            .collect::<Result<Vec<_>, _>>()?;
+        Supervisor::from_nets(nets)
+    }
+
+    /// The nets of `labs` from `dir/<lab>/controlled.pnml`, as `vl lab nets
+    /// --out dir` writes them.
+    pub fn load(dir: &Path, labs: &[Experiment]) -> Result<Supervisor, SupervisorError> {
+        let nets = labs
+            .iter()
+            .map(|&lab| {
+                let path = dir.join(lab.id()).join("controlled.pnml");
+                let text = std::fs::read_to_string(&path).map_err(|e| SupervisorError::Read {
+                    lab: lab.id(),
+                    path: path.display().to_string(),
+                    why: e.to_string(),
+                })?;
+                Ok((lab, parse(lab, &text)?))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Supervisor::from_nets(nets)
+    }
+
+    fn from_nets(nets: Vec<(Experiment, Net)>) -> Result<Supervisor, SupervisorError> {
+        if nets.is_empty() {
+            return Err(SupervisorError::NoLab);
+        }
+        Ok(Supervisor {
+            labs: nets
+                .into_iter()
+                .map(|(lab, net)| LabNet {
+                    lab,
+                    marking: net.initial_marking(),
+                    net,
+                })
+                .collect(),
+            mounted: None,
+            fired: Vec::new(),
+        })
+    }
+
+    /// The net that answers now: the mounted lab's, or before any mount
+    /// the first lab's (every lab's net starts unmounted).
+    fn current(&self) -> &LabNet {
+        &self.labs[self.mounted.unwrap_or(0)]
+    }
+
+    /// The mounted lab.
+    pub fn lab(&self) -> Option<Experiment> {
+        self.mounted.map(|i| self.labs[i].lab)
+    }
+
+    /// The net of `lab`, for pictures.
+    pub fn net(&self, lab: Experiment) -> Option<&Net> {
+        self.labs.iter().find(|l| l.lab == lab).map(|l| &l.net)
+    }
+
+    /// The current net and its marking.
+    pub fn marked(&self) -> (&Net, &Marking) {
+        let l = self.current();
+        (&l.net, &l.marking)
     }
 
     /// Whether `action` may happen now.
     pub fn allows(&self, action: Action) -> bool {
-        self.enabled_for(action).is_some()
+        enabled_for(self.current(), action).is_some()
     }
 
     /// Says why `action` may not happen now, if it may not.
     pub fn check(&self, action: Action) -> Result<(), NotAllowed> {
-        self.enabled_for(action).map(drop).ok_or(NotAllowed {
-            action,
-            phase: self.phase(),
+        enabled_for(self.current(), action)
+            .map(drop)
+            .ok_or_else(|| self.refusal(action))
+    }
+
+    /// Fires `action`'s transition, or says why it may not happen now. A
+    /// release leaves no lab mounted.
+    pub fn fire(&mut self, action: Action) -> Result<(), NotAllowed> {
+        let i = self.mounted.unwrap_or(0);
+        fire_in(&mut self.labs[i], action, &mut self.fired).map_err(|()| self.refusal(action))?;
+        if action == Action::Release {
+            self.mounted = None;
+        }
+        Ok(())
+    }
+
+    /// Mounts `lab`: in its net if it is mounted already, else releasing
+    /// the one mounted (if its net allows mounting now) and mounting in
+    /// `lab`'s.
+    pub fn mount(&mut self, lab: Experiment) -> Result<(), NotAllowed> {
+        self.check(Action::Mount)?;
+        let Some(to) = self.labs.iter().position(|l| l.lab == lab) else {
+            return Err(self.refusal(Action::Mount));
+        };
+        if let Some(from) = self.mounted.filter(|&from| from != to) {
+            fire_in(&mut self.labs[from], Action::Release, &mut self.fired)
+                .map_err(|()| self.refusal(Action::Release))?;
+        }
+        self.mounted = Some(to);
+        self.fire(Action::Mount)
+    }
+
+    /// The state now, with the transitions fired since it was last
+    /// taken; none if nothing was.
+    pub fn take_state(&mut self) -> Option<NetState> {
+        if self.fired.is_empty() {
+            return None;
+        }
+        let fired = std::mem::take(&mut self.fired);
+        Some(NetState {
+            fired,
+            ..self.state()
         })
     }
 
-    /// Performs `action`, or says why it may not happen now.
-    pub fn fire(&mut self, action: Action) -> Result<Phase, NotAllowed> {
-        let t = self.enabled_for(action).ok_or(NotAllowed {
-            action,
-            phase: self.phase(),
-        })?;
-        self.marking = self
+    /// The state now, without what was fired.
+    pub fn state(&self) -> NetState {
+        let l = self.current();
+        let mut enabled: Vec<String> = l
             .net
-            .fire(&self.marking, t)
-            .expect("an enabled transition fires");
-        Ok(self.phase())
+            .enabled(&l.marking)
+            .filter_map(|t| l.net.transitions[t.0].label.clone())
+            .collect();
+        enabled.sort();
+        enabled.dedup();
+        NetState {
+            lab: self.lab(),
+            marking: marked(l),
+            enabled,
+            fired: Vec::new(),
+        }
     }
 
-    fn enabled_for(&self, action: Action) -> Option<vl_petri::TransitionId> {
-        self.net
-            .enabled(&self.marking)
-            .find(|t| self.net.transitions[t.0].label.as_deref() == Some(action.label()))
+    /// Follows what another supervisor fired (a Guest following its
+    /// Host's): mounts `state.lab` when it changes, fires each of
+    /// `state.fired` by id, and says whether the marking it reaches is the
+    /// one `state` tells. On a difference (a transition not enabled here, a
+    /// marking apart) it takes the told marking, so it stays in step; a
+    /// state that fired nothing (a welcome) is taken as it is.
+    pub fn follow(&mut self, state: &NetState) -> bool {
+        let mut agrees = true;
+        if state.fired.is_empty() {
+            for l in &mut self.labs {
+                l.marking = l.net.initial_marking();
+            }
+        }
+        for fired in &state.fired {
+            let Some((l, t)) = self.labs.iter_mut().find_map(|l| {
+                let t = l
+                    .net
+                    .transition(&fired.transition)
+                    .filter(|_| l.lab == fired.lab)?;
+                Some((l, t))
+            }) else {
+                agrees = false;
+                continue;
+            };
+            match l.net.fire(&l.marking, t) {
+                Ok(m) if l.net.is_enabled(&l.marking, t) => l.marking = m,
+                _ => agrees = false,
+            }
+        }
+        self.mounted = state
+            .lab
+            .and_then(|lab| self.labs.iter().position(|l| l.lab == lab));
+        let i = self.mounted.unwrap_or(0);
+        let l = &mut self.labs[i];
+        if marked(l) != state.marking {
+            agrees &= state.fired.is_empty();
+            l.marking = Marking(
+                l.net
+                    .places
+                    .iter()
+                    .map(|p| u32::from(state.marking.contains(&p.id)))
+                    .collect(),
+            );
+        }
+        agrees
     }
+
+    fn refusal(&self, action: Action) -> NotAllowed {
+        let l = self.current();
+        NotAllowed {
+            action,
+            event: action.event(),
+            lab: l.lab.id(),
+            marking: marked(l),
+        }
+    }
+}
+
+fn parse(lab: Experiment, text: &str) -> Result<Net, SupervisorError> {
+    from_pnml(text).map_err(|e| SupervisorError::Net {
+        lab: lab.id(),
+        why: e.to_string(),
+    })
+}
+
+fn marked(l: &LabNet) -> Vec<String> {
+    l.marking
+        .0
+        .iter()
+        .zip(&l.net.places)
+        .filter(|(n, _)| **n > 0)
+        .map(|(_, p)| p.id.clone())
+        .collect()
+}
+
+fn enabled_for(l: &LabNet, action: Action) -> Option<TransitionId> {
+    l.net
+        .enabled(&l.marking)
+        .find(|t| l.net.transitions[t.0].label.as_deref() == Some(action.event()))
+}
+
+/// Fires `action`'s enabled transition in `l`, noting it in `fired`.
+fn fire_in(l: &mut LabNet, action: Action, fired: &mut Vec<Fired>) -> Result<(), ()> {
+    let t = enabled_for(l, action).ok_or(())?;
+    let after = l
+        .net
+        .fire(&l.marking, t)
+        .expect("an enabled transition fires");
+    let before = std::mem::replace(&mut l.marking, after);
+    if before == l.marking {
+        return Ok(());
+    }
+    fired.push(Fired {
+        lab: l.lab,
+        transition: l.net.transitions[t.0].id.clone(),
+    });
+    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn both() -> Supervisor {
+        Supervisor::new(Experiment::ALL).unwrap()
+    }
+
     #[test]
-    fn refusals_say_what_stands_in_the_way() {
-        let refused = Supervisor::new().fire(Action::Start).unwrap_err();
-        assert_eq!(
-            refused.to_string(),
-            "cannot start a run now: no experiment is mounted"
+    fn refusals_name_the_event_and_the_marking() {
+        let refused = both().fire(Action::Start).unwrap_err();
+        let text = refused.to_string();
+        assert!(
+            text.starts_with("cannot start a run now: no `start` transition of the navigation net is enabled at marking {mount.idle"),
+            "{text}"
         );
     }
 
     #[test]
-    fn the_experiment_cycle() {
-        let mut s = Supervisor::new();
-        assert_eq!(s.phase(), Phase::Idle);
-        assert_eq!(
-            s.fire(Action::Start),
-            Err(NotAllowed {
-                action: Action::Start,
-                phase: Phase::Idle
-            })
-        );
-        assert_eq!(s.fire(Action::Mount), Ok(Phase::Mounted));
+    fn the_navigation_cycle() {
+        let mut s = both();
+        assert!(!s.allows(Action::Define), "nothing mounted");
+        s.mount(Experiment::Navigation).unwrap();
+        assert!(!s.allows(Action::Define), "the C-space is being built");
+        assert!(!s.allows(Action::Start), "the C-space is being built");
+        s.fire(Action::CspaceBuilt).unwrap();
         assert!(s.allows(Action::Start), "defining is optional");
         assert!(!s.allows(Action::Command), "no commands before a run");
-        assert_eq!(s.fire(Action::Define), Ok(Phase::Defined));
+        s.fire(Action::Define).unwrap();
+        assert!(!s.allows(Action::Start), "the path is being checked");
+        s.fire(Action::PathPlanned).unwrap();
         assert!(!s.allows(Action::Stop), "nothing to stop");
-        assert_eq!(s.fire(Action::Start), Ok(Phase::Running));
-        assert_eq!(s.fire(Action::Command), Ok(Phase::Running));
-        assert_eq!(
-            s.fire(Action::Stop),
-            Ok(Phase::Running),
-            "until the lab finishes"
-        );
+        s.fire(Action::Start).unwrap();
+        s.fire(Action::Command).unwrap();
         assert!(!s.allows(Action::Define), "no redefinition mid-run");
         assert!(!s.allows(Action::Mount), "no remount mid-run");
-        assert_eq!(s.fire(Action::Finish), Ok(Phase::Defined));
-        assert_eq!(s.fire(Action::Start), Ok(Phase::Running));
-        assert_eq!(s.fire(Action::Release), Ok(Phase::Idle));
+        s.fire(Action::Stop).unwrap();
+        assert!(!s.allows(Action::Command), "stopping");
+        s.fire(Action::Finish).unwrap();
+        s.fire(Action::Start).unwrap();
+        s.fire(Action::Release).unwrap();
+        assert_eq!(s.state().marking, {
+            let fresh = both();
+            fresh.state().marking
+        });
+    }
+
+    #[test]
+    fn mounting_another_lab_releases_the_first_and_a_follower_keeps_step() {
+        let mut host = both();
+        let mut guest = both();
+        host.mount(Experiment::Navigation).unwrap();
+        host.fire(Action::CspaceBuilt).unwrap();
+        assert!(guest.follow(&host.take_state().unwrap()));
+        host.mount(Experiment::Teleoperation).unwrap();
+        assert_eq!(host.lab(), Some(Experiment::Teleoperation));
+        assert!(!host.allows(Action::Start), "no field yet");
+        host.fire(Action::CspaceBuilt).unwrap();
+        host.fire(Action::FieldBuilt).unwrap();
+        assert!(host.allows(Action::Start));
+        let state = host.take_state().unwrap();
+        assert!(guest.follow(&state), "{state:?}");
+        assert_eq!(guest.state().marking, host.state().marking);
+        assert!(guest.allows(Action::Start));
     }
 }

@@ -13,9 +13,9 @@ use std::time::{Duration, Instant};
 use tokio::sync::{mpsc as async_mpsc, watch};
 use tracing::{debug, info, warn};
 use vl_core::{
-    Definition, DeviceState, EndReason, Experiment, Follower, HostMessage, Localiser, MapField,
-    PathRecorder, Pose, PoseSource, RobotModel, Safety, Situation, Summary, Surroundings, Teleop,
-    Uncertainty, Vector, WATCHDOG, WheelSpeeds, disc_cspace,
+    CSpace, Definition, DeviceState, EndReason, Experiment, Follower, HostMessage, Localiser,
+    MapField, PathRecorder, Pose, PoseSource, RobotModel, Safety, Situation, Summary, Surroundings,
+    Teleop, Uncertainty, Vector, WATCHDOG, WheelSpeeds,
 };
 
 use super::camera::Sighting;
@@ -70,6 +70,8 @@ struct Run {
     /// For an assisted run: the velocity the operator asks for, and the
     /// force last fed back.
     assist: Option<(Vector, [f64; 2])>,
+    /// The map's potential field the Host built for this run's definition.
+    field: Option<Arc<MapField>>,
     /// Whether the safety layer changed the last command it saw.
     limited: bool,
     /// The body's least clearance seen, mm.
@@ -135,8 +137,6 @@ pub(crate) struct Control {
     /// What the wheels were last told, so an unchanged command is not resent.
     sent: Option<WheelSpeeds>,
     teleop: Teleop,
-    /// The arena's repulsive field, over the C-space of the robot's body.
-    map_field: Option<MapField>,
     /// The arena's walls and obstacles, to which each run adds its virtual ones.
     surroundings: Surroundings,
     /// How long the last control period really took.
@@ -183,7 +183,6 @@ impl Control {
         }
         Control {
             robot,
-            map_field: map_field(&info),
             surroundings: Surroundings::new(&info.arena),
             info,
             requests: wiring.requests,
@@ -283,6 +282,7 @@ impl Control {
                 run,
                 definition,
                 experiment,
+                field,
             } => {
                 self.event.store(0, Ordering::Relaxed);
                 let now = Instant::now();
@@ -310,6 +310,7 @@ impl Control {
                     assist: experiment
                         .assists_the_operator()
                         .then_some((Vector::default(), [0.0; 2])),
+                    field,
                     limited: false,
                     closest_mm: f64::INFINITY,
                     kept: (0.0, 0),
@@ -376,7 +377,7 @@ impl Control {
         };
         if let Some((desired, force)) = &mut run.assist {
             let robot = &self.info.robot;
-            let ahead = self.map_field.as_ref().map_or(Vector::default(), |f| {
+            let ahead = run.field.as_ref().map_or(Vector::default(), |f| {
                 f.guidance(pose.point()).rotated(pose.theta_rad)
             });
             let sensed = self.teleop.sensor_field(robot, &reading.proximity);
@@ -540,21 +541,9 @@ impl Control {
     }
 }
 
-/// The arena's potential field for assisted teleoperation: repulsive from
-/// the C-space obstacles of the robot's body, so the push depends on how far
-/// the body (not its centre) is from a wall.
-fn map_field(info: &LabInfo) -> Option<MapField> {
-    match disc_cspace(&info.arena, &[], info.robot.radius_mm) {
-        Ok(cspace) => Some(MapField::new(
-            cspace.grid(),
-            MAP_FIELD_INFLUENCE_MM,
-            MAP_FIELD_ETA,
-        )),
-        // An arena that cannot be gridded (it was checked on loading) gets
-        // no map guidance; the sensors' field still acts.
-        Err(e) => {
-            warn!("no map field for assisted teleoperation: {e}");
-            None
-        }
-    }
+/// The map's potential field for assisted teleoperation over `cspace`
+/// (the mapped and virtual obstacles grown by the robot's body), so the
+/// push depends on how far the body, not its centre, is from a wall.
+pub(crate) fn map_field(cspace: &CSpace) -> MapField {
+    MapField::new(cspace.grid(), MAP_FIELD_INFLUENCE_MM, MAP_FIELD_ETA)
 }

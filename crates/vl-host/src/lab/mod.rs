@@ -20,12 +20,13 @@ use tokio::sync::{mpsc as async_mpsc, watch};
 use tokio_tungstenite::tungstenite::Bytes;
 use vl_core::{
     Arena, CameraModel, Definition, DeviceState, Drive, EndReason, Experiment, HostMessage,
-    RobotModel, Summary,
+    MapField, RobotModel, Summary,
 };
 
 use crate::drivers::{Camera, Robot, Witness};
 pub use camera::FramePolicy;
 use camera::{CameraLoop, SIGHTINGS, first_look};
+pub(crate) use control::map_field;
 use control::{Control, Wiring};
 
 /// The control period: the Khepera's speed-controller period.
@@ -108,6 +109,8 @@ pub enum LabRequest {
         run: u64,
         definition: Definition,
         experiment: Experiment,
+        /// The map's potential field for assisted teleoperation.
+        field: Option<Arc<MapField>>,
     },
     Drive {
         event: u64,

@@ -12,13 +12,14 @@ use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::Message;
 use tracing::{debug, info, warn};
 use vl_core::{
-    Action, Definition, DeviceState, EndReason, ErrorCode, Experiment, GuestMessage, HostMessage,
-    MountedLab, Named, PROTOCOL_VERSION, Role, Supervisor, Wire,
+    Action, CSpace, Definition, DeviceState, EndReason, ErrorCode, Experiment, GuestMessage,
+    HostMessage, MapField, MountedLab, Named, PROTOCOL_VERSION, Role, Shape, Supervisor, Wire,
+    disc_cspace,
 };
 
 use super::HostConfig;
 use super::connection::error;
-use crate::lab::{Finished, Lab, LabRequest};
+use crate::lab::{Finished, Lab, LabRequest, map_field};
 
 /// Messages waiting for one client, at most; feedback and frames are not
 /// queued (each connection takes only the newest).
@@ -101,14 +102,19 @@ pub(crate) struct Hub {
     run: Option<u64>,
     /// How many runs have started.
     runs: u64,
+    /// The mounted map grown by the robot's radius (the `cspace` chart's work).
+    cspace: Option<CSpace>,
+    /// The map's potential field for teleoperation runs, over the C-space
+    /// and the definition's virtual obstacles (the `field` chart's work).
+    field: Option<Arc<MapField>>,
 }
 
 impl Hub {
-    pub(crate) fn new(lab: Lab, config: Arc<HostConfig>) -> Hub {
+    pub(crate) fn new(lab: Lab, config: Arc<HostConfig>, supervisor: Supervisor) -> Hub {
         Hub {
             lab,
             config,
-            supervisor: Supervisor::new(),
+            supervisor,
             clients: HashMap::new(),
             operator: None,
             resume: None,
@@ -121,6 +127,8 @@ impl Hub {
             last_command: Instant::now(),
             run: None,
             runs: 0,
+            cspace: None,
+            field: None,
         }
     }
 
@@ -148,7 +156,7 @@ impl Hub {
                     }
                     self.run = None;
                     if self.supervisor.allows(Action::Finish) {
-                        let _ = self.supervisor.fire(Action::Finish);
+                        self.happened(Action::Finish);
                     }
                     summary.max_event_gap = self.max_event_gap;
                     summary.sync_violations = self.sync_violations;
@@ -165,6 +173,7 @@ impl Hub {
                     None => return,
                 },
             }
+            self.tell_state();
         }
     }
 
@@ -262,10 +271,63 @@ impl Hub {
         self.operator = None;
         self.resume = None;
         if self.supervisor.allows(Action::Release) {
-            let _ = self.supervisor.fire(Action::Release);
+            self.happened(Action::Release);
         }
         self.experiment = None;
         self.definition = None;
+        self.cspace = None;
+        self.field = None;
+    }
+
+    /// Tells every client what the supervisor fired since it last told,
+    /// and logs each firing.
+    fn tell_state(&mut self) {
+        let Some(state) = self.supervisor.take_state() else {
+            return;
+        };
+        for fired in &state.fired {
+            info!(lab = fired.lab.id(), transition = %fired.transition, "fired");
+        }
+        self.broadcast(&HostMessage::State(Box::new(state)));
+    }
+
+    /// Fires an action of the lab's own (a computation done, a run ended)
+    /// that the net should enable; says so in the log if it does not.
+    fn happened(&mut self, action: Action) {
+        if let Err(e) = self.supervisor.fire(action) {
+            warn!("the lab's net did not expect this: {e}");
+        }
+    }
+
+    /// Grows the mounted map into the robot's C-space, then for
+    /// teleoperation builds the map's potential field over it.
+    fn build_cspace(&mut self) {
+        let info = &self.lab.info;
+        self.cspace = disc_cspace(&info.arena, &[], info.robot.radius_mm)
+            .inspect_err(|e| warn!("no C-space for the mounted map: {e}"))
+            .ok();
+        self.happened(Action::CspaceBuilt);
+        self.build_field(&[]);
+    }
+
+    /// For teleoperation, the map's potential field over the C-space with
+    /// `virtual_obstacles` grown in too.
+    fn build_field(&mut self, virtual_obstacles: &[Shape]) {
+        if self.experiment != Some(Experiment::Teleoperation) {
+            return;
+        }
+        let info = &self.lab.info;
+        self.field = if virtual_obstacles.is_empty() {
+            self.cspace.as_ref().map(map_field)
+        } else {
+            disc_cspace(&info.arena, virtual_obstacles, info.robot.radius_mm)
+                .inspect_err(|e| warn!("no C-space for the definition: {e}"))
+                .ok()
+                .as_ref()
+                .map(map_field)
+        }
+        .map(Arc::new);
+        self.happened(Action::FieldBuilt);
     }
 
     fn handle(&mut self, id: u64, message: GuestMessage) {
@@ -383,6 +445,7 @@ impl Hub {
         }
         let status = *self.lab.status.borrow();
         self.send(id, status.message());
+        self.send(id, HostMessage::State(Box::new(self.supervisor.state())));
         // An operator back within the grace takes up the run where it stood.
         if role == Role::Operator && self.supervisor.allows(Action::Stop) {
             self.last_command = Instant::now();
@@ -443,13 +506,15 @@ impl Hub {
                         ),
                     );
                 };
-                if self.supervise(id, Action::Mount) {
-                    self.experiment = Some(experiment);
-                    self.definition = None;
-                    if let Some(mounted) = self.mounted() {
-                        self.broadcast(&mounted);
-                    }
+                if let Err(e) = self.supervisor.mount(experiment) {
+                    return self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
                 }
+                self.experiment = Some(experiment);
+                self.definition = None;
+                if let Some(mounted) = self.mounted() {
+                    self.broadcast(&mounted);
+                }
+                self.build_cspace();
             }
             GuestMessage::Define { definition } => {
                 if !self.permitted(id, Action::Define) {
@@ -458,9 +523,31 @@ impl Hub {
                 if let Err(why) = definition.validate(&self.lab.info.arena, &self.lab.info.robot) {
                     return self.refuse(id, ErrorCode::InvalidDefinition, why);
                 }
+                if self.experiment == Some(Experiment::Navigation)
+                    && let Some(cspace) = &self.cspace
+                    && let Some(i) = definition
+                        .path
+                        .iter()
+                        .position(|&p| !cspace.is_free(p, 0.0))
+                {
+                    return self.refuse(
+                        id,
+                        ErrorCode::InvalidDefinition,
+                        format!(
+                            "path point {i} is inside the C-space's obstacles: the robot's body would touch an obstacle there"
+                        ),
+                    );
+                }
                 self.supervise(id, Action::Define);
                 self.definition = Some(definition.clone());
-                self.broadcast(&HostMessage::Defined { definition });
+                self.broadcast(&HostMessage::Defined {
+                    definition: definition.clone(),
+                });
+                // The path was checked against the C-space above.
+                if self.experiment == Some(Experiment::Navigation) {
+                    self.happened(Action::PathPlanned);
+                }
+                self.build_field(&definition.virtual_obstacles);
             }
             GuestMessage::Start => {
                 if self.lab.status.borrow().robot != DeviceState::Online {
@@ -484,6 +571,7 @@ impl Hub {
                         run: self.runs,
                         definition,
                         experiment,
+                        field: self.field.clone(),
                     });
                     self.broadcast(&HostMessage::Started { event: 0 });
                 }

@@ -16,13 +16,14 @@ mod admission;
 mod connection;
 mod hub;
 
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
 use tokio::net::TcpListener;
 use tokio::sync::mpsc;
-use tracing::{debug, warn};
-use vl_core::{Experiment, Named};
+use tracing::{debug, error, warn};
+use vl_core::{Experiment, Named, Supervisor, SupervisorError};
 
 use crate::lab::{FramePolicy, Lab};
 use admission::Admission;
@@ -50,6 +51,19 @@ pub struct HostConfig {
     /// How long an operator whose link dropped keeps the role and the run
     /// (the robot held still meanwhile), to say hello again with `resume`.
     pub grace: Duration,
+    /// Where the labs' controlled nets are (`<dir>/<lab>/controlled.pnml`,
+    /// as `vl lab nets --out dir` writes them); the shipped ones if none.
+    pub nets: Option<PathBuf>,
+}
+
+impl HostConfig {
+    /// The supervisor of the labs offered, from their controlled nets.
+    pub fn supervisor(&self) -> Result<Supervisor, SupervisorError> {
+        match &self.nets {
+            Some(dir) => Supervisor::load(dir, &self.experiments),
+            None => Supervisor::new(&self.experiments),
+        }
+    }
 }
 
 impl Default for HostConfig {
@@ -62,6 +76,7 @@ impl Default for HostConfig {
             hello_timeout: Duration::from_secs(10),
             frames: FramePolicy::EveryFrame,
             grace: Duration::from_secs(10),
+            nets: None,
         }
     }
 }
@@ -75,7 +90,14 @@ pub async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
     let feedback = lab.feedback.clone();
     let frames = lab.frames.clone();
     let config = Arc::new(config);
-    let hub = Hub::new(lab, config.clone());
+    let supervisor = match config.supervisor() {
+        Ok(supervisor) => supervisor,
+        Err(e) => {
+            error!("cannot supervise the lab: {e}");
+            return;
+        }
+    };
+    let hub = Hub::new(lab, config.clone(), supervisor);
     // The hub lives exactly as long as the server: dropping this future
     // drops the lab, which stops the robot.
     tokio::select! {

@@ -1,0 +1,207 @@
+//! The labs designed by their own nets (thesis ch. 4–6): each lab's
+//! functionalities are statecharts (`crates/vl-core/nets/`), turned into
+//! nets, composed by their shared events, given controllers, and analysed;
+//! the controlled net is what the Host's supervisor runs.
+//!
+//! A lab's design is a `lab.toml` naming its charts (looked up in the lab's
+//! folder, then in `common/`), the events that happen by themselves
+//! (uncontrollable), and its controllers, each a rule with the reason for
+//! it. Rules are `vl petri control` constraints whose transition may also
+//! be an event: `if execute.running then not define` forbids every
+//! transition labelled `define` while `execute.running` is marked.
+
+mod pipeline;
+mod report;
+
+use std::path::Path;
+
+use serde::Deserialize;
+use thiserror::Error;
+
+use crate::{Experiment, Named};
+
+pub use pipeline::{Designed, Interleaving, design};
+
+/// One lab's charts and controllers, as written.
+#[derive(Debug, Clone)]
+pub struct LabDesign {
+    pub lab: Experiment,
+    pub title: String,
+    /// Each chart's name and SCXML text, in composition order.
+    pub charts: Vec<(String, String)>,
+    /// Events a controller may not forbid.
+    pub uncontrollable: Vec<String>,
+    pub controllers: Vec<Rule>,
+}
+
+/// A controller: the rule it enforces and why the lab needs it.
+#[derive(Debug, Clone, Deserialize)]
+pub struct Rule {
+    pub why: String,
+    pub rule: String,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LabFile {
+    title: String,
+    charts: Vec<String>,
+    #[serde(default)]
+    uncontrollable: Vec<String>,
+    #[serde(default, rename = "controller")]
+    controllers: Vec<Rule>,
+}
+
+#[derive(Debug, Error)]
+pub enum DesignError {
+    #[error("cannot read {path}: {why}")]
+    Read { path: String, why: String },
+    #[error("{path}: {why}")]
+    LabFile { path: String, why: String },
+    #[error("{lab}: chart '{chart}': {why}")]
+    Chart {
+        lab: String,
+        chart: String,
+        why: String,
+    },
+    #[error("{lab}: composing the charts: {why}")]
+    Compose { lab: String, why: String },
+    #[error("{lab}: controller '{rule}': {why}")]
+    Controller {
+        lab: String,
+        rule: String,
+        why: String,
+    },
+    #[error("{lab}: exploring the {which} net: {why}")]
+    Explore {
+        lab: String,
+        which: &'static str,
+        why: String,
+    },
+}
+
+/// The shipped charts and lab files, built in so `vl lab nets` runs from
+/// any directory.
+const SHIPPED: &[(&str, &str)] = &[
+    (
+        "common/mount.scxml",
+        include_str!("../../nets/common/mount.scxml"),
+    ),
+    (
+        "common/define.scxml",
+        include_str!("../../nets/common/define.scxml"),
+    ),
+    (
+        "common/execute.scxml",
+        include_str!("../../nets/common/execute.scxml"),
+    ),
+    (
+        "common/cspace.scxml",
+        include_str!("../../nets/common/cspace.scxml"),
+    ),
+    (
+        "navigation/lab.toml",
+        include_str!("../../nets/navigation/lab.toml"),
+    ),
+    (
+        "navigation/planning.scxml",
+        include_str!("../../nets/navigation/planning.scxml"),
+    ),
+    (
+        "navigation/following.scxml",
+        include_str!("../../nets/navigation/following.scxml"),
+    ),
+    (
+        "teleoperation/lab.toml",
+        include_str!("../../nets/teleoperation/lab.toml"),
+    ),
+    (
+        "teleoperation/field.scxml",
+        include_str!("../../nets/teleoperation/field.scxml"),
+    ),
+    (
+        "teleoperation/teleoperation.scxml",
+        include_str!("../../nets/teleoperation/teleoperation.scxml"),
+    ),
+];
+
+impl LabDesign {
+    /// Every lab's design as shipped.
+    pub fn shipped() -> Result<Vec<LabDesign>, DesignError> {
+        let read = |path: &str| {
+            SHIPPED
+                .iter()
+                .find(|(p, _)| *p == path)
+                .map(|(_, text)| (*text).to_owned())
+                .ok_or_else(|| DesignError::Read {
+                    path: path.to_owned(),
+                    why: "not among the shipped charts".to_owned(),
+                })
+        };
+        Experiment::ALL
+            .iter()
+            .map(|&lab| LabDesign::from_files(lab, &read))
+            .collect()
+    }
+
+    /// Every lab's design from the charts folder `dir` (laid out as
+    /// `crates/vl-core/nets/`).
+    pub fn load(dir: &Path) -> Result<Vec<LabDesign>, DesignError> {
+        let read = |path: &str| {
+            let file = dir.join(path);
+            std::fs::read_to_string(&file).map_err(|e| DesignError::Read {
+                path: file.display().to_string(),
+                why: e.to_string(),
+            })
+        };
+        Experiment::ALL
+            .iter()
+            .map(|&lab| LabDesign::from_files(lab, &read))
+            .collect()
+    }
+
+    fn from_files(
+        lab: Experiment,
+        read: &dyn Fn(&str) -> Result<String, DesignError>,
+    ) -> Result<LabDesign, DesignError> {
+        let path = format!("{}/lab.toml", lab.id());
+        let file: LabFile = toml::from_str(&read(&path)?).map_err(|e| DesignError::LabFile {
+            path: path.clone(),
+            why: e.to_string(),
+        })?;
+        let charts = file
+            .charts
+            .iter()
+            .map(|name| {
+                let own = read(&format!("{}/{name}.scxml", lab.id()));
+                let text = own.or_else(|_| read(&format!("common/{name}.scxml")))?;
+                Ok((name.clone(), text))
+            })
+            .collect::<Result<_, DesignError>>()?;
+        Ok(LabDesign {
+            lab,
+            title: file.title,
+            charts,
+            uncontrollable: file.uncontrollable,
+            controllers: file.controllers,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shipped_labs_design_sound_nets() {
+        for lab in LabDesign::shipped().unwrap() {
+            let designed = design(&lab).unwrap();
+            for (name, text) in designed.files() {
+                if name == "report.md" {
+                    println!("{text}");
+                }
+            }
+            assert!(designed.sound(), "{}", lab.lab.id());
+        }
+    }
+}

@@ -1,0 +1,193 @@
+//! What `vl lab nets` writes for a lab: its nets as PNML and DOT, and a
+//! report that reads like the thesis's analysis of it.
+
+use std::fmt::Write;
+
+use vl_petri::{Added, Analysis, net_to_dot, to_pnml};
+
+use super::Designed;
+use super::pipeline::Interleaving;
+use crate::Named;
+
+impl Designed {
+    /// Each file's name in the lab's folder and its contents.
+    pub fn files(&self) -> Vec<(String, String)> {
+        vec![
+            ("uncontrolled.pnml".into(), to_pnml(&self.uncontrolled)),
+            ("controlled.pnml".into(), to_pnml(&self.controlled)),
+            ("uncontrolled.dot".into(), net_to_dot(&self.uncontrolled)),
+            ("controlled.dot".into(), net_to_dot(&self.controlled)),
+            ("report.md".into(), self.report()),
+        ]
+    }
+
+    /// Whether the controlled net has every property a lab needs, and no
+    /// rule can be broken in it.
+    pub fn sound(&self) -> bool {
+        let a = &self.controlled_analysis;
+        a.bounded
+            && a.safe
+            && a.live
+            && a.reversible
+            && !a.deadlock
+            && self.still_bad.iter().all(|(_, b)| b.is_none())
+    }
+
+    fn report(&self) -> String {
+        let d = &self.design;
+        let lab = d.lab.id();
+        let mut out = String::new();
+        let _ = writeln!(out, "# {}: the lab's nets\n", d.title);
+        let _ = writeln!(
+            out,
+            "Written by `vl lab nets` from `crates/vl-core/nets/` (the charts and \
+             `{lab}/lab.toml`); do not edit: change a chart and run it again. The Host \
+             runs `controlled.pnml`.\n"
+        );
+        out.push_str("## The charts, each on its own\n\n");
+        out.push_str(&table_head("chart"));
+        for ((name, _), (_, analysis)) in d.charts.iter().zip(&self.charts) {
+            out.push_str(&table_row(&format!("`{name}`"), analysis));
+        }
+        let u = &self.uncontrolled_analysis;
+        let _ = writeln!(
+            out,
+            "\n## The composition, without controllers\n\n\
+             The charts composed by their shared events (synchronous transition \
+             composition): {} places, {} transitions ({} combinations of shared \
+             events that can never fire left out), {} reachable markings.\n",
+            u.places, u.transitions, self.never_fire, u.states
+        );
+        out.push_str(&table_head("net"));
+        out.push_str(&table_row("uncontrolled", u));
+        out.push_str("\n## What goes wrong without the controllers\n\n");
+        out.push_str(
+            "For each rule the lab needs, the shortest firing sequence of the uncontrolled \
+             net that breaks it:\n\n",
+        );
+        for (rule, bad) in &self.bad {
+            let _ = writeln!(
+                out,
+                "- {} (`{}`): {}",
+                rule.why,
+                rule.rule,
+                sequence(bad.as_ref())
+            );
+        }
+        out.push_str("\n## The controllers\n\n");
+        for (rule, added) in &self.added {
+            let _ = writeln!(out, "- {}: {}", rule.why, self.controllers(added));
+        }
+        let c = &self.controlled_analysis;
+        let _ = writeln!(
+            out,
+            "\n## The controlled net\n\n\
+             The composition with its controllers; {} transitions the controllers \
+             disable for good left out, then parallel places fused: {} places, {} \
+             transitions, {} reachable markings.\n",
+            self.disabled, c.places, c.transitions, c.states
+        );
+        out.push_str(&table_head("net"));
+        out.push_str(&table_row("controlled", c));
+        out.push_str("\nEach rule, in the controlled net:\n\n");
+        for (rule, bad) in &self.still_bad {
+            let _ = writeln!(
+                out,
+                "- {}: {}",
+                rule.why,
+                match bad {
+                    None => "cannot be broken".to_owned(),
+                    Some(_) => format!("**still broken**: {}", sequence(bad.as_ref())),
+                }
+            );
+        }
+        let _ = writeln!(
+            out,
+            "\n{}\n\n![the uncontrolled net](uncontrolled.svg)\n\n![the controlled net](controlled.svg)",
+            if self.sound() {
+                "**The controlled net is bounded, safe, live, reversible and deadlock-free, and \
+                 no rule can be broken in it.**"
+            } else {
+                "**The controlled net is NOT sound: see above.**"
+            }
+        );
+        out
+    }
+}
+
+impl Designed {
+    /// What synthesis added for one rule, in words.
+    fn controllers(&self, added: &[Added]) -> String {
+        let mut parts: Vec<String> = Vec::new();
+        let mut arcs: Vec<(&str, &str, usize)> = Vec::new();
+        for a in added {
+            match a {
+                Added::Monitor {
+                    place,
+                    initial,
+                    enforced,
+                } => parts.push(format!(
+                    "monitor place `{place}` ({initial} token{}) keeping `{enforced}`",
+                    if *initial == 1 { "" } else { "s" }
+                )),
+                Added::Inhibitor { place, transition } => {
+                    let event = self
+                        .uncontrolled
+                        .transition(transition)
+                        .and_then(|t| self.uncontrolled.transitions[t.0].label.as_deref())
+                        .unwrap_or(transition);
+                    match arcs.iter_mut().find(|(p, e, _)| p == place && *e == event) {
+                        Some(arc) => arc.2 += 1,
+                        None => arcs.push((place, event, 1)),
+                    }
+                }
+            }
+        }
+        for (place, event, n) in arcs {
+            parts.push(format!(
+                "inhibitor arc{} from `{place}` to the {n} `{event}` transition{}",
+                if n == 1 { "" } else { "s" },
+                if n == 1 { "" } else { "s" }
+            ));
+        }
+        parts.join("; ")
+    }
+}
+
+fn sequence(bad: Option<&Interleaving>) -> String {
+    match bad {
+        None => "cannot happen".to_owned(),
+        Some(i) if i.events.is_empty() => "the initial marking".to_owned(),
+        Some(i) => i
+            .events
+            .iter()
+            .map(|e| format!("`{e}`"))
+            .collect::<Vec<_>>()
+            .join(" → "),
+    }
+}
+
+fn yes(b: bool) -> &'static str {
+    if b { "yes" } else { "no" }
+}
+
+fn table_head(first: &str) -> String {
+    format!(
+        "| {first} | places | transitions | markings | bounded | safe | live | reversible | deadlock-free |\n\
+         |---|---|---|---|---|---|---|---|---|\n"
+    )
+}
+
+fn table_row(name: &str, a: &Analysis) -> String {
+    format!(
+        "| {name} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+        a.places,
+        a.transitions,
+        a.states,
+        yes(a.bounded),
+        yes(a.safe),
+        yes(a.live),
+        yes(a.reversible),
+        yes(!a.deadlock)
+    )
+}
