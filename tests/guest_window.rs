@@ -694,3 +694,41 @@ fn the_predictive_display_runs_ahead_of_the_delayed_pose() {
     drop(media);
     drop(host);
 }
+
+/// The window's view of the lab's net follows the Host's marking through
+/// mount → define → start → done, and its controls are enabled exactly when
+/// their events are.
+#[test]
+fn the_net_view_follows_the_marking_through_a_run() {
+    with_mounting_window(false, |harness| {
+        let marked = |app: &GuestApp, place: &str| {
+            app.session()
+                .nets
+                .state()
+                .marking
+                .iter()
+                .any(|p| p == place)
+        };
+        step_until(harness, "mount", |app| marked(app, "cspace.built"));
+        harness.get_by_label_contains("marked: mount.mounted");
+        harness.get_by_label("may happen: define, mount, release, start");
+        assert!(harness.state().session().nets_agree);
+        harness
+            .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
+            .click();
+        step_until(harness, "define", |app| marked(app, "define.given"));
+        harness.get_by_label_contains("planning.planned");
+        harness.get_by_label("Start").click();
+        step_until(harness, "start", |app| marked(app, "execute.running"));
+        harness.get_by_label_contains("following.following");
+        harness.get_by_label("may happen: command, finish, release, stop");
+        let image = harness.render().expect("the window renders");
+        let _ = image.save(concat!(env!("CARGO_TARGET_TMPDIR"), "/guest-net-view.png"));
+        harness.get_by_label("Stop").click();
+        step_until(harness, "finish the run", |app| {
+            app.session().done.is_some() && marked(app, "execute.ready")
+        });
+        harness.get_by_label("may happen: define, mount, release, start");
+        assert!(harness.state().session().nets_agree);
+    });
+}

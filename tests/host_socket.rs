@@ -308,9 +308,14 @@ async fn the_session_net_says_why_an_action_must_wait() {
     assert_eq!(welcome["experiments"].as_array().unwrap().len(), 1);
     op.send(json!({"type": "start"})).await;
     let e = op.expect_error("not_allowed_now").await;
-    assert_eq!(
-        e["message"],
-        "cannot start a run now: no experiment is mounted"
+    let says = |e: &serde_json::Value, start: &str, marked: &str| {
+        let text = e["message"].as_str().unwrap();
+        assert!(text.starts_with(start) && text.contains(marked), "{text}");
+    };
+    says(
+        &e,
+        "cannot start a run now: no `start` transition of the teleoperation net is enabled at marking {",
+        "mount.idle",
     );
     op.send(json!({"type": "mount", "experiment": "navigation"}))
         .await;
@@ -324,11 +329,19 @@ async fn the_session_net_says_why_an_action_must_wait() {
     assert_eq!(op.expect("mounted").await["experiment"], "teleoperation");
     op.send(json!({"type": "stop"})).await;
     let e = op.expect_error("not_allowed_now").await;
-    assert_eq!(e["message"], "cannot stop a run now: no run is going");
+    says(
+        &e,
+        "cannot stop a run now: no `stop` transition",
+        "execute.ready",
+    );
     op.send(json!({"type": "command", "event": 1, "v": 10, "w": 0}))
         .await;
     let e = op.expect_error("not_allowed_now").await;
-    assert_eq!(e["message"], "cannot drive now: no run is going");
+    says(
+        &e,
+        "cannot drive now: no `command` transition",
+        "execute.ready",
+    );
 }
 
 /// Anyone watching may press the emergency stop: the robot stops, the run
@@ -352,7 +365,12 @@ async fn an_observer_s_emergency_stop_halts_the_run_until_the_next_start() {
     op.send(json!({"type": "command", "event": 21, "left": 200, "right": 200}))
         .await;
     let e = op.expect_error("not_allowed_now").await;
-    assert_eq!(e["message"], "cannot drive now: no run is going");
+    let text = e["message"].as_str().unwrap();
+    assert!(
+        text.starts_with("cannot drive now: no `command` transition")
+            && text.contains("execute.ready"),
+        "{text}"
+    );
     let stopping = op.expect("feedback").await;
     let rest = op.feedback_after(&stopping, 400.0).await;
     assert_eq!(rest["wheels"]["left_mm_s"], 0.0, "{rest}");

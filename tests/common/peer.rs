@@ -32,33 +32,48 @@ impl Peer {
     }
 
     /// The next text message of `kind`, skipping others; `None` when none
-    /// comes within `wait` or the connection ends. While it reads it answers
-    /// the Host's pings, as a live Guest does (a frozen one does not read).
+    /// comes within `wait` or the connection ends.
     pub async fn next_of(&mut self, kind: &str, wait: Duration) -> Option<Value> {
         tokio::time::timeout(wait, async {
             loop {
-                match self.ws.next().await {
-                    Some(Ok(Message::Text(t))) => {
-                        let v: Value = serde_json::from_str(&t).expect("the Host sends JSON");
-                        if v["type"] == kind {
-                            return Some(v);
-                        }
-                        if v["type"] == "ping" {
-                            let pong = json!({"type": "pong", "t": v["t"]}).to_string();
-                            if self.ws.send(Message::text(pong)).await.is_err() {
-                                return None;
-                            }
-                        }
-                    }
-                    Some(Ok(Message::Binary(_))) => self.frames += 1,
-                    Some(Ok(_)) => {}
-                    _ => return None,
+                let v = self.next_text().await?;
+                if v["type"] == kind {
+                    return Some(v);
                 }
             }
         })
         .await
         .ok()
         .flatten()
+    }
+
+    /// The next text message of any kind within 5 s.
+    pub async fn next_any(&mut self) -> Option<Value> {
+        tokio::time::timeout(Duration::from_secs(5), self.next_text())
+            .await
+            .ok()
+            .flatten()
+    }
+
+    /// The next text message but a ping; `None` when the connection ends.
+    /// It answers the Host's pings, as a live Guest does (a frozen one
+    /// does not read).
+    async fn next_text(&mut self) -> Option<Value> {
+        loop {
+            match self.ws.next().await {
+                Some(Ok(Message::Text(t))) => {
+                    let v: Value = serde_json::from_str(&t).expect("the Host sends JSON");
+                    if v["type"] != "ping" {
+                        return Some(v);
+                    }
+                    let pong = json!({"type": "pong", "t": v["t"]}).to_string();
+                    self.ws.send(Message::text(pong)).await.ok()?;
+                }
+                Some(Ok(Message::Binary(_))) => self.frames += 1,
+                Some(Ok(_)) => {}
+                _ => return None,
+            }
+        }
     }
 
     /// The next text message of `kind`; panics after 5 s.

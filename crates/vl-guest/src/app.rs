@@ -12,12 +12,13 @@ use std::time::{Duration, Instant};
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Vec2};
 use vl_core::{
-    Definition, Drive, Goal, GuestMessage, Joystick, LOOKAHEAD_MM, PROTOCOL_VERSION, Point, Pose,
-    Role, Shape, Teleop, Vector, arena_of, disc_cspace,
+    Action, Definition, Drive, Goal, GuestMessage, Joystick, LOOKAHEAD_MM, PROTOCOL_VERSION, Point,
+    Pose, Role, Shape, Teleop, Vector, arena_of, disc_cspace,
 };
 
 use crate::client::{ClientError, Connection, Incoming, open};
 use crate::gamepad::Pad;
+use crate::netview;
 use crate::route::{Route, check_path, drag_path};
 use crate::session::{Link, Session};
 use crate::settings::{MARGIN_MM, MAX_SPEED_MM_S, Settings};
@@ -345,7 +346,6 @@ impl GuestApp {
     }
 
     fn controls(&mut self, ui: &mut egui::Ui) {
-        let operator = self.session.is_operator();
         ui.heading("Mount");
         for experiment in self.session.experiments.clone() {
             let mounted = self
@@ -355,7 +355,7 @@ impl GuestApp {
                 .is_some_and(|l| l.experiment == experiment.id);
             let button = egui::Button::new(&experiment.title).selected(mounted);
             if ui
-                .add_enabled(operator && !self.session.running, button)
+                .add_enabled(self.session.allows(Action::Mount), button)
                 .clicked()
             {
                 self.connection.send(GuestMessage::Mount {
@@ -381,7 +381,7 @@ impl GuestApp {
                 );
                 if ui
                     .add_enabled(
-                        operator && !self.session.running,
+                        self.session.allows(Action::Define),
                         egui::Button::new("Define"),
                     )
                     .clicked()
@@ -410,15 +410,17 @@ impl GuestApp {
             ui.heading("Execute");
             ui.horizontal(|ui| {
                 // Defining is optional: a run may start on the defaults.
-                let can_start = operator && !self.session.running;
                 if ui
-                    .add_enabled(can_start, egui::Button::new("Start"))
+                    .add_enabled(
+                        self.session.allows(Action::Start),
+                        egui::Button::new("Start"),
+                    )
                     .clicked()
                 {
                     self.connection.send(GuestMessage::Start);
                 }
                 if ui
-                    .add_enabled(operator && self.session.running, egui::Button::new("Stop"))
+                    .add_enabled(self.session.allows(Action::Stop), egui::Button::new("Stop"))
                     .clicked()
                 {
                     self.connection.send(GuestMessage::Stop);
@@ -430,6 +432,12 @@ impl GuestApp {
                     done.reason, done.events, done.seconds, done.distance_mm
                 ));
             }
+        }
+        if self.session.role.is_some() {
+            ui.separator();
+            egui::CollapsingHeader::new("Lab net")
+                .default_open(true)
+                .show(ui, |ui| netview::show(ui, &self.session.nets));
         }
         if let Some(robot) = &self.session.robot {
             ui.separator();

@@ -7,6 +7,7 @@ mod app;
 mod client;
 mod gamepad;
 mod headless;
+mod netview;
 mod predict;
 mod route;
 mod session;

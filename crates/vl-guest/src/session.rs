@@ -7,8 +7,9 @@ use std::time::{Duration, Instant};
 use image::RgbaImage;
 use serde::Serialize;
 use vl_core::{
-    Definition, DeviceState, Drive, ErrorCode, ExperimentInfo, FrameHeader, GuestMessage,
-    HostMessage, ImageFormat, MountedLab, Pose, PoseSource, Role, Summary, WheelSpeeds,
+    Action, Definition, DeviceState, Drive, ErrorCode, Experiment, ExperimentInfo, FrameHeader,
+    GuestMessage, HostMessage, ImageFormat, MountedLab, Named, Pose, PoseSource, Role, Summary,
+    Supervisor, WheelSpeeds,
 };
 
 use crate::client::Incoming;
@@ -172,6 +173,11 @@ pub struct Session {
     /// When the newest feedback and frame arrived.
     pub feedback_at: Option<Instant>,
     pub frame_at: Option<Instant>,
+    /// The Host's supervisor nets, run here from the firings it tells, so
+    /// controls are offered exactly when their transitions are enabled.
+    pub nets: Supervisor,
+    /// Whether the last state the Host told matched the nets run here.
+    pub nets_agree: bool,
 }
 
 impl Default for Session {
@@ -205,6 +211,9 @@ impl Default for Session {
             stale_error: Spread::default(),
             feedback_at: None,
             frame_at: None,
+            nets: Supervisor::new(Experiment::ALL)
+                .expect("the shipped nets are built in and tested"),
+            nets_agree: true,
         }
     }
 }
@@ -266,6 +275,7 @@ impl Session {
                 self.definition = Some(definition);
                 self.errors.clear();
             }
+            HostMessage::State(state) => self.nets_agree = self.nets.follow(&state),
             // A run given back to an operator whose link dropped goes on,
             // and so does its record.
             HostMessage::Started { event } if self.interrupted => {
@@ -426,6 +436,12 @@ impl Session {
     /// Whether this Guest may drive.
     pub fn is_operator(&self) -> bool {
         self.role == Some(Role::Operator)
+    }
+
+    /// Whether this Guest may ask for `action` now: it is the operator and
+    /// the lab's net, run here from the Host's firings, enables it.
+    pub fn allows(&self, action: Action) -> bool {
+        self.is_operator() && self.nets.allows(action)
     }
 }
 
