@@ -463,8 +463,7 @@ async fn play(url: &str, nets: &HashMap<String, Net>, acts: &[Act]) {
                 continue;
             }
             Act::Leave => {
-                op.peer.send(json!({"type": "bye"})).await;
-                let _ = op.peer.ws.close(None).await;
+                leave(op).await;
                 op = operator(url, &mut mirror, None).await;
                 // Leaving released the lab: its net is back where it began.
                 assert_eq!(mirror.marking(), initial(mirror.net()), "released");
@@ -493,8 +492,15 @@ async fn play(url: &str, nets: &HashMap<String, Net>, acts: &[Act]) {
             op.event = 0;
         }
     }
-    op.peer.send(json!({"type": "bye"})).await;
+    leave(op).await;
     assert!(mirror.states > 0);
+}
+
+/// Says bye and reads until the Host closes: a socket closed with unread
+/// data is reset, and the bye with it.
+async fn leave(mut op: Operator) {
+    op.peer.send(json!({"type": "bye"})).await;
+    while op.peer.next_any().await.is_some() {}
 }
 
 /// Random sequences of actions, from one operator over the socket: every

@@ -1,7 +1,9 @@
 //! What the vl Guest and Host share, and the lab's algorithms both run.
 //!
 //! - the contract between them: protocol v1's messages, camera frames,
-//!   experiments and their definitions, the session supervisor net;
+//!   experiments and their definitions, the session supervisor running the
+//!   labs' controlled nets;
+//! - the labs' nets designed from their statecharts (`design`);
 //! - the lab's models: the robot and its Khepera protocol, the arena, the
 //!   camera;
 //! - vision on the overhead camera's frames;

@@ -275,7 +275,14 @@ impl Session {
                 self.definition = Some(definition);
                 self.errors.clear();
             }
-            HostMessage::State(state) => self.nets_agree = self.nets.follow(&state),
+            HostMessage::State(state) => {
+                self.nets_agree = self.nets.follow(&state);
+                // A run asked to stop takes no more commands, though its
+                // `done` is still to come.
+                if !self.nets.allows(Action::Command) {
+                    self.running = false;
+                }
+            }
             // A run given back to an operator whose link dropped goes on,
             // and so does its record.
             HostMessage::Started { event } if self.interrupted => {
