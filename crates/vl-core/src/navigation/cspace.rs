@@ -513,21 +513,54 @@ mod tests {
         );
     }
 
+    /// The squared distance from each cell to the nearest blocked one, by
+    /// looking at every blocked cell (infinite without one).
+    fn brute_force(g: &Grid) -> Vec<f64> {
+        let mut d = vec![f64::INFINITY; (g.width * g.height) as usize];
+        for r in 0..g.height {
+            for c in 0..g.width {
+                for (cc, rr) in (0..g.height)
+                    .flat_map(|rr| (0..g.width).map(move |cc| (cc, rr)))
+                    .filter(|&(cc, rr)| g.is_blocked(cc, rr))
+                {
+                    let (dc, dr) = (f64::from(cc) - f64::from(c), f64::from(rr) - f64::from(r));
+                    let i = g.index(c, r);
+                    d[i] = d[i].min(dc * dc + dr * dr);
+                }
+            }
+        }
+        d
+    }
+
     #[test]
     fn distance_transform_matches_brute_force() {
         let g = grid(&["#.....", "......", "...#..", "......"]);
-        let d = g.distance_transform();
-        for r in 0..g.height {
-            for c in 0..g.width {
-                let brute = (0..g.height)
-                    .flat_map(|rr| (0..g.width).map(move |cc| (cc, rr)))
-                    .filter(|&(cc, rr)| g.is_blocked(cc, rr))
-                    .map(|(cc, rr)| {
-                        let (dc, dr) = (f64::from(cc) - f64::from(c), f64::from(rr) - f64::from(r));
-                        dc * dc + dr * dr
-                    })
-                    .fold(f64::INFINITY, f64::min);
-                assert_eq!(d[g.index(c, r)], brute, "at ({c}, {r})");
+        assert_eq!(g.distance_transform(), brute_force(&g));
+    }
+
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Exact on any grid: equal to the brute force wherever a blocked
+        /// cell exists, and beyond every distance on the map where none does.
+        #[test]
+        fn distance_transform_is_exact(
+            (w, h, cells) in (1u32..24, 1u32..24).prop_flat_map(|(w, h)| {
+                (Just(w), Just(h), proptest::collection::vec(any::<u8>(), (w * h) as usize))
+            })
+        ) {
+            let mut g = Grid::free(w, h, 10.0).unwrap();
+            for (b, c) in g.blocked.iter_mut().zip(&cells) {
+                *b = *c < 20;
+            }
+            let fast = g.distance_transform();
+            let beyond = f64::from((w - 1) * (w - 1) + (h - 1) * (h - 1));
+            for (got, want) in fast.iter().zip(brute_force(&g)) {
+                if want.is_finite() {
+                    prop_assert_eq!(*got, want);
+                } else {
+                    prop_assert!(*got > beyond);
+                }
             }
         }
     }

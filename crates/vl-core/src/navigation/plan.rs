@@ -487,13 +487,15 @@ fn exact_clearance(grid: &Grid, d2: &[f64], p: Point) -> f64 {
     let Some((c, r)) = grid.cell_of(p) else {
         return 0.0;
     };
-    let mut best = edge_distance(grid, p);
+    let best = edge_distance(grid, p);
     // The nearest blocked centre is within sqrt(d2) cells of this cell's
     // centre, so its square is within that plus half a diagonal of p; any
     // square at least that near has its centre within 1.5 diagonals more.
     let bound = (d2[grid.index(c, r)].sqrt() * s + s * std::f64::consts::FRAC_1_SQRT_2).min(best);
     let reach = (bound / s + 1.5 * std::f64::consts::SQRT_2).ceil() as i64;
     let (c, r) = (i64::from(c), i64::from(r));
+    // Squared, so each cell costs no square root.
+    let mut best2 = best * best;
     for rr in (r - reach).max(0)..=(r + reach).min(i64::from(grid.height) - 1) {
         for cc in (c - reach).max(0)..=(c + reach).min(i64::from(grid.width) - 1) {
             if !grid.is_blocked(cc as u32, rr as u32) {
@@ -502,8 +504,8 @@ fn exact_clearance(grid: &Grid, d2: &[f64], p: Point) -> f64 {
             let centre = grid.centre(cc as u32, rr as u32);
             let dx = ((centre.x_mm - p.x_mm).abs() - s / 2.0).max(0.0);
             let dy = ((centre.y_mm - p.y_mm).abs() - s / 2.0).max(0.0);
-            best = best.min(dx.hypot(dy));
+            best2 = best2.min(dx * dx + dy * dy);
         }
     }
-    best
+    best2.sqrt()
 }
