@@ -1,5 +1,6 @@
 //! A global allocator that counts live and peak heap bytes, so commands can
-//! report the memory an analysis took (`peak_bytes`).
+//! report the memory an analysis took (`peak_heap_bytes`), beside the
+//! process's peak resident memory as the kernel counts it.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -51,6 +52,18 @@ unsafe impl GlobalAlloc for Counting {
 /// The most heap bytes live at once since the program started.
 pub(crate) fn peak_bytes() -> usize {
     PEAK.load(Ordering::Relaxed)
+}
+
+/// The most memory the process has held resident, bytes (what `time -v`
+/// calls the maximum resident set size): heap, code, stacks and all.
+pub(crate) fn peak_resident_bytes() -> usize {
+    let mut usage = std::mem::MaybeUninit::<libc::rusage>::zeroed();
+    // SAFETY: getrusage fills the struct it is given; RUSAGE_SELF is valid.
+    let usage = unsafe {
+        libc::getrusage(libc::RUSAGE_SELF, usage.as_mut_ptr());
+        usage.assume_init()
+    };
+    usize::try_from(usage.ru_maxrss).unwrap_or(0) * 1024
 }
 
 /// Benchmarks in the libraries measure through the allocator.

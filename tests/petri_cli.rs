@@ -75,7 +75,8 @@ fn statecharts_to_a_controlled_lab_net() {
         "p_flow_basis_dim",
         "t_flow_basis_dim",
         "seconds",
-        "peak_bytes",
+        "peak_heap_bytes",
+        "peak_resident_bytes",
     ] {
         assert!(a.get(key).is_some(), "analyze --json lacks {key}");
     }
