@@ -74,12 +74,24 @@ async fn idle_sockets_by_the_thousand_never_lock_a_client_out() {
             Err(e) => panic!("connecting idle socket {}: {e}", idle.len()),
         }
     }
+    // A newcomer gets in, though, as a Guest does, it may have to try again:
+    // idle sockets the kernel queued past the listen backlog are accepted
+    // after it, and each may evict the oldest one still shaking hands.
     let started = Instant::now();
-    let mut newcomer = Peer::connect(&url).await;
+    let mut attempts = 0;
+    let mut newcomer = loop {
+        attempts += 1;
+        match Peer::try_connect(&url).await {
+            Ok(peer) => break peer,
+            Err(e) if attempts < 3 => println!("attempt {attempts}: {e}"),
+            Err(e) => panic!("a newcomer was locked out {attempts} times: {e}"),
+        }
+    };
     let welcome = newcomer.hello("operator").await;
     println!(
-        "1100 idle sockets open; a new operator welcomed in {:.1} ms",
-        started.elapsed().as_secs_f64() * 1e3
+        "1100 idle sockets open; a new operator welcomed in {:.1} ms ({attempts} attempt{})",
+        started.elapsed().as_secs_f64() * 1e3,
+        if attempts == 1 { "" } else { "s" }
     );
     assert_eq!(welcome["role"], "operator");
     // Writing on them all does not change that.

@@ -19,8 +19,12 @@ pub struct Peer {
 
 impl Peer {
     pub async fn connect(url: &str) -> Peer {
-        let (ws, _) = connect_async(url).await.expect("connects");
-        Peer { ws, frames: 0 }
+        Peer::try_connect(url).await.expect("connects")
+    }
+
+    pub async fn try_connect(url: &str) -> Result<Peer, tokio_tungstenite::tungstenite::Error> {
+        let (ws, _) = connect_async(url).await?;
+        Ok(Peer { ws, frames: 0 })
     }
 
     pub async fn send(&mut self, message: Value) {
