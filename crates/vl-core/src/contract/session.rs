@@ -219,11 +219,6 @@ impl Supervisor {
         self.mounted.map(|i| self.labs[i].lab)
     }
 
-    /// The net of `lab`, for pictures.
-    pub fn net(&self, lab: Experiment) -> Option<&Net> {
-        self.labs.iter().find(|l| l.lab == lab).map(|l| &l.net)
-    }
-
     /// The current net and its marking.
     pub fn marked(&self) -> (&Net, &Marking) {
         let l = self.current();

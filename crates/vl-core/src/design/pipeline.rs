@@ -21,8 +21,6 @@ pub struct Interleaving {
     /// The events, in order; the last breaks the rule (or reaches the
     /// marking that does).
     pub events: Vec<String>,
-    /// The transitions fired, by id.
-    pub transitions: Vec<String>,
 }
 
 /// Everything the pipeline made of one lab's design.
@@ -293,7 +291,6 @@ fn broken(net: &Net, space: &StateSpace, constraints: &[Constraint]) -> Option<I
                     .iter()
                     .map(|t| tr(t).label.clone().unwrap_or_else(|| tr(t).id.clone()))
                     .collect(),
-                transitions: fired.iter().map(|t| tr(t).id.clone()).collect(),
             });
         }
     }
