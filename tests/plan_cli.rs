@@ -277,7 +277,7 @@ fn bench_reports_each_stage() {
         "descent_ms",
         "spline_ms",
         "clearance_ms",
-        "plan_ms",
+        "whole_ms",
     ] {
         assert!(report[key].as_f64().unwrap() > 0.0, "{key}: {report}");
     }

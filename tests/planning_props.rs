@@ -7,7 +7,9 @@
 use std::collections::VecDeque;
 
 use proptest::prelude::*;
-use vl_core::{CSpace, Cell, Connectivity, Footprint, Grid, Nf1, NoPath, Plan, Point, Pose, plan};
+use vl_core::{
+    CSpace, Cell, Connectivity, Footprint, Grid, Nf1, NoPath, Plan, Point, Pose, clearance, plan,
+};
 
 const CELL_MM: f64 = 10.0;
 
@@ -194,6 +196,8 @@ fn check(
     );
     // The descent: one NF1 value lower each step, by legal steps, to the goal.
     let nf1 = Nf1::from_goal(cs, to, conn);
+    // The wave that stopped at the start descends as the whole one does.
+    prop_assert_eq!(Some(plan.grid_path.clone()), nf1.descend(from, to));
     prop_assert_eq!(plan.grid_path.first(), Some(&from));
     prop_assert_eq!(plan.grid_path.last(), Some(&to));
     for (i, pair) in plan.grid_path.windows(2).enumerate() {
@@ -263,6 +267,32 @@ proptest! {
         let cs = CSpace::build(&map, bar, slices).unwrap();
         let (start, goal) = (pose_on(&cs, s, snap), pose_on(&cs, g, snap));
         check(&cs, conn, start, goal, plan(&cs, start, goal, conn))?;
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    /// Clearance of any poses, near obstacles or far from them (so every
+    /// way `clearance` looks is taken: a few cells out, farther, the whole
+    /// map), equals the exhaustive search's.
+    #[test]
+    fn clearance_of_any_poses_agrees_with_brute_force(
+        (w, h, blocked) in (20u32..70, 20u32..70, 0.0f64..0.03).prop_flat_map(|(w, h, density)| {
+            (Just(w), Just(h), proptest::collection::vec(proptest::bool::weighted(density), (w * h) as usize))
+        }),
+        poses in proptest::collection::vec((0.0f64..1.0, 0.0f64..1.0), 1..12),
+    ) {
+        let map = Grid { width: w, height: h, cell_mm: CELL_MM, blocked };
+        let cs = CSpace::build(&map, Footprint::Disc { radius_mm: 0.0 }, 1).unwrap();
+        let (wmm, hmm) = map.size_mm();
+        let path: Vec<Pose> = poses
+            .iter()
+            .map(|&(fx, fy)| Pose { x_mm: fx * wmm, y_mm: fy * hmm, theta_rad: 0.0 })
+            .collect();
+        let got = clearance(&cs, &path);
+        let brute = brute_clearance(&cs, &path);
+        prop_assert!((got - brute).abs() < 1e-9, "clearance {got} vs brute force {brute}");
     }
 }
 

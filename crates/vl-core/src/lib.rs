@@ -49,7 +49,7 @@ pub use navigation::analysis::{
     ErrorMm, PathAnalysis, PathRecorder, PoseSource, distance_to_polyline, nearest_rank,
 };
 pub use navigation::bench::{PlanBench, PlanBenchError, bench as bench_planning};
-pub use navigation::cspace::{CSpace, CSpaceError, Footprint, Grid};
+pub use navigation::cspace::{CSpace, CSpaceError, FAR, Footprint, Grid};
 pub use navigation::follow::{Follower, Following, Steer};
 pub use navigation::localise::{Fold, Localiser, Uncertainty};
 pub use navigation::nf1::{Cell, Nf1};

@@ -230,33 +230,103 @@ impl Grid {
     }
 
     /// Squared distance, in cells², from each cell's centre to the nearest
-    /// blocked cell's centre (the exact Euclidean distance transform of
-    /// Felzenszwalb and Huttenlocher, two 1-D passes). Cells off the map
-    /// are not counted here; see [`Grid::border_cells`].
-    pub fn distance_transform(&self) -> Vec<f64> {
-        let (w, h) = (self.width as usize, self.height as usize);
-        let far = ((w * w + h * h) as f64) * 4.0 + 1.0;
-        let mut d: Vec<f64> = self
-            .blocked
-            .iter()
-            .map(|&b| if b { 0.0 } else { far })
-            .collect();
-        let mut scratch = Scratch::new(w.max(h));
-        let mut line = vec![0.0; w.max(h)];
-        for x in 0..w {
-            for y in 0..h {
-                line[y] = d[y * w + x];
-            }
-            scratch.lower_envelope(&line[..h]);
-            for y in 0..h {
-                d[y * w + x] = scratch.out[y];
-            }
-        }
-        for y in 0..h {
-            scratch.lower_envelope(&d[y * w..(y + 1) * w]);
-            d[y * w..(y + 1) * w].copy_from_slice(&scratch.out[..w]);
-        }
+    /// blocked cell's centre: the exact Euclidean distance transform of
+    /// Felzenszwalb and Huttenlocher. [`FAR`] where there is none (within
+    /// 65,534 rows: the first pass counts in 16 bits). See
+    /// [`Self::distance_transform_within`].
+    pub fn distance_transform(&self) -> Vec<u32> {
+        self.distance_transform_within(FAR - 1)
+    }
+
+    /// The distance transform, exact wherever it is at most `limit` cells²
+    /// and [`FAR`] wherever it is more: a C-space only asks "nearer than
+    /// this?", and a cell farther from every obstacle than the limit along
+    /// its column cannot be anyone's nearest, so the second pass skips it.
+    fn distance_transform_within(&self, limit: u32) -> Vec<u32> {
+        let mut d = vec![FAR; self.blocked.len()];
+        self.transform_rows(limit, &mut d, |row, out| out.copy_from_slice(row));
         d
+    }
+
+    /// The cells whose centres are within `limit` cells² of a blocked cell's
+    /// centre (the blocked ones among them), without holding the whole
+    /// transform.
+    fn within(&self, limit: u32) -> Vec<bool> {
+        let mut near = vec![false; self.blocked.len()];
+        self.transform_rows(limit, &mut near, |row, out| {
+            for (o, &d) in out.iter_mut().zip(row) {
+                *o = d != FAR;
+            }
+        });
+        near
+    }
+
+    /// Takes the transform within `limit` row by row, handing `write` each
+    /// row's squared distances with that row of `out`.
+    ///
+    /// The first pass (along columns) is, for a binary map, the distance to
+    /// the nearest blocked cell in the column, taken by two sweeps over whole
+    /// rows so memory is read in order, and held in 16 bits; the second (the
+    /// lower envelope of parabolas along each row, or a sliding minimum for
+    /// a small limit) splits its rows between two threads on a large map.
+    /// Cells off the map are not counted here; see [`Grid::border_cells`].
+    fn transform_rows<T: Send>(
+        &self,
+        limit: u32,
+        out: &mut [T],
+        write: impl Fn(&[u32], &mut [T]) + Sync,
+    ) {
+        let (w, h) = (self.width as usize, self.height as usize);
+        // Rows to the nearest blocked cell up or down the column, saturating
+        // at NONE: "none within reach". Written without branches (a mask for
+        // "blocked") so the sweeps vectorise.
+        const NONE: u16 = u16::MAX;
+        let mut column = vec![NONE; w * h];
+        let free = |b: bool| u16::from(b).wrapping_sub(1);
+        for (g, &b) in column.iter_mut().zip(&self.blocked).take(w) {
+            *g = NONE & free(b);
+        }
+        for y in 1..h {
+            let (done, row) = column.split_at_mut(y * w);
+            let above = &done[(y - 1) * w..];
+            let blocked = &self.blocked[y * w..(y + 1) * w];
+            for ((g, &a), &b) in row[..w].iter_mut().zip(above).zip(blocked) {
+                *g = a.saturating_add(1) & free(b);
+            }
+        }
+        for y in (0..h.saturating_sub(1)).rev() {
+            let (row, below) = column[y * w..(y + 2) * w].split_at_mut(w);
+            for (g, &b) in row.iter_mut().zip(below.iter()) {
+                *g = (*g).min(b.saturating_add(1));
+            }
+        }
+        let reach = limit.isqrt();
+        let rows = |column: &[u16], out: &mut [T]| {
+            let mut scratch = Scratch::new(w);
+            let mut row = vec![0u32; w];
+            for (g, out) in column.chunks_exact(w).zip(out.chunks_exact_mut(w)) {
+                for (r, &g) in row.iter_mut().zip(g) {
+                    *r = if g == NONE { NONE_U32 } else { u32::from(g) };
+                }
+                if reach <= WINDOW_REACH {
+                    scratch.window(&mut row, limit);
+                } else {
+                    scratch.lower_envelope(&mut row, limit);
+                }
+                write(&row, out);
+            }
+        };
+        if w * h >= PARALLEL_CELLS && h >= 2 {
+            let half = h / 2 * w;
+            let (top, bottom) = column.split_at(half);
+            let (out_top, out_bottom) = out.split_at_mut(half);
+            std::thread::scope(|scope| {
+                scope.spawn(|| rows(top, out_top));
+                rows(bottom, out_bottom);
+            });
+        } else {
+            rows(&column, out);
+        }
     }
 
     /// Distance, in cells, from a cell's centre to the centre of the
@@ -266,34 +336,72 @@ impl Grid {
     }
 }
 
-/// Buffers for the 1-D squared distance transform (lower envelope of parabolas).
+/// The distance transform's value for "no blocked cell within the limit".
+pub const FAR: u32 = u32::MAX;
+
+/// A row's column distance where the column has no blocked cell within reach.
+const NONE_U32: u32 = u32::MAX;
+
+/// Maps at least this large share the distance transform's rows between two
+/// threads: below it, starting a thread costs more than it saves.
+const PARALLEL_CELLS: usize = 1 << 16;
+
+/// Limits up to this many cells out are taken along a row by a sliding
+/// minimum over the window, cheaper there than the lower envelope.
+const WINDOW_REACH: u32 = 8;
+
+/// Buffers for the 1-D squared distance transform along a row.
 struct Scratch {
+    /// Columns of the parabolas that may be nearest (within the limit).
+    at: Vec<usize>,
+    /// Their heights: the squared column distance there.
+    f: Vec<f64>,
+    /// Columns of the parabolas in the lower envelope.
     v: Vec<usize>,
+    /// Where each envelope parabola starts to be the lowest.
     z: Vec<f64>,
-    out: Vec<f64>,
+    /// The window's squared column distances, capped just past the limit.
+    g2: Vec<u32>,
 }
 
 impl Scratch {
     fn new(n: usize) -> Self {
         Scratch {
+            at: Vec::with_capacity(n),
+            f: Vec::with_capacity(n),
             v: vec![0; n],
             z: vec![0.0; n + 1],
-            out: vec![0.0; n],
+            g2: vec![0; n],
         }
     }
 
-    fn lower_envelope(&mut self, f: &[f64]) {
-        let n = f.len();
-        let (v, z) = (&mut self.v, &mut self.z);
+    /// Replaces `row`'s column distances ([`NONE_U32`] for "no blocked
+    /// cell within reach") by squared distances within `limit` and [`FAR`] beyond it:
+    /// the lower envelope of parabolas of Felzenszwalb and Huttenlocher,
+    /// over only the columns near enough to count.
+    fn lower_envelope(&mut self, row: &mut [u32], limit: u32) {
+        self.at.clear();
+        self.f.clear();
+        for (x, &g) in row.iter().enumerate() {
+            if g != NONE_U32 && u64::from(g) * u64::from(g) <= u64::from(limit) {
+                self.at.push(x);
+                self.f.push(f64::from(g) * f64::from(g));
+            }
+        }
+        if self.at.is_empty() {
+            row.fill(FAR);
+            return;
+        }
+        let (at, f, v, z) = (&self.at, &self.f, &mut self.v, &mut self.z);
         let mut k = 0usize;
         v[0] = 0;
         z[0] = f64::NEG_INFINITY;
         z[1] = f64::INFINITY;
-        let sq = |q: usize| (q * q) as f64;
-        for q in 1..n {
+        let sq = |i: usize| (at[i] * at[i]) as f64;
+        for q in 1..at.len() {
             loop {
                 let p = v[k];
-                let s = ((f[q] + sq(q)) - (f[p] + sq(p))) / (2.0 * (q - p) as f64);
+                let s = ((f[q] + sq(q)) - (f[p] + sq(p))) / (2.0 * (at[q] - at[p]) as f64);
                 if s <= z[k] && k > 0 {
                     k -= 1;
                 } else {
@@ -306,12 +414,41 @@ impl Scratch {
             }
         }
         k = 0;
-        for q in 0..n {
-            while z[k + 1] < q as f64 {
+        let limit = f64::from(limit);
+        for (x, out) in row.iter_mut().enumerate() {
+            while z[k + 1] < x as f64 {
                 k += 1;
             }
-            let dq = q as f64 - v[k] as f64;
-            self.out[q] = dq * dq + f[v[k]];
+            let dx = x as f64 - at[v[k]] as f64;
+            let d2 = dx * dx + f[v[k]];
+            *out = if d2 <= limit { d2 as u32 } else { FAR };
+        }
+    }
+
+    /// The same as [`Self::lower_envelope`] for a small `limit`: each cell
+    /// takes the least dx² + g² over the columns within its square root.
+    fn window(&mut self, row: &mut [u32], limit: u32) {
+        let reach = limit.isqrt() as usize;
+        let beyond = limit + 1;
+        let g2 = &mut self.g2[..row.len()];
+        for (h, &g) in g2.iter_mut().zip(row.iter()) {
+            *h = if (g as usize) <= reach { g * g } else { beyond };
+        }
+        row.copy_from_slice(g2);
+        for dx in 1..reach.min(row.len().saturating_sub(1)) + 1 {
+            let d = (dx * dx) as u32;
+            let n = row.len() - dx;
+            for (out, &h) in row[..n].iter_mut().zip(&g2[dx..]) {
+                *out = (*out).min(h + d);
+            }
+            for (out, &h) in row[dx..].iter_mut().zip(&g2[..n]) {
+                *out = (*out).min(h + d);
+            }
+        }
+        for out in row.iter_mut() {
+            if *out > limit {
+                *out = FAR;
+            }
         }
     }
 }
@@ -388,19 +525,26 @@ impl CSpace {
 /// Blocks the cells within `radius_mm` (centre to centre) of an obstacle
 /// cell or of the map's edge.
 fn grow_by_disc(workspace: &Grid, radius_mm: f64) -> Grid {
-    let mut grown = workspace.clone();
     if radius_mm <= 0.0 {
-        return grown;
+        return workspace.clone();
     }
     let r_cells = radius_mm / workspace.cell_mm;
-    let r2 = r_cells * r_cells;
-    let d2 = workspace.distance_transform();
-    for r in 0..workspace.height {
+    let r2 = r_cells * r_cells + 1e-9;
+    let mut grown = Grid {
+        blocked: workspace.within(r2.min(f64::from(FAR - 1)) as u32),
+        ..*workspace
+    };
+    // The bands along the edges, whose centres are within the radius of a
+    // cell just off the map.
+    let band = |n: u32| (0..n).filter(move |&i| f64::from((i + 1).min(n - i)) <= r_cells + 1e-9);
+    for r in band(workspace.height) {
         for c in 0..workspace.width {
-            let i = workspace.index(c, r);
-            if d2[i] <= r2 + 1e-9 || workspace.border_cells(c, r) <= r_cells + 1e-9 {
-                grown.blocked[i] = true;
-            }
+            grown.blocked[workspace.index(c, r)] = true;
+        }
+    }
+    for c in band(workspace.width) {
+        for r in 0..workspace.height {
+            grown.blocked[workspace.index(c, r)] = true;
         }
     }
     grown
@@ -535,7 +679,8 @@ mod tests {
     #[test]
     fn distance_transform_matches_brute_force() {
         let g = grid(&["#.....", "......", "...#..", "......"]);
-        assert_eq!(g.distance_transform(), brute_force(&g));
+        let want: Vec<u32> = brute_force(&g).iter().map(|&d| d as u32).collect();
+        assert_eq!(g.distance_transform(), want);
     }
 
     use proptest::prelude::*;
@@ -554,12 +699,33 @@ mod tests {
                 *b = *c < 20;
             }
             let fast = g.distance_transform();
-            let beyond = f64::from((w - 1) * (w - 1) + (h - 1) * (h - 1));
             for (got, want) in fast.iter().zip(brute_force(&g)) {
                 if want.is_finite() {
-                    prop_assert_eq!(*got, want);
+                    prop_assert_eq!(f64::from(*got), want);
                 } else {
-                    prop_assert!(*got > beyond);
+                    prop_assert_eq!(*got, FAR);
+                }
+            }
+        }
+
+        /// Within a limit: exact up to it, FAR beyond it.
+        #[test]
+        fn distance_transform_within_a_limit_is_exact_up_to_it(
+            (w, h, cells) in (1u32..24, 1u32..24).prop_flat_map(|(w, h)| {
+                (Just(w), Just(h), proptest::collection::vec(any::<u8>(), (w * h) as usize))
+            }),
+            limit in 0u32..300,
+        ) {
+            let mut g = Grid::free(w, h, 10.0).unwrap();
+            for (b, c) in g.blocked.iter_mut().zip(&cells) {
+                *b = *c < 8;
+            }
+            let near = g.distance_transform_within(limit);
+            for (got, want) in near.iter().zip(brute_force(&g)) {
+                if want <= f64::from(limit) {
+                    prop_assert_eq!(f64::from(*got), want);
+                } else {
+                    prop_assert_eq!(*got, FAR);
                 }
             }
         }

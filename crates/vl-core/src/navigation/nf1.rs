@@ -30,9 +30,21 @@ pub struct Nf1 {
 }
 
 impl Nf1 {
-    /// Breadth-first wavefront from `goal`. A goal in an obstacle reaches
-    /// nothing.
+    /// Breadth-first wavefront from `goal` over every cell it reaches. A
+    /// goal in an obstacle reaches nothing.
     pub fn from_goal(cspace: &CSpace, goal: Cell, connectivity: Connectivity) -> Nf1 {
+        Nf1::wave(cspace, goal, connectivity, None)
+    }
+
+    /// The wavefront from `goal` only as far as `start`: it stops with the
+    /// wave that reaches the start, which fixes every value the descent from
+    /// there reads (all lower); cells farther out are left unreached. A
+    /// start near the goal costs a small ball, not the whole map.
+    pub fn toward(cspace: &CSpace, goal: Cell, start: Cell, connectivity: Connectivity) -> Nf1 {
+        Nf1::wave(cspace, goal, connectivity, Some(start))
+    }
+
+    fn wave(cspace: &CSpace, goal: Cell, connectivity: Connectivity, until: Option<Cell>) -> Nf1 {
         let grid = cspace.grid();
         let (width, height) = (grid.width, grid.height);
         let mut nf1 = Nf1 {
@@ -57,47 +69,51 @@ impl Nf1 {
             return nf1;
         }
         nf1.values[start] = 0;
-        // Each cell is queued once, so a flat array is the whole queue.
-        let mut queue: Vec<u32> = Vec::with_capacity(width as usize * height as usize);
-        queue.push(start as u32);
-        let mut head = 0;
+        // Wave by wave: only the front is held (a few thousand cells on a
+        // map of a million), so a big map costs no queue as large as itself.
+        let mut front: Vec<u32> = vec![start as u32];
+        let mut next_front: Vec<u32> = Vec::new();
         let s = stride;
         let eight = connectivity == Connectivity::Eight && nf1.slices == 1;
-        while let Some(&i) = queue.get(head) {
-            head += 1;
-            let i = i as usize;
-            if nf1.slices > 1 {
-                let next = nf1.values[i] + 1;
-                let (steps, n) = nf1.steps(i);
-                for &j in &steps[..n] {
-                    if nf1.values[j] == UNREACHED {
-                        nf1.values[j] = next;
-                        queue.push(j as u32);
+        let until = until.map(|cell| nf1.index(cell));
+        let mut next = 0u32;
+        while !front.is_empty() && until.is_none_or(|i| nf1.values[i] == UNREACHED) {
+            next += 1;
+            for &i in &front {
+                let i = i as usize;
+                if nf1.slices > 1 {
+                    let (steps, n) = nf1.steps(i);
+                    for &j in &steps[..n] {
+                        if nf1.values[j] == UNREACHED {
+                            nf1.values[j] = next;
+                            next_front.push(j as u32);
+                        }
+                    }
+                    continue;
+                }
+                // One slice: the rule of `steps` written out, which makes the
+                // wave three times faster (the descent, through `steps`, and
+                // the property tests check the two agree).
+                let v = &mut nf1.values;
+                let (right, left, down, up) = (i + 1, i - 1, i + s, i - s);
+                for j in [right, left, down, up] {
+                    if v[j] == UNREACHED {
+                        v[j] = next;
+                        next_front.push(j as u32);
                     }
                 }
-                continue;
-            }
-            // One slice: the rule of `steps` written out, which makes the
-            // wave three times faster (the descent, through `steps`, and the
-            // property tests check the two agree).
-            let v = &mut nf1.values;
-            let next = v[i] + 1;
-            let (right, left, down, up) = (i + 1, i - 1, i + s, i - s);
-            for j in [right, left, down, up] {
-                if v[j] == UNREACHED {
-                    v[j] = next;
-                    queue.push(j as u32);
-                }
-            }
-            if eight {
-                for (side, vertical) in [(right, down), (right, up), (left, down), (left, up)] {
-                    let corner = side + vertical - i;
-                    if v[corner] == UNREACHED && v[side] != BLOCKED && v[vertical] != BLOCKED {
-                        v[corner] = next;
-                        queue.push(corner as u32);
+                if eight {
+                    for (side, vertical) in [(right, down), (right, up), (left, down), (left, up)] {
+                        let corner = side + vertical - i;
+                        if v[corner] == UNREACHED && v[side] != BLOCKED && v[vertical] != BLOCKED {
+                            v[corner] = next;
+                            next_front.push(corner as u32);
+                        }
                     }
                 }
             }
+            std::mem::swap(&mut front, &mut next_front);
+            next_front.clear();
         }
         nf1
     }

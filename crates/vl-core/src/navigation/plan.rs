@@ -9,8 +9,8 @@ use thiserror::Error;
 use super::follow::PLAN_MARGIN_MM;
 use super::spline::{Knot, Spline};
 use crate::{
-    Arena, CSpace, CSpaceError, Cell, Connectivity, Footprint, Grid, Nf1, Point, Pose, RobotModel,
-    Shape, Surroundings, wrap_angle,
+    Arena, CSpace, CSpaceError, Cell, Connectivity, FAR, Footprint, Grid, Nf1, Point, Pose,
+    RobotModel, Shape, Surroundings, wrap_angle,
 };
 
 /// Cells of the descent between spline knots, before refinement.
@@ -312,7 +312,7 @@ pub fn plan(
 ) -> Result<Plan, NoPath> {
     let from = locate(cspace, start, PathEnd::Start)?;
     let to = locate(cspace, goal, PathEnd::Goal)?;
-    let nf1 = Nf1::from_goal(cspace, to, connectivity);
+    let nf1 = Nf1::toward(cspace, to, from, connectivity);
     let nf1_start_value = nf1.value(from).ok_or(NoPath::Disconnected)?;
     let grid_path = nf1.descend(from, to).ok_or(NoPath::Disconnected)?;
     let (path, smoothing) = smooth(cspace, start, goal, &grid_path);
@@ -393,12 +393,7 @@ pub fn smooth(cspace: &CSpace, start: Pose, goal: Pose, cells: &[Cell]) -> (Vec<
     let mut chosen: Vec<usize> = (0..last).step_by(KNOT_STRIDE).chain([last]).collect();
     loop {
         let spline = Spline::through(&chosen.iter().map(|&i| all[i]).collect::<Vec<_>>());
-        let samples = spline.sample(step);
-        let mut bad: Vec<usize> = samples
-            .iter()
-            .filter(|(_, k)| !free(k))
-            .map(|&(t, _)| spline.interval(t))
-            .collect();
+        let (samples, mut bad) = sample_checked(&spline, step, &free);
         if bad.is_empty() {
             let knots = chosen.len();
             return (poses(&samples, to_pose), Smoothing::Spline { knots });
@@ -421,6 +416,40 @@ pub fn smooth(cspace: &CSpace, start: Pose, goal: Pose, cells: &[Cell]) -> (Vec<
         samples.extend(part.into_iter().skip(skip));
     }
     (poses(&samples, to_pose), Smoothing::Polyline)
+}
+
+/// Splines with at least this many intervals are sampled and checked by two
+/// threads, half each: below it, starting a thread costs more than it saves.
+const PARALLEL_INTERVALS: usize = 256;
+
+/// The spline's samples `step` apart, and the interval of each that is not
+/// `free` (in order, repeated per sample).
+fn sample_checked(
+    spline: &Spline,
+    step: f64,
+    free: &(impl Fn(&Knot) -> bool + Sync),
+) -> (Vec<(f64, Knot)>, Vec<usize>) {
+    let part = |intervals: std::ops::Range<usize>| {
+        let samples = spline.sample_intervals(intervals, step);
+        let bad: Vec<usize> = samples
+            .iter()
+            .filter(|(_, k)| !free(k))
+            .map(|&(t, _)| spline.interval(t))
+            .collect();
+        (samples, bad)
+    };
+    let n = spline.intervals();
+    if n < PARALLEL_INTERVALS {
+        return part(0..n);
+    }
+    std::thread::scope(|scope| {
+        let later = scope.spawn(|| part(n / 2..n));
+        let (mut samples, mut bad) = part(0..n / 2);
+        let (more, worse) = later.join().expect("sampling does not panic");
+        samples.extend(more);
+        bad.extend(worse);
+        (samples, bad)
+    })
 }
 
 /// Samples as poses, θ from the direction to the next sample where the
@@ -446,11 +475,99 @@ fn poses(samples: &[(f64, Knot)], to_pose: impl Fn(&Knot, f64) -> Pose) -> Vec<P
 /// square) of its heading's slice, or to the map's edge; 0 for a pose in a
 /// blocked cell.
 ///
-/// The distance transform gives each pose a lower bound; poses are then
-/// checked exactly, nearest first, until no bound can beat the best found.
+/// A planned path passes near the C-space's edge, so each pose first looks
+/// only at the cells a few cells around it; only a path that keeps farther
+/// than that from everything needs a distance transform of the whole map.
 pub fn clearance(cspace: &CSpace, path: &[Pose]) -> f64 {
-    let mut transforms: Vec<Option<Vec<f64>>> = vec![None; cspace.slices.len()];
-    let mut candidates: Vec<(f64, usize, usize)> = Vec::with_capacity(path.len());
+    CLEARANCE_REACH_CELLS
+        .iter()
+        .find_map(|&reach| clearance_near(cspace, path, reach))
+        .unwrap_or_else(|| clearance_by_transform(cspace, path))
+}
+
+/// How near, in cells, [`clearance`] looks around each pose, in turn.
+const CLEARANCE_REACH_CELLS: [u32; 2] = [2, 8];
+
+/// The clearance when it is at most `reach` cells, else None. A square
+/// within `reach` cells of a pose has its centre within `reach + √2` cells
+/// of the pose's cell's centre, so the window of `reach + 2` cells around
+/// that cell holds it; poses in one cell share one look at the window.
+fn clearance_near(cspace: &CSpace, path: &[Pose], reach: u32) -> Option<f64> {
+    let window = i64::from(reach) + 2;
+    let part = |poses: &[Pose]| nearest2_near(cspace, poses, window);
+    let best2 = if path.len() < PARALLEL_POSES {
+        part(path)
+    } else {
+        let (first, second) = path.split_at(path.len() / 2);
+        std::thread::scope(|scope| {
+            let later = scope.spawn(|| part(second));
+            let best2 = part(first);
+            best2.min(later.join().expect("clearance does not panic"))
+        })
+    };
+    let best = best2.sqrt();
+    let cell_mm = cspace.grid().cell_mm;
+    (best <= f64::from(reach) * cell_mm).then_some(best)
+}
+
+/// Paths with at least this many poses have their clearance taken by two
+/// threads, half each.
+const PARALLEL_POSES: usize = 4096;
+
+/// The least squared distance from the poses to a blocked square within
+/// `window` cells of each pose's cell, or to the map's edge (0 for a pose
+/// off the map).
+fn nearest2_near(cspace: &CSpace, path: &[Pose], window: i64) -> f64 {
+    let mut best2 = f64::INFINITY;
+    let mut squares: Vec<Point> = Vec::new();
+    let mut scanned: Option<(usize, u32, u32)> = None;
+    for pose in path {
+        let k = cspace.slice_of(pose.theta_rad);
+        let grid = &cspace.slices[k];
+        let p = pose.point();
+        let Some((c, r)) = grid.cell_of(p) else {
+            return 0.0;
+        };
+        if scanned != Some((k, c, r)) {
+            scanned = Some((k, c, r));
+            blocked_centres(grid, (c, r), window, &mut squares);
+            // A square whose centre is more than 1.5 diagonals farther from
+            // the cell's centre than the nearest one is never nearer to a
+            // point in the cell.
+            let centre = grid.centre(c, r);
+            let dist2 = |q: &Point| (q.x_mm - centre.x_mm).powi(2) + (q.y_mm - centre.y_mm).powi(2);
+            let nearest2 = squares.iter().map(dist2).fold(f64::INFINITY, f64::min);
+            let keep = nearest2.sqrt() + 1.5 * std::f64::consts::SQRT_2 * grid.cell_mm;
+            squares.retain(|q| dist2(q) <= keep * keep);
+        }
+        let edge = edge_distance(grid, p);
+        best2 = best2
+            .min(edge * edge)
+            .min(nearest_square2(grid.cell_mm, &squares, p));
+    }
+    best2
+}
+
+/// The squared distance from `p` to the nearest of the squares (cells of
+/// side `cell_mm`) centred at `centres`; infinite for none.
+fn nearest_square2(cell_mm: f64, centres: &[Point], p: Point) -> f64 {
+    centres
+        .iter()
+        .map(|centre| {
+            let dx = ((centre.x_mm - p.x_mm).abs() - cell_mm / 2.0).max(0.0);
+            let dy = ((centre.y_mm - p.y_mm).abs() - cell_mm / 2.0).max(0.0);
+            dx * dx + dy * dy
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The clearance of a path that keeps far from everything: the distance
+/// transform gives each pose a lower bound; poses are then checked
+/// exactly, nearest first, until no bound can beat the best found.
+fn clearance_by_transform(cspace: &CSpace, path: &[Pose]) -> f64 {
+    let mut transforms: Vec<Option<Vec<u32>>> = vec![None; cspace.slices.len()];
+    // (lower bound, pose, slice, squared cells to the nearest blocked centre)
+    let mut candidates: Vec<(f64, usize, usize, f64)> = Vec::with_capacity(path.len());
     for (i, pose) in path.iter().enumerate() {
         let k = cspace.slice_of(pose.theta_rad);
         let grid = &cspace.slices[k];
@@ -458,19 +575,30 @@ pub fn clearance(cspace: &CSpace, path: &[Pose]) -> f64 {
             return 0.0;
         };
         let d2 = transforms[k].get_or_insert_with(|| grid.distance_transform());
-        let centre_cells = d2[grid.index(c, r)].sqrt();
-        let bound = (centre_cells - std::f64::consts::SQRT_2).max(0.0) * grid.cell_mm;
-        candidates.push((bound.min(edge_distance(grid, pose.point())), i, k));
+        // FAR: no blocked cell within the transform's reach; search to the edge.
+        let centre_d2 = match d2[grid.index(c, r)] {
+            FAR => f64::INFINITY,
+            d2 => f64::from(d2),
+        };
+        let bound = (centre_d2.sqrt() - std::f64::consts::SQRT_2).max(0.0) * grid.cell_mm;
+        candidates.push((
+            bound.min(edge_distance(grid, pose.point())),
+            i,
+            k,
+            centre_d2,
+        ));
     }
     candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut best = f64::INFINITY;
-    for (bound, i, k) in candidates {
+    for (bound, i, k, centre_d2) in candidates {
         if bound >= best {
             break;
         }
-        let grid = &cspace.slices[k];
-        let d2 = transforms[k].as_ref().expect("computed above");
-        best = best.min(exact_clearance(grid, d2, path[i].point()));
+        best = best.min(exact_clearance(
+            &cspace.slices[k],
+            centre_d2,
+            path[i].point(),
+        ));
     }
     if best.is_finite() { best } else { 0.0 }
 }
@@ -482,30 +610,32 @@ fn edge_distance(grid: &Grid, p: Point) -> f64 {
 
 /// Distance from `p` to the nearest blocked cell's square or the map edge,
 /// searching the cells the distance transform says could be nearest.
-fn exact_clearance(grid: &Grid, d2: &[f64], p: Point) -> f64 {
+fn exact_clearance(grid: &Grid, centre_d2: f64, p: Point) -> f64 {
     let s = grid.cell_mm;
-    let Some((c, r)) = grid.cell_of(p) else {
+    let Some(cell) = grid.cell_of(p) else {
         return 0.0;
     };
-    let best = edge_distance(grid, p);
+    let edge = edge_distance(grid, p);
     // The nearest blocked centre is within sqrt(d2) cells of this cell's
     // centre, so its square is within that plus half a diagonal of p; any
     // square at least that near has its centre within 1.5 diagonals more.
-    let bound = (d2[grid.index(c, r)].sqrt() * s + s * std::f64::consts::FRAC_1_SQRT_2).min(best);
+    let bound = (centre_d2.sqrt() * s + s * std::f64::consts::FRAC_1_SQRT_2).min(edge);
     let reach = (bound / s + 1.5 * std::f64::consts::SQRT_2).ceil() as i64;
+    let mut squares = Vec::new();
+    blocked_centres(grid, cell, reach, &mut squares);
+    (edge * edge).min(nearest_square2(s, &squares, p)).sqrt()
+}
+
+/// Puts into `out` the centres of the blocked cells within `window` cells
+/// (along each axis) of `cell`.
+fn blocked_centres(grid: &Grid, (c, r): (u32, u32), window: i64, out: &mut Vec<Point>) {
+    out.clear();
     let (c, r) = (i64::from(c), i64::from(r));
-    // Squared, so each cell costs no square root.
-    let mut best2 = best * best;
-    for rr in (r - reach).max(0)..=(r + reach).min(i64::from(grid.height) - 1) {
-        for cc in (c - reach).max(0)..=(c + reach).min(i64::from(grid.width) - 1) {
-            if !grid.is_blocked(cc as u32, rr as u32) {
-                continue;
+    for rr in (r - window).max(0)..=(r + window).min(i64::from(grid.height) - 1) {
+        for cc in (c - window).max(0)..=(c + window).min(i64::from(grid.width) - 1) {
+            if grid.is_blocked(cc as u32, rr as u32) {
+                out.push(grid.centre(cc as u32, rr as u32));
             }
-            let centre = grid.centre(cc as u32, rr as u32);
-            let dx = ((centre.x_mm - p.x_mm).abs() - s / 2.0).max(0.0);
-            let dy = ((centre.y_mm - p.y_mm).abs() - s / 2.0).max(0.0);
-            best2 = best2.min(dx * dx + dy * dy);
         }
     }
-    best2.sqrt()
 }

@@ -44,7 +44,8 @@ impl Spline {
     }
 
     /// Total chord length, which is the parameter's range.
-    pub fn chord_length(&self) -> f64 {
+    #[cfg(test)]
+    fn chord_length(&self) -> f64 {
         self.t.last().copied().unwrap_or(0.0)
     }
 
@@ -83,18 +84,44 @@ impl Spline {
     /// each interval, then halved wherever the curve runs faster than its
     /// chord.
     pub fn sample(&self, step: f64) -> Vec<(f64, Knot)> {
+        self.sample_intervals(0..self.intervals(), step)
+    }
+
+    /// The number of intervals between knots.
+    pub fn intervals(&self) -> usize {
+        self.knots.len().saturating_sub(1)
+    }
+
+    /// The part of [`Self::sample`] that falls in `intervals`, after their
+    /// first knot (which the part before ends with) unless they start the
+    /// spline: parts taken over adjoining ranges join into the whole.
+    pub fn sample_intervals(
+        &self,
+        intervals: std::ops::Range<usize>,
+        step: f64,
+    ) -> Vec<(f64, Knot)> {
         let Some(&first) = self.knots.first() else {
             return Vec::new();
         };
-        let mut out = Vec::with_capacity((self.chord_length() / step) as usize + 2);
-        out.push((0.0, first));
-        if self.knots.len() == 1 {
+        let mut out = Vec::with_capacity(
+            ((self.t[intervals.end.max(intervals.start)] - self.t[intervals.start]) / step)
+                as usize
+                + 2,
+        );
+        let mut previous = if intervals.start == 0 {
             out.push((0.0, first));
-        }
-        for i in 0..self.knots.len().saturating_sub(1) {
+            if self.knots.len() == 1 {
+                out.push((0.0, first));
+            }
+            (0.0, first)
+        } else {
+            // As the interval before ends it, to the last bit.
+            let t = self.t[intervals.start];
+            (t, self.on(intervals.start - 1, t))
+        };
+        for i in intervals {
             let (t0, t1) = (self.t[i], self.t[i + 1]);
             let n = ((t1 - t0) / step).ceil().max(1.0) as usize;
-            let mut previous = *out.last().expect("pushed above");
             for j in 1..=n {
                 let t = if j == n {
                     t1

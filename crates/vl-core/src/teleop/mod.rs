@@ -194,7 +194,8 @@ impl MapField {
         for r in 0..grid.height {
             for c in 0..grid.width {
                 let i = grid.index(c, r);
-                let d = (d2[i].sqrt().min(grid.border_cells(c, r) - 0.5) * s).max(s * 0.5);
+                let d =
+                    (f64::from(d2[i]).sqrt().min(grid.border_cells(c, r) - 0.5) * s).max(s * 0.5);
                 if d < influence_mm {
                     let k = 1.0 / d - 1.0 / influence_mm;
                     potential[i] = 0.5 * eta * k * k;
