@@ -12,7 +12,7 @@ use serde::Serialize;
 use vl_petri::{
     Added, BenchRow, Constraint, ControlError, Coverability, CoverabilityError, ExploreError,
     Invariant, Limits, Manifest, Net, OMEGA, Options, Progress, StateSpace, TooManyInvariants,
-    analyze, bench_model, compose, coverability, explore, from_pnml, from_scxml,
+    analyze_net, bench_model, compose, count_states, coverability, explore, from_pnml, from_scxml,
     fuse_parallel_places, graph_to_dot, is_conservative, net_to_dot, p_invariants, synthesize,
     t_invariants, to_pnml,
 };
@@ -27,6 +27,18 @@ pub(crate) enum PetriCommand {
     /// Explore the reachability graph and report boundedness, safeness,
     /// deadlocks, liveness, reversibility and the flow-basis dimensions.
     Analyze {
+        /// The net, as PNML.
+        net: PathBuf,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Stop exploring after this many states.
+        #[arg(long, default_value_t = 100_000_000)]
+        max_states: usize,
+    },
+    /// Explore only, keeping no edge: count the reachable markings and the
+    /// firings between them, and each place's bound (what `verifypn -e` reports).
+    States {
         /// The net, as PNML.
         net: PathBuf,
         /// Print the report as JSON.
@@ -132,6 +144,11 @@ pub(crate) fn run(command: PetriCommand) -> Result<ExitCode> {
             json,
             max_states,
         } => analyze_command(&net, json, max_states),
+        PetriCommand::States {
+            net,
+            json,
+            max_states,
+        } => states_command(&net, json, max_states),
         PetriCommand::Coverability {
             net,
             json,
@@ -223,8 +240,11 @@ const VERIFYPN_RECORDED: &str = "recorded 2026-11-21, Debian 12, 2 cores";
 const CONSERVATIVE_ROWS: usize = 20_000;
 
 /// Nodes the boundedness pre-check of `analyze` may build before leaving
-/// the question to full exploration.
-const QUICK_COVERABILITY_NODES: usize = 100_000;
+/// the question to full exploration: enough for a small unbounded net to be
+/// named at once, little enough (a fraction of a second) not to weigh on a
+/// large bounded one. A larger net stops at --max-states, which says where
+/// to look.
+const QUICK_COVERABILITY_NODES: usize = 10_000;
 
 fn analyze_command(path: &Path, json: bool, max_states: usize) -> Result<ExitCode> {
     let net = load(path)?;
@@ -256,14 +276,19 @@ fn analyze_command(path: &Path, json: bool, max_states: usize) -> Result<ExitCod
         bytes_per_marking: 0,
     };
     // Karp–Miller settles boundedness first when it can do so cheaply: an
-    // unbounded net would otherwise explore until --max-states.
-    match coverability(&net, QUICK_COVERABILITY_NODES) {
-        Ok(c) if !c.bounded() => {
+    // unbounded net would otherwise explore until --max-states. A
+    // conservative net (a P-invariant weighs every place) is bounded
+    // already, and needs no such check.
+    let quick = match report.conservative {
+        Some(true) => None,
+        _ => coverability(&net, QUICK_COVERABILITY_NODES).ok(),
+    };
+    match quick {
+        Some(c) if !c.bounded() => {
             report.unbounded_places = place_ids(&net, &c.unbounded);
         }
         _ => {
-            let space = explore_with_progress(&net, path, max_states)?;
-            let a = analyze(&net, &space);
+            let a = with_progress(path, max_states, |options| analyze_net(&net, options))?;
             report.states = Some(a.states);
             report.edges = Some(a.edges);
             report.bounded = a.bounded;
@@ -282,7 +307,7 @@ fn analyze_command(path: &Path, json: bool, max_states: usize) -> Result<ExitCod
                 .filter(|(l, _)| **l != vl_petri::Liveness::L4)
                 .map(|(l, t)| format!("{} {l:?}", t.id))
                 .collect();
-            report.bytes_per_marking = space.bytes_per_marking();
+            report.bytes_per_marking = a.bytes_per_marking;
         }
     }
     report.seconds = started.elapsed().as_secs_f64();
@@ -324,58 +349,61 @@ impl Report for AnalyzeReport {
             n if n > 12 => format!("{} … and {} more", self.not_live[..12].join(", "), n - 12),
             _ => self.not_live.join(", "),
         };
-        Table::pairs([
-            ("net", net),
-            ("states", states.to_string()),
-            ("edges", edges.to_string()),
-            (
-                "bounded",
-                format!(
-                    "{} (at most {} in a place, {} in a marking)",
-                    yes(self.bounded),
-                    count(self.max_tokens_in_place.unwrap_or(0), "token", "tokens"),
-                    count(self.max_tokens_per_marking.unwrap_or(0), "token", "tokens"),
+        Table::pairs(
+            [
+                ("net", net),
+                ("states", states.to_string()),
+                ("edges", edges.to_string()),
+                (
+                    "bounded",
+                    format!(
+                        "{} (at most {} in a place, {} in a marking)",
+                        yes(self.bounded),
+                        count(self.max_tokens_in_place.unwrap_or(0), "token", "tokens"),
+                        count(self.max_tokens_per_marking.unwrap_or(0), "token", "tokens"),
+                    ),
                 ),
-            ),
-            ("safe", yes(self.safe).to_owned()),
-            ("deadlock", maybe(self.deadlock)),
-            ("  reached by", trace),
-            ("quasi-live", maybe(self.quasi_live)),
-            ("live", maybe(self.live)),
-            ("  not L4", not_live),
-            ("reversible", maybe(self.reversible)),
-            ("conservative", maybe(self.conservative)),
-            (
-                "P-flow basis",
-                format!("dimension {}", self.p_flow_basis_dim),
-            ),
-            (
-                "T-flow basis",
-                format!("dimension {}", self.t_flow_basis_dim),
-            ),
-            (
-                "time",
-                format!(
-                    "{:.3} s, {} states/s",
-                    self.seconds,
-                    (states as f64 / self.seconds.max(1e-9)) as u64
+                ("safe", yes(self.safe).to_owned()),
+                ("deadlock", maybe(self.deadlock)),
+                ("  reached by", trace),
+                ("quasi-live", maybe(self.quasi_live)),
+                ("live", maybe(self.live)),
+                ("  not L4", not_live),
+                ("reversible", maybe(self.reversible)),
+                ("conservative", maybe(self.conservative)),
+                (
+                    "P-flow basis",
+                    format!("dimension {}", self.p_flow_basis_dim),
                 ),
-            ),
-            (
-                "memory",
-                format!(
-                    "{:.1} MB heap peak, {:.1} MB resident peak, {} per marking",
-                    self.peak_heap_bytes as f64 / 1e6,
-                    self.peak_resident_bytes as f64 / 1e6,
-                    count(self.bytes_per_marking as u64, "byte", "bytes")
+                (
+                    "T-flow basis",
+                    format!("dimension {}", self.t_flow_basis_dim),
                 ),
-            ),
-        ])
+            ]
+            .into_iter()
+            .chain(cost_rows(
+                states,
+                self.seconds,
+                self.peak_heap_bytes,
+                self.peak_resident_bytes,
+                self.bytes_per_marking,
+            )),
+        )
     }
 }
 
 /// Explores the reachability graph, showing progress on a terminal.
 fn explore_with_progress(net: &Net, path: &Path, max_states: usize) -> Result<StateSpace> {
+    with_progress(path, max_states, |options| explore(net, options))
+}
+
+/// Runs a search (`explore` or `count_states`) with `--max-states`, its
+/// progress on a terminal, and its stops said in the user's terms.
+fn with_progress<T>(
+    path: &Path,
+    max_states: usize,
+    search: impl FnOnce(Options) -> Result<T, ExploreError>,
+) -> Result<T> {
     let show_progress = std::io::stderr().is_terminal();
     let mut report_progress = |p: Progress| {
         eprint!(
@@ -389,17 +417,131 @@ fn explore_with_progress(net: &Net, path: &Path, max_states: usize) -> Result<St
         max_states,
         progress: show_progress.then_some(&mut report_progress as &mut dyn FnMut(Progress)),
     };
-    let result = explore(net, options);
+    let result = search(options);
     if show_progress {
         eprint!("\r{:78}\r", "");
     }
     match result {
-        Ok(space) => Ok(space),
+        Ok(found) => Ok(found),
         Err(e @ ExploreError::TooManyStates { .. }) => {
-            anyhow::bail!("{}: {e}; raise --max-states to go on", path.display())
+            anyhow::bail!(
+                "{}: {e}; raise --max-states to go on (if the net may be unbounded, `vl petri coverability` names the places that grow)",
+                path.display()
+            )
         }
         Err(e) => anyhow::bail!("{}: {e}", path.display()),
     }
+}
+
+/// `vl petri states`: what exploration alone finds, as `verifypn -e` reports it.
+#[derive(Serialize)]
+struct StatesReport {
+    net: String,
+    places: usize,
+    transitions: usize,
+    states: usize,
+    /// Firings between markings (verifypn's "discovered states" less one).
+    edges: usize,
+    max_tokens_in_place: u32,
+    max_tokens_per_marking: u64,
+    /// Each place's bound, by place id.
+    place_bounds: std::collections::BTreeMap<String, u32>,
+    seconds: f64,
+    peak_heap_bytes: usize,
+    peak_resident_bytes: usize,
+    bytes_per_marking: usize,
+}
+
+fn states_command(path: &Path, json: bool, max_states: usize) -> Result<ExitCode> {
+    let net = load(path)?;
+    let started = Instant::now();
+    let found = with_progress(path, max_states, |options| count_states(&net, options))?;
+    let report = StatesReport {
+        net: net.id.clone(),
+        places: net.places.len(),
+        transitions: net.transitions.len(),
+        states: found.states,
+        edges: found.edges,
+        max_tokens_in_place: found.bounds.per_place(),
+        max_tokens_per_marking: found.bounds.per_marking,
+        place_bounds: net
+            .places
+            .iter()
+            .zip(&found.bounds.places)
+            .map(|(p, &b)| (p.id.clone(), b))
+            .collect(),
+        seconds: started.elapsed().as_secs_f64(),
+        peak_heap_bytes: peak_bytes(),
+        peak_resident_bytes: peak_resident_bytes(),
+        bytes_per_marking: found.bytes_per_marking,
+    };
+    emit(&report, json)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+impl Report for StatesReport {
+    fn table(&self) -> Table {
+        Table::pairs(
+            [
+                (
+                    "net",
+                    format!(
+                        "{} ({}, {})",
+                        self.net,
+                        count(self.places as u64, "place", "places"),
+                        count(self.transitions as u64, "transition", "transitions")
+                    ),
+                ),
+                ("states", self.states.to_string()),
+                ("edges", self.edges.to_string()),
+                (
+                    "bounds",
+                    format!(
+                        "at most {} in a place, {} in a marking",
+                        count(self.max_tokens_in_place, "token", "tokens"),
+                        count(self.max_tokens_per_marking, "token", "tokens"),
+                    ),
+                ),
+            ]
+            .into_iter()
+            .chain(cost_rows(
+                self.states,
+                self.seconds,
+                self.peak_heap_bytes,
+                self.peak_resident_bytes,
+                self.bytes_per_marking,
+            )),
+        )
+        .note("each place's bound: --json")
+    }
+}
+
+/// The time and memory rows of `analyze` and `states`.
+fn cost_rows(
+    states: usize,
+    seconds: f64,
+    peak_heap_bytes: usize,
+    peak_resident_bytes: usize,
+    bytes_per_marking: usize,
+) -> [(&'static str, String); 2] {
+    [
+        (
+            "time",
+            format!(
+                "{seconds:.3} s, {} states/s",
+                (states as f64 / seconds.max(1e-9)) as u64
+            ),
+        ),
+        (
+            "memory",
+            format!(
+                "{:.1} MB heap peak, {:.1} MB resident peak, {} per marking",
+                peak_heap_bytes as f64 / 1e6,
+                peak_resident_bytes as f64 / 1e6,
+                count(bytes_per_marking as u64, "byte", "bytes")
+            ),
+        ),
+    ]
 }
 
 fn place_ids(net: &Net, places: &[usize]) -> Vec<String> {
@@ -752,8 +894,8 @@ fn bench_command(
         };
         if !json {
             eprintln!(
-                "{:.2} s exploring, {:.2} s analysing as a process",
-                row.explore_seconds, whole.0
+                "{:.2} s counting, {:.2} s analysing, {:.2} s analysing as a process",
+                row.count_seconds, row.analyze_seconds, whole.0
             );
         }
         rows.push(BenchLine {
@@ -807,11 +949,12 @@ impl Report for Vec<BenchLine> {
             "model",
             "states",
             "ok",
-            "explore s",
+            "states s",
             "states/s",
-            "store B/state",
-            "graph B/state",
+            "heap MB",
+            "B/marking",
             "analyze s",
+            "heap MB",
             "process s",
             "process MB",
             "verifypn s*",
@@ -823,11 +966,12 @@ impl Report for Vec<BenchLine> {
                 r.model.clone(),
                 r.states.to_string(),
                 if r.certified() { "yes" } else { "NO" }.to_owned(),
-                format!("{:.2}", r.explore_seconds),
+                format!("{:.2}", r.count_seconds),
                 format!("{:.0}", r.states_per_second),
-                format!("{:.1}", r.store_bytes_per_state),
-                format!("{:.1}", r.graph_bytes_per_state),
+                format!("{:.0}", r.count_peak_heap_bytes as f64 / 1e6),
+                r.bytes_per_marking.to_string(),
                 format!("{:.2}", r.analyze_seconds),
+                format!("{:.0}", r.analyze_peak_heap_bytes as f64 / 1e6),
                 format!("{:.2}", line.analyze_process_seconds),
                 format!("{:.0}", line.analyze_process_peak_mb),
                 r.verifypn_recorded_seconds
@@ -837,7 +981,8 @@ impl Report for Vec<BenchLine> {
             ]);
         }
         table
-            .note("ok: states and edges equal the certified counts. explore s, analyze s: in this process, single thread;")
+            .note("ok: counting and analysing both found the certified numbers of states and edges.")
+            .note("states s, analyze s: `vl petri states` and `vl petri analyze` as jobs in this process, one thread; heap MB: the most live at once in each;")
             .note("process s, process MB: `vl petri analyze MODEL --json` as a whole process (wall time, peak resident memory).")
             .note(format!(
                 "* recorded, not measured in this run: TAPAAL verifypn 3.1.1 -e as a whole process on a 2-core machine \

@@ -150,6 +150,15 @@ fn unbounded_nets_are_reported_as_such() {
         serde_json::json!([{"ready": 1, "buffer": "ω"}])
     );
     assert!(std::fs::read_to_string(&dot).unwrap().contains("buffer:ω"));
+    // Counting states alone has no Karp–Miller shortcut: it stops at the
+    // limit and says how to go on.
+    let out = vl(&["petri", "states", "--max-states", "500", s(&net)]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("stopped at the limit of 500 states") && err.contains("raise --max-states"),
+        "{err}"
+    );
 }
 
 /// The shipped examples are built in: named, they are found from any
@@ -196,6 +205,7 @@ fn bad_input_is_refused_with_exit_code_2() {
     };
     let truncated = write("truncated.pnml", &PRODUCER[..PRODUCER.len() / 2]);
     refused(&["petri", "analyze", s(&truncated)], "not well-formed XML");
+    refused(&["petri", "states", s(&truncated)], "not well-formed XML");
     let missing = write(
         "missing.pnml",
         &PRODUCER.replace(r#"target="buffer""#, r#"target="nowhere""#),

@@ -1,11 +1,11 @@
-//! `vl petri analyze --json` against the Model Checking Contest's certified
+//! `vl petri analyze --json` and `vl petri states --json` against the Model Checking Contest's certified
 //! answers for every small and medium model in tests/petri-corpus.
 
 use std::path::Path;
 use std::process::Command;
 
 use serde_json::Value;
-use vl_petri::Manifest;
+use vl_petri::{CorpusModel, Manifest};
 
 fn corpus() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/petri-corpus"))
@@ -17,27 +17,35 @@ fn manifest() -> Manifest {
     Manifest::parse(&text).expect("the manifest parses")
 }
 
+/// `vl petri COMMAND --json` on every small and medium model, with its report.
+fn reports(command: &'static str) -> impl Iterator<Item = (CorpusModel, Value)> {
+    manifest()
+        .models
+        .into_iter()
+        .filter(|model| model.tier() != "large")
+        .map(move |model| {
+            let out = Command::new(env!("CARGO_BIN_EXE_vl"))
+                .args(["petri", command, "--json"])
+                .arg(corpus().join(model.pnml()))
+                .output()
+                .expect("vl runs");
+            assert!(
+                out.status.success(),
+                "{}: {}",
+                model.name(),
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let got = serde_json::from_slice(&out.stdout).expect("JSON report");
+            (model, got)
+        })
+}
+
 #[test]
 fn analysis_matches_the_certified_answers() {
     let mut checked = 0;
     let mut decided_conservative = 0;
     let mut mismatches = Vec::new();
-    for model in manifest().models {
-        if model.tier() == "large" {
-            continue;
-        }
-        let out = Command::new(env!("CARGO_BIN_EXE_vl"))
-            .args(["petri", "analyze", "--json"])
-            .arg(corpus().join(model.pnml()))
-            .output()
-            .expect("vl runs");
-        assert!(
-            out.status.success(),
-            "{}: {}",
-            model.name(),
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let got: Value = serde_json::from_slice(&out.stdout).expect("JSON report");
+    for (model, got) in reports("analyze") {
         let number = |key: &str| got[key].as_u64().map(|v| v.to_string()).unwrap_or_default();
         let verdict = |key: &str| {
             got[key]
@@ -116,4 +124,43 @@ fn analysis_matches_the_certified_answers() {
         decided_conservative >= 30,
         "conservativeness decided for only {decided_conservative} models"
     );
+}
+
+/// `vl petri states --json` counts what verifypn -e does on every small and
+/// medium model: its states, its firings ("discovered states" less one) and
+/// the certified bounds, without keeping the graph.
+#[test]
+fn states_match_verifypn_s_counts() {
+    let mut checked = 0;
+    let mut mismatches = Vec::new();
+    for (model, got) in reports("states") {
+        let number = |key: &str| got[key].as_u64().map(|v| v.to_string()).unwrap_or_default();
+        let bounds = got["place_bounds"].as_object().expect("bounds by place");
+        assert_eq!(bounds.len(), got["places"].as_u64().unwrap() as usize);
+        let highest = bounds.values().filter_map(Value::as_u64).max();
+        assert_eq!(
+            highest.map(|b| b.to_string()).unwrap_or_default(),
+            number("max_tokens_in_place"),
+            "{}",
+            model.name()
+        );
+        for (column, key) in [
+            ("verifypn_states", "states"),
+            ("rg_edges", "edges"),
+            ("max_tokens_in_place", "max_tokens_in_place"),
+            ("max_tokens_per_marking", "max_tokens_per_marking"),
+        ] {
+            let expected = model.get(column).unwrap_or_default();
+            if !expected.is_empty() && expected != number(key) {
+                mismatches.push(format!(
+                    "{}: {key} = {}, {column} {expected}",
+                    model.name(),
+                    number(key)
+                ));
+            }
+        }
+        checked += 1;
+    }
+    assert!(checked >= 60, "only {checked} models");
+    assert!(mismatches.is_empty(), "{}", mismatches.join("\n"));
 }

@@ -7,8 +7,9 @@ use std::collections::{HashSet, VecDeque};
 
 use proptest::prelude::*;
 use vl_petri::{
-    ArcKind, Constraint, Limits, Marking, Net, OMEGA, Options, analyze, compose, coverability,
-    explore, from_pnml, fuse_parallel_places, p_invariants, synthesize, t_invariants, to_pnml,
+    Analysis, ArcKind, Constraint, Limits, Liveness, Marking, Net, OMEGA, Options, analyze,
+    analyze_net, compose, count_states, coverability, explore, from_pnml, fuse_parallel_places,
+    p_invariants, synthesize, t_invariants, to_pnml,
 };
 
 /// A random net: 1–5 places, 1–5 transitions, weights 1–3.
@@ -47,6 +48,62 @@ fn net() -> impl Strategy<Value = Net> {
 }
 
 const LIMIT: usize = 3000;
+
+/// Nets of processes: rings of 2–6 places holding one token each (a
+/// process's local states: the one-hot groups the explorer packs into one
+/// field each), steps within a ring, steps of two rings at once, and a
+/// shared place some of those take a token from and others give one to.
+fn processes() -> impl Strategy<Value = Net> {
+    let sync = (0usize..3, 0usize..6, 0usize..3, 0usize..6, 0u8..4);
+    (
+        proptest::collection::vec(2usize..=6, 1..=3),
+        0u32..=2,
+        proptest::collection::vec(sync, 0..6),
+    )
+        .prop_map(|(rings, shared, syncs)| {
+            let mut net = Net::new("processes");
+            let place = |r: usize, i: usize| format!("r{r}_{i}");
+            for (r, &n) in rings.iter().enumerate() {
+                for i in 0..n {
+                    net.add_place(&place(r, i), u32::from(i == 0)).unwrap();
+                }
+            }
+            net.add_place("shared", shared).unwrap();
+            let mut add = |id: String, pre: Vec<(String, u32)>, post: Vec<(String, u32)>| {
+                let pre: Vec<(&str, u32)> = pre.iter().map(|(p, w)| (p.as_str(), *w)).collect();
+                let post: Vec<(&str, u32)> = post.iter().map(|(p, w)| (p.as_str(), *w)).collect();
+                net.add_transition_with(&id, None, &pre, &post).unwrap();
+            };
+            for (r, &n) in rings.iter().enumerate() {
+                for i in 0..n {
+                    add(
+                        format!("step{r}_{i}"),
+                        vec![(place(r, i), 1)],
+                        vec![(place(r, (i + 1) % n), 1)],
+                    );
+                }
+            }
+            for (k, &(a, i, b, j, uses)) in syncs.iter().enumerate() {
+                let (a, b) = (a % rings.len(), b % rings.len());
+                if a == b {
+                    continue;
+                }
+                let (i, j) = (i % rings[a], j % rings[b]);
+                let mut pre = vec![(place(a, i), 1), (place(b, j), 1)];
+                let mut post = vec![
+                    (place(a, (i + 1) % rings[a]), 1),
+                    (place(b, (j + 1) % rings[b]), 1),
+                ];
+                match uses {
+                    0 => pre.push(("shared".into(), 1)),
+                    1 => post.push(("shared".into(), 1)),
+                    _ => {}
+                }
+                add(format!("sync{k}"), pre, post);
+            }
+            net
+        })
+}
 
 /// The reachability graph, if it has at most LIMIT states.
 fn small(net: &Net) -> Option<vl_petri::StateSpace> {
@@ -120,9 +177,116 @@ proptest! {
         }
     }
 
+    /// Processes' local states packed one field per process still give
+    /// exactly the markings, firings and bounds of the firing rule.
+    #[test]
+    fn one_hot_packing_agrees_with_the_firing_rule(net in processes()) {
+        let reference = naive(&net);
+        let explored = explore(&net, Options { max_states: LIMIT, progress: None });
+        let counted = count_states(&net, Options { max_states: LIMIT, progress: None });
+        match (reference, explored, counted) {
+            (Some((markings, edges)), Ok(space), Ok(count)) => {
+                let found: HashSet<Marking> = (0..space.states()).map(|s| space.marking(s)).collect();
+                prop_assert_eq!(space.states(), found.len(), "no marking is stored twice");
+                prop_assert_eq!(&found, &markings);
+                prop_assert_eq!(space.edges(), edges);
+                prop_assert_eq!(count.states, markings.len());
+                prop_assert_eq!(count.edges, edges);
+            }
+            (None, Err(_), Err(_)) => {}
+            (reference, explored, _) => prop_assert!(false, "naive {:?} vs explorer {:?}", reference.map(|r| r.0.len()), explored.map(|s| s.states())),
+        }
+    }
+
+    /// Liveness levels and reversibility as their definitions say, by
+    /// brute force over every pair of markings of a small graph.
+    #[test]
+    fn liveness_and_reversibility_follow_their_definitions(net in prop_oneof![net(), processes()]) {
+        let Some((markings, _)) = naive(&net) else { return Ok(()) };
+        prop_assume!(markings.len() <= 200);
+        let markings: Vec<Marking> = markings.into_iter().collect();
+        let id = |m: &Marking| markings.iter().position(|x| x == m).unwrap();
+        let edges: Vec<Vec<(usize, usize)>> = markings
+            .iter()
+            .map(|m| {
+                net.enabled(m)
+                    .collect::<Vec<_>>()
+                    .into_iter()
+                    .map(|t| (t.0, id(&net.fire(m, t).unwrap())))
+                    .collect()
+            })
+            .collect();
+        // reach[a][b]: b is reachable from a (in zero or more firings).
+        let reach: Vec<Vec<bool>> = (0..markings.len())
+            .map(|a| {
+                let mut seen = vec![false; markings.len()];
+                let mut queue = VecDeque::from([a]);
+                seen[a] = true;
+                while let Some(x) = queue.pop_front() {
+                    for &(_, y) in &edges[x] {
+                        if !seen[y] {
+                            seen[y] = true;
+                            queue.push_back(y);
+                        }
+                    }
+                }
+                seen
+            })
+            .collect();
+        let m0 = id(&net.initial_marking());
+        let a = analyze(&net, &explore(&net, Options::default()).unwrap());
+        let on_the_fly = analyze_net(&net, Options::default()).unwrap();
+        prop_assert_eq!(&Analysis { bytes_per_marking: a.bytes_per_marking, ..on_the_fly }, &a);
+        prop_assert_eq!(a.reversible, (0..markings.len()).all(|x| reach[x][m0]));
+        for t in 0..net.transitions.len() {
+            let fires_at = |x: usize| edges[x].iter().any(|&(u, _)| u == t);
+            let l4 = (0..markings.len()).all(|x| (0..markings.len()).any(|y| reach[x][y] && fires_at(y)));
+            let l3 = (0..markings.len()).any(|x| edges[x].iter().any(|&(u, y)| u == t && reach[y][x]));
+            let l1 = (0..markings.len()).any(fires_at);
+            let want = if l4 { Liveness::L4 } else if l3 { Liveness::L3 } else if l1 { Liveness::L1 } else { Liveness::L0 };
+            prop_assert_eq!(a.liveness[t], want, "transition {}", t);
+        }
+    }
+
+    /// Counting without the graph finds the same states, firings and bounds.
+    #[test]
+    fn counting_states_agrees_with_the_firing_rule(net in net()) {
+        let reference = naive(&net);
+        let counted = count_states(&net, Options { max_states: LIMIT, progress: None });
+        match (reference, counted) {
+            (Some((markings, edges)), Ok(count)) => {
+                prop_assert_eq!(count.states, markings.len());
+                prop_assert_eq!(count.edges, edges);
+                let bounds: Vec<u32> = (0..net.places.len())
+                    .map(|p| markings.iter().map(|m| m.0[p]).max().unwrap_or(0))
+                    .collect();
+                prop_assert_eq!(count.bounds.places, bounds);
+                let most = markings.iter().map(|m| m.0.iter().map(|&v| u64::from(v)).sum::<u64>()).max();
+                prop_assert_eq!(Some(count.bounds.per_marking), most);
+            }
+            (None, Err(_)) => {}
+            (reference, counted) => prop_assert!(false, "naive {:?} vs counted {:?}", reference.map(|r| r.0.len()), counted.map(|c| c.states)),
+        }
+    }
+
     #[test]
     fn pnml_export_then_import_is_the_identity(net in net()) {
         prop_assert_eq!(from_pnml(&to_pnml(&net)).unwrap(), net);
+    }
+
+    /// Tarjan inside the depth-first search reads what the stored graph
+    /// says, and stops where it does.
+    #[test]
+    fn analysis_on_the_fly_agrees_with_the_stored_graph(net in prop_oneof![net(), processes()]) {
+        let limit = || Options { max_states: LIMIT, progress: None };
+        match (explore(&net, limit()), analyze_net(&net, limit())) {
+            (Ok(space), Ok(on_the_fly)) => {
+                let a = analyze(&net, &space);
+                prop_assert_eq!(Analysis { bytes_per_marking: a.bytes_per_marking, ..on_the_fly }, a);
+            }
+            (Err(stored), Err(on_the_fly)) => prop_assert_eq!(stored, on_the_fly),
+            (stored, on_the_fly) => prop_assert!(false, "stored {:?}, on the fly {:?}", stored.map(|s| s.states()), on_the_fly.map(|a| a.states)),
+        }
     }
 
     #[test]
@@ -407,5 +571,80 @@ proptest! {
             prop_assert_eq!(sf.states(), sc.states());
             prop_assert_eq!(sf.edges(), sc.edges());
         }
+    }
+}
+
+/// A cycle the net can leave for good, for another it never leaves: the
+/// first's transitions are L3 (they fire again and again, but not once it
+/// is left), the way out L1, the second's L4.
+#[test]
+fn a_cycle_left_for_another_is_l3() {
+    let mut net = Net::new("leave");
+    for (p, m) in [("here", 1), ("there", 0), ("a", 0), ("b", 0)] {
+        net.add_place(p, m).unwrap();
+    }
+    for (t, from, to) in [
+        ("go", "here", "there"),
+        ("back", "there", "here"),
+        ("leave", "here", "a"),
+        ("spin", "a", "b"),
+        ("spin_back", "b", "a"),
+    ] {
+        net.add_transition_with(t, None, &[(from, 1)], &[(to, 1)])
+            .unwrap();
+    }
+    let a = analyze(&net, &explore(&net, Options::default()).unwrap());
+    use Liveness::*;
+    assert_eq!(a.liveness, [L3, L3, L1, L4, L4]);
+    assert!(!a.reversible && !a.deadlock && !a.live);
+}
+
+/// A token round a ring of n places, with a dead end off each: the
+/// depth-first search runs the ring to its end, finds the edge back, and only
+/// then turns into the dead ends, whose new states make the on-the-fly
+/// table grow while the whole ring is open and knows it reaches its start.
+/// For every n up to 110 (so each of the first growths falls in that window
+/// for some n),
+/// the analysis equals the stored graph's: one ring component, L3 moves
+/// round it, L1 exits, a deadlock.
+#[test]
+fn rings_analysed_on_the_fly_as_on_their_stored_graphs() {
+    for n in 2..=110 {
+        let mut net = Net::new("ring");
+        for k in 0..n {
+            net.add_place(&format!("p{k}"), u32::from(k == 0)).unwrap();
+            net.add_place(&format!("end{k}"), 0).unwrap();
+        }
+        for k in 0..n {
+            let next = format!("p{}", (k + 1) % n);
+            net.add_transition_with(
+                &format!("move{k}"),
+                None,
+                &[(&format!("p{k}"), 1)],
+                &[(&next, 1)],
+            )
+            .unwrap();
+        }
+        for k in 0..n {
+            net.add_transition_with(
+                &format!("exit{k}"),
+                None,
+                &[(&format!("p{k}"), 1)],
+                &[(&format!("end{k}"), 1)],
+            )
+            .unwrap();
+        }
+        let stored = analyze(&net, &explore(&net, Options::default()).unwrap());
+        let on_the_fly = analyze_net(&net, Options::default()).unwrap();
+        assert_eq!(stored.states, 2 * n);
+        assert!(stored.liveness[..n].iter().all(|&l| l == Liveness::L3));
+        assert_eq!(
+            Analysis {
+                bytes_per_marking: stored.bytes_per_marking,
+                ..on_the_fly
+            },
+            stored,
+            "a ring of {n}"
+        );
     }
 }

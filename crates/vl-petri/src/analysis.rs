@@ -7,7 +7,7 @@
 
 use serde::Serialize;
 
-use crate::explore::StateSpace;
+use crate::explore::{Bounds, ExploreError, Options, StateSpace, explore_until_dead};
 use crate::linalg::rank;
 use crate::net::Net;
 
@@ -50,54 +50,104 @@ pub struct Analysis {
     pub reversible: bool,
     pub p_flow_basis_dim: usize,
     pub t_flow_basis_dim: usize,
+    /// Bytes each marking took, packed.
+    pub bytes_per_marking: usize,
 }
 
 /// Analyses `net` whose reachability graph is `space`.
 pub fn analyze(net: &Net, space: &StateSpace) -> Analysis {
-    let n = space.states();
+    let dead_state = (0..space.states()).find(|&s| space.successors(s).next().is_none());
+    let Components { count, liveness } = components(space, net.transitions.len());
+    assemble(
+        net,
+        Read {
+            states: space.states(),
+            edges: space.edges(),
+            bounds: space.bounds(),
+            deadlock_trace: dead_state.map(|d| firing_sequence(space, d)),
+            components: count,
+            liveness,
+            bytes_per_marking: space.bytes_per_marking(),
+        },
+    )
+}
+
+/// Analyses `net` without keeping its reachability graph: Tarjan's
+/// algorithm runs inside a depth-first search (see `onthefly`), so memory
+/// goes to the markings alone. When a marking is dead, a breadth-first
+/// search then finds a shortest way to one, keeping the graph only that far.
+pub fn analyze_net(net: &Net, mut options: Options) -> Result<Analysis, ExploreError> {
+    let max_states = options.max_states;
+    let reading = crate::onthefly::read(net, &mut options).map_err(|stop| match stop {
+        crate::onthefly::Stop::Limit => ExploreError::TooManyStates { limit: max_states },
+        _ => ExploreError::TokenOverflow,
+    })?;
+    let deadlock_trace = if reading.dead {
+        let (space, dead) = explore_until_dead(net, options)?;
+        Some(firing_sequence(
+            &space,
+            dead.expect("the search met a dead marking"),
+        ))
+    } else {
+        None
+    };
+    Ok(assemble(
+        net,
+        Read {
+            states: reading.states,
+            edges: reading.edges,
+            bounds: &reading.bounds,
+            deadlock_trace,
+            components: reading.components,
+            liveness: reading.liveness,
+            bytes_per_marking: reading.bytes_per_marking,
+        },
+    ))
+}
+
+/// What a search read off the state space.
+struct Read<'a> {
+    states: usize,
+    edges: usize,
+    bounds: &'a Bounds,
+    /// Transitions of a shortest firing sequence to a dead marking.
+    deadlock_trace: Option<Vec<usize>>,
+    components: usize,
+    liveness: Vec<Liveness>,
+    bytes_per_marking: usize,
+}
+
+/// The analysis of `net` from what a search read and its incidence matrix.
+fn assemble(net: &Net, read: Read) -> Analysis {
     let transitions = net.transitions.len();
-
-    let mut place_bounds = vec![0u32; net.places.len()];
-    let mut max_tokens_per_marking = 0u64;
-    space.for_each_marking(|m| {
-        let mut sum = 0u64;
-        for (bound, &v) in place_bounds.iter_mut().zip(m) {
-            *bound = (*bound).max(v);
-            sum += u64::from(v);
-        }
-        max_tokens_per_marking = max_tokens_per_marking.max(sum);
-    });
-    let max_tokens_in_place = place_bounds.iter().copied().max().unwrap_or(0);
-
-    let dead_state = (0..n).find(|&s| space.successors(s).next().is_none());
-    let deadlock_trace = dead_state.map(|d| {
-        firing_sequence(space, d)
-            .into_iter()
-            .map(|t| net.transitions[t].id.clone())
-            .collect()
-    });
-
-    let components = strongly_connected(space);
-    let liveness = liveness(space, &components, transitions);
+    let bounds = read.bounds;
+    let max_tokens_in_place = bounds.per_place();
+    let liveness = read.liveness;
     let r = incidence_rank(net);
     Analysis {
         places: net.places.len(),
         transitions,
-        states: n,
-        edges: space.edges(),
+        states: read.states,
+        edges: read.edges,
         bounded: true,
         max_tokens_in_place,
-        max_tokens_per_marking,
-        place_bounds,
+        max_tokens_per_marking: bounds.per_marking,
+        place_bounds: bounds.places.clone(),
         safe: max_tokens_in_place <= 1,
-        deadlock: dead_state.is_some(),
-        deadlock_trace,
+        deadlock: read.deadlock_trace.is_some(),
+        deadlock_trace: read.deadlock_trace.map(|trace| {
+            trace
+                .into_iter()
+                .map(|t| net.transitions[t].id.clone())
+                .collect()
+        }),
         quasi_live: liveness.iter().all(|&l| l >= Liveness::L1),
         live: liveness.iter().all(|&l| l == Liveness::L4),
         liveness,
-        reversible: components.count == 1,
+        reversible: read.components == 1,
         p_flow_basis_dim: net.places.len() - r,
         t_flow_basis_dim: transitions - r,
+        bytes_per_marking: read.bytes_per_marking,
     }
 }
 
@@ -125,26 +175,44 @@ pub fn firing_sequence(space: &StateSpace, target: usize) -> Vec<usize> {
     path
 }
 
-/// Strongly connected components of the reachability graph.
-pub struct Components {
-    /// Component of each state.
-    pub of: Vec<u32>,
-    pub count: usize,
+/// What the strongly connected components of the reachability graph say:
+/// how many there are, and each transition's liveness level.
+struct Components {
+    count: usize,
+    liveness: Vec<Liveness>,
 }
 
-/// Tarjan's algorithm, iterative so millions of states do not overflow the stack.
-pub fn strongly_connected(space: &StateSpace) -> Components {
+/// Tarjan's algorithm, iterative so millions of states do not overflow the
+/// stack. Each edge is told apart as it is followed: into a state still on
+/// the stack (once its own search is over), it stays inside the component
+/// being built; into a finished component, it leaves. So when a component
+/// is popped, it is terminal exactly when none of its states has an edge
+/// leaving, and only then are its states' transitions read again, to count
+/// it for each transition firing inside it.
+///
+/// A transition is L4 if it fires inside every terminal component (so it
+/// can fire again from everywhere), L3 if inside some component (a cycle),
+/// L1 if it fires at all.
+fn components(space: &StateSpace, transitions: usize) -> Components {
     const UNSEEN: u32 = u32::MAX;
+    // Per state: on the stack; has an edge leaving its component.
+    const ON_STACK: u8 = 1;
+    const EXITS: u8 = 2;
     let n = space.states();
     let mut index = vec![UNSEEN; n];
     let mut low = vec![0u32; n];
-    let mut on_stack = vec![false; n];
-    let mut of = vec![UNSEEN; n];
+    let mut flags = vec![0u8; n];
     let mut stack: Vec<u32> = Vec::new();
     // (state, position in its successor list)
     let mut calls: Vec<(u32, u32)> = Vec::new();
     let mut next_index = 0u32;
-    let mut count = 0usize;
+    let mut count = 0u32;
+    let mut fires = vec![false; transitions];
+    let mut cycles = vec![false; transitions];
+    let mut terminals = 0usize;
+    let mut in_terminals = vec![0usize; transitions];
+    // The last terminal component each transition was counted for.
+    let mut seen_in = vec![UNSEEN; transitions];
     for root in 0..n {
         if index[root] != UNSEEN {
             continue;
@@ -157,15 +225,21 @@ pub fn strongly_connected(space: &StateSpace) -> Components {
                 low[v] = next_index;
                 next_index += 1;
                 stack.push(v as u32);
-                on_stack[v] = true;
+                flags[v] |= ON_STACK;
             }
-            let successor = space.targets(v).get(*pos as usize).map(|&w| w as usize);
+            let k = *pos as usize;
+            let successor = space.targets(v).get(k).map(|&w| w as usize);
             *pos += 1;
             match successor {
                 Some(w) if index[w] == UNSEEN => calls.push((w as u32, 0)),
                 Some(w) => {
-                    if on_stack[w] {
+                    let t = space.label(v, k);
+                    fires[t] = true;
+                    if flags[w] & ON_STACK != 0 {
                         low[v] = low[v].min(index[w]);
+                        cycles[t] = true;
+                    } else {
+                        flags[v] |= EXITS;
                     }
                 }
                 None => {
@@ -175,64 +249,45 @@ pub fn strongly_connected(space: &StateSpace) -> Components {
                         low[parent] = low[parent].min(low[v]);
                     }
                     if low[v] == index[v] {
-                        loop {
-                            let w = stack.pop().expect("v is on the stack") as usize;
-                            on_stack[w] = false;
-                            of[w] = count as u32;
-                            if w == v {
-                                break;
+                        let from = stack
+                            .iter()
+                            .rposition(|&w| w as usize == v)
+                            .expect("v is on the stack");
+                        let members = &stack[from..];
+                        if members.iter().all(|&w| flags[w as usize] & EXITS == 0) {
+                            terminals += 1;
+                            for &w in members {
+                                for (t, _) in space.successors(w as usize) {
+                                    if seen_in[t] != count {
+                                        seen_in[t] = count;
+                                        in_terminals[t] += 1;
+                                    }
+                                }
                             }
                         }
+                        for &w in members {
+                            flags[w as usize] &= !ON_STACK;
+                        }
+                        stack.truncate(from);
                         count += 1;
+                    }
+                    // The tree edge from the parent: inside its component
+                    // if v is still on the stack, leaving it if not.
+                    if let Some(&(parent, next)) = calls.last() {
+                        let (parent, k) = (parent as usize, next as usize - 1);
+                        let t = space.label(parent, k);
+                        fires[t] = true;
+                        if flags[v] & ON_STACK != 0 {
+                            cycles[t] = true;
+                        } else {
+                            flags[parent] |= EXITS;
+                        }
                     }
                 }
             }
         }
     }
-    Components { of, count }
-}
-
-/// Liveness level of each transition: L4 if it labels an edge inside every
-/// terminal component (so it can fire again from everywhere), L3 if it labels
-/// an edge inside some component (a cycle), L1 if it fires at all.
-fn liveness(space: &StateSpace, components: &Components, transitions: usize) -> Vec<Liveness> {
-    let n = space.states();
-    let mut fires = vec![false; transitions];
-    let mut cycles = vec![false; transitions];
-    let mut terminal = vec![true; components.count];
-    for s in 0..n {
-        let c = components.of[s];
-        for (t, to) in space.successors(s) {
-            fires[t] = true;
-            if components.of[to] == c {
-                cycles[t] = true;
-            } else {
-                terminal[c as usize] = false;
-            }
-        }
-    }
-    // Count, per transition, the terminal components it fires inside.
-    let terminals = terminal.iter().filter(|&&t| t).count();
-    let mut seen_in = vec![u32::MAX; transitions];
-    let mut in_terminals = vec![0usize; transitions];
-    let mut by_component: Vec<Vec<u32>> = vec![Vec::new(); components.count];
-    for s in 0..n {
-        let c = components.of[s] as usize;
-        if terminal[c] {
-            by_component[c].push(s as u32);
-        }
-    }
-    for (c, states) in by_component.iter().enumerate() {
-        for &s in states {
-            for (t, _) in space.successors(s as usize) {
-                if seen_in[t] != c as u32 {
-                    seen_in[t] = c as u32;
-                    in_terminals[t] += 1;
-                }
-            }
-        }
-    }
-    (0..transitions)
+    let liveness = (0..transitions)
         .map(|t| {
             if in_terminals[t] == terminals && terminals > 0 {
                 Liveness::L4
@@ -244,7 +299,11 @@ fn liveness(space: &StateSpace, components: &Components, transitions: usize) -> 
                 Liveness::L0
             }
         })
-        .collect()
+        .collect();
+    Components {
+        count: count as usize,
+        liveness,
+    }
 }
 
 /// The rank of the net's incidence matrix: |P| − rank is the dimension of

@@ -67,64 +67,159 @@ pub struct StateSpace {
     /// Target state of each edge.
     edge_to: Vec<u32>,
     /// Transition fired on each edge.
-    edge_by: Vec<u32>,
-    /// Bytes the hash index of markings took at the end of exploration.
-    index_bytes: usize,
+    edge_by: Labels,
+    bounds: Bounds,
+}
+
+/// The transition of each edge, in as few bytes as the net's transition
+/// count needs: most nets have under 256, and edges outnumber states
+/// several times, so this is a good part of the graph's memory.
+#[derive(Debug, Clone)]
+pub(crate) enum Labels {
+    One(Vec<u8>),
+    Two(Vec<u16>),
+    Four(Vec<u32>),
+}
+
+impl Labels {
+    pub(crate) fn for_transitions(n: usize) -> Labels {
+        if n <= 1 << 8 {
+            Labels::One(Vec::new())
+        } else if n <= 1 << 16 {
+            Labels::Two(Vec::new())
+        } else {
+            Labels::Four(Vec::new())
+        }
+    }
+
+    /// Appends `t`, which is below the transition count given.
+    pub(crate) fn push(&mut self, t: u32) {
+        match self {
+            Labels::One(v) => v.push(t as u8),
+            Labels::Two(v) => v.push(t as u16),
+            Labels::Four(v) => v.push(t),
+        }
+    }
+
+    pub(crate) fn get(&self, e: usize) -> u32 {
+        match self {
+            Labels::One(v) => u32::from(v[e]),
+            Labels::Two(v) => u32::from(v[e]),
+            Labels::Four(v) => v[e],
+        }
+    }
+
+    pub(crate) fn len(&self) -> usize {
+        match self {
+            Labels::One(v) => v.len(),
+            Labels::Two(v) => v.len(),
+            Labels::Four(v) => v.len(),
+        }
+    }
+
+    pub(crate) fn truncate(&mut self, n: usize) {
+        match self {
+            Labels::One(v) => v.truncate(n),
+            Labels::Two(v) => v.truncate(n),
+            Labels::Four(v) => v.truncate(n),
+        }
+    }
 }
 
 /// Where each place's count sits in a packed marking.
+///
+/// A place has a field of its own, just wide enough for its count; or it
+/// belongs to a one-hot group, places a P-invariant proves always hold one
+/// token between them (a process's local states, a resource's holders),
+/// which share one field naming the marked member: ⌈log₂ k⌉ bits for k
+/// places instead of k.
 #[derive(Debug, Clone)]
-struct Layout {
-    /// Bit offset of each place.
+pub(crate) struct Layout {
+    /// Bit offset of each place's field (a member's is its group's).
     offset: Vec<u32>,
-    /// Bits of each place (0 for a place that is provably always empty).
+    /// Bits of each place's field (0 for a place that is provably always empty).
     width: Vec<u8>,
+    /// For a group member, its number in the group: the field's value when
+    /// it holds the token.
+    member: Vec<Option<u32>>,
+    /// The one-hot groups, as lists of places.
+    groups: Vec<Vec<usize>>,
+    /// The places with fields of their own.
+    own: Vec<usize>,
     /// Bytes per marking.
-    stride: usize,
+    pub(crate) stride: usize,
 }
 
 /// Bytes of slack after a packed marking, so a place is read and written as
 /// one unaligned 8-byte word.
-const PAD: usize = 8;
+pub(crate) const PAD: usize = 8;
 
 impl Layout {
-    fn new(width: Vec<u8>) -> Layout {
-        let mut offset = Vec::with_capacity(width.len());
+    /// Places get fields of `width` bits in order, except members of
+    /// `groups`, whose group's field comes where its first member is.
+    fn new(mut width: Vec<u8>, groups: Vec<Vec<usize>>) -> Layout {
+        let mut member = vec![None; width.len()];
+        let mut first_of = vec![None; width.len()];
+        for (g, places) in groups.iter().enumerate() {
+            let field = bits(places.len() as u32 - 1);
+            for (i, &p) in places.iter().enumerate() {
+                member[p] = Some(i as u32);
+                width[p] = field;
+            }
+            first_of[places[0]] = Some(g);
+        }
+        let mut offset = vec![0u32; width.len()];
         let mut bits = 0u32;
-        for &w in &width {
-            offset.push(bits);
-            bits += u32::from(w);
+        for p in 0..width.len() {
+            match (member[p], first_of[p]) {
+                (None, _) => {
+                    offset[p] = bits;
+                    bits += u32::from(width[p]);
+                }
+                (Some(_), Some(g)) => {
+                    for &q in &groups[g] {
+                        offset[q] = bits;
+                    }
+                    bits += u32::from(width[p]);
+                }
+                (Some(_), None) => {}
+            }
         }
         Layout {
             offset,
             width,
+            own: (0..member.len()).filter(|&p| member[p].is_none()).collect(),
+            member,
+            groups,
             stride: bits.div_ceil(8) as usize,
         }
     }
 
     /// The same layout with place `p` wide enough for `v`, and every place
     /// in `also` (which reached its own limit) likewise doubled, so places
-    /// that grow together are repacked together.
-    fn widened(&self, p: usize, v: u32, also: &[bool]) -> Layout {
+    /// that grow together are repacked together. Group members never grow.
+    pub(crate) fn widened(&self, p: usize, v: u32, also: &[bool]) -> Layout {
         let mut width = self.width.clone();
         for (q, w) in width.iter_mut().enumerate() {
-            if q == p || also[q] {
+            if (q == p || also[q]) && self.member[q].is_none() {
                 *w = ((*w).max(1) * 2).min(32);
             }
         }
         width[p] = width[p].max(bits(v));
-        Layout::new(width)
+        Layout::new(width, self.groups.clone())
     }
 
     /// The largest count place `p` can hold.
-    fn max(&self, p: usize) -> u32 {
-        match self.width[p] {
-            32.. => u32::MAX,
-            w => (1u32 << w) - 1,
+    pub(crate) fn max(&self, p: usize) -> u32 {
+        match (self.member[p], self.width[p]) {
+            (Some(_), _) => 1,
+            (None, 32..) => u32::MAX,
+            (None, w) => (1u32 << w) - 1,
         }
     }
 
-    fn get(&self, packed: &[u8], p: usize) -> u32 {
+    /// The bits of place `p`'s field (its group's, for a member).
+    fn field(&self, packed: &[u8], p: usize) -> u32 {
         let bit = self.offset[p] as usize;
         let at = bit / 8;
         let word = match packed.get(at..at + 8) {
@@ -139,8 +234,31 @@ impl Layout {
         ((word >> (bit % 8)) & ((1u64 << self.width[p]) - 1)) as u32
     }
 
-    /// Writes `v` (which fits) into place `p` of `packed`, which has PAD spare bytes.
-    fn set(&self, packed: &mut [u8], p: usize, v: u32) {
+    /// Tokens in place `p`: its field, or for a group member whether the
+    /// group's field names it.
+    pub(crate) fn count(&self, packed: &[u8], p: usize) -> u32 {
+        let field = self.field(packed, p);
+        match self.member[p] {
+            Some(i) => u32::from(field == i),
+            None => field,
+        }
+    }
+
+    /// The number of places laid out.
+    pub(crate) fn places(&self) -> usize {
+        self.width.len()
+    }
+
+    /// Writes `v` (which fits) into place `p` of `packed`, which has PAD
+    /// spare bytes. A group member taking the token names itself in the
+    /// group's field; one losing it writes nothing, since another member
+    /// takes the token in the same firing.
+    pub(crate) fn set(&self, packed: &mut [u8], p: usize, v: u32) {
+        let v = match self.member[p] {
+            Some(i) if v == 1 => i,
+            Some(_) => return,
+            None => v,
+        };
         let bit = self.offset[p] as usize;
         let at = bit / 8;
         let mut word = [0u8; 8];
@@ -150,15 +268,21 @@ impl Layout {
         packed[at..at + 8].copy_from_slice(&w.to_le_bytes());
     }
 
-    fn unpack(&self, packed: &[u8], out: &mut [u32]) {
-        for (p, slot) in out.iter_mut().enumerate() {
-            *slot = self.get(packed, p);
+    pub(crate) fn unpack(&self, packed: &[u8], out: &mut [u32]) {
+        for &p in &self.own {
+            out[p] = self.field(packed, p);
+        }
+        for places in &self.groups {
+            for &q in places {
+                out[q] = 0;
+            }
+            out[places[self.field(packed, places[0]) as usize]] = 1;
         }
     }
 }
 
 /// A transition compiled for fast firing.
-struct Compiled {
+pub(crate) struct Compiled {
     /// (place, weight) that must be present.
     need: Vec<(u32, u32)>,
     /// (place, weight): enabled only while the place holds fewer.
@@ -167,7 +291,16 @@ struct Compiled {
     delta: Vec<(u32, i64, Option<u32>)>,
 }
 
-fn compile(net: &Net) -> Vec<Compiled> {
+impl Compiled {
+    /// Whether the input and inhibitor arcs allow firing, given each
+    /// place's count (capacities are checked as it fires).
+    pub(crate) fn allows(&self, count: impl Fn(usize) -> u32) -> bool {
+        self.need.iter().all(|&(p, w)| count(p as usize) >= w)
+            && self.inhibit.iter().all(|&(p, w)| count(p as usize) < w)
+    }
+}
+
+pub(crate) fn compile(net: &Net) -> Vec<Compiled> {
     net.transitions
         .iter()
         .map(|t| {
@@ -198,8 +331,104 @@ fn compile(net: &Net) -> Vec<Compiled> {
         .collect()
 }
 
+/// Which transitions a marking can enable. A net with few transitions
+/// tries them all; in a larger one each is listed under its first input
+/// place, so only those under a marked place (and those with no input) are
+/// tried.
+pub(crate) struct Candidates {
+    listed_under: Vec<Vec<u32>>,
+    always: Vec<u32>,
+    all: bool,
+}
+
+/// Transitions a net may have for trying them all to cost less than
+/// gathering the lists of the marked places.
+const TRY_ALL: usize = 64;
+
+impl Candidates {
+    pub(crate) fn new(compiled: &[Compiled], places: usize) -> Candidates {
+        let mut listed_under: Vec<Vec<u32>> = vec![Vec::new(); places];
+        let mut always: Vec<u32> = Vec::new();
+        for (t, tr) in compiled.iter().enumerate() {
+            match tr.need.first() {
+                Some(&(p, _)) => listed_under[p as usize].push(t as u32),
+                None => always.push(t as u32),
+            }
+        }
+        Candidates {
+            listed_under,
+            always,
+            all: compiled.len() <= TRY_ALL,
+        }
+    }
+
+    /// Appends to `out` the transitions whose input and inhibitor arcs
+    /// allow them at `current`, in transition order (so the numbering of
+    /// states does not depend on this filter). Capacities are checked as
+    /// each fires.
+    pub(crate) fn enabled(&self, compiled: &[Compiled], current: &[u32], out: &mut Vec<u32>) {
+        let allows = |t: u32| compiled[t as usize].allows(|p| current[p]);
+        if self.all {
+            out.extend((0..compiled.len() as u32).filter(|&t| allows(t)));
+            return;
+        }
+        let from = out.len();
+        out.extend(self.always.iter().copied().filter(|&t| allows(t)));
+        for (p, &v) in current.iter().enumerate() {
+            if v > 0 {
+                out.extend(self.listed_under[p].iter().copied().filter(|&t| allows(t)));
+            }
+        }
+        out[from..].sort_unstable();
+    }
+}
+
+/// What firing an enabled transition gave.
+pub(crate) enum Fired {
+    /// The successor is written.
+    Next,
+    /// A capacity forbids it: no edge.
+    Blocked,
+    /// Place `p` would hold `v`, more than its field holds.
+    Outgrown { p: usize, v: u32 },
+    /// A place would hold more than any field can.
+    Overflow,
+}
+
+/// Writes into `next` (a copy of the marking, packed, with PAD spare bytes)
+/// the marking firing `tr` gives, given each place's count. Places that
+/// reach the most their field holds are marked in `at_limit`, so a later
+/// widening widens them too.
+pub(crate) fn fire(
+    layout: &Layout,
+    tr: &Compiled,
+    count: impl Fn(usize) -> u32,
+    next: &mut [u8],
+    at_limit: &mut [bool],
+) -> Fired {
+    for &(p, change, capacity) in &tr.delta {
+        let p = p as usize;
+        let v = i64::from(count(p)) + change;
+        if capacity.is_some_and(|cap| v > i64::from(cap)) {
+            return Fired::Blocked;
+        }
+        let max = i64::from(layout.max(p));
+        if v == max {
+            at_limit[p] = true;
+        }
+        if v > max {
+            return match u32::try_from(v) {
+                Ok(v) if layout.width[p] < 32 => Fired::Outgrown { p, v },
+                _ => Fired::Overflow,
+            };
+        }
+        layout.set(next, p, v as u32);
+    }
+    Fired::Next
+}
+
 /// How often progress is reported, in expanded states.
-const PROGRESS_EVERY: usize = 1 << 18;
+pub(crate) const PROGRESS_EVERY: usize = 1 << 18;
 
 /// Rows the invariant computation may use while looking for place bounds.
 const BOUND_ROWS: usize = 5_000;
@@ -209,41 +438,202 @@ fn bits(v: u32) -> u8 {
     (32 - v.leading_zeros()) as u8
 }
 
-/// Per-place bounds the minimal P-invariants prove: y·m = y·m0 for every
-/// reachable m, so m(p) ≤ y·m0 / y(p) for every invariant y covering p.
-fn proven_bounds(net: &Net) -> Vec<Option<u32>> {
-    let mut bounds = vec![None; net.places.len()];
-    let Ok(invariants) = crate::invariants::p_invariants(net, BOUND_ROWS) else {
-        return bounds;
-    };
-    for y in invariants {
-        let total: u64 = y
-            .iter()
-            .map(|&(p, k)| k * u64::from(net.places[p].initial))
-            .sum();
-        for &(p, k) in &y {
-            let b = u32::try_from(total / k).unwrap_or(u32::MAX);
-            bounds[p] = Some(bounds[p].map_or(b, |old: u32| old.min(b)));
+/// The places some firing sequence might mark: a fixpoint from the marked
+/// ones over the transitions whose inputs all might be marked, blind to
+/// weights, inhibitor arcs and capacities, so it can only say too much. A
+/// place it leaves out stays empty forever and needs no bits, which the
+/// invariants also show but cannot always be computed in time to.
+fn markable(net: &Net, initial: &Marking) -> Vec<bool> {
+    let mut marked: Vec<bool> = initial.0.iter().map(|&m| m > 0).collect();
+    let mut grew = true;
+    while grew {
+        grew = false;
+        for t in &net.transitions {
+            if t.pre.iter().all(|a| marked[a.place.0]) {
+                for a in &t.post {
+                    grew |= !marked[a.place.0];
+                    marked[a.place.0] = true;
+                }
+            }
         }
     }
-    bounds
+    marked
 }
 
-/// Explores every marking reachable from the initial one.
-pub fn explore(net: &Net, mut options: Options) -> Result<StateSpace, ExploreError> {
-    let compiled = compile(net);
+/// The layout the minimal P-invariants allow: y·m = y·m0 for every
+/// reachable m, so m(p) ≤ y·m0 / y(p) for every invariant y covering p;
+/// and an invariant of unit weights holding one token makes its places a
+/// one-hot group (disjoint groups, largest first). A place no invariant
+/// bounds starts as wide as its initial count and widens when outgrown.
+pub(crate) fn initial_layout(net: &Net) -> Layout {
     let initial = net.initial_marking();
-    let width = proven_bounds(net)
+    let mut bounds: Vec<Option<u32>> = markable(net, &initial)
+        .into_iter()
+        .map(|m| (!m).then_some(0))
+        .collect();
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    if let Ok(invariants) = crate::invariants::p_invariants(net, BOUND_ROWS) {
+        for y in &invariants {
+            let total: u64 = y.iter().map(|&(p, k)| k * u64::from(initial.0[p])).sum();
+            for &(p, k) in y {
+                let b = u32::try_from(total / k).unwrap_or(u32::MAX);
+                bounds[p] = Some(bounds[p].map_or(b, |old: u32| old.min(b)));
+            }
+            if total == 1 && y.len() >= 2 && y.iter().all(|&(_, k)| k == 1) {
+                groups.push(y.iter().map(|&(p, _)| p).collect());
+            }
+        }
+    }
+    groups.sort_by_key(|g| std::cmp::Reverse(g.len()));
+    let mut grouped = vec![false; net.places.len()];
+    groups.retain(|g| {
+        let free = g.iter().all(|&p| !grouped[p]);
+        if free {
+            g.iter().for_each(|&p| grouped[p] = true);
+        }
+        free
+    });
+    let width = bounds
         .iter()
         .zip(&initial.0)
         .map(|(bound, &m)| bound.map_or(bits(m).max(1), bits))
         .collect();
-    run(Layout::new(width), &compiled, &initial, &mut options).map_err(|stop| match stop {
+    Layout::new(width, groups)
+}
+
+/// Explores every marking reachable from the initial one, keeping the
+/// graph's edges (liveness and reversibility are read off them).
+pub fn explore(net: &Net, mut options: Options) -> Result<StateSpace, ExploreError> {
+    let found = start(net, &mut options, Keep::Graph)?;
+    Ok(found.into_space())
+}
+
+/// The reachability graph up to the first dead marking breadth-first, and
+/// that marking's state; the whole graph and None when no marking is dead.
+pub(crate) fn explore_until_dead(
+    net: &Net,
+    mut options: Options,
+) -> Result<(StateSpace, Option<usize>), ExploreError> {
+    let found = start(net, &mut options, Keep::GraphUntilDead)?;
+    let dead = found.dead;
+    Ok((found.into_space(), dead))
+}
+
+impl Found {
+    fn into_space(self) -> StateSpace {
+        let Graph {
+            edges_from,
+            edge_to,
+            edge_by,
+        } = self.graph.expect("kept when asked");
+        StateSpace {
+            layout: self.layout,
+            store: self.store,
+            edges_from,
+            edge_to,
+            edge_by,
+            bounds: self.bounds,
+        }
+    }
+}
+
+/// What exploration alone says, as `verifypn -e` reports it: the state
+/// space's size and the bounds of its places. No edge is kept, so it holds
+/// only the markings and their index.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateCount {
+    pub states: usize,
+    /// Firings between markings: every enabled transition of every state.
+    pub edges: usize,
+    pub bounds: Bounds,
+    pub bytes_per_marking: usize,
+}
+
+/// The most tokens each place, and any marking, holds: taken as each state
+/// is expanded, so no pass over the store is needed afterwards.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bounds {
+    /// Per place.
+    pub places: Vec<u32>,
+    /// The most tokens in any one marking.
+    pub per_marking: u64,
+}
+
+impl Bounds {
+    pub(crate) fn new(places: usize) -> Bounds {
+        Bounds {
+            places: vec![0; places],
+            per_marking: 0,
+        }
+    }
+
+    pub(crate) fn take(&mut self, m: &[u32]) {
+        let mut sum = 0u64;
+        for (bound, &v) in self.places.iter_mut().zip(m) {
+            *bound = (*bound).max(v);
+            sum += u64::from(v);
+        }
+        self.per_marking = self.per_marking.max(sum);
+    }
+
+    /// The most tokens in any one place.
+    pub fn per_place(&self) -> u32 {
+        self.places.iter().copied().max().unwrap_or(0)
+    }
+}
+
+/// Counts every marking reachable from the initial one, and the firings
+/// between them, without keeping the graph.
+pub fn count_states(net: &Net, mut options: Options) -> Result<StateCount, ExploreError> {
+    let found = start(net, &mut options, Keep::Count)?;
+    Ok(StateCount {
+        states: found.states,
+        edges: found.edges,
+        bounds: found.bounds,
+        bytes_per_marking: found.layout.stride,
+    })
+}
+
+/// Lays out the markings and runs the search.
+fn start(net: &Net, options: &mut Options, keep: Keep) -> Result<Found, ExploreError> {
+    let compiled = compile(net);
+    let initial = net.initial_marking();
+    run(initial_layout(net), &compiled, &initial, options, keep).map_err(|stop| match stop {
         Stop::Overflow => ExploreError::TokenOverflow,
         Stop::Limit => ExploreError::TooManyStates {
             limit: options.max_states,
         },
     })
+}
+
+/// The reachability graph's edges, in compressed adjacency form.
+struct Graph {
+    edges_from: Vec<u64>,
+    edge_to: Vec<u32>,
+    edge_by: Labels,
+}
+
+/// What a search found: the markings, how many firings joined them, and
+/// the edges when they were kept.
+struct Found {
+    layout: Layout,
+    store: Vec<u8>,
+    states: usize,
+    edges: usize,
+    graph: Option<Graph>,
+    bounds: Bounds,
+    /// The first dead state, when the search stopped there.
+    dead: Option<usize>,
+}
+
+/// What a search keeps of the graph.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Keep {
+    /// Counts only.
+    Count,
+    Graph,
+    /// The graph until the first dead state, where it stops.
+    GraphUntilDead,
 }
 
 enum Stop {
@@ -257,19 +647,25 @@ fn hash_of(m: &[u8]) -> u64 {
     h.finish()
 }
 
-/// Markings `store` packed in `from`, repacked in `to`.
-fn repack(from: &Layout, to: &Layout, store: &[u8]) -> Vec<u8> {
+/// Repacks the markings of `store` from layout `from` into the wider `to`
+/// in place: from the last state back, each state's new place lies at or
+/// after its old one and before any later state's, so nothing unread is
+/// overwritten and the store is never held twice.
+fn repack(from: &Layout, to: &Layout, store: &mut Vec<u8>) {
+    debug_assert!(to.stride >= from.stride, "a layout only widens");
     let states = store.len().checked_div(from.stride).unwrap_or(0);
-    let mut out = vec![0u8; states * to.stride + PAD];
+    store.resize(states * to.stride + PAD, 0);
     let mut m = vec![0u32; from.width.len()];
-    for s in 0..states {
-        from.unpack(&store[s * from.stride..(s + 1) * from.stride], &mut m);
+    let mut old = vec![0u8; from.stride + PAD];
+    for s in (0..states).rev() {
+        old[..from.stride].copy_from_slice(&store[s * from.stride..(s + 1) * from.stride]);
+        from.unpack(&old, &mut m);
+        store[s * to.stride..(s + 1) * to.stride].fill(0);
         for (p, &v) in m.iter().enumerate() {
-            to.set(&mut out[s * to.stride..], p, v);
+            to.set(&mut store[s * to.stride..], p, v);
         }
     }
-    out.truncate(states * to.stride);
-    out
+    store.truncate(states * to.stride);
 }
 
 fn run(
@@ -277,7 +673,10 @@ fn run(
     compiled: &[Compiled],
     initial: &Marking,
     options: &mut Options,
-) -> Result<StateSpace, Stop> {
+    keep: Keep,
+) -> Result<Found, Stop> {
+    let keep_edges = keep != Keep::Count;
+    let mut dead = None;
     let mut stride = layout.stride;
     let started = Instant::now();
     let mut next = vec![0u8; stride + PAD];
@@ -288,70 +687,50 @@ fn run(
     let mut table: HashTable<u32> = HashTable::new();
     let mut states = 1usize;
     table.insert_unique(hash_of(&store[..stride]), 0, |_| 0);
-    let mut edges_from: Vec<u64> = vec![0];
+    let mut edges_from: Vec<u64> = if keep_edges { vec![0] } else { Vec::new() };
     let mut edge_to: Vec<u32> = Vec::new();
-    let mut edge_by: Vec<u32> = Vec::new();
+    let mut edge_by = Labels::for_transitions(compiled.len());
+    // Firings counted so far.
+    let mut edges = 0usize;
+    let mut bounds = Bounds::new(layout.width.len());
     let mut current = vec![0u32; layout.width.len()];
     let mut packed = vec![0u8; stride + PAD];
     let mut expanded = 0usize;
-    // Each transition is listed under its first input place: only those under
-    // a marked place (and those with no input) can be enabled.
-    let mut listed_under: Vec<Vec<u32>> = vec![Vec::new(); layout.width.len()];
-    let mut always: Vec<u32> = Vec::new();
-    for (t, tr) in compiled.iter().enumerate() {
-        match tr.need.first() {
-            Some(&(p, _)) => listed_under[p as usize].push(t as u32),
-            None => always.push(t as u32),
-        }
-    }
-    let mut candidates: Vec<u32> = Vec::with_capacity(compiled.len());
+    let candidates = Candidates::new(compiled, layout.width.len());
+    let mut enabled: Vec<u32> = Vec::with_capacity(compiled.len());
     // Places that have been seen full: the next overflow widens them too.
     let mut at_limit = vec![false; layout.width.len()];
     'states: while expanded < states {
         let at = expanded * stride;
         packed[..stride].copy_from_slice(&store[at..at + stride]);
         layout.unpack(&packed, &mut current);
-        candidates.clear();
-        candidates.extend_from_slice(&always);
-        for (p, &v) in current.iter().enumerate() {
-            if v > 0 {
-                candidates.extend_from_slice(&listed_under[p]);
-            }
-        }
-        // In transition order, so the numbering of states does not depend on this filter.
-        candidates.sort_unstable();
-        'transitions: for &t in &candidates {
-            let tr = &compiled[t as usize];
-            for &(p, w) in &tr.need {
-                if current[p as usize] < w {
-                    continue 'transitions;
-                }
-            }
-            for &(p, w) in &tr.inhibit {
-                if current[p as usize] >= w {
-                    continue 'transitions;
-                }
-            }
+        bounds.take(&current);
+        enabled.clear();
+        candidates.enabled(compiled, &current, &mut enabled);
+        // Where this state's firings start, should it be expanded again.
+        let edges_before = edges;
+        for &t in &enabled {
             next.copy_from_slice(&packed);
-            for &(p, change, capacity) in &tr.delta {
-                let p = p as usize;
-                let v = i64::from(current[p]) + change;
-                if capacity.is_some_and(|cap| v > i64::from(cap)) {
-                    continue 'transitions;
-                }
-                if v == i64::from(layout.max(p)) {
-                    at_limit[p] = true;
-                }
-                if v > i64::from(layout.max(p)) {
-                    if layout.width[p] >= 32 {
-                        return Err(Stop::Overflow);
-                    }
+            match fire(
+                &layout,
+                &compiled[t as usize],
+                |p| current[p],
+                &mut next,
+                &mut at_limit,
+            ) {
+                Fired::Next => {}
+                Fired::Blocked => continue,
+                Fired::Overflow => return Err(Stop::Overflow),
+                Fired::Outgrown { p, v } => {
                     // Widen p, repack what is stored, and expand this state again.
-                    let wider = layout.widened(p, v as u32, &at_limit);
+                    let wider = layout.widened(p, v, &at_limit);
                     at_limit.iter_mut().for_each(|a| *a = false);
-                    store = repack(&layout, &wider, &store);
+                    repack(&layout, &wider, &mut store);
                     layout = wider;
                     stride = layout.stride;
+                    // The old index goes before the new one is built, so
+                    // the two are never held together.
+                    drop(std::mem::take(&mut table));
                     table = HashTable::with_capacity(states);
                     for id in 0..states {
                         let s = id * stride;
@@ -362,12 +741,11 @@ fn run(
                     }
                     next = vec![0u8; stride + PAD];
                     packed = vec![0u8; stride + PAD];
-                    let first_edge = edges_from[expanded] as usize;
-                    edge_to.truncate(first_edge);
-                    edge_by.truncate(first_edge);
+                    edges = edges_before;
+                    edge_to.truncate(edges);
+                    edge_by.truncate(edges);
                     continue 'states;
                 }
-                layout.set(&mut next, p, v as u32);
             }
             let hash = hash_of(&next[..stride]);
             let found = table
@@ -392,28 +770,42 @@ fn run(
                     id
                 }
             };
-            edge_to.push(target);
-            edge_by.push(t);
+            edges += 1;
+            if keep_edges {
+                edge_to.push(target);
+                edge_by.push(t);
+            }
         }
-        edges_from.push(edge_to.len() as u64);
+        if keep_edges {
+            edges_from.push(edges as u64);
+        }
         expanded += 1;
+        if keep == Keep::GraphUntilDead && edges == edges_before {
+            dead = Some(expanded - 1);
+            break;
+        }
         if expanded.is_multiple_of(PROGRESS_EVERY)
             && let Some(report) = options.progress.as_mut()
         {
             report(Progress {
                 states,
-                edges: edge_to.len(),
+                edges,
                 elapsed: started.elapsed(),
             });
         }
     }
-    Ok(StateSpace {
+    Ok(Found {
         layout,
         store,
-        edges_from,
-        edge_to,
-        edge_by,
-        index_bytes: table.allocation_size(),
+        states,
+        edges,
+        graph: keep_edges.then_some(Graph {
+            edges_from,
+            edge_to,
+            edge_by,
+        }),
+        bounds,
+        dead,
     })
 }
 
@@ -431,10 +823,12 @@ impl StateSpace {
     /// The successors of state `s`: (transition index, target state).
     pub fn successors(&self, s: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
         let (a, b) = (self.edges_from[s] as usize, self.edges_from[s + 1] as usize);
-        self.edge_by[a..b]
-            .iter()
-            .zip(&self.edge_to[a..b])
-            .map(|(&t, &to)| (t as usize, to as usize))
+        (a..b).map(|e| (self.edge_by.get(e) as usize, self.edge_to[e] as usize))
+    }
+
+    /// The transition of `s`'s `k`-th edge, in the order of [`Self::successors`].
+    pub(crate) fn label(&self, s: usize, k: usize) -> usize {
+        self.edge_by.get(self.edges_from[s] as usize + k) as usize
     }
 
     /// The target states of `s`'s edges, in the order of [`Self::successors`].
@@ -449,28 +843,13 @@ impl StateSpace {
         Marking(m)
     }
 
-    /// Calls `f` with each state's marking, reusing one buffer.
-    pub fn for_each_marking(&self, mut f: impl FnMut(&[u32])) {
-        let mut m = vec![0u32; self.layout.width.len()];
-        for s in 0..self.states() {
-            self.layout.unpack(self.packed(s), &mut m);
-            f(&m);
-        }
+    /// The most tokens each place, and any marking, holds.
+    pub fn bounds(&self) -> &Bounds {
+        &self.bounds
     }
 
     fn packed(&self, s: usize) -> &[u8] {
         &self.store[s * self.layout.stride..(s + 1) * self.layout.stride]
-    }
-
-    /// Bytes of the state store: the packed markings plus the hash index
-    /// that found them (the figure explicit-state tools quote per state).
-    pub fn store_bytes(&self) -> usize {
-        self.states() * self.bytes_per_marking() + self.index_bytes
-    }
-
-    /// Bytes of the graph's edges, which liveness and reversibility need.
-    pub fn graph_bytes(&self) -> usize {
-        self.edges_from.len() * 8 + (self.edge_to.len() + self.edge_by.len()) * 4
     }
 
     /// Bytes per stored marking.

@@ -3,7 +3,8 @@
 //! The model and its firing rule (`net`; the session supervisor in
 //! `vl-core` runs it live), PNML in and out (`pnml`), statecharts to nets
 //! (`scxml`), the reachability graph (`explore`) and the properties read
-//! off it (`analysis`), Karp–Miller coverability (`coverability`), P- and
+//! off it (`analysis`), or read during a search that keeps no graph
+//! (`onthefly`), Karp–Miller coverability (`coverability`), P- and
 //! T-invariants (`invariants`), composition (`compose`), controller
 //! synthesis (`control`), pictures (`dot`), and benchmarks on the Model
 //! Checking Contest's models (`bench`). Modules are private; what other
@@ -19,16 +20,19 @@ mod explore;
 mod invariants;
 mod linalg;
 mod net;
+mod onthefly;
 mod pnml;
 mod scxml;
 
-pub use analysis::{Analysis, Liveness, analyze, firing_sequence, incidence_rank};
+pub use analysis::{Analysis, Liveness, analyze, analyze_net, firing_sequence, incidence_rank};
 pub use bench::{BenchRow, CorpusModel, Manifest, ManifestError, PeakMemory, bench_model};
 pub use compose::{ComposeError, compose, fuse_parallel_places};
 pub use control::{Added, Constraint, ControlError, Limits, synthesize};
 pub use coverability::{Coverability, CoverabilityError, OMEGA, coverability};
 pub use dot::{graph_to_dot, net_to_dot};
-pub use explore::{ExploreError, Options, Progress, StateSpace, explore};
+pub use explore::{
+    Bounds, ExploreError, Options, Progress, StateCount, StateSpace, count_states, explore,
+};
 pub use invariants::{Invariant, TooManyInvariants, is_conservative, p_invariants, t_invariants};
 pub use net::{
     Arc, ArcKind, Marking, MarkingDisplay, Net, NetError, Place, PlaceId, Transition, TransitionId,
