@@ -13,8 +13,8 @@ use vl_petri::{
     Added, BenchRow, Constraint, ControlError, Coverability, CoverabilityError, ExploreError,
     Invariant, Limits, Manifest, Net, OMEGA, Options, Progress, StateSpace, TooManyInvariants,
     analyze_net, bench_model, compose, count_states, coverability, explore, from_pnml, from_scxml,
-    fuse_parallel_places, graph_to_dot, is_conservative, net_to_dot, p_invariants, synthesize,
-    t_invariants, to_pnml,
+    fuse_parallel_places, graph_to_dot, is_conservative, net_to_dot, p_invariants, p_rows_within,
+    synthesize, t_invariants, to_pnml,
 };
 
 use crate::BadInput;
@@ -236,8 +236,11 @@ struct AnalyzeReport {
 /// When and where the manifest's verifypn figures were recorded.
 const VERIFYPN_RECORDED: &str = "recorded 2026-11-21, Debian 12, 2 cores";
 
-/// Rows the Farkas algorithm may hold while `analyze` decides conservativeness.
+/// Rows the Farkas algorithm may hold while `analyze` decides
+/// conservativeness, and the memory it may take: less than exploring a
+/// large net takes, so the verdict never sets the peak.
 const CONSERVATIVE_ROWS: usize = 20_000;
+const CONSERVATIVE_BYTES: usize = 32 << 20;
 
 /// Nodes the boundedness pre-check of `analyze` may build before leaving
 /// the question to full exploration: enough for a small unbounded net to be
@@ -660,7 +663,8 @@ fn dot_command(path: &Path, reachability: bool, max_states: usize) -> Result<Exi
 /// Whether a positive weighting of all places is invariant, if the minimal
 /// P-invariants can be listed.
 fn conservative(net: &Net) -> Option<bool> {
-    let invariants = p_invariants(net, CONSERVATIVE_ROWS).ok()?;
+    let rows = CONSERVATIVE_ROWS.min(p_rows_within(net, CONSERVATIVE_BYTES));
+    let invariants = p_invariants(net, rows).ok()?;
     Some(is_conservative(net.places.len(), &invariants))
 }
 

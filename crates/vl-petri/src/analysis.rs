@@ -79,7 +79,9 @@ pub fn analyze(net: &Net, space: &StateSpace) -> Analysis {
 pub fn analyze_net(net: &Net, mut options: Options) -> Result<Analysis, ExploreError> {
     let max_states = options.max_states;
     let reading = crate::onthefly::read(net, &mut options).map_err(|stop| match stop {
-        crate::onthefly::Stop::Limit => ExploreError::TooManyStates { limit: max_states },
+        crate::onthefly::Stop::Limit => ExploreError::TooManyStates {
+            limit: max_states.min(crate::onthefly::MOST_STATES),
+        },
         _ => ExploreError::TokenOverflow,
     })?;
     let deadlock_trace = if reading.dead {

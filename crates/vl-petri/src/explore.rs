@@ -83,12 +83,21 @@ pub(crate) enum Labels {
 
 impl Labels {
     pub(crate) fn for_transitions(n: usize) -> Labels {
+        match Labels::bytes(n) {
+            1 => Labels::One(Vec::new()),
+            2 => Labels::Two(Vec::new()),
+            _ => Labels::Four(Vec::new()),
+        }
+    }
+
+    /// Bytes a label of one of `n` transitions takes.
+    pub(crate) fn bytes(n: usize) -> usize {
         if n <= 1 << 8 {
-            Labels::One(Vec::new())
+            1
         } else if n <= 1 << 16 {
-            Labels::Two(Vec::new())
+            2
         } else {
-            Labels::Four(Vec::new())
+            4
         }
     }
 
@@ -146,6 +155,10 @@ pub(crate) struct Layout {
     groups: Vec<Vec<usize>>,
     /// The places with fields of their own.
     own: Vec<usize>,
+    /// Places given no field because the others determine them (see
+    /// [`search_layout`]): a search that carries each marking's counts
+    /// along its path never needs them unpacked.
+    derived: Vec<bool>,
     /// Bytes per marking.
     pub(crate) stride: usize,
 }
@@ -157,7 +170,12 @@ pub(crate) const PAD: usize = 8;
 impl Layout {
     /// Places get fields of `width` bits in order, except members of
     /// `groups`, whose group's field comes where its first member is.
-    fn new(mut width: Vec<u8>, groups: Vec<Vec<usize>>) -> Layout {
+    fn new(mut width: Vec<u8>, groups: Vec<Vec<usize>>, derived: Vec<bool>) -> Layout {
+        for (w, &d) in width.iter_mut().zip(&derived) {
+            if d {
+                *w = 0;
+            }
+        }
         let mut member = vec![None; width.len()];
         let mut first_of = vec![None; width.len()];
         for (g, places) in groups.iter().enumerate() {
@@ -191,6 +209,7 @@ impl Layout {
             own: (0..member.len()).filter(|&p| member[p].is_none()).collect(),
             member,
             groups,
+            derived,
             stride: bits.div_ceil(8) as usize,
         }
     }
@@ -206,7 +225,7 @@ impl Layout {
             }
         }
         width[p] = width[p].max(bits(v));
-        Layout::new(width, self.groups.clone())
+        Layout::new(width, self.groups.clone(), self.derived.clone())
     }
 
     /// The largest count place `p` can hold.
@@ -234,16 +253,6 @@ impl Layout {
         ((word >> (bit % 8)) & ((1u64 << self.width[p]) - 1)) as u32
     }
 
-    /// Tokens in place `p`: its field, or for a group member whether the
-    /// group's field names it.
-    pub(crate) fn count(&self, packed: &[u8], p: usize) -> u32 {
-        let field = self.field(packed, p);
-        match self.member[p] {
-            Some(i) => u32::from(field == i),
-            None => field,
-        }
-    }
-
     /// The number of places laid out.
     pub(crate) fn places(&self) -> usize {
         self.width.len()
@@ -257,6 +266,8 @@ impl Layout {
         let v = match self.member[p] {
             Some(i) if v == 1 => i,
             Some(_) => return,
+            // A place with no field: always empty, or derived.
+            None if self.width[p] == 0 => return,
             None => v,
         };
         let bit = self.offset[p] as usize;
@@ -269,6 +280,10 @@ impl Layout {
     }
 
     pub(crate) fn unpack(&self, packed: &[u8], out: &mut [u32]) {
+        debug_assert!(
+            !self.derived.contains(&true),
+            "derived places cannot be unpacked"
+        );
         for &p in &self.own {
             out[p] = self.field(packed, p);
         }
@@ -292,6 +307,11 @@ pub(crate) struct Compiled {
 }
 
 impl Compiled {
+    /// (place, change, capacity) of each place firing changes.
+    pub(crate) fn changes(&self) -> &[(u32, i64, Option<u32>)] {
+        &self.delta
+    }
+
     /// Whether the input and inhibitor arcs allow firing, given each
     /// place's count (capacities are checked as it fires).
     pub(crate) fn allows(&self, count: impl Fn(usize) -> u32) -> bool {
@@ -412,6 +432,9 @@ pub(crate) fn fire(
         if capacity.is_some_and(|cap| v > i64::from(cap)) {
             return Fired::Blocked;
         }
+        if layout.derived[p] {
+            continue;
+        }
         let max = i64::from(layout.max(p));
         if v == max {
             at_limit[p] = true;
@@ -430,8 +453,10 @@ pub(crate) fn fire(
 /// How often progress is reported, in expanded states.
 pub(crate) const PROGRESS_EVERY: usize = 1 << 18;
 
-/// Rows the invariant computation may use while looking for place bounds.
+/// Rows the invariant computation may use while looking for place bounds,
+/// and the memory it may take.
 const BOUND_ROWS: usize = 5_000;
+const BOUND_BYTES: usize = 16 << 20;
 
 /// Bits needed to write `v`.
 fn bits(v: u32) -> u8 {
@@ -466,13 +491,60 @@ fn markable(net: &Net, initial: &Marking) -> Vec<bool> {
 /// one-hot group (disjoint groups, largest first). A place no invariant
 /// bounds starts as wide as its initial count and widens when outgrown.
 pub(crate) fn initial_layout(net: &Net) -> Layout {
+    let (width, groups, _) = fields(net);
+    let derived = vec![false; width.len()];
+    Layout::new(width, groups, derived)
+}
+
+/// The layout of [`initial_layout`] less every place the others determine,
+/// for a search that carries each marking's counts along its path.
+///
+/// A reachable marking is m0 + C·σ, so a place whose row of the incidence
+/// matrix C is a combination of other places' rows has its count fixed by
+/// theirs (a P-flow, not necessarily positive, says how), and two
+/// markings that differ differ in a place that keeps its field. Which
+/// places keep one is a basis of C's rows chosen cheapest first: group
+/// members (their group's field is shared, so they always keep it), then
+/// by the bits their field takes, places no invariant bounds last, since
+/// their fields would have to grow.
+pub(crate) fn search_layout(net: &Net) -> Layout {
+    let (width, groups, bounded) = fields(net);
+    let places = width.len();
+    let mut grouped = vec![false; places];
+    for &p in groups.iter().flatten() {
+        grouped[p] = true;
+    }
+    let cost = |p: usize| match (grouped[p], bounded[p]) {
+        (true, _) => 0,
+        (false, true) => 1 + u32::from(width[p]),
+        (false, false) => 1 + 32,
+    };
+    let mut order: Vec<usize> = (0..places).collect();
+    order.sort_by_key(|&p| cost(p));
+    let derived = if places.saturating_mul(net.transitions.len()) <= DERIVE_CELLS {
+        let kept = crate::linalg::basis_rows(&net.incidence(), &order);
+        (0..places).map(|p| !kept[p] && !grouped[p]).collect()
+    } else {
+        vec![false; places]
+    };
+    Layout::new(width, groups, derived)
+}
+
+/// Incidence matrices larger than this many cells are not searched for
+/// derived places: the elimination would cost more than it saves.
+const DERIVE_CELLS: usize = 4_000_000;
+
+/// Each place's field width, the one-hot groups, and whether an invariant
+/// bounds each place (its width is then final).
+fn fields(net: &Net) -> (Vec<u8>, Vec<Vec<usize>>, Vec<bool>) {
     let initial = net.initial_marking();
     let mut bounds: Vec<Option<u32>> = markable(net, &initial)
         .into_iter()
         .map(|m| (!m).then_some(0))
         .collect();
     let mut groups: Vec<Vec<usize>> = Vec::new();
-    if let Ok(invariants) = crate::invariants::p_invariants(net, BOUND_ROWS) {
+    let rows = BOUND_ROWS.min(crate::invariants::p_rows_within(net, BOUND_BYTES));
+    if let Ok(invariants) = crate::invariants::p_invariants(net, rows) {
         for y in &invariants {
             let total: u64 = y.iter().map(|&(p, k)| k * u64::from(initial.0[p])).sum();
             for &(p, k) in y {
@@ -498,7 +570,8 @@ pub(crate) fn initial_layout(net: &Net) -> Layout {
         .zip(&initial.0)
         .map(|(bound, &m)| bound.map_or(bits(m).max(1), bits))
         .collect();
-    Layout::new(width, groups)
+    let bounded = bounds.iter().map(Option::is_some).collect();
+    (width, groups, bounded)
 }
 
 /// Explores every marking reachable from the initial one, keeping the

@@ -30,6 +30,17 @@ pub fn p_invariants(net: &Net, max_rows: usize) -> Result<Vec<Invariant>, TooMan
     farkas(&net.incidence(), max_rows)
 }
 
+/// How many rows the Farkas tableau of `net`'s P-invariants may hold so
+/// that it takes about `bytes`: a row holds an entry of 8 bytes per place
+/// and per transition, and a step holds the rows before it beside those it
+/// makes. Callers that only hope for the invariants (bounds, a verdict)
+/// cap their search this way, so a net with too many of them costs little
+/// memory before it is given up on.
+pub fn p_rows_within(net: &Net, bytes: usize) -> usize {
+    let row = 8 * (net.places.len() + net.transitions.len()) + net.places.len().div_ceil(8) + 128;
+    bytes / (2 * row)
+}
+
 /// Minimal semi-positive T-invariants of `net` (indices are transitions).
 pub fn t_invariants(net: &Net, max_rows: usize) -> Result<Vec<Invariant>, TooManyInvariants> {
     let c = net.incidence();

@@ -33,7 +33,9 @@ pub use dot::{graph_to_dot, net_to_dot};
 pub use explore::{
     Bounds, ExploreError, Options, Progress, StateCount, StateSpace, count_states, explore,
 };
-pub use invariants::{Invariant, TooManyInvariants, is_conservative, p_invariants, t_invariants};
+pub use invariants::{
+    Invariant, TooManyInvariants, is_conservative, p_invariants, p_rows_within, t_invariants,
+};
 pub use net::{
     Arc, ArcKind, Marking, MarkingDisplay, Net, NetError, Place, PlaceId, Transition, TransitionId,
 };
