@@ -55,8 +55,24 @@ pub(crate) fn peak_bytes() -> usize {
 }
 
 /// The most memory the process has held resident, bytes (what `time -v`
-/// calls the maximum resident set size): heap, code, stacks and all.
+/// calls the maximum resident set size): heap, mapped memory, code, stacks
+/// and all. On Linux it is the program's own high-water mark: getrusage's
+/// also counts what the process that started it held before the exec.
 pub(crate) fn peak_resident_bytes() -> usize {
+    #[cfg(target_os = "linux")]
+    if let Some(kb) = std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|status| {
+            let line = status.lines().find_map(|l| l.strip_prefix("VmHWM:"))?;
+            line.trim()
+                .trim_end_matches("kB")
+                .trim()
+                .parse::<usize>()
+                .ok()
+        })
+    {
+        return kb * 1024;
+    }
     let mut usage = std::mem::MaybeUninit::<libc::rusage>::zeroed();
     // SAFETY: getrusage fills the struct it is given; RUSAGE_SELF is valid.
     let usage = unsafe {
