@@ -206,6 +206,10 @@ fn bad_input_is_refused_with_exit_code_2() {
     let truncated = write("truncated.pnml", &PRODUCER[..PRODUCER.len() / 2]);
     refused(&["petri", "analyze", s(&truncated)], "not well-formed XML");
     refused(&["petri", "states", s(&truncated)], "not well-formed XML");
+    refused(
+        &["petri", "states", "--threads", "0", s(&truncated)],
+        "--threads",
+    );
     let missing = write(
         "missing.pnml",
         &PRODUCER.replace(r#"target="buffer""#, r#"target="nowhere""#),

@@ -17,8 +17,11 @@ fn manifest() -> Manifest {
     Manifest::parse(&text).expect("the manifest parses")
 }
 
-/// `vl petri COMMAND --json` on every small and medium model, with its report.
-fn reports(command: &'static str) -> impl Iterator<Item = (CorpusModel, Value)> {
+/// `vl petri COMMAND --json ARGS…` on every small and medium model, with its report.
+fn reports(
+    command: &'static str,
+    args: &'static [&'static str],
+) -> impl Iterator<Item = (CorpusModel, Value)> {
     manifest()
         .models
         .into_iter()
@@ -26,6 +29,7 @@ fn reports(command: &'static str) -> impl Iterator<Item = (CorpusModel, Value)> 
         .map(move |model| {
             let out = Command::new(env!("CARGO_BIN_EXE_vl"))
                 .args(["petri", command, "--json"])
+                .args(args)
                 .arg(corpus().join(model.pnml()))
                 .output()
                 .expect("vl runs");
@@ -45,7 +49,7 @@ fn analysis_matches_the_certified_answers() {
     let mut checked = 0;
     let mut decided_conservative = 0;
     let mut mismatches = Vec::new();
-    for (model, got) in reports("analyze") {
+    for (model, got) in reports("analyze", &[]) {
         let number = |key: &str| got[key].as_u64().map(|v| v.to_string()).unwrap_or_default();
         let verdict = |key: &str| {
             got[key]
@@ -128,12 +132,22 @@ fn analysis_matches_the_certified_answers() {
 
 /// `vl petri states --json` counts what verifypn -e does on every small and
 /// medium model: its states, its firings ("discovered states" less one) and
-/// the certified bounds, without keeping the graph.
+/// the certified bounds, without keeping the graph; on two threads, as on one.
 #[test]
 fn states_match_verifypn_s_counts() {
     let mut checked = 0;
     let mut mismatches = Vec::new();
-    for (model, got) in reports("states") {
+    let one = reports("states", &[]);
+    let two = reports("states", &["--threads", "2"]);
+    for ((model, got), (_, got_on_two)) in one.zip(two) {
+        assert_eq!(got_on_two["states"], got["states"], "{}", model.name());
+        assert_eq!(got_on_two["edges"], got["edges"], "{}", model.name());
+        assert_eq!(
+            got_on_two["place_bounds"],
+            got["place_bounds"],
+            "{}",
+            model.name()
+        );
         let number = |key: &str| got[key].as_u64().map(|v| v.to_string()).unwrap_or_default();
         let bounds = got["place_bounds"].as_object().expect("bounds by place");
         assert_eq!(bounds.len(), got["places"].as_u64().unwrap() as usize);

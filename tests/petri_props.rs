@@ -183,7 +183,7 @@ proptest! {
     fn one_hot_packing_agrees_with_the_firing_rule(net in processes()) {
         let reference = naive(&net);
         let explored = explore(&net, Options { max_states: LIMIT, progress: None });
-        let counted = count_states(&net, Options { max_states: LIMIT, progress: None });
+        let counted = count_states(&net, Options { max_states: LIMIT, progress: None }, 2);
         match (reference, explored, counted) {
             (Some((markings, edges)), Ok(space), Ok(count)) => {
                 let found: HashSet<Marking> = (0..space.states()).map(|s| space.marking(s)).collect();
@@ -248,11 +248,12 @@ proptest! {
         }
     }
 
-    /// Counting without the graph finds the same states, firings and bounds.
+    /// Counting without the graph, on one thread or several, finds the
+    /// same states, firings and bounds.
     #[test]
-    fn counting_states_agrees_with_the_firing_rule(net in net()) {
+    fn counting_states_agrees_with_the_firing_rule(net in net(), threads in 1usize..=3) {
         let reference = naive(&net);
-        let counted = count_states(&net, Options { max_states: LIMIT, progress: None });
+        let counted = count_states(&net, Options { max_states: LIMIT, progress: None }, threads);
         match (reference, counted) {
             (Some((markings, edges)), Ok(count)) => {
                 prop_assert_eq!(count.states, markings.len());

@@ -126,13 +126,15 @@ pub struct BenchRow {
     pub model: String,
     pub states: usize,
     pub edges: usize,
-    /// The breadth-first count and the depth-first analysis found the same
-    /// states and edges.
+    /// The breadth-first counts (on one thread and on two) and the
+    /// depth-first analysis found the same states and edges.
     pub agree: bool,
     pub certified_states: Option<usize>,
     pub certified_edges: Option<usize>,
     /// Counting states, edges and bounds (`vl petri states`, like `verifypn -e`).
     pub count_seconds: f64,
+    /// The same on two threads (`vl petri states --threads 2`).
+    pub count_seconds_on_two: f64,
     /// The most heap bytes live at once while counting.
     pub count_peak_heap_bytes: usize,
     /// The whole analysis (`vl petri analyze`): liveness, reversibility,
@@ -166,9 +168,12 @@ pub fn bench_model(
 ) -> Result<BenchRow, ExploreError> {
     memory.reset_peak();
     let started = Instant::now();
-    let count = count_states(net, Options::default())?;
+    let count = count_states(net, Options::default(), 1)?;
     let count_seconds = started.elapsed().as_secs_f64();
     let count_peak_heap_bytes = memory.peak_bytes();
+    let started = Instant::now();
+    let on_two = count_states(net, Options::default(), 2)?;
+    let count_seconds_on_two = started.elapsed().as_secs_f64();
     let analyzed = Instant::now();
     let analysis = analyze_net(net, Options::default())?;
     let analyze_seconds = analyzed.elapsed().as_secs_f64();
@@ -184,10 +189,12 @@ pub fn bench_model(
         model: model.name().to_owned(),
         states: count.states,
         edges: count.edges,
-        agree: (count.states, count.edges) == (analysis.states, analysis.edges),
+        agree: (count.states, count.edges) == (analysis.states, analysis.edges)
+            && (on_two.states, on_two.edges) == (count.states, count.edges),
         certified_states: model.count("states"),
         certified_edges: model.count("rg_edges"),
         count_seconds,
+        count_seconds_on_two,
         count_peak_heap_bytes,
         analyze_seconds,
         states_per_second: count.states as f64 / count_seconds,

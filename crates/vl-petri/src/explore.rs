@@ -279,6 +279,14 @@ impl Layout {
         packed[at..at + 8].copy_from_slice(&w.to_le_bytes());
     }
 
+    /// Writes each place's count in `counts` into `packed` (zeroed, with
+    /// PAD spare bytes).
+    pub(crate) fn pack(&self, counts: &[u32], packed: &mut [u8]) {
+        for (p, &v) in counts.iter().enumerate() {
+            self.set(packed, p, v);
+        }
+    }
+
     pub(crate) fn unpack(&self, packed: &[u8], out: &mut [u32]) {
         debug_assert!(
             !self.derived.contains(&true),
@@ -598,7 +606,7 @@ impl Found {
             edges_from,
             edge_to,
             edge_by,
-        } = self.graph.expect("kept when asked");
+        } = self.graph;
         StateSpace {
             layout: self.layout,
             store: self.store,
@@ -611,8 +619,7 @@ impl Found {
 }
 
 /// What exploration alone says, as `verifypn -e` reports it: the state
-/// space's size and the bounds of its places. No edge is kept, so it holds
-/// only the markings and their index.
+/// space's size and the bounds of its places.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StateCount {
     pub states: usize,
@@ -649,6 +656,14 @@ impl Bounds {
         self.per_marking = self.per_marking.max(sum);
     }
 
+    /// Takes in what `other` found too.
+    pub(crate) fn join(&mut self, other: &Bounds) {
+        for (a, &b) in self.places.iter_mut().zip(&other.places) {
+            *a = (*a).max(b);
+        }
+        self.per_marking = self.per_marking.max(other.per_marking);
+    }
+
     /// The most tokens in any one place.
     pub fn per_place(&self) -> u32 {
         self.places.iter().copied().max().unwrap_or(0)
@@ -656,15 +671,14 @@ impl Bounds {
 }
 
 /// Counts every marking reachable from the initial one, and the firings
-/// between them, without keeping the graph.
-pub fn count_states(net: &Net, mut options: Options) -> Result<StateCount, ExploreError> {
-    let found = start(net, &mut options, Keep::Count)?;
-    Ok(StateCount {
-        states: found.states,
-        edges: found.edges,
-        bounds: found.bounds,
-        bytes_per_marking: found.layout.stride,
-    })
+/// between them, without keeping the graph: breadth first on `threads`
+/// threads, which find the same counts.
+pub fn count_states(
+    net: &Net,
+    mut options: Options,
+    threads: usize,
+) -> Result<StateCount, ExploreError> {
+    crate::frontier::count(net, &mut options, threads)
 }
 
 /// Lays out the markings and runs the search.
@@ -686,24 +700,19 @@ struct Graph {
     edge_by: Labels,
 }
 
-/// What a search found: the markings, how many firings joined them, and
-/// the edges when they were kept.
+/// What a search found: the markings and the edges between them.
 struct Found {
     layout: Layout,
     store: Vec<u8>,
-    states: usize,
-    edges: usize,
-    graph: Option<Graph>,
+    graph: Graph,
     bounds: Bounds,
     /// The first dead state, when the search stopped there.
     dead: Option<usize>,
 }
 
-/// What a search keeps of the graph.
+/// How far a search goes.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Keep {
-    /// Counts only.
-    Count,
     Graph,
     /// The graph until the first dead state, where it stops.
     GraphUntilDead,
@@ -724,19 +733,17 @@ fn hash_of(m: &[u8]) -> u64 {
 /// in place: from the last state back, each state's new place lies at or
 /// after its old one and before any later state's, so nothing unread is
 /// overwritten and the store is never held twice.
-fn repack(from: &Layout, to: &Layout, store: &mut Vec<u8>) {
+pub(crate) fn repack(from: &Layout, to: &Layout, store: &mut Vec<u8>) {
     debug_assert!(to.stride >= from.stride, "a layout only widens");
     let states = store.len().checked_div(from.stride).unwrap_or(0);
     store.resize(states * to.stride + PAD, 0);
-    let mut m = vec![0u32; from.width.len()];
+    let mut counts = vec![0u32; from.width.len()];
     let mut old = vec![0u8; from.stride + PAD];
     for s in (0..states).rev() {
         old[..from.stride].copy_from_slice(&store[s * from.stride..(s + 1) * from.stride]);
-        from.unpack(&old, &mut m);
+        from.unpack(&old, &mut counts);
         store[s * to.stride..(s + 1) * to.stride].fill(0);
-        for (p, &v) in m.iter().enumerate() {
-            to.set(&mut store[s * to.stride..], p, v);
-        }
+        to.pack(&counts, &mut store[s * to.stride..]);
     }
     store.truncate(states * to.stride);
 }
@@ -748,19 +755,16 @@ fn run(
     options: &mut Options,
     keep: Keep,
 ) -> Result<Found, Stop> {
-    let keep_edges = keep != Keep::Count;
     let mut dead = None;
     let mut stride = layout.stride;
     let started = Instant::now();
     let mut next = vec![0u8; stride + PAD];
-    for (p, &v) in initial.0.iter().enumerate() {
-        layout.set(&mut next, p, v);
-    }
+    layout.pack(&initial.0, &mut next);
     let mut store: Vec<u8> = next[..stride].to_vec();
     let mut table: HashTable<u32> = HashTable::new();
     let mut states = 1usize;
     table.insert_unique(hash_of(&store[..stride]), 0, |_| 0);
-    let mut edges_from: Vec<u64> = if keep_edges { vec![0] } else { Vec::new() };
+    let mut edges_from: Vec<u64> = vec![0];
     let mut edge_to: Vec<u32> = Vec::new();
     let mut edge_by = Labels::for_transitions(compiled.len());
     // Firings counted so far.
@@ -844,14 +848,10 @@ fn run(
                 }
             };
             edges += 1;
-            if keep_edges {
-                edge_to.push(target);
-                edge_by.push(t);
-            }
+            edge_to.push(target);
+            edge_by.push(t);
         }
-        if keep_edges {
-            edges_from.push(edges as u64);
-        }
+        edges_from.push(edges as u64);
         expanded += 1;
         if keep == Keep::GraphUntilDead && edges == edges_before {
             dead = Some(expanded - 1);
@@ -870,13 +870,11 @@ fn run(
     Ok(Found {
         layout,
         store,
-        states,
-        edges,
-        graph: keep_edges.then_some(Graph {
+        graph: Graph {
             edges_from,
             edge_to,
             edge_by,
-        }),
+        },
         bounds,
         dead,
     })

@@ -4,7 +4,9 @@
 //! `vl-core` runs it live), PNML in and out (`pnml`), statecharts to nets
 //! (`scxml`), the reachability graph (`explore`) and the properties read
 //! off it (`analysis`), or read during a search that keeps no graph
-//! (`onthefly`), Karp–Miller coverability (`coverability`), P- and
+//! (`onthefly`), the state space counted on several threads (`frontier`),
+//! both over tables of packed markings (`markings`), Karp–Miller
+//! coverability (`coverability`), P- and
 //! T-invariants (`invariants`), composition (`compose`), controller
 //! synthesis (`control`), pictures (`dot`), and benchmarks on the Model
 //! Checking Contest's models (`bench`). Modules are private; what other
@@ -17,8 +19,10 @@ mod control;
 mod coverability;
 mod dot;
 mod explore;
+mod frontier;
 mod invariants;
 mod linalg;
+mod markings;
 mod net;
 mod onthefly;
 mod pnml;

@@ -27,13 +27,10 @@ use crate::explore::{
 };
 use crate::net::Net;
 
-mod pages;
 mod pending;
-mod table;
 
-use pages::Stack;
+use crate::markings::{EMPTY, Stack, Table, copy_marking};
 use pending::Pending;
-use table::{EMPTY, Table, copy_marking};
 
 /// What one search found.
 pub(crate) struct Reading {
@@ -261,9 +258,7 @@ impl<'a> Search<'a> {
         let mut edge = [false; BATCH];
         let mut firing = [0u32; BATCH];
         self.current.copy_from_slice(initial);
-        for (p, &v) in initial.iter().enumerate() {
-            self.layout.set(&mut self.packed, p, v);
-        }
+        self.layout.pack(initial, &mut self.packed);
         self.bounds.take(&self.current);
         self.tokens = self.bounds.per_marking;
         let hash = self.table.hash(&self.packed);

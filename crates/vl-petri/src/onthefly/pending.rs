@@ -1,7 +1,7 @@
 //! What each state on the path has still to fire.
 
-use super::pages::Stack;
 use crate::explore::Labels;
+use crate::markings::Stack;
 
 /// The transitions each frame on the path has still to fire, the top
 /// frame's last, and the transition that reached each frame.

@@ -9,7 +9,7 @@
 /// which then cannot be remapped and are copied, holding the table twice
 /// for a moment), and gives its pages back when dropped.
 #[cfg(target_os = "linux")]
-pub(super) struct Pages {
+pub(crate) struct Pages {
     start: *mut u8,
     len: usize,
     mapped: usize,
@@ -24,7 +24,7 @@ unsafe impl Send for Pages {}
 #[cfg(target_os = "linux")]
 impl Pages {
     /// `len` zero bytes; in 2 MB pages if `huge`.
-    pub(super) fn zeroed(len: usize, huge: bool) -> Pages {
+    pub(crate) fn zeroed(len: usize, huge: bool) -> Pages {
         let mut pages = Pages {
             start: std::ptr::NonNull::dangling().as_ptr(),
             len: 0,
@@ -36,7 +36,7 @@ impl Pages {
     }
 
     /// Lengthens the run to `len` bytes, the new ones zero.
-    pub(super) fn resize(&mut self, len: usize) {
+    pub(crate) fn resize(&mut self, len: usize) {
         debug_assert!(len >= self.len, "the run only grows");
         let want = len.next_multiple_of(4096);
         if want > self.mapped {
@@ -104,15 +104,15 @@ impl std::ops::DerefMut for Pages {
 
 /// Elsewhere, a plain buffer.
 #[cfg(not(target_os = "linux"))]
-pub(super) struct Pages(Vec<u8>);
+pub(crate) struct Pages(Vec<u8>);
 
 #[cfg(not(target_os = "linux"))]
 impl Pages {
-    pub(super) fn zeroed(len: usize, _huge: bool) -> Pages {
+    pub(crate) fn zeroed(len: usize, _huge: bool) -> Pages {
         Pages(vec![0; len])
     }
 
-    pub(super) fn resize(&mut self, len: usize) {
+    pub(crate) fn resize(&mut self, len: usize) {
         self.0.resize(len, 0);
     }
 }
@@ -136,14 +136,14 @@ impl std::ops::DerefMut for Pages {
 /// frames and what each has left run as deep as the state space is large,
 /// and a vector's doublings would leave the buffers it outgrew behind in
 /// the heap.
-pub(super) struct Stack {
+pub(crate) struct Stack {
     width: usize,
     len: usize,
     pages: Pages,
 }
 
 impl Stack {
-    pub(super) fn new(width: usize) -> Stack {
+    pub(crate) fn new(width: usize) -> Stack {
         debug_assert!((1..=8).contains(&width));
         Stack {
             width,
@@ -152,7 +152,7 @@ impl Stack {
         }
     }
 
-    pub(super) fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.len
     }
 
@@ -162,19 +162,19 @@ impl Stack {
     }
 
     /// Number `i`, read as one word (the run keeps 8 bytes spare).
-    pub(super) fn get(&self, i: usize) -> u64 {
+    pub(crate) fn get(&self, i: usize) -> u64 {
         let at = i * self.width;
         u64::from_le_bytes(self.pages[at..at + 8].try_into().expect("eight bytes")) & self.mask()
     }
 
-    pub(super) fn set(&mut self, i: usize, v: u64) {
+    pub(crate) fn set(&mut self, i: usize, v: u64) {
         let (at, mask) = (i * self.width, self.mask());
         let word = &mut self.pages[at..at + 8];
         let old = u64::from_le_bytes(word.try_into().expect("eight bytes"));
         word.copy_from_slice(&(old & !mask | v & mask).to_le_bytes());
     }
 
-    pub(super) fn push(&mut self, v: u64) {
+    pub(crate) fn push(&mut self, v: u64) {
         if (self.len + 1) * self.width + 8 > self.pages.len() {
             // Mapped pages cost nothing until written, so doubling is free.
             self.pages.resize((2 * self.pages.len()).max(1 << 16));
@@ -183,11 +183,11 @@ impl Stack {
         self.set(self.len - 1, v);
     }
 
-    pub(super) fn last(&self) -> Option<u64> {
+    pub(crate) fn last(&self) -> Option<u64> {
         self.len.checked_sub(1).map(|i| self.get(i))
     }
 
-    pub(super) fn pop(&mut self) -> Option<u64> {
+    pub(crate) fn pop(&mut self) -> Option<u64> {
         let v = self.last()?;
         self.len -= 1;
         Some(v)

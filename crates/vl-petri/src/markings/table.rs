@@ -1,5 +1,5 @@
-//! The table of markings the search keeps: open addressing over markings
-//! packed with their numbers, grown in place.
+//! A table of markings: open addressing over markings packed with their
+//! numbers, grown in place.
 
 use std::hash::Hasher;
 
@@ -9,7 +9,7 @@ use super::pages::Pages;
 use crate::explore::PAD;
 
 /// The number of an empty slot; states are numbered from 1.
-pub(super) const EMPTY: u32 = 0;
+pub(crate) const EMPTY: u32 = 0;
 
 /// Slots past the last home a probe may run into before the table grows
 /// (linear probing never wraps, so the table can grow in place).
@@ -20,15 +20,16 @@ const TAIL: usize = 256;
 /// the memory, and a doubling can leave it half empty.
 const DOUBLE_BELOW: usize = 1 << 16;
 
-/// Markings, each with its Tarjan number, in open addressing. A marking's
+/// Markings, each with a number (the order the search reached it in, or
+/// just 1 for a search that only counts), in open addressing. A marking's
 /// home slot is its hash scaled to the capacity (the high bits, so the
 /// capacity need not be a power of two, and homes keep their order as the
 /// table grows).
-pub(super) struct Table {
+pub(crate) struct Table {
     /// Bytes of a marking.
     stride: usize,
-    /// Bytes of a number: 3, or 4.
-    pub(super) number_bytes: usize,
+    /// Bytes of a number: 1 to 4.
+    pub(crate) number_bytes: usize,
     /// Bytes of a slot: the marking, then its number (little-endian).
     slot: usize,
     capacity: usize,
@@ -39,9 +40,14 @@ pub(super) struct Table {
 }
 
 impl Table {
-    pub(super) fn new(stride: usize, number_bytes: usize) -> Table {
+    pub(crate) fn new(stride: usize, number_bytes: usize) -> Table {
         // Small, so even a small net takes the table through its growth.
-        let capacity = 1 << 6;
+        Table::with_room(stride, number_bytes, 0)
+    }
+
+    /// A table that takes `markings` before it first grows.
+    pub(crate) fn with_room(stride: usize, number_bytes: usize, markings: usize) -> Table {
+        let capacity = (markings * 20 / 17 + 1).max(1 << 6);
         let slot = stride + number_bytes;
         Table {
             stride,
@@ -79,21 +85,12 @@ impl Table {
     }
 
     /// The hash of marking `m` (which has PAD spare bytes).
-    pub(super) fn hash(&self, m: &[u8]) -> u64 {
-        let h = if self.stride <= 16 {
-            let [low, high] = words(m, self.stride);
-            low ^ high.wrapping_mul(0x9e37_79b9_7f4a_7c15).rotate_left(29)
-        } else {
-            let mut h = FxHasher::default();
-            h.write(&m[..self.stride]);
-            h.finish()
-        };
-        let h = (h ^ (h >> 33)).wrapping_mul(0xff51_afd7_ed55_8ccd);
-        h ^ (h >> 33)
+    pub(crate) fn hash(&self, m: &[u8]) -> u64 {
+        hash(m, self.stride)
     }
 
     /// Starts loading the home slot of `hash`, so lookups overlap.
-    pub(super) fn prefetch(&self, hash: u64) {
+    pub(crate) fn prefetch(&self, hash: u64) {
         #[cfg(target_arch = "x86_64")]
         {
             use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
@@ -116,13 +113,13 @@ impl Table {
 
     /// Whether one more marking would fill the table past 85 %, where
     /// linear probing slows: it must grow first.
-    pub(super) fn full(&self) -> bool {
+    pub(crate) fn full(&self) -> bool {
         (self.len + 1) * 20 > self.capacity * 17
     }
 
     /// The slot holding `m` (whose hash is `hash`), and its number; or, if
     /// `m` is new, the slot it is now written to numbered `n`, and EMPTY.
-    pub(super) fn find_or_insert(&mut self, hash: u64, m: &[u8], n: u32) -> (usize, u32) {
+    pub(crate) fn find_or_insert(&mut self, hash: u64, m: &[u8], n: u32) -> (usize, u32) {
         let mut i = self.home(hash);
         loop {
             while i < self.end() {
@@ -147,6 +144,18 @@ impl Table {
         self.set_number(i, n);
     }
 
+    /// How many markings the table holds.
+    pub(crate) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// The markings held, in slot order.
+    pub(crate) fn markings(&self) -> impl Iterator<Item = &[u8]> {
+        (0..self.end())
+            .filter(|&i| self.number(i) != EMPTY)
+            .map(|i| &self.slots[i * self.slot..i * self.slot + self.stride])
+    }
+
     /// A longer tail, for a cluster that ran off the end.
     fn lengthen(&mut self) {
         self.tail *= 2;
@@ -162,7 +171,7 @@ impl Table {
     /// over entries already put back, as linear probing needs. A home only
     /// moves up as the capacity grows, so taking the last slots first finds
     /// free slots above, and entries seldom change places.
-    pub(super) fn grow(&mut self) {
+    pub(crate) fn grow(&mut self) {
         let old_end = self.end();
         self.capacity = if self.capacity < DOUBLE_BELOW {
             2 * self.capacity
@@ -212,10 +221,25 @@ impl Table {
     }
 }
 
+/// The hash of the marking of `stride` bytes `m` (which has PAD spare
+/// bytes); its high bits choose its home in a [`Table`].
+pub(crate) fn hash(m: &[u8], stride: usize) -> u64 {
+    let h = if stride <= 16 {
+        let [low, high] = words(m, stride);
+        low ^ high.wrapping_mul(0x9e37_79b9_7f4a_7c15).rotate_left(29)
+    } else {
+        let mut h = FxHasher::default();
+        h.write(&m[..stride]);
+        h.finish()
+    };
+    let h = (h ^ (h >> 33)).wrapping_mul(0xff51_afd7_ed55_8ccd);
+    h ^ (h >> 33)
+}
+
 /// Copies a marking of `stride` bytes into `to`, which has PAD spare bytes
 /// (what follows the marking there may be overwritten); a short one as one
 /// word, since a call to memcpy per firing costs more than the firing.
-pub(super) fn copy_marking(to: &mut [u8], from: &[u8], stride: usize) {
+pub(crate) fn copy_marking(to: &mut [u8], from: &[u8], stride: usize) {
     if stride <= 8 {
         to[..8].copy_from_slice(&from[..8]);
     } else if stride <= 16 {
