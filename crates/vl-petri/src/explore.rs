@@ -228,6 +228,27 @@ impl Layout {
         Layout::new(width, self.groups.clone(), self.derived.clone())
     }
 
+    /// The runs that repack a marking from this layout into `wider`, the
+    /// same one with some fields widened: a few runs instead of a field
+    /// at a time.
+    fn runs_to(&self, wider: &Layout) -> Vec<Run> {
+        let mut fields: Vec<usize> = self.own.clone();
+        fields.extend(self.groups.iter().map(|places| places[0]));
+        fields.retain(|&p| self.width[p] > 0);
+        fields.sort_by_key(|&p| self.offset[p]);
+        let mut runs: Vec<Run> = Vec::new();
+        for p in fields {
+            let (from, to, bits) = (self.offset[p], wider.offset[p], u32::from(self.width[p]));
+            match runs.last_mut() {
+                Some(run) if run.from + run.bits == from && run.to + run.bits == to => {
+                    run.bits += bits;
+                }
+                _ => runs.push(Run { from, to, bits }),
+            }
+        }
+        runs
+    }
+
     /// The largest count place `p` can hold.
     pub(crate) fn max(&self, p: usize) -> u32 {
         match (self.member[p], self.width[p]) {
@@ -737,15 +758,46 @@ pub(crate) fn repack(from: &Layout, to: &Layout, store: &mut Vec<u8>) {
     debug_assert!(to.stride >= from.stride, "a layout only widens");
     let states = store.len().checked_div(from.stride).unwrap_or(0);
     store.resize(states * to.stride + PAD, 0);
-    let mut counts = vec![0u32; from.width.len()];
+    let runs = from.runs_to(to);
     let mut old = vec![0u8; from.stride + PAD];
     for s in (0..states).rev() {
         old[..from.stride].copy_from_slice(&store[s * from.stride..(s + 1) * from.stride]);
-        from.unpack(&old, &mut counts);
         store[s * to.stride..(s + 1) * to.stride].fill(0);
-        to.pack(&counts, &mut store[s * to.stride..]);
+        for run in &runs {
+            run.copy(&old, &mut store[s * to.stride..]);
+        }
     }
     store.truncate(states * to.stride);
+}
+
+/// Bits a marking keeps in one piece when its layout widens: fields that
+/// lie side by side, at the same widths, in both layouts. A widened field
+/// ends a run, and its count is copied into the low bits of its wider field.
+#[derive(Debug, PartialEq)]
+struct Run {
+    from: u32,
+    to: u32,
+    bits: u32,
+}
+
+impl Run {
+    /// Copies the run from `old` into the zeroed `new`, both padded with
+    /// PAD spare bytes, at most 56 bits at a time so that a shifted piece
+    /// fits one 8-byte word.
+    fn copy(&self, old: &[u8], new: &mut [u8]) {
+        let mut done = 0;
+        while done < self.bits {
+            let n = (self.bits - done).min(56);
+            let (f, t) = ((self.from + done) as usize, (self.to + done) as usize);
+            let word = u64::from_le_bytes(old[f / 8..f / 8 + 8].try_into().expect("eight bytes"));
+            let piece = (word >> (f % 8)) & ((1u64 << n) - 1);
+            let at = &mut new[t / 8..t / 8 + 8];
+            let w =
+                u64::from_le_bytes((&*at).try_into().expect("eight bytes")) | (piece << (t % 8));
+            at.copy_from_slice(&w.to_le_bytes());
+            done += n;
+        }
+    }
 }
 
 fn run(
@@ -926,5 +978,68 @@ impl StateSpace {
     /// Bytes per stored marking.
     pub fn bytes_per_marking(&self) -> usize {
         self.layout.stride
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Places in one-hot groups of three from `grouped` on, the others of
+    /// the given widths; each widened by its own amount (members never).
+    fn layouts(widths: &[u8], grouped: usize, more: &[u8]) -> (Layout, Layout) {
+        let groups: Vec<Vec<usize>> = (grouped..widths.len())
+            .step_by(3)
+            .map(|g| (g..(g + 3).min(widths.len())).collect())
+            .collect();
+        let derived = vec![false; widths.len()];
+        let wider: Vec<u8> = (0..widths.len())
+            .map(|p| (widths[p] + if p < grouped { more[p] } else { 0 }).min(32))
+            .collect();
+        (
+            Layout::new(widths.to_vec(), groups.clone(), derived.clone()),
+            Layout::new(wider, groups, derived),
+        )
+    }
+
+    proptest! {
+        /// Repacking into a wider layout keeps every count of every marking.
+        #[test]
+        fn repack_keeps_every_count(
+            widths in prop::collection::vec(0u8..=32, 1..40),
+            grouped_at in 0.0f64..=1.0,
+            more in prop::collection::vec(0u8..=20, 40),
+            seeds in prop::collection::vec(any::<u64>(), 1..6),
+        ) {
+            let grouped = (widths.len() as f64 * grouped_at) as usize;
+            let (from, to) = layouts(&widths, grouped, &more);
+            let marking = |seed: u64| -> Vec<u32> {
+                let mut counts = vec![0u32; widths.len()];
+                for &p in &from.own {
+                    let max = u64::from(from.max(p));
+                    counts[p] = if from.width[p] == 0 { 0 } else { (seed.rotate_left(p as u32 * 7) % (max + 1)) as u32 };
+                }
+                for places in &from.groups {
+                    counts[places[seed as usize % places.len()]] = 1;
+                }
+                counts
+            };
+            let mut store = Vec::new();
+            for &seed in &seeds {
+                let mut packed = vec![0u8; from.stride + PAD];
+                from.pack(&marking(seed), &mut packed);
+                store.extend_from_slice(&packed[..from.stride]);
+            }
+            repack(&from, &to, &mut store);
+            prop_assert_eq!(store.len(), seeds.len() * to.stride);
+            for (i, &seed) in seeds.iter().enumerate() {
+                let mut packed = store[i * to.stride..(i + 1) * to.stride].to_vec();
+                packed.resize(to.stride + PAD, 0);
+                let mut counts = vec![0u32; widths.len()];
+                to.unpack(&packed, &mut counts);
+                prop_assert_eq!(counts, marking(seed), "marking {}", i);
+            }
+        }
     }
 }
