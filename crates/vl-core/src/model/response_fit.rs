@@ -226,7 +226,10 @@ mod tests {
             // in every sample: no fit can know the gain better than that.
             let resolution = 0.5 / small_to;
             prop_assert!((r.gain - gain).abs() < 0.02 * gain + resolution, "{:?}", r);
-            prop_assert!((r.time_constant_s - tau).abs() < 0.05 * tau + 5e-4, "{:?}", r);
+            // Nor the time constant: half a pulse on a rise a(1 - e^(-t/τ))
+            // moves τ by up to e·τ·(0.5 / a), where the rise is steepest in τ.
+            let tau_resolution = std::f64::consts::E * tau * resolution / gain;
+            prop_assert!((r.time_constant_s - tau).abs() < 0.05 * tau + 5e-4 + tau_resolution, "{:?}", r);
             prop_assert!((r.dead_time_s - dead).abs() < 2e-3, "{:?}", r);
             prop_assert!((r.max_accel_mm_s2 - accel).abs() < 0.1 * accel, "{:?}", r);
         }
