@@ -773,7 +773,6 @@ pub(crate) fn repack(from: &Layout, to: &Layout, store: &mut Vec<u8>) {
 /// Bits a marking keeps in one piece when its layout widens: fields that
 /// lie side by side, at the same widths, in both layouts. A widened field
 /// ends a run, and its count is copied into the low bits of its wider field.
-#[derive(Debug, PartialEq)]
 struct Run {
     from: u32,
     to: u32,
