@@ -31,13 +31,14 @@ pub fn p_invariants(net: &Net, max_rows: usize) -> Result<Vec<Invariant>, TooMan
 }
 
 /// How many rows the Farkas tableau of `net`'s P-invariants may hold so
-/// that it takes about `bytes`: a row holds an entry of 8 bytes per place
-/// and per transition, and a step holds the rows before it beside those it
-/// makes. Callers that only hope for the invariants (bounds, a verdict)
-/// cap their search this way, so a net with too many of them costs little
-/// memory before it is given up on.
+/// that it takes about `bytes`: a row holds an entry of 8 bytes per
+/// transition and its combination of places (16 bytes an entry, a few at
+/// first), and a step holds the rows before it beside those it makes.
+/// Callers that only hope for the invariants (bounds, a verdict) cap their
+/// search this way, so a net with too many of them costs little memory
+/// before it is given up on.
 pub fn p_rows_within(net: &Net, bytes: usize) -> usize {
-    let row = 8 * (net.places.len() + net.transitions.len()) + net.places.len().div_ceil(8) + 128;
+    let row = 8 * net.transitions.len() + 4 * 16 + 128;
     bytes / (2 * row)
 }
 
@@ -62,48 +63,34 @@ pub fn is_conservative(places: usize, p_invariants: &[Invariant]) -> bool {
     covered.iter().all(|&c| c)
 }
 
-/// A row of the Farkas tableau: what is left of C, the combination of
-/// original rows it stands for, and that combination's support as a bitset.
+/// A row of the Farkas tableau: what is left of C, and the combination of
+/// original rows it stands for, sparse (index, coefficient) in index order,
+/// so a wide net's rows cost what they hold, not rows × rows.
 #[derive(Clone)]
 struct Row {
     c: Vec<i64>,
-    combination: Vec<u64>,
-    support: Vec<u64>,
+    combination: Vec<(u32, u64)>,
 }
 
 impl Row {
-    fn new(c: Vec<i64>, combination: Vec<u64>) -> Row {
-        let mut support = vec![0u64; combination.len().div_ceil(64)];
-        for (i, _) in combination.iter().enumerate().filter(|(_, v)| **v != 0) {
-            support[i / 64] |= 1 << (i % 64);
-        }
-        Row {
-            c,
-            combination,
-            support,
-        }
-    }
-
     /// Whether this row's support is a subset of `other`'s.
     fn support_within(&self, other: &Row) -> bool {
-        self.support
+        let mut theirs = other.combination.iter().map(|&(i, _)| i);
+        self.combination
             .iter()
-            .zip(&other.support)
-            .all(|(a, b)| a & !b == 0)
+            .all(|&(i, _)| theirs.by_ref().find(|&j| j >= i) == Some(i))
     }
 }
 
 /// Minimal semi-positive y with yᵀ·m = 0 for the rows of `m`.
 fn farkas(m: &[Vec<i64>], max_rows: usize) -> Result<Vec<Invariant>, TooManyInvariants> {
-    let n = m.len();
     let cols = m.first().map_or(0, Vec::len);
     let mut rows: Vec<Row> = m
         .iter()
         .enumerate()
-        .map(|(i, r)| {
-            let mut combination = vec![0; n];
-            combination[i] = 1;
-            Row::new(r.clone(), combination)
+        .map(|(i, r)| Row {
+            c: r.clone(),
+            combination: vec![(i as u32, 1)],
         })
         .collect();
     let mut remaining: Vec<usize> = (0..cols).collect();
@@ -132,16 +119,14 @@ fn farkas(m: &[Vec<i64>], max_rows: usize) -> Result<Vec<Invariant>, TooManyInva
                 }
             }
         }
-        rows = minimal(next);
+        rows = minimal(next, m.len());
     }
     Ok(rows
         .into_iter()
         .map(|r| {
             r.combination
-                .iter()
-                .enumerate()
-                .filter(|(_, v)| **v != 0)
-                .map(|(i, &v)| (i, v))
+                .into_iter()
+                .map(|(i, v)| (i as usize, v))
                 .collect()
         })
         .collect())
@@ -156,31 +141,44 @@ fn combine(a: &Row, b: &Row, j: usize) -> Option<Row> {
             .zip(&b.c)
             .map(|(&x, &y)| x.checked_mul(ka_i)?.checked_add(y.checked_mul(kb_i)?))
             .collect::<Option<Vec<i64>>>()?;
-    let combination = a
-        .combination
-        .iter()
-        .zip(&b.combination)
-        .map(|(&x, &y)| x.checked_mul(ka)?.checked_add(y.checked_mul(kb)?))
-        .collect::<Option<Vec<u64>>>()?;
-    let support = a
-        .support
-        .iter()
-        .zip(&b.support)
-        .map(|(x, y)| x | y)
-        .collect();
-    Some(Row {
-        c,
-        combination,
-        support,
-    })
+    // Both combinations are semi-positive: their sum has the union's support.
+    let mut combination = Vec::with_capacity(a.combination.len() + b.combination.len());
+    let (mut x, mut y) = (
+        a.combination.iter().peekable(),
+        b.combination.iter().peekable(),
+    );
+    loop {
+        let entry = match (x.peek(), y.peek()) {
+            (Some(&&(i, v)), Some(&&(k, w))) if i == k => {
+                x.next();
+                y.next();
+                (i, v.checked_mul(ka)?.checked_add(w.checked_mul(kb)?)?)
+            }
+            (Some(&&(i, v)), Some(&&(k, _))) if i < k => {
+                x.next();
+                (i, v.checked_mul(ka)?)
+            }
+            (_, Some(&&(k, w))) => {
+                y.next();
+                (k, w.checked_mul(kb)?)
+            }
+            (Some(&&(i, v)), None) => {
+                x.next();
+                (i, v.checked_mul(ka)?)
+            }
+            (None, None) => break,
+        };
+        combination.push(entry);
+    }
+    Some(Row { c, combination })
 }
 
 /// Divides a row by the gcd of its entries, so equal invariants compare equal.
 fn normalise(row: &mut Row) {
-    let g = row.combination.iter().fold(0u64, |g, &v| gcd(g, v));
+    let g = row.combination.iter().fold(0u64, |g, &(_, v)| gcd(g, v));
     let g = row.c.iter().fold(g, |g, &v| gcd(g, v.unsigned_abs()));
     if g > 1 {
-        row.combination.iter_mut().for_each(|v| *v /= g);
+        row.combination.iter_mut().for_each(|(_, v)| *v /= g);
         row.c.iter_mut().for_each(|v| *v /= g as i64);
     }
 }
@@ -191,12 +189,22 @@ fn gcd(a: u64, b: u64) -> u64 {
 
 /// Keeps the rows whose support contains no other row's; of rows with equal
 /// supports, the first.
-fn minimal(mut rows: Vec<Row>) -> Vec<Row> {
+fn minimal(mut rows: Vec<Row>, indices: usize) -> Vec<Row> {
     // Smaller supports first: a row can only be dominated by one no larger.
-    rows.sort_by_cached_key(|r| r.support.iter().map(|w| w.count_ones()).sum::<u32>());
+    rows.sort_by_key(|r| r.combination.len());
+    // A kept row within r has its first index in r: look only at those.
+    let mut by_first: Vec<Vec<usize>> = vec![Vec::new(); indices];
     let mut kept: Vec<Row> = Vec::with_capacity(rows.len());
     for r in rows {
-        if !kept.iter().any(|k| k.support_within(&r)) {
+        let dominated = r.combination.iter().any(|&(i, _)| {
+            by_first[i as usize]
+                .iter()
+                .any(|&k| kept[k].support_within(&r))
+        });
+        if !dominated {
+            if let Some(&(first, _)) = r.combination.first() {
+                by_first[first as usize].push(kept.len());
+            }
             kept.push(r);
         }
     }

@@ -22,6 +22,7 @@ mod explore;
 mod frontier;
 mod invariants;
 mod linalg;
+mod lines;
 mod markings;
 mod net;
 mod onthefly;

@@ -15,6 +15,7 @@ use std::fmt::Write;
 use roxmltree::{Document, Node};
 use thiserror::Error;
 
+use crate::lines::Lines;
 use crate::net::{ArcKind, Net, NetError, TransitionId};
 
 /// What is wrong with a PNML document, and where (line numbers are 1-based).
@@ -69,7 +70,8 @@ pub fn from_pnml(text: &str) -> Result<Net, PnmlError> {
         .descendants()
         .find(|n| n.has_tag_name_local("net"))
         .ok_or(PnmlError::NoNet)?;
-    let line = |n: Node| doc.text_pos_at(n.range().start).row;
+    let lines = Lines::new(text);
+    let line = |n: Node| lines.of(n.range().start);
     let mut net = Net::new(net_node.attribute("id").unwrap_or("net"));
 
     // Nodes first, from every page; arcs once every node is known.

@@ -15,6 +15,7 @@ use std::collections::BTreeSet;
 use roxmltree::{Document, Node};
 use thiserror::Error;
 
+use crate::lines::Lines;
 use crate::net::{ArcKind, Net};
 
 #[derive(Debug, Error, PartialEq, Eq)]
@@ -39,6 +40,8 @@ pub enum ScxmlError {
     MultipleTargets { line: u32 },
     #[error("the chart has no states")]
     Empty,
+    #[error("line {line}: states nest more than {MAX_NESTING} deep")]
+    TooDeep { line: u32 },
     #[error("state '{0}' can be active in more than {1} ways; the net would be too large")]
     TooManyConfigurations(String, usize),
 }
@@ -69,6 +72,9 @@ struct ChartTransition {
 
 /// Active configurations of one subtree a transition may exit.
 const MAX_CONFIGURATIONS: usize = 10_000;
+/// How deep states may nest: far beyond any chart a person draws, and
+/// shallow enough that walking the tree cannot exhaust the stack.
+const MAX_NESTING: usize = 64;
 
 /// The Petri net of the statechart in `text`.
 pub fn from_scxml(text: &str) -> Result<Net, ScxmlError> {
@@ -77,11 +83,19 @@ pub fn from_scxml(text: &str) -> Result<Net, ScxmlError> {
     if root.tag_name().name() != "scxml" {
         return Err(ScxmlError::NotScxml(root.tag_name().name().to_owned()));
     }
-    let line = |n: Node| doc.text_pos_at(n.range().start).row;
+    let lines = Lines::new(text);
+    let line = |n: Node| lines.of(n.range().start);
     let mut states: Vec<State> = Vec::new();
     let mut pending: Vec<(usize, Node)> = Vec::new(); // (source state, <transition>)
     let mut initials: Vec<(Option<usize>, String, u32)> = Vec::new();
-    collect(root, None, &mut states, &mut pending, &mut initials, &line)?;
+    let mut seen = std::collections::HashSet::new();
+    let mut chart = Collected {
+        states: &mut states,
+        seen: &mut seen,
+        pending: &mut pending,
+        initials: &mut initials,
+    };
+    collect(root, None, 0, &mut chart, &line)?;
     if states.is_empty() {
         return Err(ScxmlError::Empty);
     }
@@ -150,19 +164,31 @@ pub fn from_scxml(text: &str) -> Result<Net, ScxmlError> {
     )
 }
 
+/// What walking the chart's elements gathers.
+struct Collected<'c, 'a, 'i> {
+    states: &'c mut Vec<State>,
+    /// The ids taken so far.
+    seen: &'c mut std::collections::HashSet<&'a str>,
+    /// (source state, `<transition>`)
+    pending: &'c mut Vec<(usize, Node<'a, 'i>)>,
+    initials: &'c mut Vec<(Option<usize>, String, u32)>,
+}
+
 fn collect<'a, 'i>(
     node: Node<'a, 'i>,
     parent: Option<usize>,
-    states: &mut Vec<State>,
-    pending: &mut Vec<(usize, Node<'a, 'i>)>,
-    initials: &mut Vec<(Option<usize>, String, u32)>,
+    depth: usize,
+    chart: &mut Collected<'_, 'a, 'i>,
     line: &dyn Fn(Node) -> u32,
 ) -> Result<(), ScxmlError> {
+    if depth > MAX_NESTING {
+        return Err(ScxmlError::TooDeep { line: line(node) });
+    }
     if let Some(first) = node
         .attribute("initial")
         .and_then(|i| i.split_whitespace().next())
     {
-        initials.push((parent, first.to_owned(), line(node)));
+        chart.initials.push((parent, first.to_owned(), line(node)));
     }
     for child in node.children().filter(Node::is_element) {
         let tag = child.tag_name().name();
@@ -173,7 +199,9 @@ fn collect<'a, 'i>(
                 .find(|c| c.tag_name().name() == "transition")
                 && let Some(target) = t.attribute("target")
             {
-                initials.push((parent, target.trim().to_owned(), line(t)));
+                chart
+                    .initials
+                    .push((parent, target.trim().to_owned(), line(t)));
             }
             continue;
         }
@@ -184,7 +212,7 @@ fn collect<'a, 'i>(
             element: tag.to_owned(),
             line: line(child),
         })?;
-        if states.iter().any(|s| s.id == id) {
+        if !chart.seen.insert(id) {
             return Err(ScxmlError::DuplicateId {
                 id: id.to_owned(),
                 line: line(child),
@@ -198,8 +226,8 @@ fn collect<'a, 'i>(
             ("state", true) => Kind::Compound,
             _ => Kind::Atomic,
         };
-        let index = states.len();
-        states.push(State {
+        let index = chart.states.len();
+        chart.states.push(State {
             id: id.to_owned(),
             kind,
             parent,
@@ -207,15 +235,15 @@ fn collect<'a, 'i>(
             initial: None,
         });
         if let Some(p) = parent {
-            states[p].children.push(index);
+            chart.states[p].children.push(index);
         }
         for t in child
             .children()
             .filter(|c| c.tag_name().name() == "transition")
         {
-            pending.push((index, t));
+            chart.pending.push((index, t));
         }
-        collect(child, Some(index), states, pending, initials, line)?;
+        collect(child, Some(index), depth + 1, chart, line)?;
     }
     Ok(())
 }
