@@ -273,3 +273,50 @@ fn bad_input_is_refused_with_exit_code_2() {
         "unsound with inhibitor arcs",
     );
 }
+
+/// Files made to hurt: states nested 40,000 deep are refused naming the
+/// limit, and a net of 10,000 places and one transition is analysed in
+/// memory that grows with the net, not with its square (it took 681 MB).
+#[test]
+fn deep_charts_are_refused_and_wide_nets_stay_small() {
+    let dir = scratch("hostile-files");
+    let deep = dir.join("deep.scxml");
+    let depth = 40_000;
+    let chart = format!(
+        "<scxml xmlns=\"http://www.w3.org/2005/07/scxml\" version=\"1.0\">{}{}</scxml>",
+        (0..depth)
+            .map(|i| format!("<state id=\"s{i}\">"))
+            .collect::<String>(),
+        "</state>".repeat(depth)
+    );
+    std::fs::write(&deep, chart).unwrap();
+    let out = dir.join("deep.pnml");
+    refused(
+        &["petri", "from-scxml", s(&deep), "-o", s(&out)],
+        "states nest more than 64 deep",
+    );
+
+    let wide = dir.join("wide.pnml");
+    let places = 10_000;
+    let mut net = String::from(
+        "<?xml version=\"1.0\"?><pnml><net id=\"wide\" type=\"http://www.pnml.org/version-2009/grammar/ptnet\"><page id=\"g\">",
+    );
+    for i in 0..places {
+        net +=
+            &format!("<place id=\"p{i}\"><initialMarking><text>1</text></initialMarking></place>");
+    }
+    net += "<transition id=\"t\"/>";
+    for i in 0..places {
+        net += &format!("<arc id=\"a{i}\" source=\"p{i}\" target=\"t\"/>");
+    }
+    net += "</page></net></pnml>";
+    std::fs::write(&wide, net).unwrap();
+    let analysis = ok_json(&["petri", "analyze", s(&wide), "--json"]);
+    assert_eq!(analysis["places"], places);
+    assert_eq!(analysis["states"], 2);
+    let resident_mb = analysis["peak_resident_bytes"].as_f64().unwrap() / 1e6;
+    println!("10,000 places: {resident_mb:.0} MB resident at most");
+    assert!(resident_mb < 200.0, "{resident_mb:.0} MB");
+    let invariants = ok_json(&["petri", "invariants", s(&wide), "--json"]);
+    assert_eq!(invariants["conservative"], false, "{invariants}");
+}
