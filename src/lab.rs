@@ -29,18 +29,23 @@ pub(crate) struct KheperaArgs {
     arena: String,
     #[command(flatten)]
     robot: RobotArgs,
-    /// The line speed to emulate (with --line-timing).
+    /// The line speed to emulate: each command and reply takes the time
+    /// its characters take at this baud, as on a real serial cable.
     #[arg(long, default_value_t = 38_400)]
     baud: u32,
     /// Also make a symlink to the device here.
     #[arg(long)]
     link: Option<std::path::PathBuf>,
-    /// Delay replies by the time their characters take at --baud.
+    /// Answer at once, whatever --baud says (a line no real robot has).
     #[arg(long)]
-    line_timing: bool,
+    instant_line: bool,
     /// Print each command line received, with the milliseconds since start.
     #[arg(long)]
     log_commands: bool,
+    /// Where the robot is put, x,y[,θ] mm and rad (default: the arena's
+    /// start); give `vl host` the same to dead-reckon from it.
+    #[arg(long, allow_hyphen_values = true)]
+    start: Option<vl_core::Pose>,
     /// Seed for the sensors' noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -442,11 +447,11 @@ pub(crate) struct RunArgs {
 pub(crate) fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
     let model = args.robot.model()?;
     let name = model.name.clone();
-    let arena = Arena::load(&args.arena).map_err(|e| BadInput(e.to_string()))?;
+    let arena = arena_from(&args.arena, args.start)?;
     let world = vl_sim::World::new(arena, model, args.seed).map_err(|e| BadInput(e.to_string()))?;
     let line = vl_sim::Line {
         baud: args.baud,
-        timing: args.line_timing,
+        timing: !args.instant_line,
         log_commands: args.log_commands,
     };
     let mut emulator =
@@ -457,6 +462,20 @@ pub(crate) fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
     std::io::stdout().flush()?;
     emulator.run()?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// The arena `name` (shipped, or a JSON file) with the robot put at
+/// `start` when one is given: where the simulated robot stands, and where
+/// a real one's dead reckoning begins.
+fn arena_from(name: &str, start: Option<vl_core::Pose>) -> Result<Arena> {
+    let mut arena = Arena::load(name).map_err(|e| BadInput(e.to_string()))?;
+    if let Some(start) = start {
+        arena.start = start;
+        arena
+            .check()
+            .map_err(|e| BadInput(format!("--start: {e}")))?;
+    }
+    Ok(arena)
 }
 
 pub(crate) async fn host(args: HostArgs) -> Result<()> {
@@ -481,13 +500,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
     config
         .supervisor()
         .map_err(|e| BadInput(format!("--nets: {e}")))?;
-    let mut arena = Arena::load(&args.arena).map_err(|e| BadInput(e.to_string()))?;
-    if let Some(start) = args.start {
-        arena.start = start;
-        arena
-            .check()
-            .map_err(|e| BadInput(format!("--start: {e}")))?;
-    }
+    let arena = arena_from(&args.arena, args.start)?;
     let optics = args.optics.optics(args.seed)?;
     let model = match &args.robot_model {
         Some(file) => load_robot_model(file)?,

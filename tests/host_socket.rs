@@ -266,7 +266,7 @@ async fn a_khepera_on_a_serial_line_drives_and_its_loss_is_a_fault() {
     op.hello("operator").await;
     start_teleoperation(&mut op).await;
     let before = op.expect("feedback").await["pose"].clone();
-    let after = drive(&mut op, 1, 40, 200.0, 200.0).await;
+    let after = drive(&mut op, 1, 8, 200.0, 200.0).await;
     let moved = after["pose"]["x_mm"].as_f64().unwrap() - before["x_mm"].as_f64().unwrap();
     assert!(moved > 10.0, "odometry says the robot moved {moved} mm");
     assert!(

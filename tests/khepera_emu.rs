@@ -93,7 +93,7 @@ fn the_emulated_khepera_answers_on_its_serial_line() {
 
 #[test]
 fn line_timing_takes_as_long_as_the_baud_rate_says() {
-    let (_emu, device) = start_emulator(&["--baud", "9600", "--line-timing"]);
+    let (_emu, device) = start_emulator(&["--baud", "9600"]);
     let mut port = open(&device);
     let started = Instant::now();
     let reply = ask(&mut port, "N");
@@ -104,6 +104,16 @@ fn line_timing_takes_as_long_as_the_baud_rate_says() {
         took >= expected * 0.9,
         "{took:.3} s for {} characters",
         reply.len() + 2
+    );
+    // The old instant line, asked for by name, answers in less.
+    let (_emu, device) = start_emulator(&["--baud", "9600", "--instant-line"]);
+    let mut port = open(&device);
+    let started = Instant::now();
+    ask(&mut port, "N");
+    let instant = started.elapsed().as_secs_f64();
+    assert!(
+        instant < took,
+        "{instant:.3} s on an instant line, {took:.3} s at 9600 baud"
     );
 }
 

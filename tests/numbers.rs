@@ -59,6 +59,7 @@ proptest! {
         let situation = Situation {
             pose: Pose { x_mm: 300.0, y_mm: 300.0, theta_rad: b },
             wheels: WheelSpeeds { left_mm_s: field_x, right_mm_s: field_y },
+            told: WheelSpeeds { left_mm_s: a, right_mm_s: field_x },
             proximity: &[1023, 0, 5, 900, 0, 0, 0, 0],
         };
         let raw = WheelSpeeds { left_mm_s: a, right_mm_s: b };

@@ -38,10 +38,16 @@ impl Peer {
     /// The next text message of `kind`, skipping others; `None` when none
     /// comes within `wait` or the connection ends.
     pub async fn next_of(&mut self, kind: &str, wait: Duration) -> Option<Value> {
+        self.next_of_any(&[kind], wait).await
+    }
+
+    /// The next text message of one of `kinds`, skipping others; `None`
+    /// when none comes within `wait` or the connection ends.
+    pub async fn next_of_any(&mut self, kinds: &[&str], wait: Duration) -> Option<Value> {
         tokio::time::timeout(wait, async {
             loop {
                 let v = self.next_text().await?;
-                if v["type"] == kind {
+                if kinds.iter().any(|k| v["type"] == *k) {
                     return Some(v);
                 }
             }

@@ -26,11 +26,14 @@ const BISECTIONS: u32 = 10;
 /// What surrounds the robot: the arena's walls and obstacles, and a run's
 /// virtual obstacles, measured exactly (a distance field on a grid would
 /// be a lower bound that wobbles from cell to cell, so that backing away
-/// from a wall could look like coming nearer).
+/// from a wall could look like coming nearer). Distances are signed, so a
+/// pose estimate already past a face still tells deeper from shallower.
+/// Each virtual obstacle's bounding box is worked out once, when a run's
+/// surroundings are made, so a check skips the ones far away.
 #[derive(Debug, Clone)]
 pub struct Surroundings {
     arena: Arena,
-    virtual_obstacles: Vec<Shape>,
+    virtual_obstacles: Vec<(Shape, Point, Point)>,
 }
 
 impl Surroundings {
@@ -45,17 +48,28 @@ impl Surroundings {
     /// These surroundings with `shapes` added (a run's virtual obstacles).
     pub fn with(&self, shapes: &[Shape]) -> Surroundings {
         let mut more = self.clone();
-        more.virtual_obstacles.extend_from_slice(shapes);
+        more.virtual_obstacles.extend(shapes.iter().map(|shape| {
+            let (lo, hi) = shape.bounds();
+            (shape.clone(), lo, hi)
+        }));
         more
     }
 
-    /// The distance from `p` to the nearest thing it could touch (0 on or
-    /// beyond the walls).
+    /// The signed distance from `p` to the nearest thing it could touch:
+    /// negative beyond a wall or inside an obstacle.
     pub fn clearance(&self, p: Point) -> f64 {
-        self.virtual_obstacles
-            .iter()
-            .map(|o| o.distance(p))
-            .fold(self.arena.clearance(p), f64::min)
+        let mut nearest = self.arena.signed_clearance(p);
+        for (shape, lo, hi) in &self.virtual_obstacles {
+            // The box is no farther than the shape: a box farther than the
+            // nearest thing yet cannot hold anything nearer.
+            let dx = (lo.x_mm - p.x_mm).max(p.x_mm - hi.x_mm);
+            let dy = (lo.y_mm - p.y_mm).max(p.y_mm - hi.y_mm);
+            if dx.max(0.0).hypot(dy.max(0.0)) >= nearest {
+                continue;
+            }
+            nearest = nearest.min(shape.signed_distance(p));
+        }
+        nearest
     }
 }
 
@@ -66,6 +80,9 @@ pub struct Situation<'a> {
     pub pose: Pose,
     /// The wheels' measured speeds.
     pub wheels: WheelSpeeds,
+    /// What the wheels were last told: they go on following it until the
+    /// command being checked reaches them.
+    pub told: WheelSpeeds,
     /// The proximity readings, one per sensor of the model.
     pub proximity: &'a [u16],
 }
@@ -88,6 +105,10 @@ pub struct Safety {
     /// How long a command lasts before the next one can brake it: the
     /// control period and its lateness, s.
     pub reaction_s: f64,
+    /// How old the pose is by the time the command reaches the wheels, s:
+    /// on a serial line, the reads after the odometry and the command's own
+    /// exchange. Until then the wheels follow what they were last told.
+    pub delay_s: f64,
 }
 
 impl Default for Safety {
@@ -95,6 +116,7 @@ impl Default for Safety {
         Safety {
             margin_mm: 5.0,
             reaction_s: 0.03,
+            delay_s: 0.0,
         }
     }
 }
@@ -139,10 +161,10 @@ impl Safety {
             surroundings.clearance(here).min(sensed) - robot.radius_mm
         };
         let now = body(situation.pose);
+        // Inside the margin (or past a face) only what never comes nearer passes.
         let floor = self.margin_mm.min(now) - 1e-9;
-        let stops_clear = |command: WheelSpeeds| {
-            self.brakes_clear(robot, situation, command, |pose| body(pose) >= floor)
-        };
+        let stops_clear =
+            |command: WheelSpeeds| self.brakes_clear(robot, situation, command, body, floor);
         let guarded = |wheels: WheelSpeeds| Guarded {
             limited: wheels != wanted,
             wheels,
@@ -174,30 +196,44 @@ impl Safety {
     }
 
     /// Whether every pose on the way from following `command` for the
-    /// reaction time and then braking to a stop passes `clear`.
+    /// reaction time and then braking to a stop keeps `body` (the room
+    /// between the body and anything, which changes no faster than the
+    /// robot's centre moves) at or above `floor`. Room to spare lets the
+    /// check skip ahead: with `slack` mm left, nothing can be touched before
+    /// the centre has moved that far.
     fn brakes_clear(
         &self,
         robot: &RobotModel,
         situation: Situation<'_>,
         command: WheelSpeeds,
-        clear: impl Fn(Pose) -> bool,
+        body: impl Fn(Pose) -> f64,
+        floor: f64,
     ) -> bool {
         let response = robot.response;
         let (mut pose, mut wheels, mut t) = (situation.pose, situation.wheels, 0.0);
-        let dead = response.dead_time_s;
+        // Until the command reaches the wheels (and they answer), they go on
+        // following what they were told.
+        let dead = response.dead_time_s + self.delay_s.max(0.0);
+        let mut slack = 0.0;
         while t < LONGEST_STOP_S {
-            // Until the dead time has passed the wheels keep doing what they did.
             let target = if t < dead {
-                wheels
+                situation.told
             } else if t < dead + self.reaction_s {
                 command
             } else {
                 WheelSpeeds::default()
             };
+            let before = pose.point();
             (pose, wheels) = robot.respond(pose, wheels, target, CHECK_STEP_S);
             t += CHECK_STEP_S;
-            if !clear(pose) {
-                return false;
+            slack -= before.distance(pose.point());
+            // (A pose that is not a number leaves no slack, and fails.)
+            if slack.is_nan() || slack <= 0.0 {
+                let room = body(pose);
+                if room.is_nan() || room < floor {
+                    return false;
+                }
+                slack = room - floor;
             }
             if t >= dead + self.reaction_s && wheels == WheelSpeeds::default() {
                 return true;
@@ -240,6 +276,7 @@ mod tests {
         let facing_wall = |gap: f64, speed: f64| Situation {
             pose: at(arena.width_mm - robot.radius_mm - gap, 300.0, 0.0),
             wheels: ahead(speed),
+            told: ahead(speed),
             proximity: &[],
         };
         let far = safety.guard(&robot, &s, facing_wall(400.0, 1000.0), ahead(1000.0));
@@ -279,6 +316,7 @@ mod tests {
         let situation = Situation {
             pose: at(p.x_mm, p.y_mm, 0.0),
             wheels: WheelSpeeds::default(),
+            told: WheelSpeeds::default(),
             proximity: &[],
         };
         let g = Safety::default().guard(&robot, &s, situation, ahead(500.0));
@@ -297,6 +335,7 @@ mod tests {
         let situation = Situation {
             pose: at(300.0, 300.0, 0.0),
             wheels: WheelSpeeds::default(),
+            told: WheelSpeeds::default(),
             proximity: &proximity,
         };
         let g = Safety::default().guard(&robot, &s, situation, ahead(500.0));
@@ -311,6 +350,7 @@ mod tests {
         let situation = Situation {
             pose: at(300.0, 300.0, 0.0),
             wheels: WheelSpeeds::default(),
+            told: WheelSpeeds::default(),
             proximity: &[],
         };
         let nan = WheelSpeeds {
@@ -338,9 +378,11 @@ mod tests {
             prop_assume!(arena.is_free(p, robot.radius_mm + 1.0));
             let s = Surroundings::new(&arena);
             let safety = Safety::default();
+            let wheels = robot.clamp(WheelSpeeds { left_mm_s: vl, right_mm_s: vr });
             let situation = Situation {
                 pose: at(p.x_mm, p.y_mm, theta),
-                wheels: robot.clamp(WheelSpeeds { left_mm_s: vl, right_mm_s: vr }),
+                wheels,
+                told: wheels,
                 proximity: &[],
             };
             let g = safety.guard(&robot, &s, situation, WheelSpeeds { left_mm_s: wl, right_mm_s: wr });
@@ -349,8 +391,8 @@ mod tests {
             // stops it and nothing more can be asked of it.
             prop_assume!(g.wheels != WheelSpeeds::default() || !g.limited);
             let floor = safety.margin_mm.min(now) - 1e-6;
-            let exact = |pose: Pose| arena.clearance(pose.point()) - robot.radius_mm >= floor;
-            prop_assert!(safety.brakes_clear(&robot, situation, g.wheels, exact), "{:?} from {:?}", g, situation.pose);
+            let exact = |pose: Pose| arena.clearance(pose.point()) - robot.radius_mm;
+            prop_assert!(safety.brakes_clear(&robot, situation, g.wheels, exact, floor), "{:?} from {:?}", g, situation.pose);
         }
 
         /// Closed loop: a robot at rest anywhere free, driven for 4 s by
@@ -370,13 +412,15 @@ mod tests {
             let s = Surroundings::new(&arena);
             let safety = Safety::default();
             let (mut pose, mut wheels) = (at(p.x_mm, p.y_mm, theta), WheelSpeeds::default());
+            let mut told = WheelSpeeds::default();
             let top = robot.max_wheel_speed_mm_s;
             let mut closest = f64::INFINITY;
             for tick in 0..400 {
                 let (l, r) = commands[tick / 20];
                 let wanted = WheelSpeeds { left_mm_s: l * top, right_mm_s: r * top };
-                let situation = Situation { pose, wheels, proximity: &[] };
+                let situation = Situation { pose, wheels, told, proximity: &[] };
                 let command = safety.guard(&robot, &s, situation, wanted).wheels;
+                told = command;
                 for _ in 0..5 {
                     let next = WheelSpeeds {
                         left_mm_s: robot.response.step(wheels.left_mm_s, command.left_mm_s, 0.002),
@@ -391,5 +435,92 @@ mod tests {
             }
             prop_assert!(closest > 0.0);
         }
+
+        /// The same on a slow serial line: the pose is read at the start of
+        /// each control period of up to 120 ms (a 9600-baud Khepera's reads),
+        /// and the command reaches the wheels up to a period later, the
+        /// wheels meanwhile following the one before. Told the period and
+        /// that delay, the layer still never lets the robot touch anything.
+        #[test]
+        fn random_driving_on_a_slow_line_never_touches(
+            fx in 0.0f64..1.0, fy in 0.0f64..1.0, theta in -3.2f64..3.2,
+            commands in proptest::collection::vec((-1.0f64..1.0, -1.0f64..1.0), 8),
+            period_steps in 5usize..60, delay_share in 0.0f64..1.0,
+            arena in proptest::sample::select(vec!["navigation", "corridor", "open", "maze"]),
+        ) {
+            let arena = Arena::load(arena).unwrap();
+            let robot = RobotModel::khepera_ii();
+            let p = Point { x_mm: fx * arena.width_mm, y_mm: fy * arena.height_mm };
+            prop_assume!(arena.is_free(p, robot.radius_mm + 1.0));
+            let s = Surroundings::new(&arena);
+            let delay_steps = (delay_share * period_steps as f64) as usize;
+            let safety = Safety {
+                reaction_s: period_steps as f64 * 0.002,
+                delay_s: delay_steps as f64 * 0.002,
+                ..Safety::default()
+            };
+            let (mut pose, mut wheels) = (at(p.x_mm, p.y_mm, theta), WheelSpeeds::default());
+            let mut told = WheelSpeeds::default();
+            let top = robot.max_wheel_speed_mm_s;
+            let periods = 4000 / period_steps;
+            for tick in 0..periods {
+                let (l, r) = commands[tick * commands.len() / periods];
+                let wanted = WheelSpeeds { left_mm_s: l * top, right_mm_s: r * top };
+                let situation = Situation { pose, wheels, told, proximity: &[] };
+                let command = safety.guard(&robot, &s, situation, wanted).wheels;
+                for step in 0..period_steps {
+                    let target = if step < delay_steps { told } else { command };
+                    (pose, wheels) = robot.respond(pose, wheels, target, 0.002);
+                    let body = arena.clearance(pose.point()) - robot.radius_mm;
+                    prop_assert!(body > 0.0, "touched at {:?} in period {}", pose, tick);
+                }
+                told = command;
+            }
+        }
+    }
+
+    #[test]
+    fn past_a_face_only_coming_out_passes() {
+        let arena = open_arena();
+        let robot = RobotModel::khepera_ii();
+        let s = Surroundings::new(&arena);
+        // The estimate says the body is 20 mm into the east wall.
+        let situation = Situation {
+            pose: at(arena.width_mm - robot.radius_mm + 20.0, 300.0, 0.0),
+            wheels: WheelSpeeds::default(),
+            told: WheelSpeeds::default(),
+            proximity: &[],
+        };
+        let safety = Safety::default();
+        let deeper = safety.guard(&robot, &s, situation, ahead(1000.0));
+        assert_eq!(deeper.wheels, WheelSpeeds::default(), "{deeper:?}");
+        assert!(deeper.clearance_mm < -19.0, "{deeper:?}");
+        let out = safety.guard(&robot, &s, situation, ahead(-300.0));
+        assert!(!out.limited, "{out:?}");
+    }
+
+    #[test]
+    fn a_late_command_brakes_earlier() {
+        let arena = open_arena();
+        let robot = RobotModel::khepera_ii();
+        let s = Surroundings::new(&arena);
+        let gap = 120.0;
+        let situation = Situation {
+            pose: at(arena.width_mm - robot.radius_mm - gap, 300.0, 0.0),
+            wheels: ahead(800.0),
+            told: ahead(800.0),
+            proximity: &[],
+        };
+        let prompt = Safety::default().guard(&robot, &s, situation, ahead(800.0));
+        let late = Safety {
+            delay_s: 0.1,
+            reaction_s: 0.1,
+            ..Safety::default()
+        }
+        .guard(&robot, &s, situation, ahead(800.0));
+        assert!(
+            late.wheels.left_mm_s < prompt.wheels.left_mm_s,
+            "{late:?} vs {prompt:?}"
+        );
     }
 }

@@ -2,6 +2,8 @@
 //! does), so experiment control runs the same on a real robot and camera
 //! as on the simulator.
 
+use std::time::{Duration, Instant};
+
 use image::RgbImage;
 use thiserror::Error;
 use vl_core::{CameraModel, Pose, RobotModel, WheelSpeeds};
@@ -34,6 +36,9 @@ pub struct RobotReading {
     pub proximity: Vec<u16>,
     /// Pressing against something.
     pub contact: bool,
+    /// When the odometry was sampled (at the latest): what the safety layer
+    /// reckons the pose's age from.
+    pub taken: Instant,
 }
 
 /// A differential-drive robot with proximity sensors.
@@ -45,6 +50,11 @@ pub trait Robot: Send {
     /// Tries to reach the robot again after its link failed.
     fn reconnect(&mut self) -> Result<(), RobotError> {
         Ok(())
+    }
+    /// How long the last `set_wheels` took to reach the wheels: on a serial
+    /// line, its exchange at the line's baud.
+    fn command_latency(&self) -> Duration {
+        Duration::ZERO
     }
 }
 

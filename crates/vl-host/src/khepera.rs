@@ -8,6 +8,7 @@
 //! was placed in.
 
 use std::path::PathBuf;
+use std::time::{Duration, Instant};
 
 use vl_core::{KheperaCommand, KheperaReply, MAX_PULSES_PER_PERIOD, Pose, RobotModel, WheelSpeeds};
 
@@ -57,6 +58,8 @@ pub struct KheperaSerial {
     pose: Pose,
     /// Encoder counts at the last read.
     counts: [i64; 2],
+    /// How long the last speed command's exchange took.
+    command_latency: Duration,
 }
 
 impl KheperaSerial {
@@ -93,12 +96,25 @@ impl KheperaSerial {
     }
 
     fn with(opening: Opening, model: RobotModel, start: Pose) -> Result<KheperaSerial, RobotError> {
+        // A guard left by a Host that just died lets go of the port within
+        // its exit time: wait that long for it before giving up.
+        let given_up = Instant::now() + Duration::from_secs(2);
+        let line = loop {
+            match opening.open() {
+                Ok(line) => break line,
+                Err(RobotError::Open { .. }) if Instant::now() < given_up => {
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+                Err(e) => return Err(e),
+            }
+        };
         let mut robot = KheperaSerial {
-            line: opening.open()?,
+            line,
             opening,
             model,
             pose: start,
             counts: [0; 2],
+            command_latency: Duration::ZERO,
         };
         robot.greet()?;
         Ok(robot)
@@ -183,16 +199,28 @@ impl Robot for KheperaSerial {
             left: self.pulses(wheels.left_mm_s),
             right: self.pulses(wheels.right_mm_s),
         };
-        self.exchange(command).map(drop)
+        let sent = Instant::now();
+        let result = self.exchange(command).map(drop);
+        self.command_latency = sent.elapsed();
+        result
+    }
+
+    fn command_latency(&self) -> Duration {
+        self.command_latency
     }
 
     /// Opens the line afresh; dead reckoning carries on from the last pose.
+    /// The old line goes first: a guard still holding the port would lock
+    /// the new one out.
     fn reconnect(&mut self) -> Result<(), RobotError> {
+        self.line = Box::new(Closed);
         self.line = self.opening.open()?;
         self.greet()
     }
 
     fn read(&mut self) -> Result<RobotReading, RobotError> {
+        // The counters are sampled after this: the pose is at most this old.
+        let taken = Instant::now();
         let counts = self.counters()?;
         let per = self.model.mm_per_pulse;
         // The wheels' travel since the last read moves the body along one arc.
@@ -212,6 +240,16 @@ impl Robot for KheperaSerial {
             },
             contact: proximity.iter().any(|&v| v >= TOUCHING),
             proximity,
+            taken,
         })
+    }
+}
+
+/// A line that is not there, between losing one and opening the next.
+struct Closed;
+
+impl Line for Closed {
+    fn exchange(&mut self, _: &str) -> Result<String, RobotError> {
+        Err(RobotError::Io(std::io::Error::other("the line is closed")))
     }
 }

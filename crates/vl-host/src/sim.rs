@@ -131,6 +131,7 @@ impl Robot for SimRobot {
             wheels: world.wheels(),
             proximity: world.proximity(),
             contact: world.contact(),
+            taken: Instant::now(),
         })
     }
 }

@@ -35,7 +35,8 @@ pub enum EmulatorError {
 #[derive(Debug, Clone, Copy)]
 pub struct Line {
     pub baud: u32,
-    /// Delay each reply by the time its characters take at `baud`.
+    /// Take as long over each command and reply as its characters take at
+    /// `baud`: a command is acted on only once its last character is in.
     pub timing: bool,
     /// Print each command line received, with the ms since the start.
     pub log_commands: bool,
@@ -106,6 +107,9 @@ impl Emulator {
             while let Some(end) = pending.iter().position(|&b| b == b'\r' || b == b'\n') {
                 let line: Vec<u8> = pending.drain(..=end).collect();
                 let text = String::from_utf8_lossy(&line[..line.len() - 1]).into_owned();
+                // The pty delivers the line at once; a cable takes its time.
+                self.wire_time(line.len());
+                self.catch_up(started.elapsed().as_secs_f64());
                 if self.line.log_commands && !text.trim().is_empty() {
                     println!(
                         "{:.1} {}",
@@ -130,12 +134,17 @@ impl Emulator {
         }
     }
 
-    fn send(&mut self, reply: &str) -> Result<(), EmulatorError> {
-        let wire = format!("{reply}\r\n");
+    /// Waits as long as `chars` characters take on the emulated line.
+    fn wire_time(&self, chars: usize) {
         if self.line.timing {
-            let seconds = wire.len() as f64 * BITS_PER_CHAR / f64::from(self.line.baud.max(1));
+            let seconds = chars as f64 * BITS_PER_CHAR / f64::from(self.line.baud.max(1));
             std::thread::sleep(Duration::from_secs_f64(seconds));
         }
+    }
+
+    fn send(&mut self, reply: &str) -> Result<(), EmulatorError> {
+        let wire = format!("{reply}\r\n");
+        self.wire_time(wire.len());
         self.master.write_all(wire.as_bytes())?;
         self.master.flush()?;
         Ok(())

@@ -118,6 +118,12 @@ pub const LOOKAHEAD_MM: std::ops::RangeInclusive<f64> = 5.0..=200.0;
 pub const MAX_PATH_POINTS: usize = 10_000;
 /// The most virtual obstacles a definition may carry.
 pub const MAX_VIRTUAL_OBSTACLES: usize = 64;
+/// The most vertices one virtual polygon may have, and all of a
+/// definition's virtual obstacles together (a box or circle counts 4): the
+/// safety layer measures the distance to them every control period, so
+/// their size bounds its time.
+pub const MAX_POLYGON_VERTICES: usize = 256;
+pub const MAX_VIRTUAL_VERTICES: usize = 1024;
 
 impl Definition {
     /// Whether the Host follows this definition's path by itself in a run
@@ -149,9 +155,31 @@ impl Definition {
                 self.virtual_obstacles.len()
             ));
         }
+        let vertices: usize = self.virtual_obstacles.iter().map(Shape::vertices).sum();
+        if vertices > MAX_VIRTUAL_VERTICES {
+            return Err(format!(
+                "the virtual obstacles have {vertices} vertices in all, more than the {MAX_VIRTUAL_VERTICES} a definition may carry"
+            ));
+        }
         for (i, o) in self.virtual_obstacles.iter().enumerate() {
+            if o.vertices() > MAX_POLYGON_VERTICES {
+                return Err(format!(
+                    "virtual obstacle {i} has {} vertices, more than the {MAX_POLYGON_VERTICES} a polygon may have",
+                    o.vertices()
+                ));
+            }
             o.check()
                 .map_err(|why| format!("virtual obstacle {i}: {why}"))?;
+            // On the floor, give or take the arena's own size: numbers far
+            // beyond it are a mistake, and would only cost time.
+            let (lo, hi) = o.bounds();
+            let (w, h) = (arena.width_mm, arena.height_mm);
+            if lo.x_mm < -w || lo.y_mm < -h || hi.x_mm > 2.0 * w || hi.y_mm > 2.0 * h {
+                return Err(format!(
+                    "virtual obstacle {i} reaches ({:.0}, {:.0})–({:.0}, {:.0}) mm, far off the {w:.0} × {h:.0} mm arena",
+                    lo.x_mm, lo.y_mm, hi.x_mm, hi.y_mm
+                ));
+            }
         }
         if let Some(goal) = self.goal {
             positive("the goal tolerance", goal.tolerance_mm)?;

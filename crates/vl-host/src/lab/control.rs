@@ -27,6 +27,9 @@ const FEEDBACK_EVERY: Duration = Duration::from_millis(20);
 /// The safety layer assumes a command lasts at least this long before the
 /// next can brake it: three control periods.
 const REACTION: Duration = Duration::from_millis(30);
+/// A control period longer than this means the Host was stopped (frozen,
+/// swapped out): the serial guard may have stopped the robot meanwhile.
+const FROZEN: Duration = Duration::from_millis(400);
 /// A command asks the robot to move when its mean wheel speed is above this, mm/s.
 const MOVING_MM_S: f64 = 1.0;
 /// Distance from the body within which the map's potential field pushes.
@@ -62,7 +65,10 @@ struct Run {
     /// The estimated (and, in simulation, true) path against the plan.
     record: PathRecorder,
     distance_mm: f64,
+    /// Contacts seen: by the robot's sensors, or by the estimate reaching
+    /// something (counted once per touch, not per period).
     collisions: u64,
+    touching: bool,
     /// The wheel speeds the last command asks for.
     wheels: WheelSpeeds,
     /// The operator's link is down: the robot stays still until they are back.
@@ -240,6 +246,11 @@ impl Control {
             }
             self.period = last_read.elapsed();
             last_read = Instant::now();
+            if self.period > FROZEN {
+                // The guard stops a robot whose Host went quiet: what the
+                // wheels were last told is no longer known.
+                self.sent = None;
+            }
             if let Some(retry) = &mut self.retry {
                 if !retry.due() {
                     continue;
@@ -305,6 +316,7 @@ impl Control {
                     last_command: now,
                     distance_mm: 0.0,
                     collisions: 0,
+                    touching: false,
                     wheels: WheelSpeeds::default(),
                     held: false,
                     assist: experiment
@@ -332,7 +344,9 @@ impl Control {
                 }
                 run.last_command = Instant::now();
                 self.event.store(event, Ordering::Relaxed);
-                self.drive();
+                // The newest command wins: it reaches the wheels on the next
+                // tick, and whatever came before it is forgotten, so nothing
+                // queues behind a slow line.
                 true
             }
             LabRequest::Hold(held) => {
@@ -344,7 +358,6 @@ impl Control {
                 // nothing sent before counts as fresh.
                 run.commanded = false;
                 run.wheels = WheelSpeeds::default();
-                self.drive();
                 true
             }
             LabRequest::Finish(reason) => {
@@ -396,16 +409,33 @@ impl Control {
         // camera watching, more the longer odometry alone carries it).
         let margin_mm = Safety::default().margin_mm
             + UNCERTAINTY_SIGMAS * self.localiser.position_sd_mm().min(MAX_UNCERTAINTY_MM);
+        // The command lasts until the next one reaches the wheels, a control
+        // period or more; it reaches them only after the reads since the
+        // odometry was sampled and its own exchange on the line.
         let safety = Safety {
             reaction_s: REACTION.max(self.period.mul_f64(1.5)).as_secs_f64(),
+            delay_s: (reading.taken.elapsed() + self.robot.command_latency()).as_secs_f64(),
             margin_mm,
         };
         let situation = Situation {
             pose,
             wheels: reading.wheels,
+            told: self.sent.unwrap_or(reading.wheels),
             proximity: &reading.proximity,
         };
         let guarded = safety.guard(&self.info.robot, &run.surroundings, situation, wanted);
+        // A contact is what the Host knows of: the robot's own sense of
+        // touch, or the body at or past something by the estimate and the
+        // proximity readings. The summary counts each touch once.
+        let touching = reading.contact || guarded.clearance_mm <= 0.0;
+        if touching && !run.touching {
+            run.collisions += 1;
+            warn!(
+                "contact at ({:.0}, {:.0}) mm: the safety layer lets only moves away through",
+                pose.x_mm, pose.y_mm
+            );
+        }
+        run.touching = touching;
         run.limited = guarded.limited;
         run.closest_mm = run.closest_mm.min(guarded.clearance_mm);
         let asked = (wanted.left_mm_s + wanted.right_mm_s) / 2.0;
@@ -449,15 +479,8 @@ impl Control {
         let Some(run) = self.run.as_mut() else { return };
         let truth = self.witness.as_mut().map(|w| w.true_pose());
         run.record.record(pose, truth);
-        if let Some((prev, prev_pose)) = previous {
+        if let Some((_, prev_pose)) = previous {
             run.distance_mm += prev_pose.point().distance(pose.point());
-            if reading.contact && !prev.contact {
-                run.collisions += 1;
-                warn!(
-                    "contact at ({:.0}, {:.0}) mm: the safety layer lets only moves away through",
-                    pose.x_mm, pose.y_mm
-                );
-            }
         }
         // A navigation run ends at its goal; in teleoperation a goal is a
         // target the summary reports on, and the operator ends the run.

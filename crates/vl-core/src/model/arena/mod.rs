@@ -75,6 +75,20 @@ impl Arena {
             .fold(walls, f64::min)
     }
 
+    /// [`Arena::clearance`] with a sign: negative beyond a wall or inside
+    /// an obstacle, by how far.
+    pub fn signed_clearance(&self, p: Point) -> f64 {
+        let walls = p
+            .x_mm
+            .min(self.width_mm - p.x_mm)
+            .min(p.y_mm)
+            .min(self.height_mm - p.y_mm);
+        self.obstacles
+            .iter()
+            .map(|o| o.shape.signed_distance(p))
+            .fold(walls, f64::min)
+    }
+
     /// Whether a disc of `radius_mm` at `p` touches nothing.
     pub fn is_free(&self, p: Point, radius_mm: f64) -> bool {
         self.clearance(p) > radius_mm

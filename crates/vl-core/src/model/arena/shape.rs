@@ -167,6 +167,49 @@ impl Shape {
         }
     }
 
+    /// Signed distance from `p` to the obstacle's boundary: positive
+    /// outside, negative inside by how deep `p` is. The safety layer needs
+    /// the sign: a pose estimate already past a face must still see that
+    /// going deeper is worse and coming out is better.
+    pub fn signed_distance(&self, p: Point) -> f64 {
+        match *self {
+            Shape::Rect {
+                x_mm,
+                y_mm,
+                width_mm,
+                height_mm,
+            } => {
+                let dx = (x_mm - p.x_mm).max(p.x_mm - (x_mm + width_mm));
+                let dy = (y_mm - p.y_mm).max(p.y_mm - (y_mm + height_mm));
+                if dx <= 0.0 && dy <= 0.0 {
+                    dx.max(dy)
+                } else {
+                    dx.max(0.0).hypot(dy.max(0.0))
+                }
+            }
+            Shape::Circle {
+                x_mm,
+                y_mm,
+                radius_mm,
+            } => (p.x_mm - x_mm).hypot(p.y_mm - y_mm) - radius_mm,
+            Shape::Polygon { ref points } => {
+                let edge = edges(points)
+                    .map(|(a, b)| p.distance_to_segment(a, b))
+                    .fold(f64::INFINITY, f64::min);
+                if contains(points, p) { -edge } else { edge }
+            }
+        }
+    }
+
+    /// How many vertices describe the shape: what the cost of measuring
+    /// distances to it grows with (a box or a circle counts as 4).
+    pub fn vertices(&self) -> usize {
+        match self {
+            Shape::Rect { .. } | Shape::Circle { .. } => 4,
+            Shape::Polygon { points } => points.len(),
+        }
+    }
+
     /// Distance along the ray from `o` in direction (cos a, sin a) to the
     /// obstacle, if the ray hits it (0 when `o` is inside).
     pub fn ray(&self, o: Point, angle_rad: f64) -> Option<f64> {
@@ -370,5 +413,34 @@ mod tests {
         );
         assert!("rect:1,2".parse::<Shape>().unwrap_err().contains("X,Y,W,H"));
         assert!("circle:1,x,3".parse::<Shape>().unwrap_err().contains("'x'"));
+    }
+
+    proptest::proptest! {
+        /// The signed distance is the distance outside, minus the depth
+        /// inside, and never changes faster than the point moves: what lets
+        /// the safety layer tell deeper from shallower past a face.
+        #[test]
+        fn signed_distance_is_distance_with_a_sign(
+            kind in 0usize..3,
+            x in -50.0f64..150.0, y in -50.0f64..150.0,
+            dx in -5.0f64..5.0, dy in -5.0f64..5.0,
+        ) {
+            let shape = match kind {
+                0 => Shape::Rect { x_mm: 10.0, y_mm: 20.0, width_mm: 60.0, height_mm: 30.0 },
+                1 => Shape::Circle { x_mm: 50.0, y_mm: 50.0, radius_mm: 25.0 },
+                _ => Shape::Polygon {
+                    points: vec![p(0.0, 0.0), p(100.0, 0.0), p(100.0, 100.0), p(50.0, 40.0), p(0.0, 100.0)],
+                },
+            };
+            let (a, b) = (p(x, y), p(x + dx, y + dy));
+            let (signed, unsigned) = (shape.signed_distance(a), shape.distance(a));
+            if unsigned > 0.0 {
+                proptest::prop_assert!((signed - unsigned).abs() < 1e-9, "{} vs {}", signed, unsigned);
+            } else {
+                proptest::prop_assert!(signed <= 1e-9);
+            }
+            let moved = (shape.signed_distance(b) - signed).abs();
+            proptest::prop_assert!(moved <= a.distance(b) + 1e-9, "moved {} for {}", moved, a.distance(b));
+        }
     }
 }
