@@ -276,6 +276,72 @@ async fn a_robot_line_that_comes_back_is_driven_again() {
     assert!(lines.len() <= 8, "{} log lines", lines.len());
 }
 
+/// Stops (SIGSTOP) or lets go on (SIGCONT) process `pid`.
+fn signal(pid: u32, which: &str) {
+    let status = Command::new("kill")
+        .args([which, &pid.to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(status.success(), "kill {which} {pid}");
+}
+
+/// Starts a new run and drives it one command, trying for `within`: how
+/// long it took, or `None` if it never did.
+async fn new_run_within(op: &mut Peer, within: Duration) -> Option<Duration> {
+    let began = Instant::now();
+    while began.elapsed() < within {
+        // A run still going (or one that ended by itself) makes way.
+        op.send(json!({"type": "stop"})).await;
+        op.send(json!({"type": "start"})).await;
+        let Some(reply) = op
+            .next_of_any(&["started", "error"], Duration::from_millis(500))
+            .await
+        else {
+            continue;
+        };
+        if reply["type"] == "started" {
+            let event = reply["event"].as_u64().unwrap_or(0) + 1;
+            op.command(event, json!({"v": 50.0, "w": 0.0})).await;
+            return Some(began.elapsed());
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    None
+}
+
+/// Hiccups heal: a Host frozen for 0.7 s (its guard stops the robot
+/// meanwhile) and a robot that pauses for 2 s, each again and again, and
+/// every time a new run starts within 5 s of the hiccup's end without
+/// restarting anything.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_frozen_host_and_a_paused_robot_are_driven_again_within_5_s() {
+    let (emulator, device) = start_emulator(&[]);
+    let (host, url) = start_khepera_host(&device);
+    let mut op = Peer::connect(&url).await;
+    op.hello("operator").await;
+    op.start("navigation").await;
+    op.command(1, json!({"v": 100.0, "w": 0.0})).await;
+    let within = Duration::from_secs(5);
+    for (who, pid, pause) in [
+        ("Host", host.0.id(), Duration::from_millis(700)),
+        ("Host", host.0.id(), Duration::from_millis(700)),
+        ("Host", host.0.id(), Duration::from_millis(700)),
+        ("robot", emulator.0.id(), Duration::from_secs(2)),
+        ("robot", emulator.0.id(), Duration::from_secs(2)),
+        ("robot", emulator.0.id(), Duration::from_secs(2)),
+    ] {
+        signal(pid, "-STOP");
+        tokio::time::sleep(pause).await;
+        signal(pid, "-CONT");
+        let took = new_run_within(&mut op, within).await;
+        println!("the {who} paused for {pause:?}: a new run after {took:?}");
+        assert!(
+            took.is_some(),
+            "the {who} paused for {pause:?}: no run within {within:?}"
+        );
+    }
+}
+
 /// Hand-overs in quick succession: a run's end never reaches the next run.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn two_hundred_hand_overs_never_cross_their_ends() {

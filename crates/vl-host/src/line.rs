@@ -24,8 +24,13 @@ const STOP: &str = "D,0,0";
 /// A Host that sends nothing for this long is taken to be stuck: the guard
 /// stops the robot (the Host reads it every control period).
 const SILENCE: Duration = Duration::from_millis(500);
+/// How long a reply already on its way may take to be passed on.
+const LATE_REPLY: Duration = Duration::from_millis(100);
 /// How long a starting guard has to open the port.
 const GUARD_START: Duration = Duration::from_secs(3);
+/// How long a guard told to go has to stop the robot (one exchange, which
+/// may time out) and exit before it is killed.
+const GUARD_EXIT: Duration = Duration::from_secs(1);
 
 /// One exchange at a time with a robot.
 pub trait Line: Send {
@@ -164,11 +169,20 @@ impl Line for GuardedLine {
             .write_all(format!("{command}\n").as_bytes())
             .and_then(|()| to_guard.flush())
             .map_err(|_| ended())?;
-        // The guard answers within its own reply timeout.
-        let reply = self
-            .replies
-            .recv_timeout(REPLY_TIMEOUT * 2)
-            .map_err(|_| ended())?;
+        // The guard answers within its own reply timeout. A Host that was
+        // itself stopped meanwhile may find the time up before its reader
+        // passed the reply on: it looks once more before giving up.
+        let reply = match self.replies.recv_timeout(REPLY_TIMEOUT * 2) {
+            Err(mpsc::RecvTimeoutError::Timeout) => self.replies.recv_timeout(LATE_REPLY),
+            other => other,
+        }
+        .map_err(|e| match e {
+            mpsc::RecvTimeoutError::Timeout => RobotError::Timeout {
+                sent: command.to_owned(),
+                waited_ms: (REPLY_TIMEOUT * 2 + LATE_REPLY).as_millis(),
+            },
+            mpsc::RecvTimeoutError::Disconnected => ended(),
+        })?;
         if reply == GUARD_TIMEOUT {
             return Err(RobotError::Timeout {
                 sent: command.to_owned(),
@@ -184,8 +198,17 @@ impl Line for GuardedLine {
 
 impl Drop for GuardedLine {
     fn drop(&mut self) {
-        // Closing its input is what tells the guard to stop the robot and go.
+        // Closing its input is what tells the guard to stop the robot and go;
+        // one stuck on a silent robot is not waited for past its last stop.
         drop(self.to_guard.take());
+        let deadline = std::time::Instant::now() + GUARD_EXIT;
+        while std::time::Instant::now() < deadline {
+            if !matches!(self.guard.try_wait(), Ok(None)) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let _ = self.guard.kill();
         let _ = self.guard.wait();
     }
 }

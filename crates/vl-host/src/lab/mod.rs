@@ -35,9 +35,10 @@ const TICK: Duration = Duration::from_millis(10);
 const NO_CAMERA_WIDTH_PX: u32 = 640;
 
 /// How long the first retry of a lost robot or camera waits; each next
-/// waits twice as long, up to `RETRY_MAX`.
+/// waits twice as long, up to `RETRY_MAX`: a device back from a pause is
+/// found within about a second.
 const RETRY_FIRST: Duration = Duration::from_millis(100);
-const RETRY_MAX: Duration = Duration::from_secs(5);
+const RETRY_MAX: Duration = Duration::from_secs(1);
 
 /// Whether the lab's devices answer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
