@@ -62,20 +62,42 @@ async fn a_dropped_operator_gets_the_run_back_within_the_grace_and_loses_it_afte
         .send(json!({"type": "hello", "protocol": 1, "role": "operator", "resume": "0123456789abcdef0123456789abcdef"}))
         .await;
     guesser.expect_error("operator_taken").await;
-    // The operator is back: role, lab, definition and the run where it stood.
-    let mut back = Peer::connect(&url).await;
-    back.send(json!({"type": "hello", "protocol": 1, "role": "operator", "resume": resume}))
-        .await;
-    let welcome = back.expect("welcome").await;
-    assert_eq!(welcome["role"], "operator");
-    back.expect("mounted").await;
-    let started = back.expect("started").await;
-    assert_eq!(
-        started["event"], 1,
-        "the run goes on from its last event: {started}"
-    );
-    let again = back.command(2, json!({"v": 60, "w": 0})).await;
-    assert!(again["event"].as_u64() >= Some(2), "{again}");
+    // The operator is back: role, lab, definition and the run where it
+    // stood; and so again after each of three drops in the one run, each
+    // welcome with a fresh secret for the next.
+    let mut resume = resume;
+    let mut back = None;
+    for drop_number in 1..=3u64 {
+        let mut peer = Peer::connect(&url).await;
+        peer.send(json!({"type": "hello", "protocol": 1, "role": "operator", "resume": resume}))
+            .await;
+        let welcome = peer.expect("welcome").await;
+        assert_eq!(welcome["role"], "operator", "drop {drop_number}: {welcome}");
+        let fresh = welcome["resume"]
+            .as_str()
+            .unwrap_or_else(|| panic!("drop {drop_number}: no fresh secret in {welcome}"))
+            .to_owned();
+        assert_ne!(fresh, resume, "each welcome has a new secret");
+        resume = fresh;
+        peer.expect("mounted").await;
+        let started = peer.expect("started").await;
+        assert_eq!(
+            started["event"], drop_number,
+            "the run goes on from its last event: {started}"
+        );
+        let again = peer
+            .command(drop_number + 1, json!({"v": 60, "w": 0}))
+            .await;
+        assert!(again["event"].as_u64() >= Some(drop_number + 1), "{again}");
+        if drop_number < 3 {
+            // The link drops again mid-run.
+            drop(peer);
+            tokio::time::sleep(Duration::from_millis(200)).await;
+        } else {
+            back = Some(peer);
+        }
+    }
+    let back = back.unwrap();
     // Dropped again, and this time gone for good: the run ends, the role is free.
     drop(back);
     let done = watcher

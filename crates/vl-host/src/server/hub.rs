@@ -416,9 +416,10 @@ impl Hub {
             if returning {
                 self.away = None;
                 info!(connection = id, "the operator is back");
-            } else {
-                self.resume = Some(secret());
             }
+            // Every welcome carries a fresh secret, so every drop has its
+            // grace (and an old secret, once used, opens nothing).
+            self.resume = Some(secret());
         }
         if let Some(client) = self.clients.get_mut(&id) {
             client.role = Some(role);
