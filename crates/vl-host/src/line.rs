@@ -270,7 +270,11 @@ pub fn run_guard(device: &str, baud: u32) -> Result<(), RobotError> {
                     Err(RobotError::Io(e)) => format!("{GUARD_ERROR}{e}"),
                     Err(e) => format!("{GUARD_ERROR}{e}"),
                 };
-                say(&reply)?;
+                if let Err(e) = say(&reply) {
+                    // The Host died while the robot answered: stop it all the same.
+                    let _ = line.exchange(STOP);
+                    return Err(e);
+                }
             }
             Err(mpsc::RecvTimeoutError::Timeout) => {
                 if !silent_stop {
