@@ -4,7 +4,7 @@
 
 mod common;
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use common::peer::Peer;
 use common::{start_emulator, start_host, start_khepera_host};
@@ -418,4 +418,78 @@ async fn releasing_the_stick_stops_the_robot_within_one_event() {
     op.send(json!({"type": "stop"})).await;
     let done = op.expect("done").await;
     assert_eq!(done["summary"]["reason"], "stopped", "{done}");
+}
+
+/// Definitions as large as the protocol allows, sent as fast as the rate
+/// lets them: a newcomer is still welcomed at once (a 20,000-vertex polygon
+/// once held newcomers for 5–9 s; the limits bound the work, and the field
+/// each needs is built off the hub), the newest definition's field is the
+/// one a run starts on, and one past the limits is refused naming it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_largest_definitions_never_hold_up_a_newcomer() {
+    let (_host, url) = start_host(&["--camera", "none", "--experiments", "teleoperation"]);
+    let mut op = Peer::connect(&url).await;
+    op.hello("operator").await;
+    op.send(json!({"type": "mount", "experiment": "teleoperation"}))
+        .await;
+    op.expect("mounted").await;
+    let polygon = |cx: f64, cy: f64, n: usize| {
+        let points: Vec<serde_json::Value> = (0..n)
+            .map(|i| {
+                let a = i as f64 / n as f64 * std::f64::consts::TAU;
+                json!({"x_mm": cx + 40.0 * a.cos(), "y_mm": cy + 40.0 * a.sin()})
+            })
+            .collect();
+        json!({"shape": "polygon", "points": points})
+    };
+    let largest: Vec<serde_json::Value> = [
+        (200.0, 400.0),
+        (350.0, 450.0),
+        (600.0, 250.0),
+        (700.0, 150.0),
+    ]
+    .iter()
+    .map(|&(x, y)| polygon(x, y, 256))
+    .collect();
+    let define = json!({"type": "define", "virtual_obstacles": largest}).to_string();
+    let mut slowest = Duration::ZERO;
+    for round in 0..10 {
+        for _ in 0..10 {
+            op.send_text(&define).await;
+        }
+        let asked = Instant::now();
+        let mut newcomer = Peer::connect(&url).await;
+        newcomer.hello("observer").await;
+        let took = asked.elapsed();
+        slowest = slowest.max(took);
+        println!(
+            "round {round}: a newcomer welcomed in {took:?} behind 10 of the largest definitions"
+        );
+    }
+    assert!(slowest < Duration::from_millis(500), "{slowest:?}");
+    // The field of the last one is built, and a run starts on it.
+    let mut defined = 0;
+    while let Some(v) = op
+        .next_of_any(&["defined", "error"], Duration::from_millis(500))
+        .await
+    {
+        assert_eq!(v["type"], "defined", "{v}");
+        defined += 1;
+    }
+    assert_eq!(defined, 100);
+    op.send(json!({"type": "start"})).await;
+    op.expect("started").await;
+    // One vertex more than a polygon may have is refused by name.
+    let too_many = json!({"type": "define", "virtual_obstacles": [polygon(300.0, 300.0, 257)]});
+    op.send(json!({"type": "stop"})).await;
+    op.expect("done").await;
+    op.send(too_many).await;
+    let e = op.expect_error("invalid_definition").await;
+    assert!(
+        e["message"]
+            .as_str()
+            .unwrap()
+            .contains("more than the 256 a polygon may have"),
+        "{e}"
+    );
 }

@@ -103,15 +103,114 @@ pub(crate) struct Hub {
     /// How many runs have started.
     runs: u64,
     /// The mounted map grown by the robot's radius (the `cspace` chart's work).
-    cspace: Option<CSpace>,
+    cspace: Option<Arc<CSpace>>,
     /// The map's potential field for teleoperation runs, over the C-space
     /// and the definition's virtual obstacles (the `field` chart's work).
     field: Option<Arc<MapField>>,
+    /// The lab's map, its C-space and field without virtual obstacles: the
+    /// same for every mount, so made once, when the Host starts.
+    map: Map,
+    /// Fields for definitions with virtual obstacles, made off the hub.
+    fields: FieldWorker,
+}
+
+/// What the lab's map always gives: its C-space and (for teleoperation)
+/// its potential field.
+struct Map {
+    cspace: Option<Arc<CSpace>>,
+    field: Option<Arc<MapField>>,
+}
+
+impl Map {
+    fn new(lab: &Lab) -> Map {
+        let info = &lab.info;
+        let cspace = disc_cspace(&info.arena, &[], info.robot.radius_mm)
+            .inspect_err(|e| warn!("no C-space for the lab's map: {e}"))
+            .ok()
+            .map(Arc::new);
+        let field = cspace.as_deref().map(map_field).map(Arc::new);
+        Map { cspace, field }
+    }
+}
+
+/// Builds a definition's potential field on a blocking thread, one at a
+/// time: a definition given while one is built waits in place of any
+/// before it, so however many a client sends, the hub never waits and at
+/// most one thread works.
+struct FieldWorker {
+    /// The number of the newest definition asked for.
+    asked: u64,
+    /// Whether a build is under way, and the newest waiting for it.
+    busy: bool,
+    waiting: Option<(u64, Vec<Shape>)>,
+    done_tx: mpsc::UnboundedSender<(u64, Option<MapField>)>,
+    done: mpsc::UnboundedReceiver<(u64, Option<MapField>)>,
+}
+
+impl FieldWorker {
+    fn new() -> FieldWorker {
+        let (done_tx, done) = mpsc::unbounded_channel();
+        FieldWorker {
+            asked: 0,
+            busy: false,
+            waiting: None,
+            done_tx,
+            done,
+        }
+    }
+
+    /// Asks for the field of `virtual_obstacles` on `lab`'s map; what was
+    /// asked before is forgotten.
+    fn ask(&mut self, lab: &Lab, virtual_obstacles: Vec<Shape>) {
+        self.asked += 1;
+        self.waiting = Some((self.asked, virtual_obstacles));
+        self.next(lab);
+    }
+
+    /// Starts the waiting build if none is under way.
+    fn next(&mut self, lab: &Lab) {
+        if self.busy {
+            return;
+        }
+        let Some((number, shapes)) = self.waiting.take() else {
+            return;
+        };
+        self.busy = true;
+        let (arena, radius) = (lab.info.arena.clone(), lab.info.robot.radius_mm);
+        let done = self.done_tx.clone();
+        tokio::task::spawn_blocking(move || {
+            let field = disc_cspace(&arena, &shapes, radius)
+                .inspect_err(|e| warn!("no C-space for the definition: {e}"))
+                .ok()
+                .as_ref()
+                .map(map_field);
+            let _ = done.send((number, field));
+        });
+    }
+
+    /// A build ended: its field if it is the newest asked for.
+    fn finished(
+        &mut self,
+        lab: &Lab,
+        number: u64,
+        field: Option<MapField>,
+    ) -> Option<Option<MapField>> {
+        self.busy = false;
+        self.next(lab);
+        (number == self.asked).then_some(field)
+    }
+
+    /// Whatever is under way or waiting is no longer wanted.
+    fn forget(&mut self) {
+        self.asked += 1;
+        self.waiting = None;
+    }
 }
 
 impl Hub {
     pub(crate) fn new(lab: Lab, config: Arc<HostConfig>, supervisor: Supervisor) -> Hub {
         Hub {
+            map: Map::new(&lab),
             lab,
             config,
             supervisor,
@@ -129,6 +228,7 @@ impl Hub {
             runs: 0,
             cspace: None,
             field: None,
+            fields: FieldWorker::new(),
         }
     }
 
@@ -162,6 +262,12 @@ impl Hub {
                     summary.sync_violations = self.sync_violations;
                     info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
                     self.broadcast(&HostMessage::Done { summary });
+                }
+                Some((number, field)) = self.fields.done.recv() => {
+                    if let Some(field) = self.fields.finished(&self.lab, number, field) {
+                        self.field = field.map(Arc::new);
+                        self.happened(Action::FieldBuilt);
+                    }
                 }
                 _ = lease.tick() => self.check_lease(),
                 message = inbox.recv() => match message {
@@ -277,6 +383,7 @@ impl Hub {
         self.definition = None;
         self.cspace = None;
         self.field = None;
+        self.fields.forget();
     }
 
     /// Tells every client what the supervisor fired since it last told,
@@ -299,35 +406,29 @@ impl Hub {
         }
     }
 
-    /// Grows the mounted map into the robot's C-space, then for
-    /// teleoperation builds the map's potential field over it.
+    /// The mounted map's C-space (made when the Host started), then for
+    /// teleoperation the map's potential field over it.
     fn build_cspace(&mut self) {
-        let info = &self.lab.info;
-        self.cspace = disc_cspace(&info.arena, &[], info.robot.radius_mm)
-            .inspect_err(|e| warn!("no C-space for the mounted map: {e}"))
-            .ok();
+        self.cspace = self.map.cspace.clone();
         self.happened(Action::CspaceBuilt);
         self.build_field(&[]);
     }
 
     /// For teleoperation, the map's potential field over the C-space with
-    /// `virtual_obstacles` grown in too.
+    /// `virtual_obstacles` grown in too: at once without them, else made
+    /// off the hub (`field_built` fires when it is ready; the lab's net
+    /// keeps the operator from driving until then).
     fn build_field(&mut self, virtual_obstacles: &[Shape]) {
         if self.experiment != Some(Experiment::Teleoperation) {
             return;
         }
-        let info = &self.lab.info;
-        self.field = if virtual_obstacles.is_empty() {
-            self.cspace.as_ref().map(map_field)
+        if virtual_obstacles.is_empty() {
+            self.fields.forget();
+            self.field = self.map.field.clone();
+            self.happened(Action::FieldBuilt);
         } else {
-            disc_cspace(&info.arena, virtual_obstacles, info.robot.radius_mm)
-                .inspect_err(|e| warn!("no C-space for the definition: {e}"))
-                .ok()
-                .as_ref()
-                .map(map_field)
+            self.fields.ask(&self.lab, virtual_obstacles.to_vec());
         }
-        .map(Arc::new);
-        self.happened(Action::FieldBuilt);
     }
 
     fn handle(&mut self, id: u64, message: GuestMessage) {
