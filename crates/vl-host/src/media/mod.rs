@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use futures_util::stream::{SplitSink, SplitStream};
 use futures_util::{SinkExt, StreamExt};
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::{Semaphore, mpsc};
+use tokio::sync::mpsc;
 use tokio_tungstenite::WebSocketStream;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
@@ -23,15 +23,19 @@ use tracing::debug;
 use vl_core::{MAX_FRAME_BYTES, MAX_TEXT_BYTES};
 use vl_sim::{Delivery, LinkModel, MessageLink};
 
+use crate::server::admission::{Admission, Ticket};
+
 mod bench;
 
 pub use bench::{MediaBench, Reproduced, RoundTrip, bench};
 
-/// Connections the relay carries at once: as many as a Host serves.
-const CONNECTIONS: usize = 64;
-/// Bytes one direction of a connection may hold in flight; a link slower
-/// than what is sent into it closes rather than grow without end.
-const IN_FLIGHT_BYTES: usize = 64 << 20;
+/// Bytes of text one direction of a connection may hold in flight; a link
+/// slower than what is sent into it closes rather than grow without end.
+const IN_FLIGHT_BYTES: usize = 8 << 20;
+/// Bytes of camera frames one direction holds; past that the oldest go
+/// unsent, so a client that does not read gets the newest frame when it
+/// reads again, as it would from the Host itself.
+const FRAME_BYTES_HELD: usize = 2 << 20;
 /// How long the handshakes on either side may take.
 const HANDSHAKE: Duration = Duration::from_secs(10);
 /// Timers wake within a millisecond; the last stretch before a message is
@@ -134,7 +138,8 @@ impl Clock {
 
 async fn relay(listener: TcpListener, config: Arc<MediaConfig>, delays: Arc<Mutex<Delays>>) {
     let clock = Clock(Instant::now());
-    let slots = Arc::new(Semaphore::new(CONNECTIONS));
+    // As at the Host, and as many connections: idle sockets from one address push out only each other.
+    let admission = Admission::new();
     let mut k = 0u64;
     loop {
         let Ok((stream, peer)) = listener.accept().await else {
@@ -148,15 +153,15 @@ async fn relay(listener: TcpListener, config: Arc<MediaConfig>, delays: Arc<Mute
             debug!(%peer, "refused: the link is down");
             continue;
         }
-        let Ok(slot) = slots.clone().try_acquire_owned() else {
+        let Some(ticket) = admission.admit(k, peer.ip()) else {
             debug!(%peer, "refused: the relay carries as many connections as it can");
             continue;
         };
         let config = config.clone();
         let delays = delays.clone();
         tokio::spawn(async move {
-            let _slot = slot;
-            match connection(stream, &config, clock, up, down, &delays).await {
+            let links = (up, down);
+            match connection(stream, &config, clock, links, ticket, &delays).await {
                 Ok(why) => debug!(%peer, "relay ended: {why}"),
                 Err(why) => debug!(%peer, "relay failed: {why}"),
             }
@@ -176,18 +181,24 @@ async fn connection(
     stream: TcpStream,
     config: &MediaConfig,
     clock: Clock,
-    up: MessageLink,
-    down: MessageLink,
+    (up, down): (MessageLink, MessageLink),
+    ticket: Ticket,
     delays: &Mutex<Delays>,
 ) -> Result<&'static str, String> {
     let _ = stream.set_nodelay(true);
-    let guest = tokio::time::timeout(
+    let handshake = tokio::time::timeout(
         HANDSHAKE,
         tokio_tungstenite::accept_async_with_config(stream, Some(ws_config())),
-    )
-    .await
-    .map_err(|_| "the Guest's handshake timed out".to_owned())?
-    .map_err(|e| format!("the Guest's handshake failed: {e}"))?;
+    );
+    let mut evicted = ticket.evicted.clone();
+    let guest = tokio::select! {
+        guest = handshake => guest
+            .map_err(|_| "the Guest's handshake timed out".to_owned())?
+            .map_err(|e| format!("the Guest's handshake failed: {e}"))?,
+        _ = evicted.wait_for(|out| *out) => return Ok("pushed out before its handshake"),
+    };
+    // A Guest that shook hands is someone: it keeps its place.
+    ticket.welcomed();
     let (host, _) = tokio::time::timeout(
         HANDSHAKE,
         tokio_tungstenite::connect_async_with_config(&config.upstream, Some(ws_config()), true),
@@ -236,6 +247,52 @@ async fn next_outage(model: &LinkModel, clock: Clock) {
 type Source<S> = SplitStream<WebSocketStream<S>>;
 type Sink<S> = SplitSink<WebSocketStream<S>, Message>;
 
+/// Camera frames on their way in one direction, newest kept: the queue
+/// carries their numbers, this holds their bytes within a budget.
+#[derive(Default)]
+struct Frames {
+    held: std::collections::VecDeque<(u64, Message)>,
+    bytes: usize,
+    next: u64,
+}
+
+impl Frames {
+    /// Holds `frame`, letting the oldest go past the budget; its number.
+    fn hold(&mut self, frame: Message) -> u64 {
+        let number = self.next;
+        self.next += 1;
+        self.bytes += frame.len();
+        self.held.push_back((number, frame));
+        while self.bytes > FRAME_BYTES_HELD && self.held.len() > 1 {
+            if let Some((_, old)) = self.held.pop_front() {
+                self.bytes -= old.len();
+            }
+        }
+        number
+    }
+
+    /// Frame `number`, unless it was let go.
+    fn take(&mut self, number: u64) -> Option<Message> {
+        while let Some((n, _)) = self.held.front() {
+            if *n > number {
+                return None;
+            }
+            let (n, frame) = self.held.pop_front()?;
+            self.bytes -= frame.len();
+            if n == number {
+                return Some(frame);
+            }
+        }
+        None
+    }
+}
+
+/// What waits in one direction's queue.
+enum Carried {
+    Text(Message),
+    Frame(u64),
+}
+
 /// Carries one direction: each message is read at once, given its arrival
 /// time by `link`, and written when that time comes.
 async fn carry<A, B>(
@@ -249,8 +306,9 @@ where
     A: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin,
     B: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin,
 {
-    let (queue, mut due) = mpsc::unbounded_channel::<(Instant, Instant, Message)>();
+    let (queue, mut due) = mpsc::unbounded_channel::<(Instant, Instant, Carried)>();
     let in_flight = AtomicUsize::new(0);
+    let frames = Mutex::new(Frames::default());
     let read = async {
         while let Some(message) = from.next().await {
             let message = message.map_err(|e| format!("read failed: {e}"))?;
@@ -263,12 +321,18 @@ where
             }
             let closing = message.is_close();
             let bytes = message.len();
-            if in_flight.fetch_add(bytes, Ordering::Relaxed) + bytes > IN_FLIGHT_BYTES {
-                return Err("more in flight than the link can hold".to_owned());
-            }
+            let carried = if message.is_binary() {
+                let mut frames = frames.lock().map_err(|_| "frames lost".to_owned())?;
+                Carried::Frame(frames.hold(message))
+            } else {
+                if in_flight.fetch_add(bytes, Ordering::Relaxed) + bytes > IN_FLIGHT_BYTES {
+                    return Err("more in flight than the link can hold".to_owned());
+                }
+                Carried::Text(message)
+            };
             match link.send(clock.ms(), bytes) {
                 Delivery::At(ms) => {
-                    let _ = queue.send((Instant::now(), clock.at(ms), message));
+                    let _ = queue.send((Instant::now(), clock.at(ms), carried));
                 }
                 Delivery::Disconnected => return Ok("the link went down"),
             }
@@ -281,10 +345,21 @@ where
         std::future::pending::<Result<&'static str, String>>().await
     };
     let write = async {
-        while let Some((read, at, message)) = due.recv().await {
+        while let Some((read, at, carried)) = due.recv().await {
             wait_until(at).await;
+            let message = match carried {
+                Carried::Text(message) => {
+                    in_flight.fetch_sub(message.len(), Ordering::Relaxed);
+                    message
+                }
+                Carried::Frame(number) => {
+                    let frame = frames.lock().ok().and_then(|mut f| f.take(number));
+                    // A newer frame overtook it while the client did not read.
+                    let Some(frame) = frame else { continue };
+                    frame
+                }
+            };
             held(read.elapsed().as_secs_f64() * 1e3, message.is_binary());
-            in_flight.fetch_sub(message.len(), Ordering::Relaxed);
             let closing = message.is_close();
             to.send(message)
                 .await

@@ -1,9 +1,14 @@
 //! Who gets a connection: at most [`MAX_CONNECTIONS`] at once, of which at
-//! most [`MAX_UNWELCOMED`] have not said hello yet. A new connection
-//! pushes out the oldest one still silent, so idle sockets — however many
-//! a client opens — never lock a newcomer out.
+//! most [`MAX_UNWELCOMED`] have not said hello yet, and at most
+//! [`MAX_UNWELCOMED_PER_ADDRESS`] of those from one address. A newcomer
+//! pushes out the oldest silent connection of its own address when that
+//! address has used its budget, and otherwise the oldest silent one of the
+//! address holding the most: however many idle sockets one machine opens,
+//! they only ever push out each other, never a person connecting from
+//! elsewhere over a slow link.
 
 use std::collections::VecDeque;
+use std::net::IpAddr;
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use tokio::sync::watch;
@@ -11,13 +16,65 @@ use tokio::sync::watch;
 /// Connections the Host serves at once.
 pub(crate) const MAX_CONNECTIONS: usize = 64;
 /// Of those, connections that have not been welcomed yet.
-pub(crate) const MAX_UNWELCOMED: usize = 16;
+pub(crate) const MAX_UNWELCOMED: usize = 32;
+/// Of those, connections from one address: a class behind one router
+/// connecting at once, each saying hello within a round trip.
+pub(crate) const MAX_UNWELCOMED_PER_ADDRESS: usize = 8;
+
+/// A connection not yet welcomed, with its eviction signal.
+struct Silent {
+    id: u64,
+    address: IpAddr,
+    /// Whether it finished the WebSocket handshake: a bare socket goes first.
+    upgraded: bool,
+    evict: watch::Sender<bool>,
+}
 
 #[derive(Default)]
 struct Counts {
     total: usize,
-    /// Connections not yet welcomed, oldest first, with their eviction signal.
-    unwelcomed: VecDeque<(u64, watch::Sender<bool>)>,
+    /// Connections not yet welcomed, oldest first.
+    unwelcomed: VecDeque<Silent>,
+}
+
+impl Counts {
+    fn from(&self, address: IpAddr) -> usize {
+        self.unwelcomed
+            .iter()
+            .filter(|s| s.address == address)
+            .count()
+    }
+
+    /// Pushes out the oldest silent connection from `address`, one that
+    /// has not even finished its handshake if there is one.
+    fn evict_oldest_of(&mut self, address: IpAddr) -> bool {
+        let from = |s: &&Silent| s.address == address;
+        let bare = self.unwelcomed.iter().position(|s| from(&s) && !s.upgraded);
+        let Some(at) = bare.or_else(|| self.unwelcomed.iter().position(|s| from(&s))) else {
+            return false;
+        };
+        if let Some(silent) = self.unwelcomed.remove(at) {
+            // The evicted connection frees its place in the total when it ends.
+            let _ = silent.evict.send(true);
+        }
+        true
+    }
+
+    /// The address holding the most silent connections (the oldest such
+    /// when several hold as many).
+    fn greediest(&self) -> Option<IpAddr> {
+        self.unwelcomed
+            .iter()
+            .map(|s| s.address)
+            .max_by_key(|&a| (self.from(a), std::cmp::Reverse(self.oldest_of(a))))
+    }
+
+    fn oldest_of(&self, address: IpAddr) -> usize {
+        self.unwelcomed
+            .iter()
+            .position(|s| s.address == address)
+            .unwrap_or(usize::MAX)
+    }
 }
 
 /// The Host's connection slots.
@@ -45,22 +102,28 @@ impl Admission {
         Admission::default()
     }
 
-    /// A slot for connection `id`, pushing out the oldest silent connection
-    /// if the slots are full; none when every slot holds a welcomed client.
-    pub(crate) fn admit(&self, id: u64) -> Option<Ticket> {
+    /// A slot for connection `id` from `address`, pushing out a silent
+    /// connection if the slots are full; none when every slot holds a
+    /// welcomed client.
+    pub(crate) fn admit(&self, id: u64, address: IpAddr) -> Option<Ticket> {
         let mut counts = lock(&self.counts);
-        let full = counts.total >= MAX_CONNECTIONS || counts.unwelcomed.len() >= MAX_UNWELCOMED;
-        if full {
-            let (_, evict) = counts.unwelcomed.pop_front()?;
-            let _ = evict.send(true);
-            // The evicted connection frees its place in the total when it ends.
+        if counts.from(address) >= MAX_UNWELCOMED_PER_ADDRESS {
+            counts.evict_oldest_of(address);
+        } else if counts.total >= MAX_CONNECTIONS || counts.unwelcomed.len() >= MAX_UNWELCOMED {
+            let greediest = counts.greediest()?;
+            counts.evict_oldest_of(greediest);
         }
         if counts.total >= MAX_CONNECTIONS + MAX_UNWELCOMED {
             return None;
         }
         counts.total += 1;
         let (evict, evicted) = watch::channel(false);
-        counts.unwelcomed.push_back((id, evict));
+        counts.unwelcomed.push_back(Silent {
+            id,
+            address,
+            upgraded: false,
+            evict,
+        });
         Some(Ticket {
             id,
             counts: self.counts.clone(),
@@ -70,18 +133,28 @@ impl Admission {
 }
 
 impl Ticket {
+    /// The connection finished its WebSocket handshake: it is further on
+    /// than a bare socket, which is pushed out before it.
+    pub(crate) fn upgraded(&self) {
+        if let Some(silent) = lock(&self.counts)
+            .unwelcomed
+            .iter_mut()
+            .find(|s| s.id == self.id)
+        {
+            silent.upgraded = true;
+        }
+    }
+
     /// The connection was welcomed: it no longer counts as silent.
     pub(crate) fn welcomed(&self) {
-        lock(&self.counts)
-            .unwelcomed
-            .retain(|(id, _)| *id != self.id);
+        lock(&self.counts).unwelcomed.retain(|s| s.id != self.id);
     }
 
     pub(crate) fn is_welcomed(&self) -> bool {
         !lock(&self.counts)
             .unwelcomed
             .iter()
-            .any(|(id, _)| *id == self.id)
+            .any(|s| s.id == self.id)
     }
 }
 
@@ -89,7 +162,7 @@ impl Drop for Ticket {
     fn drop(&mut self) {
         let mut counts = lock(&self.counts);
         counts.total -= 1;
-        counts.unwelcomed.retain(|(id, _)| *id != self.id);
+        counts.unwelcomed.retain(|s| s.id != self.id);
     }
 }
 
@@ -97,13 +170,20 @@ impl Drop for Ticket {
 mod tests {
     use super::*;
 
+    const HERE: IpAddr = IpAddr::V4(std::net::Ipv4Addr::new(127, 0, 0, 1));
+
+    fn address(n: u8) -> IpAddr {
+        IpAddr::V4(std::net::Ipv4Addr::new(10, 0, 0, n))
+    }
+
     #[test]
     fn the_oldest_silent_connection_makes_room() {
         let admission = Admission::new();
+        // Silent connections from many addresses fill the unwelcomed slots.
         let silent: Vec<Ticket> = (0..MAX_UNWELCOMED as u64)
-            .map(|id| admission.admit(id).unwrap())
+            .map(|id| admission.admit(id, address(id as u8 / 4)).unwrap())
             .collect();
-        let newcomer = admission.admit(100).expect("admitted");
+        let newcomer = admission.admit(100, HERE).expect("admitted");
         assert!(*silent[0].evicted.borrow(), "the oldest was pushed out");
         assert!(!*silent[1].evicted.borrow());
         newcomer.welcomed();
@@ -111,18 +191,45 @@ mod tests {
         // Welcomed clients fill the Host; then a newcomer has no room.
         let welcomed: Vec<Ticket> = (200..200 + MAX_CONNECTIONS as u64 - 1)
             .map(|id| {
-                let t = admission.admit(id).unwrap();
+                let t = admission.admit(id, HERE).unwrap();
                 t.welcomed();
                 t
             })
             .collect();
         assert_eq!(welcomed.len() + 1, MAX_CONNECTIONS);
         assert!(
-            admission.admit(999).is_none(),
+            admission.admit(999, HERE).is_none(),
             "every slot holds a welcomed client"
         );
         drop((welcomed, newcomer));
         assert_eq!(lock(&admission.counts).total, 0);
-        assert!(admission.admit(1000).is_some());
+        assert!(admission.admit(1000, HERE).is_some());
+    }
+
+    #[test]
+    fn one_address_pushes_out_only_its_own() {
+        let admission = Admission::new();
+        let person = admission.admit(1, address(7)).unwrap();
+        // A flood of bare connects from one machine, far more than the slots.
+        let mut flood = Vec::new();
+        for id in 2..1000 {
+            flood.push(admission.admit(id, HERE).unwrap());
+            flood.retain(|t: &Ticket| !*t.evicted.borrow());
+            assert!(flood.len() <= MAX_UNWELCOMED_PER_ADDRESS);
+        }
+        assert!(!*person.evicted.borrow(), "the person was never pushed out");
+        // Many addresses filling the slots push out the greediest first:
+        // the flood's, not the person's nor the other newcomers'.
+        let room = MAX_UNWELCOMED - 2;
+        let others: Vec<Ticket> = (0..room as u8)
+            .map(|n| {
+                admission
+                    .admit(2000 + u64::from(n), address(100 + n))
+                    .unwrap()
+            })
+            .collect();
+        assert_eq!(flood.iter().filter(|t| !*t.evicted.borrow()).count(), 1);
+        assert!(!*person.evicted.borrow());
+        assert!(others.iter().all(|t| !*t.evicted.borrow()));
     }
 }

@@ -85,6 +85,11 @@ impl Bucket {
         }
     }
 
+    /// Gives back `amount` taken for something that never went ahead.
+    fn refund(&mut self, amount: f64) {
+        self.tokens = (self.tokens + amount).min(self.burst);
+    }
+
     /// Takes `amount`; how long until the bucket is out of debt.
     fn take(&mut self, amount: f64) -> Duration {
         let now = Instant::now();
@@ -139,6 +144,7 @@ impl Connection {
             // A newer connection needed the slot of one still shaking hands.
             _ = evicted.wait_for(|out| *out) => return Ok(()),
         };
+        self.ticket.upgraded();
         let (mut sink, mut source) = ws.split();
         let (to_me, mut inbox) = mpsc::channel(super::hub::OUTBOX);
         if self.hub.send(ToHub::Join(self.id, to_me)).await.is_err() {
@@ -179,15 +185,27 @@ impl Connection {
         let mut welcomed = false;
         // A client faster than its rate is not read until it is within it
         // again: its own socket then holds it back, at no cost to the Host.
+        // Commands are the exception: they are values, the newest wins, so
+        // one over the rate waits (in place of any before it) for the rate
+        // to allow it, and reading goes on: an emergency stop behind a
+        // flood of commands is never held back by them.
         let mut messages = Bucket::new(RATE_PER_S, BURST);
         let mut bytes = Bucket::new(BYTES_PER_S, BYTES_BURST);
         let mut paused_until: Option<tokio::time::Instant> = None;
+        let mut held_command: Option<(tokio::time::Instant, GuestMessage)> = None;
         let mut before_hello = 0u32;
         let mut evicted = self.ticket.evicted.clone();
         loop {
             tokio::select! {
                 () = async { tokio::time::sleep_until(paused_until.unwrap_or_else(tokio::time::Instant::now)).await }, if paused_until.is_some() => {
                     paused_until = None;
+                }
+                () = async { tokio::time::sleep_until(held_command.as_ref().map_or_else(tokio::time::Instant::now, |(at, _)| *at)).await }, if held_command.is_some() => {
+                    if let Some((_, command)) = held_command.take()
+                        && self.hub.send(ToHub::Message(self.id, command)).await.is_err()
+                    {
+                        return End::Closed;
+                    }
                 }
                 incoming = source.next(), if paused_until.is_none() => {
                     let message = match incoming {
@@ -201,9 +219,10 @@ impl Connection {
                         Some(Ok(message)) => message,
                     };
                     heard = Instant::now();
-                    let wait = messages.take(1.0).max(bytes.take(message.len() as f64));
-                    if !wait.is_zero() {
-                        paused_until = Some(tokio::time::Instant::now() + wait);
+                    let over_rate = messages.take(1.0);
+                    let over_bytes = bytes.take(message.len() as f64);
+                    if !over_bytes.is_zero() {
+                        paused_until = Some(tokio::time::Instant::now() + over_bytes);
                     }
                     if !welcomed && message.len() > MAX_BEFORE_HELLO_BYTES {
                         return End::Refused(ErrorCode::TooLarge, "a message this large before hello".into());
@@ -242,7 +261,26 @@ impl Connection {
                             }
                             Some(error(ErrorCode::HelloFirst, "send hello first"))
                         }
+                        Ok(message @ GuestMessage::Command { .. }) if !over_rate.is_zero() => {
+                            // The one it replaces is never forwarded: it costs nothing.
+                            let wait = match held_command.take() {
+                                Some((at, _)) => {
+                                    messages.refund(1.0);
+                                    at.saturating_duration_since(tokio::time::Instant::now())
+                                }
+                                None => over_rate,
+                            };
+                            held_command = Some((tokio::time::Instant::now() + wait, message));
+                            None
+                        }
                         Ok(message) => {
+                            if matches!(message, GuestMessage::Command { .. }) {
+                                // A newer command than the one held: that one is stale.
+                                held_command = None;
+                            } else if !over_rate.is_zero() && !matches!(message, GuestMessage::EmergencyStop) {
+                                let until = tokio::time::Instant::now() + over_rate;
+                                paused_until = Some(paused_until.map_or(until, |p| p.max(until)));
+                            }
                             if self.hub.send(ToHub::Message(self.id, message)).await.is_err() {
                                 return End::Closed;
                             }

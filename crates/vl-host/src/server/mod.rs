@@ -12,7 +12,7 @@
 //! has a timeout, so no client, however careless or hostile, can slow the
 //! operator's loop or lock anyone out.
 
-mod admission;
+pub(crate) mod admission;
 mod connection;
 mod hub;
 
@@ -127,7 +127,7 @@ async fn accept(
         };
         let id = next_id;
         next_id += 1;
-        let Some(ticket) = admission.admit(id) else {
+        let Some(ticket) = admission.admit(id, peer.ip()) else {
             debug!(%peer, "refused: the Host holds as many connections as it serves");
             continue;
         };
