@@ -16,7 +16,7 @@ use serde_json::json;
 use tokio::net::TcpSocket;
 
 use common::peer::{Peer, memory_mb};
-use common::{start_host, start_vl};
+use common::{start_host, start_media};
 
 /// Opens `per_s` bare connections a second from 127.0.0.2 to `target`,
 /// holding each until it is closed by the other end or the flood ends.
@@ -59,19 +59,7 @@ fn addr(url: &str) -> SocketAddr {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bare_connects_from_elsewhere_never_keep_a_far_operator_out() {
     let (_host, host_url) = start_host(&["--camera", "sim"]);
-    let (media, media_url) = start_vl(
-        &[
-            "media",
-            "--listen",
-            "127.0.0.1:0",
-            "--upstream",
-            &host_url,
-            "--profile",
-            "geo-satellite",
-        ],
-        "vl media listening on ",
-    );
-    let media_url = media_url.split(' ').next().unwrap().to_owned();
+    let (media, media_url) = start_media(&host_url, "geo-satellite", &[]);
     let stop = Arc::new(AtomicBool::new(false));
     let opened = Arc::new(AtomicU64::new(0));
     bare_flood(addr(&host_url), 200, stop.clone(), opened.clone());

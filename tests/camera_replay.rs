@@ -8,7 +8,7 @@ mod common;
 use std::time::Duration;
 
 use common::peer::Peer;
-use common::{refused, scratch, start_emulator, start_vl_in, vl};
+use common::{refused, scratch, start_emulator, start_khepera_host_with, vl};
 
 /// Frames the simulator renders of the navigation arena, as recorded footage.
 fn footage(name: &str, frames: usize) -> std::path::PathBuf {
@@ -39,21 +39,7 @@ async fn recorded_footage_is_the_camera_until_it_goes_away() {
     let dir = footage("replay-footage", 3);
     let (_emu, device) = start_emulator(&["--arena", "navigation"]);
     let camera = format!("dir:{}", dir.display());
-    let (_host, url) = start_vl_in(
-        None,
-        &[
-            "host",
-            "--listen",
-            "127.0.0.1:0",
-            "--robot",
-            "khepera",
-            "--port",
-            &device,
-            "--camera",
-            &camera,
-        ],
-        "vl host listening on ",
-    );
+    let (_host, url) = start_khepera_host_with(&device, &["--camera", &camera]);
     let mut watcher = Peer::connect(&url).await;
     watcher.hello("observer").await;
     let status = watcher.expect("status").await;

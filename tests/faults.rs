@@ -276,13 +276,11 @@ async fn a_robot_line_that_comes_back_is_driven_again() {
     assert!(lines.len() <= 8, "{} log lines", lines.len());
 }
 
-/// Stops (SIGSTOP) or lets go on (SIGCONT) process `pid`.
-fn signal(pid: u32, which: &str) {
-    let status = Command::new("kill")
-        .args([which, &pid.to_string()])
-        .status()
-        .expect("kill runs");
-    assert!(status.success(), "kill {which} {pid}");
+/// Sends `signal` (SIGSTOP, SIGCONT) to process `pid`.
+fn signal(pid: u32, signal: libc::c_int) {
+    // SAFETY: kill only reads its integer arguments.
+    let sent = unsafe { libc::kill(pid as libc::pid_t, signal) };
+    assert_eq!(sent, 0, "signal {signal} to {pid}");
 }
 
 /// Starts a new run and drives it one command, trying for `within`: how
@@ -300,9 +298,28 @@ async fn new_run_within(op: &mut Peer, within: Duration) -> Option<Duration> {
             continue;
         };
         if reply["type"] == "started" {
+            // The robot must answer the run's first command, too.
             let event = reply["event"].as_u64().unwrap_or(0) + 1;
-            op.command(event, json!({"v": 50.0, "w": 0.0})).await;
-            return Some(began.elapsed());
+            op.send(json!({"type": "command", "event": event, "v": 50.0, "w": 0.0}))
+                .await;
+            let answered = tokio::time::timeout(Duration::from_secs(2), async {
+                loop {
+                    let v = op
+                        .next_of_any(&["feedback", "done"], Duration::from_secs(2))
+                        .await?;
+                    if v["type"] == "done" {
+                        return None;
+                    }
+                    if v["event"].as_u64() >= Some(event) {
+                        return Some(());
+                    }
+                }
+            })
+            .await;
+            if matches!(answered, Ok(Some(()))) {
+                return Some(began.elapsed());
+            }
+            continue;
         }
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
@@ -330,9 +347,9 @@ async fn a_frozen_host_and_a_paused_robot_are_driven_again_within_5_s() {
         ("robot", emulator.0.id(), Duration::from_secs(2)),
         ("robot", emulator.0.id(), Duration::from_secs(2)),
     ] {
-        signal(pid, "-STOP");
+        signal(pid, libc::SIGSTOP);
         tokio::time::sleep(pause).await;
-        signal(pid, "-CONT");
+        signal(pid, libc::SIGCONT);
         let took = new_run_within(&mut op, within).await;
         println!("the {who} paused for {pause:?}: a new run after {took:?}");
         assert!(

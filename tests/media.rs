@@ -9,7 +9,7 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::{VlProcess, scratch, start_vl};
+use common::{VlProcess, scratch};
 use futures_util::{SinkExt, StreamExt};
 use tokio::net::TcpListener;
 use tokio_tungstenite::tungstenite::Message;
@@ -51,22 +51,7 @@ async fn echo() -> String {
 
 /// Starts `vl media` in front of `upstream` with `profile`; returns its URL.
 fn media(upstream: &str, profile: &str) -> (VlProcess, String) {
-    let (process, rest) = start_vl(
-        &[
-            "media",
-            "--listen",
-            "127.0.0.1:0",
-            "--upstream",
-            upstream,
-            "--profile",
-            profile,
-            "--seed",
-            &SEED.to_string(),
-        ],
-        "vl media listening on ",
-    );
-    let url = rest.split(' ').next().unwrap().to_owned();
-    (process, url)
+    common::start_media(upstream, profile, &["--seed", &SEED.to_string()])
 }
 
 /// Each connection's (send time ms since the first send, round trip ms).

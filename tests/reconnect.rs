@@ -8,7 +8,7 @@ mod common;
 use std::time::{Duration, Instant};
 
 use common::peer::Peer;
-use common::{scratch, start_host, start_vl};
+use common::{scratch, start_host, start_media};
 use serde_json::{Value, json};
 use vl_sim::{LinkModel, Profile};
 
@@ -153,20 +153,8 @@ async fn a_guest_rides_out_an_outage_of_the_media() {
     };
     let file = dir.join("outage.json");
     std::fs::write(&file, serde_json::to_string(&model).unwrap()).unwrap();
-    let (_media, rest) = start_vl(
-        &[
-            "media",
-            "--listen",
-            "127.0.0.1:0",
-            "--upstream",
-            &host_url,
-            "--profile",
-            file.to_str().unwrap(),
-        ],
-        "vl media listening on ",
-    );
+    let (_media, media_url) = start_media(&host_url, file.to_str().unwrap(), &[]);
     let t0 = Instant::now();
-    let media_url = rest.split(' ').next().unwrap().to_owned();
     let guest = tokio::task::spawn_blocking(move || {
         common::vl(&[
             "guest",

@@ -18,7 +18,7 @@ use serde_json::{Value, json};
 use tokio_tungstenite::tungstenite::Message;
 
 use common::peer::Peer;
-use common::{VlProcess, start_vl};
+use common::{VlProcess, start_khepera_host_with, start_vl};
 
 /// Characters on the wire in one control period: the counters, speeds and
 /// proximity read back, and one speed command, with their replies.
@@ -89,43 +89,23 @@ fn scenes() -> Vec<Scene> {
 }
 
 fn khepera_lab(baud: u32, scene: &Scene) -> (VlProcess, VlProcess, String) {
-    let baud_text = baud.to_string();
-    let (emulator, device) = {
-        let args = [
-            "khepera-emu",
-            "--baud",
-            &baud_text,
-            "--arena",
-            scene.arena,
-            "--start",
-            scene.start,
-        ];
-        let (process, rest) = start_vl(&args, "vl khepera-emu: ");
-        let device = rest.rsplit(' ').next().expect("a device").to_owned();
-        (process, device)
-    };
-    let (host, url) = start_vl(
-        &[
-            "host",
-            "--listen",
-            "127.0.0.1:0",
-            "--robot",
-            "khepera",
-            "--port",
-            &device,
-            "--baud",
-            &baud_text,
-            "--arena",
-            scene.arena,
-            "--start",
-            scene.start,
-            "--camera",
-            "none",
-            "--experiments",
-            "navigation",
-        ],
-        "vl host listening on ",
+    let baud = baud.to_string();
+    // The robot and the Host's dead reckoning start in the same place.
+    let line_and_place = [
+        "--baud",
+        &baud,
+        "--arena",
+        scene.arena,
+        "--start",
+        scene.start,
+    ];
+    let (emulator, rest) = start_vl(
+        &[&["khepera-emu"], &line_and_place[..]].concat(),
+        "vl khepera-emu: ",
     );
+    let device = rest.rsplit(' ').next().expect("a device").to_owned();
+    let host = ["--camera", "none", "--experiments", "navigation"];
+    let (host, url) = start_khepera_host_with(&device, &[&host[..], &line_and_place[..]].concat());
     (emulator, host, url)
 }
 

@@ -106,7 +106,33 @@ fn start_host_on(args: &[&str]) -> (VlProcess, String) {
 
 /// Starts `vl host` driving the Khepera on serial `device`; returns its URL.
 pub fn start_khepera_host(device: &str) -> (VlProcess, String) {
-    start_host_on(&["--robot", "khepera", "--port", device])
+    start_khepera_host_with(device, &[])
+}
+
+/// The same with `extra` arguments.
+pub fn start_khepera_host_with(device: &str, extra: &[&str]) -> (VlProcess, String) {
+    start_host_on(&[&["--robot", "khepera", "--port", device], extra].concat())
+}
+
+/// Starts `vl media` in front of `upstream` with `profile` (a name or a
+/// file) and `extra` arguments; returns its URL.
+pub fn start_media(upstream: &str, profile: &str, extra: &[&str]) -> (VlProcess, String) {
+    let args = [
+        &[
+            "media",
+            "--listen",
+            "127.0.0.1:0",
+            "--upstream",
+            upstream,
+            "--profile",
+            profile,
+        ],
+        extra,
+    ]
+    .concat();
+    let (process, rest) = start_vl(&args, "vl media listening on ");
+    let url = rest.split(' ').next().expect("a URL").to_owned();
+    (process, url)
 }
 
 /// Starts `vl khepera-emu ARGS…`; returns its pseudo-terminal's device.

@@ -361,6 +361,20 @@ mod tests {
         assert_eq!(g.wheels, WheelSpeeds::default());
     }
 
+    /// A shipped arena and the point (fx, fy) of the way across it, where
+    /// the Khepera II stands clear of everything, if it does.
+    fn standing(name: &str, fx: f64, fy: f64) -> Option<(Arena, RobotModel, Point)> {
+        let arena = Arena::load(name).unwrap();
+        let robot = RobotModel::khepera_ii();
+        let p = Point {
+            x_mm: fx * arena.width_mm,
+            y_mm: fy * arena.height_mm,
+        };
+        arena
+            .is_free(p, robot.radius_mm + 1.0)
+            .then_some((arena, robot, p))
+    }
+
     proptest! {
         /// Whatever is asked, wherever the robot is and however fast it
         /// goes, driving the guarded command and then braking never brings
@@ -372,10 +386,9 @@ mod tests {
             wl in -1100.0f64..1100.0, wr in -1100.0f64..1100.0,
             arena in proptest::sample::select(vec!["navigation", "corridor", "open", "maze"]),
         ) {
-            let arena = Arena::load(arena).unwrap();
-            let robot = RobotModel::khepera_ii();
-            let p = Point { x_mm: fx * arena.width_mm, y_mm: fy * arena.height_mm };
-            prop_assume!(arena.is_free(p, robot.radius_mm + 1.0));
+            let standing = standing(arena, fx, fy);
+            prop_assume!(standing.is_some());
+            let (arena, robot, p) = standing.unwrap();
             let s = Surroundings::new(&arena);
             let safety = Safety::default();
             let wheels = robot.clamp(WheelSpeeds { left_mm_s: vl, right_mm_s: vr });
@@ -405,10 +418,9 @@ mod tests {
             commands in proptest::collection::vec((-1.0f64..1.0, -1.0f64..1.0), 20),
             arena in proptest::sample::select(vec!["navigation", "corridor", "open", "maze"]),
         ) {
-            let arena = Arena::load(arena).unwrap();
-            let robot = RobotModel::khepera_ii();
-            let p = Point { x_mm: fx * arena.width_mm, y_mm: fy * arena.height_mm };
-            prop_assume!(arena.is_free(p, robot.radius_mm + 1.0));
+            let standing = standing(arena, fx, fy);
+            prop_assume!(standing.is_some());
+            let (arena, robot, p) = standing.unwrap();
             let s = Surroundings::new(&arena);
             let safety = Safety::default();
             let (mut pose, mut wheels) = (at(p.x_mm, p.y_mm, theta), WheelSpeeds::default());
@@ -448,10 +460,9 @@ mod tests {
             period_steps in 5usize..60, delay_share in 0.0f64..1.0,
             arena in proptest::sample::select(vec!["navigation", "corridor", "open", "maze"]),
         ) {
-            let arena = Arena::load(arena).unwrap();
-            let robot = RobotModel::khepera_ii();
-            let p = Point { x_mm: fx * arena.width_mm, y_mm: fy * arena.height_mm };
-            prop_assume!(arena.is_free(p, robot.radius_mm + 1.0));
+            let standing = standing(arena, fx, fy);
+            prop_assume!(standing.is_some());
+            let (arena, robot, p) = standing.unwrap();
             let s = Surroundings::new(&arena);
             let delay_steps = (delay_share * period_steps as f64) as usize;
             let safety = Safety {

@@ -140,31 +140,7 @@ impl Shape {
 
     /// Distance from `p` to the obstacle's boundary; 0 inside it.
     pub fn distance(&self, p: Point) -> f64 {
-        match *self {
-            Shape::Rect {
-                x_mm,
-                y_mm,
-                width_mm,
-                height_mm,
-            } => {
-                let dx = (x_mm - p.x_mm).max(p.x_mm - (x_mm + width_mm)).max(0.0);
-                let dy = (y_mm - p.y_mm).max(p.y_mm - (y_mm + height_mm)).max(0.0);
-                dx.hypot(dy)
-            }
-            Shape::Circle {
-                x_mm,
-                y_mm,
-                radius_mm,
-            } => ((p.x_mm - x_mm).hypot(p.y_mm - y_mm) - radius_mm).max(0.0),
-            Shape::Polygon { ref points } => {
-                if contains(points, p) {
-                    return 0.0;
-                }
-                edges(points)
-                    .map(|(a, b)| p.distance_to_segment(a, b))
-                    .fold(f64::INFINITY, f64::min)
-            }
-        }
+        self.signed_distance(p).max(0.0)
     }
 
     /// Signed distance from `p` to the obstacle's boundary: positive
