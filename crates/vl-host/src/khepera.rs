@@ -15,6 +15,8 @@ use vl_core::{KheperaCommand, KheperaReply, MAX_PULSES_PER_PERIOD, Pose, RobotMo
 use crate::drivers::{Robot, RobotError, RobotReading};
 use crate::line::{GuardedLine, Line, SerialLine};
 
+/// Replies to earlier commands a robot may still send when it is reached again.
+const STALE_REPLIES: usize = 3;
 /// A proximity reading this high means the body is touching something.
 const TOUCHING: u16 = 1000;
 
@@ -123,7 +125,16 @@ impl KheperaSerial {
     /// Checks that a Khepera answers, stops it, and takes its counters as
     /// the origin of dead reckoning.
     fn greet(&mut self) -> Result<(), RobotError> {
-        if let KheperaReply::Version { bios, .. } = self.exchange(KheperaCommand::Version)? {
+        // A robot back from a pause may still answer what was asked before
+        // it: a few replies that are not this one's are let go by.
+        let mut version = self.exchange(KheperaCommand::Version);
+        for _ in 0..STALE_REPLIES {
+            if !matches!(version, Err(RobotError::Garbled { .. })) {
+                break;
+            }
+            version = self.exchange(KheperaCommand::Version);
+        }
+        if let KheperaReply::Version { bios, .. } = version? {
             tracing::info!("Khepera BIOS {bios} on {}", self.opening.device());
         }
         self.exchange(KheperaCommand::SetSpeed { left: 0, right: 0 })?;

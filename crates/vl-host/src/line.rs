@@ -61,16 +61,23 @@ impl SerialLine {
     }
 }
 
+impl SerialLine {
+    /// Sends `command` without waiting for its reply.
+    fn send(&mut self, command: &str) -> Result<(), RobotError> {
+        self.port
+            .write_all(format!("{command}\n").as_bytes())
+            .and_then(|()| self.port.flush())
+            .map_err(RobotError::Io)
+    }
+}
+
 impl Line for SerialLine {
     fn exchange(&mut self, command: &str) -> Result<String, RobotError> {
         // A late reply to an earlier command must not pass for this one's.
         self.port.clear(ClearBuffer::Input).map_err(|e| {
             RobotError::Io(std::io::Error::other(format!("cannot clear the line: {e}")))
         })?;
-        self.port
-            .write_all(format!("{command}\n").as_bytes())
-            .and_then(|()| self.port.flush())
-            .map_err(RobotError::Io)?;
+        self.send(command)?;
         let mut line = Vec::new();
         let mut byte = [0u8; 1];
         loop {
@@ -272,7 +279,7 @@ pub fn run_guard(device: &str, baud: u32) -> Result<(), RobotError> {
                 };
                 if let Err(e) = say(&reply) {
                     // The Host died while the robot answered: stop it all the same.
-                    let _ = line.exchange(STOP);
+                    let _ = line.send(STOP);
                     return Err(e);
                 }
             }
@@ -283,8 +290,10 @@ pub fn run_guard(device: &str, baud: u32) -> Result<(), RobotError> {
                 }
             }
             Err(mpsc::RecvTimeoutError::Disconnected) => {
-                // The Host is gone: stop the robot, whatever it was doing.
-                let _ = line.exchange(STOP);
+                // The Host is gone: stop the robot, whatever it was doing,
+                // and go at once (a robot that does not answer cannot be
+                // stopped any better by waiting for it).
+                let _ = line.send(STOP);
                 return Ok(());
             }
         }
