@@ -59,9 +59,7 @@ impl SerialLine {
             })?;
         Ok(SerialLine { port })
     }
-}
 
-impl SerialLine {
     /// Sends `command` without waiting for its reply.
     fn send(&mut self, command: &str) -> Result<(), RobotError> {
         self.port

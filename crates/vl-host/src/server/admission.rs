@@ -60,20 +60,19 @@ impl Counts {
         true
     }
 
-    /// The address holding the most silent connections (the oldest such
-    /// when several hold as many).
+    /// The address holding the most silent connections: of several that
+    /// hold as many, the one met first, oldest first, so the one whose
+    /// oldest has waited longest.
     fn greediest(&self) -> Option<IpAddr> {
-        self.unwelcomed
-            .iter()
-            .map(|s| s.address)
-            .max_by_key(|&a| (self.from(a), std::cmp::Reverse(self.oldest_of(a))))
-    }
-
-    fn oldest_of(&self, address: IpAddr) -> usize {
-        self.unwelcomed
-            .iter()
-            .position(|s| s.address == address)
-            .unwrap_or(usize::MAX)
+        let mut greediest = None;
+        let mut most = 0;
+        for silent in &self.unwelcomed {
+            let held = self.from(silent.address);
+            if held > most {
+                (greediest, most) = (Some(silent.address), held);
+            }
+        }
+        greediest
     }
 }
 

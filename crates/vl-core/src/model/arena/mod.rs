@@ -63,16 +63,7 @@ pub struct Arena {
 impl Arena {
     /// Distance from `p` to the nearest wall or obstacle (0 inside one, or outside the walls).
     pub fn clearance(&self, p: Point) -> f64 {
-        let walls = p
-            .x_mm
-            .min(self.width_mm - p.x_mm)
-            .min(p.y_mm)
-            .min(self.height_mm - p.y_mm)
-            .max(0.0);
-        self.obstacles
-            .iter()
-            .map(|o| o.shape.distance(p))
-            .fold(walls, f64::min)
+        self.signed_clearance(p).max(0.0)
     }
 
     /// [`Arena::clearance`] with a sign: negative beyond a wall or inside
