@@ -142,3 +142,44 @@ proptest! {
         prop_assert_eq!(rebuilt.blocked, from_camera.blocked);
     }
 }
+
+/// A frame with the robot painted out (as on-change frames are sent)
+/// shows the floor where the robot was: nothing of its body or of its
+/// light marker is left (the marker is a hole in the body's blob, and was
+/// once left behind as a white diamond).
+#[test]
+fn the_painted_out_robot_leaves_only_floor() {
+    for optics in [Optics::default(), Optics::noisy(5)] {
+        let arena = Arena::navigation();
+        let robot = RobotModel::khepera_ii();
+        let world = World::new(arena.clone(), robot.clone(), 1).unwrap();
+        let nominal = camera_for(&world, 640, 15.0);
+        let camera = optics.view(&nominal, arena.width_mm, arena.height_mm);
+        let mut frame = world.render(&nominal, &optics);
+        let seen = look(&frame, &camera);
+        assert!(seen.robot.is_some());
+        seen.erase_robot(&mut frame);
+        // Nothing over the body is brighter than the floor beside it (the
+        // marker is white) or darker (the body is red).
+        let (c, r) = camera.to_pixel(arena.start.point());
+        let reach = (robot.radius_mm / camera.mm_per_px()).ceil() as i64;
+        let patch = |dc0: i64| {
+            let mut grey: Vec<u32> = (-reach..=reach)
+                .flat_map(|dr| (-reach..=reach).map(move |dc| (dc, dr)))
+                .map(|(dc, dr)| {
+                    frame
+                        .get_pixel((c as i64 + dc0 + dc) as u32, (r as i64 + dr) as u32)
+                        .0
+                })
+                .map(|p| p.iter().map(|&v| u32::from(v)).sum::<u32>() / 3)
+                .collect();
+            grey.sort_unstable();
+            (grey[0], grey[grey.len() - 1])
+        };
+        let (body, floor) = (patch(0), patch(3 * reach));
+        assert!(
+            body.1 <= floor.1 + 4 && body.0 + 4 >= floor.0,
+            "grey over the painted-out robot {body:?}, over the floor beside it {floor:?}"
+        );
+    }
+}

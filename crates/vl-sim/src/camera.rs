@@ -1,7 +1,7 @@
 //! The overhead camera: renders the arena and the robot, seen from above.
 
 use image::{Rgb, RgbImage};
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
 use vl_core::{Calibration, CalibrationError, CameraModel, DotTarget, Point, Shape};
@@ -301,53 +301,71 @@ fn finish(image: &mut RgbImage, optics: &Optics, time_s: f64) {
     }
 }
 
-/// A separable Gaussian blur of standard deviation `sigma` px, edges clamped.
+/// A separable Gaussian blur of standard deviation `sigma` px, edges
+/// clamped, on the image's raw bytes (a pixel's channels side by side).
 fn blur(image: &mut RgbImage, sigma: f64) {
-    let radius = (3.0 * sigma).ceil() as i64;
-    let weights: Vec<f32> = (-radius..=radius)
-        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp() as f32)
+    let radius = (3.0 * sigma).ceil() as usize;
+    let weights: Vec<f32> = (0..=2 * radius)
+        .map(|k| {
+            let i = k as f64 - radius as f64;
+            (-(i * i) / (2.0 * sigma * sigma)).exp() as f32
+        })
         .collect();
     let total: f32 = weights.iter().sum();
-    let (w, h) = (i64::from(image.width()), i64::from(image.height()));
-    for (dc, dr) in [(1, 0), (0, 1)] {
-        let source = image.clone();
-        for r in 0..h {
-            for c in 0..w {
-                let mut acc = [0f32; 3];
-                for (k, weight) in weights.iter().enumerate() {
-                    let off = k as i64 - radius;
-                    let sc = (c + off * dc).clamp(0, w - 1) as u32;
-                    let sr = (r + off * dr).clamp(0, h - 1) as u32;
-                    let px = source.get_pixel(sc, sr);
-                    for ch in 0..3 {
-                        acc[ch] += weight * f32::from(px[ch]);
-                    }
-                }
-                let px = image.get_pixel_mut(c as u32, r as u32);
+    let weights: Vec<f32> = weights.iter().map(|w| w / total).collect();
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    // Along rows, then along columns: `step` bytes between neighbours,
+    // `len` of them in a line, `lines` lines `stride` bytes apart.
+    for (step, len, stride, lines) in [(3, w, 3 * w, h), (3 * w, h, 3, w)] {
+        let source = image.as_raw().clone();
+        let out: &mut [u8] = image;
+        for line in 0..lines {
+            let base = line * stride;
+            for i in 0..len {
                 for ch in 0..3 {
-                    px[ch] = (acc[ch] / total).round().clamp(0.0, 255.0) as u8;
+                    let mut acc = 0f32;
+                    for (k, weight) in weights.iter().enumerate() {
+                        let j = (i + k).saturating_sub(radius).min(len - 1);
+                        acc += weight * f32::from(source[base + j * step + ch]);
+                    }
+                    // Rounded half up: `as` truncates what is never negative.
+                    out[base + i * step + ch] = (acc.clamp(0.0, 255.0) + 0.5) as u8;
                 }
             }
         }
     }
 }
 
-/// Darkens towards the bottom-right corner and adds per-pixel noise.
+/// Darkens towards the bottom-right corner and adds per-pixel noise: a
+/// sensor's noise on every channel of every pixel, 15 times a second, is
+/// too many Gaussian draws to make one by one, so each pixel takes one
+/// random word and three draws from a table of them.
 fn shade(image: &mut RgbImage, optics: &Optics, seed: u64) {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);
-    let (w, h) = (f64::from(image.width()), f64::from(image.height()));
+    let table = gaussian_table();
+    let noise = optics.noise as f32;
+    let (w, h) = (image.width() as f32, image.height() as f32);
+    let gradient = optics.lighting_gradient as f32;
     for (c, r, px) in image.enumerate_pixels_mut() {
-        let along = (f64::from(c) / w + f64::from(r) / h) / 2.0;
-        let gain = 1.0 - optics.lighting_gradient * along;
-        for ch in px.0.iter_mut() {
-            let noise = if optics.noise > 0.0 {
-                optics.noise * gaussian(&mut rng)
-            } else {
-                0.0
-            };
-            *ch = (f64::from(*ch) * gain + noise).round().clamp(0.0, 255.0) as u8;
+        let along = (c as f32 / w + r as f32 / h) / 2.0;
+        let gain = 1.0 - gradient * along;
+        let word = rng.next_u64();
+        for (k, ch) in px.0.iter_mut().enumerate() {
+            let draw = table[((word >> (16 * k)) & 0xFFFF) as usize];
+            let v = (f32::from(*ch) * gain + noise * draw).clamp(0.0, 255.0);
+            // Rounded half up: `as` truncates what is never negative.
+            *ch = (v + 0.5) as u8;
         }
     }
+}
+
+/// 65,536 standard Gaussian draws, the same on every run.
+fn gaussian_table() -> &'static [f32] {
+    static TABLE: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        let mut rng = Pcg64Mcg::seed_from_u64(0x5EED);
+        (0..1 << 16).map(|_| gaussian(&mut rng) as f32).collect()
+    })
 }
 
 #[cfg(test)]

@@ -136,8 +136,13 @@ impl Look {
         }
         let floor = image::Rgb(sum.map(|v| (v / n) as u8));
         for r in r0..=r1 {
+            // The body's span on this row, its light marker (a hole in
+            // the body's component) included.
+            let row = |c: &i64| (0..h).contains(&r) && is_robot(*c, r);
+            let span = (c0..=c1).find(row).zip((c0..=c1).rev().find(row));
             for c in c0..=c1 {
-                if near_robot(c, r) {
+                let inside = span.is_some_and(|(a, b)| (a..=b).contains(&c));
+                if inside || near_robot(c, r) {
                     frame.put_pixel(c as u32, r as u32, floor);
                 }
             }

@@ -141,19 +141,53 @@ struct Sent {
     scene: Option<Grid>,
 }
 
+/// A frame taken, on its way to the Guests.
+struct Taken {
+    image: RgbImage,
+    seen: Look,
+    started: Instant,
+    capture_us: u64,
+    event: u64,
+}
+
+/// Picks, encodes and publishes the frames Guests get, on a thread of its
+/// own at a lower priority: encoding for people must never hold up the
+/// sightings the control loop steers by.
+struct Publisher {
+    frames: watch::Sender<Option<Bytes>>,
+    policy: FramePolicy,
+    wanted: Arc<AtomicBool>,
+    floor_mm: (f64, f64),
+    model: CameraModel,
+}
+
 impl CameraLoop {
+    /// Takes frames at the camera's rate and locates the robot in each, at
+    /// the control loop's priority: a busy machine slows the video Guests
+    /// see, not the sightings the robot is kept safe by.
     pub(crate) fn run(mut self) {
-        yield_to_control();
         let model = self.camera.model();
         let period = Duration::from_secs_f64(1.0 / model.fps.max(0.1));
-        let mut seq = 0u64;
-        let mut sent: Option<Sent> = None;
+        // One frame waits for the publisher at most; one it has not taken
+        // yet is passed over for the newer.
+        let (to_publish, taken) = std::sync::mpsc::sync_channel::<Taken>(1);
+        let publisher = Publisher {
+            frames: self.frames.clone(),
+            policy: self.policy,
+            wanted: self.wanted.clone(),
+            floor_mm: self.floor_mm,
+            model,
+        };
+        thread::Builder::new()
+            .name("vl-frames".into())
+            .spawn(move || publisher.run(taken))
+            .expect("the OS starts a thread");
         while self.running.load(Ordering::Relaxed) {
             let started = Instant::now();
             let capture_us = self.since.elapsed().as_micros() as u64;
             let event = self.event.load(Ordering::Relaxed);
             match self.camera.grab() {
-                Ok(mut image) => {
+                Ok(image) => {
                     let seen = look(&image, &model);
                     if let Some(pose) = seen.robot {
                         // A full queue means the control loop is behind: this
@@ -163,28 +197,13 @@ impl CameraLoop {
                             pose,
                         });
                     }
-                    if let Some(scene) = self.to_send(&seen, &model, sent.as_ref()) {
-                        if matches!(self.policy, FramePolicy::OnChange { .. }) {
-                            seen.erase_robot(&mut image);
-                        }
-                        match jpeg(&image) {
-                            Ok(bytes) => {
-                                seq += 1;
-                                let header = FrameHeader {
-                                    format: ImageFormat::Jpeg,
-                                    width: image.width() as u16,
-                                    height: image.height() as u16,
-                                    seq,
-                                    event,
-                                    capture_us,
-                                };
-                                let wire = header.encode(&bytes);
-                                self.frames.send_replace(Some(Bytes::from(wire)));
-                                sent = Some(Sent { at: started, scene });
-                            }
-                            Err(e) => warn!("could not encode a camera frame: {e}"),
-                        }
-                    }
+                    let _ = to_publish.try_send(Taken {
+                        image,
+                        seen,
+                        started,
+                        capture_us,
+                        event,
+                    });
                 }
                 Err(e) => {
                     if self.status.borrow().camera == DeviceState::Online {
@@ -202,20 +221,56 @@ impl CameraLoop {
             thread::sleep(period.saturating_sub(started.elapsed()));
         }
     }
+}
+
+impl Publisher {
+    fn run(self, taken: std::sync::mpsc::Receiver<Taken>) {
+        yield_to_control();
+        let mut seq = 0u64;
+        let mut sent: Option<Sent> = None;
+        // Ends when the camera loop does.
+        while let Ok(Taken {
+            mut image,
+            seen,
+            started,
+            capture_us,
+            event,
+        }) = taken.recv()
+        {
+            let Some(scene) = self.to_send(&seen, sent.as_ref()) else {
+                continue;
+            };
+            if matches!(self.policy, FramePolicy::OnChange { .. }) {
+                seen.erase_robot(&mut image);
+            }
+            match jpeg(&image) {
+                Ok(bytes) => {
+                    seq += 1;
+                    let header = FrameHeader {
+                        format: ImageFormat::Jpeg,
+                        width: image.width() as u16,
+                        height: image.height() as u16,
+                        seq,
+                        event,
+                        capture_us,
+                    };
+                    let wire = header.encode(&bytes);
+                    self.frames.send_replace(Some(Bytes::from(wire)));
+                    sent = Some(Sent { at: started, scene });
+                }
+                Err(e) => warn!("could not encode a camera frame: {e}"),
+            }
+        }
+    }
 
     /// Whether the policy sends the frame `seen` was taken of: `Some` of
     /// the scene it shows (for the next comparison) if so.
-    fn to_send(
-        &self,
-        seen: &Look,
-        model: &CameraModel,
-        last: Option<&Sent>,
-    ) -> Option<Option<Grid>> {
+    fn to_send(&self, seen: &Look, last: Option<&Sent>) -> Option<Option<Grid>> {
         let FramePolicy::OnChange { max_interval } = self.policy else {
             return Some(None);
         };
         let (w, h) = self.floor_mm;
-        let scene = seen.obstacles(model, w, h, CHANGE_CELL_MM).ok();
+        let scene = seen.obstacles(&self.model, w, h, CHANGE_CELL_MM).ok();
         let asked = self.wanted.swap(false, Ordering::Relaxed);
         let send = match last {
             None => true,
@@ -234,10 +289,10 @@ impl CameraLoop {
     }
 }
 
-/// How much less the camera thread's work counts than the Host's other
-/// threads, in nice levels: rendering, vision and encoding take
-/// milliseconds a frame, and must not delay commands, pings or the control
-/// loop when the machine is busy.
+/// How much less the frames' work counts than the Host's other threads,
+/// in nice levels: choosing and encoding take milliseconds a frame, and
+/// must not delay commands, pings, sightings or the control loop when the
+/// machine is busy.
 #[cfg(target_os = "linux")]
 const CAMERA_NICE: libc::c_int = 10;
 
