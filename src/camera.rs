@@ -148,7 +148,10 @@ fn calibrate(args: CalibrateArgs) -> Result<ExitCode> {
     let bad = |e: vl_core::CalibrationError| BadInput(e.to_string());
     let (calibration, truth_max_px) = if let Some(path) = &args.points {
         let (w, h) = args.image_size.expect("clap requires --image-size");
-        let pairs: Vec<PointPair> = read_json(path)?;
+        let pairs: Vec<PointPair> = read_json(
+            path,
+            "points file (a JSON list of {\"floor_mm\": [x, y], \"pixel\": [col, row]})",
+        )?;
         let pairs: Vec<(Point, [f64; 2])> = pairs
             .into_iter()
             .map(|p| {
@@ -199,11 +202,13 @@ fn calibrate(args: CalibrateArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+/// Reads `path` as JSON of a `kind` of file, naming the kind and what
+/// writes it when it is not one.
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path, kind: &str) -> Result<T> {
     let text = std::fs::read_to_string(path)
-        .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())))?;
+        .map_err(|e| BadInput(format!("cannot read the {kind} {}: {e}", path.display())))?;
     Ok(serde_json::from_str(&text)
-        .map_err(|e| BadInput(format!("{} is not what was expected: {e}", path.display())))?)
+        .map_err(|e| BadInput(format!("{} is not a {kind}: {e}", path.display())))?)
 }
 
 /// The camera model a calibration file (what `vl camera calibrate -o`
@@ -213,13 +218,16 @@ pub(crate) fn load_calibration(path: &Path) -> Result<CameraModel> {
     struct File {
         camera: CameraModel,
     }
-    let file: File = read_json(path)?;
+    let file: File = read_json(
+        path,
+        "calibration file (as `vl camera calibrate -o` writes)",
+    )?;
     Ok(file.camera)
 }
 
 /// A dot target described in `path`.
 pub(crate) fn load_target(path: &Path) -> Result<DotTarget> {
-    let target: DotTarget = read_json(path)?;
+    let target: DotTarget = read_json(path, "dot target description")?;
     let sized = |v: f64| v.is_finite() && v > 0.0;
     if !(sized(target.radius_mm)
         && sized(target.spacing_mm[0])

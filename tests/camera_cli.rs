@@ -192,7 +192,7 @@ fn bad_calibrations_are_refused_with_the_reason() {
             "--image-size",
             "640x480",
         ],
-        "is not what was expected",
+        "is not a points file",
     );
     refused(
         &[

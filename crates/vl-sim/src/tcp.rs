@@ -91,6 +91,11 @@ pub enum LinkSpecError {
         known = Profile::ALL.iter().map(|p| p.id()).collect::<Vec<_>>().join(", ")
     )]
     Unknown(String),
+    #[error(
+        "there is no file '{0}' (a link profile file; check the path), and no profile is named so ({known})",
+        known = Profile::ALL.iter().map(|p| p.id()).collect::<Vec<_>>().join(", ")
+    )]
+    Missing(String),
     #[error("cannot read link profile {path}: {cause}")]
     Read { path: String, cause: String },
     #[error("link profile {path} is not a link model: {cause}")]
@@ -112,7 +117,13 @@ impl LinkModel {
         }
         let path = Path::new(spec);
         if !path.is_file() {
-            return Err(LinkSpecError::Unknown(spec.to_owned()));
+            // A name with a dot or a slash was meant as a file.
+            let meant_a_file = spec.contains(['.', '/', std::path::MAIN_SEPARATOR]);
+            return Err(if meant_a_file {
+                LinkSpecError::Missing(spec.to_owned())
+            } else {
+                LinkSpecError::Unknown(spec.to_owned())
+            });
         }
         let read = |cause: String| LinkSpecError::Read {
             path: spec.to_owned(),
