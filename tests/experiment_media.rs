@@ -116,3 +116,33 @@ fn a_bad_profile_is_named() {
         "'carrier-pigeon' is neither a link profile",
     );
 }
+
+/// Runs that fail are named with why they ended, in the report and on the
+/// console, and kept out of the figures; no log line's colour codes leak.
+#[test]
+fn failed_runs_are_listed_with_their_reason() {
+    let dir = scratch("experiment-report-failed");
+    let out = vl(&[
+        "experiment",
+        "report",
+        "--out",
+        s(&dir),
+        "--profiles",
+        "lan",
+        "--seeds",
+        "1",
+        "--timeout",
+        "0.5",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stdout.contains("failed: mobile on lan"), "{stdout}");
+    assert!(stdout.contains("left out of the figures"), "{stdout}");
+    assert!(
+        !stderr.contains('\u{1b}'),
+        "colour codes in a log: {stderr}"
+    );
+    let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    assert!(md.contains("### Runs that failed"), "{md}");
+    assert!(md.contains("| stopped") || md.contains("stopped"), "{md}");
+}

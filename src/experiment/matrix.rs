@@ -62,7 +62,8 @@ struct Cell {
     max_event_gap: u64,
     sync_violations: u64,
     tracking_error_mm: Option<vl_core::ErrorMm>,
-    completion_s: f64,
+    /// Of the runs that succeeded: none when none did.
+    completion_s: Option<f64>,
     prediction_error_mm: Option<[f64; 2]>,
     stale_error_mm: Option<[f64; 2]>,
     /// The Guest's ping round trip, median over runs, ms.
@@ -97,7 +98,19 @@ struct Matrix {
 
 impl Report for Matrix {
     fn table(&self) -> Table {
-        headline(&self.cells)
+        let mut table = headline(&self.cells);
+        for r in self.runs.iter().filter(|r| !r.succeeded()) {
+            table = table.note(format!(
+                "failed: {} on {}, {} control, seed {}: {} ({} collisions); left out of the figures",
+                format!("{:?}", r.experiment).to_lowercase(),
+                r.profile.as_deref().unwrap_or("loopback"),
+                format!("{:?}", r.control).to_lowercase(),
+                r.seed,
+                r.end,
+                r.collisions
+            ));
+        }
+        table
             .title(format!(
                 "{} runs on {} in {:.0} s",
                 self.runs.len(),
@@ -147,7 +160,7 @@ fn headline(cells: &[Cell]) -> Table {
                 .map_or("–".into(), |e| format!("{:.1}", e.mean)),
             c.tracking_error_mm
                 .map_or("–".into(), |e| format!("{:.1}", e.max)),
-            format!("{:.1}", c.completion_s),
+            c.completion_s.map_or("–".into(), |s| format!("{s:.1}")),
             pair(c.prediction_error_mm, 0),
             pair(c.prediction_error_mm, 1),
             pair(c.stale_error_mm, 0),
@@ -157,8 +170,12 @@ fn headline(cells: &[Cell]) -> Table {
     table
 }
 
-fn cell(runs: &[&Run]) -> Cell {
-    let first = runs[0];
+/// A cell of the matrix: how many of its runs reached the goal, and the
+/// figures of those that succeeded (a failed run's would mislead; the
+/// report lists it with why it ended).
+fn cell(all: &[&Run]) -> Cell {
+    let first = all[0];
+    let runs: Vec<&Run> = all.iter().copied().filter(|r| r.succeeded()).collect();
     let owned: Vec<Run> = runs.iter().map(|r| (*r).clone()).collect();
     let spreads = |pick: fn(&Run) -> vl_guest::Spread| {
         let s: Vec<vl_guest::Spread> = runs
@@ -173,19 +190,21 @@ fn cell(runs: &[&Run]) -> Cell {
             ]
         })
     };
-    let mut rtts: Vec<f64> = runs.iter().map(|r| r.round_trip_ms.p50).collect();
+    // The link's round trip is the link's, whatever became of the run.
+    let mut rtts: Vec<f64> = all.iter().map(|r| r.round_trip_ms.p50).collect();
     rtts.sort_by(f64::total_cmp);
     Cell {
         experiment: first.experiment,
         profile: first.profile.clone().unwrap_or_default(),
         control: first.control,
-        runs: runs.len(),
-        reached_goal: runs.iter().filter(|r| r.reached_goal).count(),
-        collisions: runs.iter().map(|r| r.collisions).sum(),
-        max_event_gap: runs.iter().map(|r| r.max_event_gap).max().unwrap_or(0),
-        sync_violations: runs.iter().map(|r| r.sync_violations).sum(),
+        runs: all.len(),
+        reached_goal: all.iter().filter(|r| r.reached_goal).count(),
+        collisions: all.iter().map(|r| r.collisions).sum(),
+        max_event_gap: all.iter().map(|r| r.max_event_gap).max().unwrap_or(0),
+        sync_violations: all.iter().map(|r| r.sync_violations).sum(),
         tracking_error_mm: super::overall(&owned, |r| r.tracking_error_mm),
-        completion_s: runs.iter().map(|r| r.completion_s).sum::<f64>() / runs.len() as f64,
+        completion_s: (!runs.is_empty())
+            .then(|| runs.iter().map(|r| r.completion_s).sum::<f64>() / runs.len() as f64),
         prediction_error_mm: spreads(|r| r.prediction_error_mm),
         stale_error_mm: spreads(|r| r.stale_error_mm),
         round_trip_p50_ms: rtts[rtts.len() / 2],
@@ -360,6 +379,7 @@ fn draw(dir: &Path, m: &Matrix, arena: &vl_core::Arena) -> Result<Vec<(String, P
             r.experiment == Which::Teleop
                 && r.profile.as_deref() == Some(profile)
                 && r.control == control
+                && r.succeeded()
         })
     };
     // Tracking and prediction against the round trip, event against time.
@@ -535,6 +555,33 @@ fn write_markdown(dir: &Path, m: &Matrix, pictures: &[(String, PathBuf)]) -> Res
          against it.\n"
     );
     let _ = writeln!(md, "## Results\n\n```\n{}```\n", headline(&m.cells));
+    let failed: Vec<&Run> = m.runs.iter().filter(|r| !r.succeeded()).collect();
+    if !failed.is_empty() {
+        let _ = writeln!(
+            md,
+            "### Runs that failed\n\nCounted in *goal* above, left out of every other figure and \
+             picture:\n"
+        );
+        let mut t = Table::columns(&[
+            "experiment",
+            "profile",
+            "control",
+            "seed",
+            "ended",
+            "collisions",
+        ]);
+        for r in failed {
+            t.row(vec![
+                format!("{:?}", r.experiment).to_lowercase(),
+                r.profile.clone().unwrap_or_default(),
+                format!("{:?}", r.control).to_lowercase(),
+                r.seed.to_string(),
+                r.end.clone(),
+                r.collisions.to_string(),
+            ]);
+        }
+        let _ = writeln!(md, "```\n{t}```\n");
+    }
     let _ = writeln!(
         md,
         "Event-based runs synchronised at every command: **{}**. Collisions over all runs: **{}**.\n",
