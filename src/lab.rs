@@ -200,6 +200,70 @@ fn parse_camera(text: &str) -> Result<CameraDriver, String> {
     }
 }
 
+/// `vl host`: serve the lab, or measure how it answers.
+#[derive(clap::Args)]
+#[command(args_conflicts_with_subcommands = true)]
+pub(crate) struct HostCommand {
+    #[command(subcommand)]
+    tool: Option<HostTool>,
+    #[command(flatten)]
+    serve: HostArgs,
+}
+
+#[derive(clap::Subcommand)]
+enum HostTool {
+    /// Time an operator's command to the feedback of its event on a
+    /// simulated Host (camera streaming) while observers read everything.
+    Bench {
+        /// Observers connected and reading.
+        #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(0..=1000))]
+        observers: u64,
+        /// Commands timed, each sent when the last one's feedback arrived.
+        #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+        commands: u64,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+impl Report for vl_host::OperatorLatency {
+    fn table(&self) -> Table {
+        Table::pairs([
+            ("observers reading", self.observers.to_string()),
+            ("commands timed", self.commands.to_string()),
+            ("p50", format!("{:.2} ms", self.p50_ms)),
+            ("p90", format!("{:.2} ms", self.p90_ms)),
+            ("p99", format!("{:.2} ms", self.p99_ms)),
+            ("max", format!("{:.2} ms", self.max_ms)),
+            (
+                "feedback to the slowest observer",
+                format!("{:.1} /s", self.observer_feedback_hz),
+            ),
+            (
+                "frames to the slowest observer",
+                format!("{:.1} /s", self.observer_frames_hz),
+            ),
+        ])
+        .title("an operator's command to the feedback of its event, on loopback:")
+    }
+}
+
+pub(crate) async fn host_command(command: HostCommand) -> Result<()> {
+    match command.tool {
+        Some(HostTool::Bench {
+            observers,
+            commands,
+            json,
+        }) => {
+            let latency = vl_host::operator_latency(observers as usize, commands as usize)
+                .await
+                .context("the operator bench failed")?;
+            emit(&latency, json)
+        }
+        None => host(command.serve).await,
+    }
+}
+
 #[derive(clap::Args)]
 pub(crate) struct HostArgs {
     /// Which robot to drive.
@@ -234,7 +298,7 @@ pub(crate) struct HostArgs {
     )]
     experiments: Vec<Experiment>,
     /// Address to listen on; port 0 picks a free one.
-    #[arg(long, default_value = "127.0.0.1:7400")]
+    #[arg(long, default_value = "127.0.0.1:7400", value_parser = crate::listen_address)]
     listen: SocketAddr,
     /// Operators must present this token in their hello.
     #[arg(long)]
@@ -251,6 +315,10 @@ pub(crate) struct HostArgs {
     /// seconds (the robot held still) to reconnect; 0 frees them at once.
     #[arg(long, default_value_t = 10.0)]
     grace: f64,
+    /// Leave the robot where a run ends, instead of driving it back to the
+    /// lab's start pose (where nothing may move unattended).
+    #[arg(long)]
+    no_reset: bool,
     /// Run the labs' controlled nets from this folder (as `vl lab nets
     /// --out DIR` writes them) instead of the built-in ones.
     #[arg(long)]
@@ -449,6 +517,9 @@ pub(crate) struct RunArgs {
     /// Give up a headless run (stop watching, as an observer) after this many seconds.
     #[arg(long, default_value_t = 60.0)]
     timeout: f64,
+    /// Where a headless run drives to, x,y mm (default: the arena's goal).
+    #[arg(long, allow_hyphen_values = true)]
+    goal: Option<vl_core::Point>,
 }
 
 pub(crate) fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
@@ -501,6 +572,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
         },
         frames: args.frames.policy()?,
         nets: args.nets,
+        reset: !args.no_reset,
         ..HostConfig::default()
     };
     // A folder of nets that cannot run is the user's to fix, before anything starts.
@@ -631,21 +703,45 @@ pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Resul
     if args.headless {
         let script = script(&args.run, args.token, !args.json);
         if role == Role::Observer {
-            let watched = runtime
-                .block_on(vl_guest::watch(&args.connect, &script))
+            let watched = interruptible(runtime, vl_guest::watch(&args.connect, &script))?
                 .map_err(guest_error)?;
             emit(&watched, args.json)?;
             return Ok(ExitCode::SUCCESS);
         }
-        let report = runtime
-            .block_on(scripted(&args.connect, &script))
-            .map_err(guest_error)?;
+        let report =
+            interruptible(runtime, scripted(&args.connect, &script))?.map_err(guest_error)?;
         return finish(&report, args.json);
     }
     let pad = gamepad(&args.gamepad, args.dead_man)?;
     let _entered = runtime.enter();
-    vl_guest::run_window(&args.connect, role, args.token, pad).map_err(guest_error)?;
+    let shown = vl_guest::run_window(&args.connect, role, args.token, pad);
+    // The window is gone and with it its connection: give the goodbye
+    // time to leave, so an operator's role is free at once.
+    std::thread::sleep(GOODBYE_WAIT);
+    shown.map_err(guest_error)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// How long a Guest that ends lets its connection's goodbye go out.
+const GOODBYE_WAIT: Duration = Duration::from_millis(300);
+
+/// Runs a headless Guest until it ends or Ctrl-C; on Ctrl-C its connection
+/// is dropped, which closes the WebSocket (a goodbye: the Host frees the
+/// operator's role at once), and the Guest exits with 130.
+fn interruptible<T>(
+    runtime: &tokio::runtime::Runtime,
+    guest: impl std::future::Future<Output = T>,
+) -> Result<T> {
+    runtime.block_on(async {
+        tokio::select! {
+            done = guest => Ok(done),
+            _ = tokio::signal::ctrl_c() => {
+                tokio::time::sleep(GOODBYE_WAIT).await;
+                eprintln!("vl guest: interrupted; said goodbye to the Host");
+                std::process::exit(130);
+            }
+        }
+    })
 }
 
 pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<ExitCode> {
@@ -671,7 +767,7 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
     }
     if args.headless || !has_display {
         let script = script(&args.run, None, !args.json);
-        let report = runtime.block_on(scripted(&url, &script))?;
+        let report = interruptible(runtime, scripted(&url, &script))??;
         return finish(&report, args.json);
     }
     eprintln!("vl demo: simulated lab at {url}");
@@ -693,6 +789,7 @@ async fn scripted(url: &str, script: &Script) -> Result<RunReport, ScriptError> 
 fn script(run: &RunArgs, token: Option<String>, progress: bool) -> Script {
     Script {
         experiment: run.experiment,
+        goal: run.goal.map(vl_core::Goal::at),
         token,
         timeout: Duration::from_secs_f64(run.timeout.clamp(0.0, 1e6)),
         progress,

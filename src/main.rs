@@ -38,7 +38,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Serve the lab to Guests over WebSocket (on the lab machine).
-    Host(Box<lab::HostArgs>),
+    Host(Box<lab::HostCommand>),
     /// Open the Guest window on a Host (on the user's desktop).
     Guest(lab::GuestArgs),
     /// Run a Host on the simulated lab and a Guest against it, in one process.
@@ -89,6 +89,18 @@ impl std::fmt::Display for BadInput {
 }
 
 impl std::error::Error for BadInput {}
+
+/// Parses an address to listen on, suggesting the form when it is not one
+/// (`localhost` is a name, not an address and port).
+fn listen_address(text: &str) -> Result<std::net::SocketAddr, String> {
+    text.parse().map_err(|_| {
+        let port = text.rsplit_once(':').map_or("7400", |(_, p)| p);
+        format!(
+            "'{text}' is not an address and port: give 127.0.0.1:{port} for this machine only, \
+             or 0.0.0.0:{port} for every network it is on"
+        )
+    })
+}
 
 /// Parses a [`Named`] value by its id, listing the ids in `--help` and in
 /// the error for one that names nothing.
@@ -147,6 +159,8 @@ fn main() -> ExitCode {
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
         )
         .with_writer(std::io::stderr)
+        // Colour codes only where a terminal shows them, not in a log file.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     match run(Cli::parse()) {
         Ok(code) => code,
@@ -164,8 +178,8 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> Result<ExitCode> {
     let runtime = || tokio::runtime::Runtime::new().context("cannot start the async runtime");
     match cli.command {
-        Command::Host(args) => runtime()?
-            .block_on(lab::host(*args))
+        Command::Host(command) => runtime()?
+            .block_on(lab::host_command(*command))
             .map(|()| ExitCode::SUCCESS),
         Command::Guest(args) => lab::guest(&runtime()?, args),
         Command::Demo(args) => lab::demo(&runtime()?, args),

@@ -79,7 +79,41 @@ fn an_unreachable_host_is_a_clear_error_said_once() {
         said.contains("vl: cannot connect to ws://127.0.0.1:9: connection refused: is a vl Host listening there?"),
         "{said}"
     );
-    assert_eq!(said.matches("refused").count(), 1, "{said}");
+    // Tried again with back-off, each attempt shown, the error said once.
+    assert!(said.contains("trying again"), "{said}");
+    assert_eq!(said.matches("vl: cannot connect").count(), 1, "{said}");
+}
+
+#[test]
+fn weak_error_lines_name_what_is_wrong_and_what_to_do() {
+    refused(
+        &["host", "--listen", "localhost"],
+        "'localhost' is not an address and port: give 127.0.0.1:7400",
+    );
+    refused(
+        &["media", "--listen", "localhost:7500"],
+        "give 127.0.0.1:7500 for this machine only",
+    );
+    refused(
+        &["media", "--profile", "nosuch.json"],
+        "there is no file 'nosuch.json' (a link profile file",
+    );
+    // Something that answers HTTP is no vl Host: said at once, not retried.
+    let web = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let url = format!("ws://{}", web.local_addr().unwrap());
+    std::thread::spawn(move || {
+        use std::io::{Read, Write};
+        for stream in web.incoming().flatten().take(4) {
+            let mut stream = stream;
+            let mut request = [0u8; 2048];
+            let _ = stream.read(&mut request);
+            let _ = stream.write_all(b"HTTP/1.0 200 OK\r\nContent-Length: 2\r\n\r\nhi");
+        }
+    });
+    let out = vl(&["guest", "--connect", &url, "--headless"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("not a vl Host"), "{}", stderr(&out));
+    assert!(!stderr(&out).contains("HTTP version"), "{}", stderr(&out));
 }
 
 #[test]

@@ -8,7 +8,7 @@ use vl_core::{
     Arena, CameraModel, Definition, Drive, EndReason, ErrorCode, ErrorMm, Experiment,
     ExperimentInfo, Goal, GuestMessage, HostMessage, Material, MountedLab, Named, Obstacle,
     PathAnalysis, Point, Pose, PoseSource, RobotModel, Role, SensorMount, Shape, SpeedResponse,
-    Summary, WheelSpeeds, Wire,
+    Stopper, Summary, WheelSpeeds, Wire,
 };
 
 fn num() -> impl Strategy<Value = f64> {
@@ -234,6 +234,16 @@ fn summary() -> BoxedStrategy<Summary> {
         pose(),
         (num(), num()),
         (any::<u64>(), any::<u64>(), any::<u64>()),
+        proptest::option::of(
+            (any::<bool>(), any::<u64>()).prop_map(|(operator, session)| Stopper {
+                role: if operator {
+                    Role::Operator
+                } else {
+                    Role::Observer
+                },
+                session,
+            }),
+        ),
         (
             proptest::option::of(num()),
             proptest::option::of(num()),
@@ -249,6 +259,7 @@ fn summary() -> BoxedStrategy<Summary> {
                 final_pose,
                 (seconds, distance_mm),
                 (collisions, max_event_gap, sync_violations),
+                stopped_by,
                 (closest_mm, speed_kept, pose_source, path),
             )| {
                 Summary {
@@ -265,6 +276,7 @@ fn summary() -> BoxedStrategy<Summary> {
                     path,
                     max_event_gap,
                     sync_violations,
+                    stopped_by,
                 }
             },
         )
@@ -323,6 +335,7 @@ fn guest_message() -> impl Strategy<Value = GuestMessage> {
         definition().prop_map(|definition| GuestMessage::Define { definition }),
         Just(GuestMessage::Start),
         Just(GuestMessage::Stop),
+        Just(GuestMessage::Reset),
         Just(GuestMessage::EmergencyStop),
         (any::<u64>(), proptest::option::of(any::<u64>()), drive())
             .prop_map(|(event, seen, drive)| GuestMessage::Command { event, seen, drive }),

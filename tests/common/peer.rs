@@ -9,6 +9,9 @@ use tokio::net::TcpStream;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream, connect_async};
 
+/// A Guest's control period: how long after a feedback its next command goes.
+const CONTROL_PERIOD: Duration = Duration::from_millis(10);
+
 pub type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
 
 pub struct Peer {
@@ -118,16 +121,50 @@ impl Peer {
         self.expect("welcome").await
     }
 
-    /// Mounts `experiment` and starts a run on the defaults.
+    /// Mounts `experiment` and starts a run on the defaults, once the lab
+    /// is ready (after a run the robot first drives back to its start).
     pub async fn start(&mut self, experiment: &str) {
         self.send(json!({"type": "mount", "experiment": experiment}))
             .await;
         self.expect("mounted").await;
-        self.send(json!({"type": "start"})).await;
-        self.expect("started").await;
+        self.start_run().await;
     }
 
-    /// Sends command `event` (`drive` holds its speeds) and waits for its feedback.
+    /// Starts a run of what is mounted, once the lab is ready.
+    pub async fn start_run(&mut self) {
+        for _ in 0..30 {
+            self.send(json!({"type": "start"})).await;
+            let answer = self
+                .next_of_any(&["started", "error"], Duration::from_secs(5))
+                .await
+                .expect("an answer to start");
+            if answer["type"] == "started" {
+                return;
+            }
+            let getting_ready = answer["message"]
+                .as_str()
+                .is_some_and(|m| m.contains("getting ready"));
+            assert!(getting_ready, "start refused: {answer}");
+            self.ready().await;
+        }
+        panic!("the lab never got ready");
+    }
+
+    /// Waits until the Host says the lab is ready.
+    pub async fn ready(&mut self) {
+        loop {
+            let status = self
+                .next_of("status", Duration::from_secs(60))
+                .await
+                .expect("the lab ready within a minute");
+            if status["lab"] == "ready" {
+                return;
+            }
+        }
+    }
+
+    /// Sends command `event` (`drive` holds its speeds), waits for its
+    /// feedback and then a control period, as a Guest's loop does.
     pub async fn command(&mut self, event: u64, drive: Value) -> Value {
         let mut message = drive;
         message["type"] = json!("command");
@@ -136,6 +173,8 @@ impl Peer {
         loop {
             let f = self.expect("feedback").await;
             if f["event"].as_u64() >= Some(event) {
+                // A Guest's next command comes a control period later.
+                tokio::time::sleep(CONTROL_PERIOD).await;
                 return f;
             }
         }

@@ -27,7 +27,8 @@ pub use contract::experiment::{Definition, Experiment, ExperimentInfo, Goal, LOO
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::protocol::{
     DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HostMessage,
-    MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Role, Summary, WATCHDOG, Wire,
+    MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Readiness, Role, Stopper, Summary, WATCHDOG,
+    Wire,
 };
 pub use contract::session::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use design::{DesignError, Designed, Interleaving, LabDesign, Rule, design};

@@ -12,11 +12,11 @@ use std::time::{Duration, Instant};
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Vec2};
 use vl_core::{
-    Action, Definition, Drive, Goal, GuestMessage, Joystick, LOOKAHEAD_MM, PROTOCOL_VERSION, Point,
-    Pose, Role, Shape, Teleop, Vector, arena_of, disc_cspace,
+    Action, Definition, DeviceState, Drive, Experiment, Goal, GuestMessage, Joystick, LOOKAHEAD_MM,
+    PROTOCOL_VERSION, Point, Pose, Readiness, Role, Shape, Teleop, Vector, arena_of, disc_cspace,
 };
 
-use crate::client::{ClientError, Connection, Incoming, open};
+use crate::client::{ClientError, Connection, open};
 use crate::gamepad::Pad;
 use crate::netview;
 use crate::route::{Route, check_path, drag_path};
@@ -41,6 +41,14 @@ const FLOOR_COLOUR: Color32 = Color32::from_rgb(226, 224, 218);
 const OBSTACLE_COLOUR: Color32 = Color32::from_rgb(45, 48, 56);
 /// The C-space overlay: translucent, so the image shows through.
 const CSPACE_COLOUR: Color32 = Color32::from_rgba_premultiplied(60, 20, 80, 80);
+/// The path the robot drove in this run.
+const TRAIL_COLOUR: Color32 = Color32::from_rgb(0, 170, 150);
+/// Trail points kept, and how far apart, mm.
+const TRAIL_KEPT: usize = 20_000;
+const TRAIL_STEP_MM: f64 = 2.0;
+/// How often an idle window repaints (the ages it shows move), and one in use.
+const IDLE_REPAINT: Duration = Duration::from_millis(250);
+const BUSY_REPAINT: Duration = Duration::from_millis(30);
 
 /// Who the window connects to, and as whom.
 #[derive(Debug, Clone)]
@@ -85,6 +93,10 @@ pub struct GuestApp {
     pad: Option<(Box<dyn Pad>, bool)>,
     /// The stick that drove in the last frame, from whichever device.
     asked: Joystick,
+    /// Where the robot went in the run under way or the last, as reported.
+    trail: Vec<Point>,
+    /// The session's welcomes this window has caught up with.
+    welcomes: u64,
 }
 
 impl GuestApp {
@@ -118,6 +130,8 @@ impl GuestApp {
             teleop: Teleop::default(),
             pad: None,
             asked: Joystick::default(),
+            trail: Vec::new(),
+            welcomes: 0,
         })
     }
 
@@ -150,12 +164,10 @@ impl GuestApp {
     /// Starts over on a new connection: what the old one knew is gone.
     fn reconnect(&mut self) {
         self.session = Session::default();
-        self.texture = None;
-        self.plan_note = None;
-        self.cspace = None;
+        self.forget_the_host();
         match GuestApp::connect(&self.address) {
             Ok(connection) => self.connection = connection,
-            Err(e) => self.session.apply(Incoming::Unreachable(e)),
+            Err(e) => self.session.link = Link::Closed(e.to_string()),
         }
     }
 
@@ -175,24 +187,82 @@ impl GuestApp {
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
             });
-        egui::Panel::bottom("joystick").show(ui, |ui| self.joystick(ui));
+        if self.session.is_operator() {
+            egui::Panel::bottom("joystick").show(ui, |ui| self.joystick(ui));
+        } else if self.session.role.is_some() {
+            egui::Panel::bottom("watching").show(ui, |ui| {
+                ui.label(
+                    "You are watching: only the operator drives. STOP (Space) is for everyone.",
+                );
+            });
+        }
+        if self.session.lab.is_some() || self.session.frame.is_some() {
+            egui::Panel::bottom("view legend").show(ui, |ui| self.view_legend(ui));
+        }
         egui::CentralPanel::default().show(ui, |ui| self.camera_view(ui));
-        ctx.request_repaint_after(Duration::from_millis(30));
+        // Repaint when something moves; an idle window only keeps its
+        // ages current (input repaints at once by itself).
+        let moving = self
+            .session
+            .robot
+            .as_ref()
+            .is_some_and(|r| r.wheels.left_mm_s.abs().max(r.wheels.right_mm_s.abs()) > 0.5);
+        let busy = self.session.running
+            || !self.session.ready()
+            || moving
+            || self.asked != Joystick::default()
+            || self.session.link != Link::Open;
+        ctx.request_repaint_after(if busy { BUSY_REPAINT } else { IDLE_REPAINT });
     }
 
     /// Takes in everything that arrived since the last frame.
     fn pump(&mut self) {
         let was_mounted = self.session.lab.clone();
+        let was_running = self.session.running;
         while let Ok(incoming) = self.connection.incoming.try_recv() {
             self.session.apply(incoming);
         }
+        if self.session.welcomes != self.welcomes {
+            // A new connection, perhaps to a Host started again.
+            self.welcomes = self.session.welcomes;
+            self.forget_the_host();
+        }
         if let Some(lab) = &self.session.lab
             && Some(lab) != was_mounted.as_ref()
-            && let Some(goal) = lab.arena.goal
         {
-            self.goal.x_mm = goal.x_mm;
-            self.goal.y_mm = goal.y_mm;
+            // Another experiment: nothing of the last one's stays on screen.
+            self.plan_note = None;
+            self.trail.clear();
+            self.dragging_sample = None;
+            if let Some(goal) = lab.arena.goal {
+                self.goal.x_mm = goal.x_mm;
+                self.goal.y_mm = goal.y_mm;
+            }
         }
+        if self.session.running && !was_running && self.session.done.is_none() {
+            self.trail.clear();
+        }
+        if let Some(robot) = self.session.robot.as_ref().filter(|_| self.session.running) {
+            let p = robot.pose.point();
+            if self.trail.len() < TRAIL_KEPT
+                && self
+                    .trail
+                    .last()
+                    .is_none_or(|q| q.distance(p) >= TRAIL_STEP_MM)
+            {
+                self.trail.push(p);
+            }
+        }
+    }
+
+    /// Forgets what the window drew from a Host's word.
+    fn forget_the_host(&mut self) {
+        self.texture = None;
+        self.plan_note = None;
+        self.cspace = None;
+        self.dragging_sample = None;
+        self.drag_from = None;
+        self.trail.clear();
     }
 
     /// Sends the next event-paced command: from the joystick or arrow keys
@@ -275,7 +345,9 @@ impl GuestApp {
         let mut reconnect = false;
         let mut stop = false;
         let s = &self.session;
-        ui.horizontal_wrapped(|ui| {
+        // One line, whatever the width: the link's state gives way (cut
+        // short, whole on hover) to the STOP button and the figures.
+        ui.horizontal(|ui| {
             let button = egui::Button::new(
                 egui::RichText::new("STOP (Space)")
                     .strong()
@@ -286,56 +358,29 @@ impl GuestApp {
                 .add_enabled(s.link == Link::Open, button)
                 .on_hover_text("Emergency stop: the robot stops and the run ends (Space or Esc)")
                 .clicked();
-            match &s.link {
-                Link::Connecting => {
-                    ui.colored_label(
-                        Color32::YELLOW,
-                        format!("connecting to {}…", self.address.url),
-                    );
-                }
-                Link::Open => {
-                    ui.colored_label(Color32::GREEN, "connected");
-                }
-                Link::Reconnecting { attempt, reason } => {
-                    ui.colored_label(
-                        Color32::YELLOW,
-                        format!("link lost ({reason}): reconnecting, attempt {attempt}…"),
-                    );
-                }
-                Link::Closed(why) => {
-                    reconnect = ui.button("Reconnect").clicked();
-                    ui.colored_label(Color32::RED, format!("not connected: {why}"));
-                }
+            if matches!(s.link, Link::Closed(_)) {
+                reconnect = ui.button("Reconnect").clicked();
             }
-            if let (Some(role), Some(id)) = (s.role, s.session_id) {
-                ui.label(format!("{role} · session {id}"));
-            }
-            if let Some(devices) = s.devices {
-                use vl_core::DeviceState::Offline;
-                if devices.robot == Offline {
-                    ui.colored_label(Color32::RED, "robot offline: the Host is retrying");
-                }
-                if devices.camera == Offline {
-                    ui.colored_label(Color32::YELLOW, "camera offline");
-                }
-            }
-            if let Some((pad, _)) = &self.pad {
-                ui.label(format!("stick: {}", pad.name()));
-            }
-            ui.separator();
-            let rtt = &s.round_trips;
-            match rtt.last() {
-                Some(last) => ui.label(format!(
-                    "RTT {last:.1} ms (p50 {:.1}, p99 {:.1}, n {})",
-                    rtt.quantile(0.5).unwrap_or(last),
-                    rtt.quantile(0.99).unwrap_or(last),
-                    rtt.count()
-                )),
-                None => ui.label("RTT –"),
-            };
-            ui.separator();
-            let acknowledged = s.robot.as_ref().map_or(0, |r| r.event);
-            ui.label(format!("event {acknowledged} (sent {})", s.sent_event));
+            ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
+                let acknowledged = s.robot.as_ref().map_or(0, |r| r.event);
+                ui.label(format!("event {acknowledged} (sent {})", s.sent_event));
+                ui.separator();
+                let rtt = &s.round_trips;
+                ui.label(match rtt.last() {
+                    Some(last) => format!(
+                        "RTT {last:.1} ms (p99 {:.1})",
+                        rtt.quantile(0.99).unwrap_or(last)
+                    ),
+                    None => "RTT –".into(),
+                });
+                ui.separator();
+                ui.with_layout(egui::Layout::left_to_right(egui::Align::Center), |ui| {
+                    let line = self.status_line();
+                    let full = line.text.clone();
+                    ui.add(egui::Label::new(line).truncate())
+                        .on_hover_text(full);
+                });
+            });
         });
         if reconnect {
             self.reconnect();
@@ -343,6 +388,60 @@ impl GuestApp {
         if stop {
             self.emergency_stop();
         }
+    }
+
+    /// The link's state, who this Guest is, and what of the lab is not
+    /// as it should be, coloured by how much it matters.
+    fn status_line(&self) -> egui::text::LayoutJob {
+        let s = &self.session;
+        let mut job = egui::text::LayoutJob::default();
+        let mut add = |text: &str, colour: Color32| {
+            if !job.text.is_empty() {
+                job.append(" · ", 0.0, egui::TextFormat::default());
+            }
+            job.append(
+                text,
+                0.0,
+                egui::TextFormat {
+                    color: colour,
+                    ..Default::default()
+                },
+            );
+        };
+        match &s.link {
+            Link::Connecting => add(
+                &format!("connecting to {}…", self.address.url),
+                Color32::YELLOW,
+            ),
+            Link::Unreachable { attempt, reason } => add(
+                &format!("{reason}; trying again (attempt {attempt})"),
+                Color32::YELLOW,
+            ),
+            Link::Open => add("connected", Color32::GREEN),
+            Link::Reconnecting { attempt, reason } => add(
+                &format!("link lost ({reason}): reconnecting, attempt {attempt}…"),
+                Color32::YELLOW,
+            ),
+            Link::Closed(why) => add(&format!("not connected: {why}"), Color32::RED),
+        }
+        if let (Some(role), Some(id)) = (s.role, s.session_id) {
+            add(&format!("{role}, session {id}"), Color32::GRAY);
+        }
+        if let Some(devices) = s.devices {
+            if devices.robot == DeviceState::Offline {
+                add("robot offline: the Host is retrying", Color32::RED);
+            }
+            if devices.camera == DeviceState::Offline {
+                add("camera offline", Color32::YELLOW);
+            }
+            if devices.lab == Readiness::GettingReady {
+                add("lab getting ready", Color32::YELLOW);
+            }
+        }
+        if let Some((pad, _)) = &self.pad {
+            add(&format!("stick: {}", pad.name()), Color32::GRAY);
+        }
+        job
     }
 
     fn controls(&mut self, ui: &mut egui::Ui) {
@@ -363,80 +462,52 @@ impl GuestApp {
                 });
             }
         }
-        if self.session.lab.is_some() {
+        if let Some(lab) = self.session.lab.clone() {
             ui.separator();
-            ui.heading("Define");
-            ui.horizontal(|ui| {
-                ui.label("goal x");
-                ui.add(egui::DragValue::new(&mut self.goal.x_mm).suffix(" mm"));
-                ui.label("y");
-                ui.add(egui::DragValue::new(&mut self.goal.y_mm).suffix(" mm"));
-            });
-            ui.horizontal(|ui| {
-                ui.label("within");
-                ui.add(
-                    egui::DragValue::new(&mut self.goal.tolerance_mm)
-                        .range(1.0..=200.0)
-                        .suffix(" mm"),
+            if self.session.is_operator() {
+                self.define_panel(ui, lab.experiment);
+            } else {
+                ui.heading("Definition");
+                ui.label(
+                    match self.session.definition.as_ref().and_then(|d| d.goal) {
+                        Some(goal) => format!(
+                            "the operator's goal: ({:.0}, {:.0}) mm",
+                            goal.x_mm, goal.y_mm
+                        ),
+                        None => "the operator has defined nothing yet".into(),
+                    },
                 );
-                if ui
-                    .add_enabled(
-                        self.session.allows(Action::Define),
-                        egui::Button::new("Define"),
-                    )
-                    .clicked()
-                {
-                    self.define();
-                }
-            });
-            ui.horizontal(|ui| {
-                ui.checkbox(&mut self.drawing, "draw obstacles")
-                    .on_hover_text(
-                        "drag on the view to draw a virtual obstacle the robot must keep out of",
-                    );
-                let drawn = self.virtual_obstacles.len();
-                if drawn > 0 {
-                    ui.label(format!("{drawn} drawn"));
-                    if ui.button("Clear").clicked() {
-                        self.virtual_obstacles.clear();
-                    }
-                }
-            });
-            if let Some(note) = &self.plan_note {
-                ui.label(note);
             }
-            self.settings_panel(ui);
             ui.separator();
             ui.heading("Execute");
-            ui.horizontal(|ui| {
-                // Defining is optional: a run may start on the defaults.
-                if ui
-                    .add_enabled(
-                        self.session.allows(Action::Start),
-                        egui::Button::new("Start"),
-                    )
-                    .clicked()
-                {
-                    self.connection.send(GuestMessage::Start);
-                }
-                if ui
-                    .add_enabled(self.session.allows(Action::Stop), egui::Button::new("Stop"))
-                    .clicked()
-                {
-                    self.connection.send(GuestMessage::Stop);
-                }
-            });
+            if self.session.is_operator() {
+                self.execute_buttons(ui);
+            }
+            if !self.session.ready() {
+                ui.colored_label(
+                    Color32::YELLOW,
+                    "Getting ready: the robot drives back to its start pose.",
+                );
+            }
             if let Some(done) = &self.session.done {
+                let goal = match (lab.experiment, done.reached_goal) {
+                    (_, true) => ", goal reached",
+                    (Experiment::Navigation, false) => ", goal not reached",
+                    (Experiment::Teleoperation, false) => "",
+                };
                 ui.label(format!(
-                    "last run: {}, {} events, {:.1} s, {:.0} mm driven",
-                    done.reason, done.events, done.seconds, done.distance_mm
+                    "Last run: {}{goal} after {:.1} s, {:.0} mm driven, {} contacts.",
+                    done.reason, done.seconds, done.distance_mm, done.collisions
                 ));
+                if let Some(who) = done.stopped_by {
+                    ui.label(format!("The emergency stop was pressed by {who}."));
+                }
             }
         }
         if self.session.role.is_some() {
             ui.separator();
             egui::CollapsingHeader::new("Lab net")
-                .default_open(true)
+                .default_open(false)
                 .show(ui, |ui| netview::show(ui, &self.session.nets));
         }
         if let Some(robot) = &self.session.robot {
@@ -472,8 +543,93 @@ impl GuestApp {
         }
     }
 
+    /// The operator's definition: the goal (and in navigation the path
+    /// planned to it), virtual obstacles, the settings.
+    fn define_panel(&mut self, ui: &mut egui::Ui, experiment: Experiment) {
+        ui.heading("Define");
+        ui.label(match experiment {
+            Experiment::Navigation => {
+                "Click the view for a goal; Define plans the path the robot follows."
+            }
+            Experiment::Teleoperation => "Click the view for a target to drive to (optional).",
+        });
+        ui.horizontal(|ui| {
+            ui.label("goal x");
+            ui.add(egui::DragValue::new(&mut self.goal.x_mm).suffix(" mm"));
+            ui.label("y");
+            ui.add(egui::DragValue::new(&mut self.goal.y_mm).suffix(" mm"));
+        });
+        ui.horizontal(|ui| {
+            ui.label("within");
+            ui.add(
+                egui::DragValue::new(&mut self.goal.tolerance_mm)
+                    .range(1.0..=200.0)
+                    .suffix(" mm"),
+            );
+            if ui
+                .add_enabled(
+                    self.session.allows(Action::Define),
+                    egui::Button::new("Define"),
+                )
+                .clicked()
+            {
+                self.define();
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut self.drawing, "draw obstacles")
+                .on_hover_text(
+                    "drag on the view to draw a virtual obstacle the robot must keep out of",
+                );
+            let drawn = self.virtual_obstacles.len();
+            if drawn > 0 {
+                ui.label(format!("{drawn} drawn"));
+                if ui.button("Clear").clicked() {
+                    self.virtual_obstacles.clear();
+                }
+            }
+        });
+        if let Some(note) = &self.plan_note {
+            ui.label(note);
+        }
+        self.settings_panel(ui);
+    }
+
+    /// Start, Stop, and the drive back to the start pose.
+    fn execute_buttons(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            // Defining is optional: a run may start on the defaults.
+            if ui
+                .add_enabled(
+                    self.session.allows(Action::Start),
+                    egui::Button::new("Start"),
+                )
+                .clicked()
+            {
+                self.connection.send(GuestMessage::Start);
+            }
+            if ui
+                .add_enabled(self.session.allows(Action::Stop), egui::Button::new("Stop"))
+                .clicked()
+            {
+                self.connection.send(GuestMessage::Stop);
+            }
+            let between_runs = !self.session.nets.allows(Action::Stop) && self.session.ready();
+            if ui
+                .add_enabled(between_runs, egui::Button::new("Back to start"))
+                .on_hover_text(
+                    "the robot drives back to the lab's start pose, as it does after every run",
+                )
+                .clicked()
+            {
+                self.connection.send(GuestMessage::Reset);
+            }
+        });
+    }
+
     /// Plans a path from the robot to the goal on the lab's map and defines
-    /// both; without a path the goal alone is defined, to drive by hand.
+    /// both. Navigation needs the path; in teleoperation, without one, the
+    /// goal alone is defined as a target to drive to by hand.
     fn define(&mut self) {
         let Some(lab) = &self.session.lab else { return };
         let start = self
@@ -492,8 +648,14 @@ impl GuestApp {
                 ));
                 route.definition
             }
+            Err(e) if lab.experiment == Experiment::Navigation => {
+                self.plan_note = Some(format!(
+                    "Not defined: no path to the goal ({e}). Move the goal, or clear the obstacles drawn."
+                ));
+                return;
+            }
             Err(e) => {
-                self.plan_note = Some(format!("no path ({e}): drive by hand"));
+                self.plan_note = Some(format!("no path ({e}): drive there by hand"));
                 Definition {
                     goal: Some(self.goal),
                     virtual_obstacles: obstacles,
@@ -506,11 +668,12 @@ impl GuestApp {
     }
 
     fn joystick(&mut self, ui: &mut egui::Ui) {
+        // Smaller in a small window, so the view keeps the room.
+        let size = JOYSTICK_PX.min(ui.ctx().content_rect().height() * 0.17);
         ui.horizontal(|ui| {
-            let (response, painter) =
-                ui.allocate_painter(Vec2::splat(JOYSTICK_PX), Sense::drag());
+            let (response, painter) = ui.allocate_painter(Vec2::splat(size), Sense::drag());
             let centre = response.rect.center();
-            let radius = JOYSTICK_PX / 2.0 - 4.0;
+            let radius = size / 2.0 - 4.0;
             if let Some(pointer) = response.interact_pointer_pos().filter(|_| response.dragged()) {
                 let offset = (pointer - centre) / radius;
                 let offset = if offset.length() > 1.0 { offset.normalized() } else { offset };
@@ -576,6 +739,7 @@ impl GuestApp {
             (None, None) => {
                 let waiting = match &self.session.link {
                     Link::Connecting => "connecting to the Host…",
+                    Link::Unreachable { .. } => "no Host answers yet: trying again…",
                     Link::Reconnecting { .. } => "reconnecting to the Host…",
                     Link::Open => "mount an experiment to see the lab",
                     Link::Closed(_) => "not connected to a Host",
@@ -584,7 +748,7 @@ impl GuestApp {
                 return;
             }
         };
-        let available = ui.available_size() - Vec2::new(0.0, 20.0);
+        let available = ui.available_size();
         let scale = (available.x / image_size.x)
             .min(available.y / image_size.y)
             .max(0.1);
@@ -611,7 +775,7 @@ impl GuestApp {
                 {
                     self.virtual_obstacles.push(shape);
                 }
-            } else if !self.session.running {
+            } else if !self.session.running && self.session.is_operator() {
                 if response.drag_started() {
                     // A drag that starts on the defined path bends it.
                     self.dragging_sample = self.sample_near(origin, &View::new(rect, lab));
@@ -648,9 +812,24 @@ impl GuestApp {
         if let Some(lab) = self.session.lab.clone() {
             let view = View::new(rect, &lab);
             if self.show_cspace {
+                // One mesh of the cells' quads, edge to edge: no seams where
+                // outlines or anti-aliased edges would overlap.
+                let mut mesh = egui::Mesh::default();
                 for cell in self.cspace_boxes(&lab) {
-                    view.fill(&painter, cell, CSPACE_COLOUR);
+                    let corners = view.outline_of(cell);
+                    let first = mesh.vertices.len() as u32;
+                    for &corner in &corners {
+                        mesh.colored_vertex(corner, CSPACE_COLOUR);
+                    }
+                    for k in 1..corners.len().saturating_sub(1) as u32 {
+                        mesh.add_triangle(first, first + k, first + k + 1);
+                    }
                 }
+                painter.add(mesh);
+            }
+            if self.trail.len() > 1 {
+                let line: Vec<Pos2> = self.trail.iter().map(|&p| view.to_screen(p)).collect();
+                painter.line(line, Stroke::new(1.5, TRAIL_COLOUR));
             }
             self.overlay(&painter, &view, &lab);
             for obstacle in &self.virtual_obstacles {
@@ -676,13 +855,27 @@ impl GuestApp {
                 painter.line(line, Stroke::new(1.5, PATH_COLOUR.gamma_multiply(0.6)));
             }
         }
+    }
+
+    /// Under the view: what is overlaid, what its colours mean, and how
+    /// old what is shown is.
+    fn view_legend(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
             ui.checkbox(&mut self.show_cspace, "C-space")
                 .on_hover_text("where the robot's centre may not go: the map and the virtual obstacles grown by its radius");
             ui.checkbox(&mut self.show_ghost, "predictive display")
                 .on_hover_text("a ghost of the robot where it is now, predicted from the last feedback and the commands sent since; the solid outline is where the last feedback put it");
-            ui.label(self.ages());
         });
+        ui.horizontal_wrapped(|ui| {
+            legend(ui, ROBOT_COLOUR, "robot, as last reported");
+            if self.show_ghost {
+                legend(ui, GHOST_COLOUR, "ghost: where it is now, predicted");
+            }
+            legend(ui, TRAIL_COLOUR, "driven");
+            legend(ui, PATH_COLOUR, "path");
+            legend(ui, GOAL_COLOUR, "goal");
+        });
+        ui.label(self.ages());
         ui.label(match &self.session.frame {
             Some(frame) => format!(
                 "frame {} · event {} · captured at {:.2} s",
@@ -808,10 +1001,23 @@ impl GuestApp {
                 format!("{:.2} s", old.as_secs_f64())
             })
         };
+        // A frame is as old as the pose plus how much earlier (on the
+        // Host's clock) it was captured than the pose was measured.
+        let frame_old = match (
+            &self.session.robot,
+            &self.session.frame,
+            self.session.feedback_at,
+        ) {
+            (Some(robot), Some(frame), Some(at)) => {
+                let earlier_s = (robot.t_ms - frame.header.capture_us as f64 / 1e3).max(0.0) / 1e3;
+                let old = now.saturating_duration_since(at) + travelled;
+                format!("{:.2} s", old.as_secs_f64() + earlier_s)
+            }
+            _ => age(self.session.frame_at),
+        };
         let mut text = format!(
-            "pose {} old · frame {} old",
-            age(self.session.feedback_at),
-            age(self.session.frame_at)
+            "pose {} old · frame {frame_old} old",
+            age(self.session.feedback_at)
         );
         if let (true, Some(ghost), Some(robot)) = (
             self.show_ghost,
@@ -829,12 +1035,14 @@ impl GuestApp {
     fn overlay(&self, painter: &egui::Painter, view: &View, lab: &MountedLab) {
         let to_screen = |p: Point| view.to_screen(p);
         let px_per_mm = view.px_per_mm;
-        // The goal being chosen, before it is defined.
-        painter.circle_stroke(
-            to_screen(self.goal.point()),
-            4.0,
-            Stroke::new(1.5, GOAL_COLOUR.gamma_multiply(0.7)),
-        );
+        // The goal being chosen, before it is defined (the operator's only).
+        if self.session.is_operator() {
+            painter.circle_stroke(
+                to_screen(self.goal.point()),
+                4.0,
+                Stroke::new(1.5, GOAL_COLOUR.gamma_multiply(0.7)),
+            );
+        }
         if let Some(definition) = &self.session.definition {
             let path: Vec<Pos2> = definition.path.iter().map(|&p| to_screen(p)).collect();
             painter.line(path, Stroke::new(2.0, PATH_COLOUR));
@@ -870,6 +1078,8 @@ impl GuestApp {
             }
             if self.show_ghost
                 && let Some(ghost) = self.session.predicted(Instant::now())
+                // On the reported pose, it would hide it.
+                && ghost.point().distance(robot.pose.point()) >= 1.0
             {
                 let at = to_screen(ghost.point());
                 // An outline only: the camera's image of the robot stays visible.
@@ -880,6 +1090,13 @@ impl GuestApp {
             }
         }
     }
+}
+
+/// A colour swatch and what it stands for, in the view's legend.
+fn legend(ui: &mut egui::Ui, colour: Color32, what: &str) {
+    let (rect, _) = ui.allocate_exact_size(Vec2::new(14.0, 4.0), Sense::hover());
+    ui.painter().rect_filled(rect, 1.0, colour);
+    ui.label(what);
 }
 
 /// The accessible name of the camera view, by which tests find it.

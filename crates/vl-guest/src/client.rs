@@ -28,8 +28,13 @@ pub enum Incoming {
     Frame(FrameHeader, Vec<u8>),
     /// A round trip (ping → pong) took this many ms.
     RoundTrip(f64),
-    /// The Host could not be reached.
-    Unreachable(ClientError),
+    /// The Host has not been reached yet: trying again (attempt 1, 2, …)
+    /// in `wait`.
+    Unreachable {
+        error: ClientError,
+        attempt: u32,
+        wait: Duration,
+    },
     /// The link dropped: connecting again (attempt 1, 2, …) in `wait`.
     Reconnecting {
         attempt: u32,
@@ -70,19 +75,57 @@ fn check_url(url: &str) -> Result<(), ClientError> {
     }
 }
 
-/// What went wrong connecting, said once: tungstenite's errors repeat
-/// their cause in their source chain.
+/// What went wrong, in words, said once: tungstenite's errors repeat
+/// their cause in their source chain, and the system's carry error numbers.
 fn cause(error: &tungstenite::Error) -> String {
+    use tungstenite::Error;
     match error {
-        tungstenite::Error::Io(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => {
+        Error::Io(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => {
             "connection refused: is a vl Host listening there?".into()
         }
-        tungstenite::Error::Io(e) => e.to_string(),
-        tungstenite::Error::Http(response) => format!(
-            "it answered HTTP {} instead of a WebSocket handshake: is it a vl Host?",
+        Error::Io(e) if e.kind() == std::io::ErrorKind::ConnectionReset => {
+            "the connection was reset: the Host stopped or the network dropped it".into()
+        }
+        Error::Io(e) => e.kind().to_string(),
+        Error::Http(response) => format!(
+            "it answered HTTP {} instead of a WebSocket handshake: it is not a vl Host (check the address and port)",
             response.status()
         ),
+        e if answered_not_as_a_host(e) => {
+            "it answered, but it is not a vl Host (no WebSocket handshake): check the address and port"
+                .into()
+        }
+        Error::Protocol(_) => "the connection closed before the handshake ended".into(),
         other => other.to_string(),
+    }
+}
+
+/// Whether `error` is an answer no vl Host gives (plain HTTP, another
+/// protocol), rather than a connection that failed or was cut short (a
+/// relay closing during an outage).
+fn answered_not_as_a_host(error: &tungstenite::Error) -> bool {
+    use tungstenite::error::ProtocolError as P;
+    match error {
+        tungstenite::Error::Http(_) | tungstenite::Error::HttpFormat(_) => true,
+        tungstenite::Error::Protocol(p) => matches!(
+            p,
+            P::WrongHttpMethod
+                | P::WrongHttpVersion
+                | P::MissingConnectionUpgradeHeader
+                | P::MissingUpgradeWebSocketHeader
+                | P::SecWebSocketAcceptKeyMismatch
+        ),
+        _ => false,
+    }
+}
+
+/// What ended a connection that was up, in words.
+fn lost(error: &tungstenite::Error) -> String {
+    use tungstenite::Error;
+    match error {
+        Error::Io(_) => format!("connection lost: {}", cause(error)),
+        Error::Protocol(_) => "the Host went without closing the connection".into(),
+        other => format!("connection lost: {other}"),
     }
 }
 
@@ -97,7 +140,25 @@ impl Connection {
     pub fn send(&self, message: GuestMessage) {
         let _ = self.outgoing.send(message);
     }
+
+    /// Says goodbye and waits (a second at most) until the connection has
+    /// closed, so the Host frees an operator's role at once rather than
+    /// holding it for a link that dropped.
+    pub async fn close(mut self) {
+        let _ = self.outgoing.send(GuestMessage::Bye);
+        let _ = tokio::time::timeout(GOODBYE, async {
+            while let Some(incoming) = self.incoming.recv().await {
+                if matches!(incoming, Incoming::Closed(_)) {
+                    return;
+                }
+            }
+        })
+        .await;
+    }
 }
+
+/// How long a goodbye may take.
+const GOODBYE: Duration = Duration::from_secs(1);
 
 /// The first wait before reconnecting; it doubles up to `RECONNECT_MAX`.
 const RECONNECT_FIRST: Duration = Duration::from_millis(250);
@@ -112,6 +173,14 @@ enum Ended {
     Deliberately(String),
     /// The link dropped or the Host went: worth connecting again.
     Lost(String),
+}
+
+/// How a connection that was served ended, and whether a Host welcomed
+/// the Guest on it (a relay whose Host is down accepts and closes at once:
+/// that is no link up, and the back-off goes on growing).
+struct Served {
+    ended: Ended,
+    welcomed: bool,
 }
 
 /// What a connection remembers across reconnections.
@@ -145,14 +214,16 @@ impl Remembered {
 
 /// Opens a connection to the Host at `url` (ws://host:port): connecting
 /// and then serving the socket run on a task of the current tokio runtime.
-/// Messages sent before the connection is up wait for it. Only an address
-/// that cannot be a Host's is refused here.
+/// Only an address that cannot be a Host's is refused here.
 ///
-/// A connection that drops once it was up is made again by itself, with
-/// back-off, saying the last hello again (with the operator's `resume`
-/// from its welcome, so the Host gives the role and the run back);
-/// [`Incoming::Reconnecting`] says so meanwhile. What is sent while the
-/// link is down is dropped: a command must not arrive late.
+/// A Host that cannot be reached is tried again with back-off
+/// ([`Incoming::Unreachable`] says so each time); messages sent before the
+/// first connection is up wait for it. A connection that drops once it
+/// was up is made again the same way, saying the last hello again (with
+/// the operator's `resume` from its welcome, so the Host gives the role
+/// and the run back); [`Incoming::Reconnecting`] says so meanwhile. What
+/// is sent while an established link is down is dropped: a command must
+/// not arrive late. [`Connection::close`] says goodbye.
 pub fn open(url: &str) -> Result<Connection, ClientError> {
     check_url(url)?;
     let (outgoing, mut to_send) = mpsc::unbounded_channel::<GuestMessage>();
@@ -160,47 +231,60 @@ pub fn open(url: &str) -> Result<Connection, ClientError> {
     let url = url.to_owned();
     tokio::spawn(async move {
         let mut remembered = Remembered::default();
-        let mut ever_up = false;
+        let mut ever_welcomed = false;
         let mut attempt = 0u32;
         let mut wait = RECONNECT_FIRST;
         loop {
             let why = match connect(&url).await {
-                Err(cause) if !ever_up => {
-                    let _ = deliver.send(Incoming::Unreachable(ClientError::Connect {
-                        url: url.clone(),
-                        cause,
-                    }));
+                // Something answered that is no vl Host: trying again
+                // will not change that.
+                Err(Refusal::NotAHost(cause)) => {
+                    let _ = deliver.send(Incoming::Closed(format!("{url}: {cause}")));
                     return;
                 }
-                Err(cause) => cause,
+                Err(Refusal::Unreachable(cause)) => cause,
                 Ok(ws) => {
-                    let again = if ever_up {
-                        remembered.hello_again()
-                    } else {
-                        None
-                    };
-                    ever_up = true;
-                    match serve(ws, again, &mut remembered, &mut to_send, &deliver).await {
+                    let again = remembered.hello_again();
+                    let served = serve(ws, again, &mut remembered, &mut to_send, &deliver).await;
+                    if served.welcomed {
+                        // The link was up: back-off starts afresh.
+                        ever_welcomed = true;
+                        attempt = 0;
+                        wait = RECONNECT_FIRST;
+                    }
+                    match served.ended {
                         Ended::Deliberately(reason) => {
                             let _ = deliver.send(Incoming::Closed(reason));
                             return;
                         }
-                        Ended::Lost(reason) => {
-                            // The link was up: back-off starts afresh.
-                            attempt = 0;
-                            wait = RECONNECT_FIRST;
-                            reason
-                        }
+                        Ended::Lost(reason) => reason,
                     }
                 }
             };
             attempt += 1;
-            let _ = deliver.send(Incoming::Reconnecting {
-                attempt,
-                wait,
-                reason: why,
-            });
-            if !drop_while_down(&mut to_send, wait).await {
+            let told = if ever_welcomed {
+                Incoming::Reconnecting {
+                    attempt,
+                    wait,
+                    reason: why,
+                }
+            } else {
+                Incoming::Unreachable {
+                    error: ClientError::Connect {
+                        url: url.clone(),
+                        cause: why,
+                    },
+                    attempt,
+                    wait,
+                }
+            };
+            if deliver.send(told).is_err() {
+                return;
+            }
+            // Until a hello has gone out, what the Guest sent waits for
+            // the first connection; after, it would arrive late.
+            let keep = remembered.hello.is_none();
+            if !wait_while_down(&mut to_send, wait, keep).await {
                 let _ = deliver.send(Incoming::Closed("closed by the Guest".into()));
                 return;
             }
@@ -210,25 +294,43 @@ pub fn open(url: &str) -> Result<Connection, ClientError> {
     Ok(Connection { outgoing, incoming })
 }
 
+/// Why a connection was not made.
+enum Refusal {
+    /// Nothing answered (yet): worth trying again.
+    Unreachable(String),
+    /// Something answered, not as a vl Host does.
+    NotAHost(String),
+}
+
 /// Connects to `url`, within the connect timeout.
-async fn connect(url: &str) -> Result<Socket, String> {
+async fn connect(url: &str) -> Result<Socket, Refusal> {
     let config = WebSocketConfig::default()
         .max_message_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)))
         .max_frame_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)));
     let connecting = tokio_tungstenite::connect_async_with_config(url, Some(config), true);
     match tokio::time::timeout(CONNECT_TIMEOUT, connecting).await {
         Ok(Ok((ws, _))) => Ok(ws),
-        Ok(Err(e)) => Err(cause(&e)),
-        Err(_) => Err(format!("no answer within {} s", CONNECT_TIMEOUT.as_secs())),
+        Ok(Err(e)) if answered_not_as_a_host(&e) => Err(Refusal::NotAHost(cause(&e))),
+        Ok(Err(e)) => Err(Refusal::Unreachable(cause(&e))),
+        Err(_) => Err(Refusal::Unreachable(format!(
+            "no answer within {} s",
+            CONNECT_TIMEOUT.as_secs()
+        ))),
     }
 }
 
 /// Waits `wait` with the link down, dropping what the Guest sends
-/// meanwhile; false when the Guest closed or said bye.
-async fn drop_while_down(
+/// meanwhile unless told to `keep` it; false when the Guest closed or
+/// said bye.
+async fn wait_while_down(
     to_send: &mut mpsc::UnboundedReceiver<GuestMessage>,
     wait: Duration,
+    keep: bool,
 ) -> bool {
+    if keep {
+        tokio::time::sleep(wait).await;
+        return !to_send.is_closed();
+    }
     let until = tokio::time::Instant::now() + wait;
     loop {
         tokio::select! {
@@ -249,6 +351,21 @@ async fn serve(
     remembered: &mut Remembered,
     to_send: &mut mpsc::UnboundedReceiver<GuestMessage>,
     deliver: &mpsc::UnboundedSender<Incoming>,
+) -> Served {
+    let mut welcomed = false;
+    let ended = carry(ws, first, remembered, to_send, deliver, &mut welcomed).await;
+    Served { ended, welcomed }
+}
+
+/// Carries messages both ways on `ws` until it ends; `welcomed` is set
+/// when the Host welcomes the Guest.
+async fn carry(
+    ws: Socket,
+    first: Option<GuestMessage>,
+    remembered: &mut Remembered,
+    to_send: &mut mpsc::UnboundedReceiver<GuestMessage>,
+    deliver: &mpsc::UnboundedSender<Incoming>,
+    welcomed: &mut bool,
 ) -> Ended {
     let (mut sink, mut source) = ws.split();
     let clock = Instant::now();
@@ -282,7 +399,7 @@ async fn serve(
             },
             received = source.next() => match received {
                 None => return Ended::Lost("the Host closed the connection".to_owned()),
-                Some(Err(e)) => return Ended::Lost(format!("connection lost: {e}")),
+                Some(Err(e)) => return Ended::Lost(lost(&e)),
                 Some(Ok(Message::Text(t))) => match HostMessage::decode(t.as_str()) {
                     Ok(HostMessage::Ping { t }) => {
                         if let Err(e) = sink.send(text(&GuestMessage::Pong { t })).await {
@@ -295,8 +412,11 @@ async fn serve(
                     }
                     Ok(HostMessage::Bye) => return Ended::Lost("the Host said bye".to_owned()),
                     Ok(message) => {
-                        if let HostMessage::Welcome { resume: Some(secret), .. } = &message {
-                            remembered.resume = Some(secret.clone());
+                        if let HostMessage::Welcome { resume, .. } = &message {
+                            *welcomed = true;
+                            if let Some(secret) = resume {
+                                remembered.resume = Some(secret.clone());
+                            }
                         }
                         let _ = deliver.send(Incoming::Message(Box::new(message)));
                     }
@@ -308,6 +428,10 @@ async fn serve(
                     }
                     Err(e) => tracing::warn!("ignoring a frame from the Host: {e}"),
                 },
+                // A relay in front of the Host says why it closes.
+                Some(Ok(Message::Close(Some(frame)))) if !frame.reason.is_empty() => {
+                    return Ended::Lost(frame.reason.to_string());
+                }
                 Some(Ok(Message::Close(_))) => return Ended::Lost("the Host closed the connection".to_owned()),
                 Some(Ok(_)) => {}
             },

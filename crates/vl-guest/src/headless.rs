@@ -32,6 +32,8 @@ pub struct Script {
     pub progress: bool,
     /// How an operator's commands are paced (teleoperation).
     pub control: ControlMode,
+    /// How long an unreachable Host is tried again before giving up.
+    pub connect_within: Duration,
 }
 
 impl Default for Script {
@@ -43,6 +45,7 @@ impl Default for Script {
             timeout: Duration::from_secs(60),
             progress: false,
             control: ControlMode::Event,
+            connect_within: Duration::from_secs(10),
         }
     }
 }
@@ -116,25 +119,30 @@ pub enum ScriptError {
     Timeout { step: &'static str, seconds: f64 },
     #[error("the {0} experiment's arena suggests no goal and none was given")]
     NoGoal(Experiment),
-    #[error("no path to the goal: {0}")]
+    #[error("no path to the goal")]
     NoPath(#[from] ArenaPlanError),
 }
 
-/// Says on stderr that the link dropped, when progress is shown.
+/// Says on stderr that the Host does not answer or the link dropped,
+/// when progress is shown.
 fn tell(progress: bool, incoming: &Incoming) {
-    if let (
-        true,
+    if !progress {
+        return;
+    }
+    match incoming {
         Incoming::Reconnecting {
             attempt,
             reason,
             wait,
-        },
-    ) = (progress, incoming)
-    {
-        eprintln!(
+        } => eprintln!(
             "link lost ({reason}): reconnecting in {:.2} s, attempt {attempt}",
             wait.as_secs_f64()
-        );
+        ),
+        Incoming::Unreachable { attempt, wait, .. } => eprintln!(
+            "no Host answers yet: trying again in {:.2} s, attempt {attempt}",
+            wait.as_secs_f64()
+        ),
+        _ => {}
     }
 }
 
@@ -145,6 +153,8 @@ struct Scripted {
     progress: bool,
     deadline: Instant,
     timeout: Duration,
+    /// Until when an unreachable Host is tried again.
+    connect_by: Instant,
 }
 
 impl Scripted {
@@ -181,7 +191,9 @@ impl Scripted {
                     }
                     other => self.session.apply(Incoming::Message(Box::new(other))),
                 },
-                Some(Incoming::Unreachable(e)) => return Err(ScriptError::Connect(e)),
+                Some(Incoming::Unreachable { error, .. }) if Instant::now() >= self.connect_by => {
+                    return Err(ScriptError::Connect(error));
+                }
                 Some(Incoming::Closed(reason)) => return Err(ScriptError::Closed { step, reason }),
                 Some(other) => {
                     tell(self.progress, &other);
@@ -193,11 +205,11 @@ impl Scripted {
         Ok(())
     }
 
-    /// The run's report, once its summary has come; says bye.
-    fn report(&mut self, route: Route) -> Report {
+    /// The run's report, once its summary has come; says goodbye, so the
+    /// role is free for the next operator at once.
+    async fn report(mut self, route: Route) -> Report {
         let summary = self.session.done.clone().expect("done");
-        self.connection.send(GuestMessage::Bye);
-        Report {
+        let report = Report {
             reached_goal: summary.reached_goal,
             reason: summary.reason,
             events: summary.events,
@@ -217,7 +229,9 @@ impl Scripted {
             prediction_error_mm: self.session.prediction_error,
             stale_error_mm: self.session.stale_error,
             gaps: std::mem::take(&mut self.session.gaps),
-        }
+        };
+        self.connection.close().await;
+        report
     }
 }
 
@@ -236,6 +250,7 @@ async fn welcomed(url: &str, role: Role, script: &Script) -> Result<Scripted, Sc
         progress: script.progress,
         deadline: Instant::now() + script.timeout,
         timeout: script.timeout,
+        connect_by: Instant::now() + script.connect_within,
     };
     guest
         .until("say hello", |_, _| {}, |s| s.role.is_some())
@@ -260,8 +275,12 @@ async fn started(url: &str, script: &Script) -> Result<(Scripted, Route, Goal), 
         (None, Some(p)) => Goal::at(p),
         (None, None) => return Err(ScriptError::NoGoal(script.experiment)),
     };
+    // A lab getting ready drives the robot back to its start first: the
+    // path is planned from where it will start.
     guest
-        .until("see the robot", ignore, |s| s.robot.is_some())
+        .until("see the robot at a ready lab", ignore, |s| {
+            s.robot.is_some() && s.devices.is_some() && s.ready()
+        })
         .await?;
     let start = guest.session.robot.as_ref().expect("seen").pose;
     let route = Route::plan(&lab, start, goal, Vec::new(), &Settings::default())?;
@@ -315,7 +334,7 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
         other => other?,
     }
 
-    Ok(guest.report(route))
+    Ok(guest.report(route).await)
 }
 
 /// How close to a waypoint the operator moves on to the next, mm.
@@ -386,7 +405,6 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
             incoming = guest.connection.incoming.recv() => match incoming {
                 None => return Err(ScriptError::Closed { step: "drive", reason: "the connection task ended".into() }),
                 Some(Incoming::Closed(reason)) => return Err(ScriptError::Closed { step: "drive", reason }),
-                Some(Incoming::Unreachable(e)) => return Err(ScriptError::Connect(e)),
                 Some(other) => {
                     tell(script.progress, &other);
                     guest.session.apply(other);
@@ -454,7 +472,7 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
             );
         }
     }
-    Ok(guest.report(route))
+    Ok(guest.report(route).await)
 }
 
 /// What an observer saw.
@@ -520,12 +538,17 @@ pub async fn watch(url: &str, script: &Script) -> Result<Watched, ScriptError> {
             done.reason, done.seconds, done.events
         );
     }
-    guest.connection.send(GuestMessage::Bye);
+    let experiment = guest.session.lab.as_ref().map(|lab| lab.experiment);
+    let (frames, round_trip_ms) = (
+        guest.session.frames_received,
+        RoundTripMs::from(&guest.session.round_trips),
+    );
+    guest.connection.close().await;
     Ok(Watched {
-        experiment: guest.session.lab.as_ref().map(|lab| lab.experiment),
+        experiment,
         run,
         feedback,
-        frames: guest.session.frames_received,
-        round_trip_ms: RoundTripMs::from(&guest.session.round_trips),
+        frames,
+        round_trip_ms,
     })
 }

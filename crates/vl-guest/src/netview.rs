@@ -1,36 +1,92 @@
-//! A small live view of the lab's net: one row per statechart (and one for
-//! the controllers' monitor places) with its places as circles, a token in
-//! each marked one, and the net's events as boxes, green while a transition
-//! carrying the event is enabled. Arcs are left out: a composed net has
-//! dozens, and what a user follows is which state each part of the lab is
-//! in and what may happen next.
+//! A small live view of the lab's net, in users' words: one row per part of
+//! the lab (each statechart) with its states as circles and a token in the
+//! one it is in, then what may happen next, marked by a green dot. The
+//! controllers' monitor places are counted, not drawn: they are how the
+//! rules are kept, not states a user follows. Arcs are left out: a composed
+//! net has dozens.
 
-use egui::{Align2, Color32, FontId, Pos2, Sense, Stroke, Vec2};
+use egui::{Color32, Sense, Stroke, Vec2};
 use vl_core::Supervisor;
 
-const ROW: f32 = 26.0;
-const PLACE: f32 = 7.0;
-const LABEL_WIDTH: f32 = 78.0;
-const PLACE_STEP: f32 = 92.0;
-const EVENT_WIDTH: f32 = 84.0;
+const ROW: f32 = 18.0;
+const PLACE: f32 = 6.0;
+const LABEL_WIDTH: f32 = 70.0;
 
-/// A place's chart and state, from its name (`execute.running`, or a
-/// controller's monitor place such as `monitor: cspace.building + … <= 1`).
-fn split(name: &str) -> (&str, &str) {
-    match name.strip_prefix("monitor: ") {
-        Some(rule) => ("controller", rule),
-        None => name.split_once('.').unwrap_or(("", name)),
+/// A place's chart and state, from its name (`execute.running`), or none
+/// for a controller's monitor place (`monitor: cspace.building + … <= 1`).
+fn split(name: &str) -> Option<(&str, &str)> {
+    if name.starts_with("monitor: ") {
+        return None;
+    }
+    Some(name.split_once('.').unwrap_or(("", name)))
+}
+
+/// A part of the lab (a statechart) in users' words.
+fn chart_words(chart: &str) -> &str {
+    match chart {
+        "mount" => "lab",
+        "cspace" => "C-space",
+        "define" => "definition",
+        "execute" => "run",
+        "planning" => "path",
+        "following" => "robot",
+        "field" => "force field",
+        "teleoperation" => "robot",
+        other => other,
+    }
+}
+
+/// A state of a part of the lab in users' words.
+fn state_words<'a>(chart: &str, state: &'a str) -> &'a str {
+    match (chart, state) {
+        ("mount", "idle") => "free",
+        ("cspace" | "field", "absent") | ("planning", "unplanned") => "none",
+        ("field", "waiting") => "waits for the C-space",
+        (_, "building") => "being made",
+        ("planning", "planning") => "being planned",
+        ("define", "default") => "defaults",
+        ("following", "following") => "follows the path",
+        ("teleoperation", "driving") => "driven by the operator",
+        (_, state) => state,
+    }
+}
+
+/// An event in users' words.
+pub(crate) fn event_words(event: &str) -> &str {
+    match event {
+        "cspace_built" => "C-space made",
+        "path_planned" => "path planned",
+        "field_built" => "force field made",
+        "command" => "drive",
+        "finish" => "run ends",
+        "release" => "leave",
+        other => other,
+    }
+}
+
+/// A place: a circle, with a token when it is marked.
+fn place(ui: &mut egui::Ui, marked: bool, ink: Color32) {
+    let (rect, _) = ui.allocate_exact_size(Vec2::splat(2.0 * PLACE + 2.0), Sense::hover());
+    ui.painter()
+        .circle_stroke(rect.center(), PLACE, Stroke::new(1.2, ink));
+    if marked {
+        ui.painter().circle_filled(rect.center(), PLACE * 0.45, ink);
     }
 }
 
 pub(crate) fn show(ui: &mut egui::Ui, nets: &Supervisor) {
     let (net, marking) = nets.marked();
     let mut rows: Vec<(&str, Vec<(&str, bool)>)> = Vec::new();
+    let mut rules = 0;
     // A place fused from parallel places of several charts (its name lists
     // them) shows in each chart's row, with the same token.
     for (place, &tokens) in net.places.iter().zip(&marking.0) {
         for member in place.name.split('|') {
-            let (chart, state) = split(member);
+            let Some((chart, state)) = split(member) else {
+                rules += 1;
+                continue;
+            };
+            let (chart, state) = (chart_words(chart), state_words(chart, state));
             let marked = tokens > 0;
             match rows.iter_mut().find(|(c, _)| *c == chart) {
                 Some((_, states)) => states.push((state, marked)),
@@ -45,88 +101,59 @@ pub(crate) fn show(ui: &mut egui::Ui, nets: &Supervisor) {
             continue;
         };
         let on = enabled.contains(&t);
+        let event = event_words(event);
         match events.iter_mut().find(|(e, _)| *e == event) {
             Some((_, enabled)) => *enabled |= on,
             None => events.push((event, on)),
         }
     }
     events.sort_by_key(|(e, _)| *e);
-    let widest = rows.iter().map(|(_, s)| s.len()).max().unwrap_or(1) as f32;
-    let per_row = ((ui.available_width() / EVENT_WIDTH).floor() as usize).max(1);
-    let event_rows = events.len().div_ceil(per_row) as f32;
-    let size = Vec2::new(
-        (LABEL_WIDTH + widest * PLACE_STEP).max(ui.available_width()),
-        (rows.len() as f32 + event_rows) * ROW + 8.0,
-    );
-    let (rect, _) = ui.allocate_exact_size(size, Sense::hover());
-    let painter = ui.painter_at(rect);
     let text = ui.visuals().text_color();
     let faint = ui.visuals().weak_text_color();
-    let font = FontId::proportional(11.0);
-    for (i, (chart, states)) in rows.iter().enumerate() {
-        let y = rect.top() + (i as f32 + 0.5) * ROW;
-        painter.text(
-            Pos2::new(rect.left(), y),
-            Align2::LEFT_CENTER,
-            chart,
-            font.clone(),
-            faint,
-        );
-        for (k, (state, marked)) in states.iter().enumerate() {
-            let centre = Pos2::new(rect.left() + LABEL_WIDTH + PLACE + k as f32 * PLACE_STEP, y);
-            painter.circle_stroke(centre, PLACE, Stroke::new(1.2, text));
-            if *marked {
-                painter.circle_filled(centre, PLACE * 0.45, text);
-            }
-            painter.text(
-                centre + Vec2::new(PLACE + 4.0, 0.0),
-                Align2::LEFT_CENTER,
-                state,
-                font.clone(),
-                if *marked { text } else { faint },
+    // Each part of the lab on a line of its own, its states flowing on as
+    // the panel's width allows.
+    for (chart, states) in &rows {
+        ui.horizontal_wrapped(|ui| {
+            ui.add_sized(
+                [LABEL_WIDTH, ROW],
+                egui::Label::new(egui::RichText::new(*chart).color(faint)),
             );
+            for (state, marked) in states {
+                place(ui, *marked, text);
+                ui.label(egui::RichText::new(*state).color(if *marked { text } else { faint }));
+            }
+        });
+    }
+    ui.horizontal_wrapped(|ui| {
+        for (event, enabled) in &events {
+            let dot = if *enabled {
+                Color32::from_rgb(46, 160, 60)
+            } else {
+                faint.gamma_multiply(0.5)
+            };
+            let (rect, _) = ui.allocate_exact_size(Vec2::splat(10.0), Sense::hover());
+            ui.painter().circle_filled(rect.center(), 4.0, dot);
+            ui.label(egui::RichText::new(*event).color(if *enabled { text } else { faint }));
         }
-    }
-    let top = rect.top() + rows.len() as f32 * ROW + 4.0;
-    for (i, (event, enabled)) in events.iter().enumerate() {
-        let at = Pos2::new(
-            rect.left() + (i % per_row) as f32 * EVENT_WIDTH,
-            top + (i / per_row) as f32 * ROW,
-        );
-        let boxed = egui::Rect::from_min_size(at, Vec2::new(EVENT_WIDTH - 6.0, ROW - 8.0));
-        let (fill, ink) = if *enabled {
-            (Color32::from_rgb(46, 125, 50), Color32::WHITE)
-        } else {
-            (Color32::TRANSPARENT, faint)
-        };
-        painter.rect(
-            boxed,
-            3.0,
-            fill,
-            Stroke::new(1.0, faint),
-            egui::StrokeKind::Inside,
-        );
-        painter.text(
-            boxed.center(),
-            Align2::CENTER_CENTER,
-            event,
-            font.clone(),
-            ink,
-        );
-    }
+    });
     // The same in words, for people who read rather than look (and for tests).
-    let marked: Vec<&str> = net
-        .places
+    let now: Vec<String> = rows
         .iter()
-        .zip(&marking.0)
-        .filter(|(_, n)| **n > 0)
-        .map(|(p, _)| p.id.as_str())
+        .flat_map(|(chart, states)| {
+            states
+                .iter()
+                .filter(|(_, marked)| *marked)
+                .map(move |(state, _)| format!("{chart} {state}"))
+        })
         .collect();
     let enabled: Vec<&str> = events
         .iter()
         .filter(|(_, on)| *on)
         .map(|(e, _)| *e)
         .collect();
-    ui.label(format!("marked: {}", marked.join(", ")));
+    ui.label(format!("now: {}", now.join(", ")));
     ui.label(format!("may happen: {}", enabled.join(", ")));
+    if rules > 0 {
+        ui.weak(format!("{rules} rules of the lab kept by its controller"));
+    }
 }

@@ -8,8 +8,8 @@ use image::RgbaImage;
 use serde::Serialize;
 use vl_core::{
     Action, Definition, DeviceState, Drive, ErrorCode, Experiment, ExperimentInfo, FrameHeader,
-    GuestMessage, HostMessage, ImageFormat, MountedLab, Named, Pose, PoseSource, Role, Summary,
-    Supervisor, WheelSpeeds,
+    GuestMessage, HostMessage, ImageFormat, MountedLab, Named, Pose, PoseSource, Readiness, Role,
+    Summary, Supervisor, WheelSpeeds,
 };
 
 use crate::client::Incoming;
@@ -45,6 +45,8 @@ pub struct RobotState {
 pub struct Devices {
     pub robot: DeviceState,
     pub camera: DeviceState,
+    /// Whether a run may start, or the robot is driving back to its start.
+    pub lab: Readiness,
 }
 
 /// The latest camera image, decoded.
@@ -118,6 +120,11 @@ impl Spread {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Link {
     Connecting,
+    /// The Host has not answered yet: trying again.
+    Unreachable {
+        attempt: u32,
+        reason: String,
+    },
     Open,
     /// The link dropped; the connection is being made again.
     Reconnecting {
@@ -178,6 +185,9 @@ pub struct Session {
     pub nets: Supervisor,
     /// Whether the last state the Host told matched the nets run here.
     pub nets_agree: bool,
+    /// How many welcomes this Guest has had: each is a new connection,
+    /// perhaps to a new Host, and starts what is shown afresh.
+    pub welcomes: u64,
 }
 
 impl Default for Session {
@@ -214,6 +224,7 @@ impl Default for Session {
             nets: Supervisor::new(Experiment::ALL)
                 .expect("the shipped nets are built in and tested"),
             nets_agree: true,
+            welcomes: 0,
         }
     }
 }
@@ -228,8 +239,11 @@ impl Session {
                 self.round_trips.push(ms);
                 self.predictor.round_trip(ms);
             }
-            Incoming::Unreachable(error) => {
-                self.link = Link::Closed(error.to_string());
+            Incoming::Unreachable { error, attempt, .. } => {
+                self.link = Link::Unreachable {
+                    attempt,
+                    reason: error.to_string(),
+                };
                 self.running = false;
             }
             Incoming::Reconnecting {
@@ -255,6 +269,8 @@ impl Session {
                 experiments,
                 ..
             } => {
+                self.forget_the_host();
+                self.welcomes += 1;
                 self.link = Link::Open;
                 self.session_id = Some(session);
                 self.role = Some(role);
@@ -269,6 +285,7 @@ impl Session {
             HostMessage::Mounted(lab) => {
                 self.lab = Some(*lab);
                 self.definition = None;
+                self.done = None;
                 self.errors.clear();
             }
             HostMessage::Defined { definition } => {
@@ -350,12 +367,34 @@ impl Session {
                 self.running = false;
                 self.done = Some(summary);
             }
-            HostMessage::Status { robot, camera } => {
-                self.devices = Some(Devices { robot, camera });
+            HostMessage::Status { robot, camera, lab } => {
+                self.devices = Some(Devices { robot, camera, lab });
             }
             // The connection answers pings and bye itself.
             HostMessage::Ping { .. } | HostMessage::Pong { .. } | HostMessage::Bye => {}
         }
+    }
+
+    /// Forgets everything a Host told: a welcome opens a new connection,
+    /// perhaps to a Host started again whose clocks, frame numbers and
+    /// marking begin anew, so nothing from before may be shown as current.
+    /// A run the link dropped during keeps its record, in case the Host
+    /// gives it back.
+    fn forget_the_host(&mut self) {
+        let fresh = Session::default();
+        self.lab = None;
+        self.definition = None;
+        self.running = false;
+        self.robot = None;
+        self.frame = None;
+        self.errors.clear();
+        self.done = None;
+        self.devices = None;
+        self.predictor = fresh.predictor;
+        self.feedback_at = None;
+        self.frame_at = None;
+        self.nets = fresh.nets;
+        self.nets_agree = true;
     }
 
     fn apply_frame(&mut self, header: FrameHeader, bytes: &[u8]) {
@@ -446,9 +485,17 @@ impl Session {
     }
 
     /// Whether this Guest may ask for `action` now: it is the operator and
-    /// the lab's net, run here from the Host's firings, enables it.
+    /// the lab's net, run here from the Host's firings, enables it; a run
+    /// (and its definition, planned from where the robot stands) waits
+    /// while the lab gets ready.
     pub fn allows(&self, action: Action) -> bool {
-        self.is_operator() && self.nets.allows(action)
+        let waits = matches!(action, Action::Start | Action::Define) && !self.ready();
+        self.is_operator() && self.nets.allows(action) && !waits
+    }
+
+    /// Whether the lab is ready for a run, as the Host last said.
+    pub fn ready(&self) -> bool {
+        self.devices.is_none_or(|d| d.lab == Readiness::Ready)
     }
 }
 

@@ -31,6 +31,7 @@ pub use media::{
 };
 pub use replay::ReplayCamera;
 pub use server::HostConfig;
+pub use server::bench::{BenchError, OperatorLatency, operator_latency};
 
 /// Why a Host could not start.
 #[derive(Debug, thiserror::Error)]

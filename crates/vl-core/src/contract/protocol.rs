@@ -114,6 +114,26 @@ impl std::fmt::Display for EndReason {
     }
 }
 
+/// Whether the lab is ready for a run, as remote labs reset their
+/// equipment between users.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Readiness {
+    #[default]
+    Ready,
+    /// The robot is driving back to the lab's start pose.
+    GettingReady,
+}
+
+impl std::fmt::Display for Readiness {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Readiness::Ready => "ready",
+            Readiness::GettingReady => "getting ready: the robot drives back to its start pose",
+        })
+    }
+}
+
 /// What a finished run achieved.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
@@ -149,6 +169,25 @@ pub struct Summary {
     /// Guest had seen: losses of synchronisation.
     #[serde(default)]
     pub sync_violations: u64,
+    /// Who pressed the emergency stop that ended the run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stopped_by: Option<Stopper>,
+}
+
+/// Who pressed an emergency stop: their role and session.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Stopper {
+    pub role: Role,
+    pub session: u64,
+}
+
+impl std::fmt::Display for Stopper {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.role {
+            Role::Operator => write!(f, "the operator (session {})", self.session),
+            Role::Observer => write!(f, "an observer (session {})", self.session),
+        }
+    }
 }
 
 /// Machine-readable reason in an `error` message.
@@ -230,6 +269,9 @@ pub enum GuestMessage {
     },
     Start,
     Stop,
+    /// Drive the robot back to the lab's start pose, as the Host does by
+    /// itself after every run; the operator's, between runs.
+    Reset,
     /// Stop the robot now and end the run, from anyone welcomed, observers
     /// too; nothing moves until the operator starts a new run.
     EmergencyStop,
@@ -322,6 +364,10 @@ pub enum HostMessage {
     Status {
         robot: DeviceState,
         camera: DeviceState,
+        /// Whether a run may start: not while the robot drives back to
+        /// the start pose after the last one.
+        #[serde(default)]
+        lab: Readiness,
     },
     Bye,
 }
@@ -404,6 +450,7 @@ impl GuestMessage {
             GuestMessage::Define { .. } => "define",
             GuestMessage::Start => "start",
             GuestMessage::Stop => "stop",
+            GuestMessage::Reset => "reset",
             GuestMessage::EmergencyStop => "emergency_stop",
             GuestMessage::Command { .. } => "command",
             GuestMessage::RequestFrame => "request_frame",
@@ -421,6 +468,7 @@ impl Wire for GuestMessage {
         "define",
         "start",
         "stop",
+        "reset",
         "emergency_stop",
         "command",
         "request_frame",

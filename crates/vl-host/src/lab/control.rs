@@ -22,6 +22,9 @@ use super::camera::Sighting;
 use super::{Finished, LabInfo, LabRequest, LabStatus, Retry, TICK};
 use crate::drivers::{Robot, RobotReading, Witness};
 
+/// The shortest time between two control periods: a command acted on at
+/// once still waits this long after the last period.
+const TICK_GAP: Duration = Duration::from_millis(2);
 /// Feedback is published at least this often while nothing else changes.
 const FEEDBACK_EVERY: Duration = Duration::from_millis(20);
 /// The safety layer assumes a command lasts at least this long before the
@@ -44,6 +47,12 @@ const UNCERTAINTY_SIGMAS: f64 = 2.0;
 const MAX_UNCERTAINTY_MM: f64 = 50.0;
 /// A pose is the camera's while its last sighting is this recent, s.
 const SIGHTING_FRESH_S: f64 = 0.5;
+/// A run that ends facing a heading is there within this, rad (6°)…
+const FACING_RAD: f64 = 0.1;
+/// …turning at most this fast, rad/s, and with the wheels at least this
+/// fast, mm/s, so a real robot's speed steps do not round the turn to nothing.
+const FACE_TURN_RAD_S: f64 = 1.5;
+const FACE_MIN_WHEEL_MM_S: f64 = 8.0;
 /// A run whose robot the camera has not seen for this long, s, stops: the
 /// odometry it drove on meanwhile drifts too far to keep it off obstacles.
 const ROBOT_LOST_S: f64 = 2.0;
@@ -85,6 +94,10 @@ struct Run {
     /// Sum and count, over periods in which a command asked to move, of the
     /// forward speed the layer let through over the speed asked.
     kept: (f64, u64),
+    /// The heading to turn to in place once at the goal, and whether the
+    /// robot is there and turning.
+    face: Option<f64>,
+    turning: bool,
 }
 
 impl Run {
@@ -119,6 +132,7 @@ impl Run {
             // The hub, which sees the commands' events, fills these in.
             max_event_gap: 0,
             sync_violations: 0,
+            stopped_by: None,
         }
     }
 }
@@ -229,7 +243,11 @@ impl Control {
         let mut last_read = Instant::now();
         loop {
             let mut commanded = false;
-            loop {
+            // Event-based control answers an event, not a clock: a request
+            // that changes what the robot does is acted on at once (with
+            // whatever came with it, the newest winning), and its feedback
+            // published, rather than at the next period's end.
+            while !commanded {
                 let wait = next_tick.saturating_duration_since(Instant::now());
                 match self.requests.recv_timeout(wait) {
                     Ok(request) => commanded |= self.handle(request),
@@ -240,10 +258,12 @@ impl Control {
                     }
                 }
             }
-            next_tick += TICK;
-            if next_tick < Instant::now() {
-                next_tick = Instant::now() + TICK;
+            while let Ok(request) = self.requests.try_recv() {
+                commanded |= self.handle(request);
             }
+            // However fast commands come, the robot is read at most so often.
+            std::thread::sleep((last_read + TICK_GAP).saturating_duration_since(Instant::now()));
+            next_tick = Instant::now() + TICK;
             self.period = last_read.elapsed();
             last_read = Instant::now();
             if self.period > FROZEN {
@@ -294,6 +314,7 @@ impl Control {
                 definition,
                 experiment,
                 field,
+                face,
             } => {
                 self.event.store(0, Ordering::Relaxed);
                 let now = Instant::now();
@@ -326,6 +347,8 @@ impl Control {
                     limited: false,
                     closest_mm: f64::INFINITY,
                     kept: (0.0, 0),
+                    face,
+                    turning: false,
                 });
                 false
             }
@@ -380,6 +403,10 @@ impl Control {
         let stale = run.held || run.last_command.elapsed() > WATCHDOG;
         let mut wanted = match &mut run.follower {
             _ if run.held => WheelSpeeds::default(),
+            _ if run.turning => {
+                let face = run.face.unwrap_or(pose.theta_rad);
+                turn_towards(&self.info.robot, pose.theta_rad, face)
+            }
             // The operator's fresh command takes over from the path.
             Some(follower) if !run.commanded || stale => {
                 let along = follower.step(&self.info.robot, pose, &reading.proximity);
@@ -484,11 +511,12 @@ impl Control {
         }
         // A navigation run ends at its goal; in teleoperation a goal is a
         // target the summary reports on, and the operator ends the run.
-        let reached = run.experiment == Experiment::Navigation
-            && run
-                .definition
-                .goal
-                .is_some_and(|g| pose.point().distance(g.point()) <= g.tolerance_mm);
+        let reached = run.turning
+            || run.experiment == Experiment::Navigation
+                && run
+                    .definition
+                    .goal
+                    .is_some_and(|g| pose.point().distance(g.point()) <= g.tolerance_mm);
         let timed_out = run
             .definition
             .time_limit_s
@@ -500,7 +528,14 @@ impl Control {
             .unwrap_or(f64::INFINITY)
             .min(run.started.elapsed().as_secs_f64());
         let lost = self.sightings.is_some() && unseen_s > ROBOT_LOST_S;
-        if reached {
+        let facing = run
+            .face
+            .is_none_or(|face| angle_to(pose.theta_rad, face).abs() <= FACING_RAD);
+        if reached && !facing {
+            // At the goal, not yet facing its heading: turn in place.
+            run.turning = true;
+            self.drive();
+        } else if reached {
             self.finish(EndReason::GoalReached);
         } else if timed_out {
             self.finish(EndReason::TimeLimit);
@@ -562,6 +597,30 @@ impl Control {
         };
         self.feedback.send_replace(Some(message));
     }
+}
+
+/// The signed turn from heading `from` to `to`, within ±π.
+fn angle_to(from: f64, to: f64) -> f64 {
+    let d = (to - from).rem_euclid(std::f64::consts::TAU);
+    if d > std::f64::consts::PI {
+        d - std::f64::consts::TAU
+    } else {
+        d
+    }
+}
+
+/// Wheel speeds that turn `robot` in place from heading `theta` towards `face`.
+fn turn_towards(robot: &RobotModel, theta: f64, face: f64) -> WheelSpeeds {
+    let error = angle_to(theta, face);
+    let w = (2.0 * error).clamp(-FACE_TURN_RAD_S, FACE_TURN_RAD_S);
+    let wheel = (w * robot.wheel_base_mm / 2.0)
+        .abs()
+        .max(FACE_MIN_WHEEL_MM_S)
+        * error.signum();
+    robot.clamp(WheelSpeeds {
+        left_mm_s: -wheel,
+        right_mm_s: wheel,
+    })
 }
 
 /// The map's potential field for assisted teleoperation over `cspace`

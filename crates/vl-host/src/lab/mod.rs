@@ -20,7 +20,7 @@ use tokio::sync::{mpsc as async_mpsc, watch};
 use tokio_tungstenite::tungstenite::Bytes;
 use vl_core::{
     Arena, CameraModel, Definition, DeviceState, Drive, EndReason, Experiment, HostMessage,
-    MapField, RobotModel, Summary,
+    MapField, Readiness, RobotModel, Summary,
 };
 
 use crate::drivers::{Camera, Robot, Witness};
@@ -48,10 +48,12 @@ pub struct LabStatus {
 }
 
 impl LabStatus {
-    pub fn message(&self) -> HostMessage {
+    /// The status message, with whether the lab is `ready` for a run.
+    pub fn message(&self, lab: Readiness) -> HostMessage {
         HostMessage::Status {
             robot: self.robot,
             camera: self.camera,
+            lab,
         }
     }
 }
@@ -112,6 +114,9 @@ pub enum LabRequest {
         experiment: Experiment,
         /// The map's potential field for assisted teleoperation.
         field: Option<Arc<MapField>>,
+        /// At the goal, turn in place to face this heading, rad, before
+        /// the run ends (the drive back to the start pose).
+        face: Option<f64>,
     },
     Drive {
         event: u64,

@@ -18,8 +18,9 @@ use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc;
 use tokio_tungstenite::WebSocketStream;
 use tokio_tungstenite::tungstenite::Message;
-use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
-use tracing::debug;
+use tokio_tungstenite::tungstenite::protocol::frame::coding::CloseCode;
+use tokio_tungstenite::tungstenite::protocol::{CloseFrame, WebSocketConfig};
+use tracing::{debug, warn};
 use vl_core::{MAX_FRAME_BYTES, MAX_TEXT_BYTES};
 use vl_sim::{Delivery, LinkModel, MessageLink};
 
@@ -199,13 +200,30 @@ async fn connection(
     };
     // A Guest that shook hands is someone: it keeps its place.
     ticket.welcomed();
-    let (host, _) = tokio::time::timeout(
+    let reached = tokio::time::timeout(
         HANDSHAKE,
         tokio_tungstenite::connect_async_with_config(&config.upstream, Some(ws_config()), true),
     )
     .await
-    .map_err(|_| "the Host did not answer".to_owned())?
-    .map_err(|e| format!("cannot reach the Host: {e}"))?;
+    .map_err(|_| "did not answer".to_owned())
+    .and_then(|r| r.map_err(|e| e.to_string()));
+    let host = match reached {
+        Ok((host, _)) => host,
+        Err(why) => {
+            // Said to the operator of the Media and to the Guest, who would
+            // otherwise see only a connection that closes.
+            let why = format!("the Host at {} {why}", config.upstream);
+            warn!("{why}: the Guest's connection is closed");
+            let mut guest = guest;
+            let _ = guest
+                .close(Some(CloseFrame {
+                    code: CloseCode::Again,
+                    reason: why.clone().into(),
+                }))
+                .await;
+            return Err(why);
+        }
+    };
     let (to_guest, from_guest) = guest.split();
     let (to_host, from_host) = host.split();
     let outage = next_outage(&config.model, clock);

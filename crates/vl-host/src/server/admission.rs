@@ -13,8 +13,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 
 use tokio::sync::watch;
 
-/// Connections the Host serves at once.
-pub(crate) const MAX_CONNECTIONS: usize = 64;
+/// Connections the Host serves at once: a class of a hundred watching, and room.
+pub(crate) const MAX_CONNECTIONS: usize = 256;
 /// Of those, connections that have not been welcomed yet.
 pub(crate) const MAX_UNWELCOMED: usize = 32;
 /// Of those, connections from one address: a class behind one router

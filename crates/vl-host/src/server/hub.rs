@@ -12,9 +12,9 @@ use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::Message;
 use tracing::{debug, info, warn};
 use vl_core::{
-    Action, CSpace, Definition, DeviceState, EndReason, ErrorCode, Experiment, GuestMessage,
-    HostMessage, MapField, MountedLab, Named, PROTOCOL_VERSION, Role, Shape, Supervisor, Wire,
-    disc_cspace,
+    Action, CSpace, Definition, DeviceState, EndReason, ErrorCode, Experiment, Goal, GuestMessage,
+    HostMessage, MapField, MountedLab, Named, PROTOCOL_VERSION, Pose, Readiness, Role, Shape,
+    Stopper, Supervisor, Wire, disc_cspace, plan_route,
 };
 
 use super::HostConfig;
@@ -26,6 +26,12 @@ use crate::lab::{Finished, Lab, LabRequest, map_field};
 pub(crate) const OUTBOX: usize = 64;
 /// How often the hub looks at the operator's lease.
 const LEASE_CHECK: Duration = Duration::from_millis(250);
+/// A robot this near the start pose, mm and rad, is back: no drive needed
+/// (and the drive back ends this near it).
+const AT_START_MM: f64 = 5.0;
+const AT_START_RAD: f64 = 0.15;
+/// The drive back to the start pose gives up after this long, s.
+const RESET_LIMIT_S: f64 = 90.0;
 
 /// What a connection tells the hub.
 pub(crate) enum ToHub {
@@ -76,6 +82,20 @@ fn secret() -> String {
         .collect()
 }
 
+/// Whether a run that ended so is followed by the drive back to the start
+/// pose. Not after an emergency stop (someone saw something wrong: nothing
+/// moves until the operator starts again), a fault (the robot does not
+/// answer) or a robot the camera lost (it would drive blind).
+fn resets_after(reason: EndReason) -> bool {
+    !matches!(
+        reason,
+        EndReason::EmergencyStop | EndReason::Fault | EndReason::RobotLost
+    )
+}
+
+/// The way back to the start pose, or why there is none.
+type ResetRoute = Result<Definition, String>;
+
 /// The one owner of session state.
 pub(crate) struct Hub {
     lab: Lab,
@@ -112,6 +132,17 @@ pub(crate) struct Hub {
     map: Map,
     /// Fields for definitions with virtual obstacles, made off the hub.
     fields: FieldWorker,
+    /// Whether a run may start, and the run that drives the robot back
+    /// to the start pose while it may not.
+    readiness: Readiness,
+    reset_run: Option<u64>,
+    /// Routes back to the start pose, planned off the hub.
+    reset_routes: (
+        mpsc::UnboundedSender<ResetRoute>,
+        mpsc::UnboundedReceiver<ResetRoute>,
+    ),
+    /// Who pressed the emergency stop that is ending the run.
+    stopper: Option<Stopper>,
 }
 
 /// What the lab's map always gives: its C-space and (for teleoperation)
@@ -229,6 +260,10 @@ impl Hub {
             cspace: None,
             field: None,
             fields: FieldWorker::new(),
+            readiness: Readiness::Ready,
+            reset_run: None,
+            reset_routes: mpsc::unbounded_channel(),
+            stopper: None,
         }
     }
 
@@ -244,10 +279,14 @@ impl Hub {
                 // end and a silent operator's lease are still seen.
                 biased;
                 Ok(()) = status.changed() => {
-                    let now = *status.borrow_and_update();
-                    self.broadcast(&now.message());
+                    status.mark_unchanged();
+                    self.broadcast(&self.status());
                 }
                 Some(Finished(run, mut summary)) = self.lab.finished.recv() => {
+                    if self.reset_run == Some(run) {
+                        self.reset_done(&summary);
+                        continue;
+                    }
                     // Only the run under way may end: a previous operator's
                     // run that ends late must not end the next one's.
                     if self.run != Some(run) {
@@ -260,9 +299,15 @@ impl Hub {
                     }
                     summary.max_event_gap = self.max_event_gap;
                     summary.sync_violations = self.sync_violations;
+                    summary.stopped_by = self.stopper.take().filter(|_| summary.reason == EndReason::EmergencyStop);
                     info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
+                    let reset = resets_after(summary.reason);
                     self.broadcast(&HostMessage::Done { summary });
+                    if reset {
+                        self.reset();
+                    }
                 }
+                Some(route) = self.reset_routes.1.recv() => self.reset_planned(route),
                 Some((number, field)) = self.fields.done.recv() => {
                     if let Some(field) = self.fields.finished(&self.lab, number, field) {
                         self.field = field.map(Arc::new);
@@ -489,7 +534,13 @@ impl Hub {
         }
         if role == Role::Operator {
             if self.config.token.is_some() && token != self.config.token {
-                return self.refuse(id, ErrorCode::Unauthorized, "the operator token is wrong");
+                let why = match token {
+                    None => {
+                        "this lab's operators need its token: say hello with it (vl guest --token), or watch as an observer"
+                    }
+                    Some(_) => "the operator token is wrong",
+                };
+                return self.refuse(id, ErrorCode::Unauthorized, why);
             }
             let returning = match &self.away {
                 Some(away) if resume.as_deref() == Some(away.resume.as_str()) => true,
@@ -545,8 +596,7 @@ impl Hub {
         if let Some(definition) = self.definition.clone() {
             self.send(id, HostMessage::Defined { definition });
         }
-        let status = *self.lab.status.borrow();
-        self.send(id, status.message());
+        self.send(id, self.status());
         self.send(id, HostMessage::State(Box::new(self.supervisor.state())));
         // An operator back within the grace takes up the run where it stood.
         if role == Role::Operator && self.supervisor.allows(Action::Stop) {
@@ -651,7 +701,24 @@ impl Hub {
                 }
                 self.build_field(&definition.virtual_obstacles);
             }
+            GuestMessage::Reset => {
+                if self.supervisor.allows(Action::Stop) {
+                    return self.refuse(
+                        id,
+                        ErrorCode::NotAllowedNow,
+                        "a run is under way: stop it before the robot drives back to its start pose",
+                    );
+                }
+                self.reset();
+            }
             GuestMessage::Start => {
+                if self.readiness == Readiness::GettingReady {
+                    return self.refuse(
+                        id,
+                        ErrorCode::NotAllowedNow,
+                        "the lab is getting ready: the robot is driving back to its start pose; start when it is there",
+                    );
+                }
                 if self.lab.status.borrow().robot != DeviceState::Online {
                     return self.refuse(
                         id,
@@ -674,6 +741,7 @@ impl Hub {
                         definition,
                         experiment,
                         field: self.field.clone(),
+                        face: None,
                     });
                     self.broadcast(&HostMessage::Started { event: 0 });
                 }
@@ -729,9 +797,126 @@ impl Hub {
     fn emergency_stop(&mut self, id: u64) {
         warn!(connection = id, "emergency stop");
         if self.supervisor.allows(Action::Stop) {
+            self.stopper = self
+                .clients
+                .get(&id)
+                .and_then(|c| c.role)
+                .map(|role| Stopper { role, session: id });
             self.lab
                 .request(LabRequest::Finish(EndReason::EmergencyStop));
         }
+        // The drive back to the start pose stops too; the lab is ready
+        // where the robot stands, and the operator may ask again.
+        if self.readiness == Readiness::GettingReady {
+            if self.reset_run.is_some() {
+                self.lab
+                    .request(LabRequest::Finish(EndReason::EmergencyStop));
+            } else {
+                self.set_readiness(Readiness::Ready);
+            }
+        }
+    }
+
+    /// The status every client is told: the devices, and whether a run may start.
+    fn status(&self) -> HostMessage {
+        self.lab.status.borrow().message(self.readiness)
+    }
+
+    fn set_readiness(&mut self, readiness: Readiness) {
+        if self.readiness != readiness {
+            self.readiness = readiness;
+            self.broadcast(&self.status());
+        }
+    }
+
+    /// Makes the lab ready for the next run, as remote labs reset their
+    /// equipment between users: unless the robot is at the start pose
+    /// already, a route back is planned off the hub on the lab's map, then
+    /// driven like any run (followed, braked by the safety layer), turning
+    /// at the end to the start heading. Start waits until it is there.
+    fn reset(&mut self) {
+        if !self.config.reset || self.run.is_some() || self.readiness == Readiness::GettingReady {
+            return;
+        }
+        let Some(pose) = self.robot_pose() else {
+            return;
+        };
+        let start = self.lab.info.arena.start;
+        let turn = (pose.theta_rad - start.theta_rad).sin().abs();
+        if pose.point().distance(start.point()) <= AT_START_MM && turn <= AT_START_RAD.sin() {
+            return;
+        }
+        info!("the lab is getting ready: the robot drives back to its start pose");
+        self.set_readiness(Readiness::GettingReady);
+        let (arena, robot) = (self.lab.info.arena.clone(), self.lab.info.robot.clone());
+        let routes = self.reset_routes.0.clone();
+        tokio::task::spawn_blocking(move || {
+            let goal = Goal {
+                tolerance_mm: AT_START_MM,
+                ..Goal::at(start.point())
+            };
+            let path = if pose.point().distance(start.point()) <= goal.tolerance_mm {
+                Ok(Vec::new())
+            } else {
+                plan_route(&arena, &[], &robot, pose, start.point()).map(|plan| plan.points())
+            };
+            let route = path
+                .map(|path| Definition {
+                    goal: Some(goal),
+                    path,
+                    time_limit_s: Some(RESET_LIMIT_S),
+                    ..Definition::default()
+                })
+                .map_err(|e| e.to_string());
+            let _ = routes.send(route);
+        });
+    }
+
+    /// Where the lab's newest feedback puts the robot.
+    fn robot_pose(&self) -> Option<Pose> {
+        match &*self.lab.feedback.borrow() {
+            Some(HostMessage::Feedback { pose, .. }) => Some(*pose),
+            _ => None,
+        }
+    }
+
+    /// The route back to the start pose is planned: drive it.
+    fn reset_planned(&mut self, route: ResetRoute) {
+        // An emergency stop while planning, or a run since, called it off.
+        if self.readiness != Readiness::GettingReady || self.run.is_some() {
+            return;
+        }
+        match route {
+            Ok(definition) => {
+                self.runs += 1;
+                self.reset_run = Some(self.runs);
+                self.lab.request(LabRequest::Start {
+                    run: self.runs,
+                    definition,
+                    experiment: Experiment::Navigation,
+                    field: None,
+                    face: Some(self.lab.info.arena.start.theta_rad),
+                });
+            }
+            Err(why) => {
+                warn!("no way back to the start pose ({why}): runs start where the robot stands");
+                self.set_readiness(Readiness::Ready);
+            }
+        }
+    }
+
+    /// The drive back to the start pose ended: the lab is ready.
+    fn reset_done(&mut self, summary: &vl_core::Summary) {
+        self.reset_run = None;
+        if summary.reason == EndReason::GoalReached {
+            info!(
+                seconds = summary.seconds,
+                "the robot is back at its start pose: the lab is ready"
+            );
+        } else {
+            warn!(reason = %summary.reason, "the drive back to the start pose ended short: runs start where the robot stands");
+        }
+        self.set_readiness(Readiness::Ready);
     }
 
     /// A connection closed: if it was the operator, the robot stops; the

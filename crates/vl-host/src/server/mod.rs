@@ -13,6 +13,7 @@
 //! operator's loop or lock anyone out.
 
 pub(crate) mod admission;
+pub(crate) mod bench;
 mod connection;
 mod hub;
 
@@ -54,6 +55,8 @@ pub struct HostConfig {
     /// Where the labs' controlled nets are (`<dir>/<lab>/controlled.pnml`,
     /// as `vl lab nets --out dir` writes them); the shipped ones if none.
     pub nets: Option<PathBuf>,
+    /// Drive the robot back to the lab's start pose after every run.
+    pub reset: bool,
 }
 
 impl HostConfig {
@@ -77,6 +80,7 @@ impl Default for HostConfig {
             frames: FramePolicy::EveryFrame,
             grace: Duration::from_secs(10),
             nets: None,
+            reset: true,
         }
     }
 }

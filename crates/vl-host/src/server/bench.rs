@@ -1,0 +1,242 @@
+//! How soon an operator's command is answered: a simulated Host with its
+//! camera streaming, many observers reading everything it sends, and one
+//! operator under event-based control, who sends command s + 1 as soon as
+//! the feedback of command s arrives. Each command's time to the feedback
+//! of its event is what the operator's loop waits for.
+
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
+
+use futures_util::{SinkExt, StreamExt};
+use serde::Serialize;
+use tokio::task::JoinSet;
+use tokio_tungstenite::tungstenite::Message;
+use vl_core::{
+    Arena, Drive, Experiment, GuestMessage, HostMessage, Named, PROTOCOL_VERSION, Role, Wire,
+    nearest_rank,
+};
+
+use crate::{Host, HostConfig, SimLab};
+
+/// Why the bench could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error("cannot start the simulated Host: {0}")]
+    Host(#[from] crate::HostError),
+    #[error("cannot connect to the Host: {0}")]
+    Connect(String),
+    #[error("the Host refused to {step}: {message}")]
+    Refused { step: &'static str, message: String },
+    #[error("the connection ended while waiting to {0}")]
+    Closed(&'static str),
+    #[error("no answer within {0:?} while waiting to {1}")]
+    Timeout(Duration, &'static str),
+}
+
+/// Command → feedback of its event, ms, and what the observers got.
+#[derive(Debug, Clone, Serialize)]
+pub struct OperatorLatency {
+    pub observers: usize,
+    pub commands: usize,
+    pub p50_ms: f64,
+    pub p90_ms: f64,
+    pub p99_ms: f64,
+    pub max_ms: f64,
+    /// Feedback messages the slowest-fed observer read per second.
+    pub observer_feedback_hz: f64,
+    /// Camera frames the slowest-fed observer read per second.
+    pub observer_frames_hz: f64,
+}
+
+type Socket =
+    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
+/// How long any one answer may take.
+const ANSWER: Duration = Duration::from_secs(10);
+
+async fn connect(url: &str) -> Result<Socket, BenchError> {
+    tokio_tungstenite::connect_async(url)
+        .await
+        .map(|(ws, _)| ws)
+        .map_err(|e| BenchError::Connect(e.to_string()))
+}
+
+async fn say(ws: &mut Socket, message: &GuestMessage) -> Result<(), BenchError> {
+    ws.send(Message::text(message.encode()))
+        .await
+        .map_err(|e| BenchError::Connect(e.to_string()))
+}
+
+/// The next text message that `pick` takes, answering pings meanwhile; an
+/// `error` ends the wait.
+async fn until<T>(
+    ws: &mut Socket,
+    step: &'static str,
+    mut pick: impl FnMut(&HostMessage) -> Option<T>,
+) -> Result<T, BenchError> {
+    let deadline = tokio::time::Instant::now() + ANSWER;
+    loop {
+        let next = tokio::time::timeout_at(deadline, ws.next())
+            .await
+            .map_err(|_| BenchError::Timeout(ANSWER, step))?;
+        let Some(Ok(Message::Text(text))) = next else {
+            match next {
+                None | Some(Err(_)) => return Err(BenchError::Closed(step)),
+                _ => continue,
+            }
+        };
+        let Ok(message) = HostMessage::decode(text.as_str()) else {
+            continue;
+        };
+        match &message {
+            HostMessage::Ping { t } => say(ws, &GuestMessage::Pong { t: *t }).await?,
+            HostMessage::Error { message, .. } if step != "start" => {
+                return Err(BenchError::Refused {
+                    step,
+                    message: message.clone(),
+                });
+            }
+            _ => {}
+        }
+        if let Some(found) = pick(&message) {
+            return Ok(found);
+        }
+    }
+}
+
+fn hello(role: Role) -> GuestMessage {
+    GuestMessage::Hello {
+        protocol: PROTOCOL_VERSION,
+        role,
+        token: None,
+        resume: None,
+    }
+}
+
+/// An observer, welcomed: one at a time, as the Host admits only a few
+/// not yet welcomed from one address.
+async fn observer(url: &str) -> Result<Socket, BenchError> {
+    let mut ws = connect(url).await?;
+    say(&mut ws, &hello(Role::Observer)).await?;
+    until(&mut ws, "watch", |m| {
+        matches!(m, HostMessage::Welcome { .. }).then_some(())
+    })
+    .await?;
+    Ok(ws)
+}
+
+/// Reads everything until told to stop; returns the feedback and frames read.
+async fn observe(mut ws: Socket, mut stop: tokio::sync::watch::Receiver<bool>) -> (u64, u64) {
+    let (mut feedback, mut frames) = (0, 0);
+    loop {
+        tokio::select! {
+            _ = stop.changed() => return (feedback, frames),
+            next = ws.next() => match next {
+                Some(Ok(Message::Text(text))) => match HostMessage::decode(text.as_str()) {
+                    Ok(HostMessage::Feedback { .. }) => feedback += 1,
+                    Ok(HostMessage::Ping { t }) => {
+                        let _ = say(&mut ws, &GuestMessage::Pong { t }).await;
+                    }
+                    _ => {}
+                },
+                Some(Ok(Message::Binary(_))) => frames += 1,
+                Some(Ok(_)) => {}
+                _ => return (feedback, frames),
+            },
+        }
+    }
+}
+
+/// Runs the bench: `observers` reading, `commands` timed.
+pub async fn operator_latency(
+    observers: usize,
+    commands: usize,
+) -> Result<OperatorLatency, BenchError> {
+    let listen: SocketAddr = ([127, 0, 0, 1], 0).into();
+    let lab = SimLab::new(Arena::named("open").expect("the open arena ships with vl"));
+    let host = Host::start_sim(listen, lab, HostConfig::default()).await?;
+    let url = host.url();
+    let (stop_tx, stop) = tokio::sync::watch::channel(false);
+    let mut watching = JoinSet::new();
+    for _ in 0..observers {
+        let ws = observer(&url).await?;
+        watching.spawn(observe(ws, stop.clone()));
+    }
+    let mut operator = connect(&url).await?;
+    say(&mut operator, &hello(Role::Operator)).await?;
+    until(&mut operator, "say hello", |m| {
+        matches!(m, HostMessage::Welcome { .. }).then_some(())
+    })
+    .await?;
+    let mount = GuestMessage::Mount {
+        experiment: Experiment::Teleoperation.id().to_owned(),
+    };
+    say(&mut operator, &mount).await?;
+    until(&mut operator, "mount", |m| {
+        matches!(m, HostMessage::Mounted(_)).then_some(())
+    })
+    .await?;
+    // The map's field is made on mount; start is allowed once it is.
+    loop {
+        say(&mut operator, &GuestMessage::Start).await?;
+        let started = until(&mut operator, "start", |m| match m {
+            HostMessage::Started { .. } => Some(true),
+            HostMessage::Error { .. } => Some(false),
+            _ => None,
+        })
+        .await?;
+        if started {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let began = Instant::now();
+    let mut took = Vec::with_capacity(commands);
+    for event in 1..=commands as u64 {
+        // Turning on the spot: the robot keeps clear of everything.
+        let drive = Drive::Wheels {
+            left: -40.0,
+            right: 40.0,
+        };
+        let sent = Instant::now();
+        say(
+            &mut operator,
+            &GuestMessage::Command {
+                event,
+                seen: Some(event - 1),
+                drive,
+            },
+        )
+        .await?;
+        until(&mut operator, "see a command's feedback", |m| match m {
+            HostMessage::Feedback { event: e, .. } if *e >= event => Some(()),
+            _ => None,
+        })
+        .await?;
+        took.push(sent.elapsed().as_secs_f64() * 1e3);
+    }
+    let seconds = began.elapsed().as_secs_f64();
+    let _ = say(&mut operator, &GuestMessage::Bye).await;
+    let _ = stop_tx.send(true);
+    let mut fed = Vec::new();
+    while let Some(counts) = watching.join_next().await {
+        fed.push(counts.unwrap_or_default());
+    }
+    took.sort_by(f64::total_cmp);
+    let q = |p| nearest_rank(&took, p).unwrap_or(f64::NAN);
+    let slowest = fed
+        .iter()
+        .min_by_key(|(f, _)| *f)
+        .copied()
+        .unwrap_or_default();
+    Ok(OperatorLatency {
+        observers,
+        commands,
+        p50_ms: q(0.5),
+        p90_ms: q(0.9),
+        p99_ms: q(0.99),
+        max_ms: took.last().copied().unwrap_or(f64::NAN),
+        observer_feedback_hz: slowest.0 as f64 / seconds,
+        observer_frames_hz: slowest.1 as f64 / seconds,
+    })
+}
