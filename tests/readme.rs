@@ -128,6 +128,9 @@ fn for_test(args: &mut Vec<String>, ports: &[(String, String)], link: &str) {
         Some("media") if args.get(1).map(String::as_str) == Some("bench") => {
             args.extend(["--messages", "200", "--profiles", "lan"].map(String::from));
         }
+        Some("host") if args.get(1).map(String::as_str) == Some("bench") => {
+            args.extend(["--commands", "200"].map(String::from));
+        }
         // The whole matrix runs in tests/experiment_media.rs.
         Some("experiment") if args.get(1).map(String::as_str) == Some("report") => {
             args.extend(["--profiles", "lan,intercontinental"].map(String::from));
@@ -176,8 +179,8 @@ fn every_command_in_readme_runs_as_written() {
             println!("$ vl {}", argv.join(" "));
             let kind = argv[0];
             let serves = match kind {
-                "host" | "khepera-emu" => true,
-                "media" => argv.get(1) != Some(&"bench"),
+                "khepera-emu" => true,
+                "host" | "media" => argv.get(1) != Some(&"bench"),
                 _ => false,
             };
             if serves {

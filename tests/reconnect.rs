@@ -201,3 +201,23 @@ async fn a_guest_rides_out_an_outage_of_the_media() {
         "the run spanned the outage: {report}"
     );
 }
+
+/// Through a Media whose Host is down, the Guest says why (the Media tells
+/// it) and counts its attempts up, backing off, until it gives up.
+#[test]
+fn through_a_media_whose_host_is_down_the_attempts_count_up() {
+    // Nothing listens on the discard port (a free port could be taken by
+    // another test's Host meanwhile).
+    let nobody = "ws://127.0.0.1:9".to_owned();
+    let (_media, url) = start_media(&nobody, "lan", &[]);
+    let out = common::vl(&["guest", "--connect", &url, "--headless"]);
+    assert_eq!(out.status.code(), Some(1));
+    let said = common::stderr(&out);
+    assert!(said.contains(&format!("the Host at {nobody}")), "{said}");
+    assert!(said.contains("attempt 4"), "the count rises: {said}");
+    let attempts = said.matches("attempt ").count();
+    assert!(
+        attempts < 12,
+        "backing off, {attempts} attempts in 10 s: {said}"
+    );
+}

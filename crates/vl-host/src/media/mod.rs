@@ -17,9 +17,9 @@ use futures_util::{SinkExt, StreamExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc;
 use tokio_tungstenite::WebSocketStream;
-use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::protocol::frame::coding::CloseCode;
 use tokio_tungstenite::tungstenite::protocol::{CloseFrame, WebSocketConfig};
+use tokio_tungstenite::tungstenite::{self, Message};
 use tracing::{debug, warn};
 use vl_core::{MAX_FRAME_BYTES, MAX_TEXT_BYTES};
 use vl_sim::{Delivery, LinkModel, MessageLink};
@@ -206,7 +206,12 @@ async fn connection(
     )
     .await
     .map_err(|_| "did not answer".to_owned())
-    .and_then(|r| r.map_err(|e| e.to_string()));
+    .and_then(|r| {
+        r.map_err(|e| match e {
+            tungstenite::Error::Io(e) => format!("does not answer ({})", e.kind()),
+            other => format!("does not answer as a vl Host ({other})"),
+        })
+    });
     let host = match reached {
         Ok((host, _)) => host,
         Err(why) => {
