@@ -46,8 +46,9 @@ const TRAIL_COLOUR: Color32 = Color32::from_rgb(0, 170, 150);
 /// Trail points kept, and how far apart, mm.
 const TRAIL_KEPT: usize = 20_000;
 const TRAIL_STEP_MM: f64 = 2.0;
-/// How often an idle window repaints (the ages it shows move), and one in use.
-const IDLE_REPAINT: Duration = Duration::from_millis(250);
+/// How often an idle window repaints (the ages it shows move, and a still
+/// camera's noise), and one in use.
+const IDLE_REPAINT: Duration = Duration::from_secs(1);
 const BUSY_REPAINT: Duration = Duration::from_millis(30);
 
 /// Who the window connects to, and as whom.
@@ -210,8 +211,7 @@ impl GuestApp {
         let busy = self.session.running
             || !self.session.ready()
             || moving
-            || self.asked != Joystick::default()
-            || self.session.link != Link::Open;
+            || self.asked != Joystick::default();
         ctx.request_repaint_after(if busy { BUSY_REPAINT } else { IDLE_REPAINT });
     }
 
@@ -219,9 +219,10 @@ impl GuestApp {
     fn pump(&mut self) {
         let was_mounted = self.session.lab.clone();
         let was_running = self.session.running;
-        while let Ok(incoming) = self.connection.incoming.try_recv() {
+        while let Some(incoming) = self.connection.try_recv() {
             self.session.apply(incoming);
         }
+        self.session.decode_frame();
         if self.session.welcomes != self.welcomes {
             // A new connection, perhaps to a Host started again.
             self.welcomes = self.session.welcomes;
@@ -669,7 +670,7 @@ impl GuestApp {
 
     fn joystick(&mut self, ui: &mut egui::Ui) {
         // Smaller in a small window, so the view keeps the room.
-        let size = JOYSTICK_PX.min(ui.ctx().content_rect().height() * 0.17);
+        let size = JOYSTICK_PX.min(ui.ctx().content_rect().height() * 0.2);
         ui.horizontal(|ui| {
             let (response, painter) = ui.allocate_painter(Vec2::splat(size), Sense::drag());
             let centre = response.rect.center();

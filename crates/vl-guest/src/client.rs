@@ -6,6 +6,8 @@
 //! connection's task, and a Host that cannot be reached arrives as
 //! [`Incoming::Unreachable`], so a window can show it and offer to retry.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use futures_util::{SinkExt, StreamExt};
@@ -129,13 +131,75 @@ fn lost(error: &tungstenite::Error) -> String {
     }
 }
 
-/// An open connection: send on `outgoing`, receive on `incoming`.
+/// An open connection: send on `outgoing`, receive with
+/// [`Connection::recv`] or [`Connection::try_recv`].
 pub struct Connection {
     pub outgoing: mpsc::UnboundedSender<GuestMessage>,
-    pub incoming: mpsc::UnboundedReceiver<Incoming>,
+    incoming: mpsc::UnboundedReceiver<Incoming>,
+    waiting: Arc<Waiting>,
+}
+
+/// Camera frames and feedback received and not yet taken, at most: a
+/// window that is not drawn (minimised, covered) takes nothing, and the
+/// newest of either is what counts, so beyond these the new ones are
+/// passed over rather than kept.
+const FRAMES_WAITING: usize = 4;
+const FEEDBACK_WAITING: usize = 64;
+
+/// How many frames and feedback messages wait to be taken.
+#[derive(Default)]
+struct Waiting {
+    frames: AtomicUsize,
+    feedback: AtomicUsize,
+}
+
+impl Waiting {
+    /// The counter `incoming` counts against, and its limit, if any.
+    fn counter(&self, incoming: &Incoming) -> Option<(&AtomicUsize, usize)> {
+        match incoming {
+            Incoming::Frame(..) => Some((&self.frames, FRAMES_WAITING)),
+            Incoming::Message(m) if matches!(**m, HostMessage::Feedback { .. }) => {
+                Some((&self.feedback, FEEDBACK_WAITING))
+            }
+            _ => None,
+        }
+    }
+
+    /// Whether `incoming` may be queued; counts it if so.
+    fn admit(&self, incoming: &Incoming) -> bool {
+        let Some((n, most)) = self.counter(incoming) else {
+            return true;
+        };
+        if n.fetch_add(1, Ordering::Relaxed) < most {
+            return true;
+        }
+        n.fetch_sub(1, Ordering::Relaxed);
+        false
+    }
+
+    /// `incoming` was taken.
+    fn taken(&self, incoming: &Incoming) {
+        if let Some((n, _)) = self.counter(incoming) {
+            n.fetch_sub(1, Ordering::Relaxed);
+        }
+    }
 }
 
 impl Connection {
+    /// The next thing from the Host; none once the connection's task ended.
+    pub async fn recv(&mut self) -> Option<Incoming> {
+        let incoming = self.incoming.recv().await?;
+        self.waiting.taken(&incoming);
+        Some(incoming)
+    }
+
+    /// The next thing from the Host, if one has come.
+    pub fn try_recv(&mut self) -> Option<Incoming> {
+        let incoming = self.incoming.try_recv().ok()?;
+        self.waiting.taken(&incoming);
+        Some(incoming)
+    }
+
     /// Sends a message; a closed connection shows up as `Incoming::Closed`.
     pub fn send(&self, message: GuestMessage) {
         let _ = self.outgoing.send(message);
@@ -147,7 +211,7 @@ impl Connection {
     pub async fn close(mut self) {
         let _ = self.outgoing.send(GuestMessage::Bye);
         let _ = tokio::time::timeout(GOODBYE, async {
-            while let Some(incoming) = self.incoming.recv().await {
+            while let Some(incoming) = self.recv().await {
                 if matches!(incoming, Incoming::Closed(_)) {
                     return;
                 }
@@ -227,7 +291,12 @@ impl Remembered {
 pub fn open(url: &str) -> Result<Connection, ClientError> {
     check_url(url)?;
     let (outgoing, mut to_send) = mpsc::unbounded_channel::<GuestMessage>();
-    let (deliver, incoming) = mpsc::unbounded_channel();
+    let (to_guest, incoming) = mpsc::unbounded_channel();
+    let waiting = Arc::new(Waiting::default());
+    let deliver = Deliver {
+        to: to_guest,
+        waiting: waiting.clone(),
+    };
     let url = url.to_owned();
     tokio::spawn(async move {
         let mut remembered = Remembered::default();
@@ -291,7 +360,11 @@ pub fn open(url: &str) -> Result<Connection, ClientError> {
             wait = (wait * 2).min(RECONNECT_MAX);
         }
     });
-    Ok(Connection { outgoing, incoming })
+    Ok(Connection {
+        outgoing,
+        incoming,
+        waiting,
+    })
 }
 
 /// Why a connection was not made.
@@ -300,6 +373,23 @@ enum Refusal {
     Unreachable(String),
     /// Something answered, not as a vl Host does.
     NotAHost(String),
+}
+
+/// Hands what arrives to the Guest, passing over frames and feedback
+/// beyond what may wait.
+struct Deliver {
+    to: mpsc::UnboundedSender<Incoming>,
+    waiting: Arc<Waiting>,
+}
+
+impl Deliver {
+    /// Queues `incoming`; an error when the Guest has gone.
+    fn send(&self, incoming: Incoming) -> Result<(), ()> {
+        if !self.waiting.admit(&incoming) {
+            return Ok(());
+        }
+        self.to.send(incoming).map_err(|_| ())
+    }
 }
 
 /// Connects to `url`, within the connect timeout.
@@ -350,7 +440,7 @@ async fn serve(
     first: Option<GuestMessage>,
     remembered: &mut Remembered,
     to_send: &mut mpsc::UnboundedReceiver<GuestMessage>,
-    deliver: &mpsc::UnboundedSender<Incoming>,
+    deliver: &Deliver,
 ) -> Served {
     let mut welcomed = false;
     let ended = carry(ws, first, remembered, to_send, deliver, &mut welcomed).await;
@@ -364,7 +454,7 @@ async fn carry(
     first: Option<GuestMessage>,
     remembered: &mut Remembered,
     to_send: &mut mpsc::UnboundedReceiver<GuestMessage>,
-    deliver: &mpsc::UnboundedSender<Incoming>,
+    deliver: &Deliver,
     welcomed: &mut bool,
 ) -> Ended {
     let (mut sink, mut source) = ws.split();
@@ -448,6 +538,30 @@ async fn carry(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frames_and_feedback_wait_only_so_many() {
+        let waiting = Waiting::default();
+        let frame = || {
+            let header = FrameHeader {
+                format: vl_core::ImageFormat::Jpeg,
+                width: 1,
+                height: 1,
+                seq: 1,
+                event: 0,
+                capture_us: 0,
+            };
+            Incoming::Frame(header, Vec::new())
+        };
+        let admitted = (0..10).filter(|_| waiting.admit(&frame())).count();
+        assert_eq!(admitted, FRAMES_WAITING);
+        waiting.taken(&frame());
+        assert!(waiting.admit(&frame()), "one taken makes room for one");
+        assert!(!waiting.admit(&frame()));
+        // Everything else always waits: a run's end is never passed over.
+        let done = Incoming::Closed("bye".into());
+        assert!((0..1000).all(|_| waiting.admit(&done)));
+    }
 
     #[test]
     fn addresses_that_cannot_be_a_host_get_a_hint() {

@@ -167,13 +167,12 @@ impl Scripted {
         done: impl Fn(&Session) -> bool,
     ) -> Result<(), ScriptError> {
         while !done(&self.session) {
-            let incoming =
-                tokio::time::timeout_at(self.deadline.into(), self.connection.incoming.recv())
-                    .await
-                    .map_err(|_| ScriptError::Timeout {
-                        step,
-                        seconds: self.timeout.as_secs_f64(),
-                    })?;
+            let incoming = tokio::time::timeout_at(self.deadline.into(), self.connection.recv())
+                .await
+                .map_err(|_| ScriptError::Timeout {
+                    step,
+                    seconds: self.timeout.as_secs_f64(),
+                })?;
             match incoming {
                 None => {
                     return Err(ScriptError::Closed {
@@ -402,7 +401,7 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
     let mut last_progress = Instant::now();
     loop {
         tokio::select! {
-            incoming = guest.connection.incoming.recv() => match incoming {
+            incoming = guest.connection.recv() => match incoming {
                 None => return Err(ScriptError::Closed { step: "drive", reason: "the connection task ended".into() }),
                 Some(Incoming::Closed(reason)) => return Err(ScriptError::Closed { step: "drive", reason }),
                 Some(other) => {

@@ -145,7 +145,11 @@ pub struct Session {
     pub definition: Option<Definition>,
     pub running: bool,
     pub robot: Option<RobotState>,
+    /// The newest camera image shown, decoded (see [`Session::decode_frame`]).
     pub frame: Option<CameraFrame>,
+    /// The newest image received, still encoded: only the one shown is
+    /// decoded, however many arrive between two looks.
+    newest_frame: Option<(FrameHeader, Vec<u8>)>,
     pub frames_received: u64,
     /// Bytes of camera images received (the video the link carried).
     pub video_bytes: u64,
@@ -202,6 +206,7 @@ impl Default for Session {
             running: false,
             robot: None,
             frame: None,
+            newest_frame: None,
             frames_received: 0,
             video_bytes: 0,
             round_trips: RoundTrips::default(),
@@ -234,7 +239,7 @@ impl Session {
     pub fn apply(&mut self, incoming: Incoming) {
         match incoming {
             Incoming::Message(message) => self.apply_message(*message),
-            Incoming::Frame(header, bytes) => self.apply_frame(header, &bytes),
+            Incoming::Frame(header, bytes) => self.apply_frame(header, bytes),
             Incoming::RoundTrip(ms) => {
                 self.round_trips.push(ms);
                 self.predictor.round_trip(ms);
@@ -387,6 +392,7 @@ impl Session {
         self.running = false;
         self.robot = None;
         self.frame = None;
+        self.newest_frame = None;
         self.errors.clear();
         self.done = None;
         self.devices = None;
@@ -397,23 +403,33 @@ impl Session {
         self.nets_agree = true;
     }
 
-    fn apply_frame(&mut self, header: FrameHeader, bytes: &[u8]) {
+    fn apply_frame(&mut self, header: FrameHeader, bytes: Vec<u8>) {
         self.video_bytes += bytes.len() as u64;
-        if self
-            .frame
+        let newest = self
+            .newest_frame
             .as_ref()
-            .is_some_and(|f| f.header.seq >= header.seq)
-        {
+            .map(|(h, _)| h.seq)
+            .or(self.frame.as_ref().map(|f| f.header.seq));
+        if newest.is_some_and(|seq| seq >= header.seq) {
             return;
         }
+        self.frames_received += 1;
+        self.frame_at = Some(Instant::now());
+        self.newest_frame = Some((header, bytes));
+    }
+
+    /// Decodes the newest image received, if it is not shown yet: a window
+    /// calls this before it draws; a scripted Guest never needs to.
+    pub fn decode_frame(&mut self) {
+        let Some((header, bytes)) = self.newest_frame.take() else {
+            return;
+        };
         let format = match header.format {
             ImageFormat::Jpeg => image::ImageFormat::Jpeg,
             ImageFormat::Png => image::ImageFormat::Png,
         };
-        match vl_core::decode_image(bytes, Some(format)) {
+        match vl_core::decode_image(&bytes, Some(format)) {
             Ok(decoded) => {
-                self.frames_received += 1;
-                self.frame_at = Some(Instant::now());
                 self.frame = Some(CameraFrame {
                     header,
                     image: decoded.to_rgba8(),
