@@ -41,6 +41,31 @@ fn window_as(url: &str, role: Role, size: Vec2) -> Harness<'static, GuestApp> {
         .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app)
 }
 
+/// Waits for the welcome, mounts the navigation experiment and waits
+/// until `seen` holds of the session.
+fn mount_navigation(
+    harness: &mut Harness<'_, GuestApp>,
+    seen: impl Fn(&vl_guest::Session) -> bool,
+) {
+    step_until(harness, "be welcomed", |app| app.session().role.is_some());
+    harness
+        .get_by_label("Navigate to a goal among obstacles")
+        .click();
+    step_until(harness, "see the mounted lab", |app| seen(app.session()));
+}
+
+/// Defines the goal shown (the window plans the path) and starts the run.
+fn define_and_start(harness: &mut Harness<'_, GuestApp>) {
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
+        .click();
+    step_until(harness, "define", |app| {
+        app.session().allows(vl_core::Action::Start)
+    });
+    harness.get_by_label("Start").click();
+    step_until(harness, "start", |app| app.session().running);
+}
+
 /// Runs `test` on a Guest window connected as operator to a simulated
 /// Host (with or without its camera), with the navigation experiment
 /// being mounted.
@@ -221,24 +246,10 @@ fn a_host_started_again_is_seen_live_with_nothing_from_before() {
     let (host, url) = start();
     let _entered = runtime.enter();
     let mut harness = window(&url);
-    step_until(&mut harness, "be welcomed", |app| {
-        app.session().role.is_some()
-    });
-    harness
-        .get_by_label("Navigate to a goal among obstacles")
-        .click();
-    step_until(&mut harness, "see the robot and a frame", |app| {
-        let s = app.session();
+    mount_navigation(&mut harness, |s| {
         s.lab.is_some() && s.frame.is_some() && s.robot.is_some()
     });
-    harness
-        .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
-        .click();
-    step_until(&mut harness, "define", |app| {
-        app.session().definition.is_some()
-    });
-    harness.get_by_label("Start").click();
-    step_until(&mut harness, "start", |app| app.session().running);
+    define_and_start(&mut harness);
     let old_frame = harness.state().session().frame.as_ref().unwrap().header.seq;
 
     drop(host);
@@ -861,25 +872,11 @@ fn the_window_at_800_and_1600_px() {
         };
         let mut operator = window_as(&host.url(), Role::Operator, size);
         let mut observer = window_as(&host.url(), Role::Observer, size);
-        step_until(&mut operator, "be welcomed", |app| {
-            app.session().role.is_some()
-        });
-        operator
-            .get_by_label("Navigate to a goal among obstacles")
-            .click();
-        step_until(&mut operator, "see the lab ready", |app| {
-            let s = app.session();
+        mount_navigation(&mut operator, |s| {
             s.lab.is_some() && s.frame.is_some() && s.robot.is_some() && s.ready()
         });
-        operator
-            .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
-            .click();
-        step_until(&mut operator, "define", |app| {
-            app.session().definition.is_some()
-        });
-        operator.get_by_label("Start").click();
+        define_and_start(&mut operator);
         let at = |app: &GuestApp| app.session().robot.as_ref().unwrap().pose.point();
-        step_until(&mut operator, "start", |app| app.session().running);
         let from = at(operator.state());
         step_until(&mut operator, "drive a way", |app| {
             at(app).distance(from) > 150.0
@@ -959,26 +956,14 @@ fn window_runs_on_noisy_optics_never_lose_the_robot() {
         let _ = observer.render();
         let _ = operator.render();
     };
-    step_until(&mut operator, "be welcomed", |app| {
-        app.session().role.is_some()
-    });
-    operator
-        .get_by_label("Navigate to a goal among obstacles")
-        .click();
+    mount_navigation(&mut operator, |s| s.lab.is_some());
     let mut ends = Vec::new();
     for run in 1..=runs {
         step_until(&mut operator, "see a ready lab", |app| {
             let s = app.session();
-            s.lab.is_some() && s.robot.is_some() && s.ready() && s.allows(vl_core::Action::Define)
+            s.robot.is_some() && s.ready() && s.allows(vl_core::Action::Define)
         });
-        operator
-            .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
-            .click();
-        step_until(&mut operator, "define", |app| {
-            app.session().allows(vl_core::Action::Start)
-        });
-        operator.get_by_label("Start").click();
-        step_until(&mut operator, "start", |app| app.session().running);
+        define_and_start(&mut operator);
         let deadline = Instant::now() + Duration::from_secs(60);
         while operator.state().session().running || operator.state().session().done.is_none() {
             assert!(Instant::now() < deadline, "run {run} did not end");
