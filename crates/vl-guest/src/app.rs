@@ -415,7 +415,7 @@ impl GuestApp {
                 Color32::YELLOW,
             ),
             Link::Unreachable { attempt, reason } => add(
-                &format!("{reason}; trying again (attempt {attempt})"),
+                &format!("{reason} — trying again (attempt {attempt})"),
                 Color32::YELLOW,
             ),
             Link::Open => add("connected", Color32::GREEN),
