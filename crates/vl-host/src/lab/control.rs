@@ -15,7 +15,7 @@ use tracing::{debug, info, warn};
 use vl_core::{
     CSpace, Definition, DeviceState, EndReason, Experiment, Follower, HostMessage, Localiser,
     MapField, PathRecorder, Pose, PoseSource, RobotModel, Safety, Situation, Summary, Surroundings,
-    Teleop, Uncertainty, Vector, WATCHDOG, WheelSpeeds,
+    Teleop, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
 };
 
 use super::camera::Sighting;
@@ -530,7 +530,7 @@ impl Control {
         let lost = self.sightings.is_some() && unseen_s > ROBOT_LOST_S;
         let facing = run
             .face
-            .is_none_or(|face| angle_to(pose.theta_rad, face).abs() <= FACING_RAD);
+            .is_none_or(|face| wrap_angle(face - pose.theta_rad).abs() <= FACING_RAD);
         if reached && !facing {
             // At the goal, not yet facing its heading: turn in place.
             run.turning = true;
@@ -599,19 +599,9 @@ impl Control {
     }
 }
 
-/// The signed turn from heading `from` to `to`, within ±π.
-fn angle_to(from: f64, to: f64) -> f64 {
-    let d = (to - from).rem_euclid(std::f64::consts::TAU);
-    if d > std::f64::consts::PI {
-        d - std::f64::consts::TAU
-    } else {
-        d
-    }
-}
-
 /// Wheel speeds that turn `robot` in place from heading `theta` towards `face`.
 fn turn_towards(robot: &RobotModel, theta: f64, face: f64) -> WheelSpeeds {
-    let error = angle_to(theta, face);
+    let error = wrap_angle(face - theta);
     let w = (2.0 * error).clamp(-FACE_TURN_RAD_S, FACE_TURN_RAD_S);
     let wheel = (w * robot.wheel_base_mm / 2.0)
         .abs()

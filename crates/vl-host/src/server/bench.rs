@@ -68,7 +68,7 @@ async fn say(ws: &mut Socket, message: &GuestMessage) -> Result<(), BenchError> 
 }
 
 /// The next text message that `pick` takes, answering pings meanwhile; an
-/// `error` ends the wait.
+/// `error` that `pick` does not take ends the wait.
 async fn until<T>(
     ws: &mut Socket,
     step: &'static str,
@@ -88,18 +88,15 @@ async fn until<T>(
         let Ok(message) = HostMessage::decode(text.as_str()) else {
             continue;
         };
-        match &message {
-            HostMessage::Ping { t } => say(ws, &GuestMessage::Pong { t: *t }).await?,
-            HostMessage::Error { message, .. } if step != "start" => {
-                return Err(BenchError::Refused {
-                    step,
-                    message: message.clone(),
-                });
-            }
-            _ => {}
-        }
         if let Some(found) = pick(&message) {
             return Ok(found);
+        }
+        match message {
+            HostMessage::Ping { t } => say(ws, &GuestMessage::Pong { t }).await?,
+            HostMessage::Error { message, .. } => {
+                return Err(BenchError::Refused { step, message });
+            }
+            _ => {}
         }
     }
 }

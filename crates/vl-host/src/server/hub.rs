@@ -14,7 +14,7 @@ use tracing::{debug, info, warn};
 use vl_core::{
     Action, CSpace, Definition, DeviceState, EndReason, ErrorCode, Experiment, Goal, GuestMessage,
     HostMessage, MapField, MountedLab, Named, PROTOCOL_VERSION, Pose, Readiness, Role, Shape,
-    Stopper, Supervisor, Wire, disc_cspace, plan_route,
+    Stopper, Supervisor, Wire, disc_cspace, plan_route, wrap_angle,
 };
 
 use super::HostConfig;
@@ -842,8 +842,8 @@ impl Hub {
             return;
         };
         let start = self.lab.info.arena.start;
-        let turn = (pose.theta_rad - start.theta_rad).sin().abs();
-        if pose.point().distance(start.point()) <= AT_START_MM && turn <= AT_START_RAD.sin() {
+        let turn = wrap_angle(pose.theta_rad - start.theta_rad).abs();
+        if pose.point().distance(start.point()) <= AT_START_MM && turn <= AT_START_RAD {
             return;
         }
         info!("the lab is getting ready: the robot drives back to its start pose");
