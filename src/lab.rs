@@ -42,6 +42,10 @@ pub(crate) struct KheperaArgs {
     /// Print each command line received, with the milliseconds since start.
     #[arg(long)]
     log_commands: bool,
+    /// Print the robot's true pose and its contacts so far twice a second
+    /// (`truth T X Y θ CONTACTS`): what tests judge a run by.
+    #[arg(long)]
+    truth: bool,
     /// Where the robot is put, x,y[,θ] mm and rad (default: the arena's
     /// start); give `vl host` the same to dead-reckon from it.
     #[arg(long, allow_hyphen_values = true)]
@@ -531,6 +535,7 @@ pub(crate) fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
         baud: args.baud,
         timing: !args.instant_line,
         log_commands: args.log_commands,
+        truth: args.truth,
     };
     let mut emulator =
         vl_sim::Emulator::open(vl_sim::Khepera::new(world), line, args.link.as_deref())?;
@@ -803,7 +808,7 @@ fn finish(report: &RunReport, json: bool) -> Result<ExitCode> {
     if report.reached_goal {
         Ok(ExitCode::SUCCESS)
     } else {
-        eprintln!("vl: the robot did not reach the goal ({})", report.reason);
+        eprintln!("vl: the robot did not reach the goal ({})", report.ending());
         Ok(ExitCode::FAILURE)
     }
 }
@@ -820,7 +825,7 @@ impl Report for RunReport {
                 "reached goal",
                 crate::report::yes(self.reached_goal).to_owned(),
             ),
-            ("end", self.reason.to_string()),
+            ("end", self.ending()),
             ("events", self.events.to_string()),
             (
                 "final pose",
@@ -867,7 +872,7 @@ impl Report for Watched {
         let run = match &self.run {
             Some(done) => format!(
                 "{} after {:.1} s, {}",
-                done.reason,
+                done.ending(),
                 done.seconds,
                 count(done.events, "event", "events")
             ),

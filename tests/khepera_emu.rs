@@ -6,7 +6,7 @@ mod common;
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
-use common::start_emulator;
+use common::{start_emulator, start_emulator_watched, start_khepera_host_with, vl_json};
 
 use serialport::SerialPort;
 
@@ -159,4 +159,82 @@ fn characterising_the_emulator_recovers_its_speed_response() {
     assert_eq!(model.response.time_constant_s, tau);
     let run = common::vl_json(&["sim", "run", "--robot-model", common::s(&file), "--json"]);
     assert_eq!(run["following"]["reached_goal"], true, "{run}");
+}
+
+/// The navigation experiment on the emulated Khepera with no camera, in
+/// `arena`: the Host's pose comes from odometry and the IR sensors against
+/// the map alone. The emulator's own truth judges the run: no contact, and
+/// the robot truly at the goal.
+fn navigation_without_a_camera(arena: &str) {
+    let (_emulator, device, truth) = start_emulator_watched(&["--arena", arena]);
+    let (_host, url) = start_khepera_host_with(&device, &["--arena", arena, "--no-reset"]);
+    let summary = vl_json(&[
+        "guest",
+        "--connect",
+        &url,
+        "--headless",
+        "--json",
+        "--timeout",
+        "60",
+    ]);
+    assert_eq!(summary["reason"], "goal_reached", "{arena}: {summary}");
+    assert_eq!(summary["collisions"], 0, "{arena}: {summary}");
+    assert_eq!(summary["pose_source"], "odometry", "{arena}: {summary}");
+    // The emulator says where the robot truly is twice a second: wait for
+    // a line from after the run.
+    std::thread::sleep(Duration::from_millis(700));
+    let last = truth
+        .try_iter()
+        .filter(|l| l.starts_with("truth "))
+        .last()
+        .expect("the emulator told its truth");
+    let f: Vec<f64> = last
+        .split(' ')
+        .skip(1)
+        .map(|v| v.parse().expect("a number"))
+        .collect();
+    assert_eq!(f[4], 0.0, "{arena}: the robot touched something: {last}");
+    let goal = vl_core::Arena::named(arena)
+        .and_then(|a| a.goal)
+        .expect("a shipped arena has a goal");
+    let off = (f[1] - goal.x_mm).hypot(f[2] - goal.y_mm);
+    eprintln!("{arena}: truly {off:.1} mm from the goal ({last})");
+    // The run ends within the goal's tolerance by the estimate; the truth
+    // may lie a few millimetres further.
+    assert!(
+        off < 25.0,
+        "{arena}: truly {off:.1} mm from the goal: {last}"
+    );
+}
+
+#[test]
+fn without_a_camera_the_navigation_run_finishes_in_every_shipped_arena() {
+    for arena in vl_core::Arena::shipped() {
+        navigation_without_a_camera(arena);
+    }
+}
+
+#[test]
+fn a_run_too_uncertain_to_go_on_says_why_in_words() {
+    // A robot whose odometry slips this much, and whose sensors the Host
+    // believes see nothing beyond a millimetre, cannot pass the navigation
+    // arena's gaps on dead reckoning: the run must end, saying so.
+    let dir = common::scratch("too-uncertain");
+    let model = dir.join("slippery.json");
+    let slippery = vl_core::RobotModel {
+        wheel_slip: 0.4,
+        sensor_range_mm: 1.0,
+        ..vl_core::RobotModel::khepera_ii()
+    };
+    std::fs::write(&model, serde_json::to_string(&slippery).unwrap()).unwrap();
+    let (_emulator, device) = start_emulator(&[]);
+    let (_host, url) = start_khepera_host_with(&device, &["--robot-model", common::s(&model)]);
+    let out = common::vl(&["guest", "--connect", &url, "--headless", "--timeout", "60"]);
+    let (stdout, stderr) = (common::stdout(&out), common::stderr(&out));
+    assert_eq!(out.status.code(), Some(1), "{stdout}{stderr}");
+    assert!(
+        stdout.contains("held back by the safety layer: position uncertain by"),
+        "{stdout}"
+    );
+    assert!(stderr.contains("add a camera or widen the margin"), "{stderr}");
 }

@@ -152,6 +152,7 @@ fn robot() -> BoxedStrategy<RobotModel> {
                     mm_per_pulse,
                     max_wheel_speed_mm_s,
                     sensor_range_mm,
+                    wheel_slip: vl_core::KHEPERA_WHEEL_SLIP,
                     sensors: sensors
                         .into_iter()
                         .map(|(x_mm, y_mm, angle_rad)| SensorMount {
@@ -228,6 +229,7 @@ fn summary() -> BoxedStrategy<Summary> {
             EmergencyStop,
             OperatorSilent,
             RobotLost,
+            HeldBack,
         ]),
         any::<bool>(),
         any::<u64>(),
@@ -250,6 +252,14 @@ fn summary() -> BoxedStrategy<Summary> {
             pose_source(),
             proptest::option::of(path_analysis()),
         ),
+        proptest::option::of((num(), num(), any::<bool>(), num()).prop_map(
+            |(uncertain_mm, passes_mm, wall, margin_mm)| vl_core::HeldBack {
+                uncertain_mm,
+                passes_mm,
+                wall,
+                margin_mm,
+            },
+        )),
     )
         .prop_map(
             |(
@@ -261,6 +271,7 @@ fn summary() -> BoxedStrategy<Summary> {
                 (collisions, max_event_gap, sync_violations),
                 stopped_by,
                 (closest_mm, speed_kept, pose_source, path),
+                held_back,
             )| {
                 Summary {
                     reason,
@@ -277,6 +288,7 @@ fn summary() -> BoxedStrategy<Summary> {
                     max_event_gap,
                     sync_violations,
                     stopped_by,
+                    held_back,
                 }
             },
         )

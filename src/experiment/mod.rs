@@ -354,7 +354,7 @@ pub(crate) async fn run_one(spec: &RunSpec) -> Result<Run> {
         profile: spec.link.as_ref().map(|(name, _)| name.clone()),
         control: spec.control,
         reached_goal: report.reached_goal,
-        end: report.reason.to_string(),
+        end: report.ending(),
         pose_source: report.pose_source,
         collisions: report.collisions,
         commands: report.commands,

@@ -143,6 +143,35 @@ pub fn start_emulator(extra: &[&str]) -> (VlProcess, String) {
     (process, device)
 }
 
+/// Starts `vl khepera-emu --truth ARGS…`; returns its device and the
+/// emulator's later lines (its robot's true pose and contacts) as they come.
+pub fn start_emulator_watched(
+    extra: &[&str],
+) -> (VlProcess, String, std::sync::mpsc::Receiver<String>) {
+    let args = [&["khepera-emu", "--truth"], extra].concat();
+    let mut child = Command::new(vl_bin())
+        .args(&args)
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("vl starts");
+    let mut lines = BufReader::new(child.stdout.take().expect("piped stdout")).lines();
+    let process = VlProcess(child);
+    let first = lines
+        .next()
+        .and_then(Result::ok)
+        .expect("vl khepera-emu prints its device");
+    let device = first.rsplit(' ').next().expect("a device").to_owned();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in lines.map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    (process, device, rx)
+}
+
 /// A fresh, empty directory for one test's files.
 pub fn scratch(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);

@@ -26,9 +26,9 @@ mod vision;
 pub use contract::experiment::{Definition, Experiment, ExperimentInfo, Goal, LOOKAHEAD_MM};
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::protocol::{
-    DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HostMessage,
+    DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HeldBack, HostMessage,
     MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Readiness, Role, Stopper, Summary, WATCHDOG,
-    Wire,
+    Wire, ending,
 };
 pub use contract::session::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use design::{DesignError, Designed, Interleaving, LabDesign, Rule, design};
@@ -42,8 +42,8 @@ pub use model::khepera::{
 pub use model::proximity::{MAX_READING, ir_distance, ir_reading};
 pub use model::response_fit::{Fit, FitError, Step as ResponseStep, fit_response};
 pub use model::robot::{
-    MAX_PULSES_PER_PERIOD, Point, Pose, RobotKind, RobotModel, SensorMount, SpeedResponse,
-    WheelSpeeds, wrap_angle,
+    KHEPERA_WHEEL_SLIP, MAX_PULSES_PER_PERIOD, Point, Pose, RobotKind, RobotModel, SensorMount,
+    SpeedResponse, WheelSpeeds, wrap_angle,
 };
 pub use named::{Named, UnknownName};
 pub use navigation::analysis::{

@@ -498,7 +498,10 @@ impl GuestApp {
                 };
                 ui.label(format!(
                     "Last run: {}{goal} after {:.1} s, {:.0} mm driven, {} contacts.",
-                    done.reason, done.seconds, done.distance_mm, done.collisions
+                    done.ending(),
+                    done.seconds,
+                    done.distance_mm,
+                    done.collisions
                 ));
                 if let Some(who) = done.stopped_by {
                     ui.label(format!("The emergency stop was pressed by {who}."));

@@ -10,8 +10,8 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 use thiserror::Error;
 use vl_core::{
-    ArenaPlanError, Drive, EndReason, ErrorCode, Experiment, Goal, GuestMessage, HostMessage,
-    PROTOCOL_VERSION, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
+    ArenaPlanError, Drive, EndReason, ErrorCode, Experiment, Goal, GuestMessage, HeldBack,
+    HostMessage, PROTOCOL_VERSION, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
 };
 
 use crate::client::{ClientError, Connection, Incoming, open};
@@ -71,6 +71,9 @@ impl From<&RoundTrips> for RoundTripMs {
 pub struct Report {
     pub reached_goal: bool,
     pub reason: EndReason,
+    /// Why the safety layer would not let the run go on, when it would not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_back: Option<HeldBack>,
     pub events: u64,
     pub final_pose: Pose,
     pub sim_seconds: f64,
@@ -211,6 +214,7 @@ impl Scripted {
         let report = Report {
             reached_goal: summary.reached_goal,
             reason: summary.reason,
+            held_back: summary.held_back,
             events: summary.events,
             final_pose: summary.final_pose,
             sim_seconds: summary.seconds,
@@ -231,6 +235,13 @@ impl Scripted {
         };
         self.connection.close().await;
         report
+    }
+}
+
+impl Report {
+    /// How the run ended, in words.
+    pub fn ending(&self) -> String {
+        vl_core::ending(self.reason, self.held_back.as_ref())
     }
 }
 

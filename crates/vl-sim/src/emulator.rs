@@ -40,6 +40,10 @@ pub struct Line {
     pub timing: bool,
     /// Print each command line received, with the ms since the start.
     pub log_commands: bool,
+    /// Print the robot's true pose and its contacts so far twice a second
+    /// of the robot's clock, as `truth T_S X_MM Y_MM THETA_RAD CONTACTS`:
+    /// what a test or bench judges a run by (a real robot has no such line).
+    pub truth: bool,
 }
 
 /// An emulated Khepera waiting on a pty.
@@ -90,7 +94,25 @@ impl Emulator {
         let started = Instant::now();
         let mut pending: Vec<u8> = Vec::new();
         let mut buf = [0u8; 256];
+        let mut told = f64::NEG_INFINITY;
         loop {
+            if self.line.truth && self.khepera.world().time_s() >= told + 0.5 {
+                let world = self.khepera.world();
+                told = world.time_s();
+                let pose = world.pose();
+                // Nobody reading is no reason to stop answering the robot's line.
+                let mut out = std::io::stdout().lock();
+                let _ = writeln!(
+                    out,
+                    "truth {:.2} {:.1} {:.1} {:.3} {}",
+                    told,
+                    pose.x_mm,
+                    pose.y_mm,
+                    pose.theta_rad,
+                    world.collisions()
+                )
+                .and_then(|()| out.flush());
+            }
             let n = match self.master.read(&mut buf) {
                 Ok(n) => n,
                 Err(e) if e.kind() == std::io::ErrorKind::TimedOut => 0,

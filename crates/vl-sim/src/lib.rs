@@ -13,6 +13,7 @@ mod emulator;
 mod khepera;
 mod link;
 mod noise;
+mod odometry;
 mod scene;
 mod script;
 mod tcp;
@@ -25,6 +26,7 @@ pub use khepera::Khepera;
 pub use link::{
     Distribution, Expected, Link, LinkModel, LinkReport, LinkStats, Loss, Profile, measure,
 };
+pub use odometry::{OdometryFit, measure_odometry};
 pub use scene::{SceneEvent, Scheduled};
 pub use script::{Driver, RunReport, Script, ScriptError, Tracking, run};
 pub use tcp::{Delivery, LinkSpecError, MessageLink, RTO_MS};

@@ -97,6 +97,9 @@ pub enum EndReason {
     /// The camera lost sight of the robot for longer than odometry alone
     /// may carry a run.
     RobotLost,
+    /// The safety layer held the robot back for so long that the run
+    /// cannot go on: `Summary::held_back` says why.
+    HeldBack,
 }
 
 impl std::fmt::Display for EndReason {
@@ -110,6 +113,7 @@ impl std::fmt::Display for EndReason {
             EndReason::EmergencyStop => "emergency stop",
             EndReason::OperatorSilent => "operator silent",
             EndReason::RobotLost => "the camera lost the robot",
+            EndReason::HeldBack => "held back by the safety layer",
         })
     }
 }
@@ -172,6 +176,61 @@ pub struct Summary {
     /// Who pressed the emergency stop that ended the run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stopped_by: Option<Stopper>,
+    /// Why the safety layer would not let the run go on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub held_back: Option<HeldBack>,
+}
+
+impl Summary {
+    /// How the run ended, in words.
+    pub fn ending(&self) -> String {
+        ending(self.reason, self.held_back.as_ref())
+    }
+}
+
+/// How a run ended, in words: the reason, and why the safety layer held
+/// it back when it did.
+pub fn ending(reason: EndReason, held_back: Option<&HeldBack>) -> String {
+    match held_back {
+        Some(why) if reason == EndReason::HeldBack => format!("{reason}: {why}"),
+        _ => reason.to_string(),
+    }
+}
+
+/// Where a run was held back, and how unsure the estimate was there.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct HeldBack {
+    /// How far the robot may be from its estimate (two standard
+    /// deviations), mm.
+    pub uncertain_mm: f64,
+    /// The least room the path ahead leaves between the body and what is
+    /// mapped, mm.
+    pub passes_mm: f64,
+    /// Whether that is a wall of the arena (else an obstacle).
+    pub wall: bool,
+    /// The room the safety layer keeps besides the uncertainty, mm.
+    pub margin_mm: f64,
+}
+
+impl std::fmt::Display for HeldBack {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let what = if self.wall { "the wall" } else { "an obstacle" };
+        if self.uncertain_mm + self.margin_mm >= self.passes_mm {
+            write!(
+                f,
+                "position uncertain by {:.0} mm where the path passes {:.0} mm from {what}: \
+                 add a camera or widen the margin",
+                self.uncertain_mm, self.passes_mm
+            )
+        } else {
+            write!(
+                f,
+                "the robot could not move on where the path passes {:.0} mm from {what}: \
+                 something the map does not show may be in the way",
+                self.passes_mm
+            )
+        }
+    }
 }
 
 /// Who pressed an emergency stop: their role and session.

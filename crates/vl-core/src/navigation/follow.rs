@@ -174,6 +174,19 @@ impl Follower {
         self.path[i.min(self.path.len() - 1)]
     }
 
+    /// How far along the path the robot has come, mm.
+    pub fn progress_mm(&self) -> f64 {
+        self.arc[self.progress]
+    }
+
+    /// The path's points from the robot's progress to `mm` beyond it.
+    pub fn ahead(&self, mm: f64) -> &[Point] {
+        let end = self
+            .arc
+            .partition_point(|&a| a <= self.arc[self.progress] + mm);
+        &self.path[self.progress..end.max(self.progress + 1)]
+    }
+
     /// Distance from `p` to the path (its polyline): the tracking error.
     pub fn distance_to_path(&self, p: Point) -> f64 {
         distance_to_polyline(&self.path, p)

@@ -13,9 +13,9 @@ use std::time::{Duration, Instant};
 use tokio::sync::{mpsc as async_mpsc, watch};
 use tracing::{debug, info, warn};
 use vl_core::{
-    CSpace, Definition, DeviceState, EndReason, Experiment, Follower, HostMessage, Localiser,
-    MapField, PathRecorder, Pose, PoseSource, RobotModel, Safety, Situation, Summary, Surroundings,
-    Teleop, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
+    CSpace, Definition, DeviceState, EndReason, Experiment, Follower, HeldBack, HostMessage,
+    Localiser, MapField, PathRecorder, Pose, PoseSource, RobotModel, Safety, Situation, Summary,
+    Surroundings, Teleop, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
 };
 
 use super::camera::Sighting;
@@ -56,6 +56,12 @@ const FACE_MIN_WHEEL_MM_S: f64 = 8.0;
 /// A run whose robot the camera has not seen for this long, s, stops: the
 /// odometry it drove on meanwhile drifts too far to keep it off obstacles.
 const ROBOT_LOST_S: f64 = 2.0;
+/// A followed run that comes no further than `PROGRESS_MM` along its path
+/// in this long, s, is held back for good: it ends, saying why.
+const HELD_BACK_S: f64 = 5.0;
+const PROGRESS_MM: f64 = 5.0;
+/// How far ahead along the path the room it leaves is looked for, mm.
+const ROOM_AHEAD_MM: f64 = 60.0;
 
 /// One run of an experiment, from `start` to its end.
 struct Run {
@@ -98,6 +104,9 @@ struct Run {
     /// robot is there and turning.
     face: Option<f64>,
     turning: bool,
+    /// The furthest the follower had come along the path, mm, and when.
+    progress: (f64, Instant),
+    held_back: Option<HeldBack>,
 }
 
 impl Run {
@@ -133,6 +142,7 @@ impl Run {
             max_event_gap: 0,
             sync_violations: 0,
             stopped_by: None,
+            held_back: self.held_back,
         }
     }
 }
@@ -192,10 +202,11 @@ impl Control {
         // Without a camera the robot is where the lab says it was put; with
         // one, the camera says.
         let start = info.arena.start;
+        let uncertainty = Uncertainty::for_robot(&info.robot);
         let mut localiser = if wiring.sightings.is_some() {
-            Localiser::new(start, Uncertainty::default())
+            Localiser::new(start, uncertainty)
         } else {
-            Localiser::placed(start, Uncertainty::default())
+            Localiser::placed(start, uncertainty)
         };
         if let Some((taken, pose)) = seen {
             let at = taken.saturating_duration_since(wiring.since).as_secs_f64();
@@ -349,6 +360,8 @@ impl Control {
                     kept: (0.0, 0),
                     face,
                     turning: false,
+                    progress: (0.0, now),
+                    held_back: None,
                 });
                 false
             }
@@ -393,6 +406,7 @@ impl Control {
     /// Sends the run's wheel speeds, as the watchdog, the assistance and
     /// then the safety layer leave them; between runs, holds the robot.
     fn drive(&mut self) {
+        let margin_mm = self.margin_mm();
         let Some(run) = &mut self.run else { return };
         let Some((reading, pose)) = &self.last else {
             // Nothing is known of where the robot is yet: it stays put.
@@ -430,12 +444,8 @@ impl Control {
             *force = assisted.force;
             wanted = assisted.wheels;
         }
-        // Whatever asked for `wanted`, the robot must be able to stop in time.
-        // The robot may be anywhere near the estimate: the margin grows by
-        // the estimate's uncertainty (a few tenths of a millimetre with the
-        // camera watching, more the longer odometry alone carries it).
-        let margin_mm = Safety::default().margin_mm
-            + UNCERTAINTY_SIGMAS * self.localiser.position_sd_mm().min(MAX_UNCERTAINTY_MM);
+        // Whatever asked for `wanted`, the robot must be able to stop in
+        // time, wherever near the estimate it may be (`margin_mm`).
         // The command lasts until the next one reaches the wheels, a control
         // period or more; it reaches them only after the reads since the
         // odometry was sampled and its own exchange on the line.
@@ -501,6 +511,12 @@ impl Control {
     fn observe(&mut self, reading: RobotReading) {
         let now = self.clock(Instant::now());
         self.localiser.odometry(now, reading.odometry);
+        if self.source() == PoseSource::Odometry {
+            // No camera to say: the sensors against the map keep the
+            // estimate from drifting across a corridor.
+            self.localiser
+                .ranges(&self.info.robot, &self.info.arena, &reading.proximity);
+        }
         let pose = self.localiser.pose();
         let previous = self.last.replace((reading.clone(), pose));
         let Some(run) = self.run.as_mut() else { return };
@@ -542,10 +558,71 @@ impl Control {
         } else if lost {
             warn!("the camera has not seen the robot for {unseen_s:.1} s: stopping the run");
             self.finish(EndReason::RobotLost);
+        } else if let Some(held) = self.held_back(pose) {
+            warn!("{held}: stopping the run");
+            if let Some(run) = self.run.as_mut() {
+                run.held_back = Some(held);
+            }
+            self.finish(EndReason::HeldBack);
         } else {
             // Re-applying every tick lets the watchdog and the safety layer act between commands.
             self.drive();
         }
+    }
+
+    /// The safety margin: the layer's own, widened by how far the robot
+    /// may be from its estimate (a few tenths of a millimetre with the
+    /// camera watching, more the longer odometry alone carries it).
+    fn margin_mm(&self) -> f64 {
+        Safety::default().margin_mm + self.uncertain_mm()
+    }
+
+    /// How far the robot may be from its estimate, mm (capped: an estimate
+    /// this unsure keeps the robot well away from everything mapped).
+    fn uncertain_mm(&self) -> f64 {
+        UNCERTAINTY_SIGMAS * self.localiser.position_sd_mm().min(MAX_UNCERTAINTY_MM)
+    }
+
+    /// Whether a followed run has come no further along its path for
+    /// `HELD_BACK_S` (the safety layer holding it back, or something in
+    /// the way), and if so where and why.
+    fn held_back(&mut self, pose: vl_core::Pose) -> Option<HeldBack> {
+        let robot_radius = self.info.robot.radius_mm;
+        let uncertain_mm = self.uncertain_mm();
+        let run = self.run.as_mut()?;
+        if run.held || run.turning || (run.commanded && run.last_command.elapsed() <= WATCHDOG) {
+            run.progress.1 = Instant::now();
+            return None;
+        }
+        let follower = run.follower.as_ref()?;
+        let along = follower.progress_mm();
+        if along >= run.progress.0 + PROGRESS_MM {
+            run.progress = (along, Instant::now());
+            return None;
+        }
+        if run.progress.1.elapsed().as_secs_f64() < HELD_BACK_S {
+            return None;
+        }
+        let arena = &self.info.arena;
+        let (mut passes_mm, mut wall) = (f64::INFINITY, false);
+        for &p in follower.ahead(ROOM_AHEAD_MM).iter().chain([&pose.point()]) {
+            let room = run.surroundings.clearance(p) - robot_radius;
+            if room < passes_mm {
+                let to_wall = p
+                    .x_mm
+                    .min(arena.width_mm - p.x_mm)
+                    .min(p.y_mm)
+                    .min(arena.height_mm - p.y_mm);
+                passes_mm = room;
+                wall = to_wall - robot_radius <= room + 1e-9;
+            }
+        }
+        Some(HeldBack {
+            uncertain_mm,
+            passes_mm: passes_mm.max(0.0),
+            wall,
+            margin_mm: Safety::default().margin_mm,
+        })
     }
 
     /// Ends the run (if any): stops the robot and reports the summary.
