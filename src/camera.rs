@@ -20,7 +20,52 @@ pub(crate) enum CameraCommand {
     /// are known: a file of point pairs, a picture of a dot target, or the
     /// simulated camera looking at one. Writes the calibration `vl host
     /// --camera-calibration` reads.
-    Calibrate(CalibrateArgs),
+    Calibrate(Box<CalibrateArgs>),
+    /// List the webcams on this machine (Video4Linux2) and the formats,
+    /// sizes and rates each captures in that `vl host --camera v4l2:…` reads.
+    List {
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// The webcams found.
+#[cfg(target_os = "linux")]
+#[derive(Serialize)]
+#[serde(transparent)]
+struct Webcams(Vec<vl_host::DeviceInfo>);
+
+#[cfg(target_os = "linux")]
+impl Report for Webcams {
+    fn table(&self) -> Table {
+        if self.0.is_empty() {
+            return Table::pairs([]).note("no video capture devices (/dev/video*) on this machine");
+        }
+        let mut table = Table::columns(&["device", "camera", "format", "size", "frames/s"]);
+        for device in &self.0 {
+            let name = format!("{} ({})", device.card, device.driver);
+            if device.modes.is_empty() {
+                table.row(vec![
+                    device.path.display().to_string(),
+                    name.clone(),
+                    "no MJPEG or YUYV".into(),
+                    String::new(),
+                    String::new(),
+                ]);
+            }
+            for mode in &device.modes {
+                let fps: Vec<String> = mode.fps.iter().map(|f| format!("{f:.0}")).collect();
+                table.row(vec![
+                    device.path.display().to_string(),
+                    name.clone(),
+                    mode.format.to_string(),
+                    format!("{}×{}", mode.width, mode.height),
+                    fps.join(", "),
+                ]);
+            }
+        }
+        table.note("use one as: vl host --camera v4l2:DEVICE,WIDTHxHEIGHT,RATEfps,FORMAT")
+    }
 }
 
 #[derive(Args)]
@@ -137,7 +182,19 @@ impl Report for Calibrated {
 
 pub(crate) fn run(command: CameraCommand) -> Result<ExitCode> {
     match command {
-        CameraCommand::Calibrate(args) => calibrate(args),
+        CameraCommand::Calibrate(args) => calibrate(*args),
+        #[cfg(not(target_os = "linux"))]
+        CameraCommand::List { .. } => {
+            anyhow::bail!(BadInput(
+                "webcams are read through Video4Linux2, which only Linux has".into()
+            ))
+        }
+        #[cfg(target_os = "linux")]
+        CameraCommand::List { json } => {
+            let devices = vl_host::list_devices().context("cannot list the video devices")?;
+            emit(&Webcams(devices), json)?;
+            Ok(ExitCode::SUCCESS)
+        }
     }
 }
 

@@ -42,8 +42,9 @@ pub(crate) struct KheperaArgs {
     /// Print each command line received, with the milliseconds since start.
     #[arg(long)]
     log_commands: bool,
-    /// Print the robot's true pose and its contacts so far twice a second
-    /// (`truth T X Y θ CONTACTS`): what tests judge a run by.
+    /// Print the robot's true pose and its contacts so far 20 times a
+    /// second (`truth T X Y θ CONTACTS`): what tests judge a run by, and
+    /// render a camera's frames from.
     #[arg(long)]
     truth: bool,
     /// Where the robot is put, x,y[,θ] mm and rad (default: the arena's
@@ -189,19 +190,55 @@ enum CameraDriver {
     None,
     /// Recorded footage: the images of a directory, played back in name order.
     Replay(std::path::PathBuf),
+    /// A network camera streaming MJPEG over HTTP, at this URL.
+    Http(String),
+    /// A webcam on Video4Linux2.
+    #[cfg(target_os = "linux")]
+    V4l2(vl_host::V4l2Spec),
 }
 
 fn parse_camera(text: &str) -> Result<CameraDriver, String> {
     match text {
         "sim" => Ok(CameraDriver::Sim),
         "none" => Ok(CameraDriver::None),
+        _ if text.starts_with("http://") => Ok(CameraDriver::Http(text.to_owned())),
+        #[cfg(target_os = "linux")]
+        _ if text.starts_with("v4l2:") => Ok(CameraDriver::V4l2(text["v4l2:".len()..].parse()?)),
         _ => match text.strip_prefix("dir:") {
             Some(dir) if !dir.is_empty() => Ok(CameraDriver::Replay(dir.into())),
             _ => Err(format!(
-                "'{text}' is no camera: use sim, none or dir:PATH (recorded footage)"
+                "'{text}' is no camera: use sim, none, http://… (an MJPEG stream), \
+                 v4l2:/dev/videoN (a webcam) or dir:PATH (recorded footage)"
             )),
         },
     }
+}
+
+/// The real camera `driver` names, seen through `calibration` or, without
+/// one, as looking straight down on the `arena`'s floor.
+fn real_camera(
+    driver: CameraDriver,
+    calibration: Option<vl_core::CameraModel>,
+    arena: &Arena,
+) -> Result<Option<Box<dyn vl_host::Camera>>> {
+    let floor = (arena.width_mm, arena.height_mm);
+    let camera: Box<dyn vl_host::Camera> = match driver {
+        CameraDriver::Sim | CameraDriver::None => return Ok(None),
+        CameraDriver::Replay(dir) => Box::new(
+            ReplayCamera::open(&dir, calibration, floor, REPLAY_FPS)
+                .map_err(|e| BadInput(e.to_string()))?,
+        ),
+        CameraDriver::Http(url) => Box::new(
+            vl_host::HttpCamera::open(&url, calibration, floor, REPLAY_FPS)
+                .context("no camera to watch the arena with")?,
+        ),
+        #[cfg(target_os = "linux")]
+        CameraDriver::V4l2(spec) => Box::new(
+            vl_host::V4l2Camera::open(spec, calibration, floor)
+                .context("no camera to watch the arena with")?,
+        ),
+    };
+    Ok(Some(camera))
 }
 
 /// `vl host`: serve the lab, or measure how it answers.
@@ -279,9 +316,11 @@ pub(crate) struct HostArgs {
     /// The serial line's speed (with --robot khepera).
     #[arg(long, default_value_t = 38_400)]
     baud: u32,
-    /// Which camera to watch the arena with: sim, none, or dir:PATH to play
-    /// recorded footage back (its images in name order, 15 a second); a real
-    /// robot has no simulated camera, so the default there is none.
+    /// Which camera to watch the arena with: sim, none, http://… (a network
+    /// camera's MJPEG stream), v4l2:/dev/videoN[,640x480][,15fps][,mjpeg|yuyv]
+    /// (a webcam), or dir:PATH to play recorded footage back (its images in
+    /// name order, 15 a second); a real robot has no simulated camera, so
+    /// the default there is none.
     #[arg(
         long,
         value_parser = parse_camera,
@@ -609,7 +648,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             )
             .into());
         }
-        (RobotDriver::Sim, camera) => {
+        (RobotDriver::Sim, camera @ (CameraDriver::Sim | CameraDriver::None)) => {
             let lab = SimLab {
                 arena,
                 robot: model,
@@ -622,6 +661,12 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             };
             Host::start_sim(listen, lab, config).await
         }
+        (RobotDriver::Sim, _) => {
+            return Err(BadInput(
+                "a real camera watches a real robot, not the simulated one: use --robot khepera".into(),
+            )
+            .into());
+        }
         (RobotDriver::Khepera, CameraDriver::Sim) => {
             return Err(BadInput(
                 "the simulated camera watches only the simulated robot; use --camera none".into(),
@@ -632,15 +677,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             let Some(port) = args.port.as_deref() else {
                 bail!(BadInput("--robot khepera needs --port DEVICE".into()));
             };
-            let camera = match camera {
-                CameraDriver::Replay(dir) => {
-                    let floor = (arena.width_mm, arena.height_mm);
-                    let footage = ReplayCamera::open(&dir, calibration, floor, REPLAY_FPS)
-                        .map_err(|e| BadInput(e.to_string()))?;
-                    Some(Box::new(footage) as Box<dyn vl_host::Camera>)
-                }
-                _ => None,
-            };
+            let camera = real_camera(camera, calibration, &arena)?;
             // A guard process holds the line and stops the robot if this one dies.
             let program = std::env::current_exe().context("cannot find the vl binary")?;
             let robot = KheperaSerial::guarded(program, port, args.baud, model, arena.start)

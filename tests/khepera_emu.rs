@@ -180,8 +180,8 @@ fn navigation_without_a_camera(arena: &str) {
     assert_eq!(summary["reason"], "goal_reached", "{arena}: {summary}");
     assert_eq!(summary["collisions"], 0, "{arena}: {summary}");
     assert_eq!(summary["pose_source"], "odometry", "{arena}: {summary}");
-    // The emulator says where the robot truly is twice a second: wait for
-    // a line from after the run.
+    // The emulator says where the robot truly is 20 times a second: wait
+    // for a line from after the run.
     std::thread::sleep(Duration::from_millis(700));
     let last = truth
         .try_iter()
@@ -236,5 +236,8 @@ fn a_run_too_uncertain_to_go_on_says_why_in_words() {
         stdout.contains("held back by the safety layer: position uncertain by"),
         "{stdout}"
     );
-    assert!(stderr.contains("add a camera or widen the margin"), "{stderr}");
+    assert!(
+        stderr.contains("add a camera or widen the margin"),
+        "{stderr}"
+    );
 }

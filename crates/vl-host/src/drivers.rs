@@ -58,11 +58,20 @@ pub trait Robot: Send {
     }
 }
 
+/// A frame and when it was taken. A real camera's frame arrives tens of
+/// milliseconds after its exposure: the pose estimate folds the robot it
+/// shows in at the moment of the exposure, not of the arrival.
+pub struct Captured {
+    pub image: RgbImage,
+    pub taken: Instant,
+}
+
 /// An overhead camera.
 pub trait Camera: Send {
     /// The camera as calibrated: how its pixels map to the floor.
     fn model(&self) -> CameraModel;
-    fn grab(&mut self) -> Result<RgbImage, CameraError>;
+    /// The newest frame (waiting for it at most a few frame periods).
+    fn grab(&mut self) -> Result<Captured, CameraError>;
 }
 
 /// Where the robot truly is, which only a simulator knows. The Host hands

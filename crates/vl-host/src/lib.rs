@@ -1,7 +1,8 @@
 //! The vl Host: the lab machine's side. It drives the robot and camera
 //! (behind the traits in `drivers`: simulated in `sim`, a real Khepera on
-//! a serial line in `khepera`, recorded footage played back in `replay`, whose speed controller `characterise`
-//! measures), runs the experiment control loop (`lab`) and serves Guests
+//! a serial line in `khepera`, recorded footage played back in `replay`,
+//! real cameras over HTTP or V4L2 in `webcam`; the Khepera's speed
+//! controller `characterise` measures), runs the experiment control loop (`lab`) and serves Guests
 //! over WebSocket (`server`); and the Media, a relay that puts a modelled
 //! Internet link between Guests and a Host (`media`).
 
@@ -14,6 +15,7 @@ mod media;
 mod replay;
 mod server;
 mod sim;
+mod webcam;
 
 use std::net::SocketAddr;
 
@@ -22,7 +24,7 @@ use vl_core::{Arena, CalibrationError, CameraModel, RobotModel};
 use vl_sim::{Optics, Scheduled};
 
 pub use characterise::{CharacteriseError, characterise};
-pub use drivers::{Camera, CameraError, Robot, RobotError, RobotReading, Witness};
+pub use drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness};
 pub use khepera::KheperaSerial;
 pub use lab::{Devices, FramePolicy};
 pub use line::run_guard;
@@ -32,6 +34,9 @@ pub use media::{
 pub use replay::ReplayCamera;
 pub use server::HostConfig;
 pub use server::bench::{BenchError, OperatorLatency, operator_latency};
+#[cfg(target_os = "linux")]
+pub use webcam::{DeviceInfo, V4l2Camera, V4l2Spec, list_devices};
+pub use webcam::{HttpCamera, PixelFormat, decode as decode_pixels};
 
 /// Why a Host could not start.
 #[derive(Debug, thiserror::Error)]

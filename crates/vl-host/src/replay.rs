@@ -6,11 +6,12 @@
 //! back.
 
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use image::RgbImage;
 use vl_core::{CameraModel, load_image};
 
-use crate::drivers::{Camera, CameraError};
+use crate::drivers::{Camera, CameraError, Captured};
 
 /// Image files a footage directory may hold.
 const EXTENSIONS: [&str; 3] = ["png", "jpg", "jpeg"];
@@ -77,7 +78,7 @@ impl Camera for ReplayCamera {
         self.model
     }
 
-    fn grab(&mut self) -> Result<RgbImage, CameraError> {
+    fn grab(&mut self) -> Result<Captured, CameraError> {
         if self.next >= self.frames.len() {
             // Round again, over what the directory holds now.
             self.frames = list(&self.dir)?;
@@ -100,6 +101,9 @@ impl Camera for ReplayCamera {
                 image.height()
             )));
         }
-        Ok(image)
+        Ok(Captured {
+            image,
+            taken: Instant::now(),
+        })
     }
 }

@@ -12,11 +12,10 @@
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
 
-use image::RgbImage;
 use vl_core::{Arena, CameraModel, Pose, RobotModel, WheelSpeeds};
 use vl_sim::{Optics, Scheduled, SimError, World};
 
-use crate::drivers::{Camera, CameraError, Robot, RobotError, RobotReading, Witness};
+use crate::drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness};
 
 /// The longest stretch of simulated time one read catches up, s: three
 /// control periods.
@@ -141,10 +140,13 @@ impl Camera for RenderedCamera {
         self.believed
     }
 
-    fn grab(&mut self) -> Result<RgbImage, CameraError> {
+    fn grab(&mut self) -> Result<Captured, CameraError> {
         // Rendered from a copy: the control loop must not wait on a frame.
         let world = lock(&self.world).clone();
-        Ok(world.render(&self.nominal, &self.optics))
+        Ok(Captured {
+            image: world.render(&self.nominal, &self.optics),
+            taken: Instant::now(),
+        })
     }
 }
 

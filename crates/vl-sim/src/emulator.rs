@@ -40,8 +40,8 @@ pub struct Line {
     pub timing: bool,
     /// Print each command line received, with the ms since the start.
     pub log_commands: bool,
-    /// Print the robot's true pose and its contacts so far twice a second
-    /// of the robot's clock, as `truth T_S X_MM Y_MM THETA_RAD CONTACTS`:
+    /// Print the robot's true pose and its contacts so far every 50 ms of
+    /// the robot's clock (a camera's rate), as `truth T_S X_MM Y_MM THETA_RAD CONTACTS`:
     /// what a test or bench judges a run by (a real robot has no such line).
     pub truth: bool,
 }
@@ -96,7 +96,7 @@ impl Emulator {
         let mut buf = [0u8; 256];
         let mut told = f64::NEG_INFINITY;
         loop {
-            if self.line.truth && self.khepera.world().time_s() >= told + 0.5 {
+            if self.line.truth && self.khepera.world().time_s() >= told + 0.05 {
                 let world = self.khepera.world();
                 told = world.time_s();
                 let pose = world.pose();

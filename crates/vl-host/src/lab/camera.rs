@@ -20,7 +20,7 @@ use vl_core::{
 };
 
 use super::{LabStatus, RETRY_MAX};
-use crate::drivers::Camera;
+use crate::drivers::{Camera, Captured};
 
 /// The robot where a frame showed it, and when the frame was taken.
 #[derive(Debug, Clone, Copy)]
@@ -82,9 +82,10 @@ pub(crate) fn first_look(camera: &mut dyn Camera, floor: &Arena) -> FirstLook {
     };
     let mut last_error = None;
     for _ in 0..FIRST_FRAME_TRIES {
-        let taken = Instant::now();
         match camera.grab() {
-            Ok(frame) => return map_from(&frame, &model, floor, taken).unwrap_or_else(fallback),
+            Ok(frame) => {
+                return map_from(&frame.image, &model, floor, frame.taken).unwrap_or_else(fallback);
+            }
             Err(e) => last_error = Some(e),
         }
         thread::sleep(Duration::from_millis(100));
@@ -184,18 +185,15 @@ impl CameraLoop {
             .expect("the OS starts a thread");
         while self.running.load(Ordering::Relaxed) {
             let started = Instant::now();
-            let capture_us = self.since.elapsed().as_micros() as u64;
             let event = self.event.load(Ordering::Relaxed);
             match self.camera.grab() {
-                Ok(image) => {
+                Ok(Captured { image, taken }) => {
+                    let capture_us = taken.saturating_duration_since(self.since).as_micros() as u64;
                     let seen = look(&image, &model);
                     if let Some(pose) = seen.robot {
                         // A full queue means the control loop is behind: this
                         // sighting would be stale by the time it is read.
-                        let _ = self.sightings.try_send(Sighting {
-                            taken: started,
-                            pose,
-                        });
+                        let _ = self.sightings.try_send(Sighting { taken, pose });
                     }
                     let _ = to_publish.try_send(Taken {
                         image,

@@ -1,0 +1,422 @@
+//! A network camera streaming MJPEG over HTTP, as IP cameras,
+//! `mjpg-streamer` and `ustreamer` serve it: one `GET` answered by a
+//! `multipart/x-mixed-replace` body, a JPEG per part. A thread reads the
+//! stream as fast as it comes and keeps only the newest frame, so a Host
+//! that looks less often than the camera sends never sees an old one; when
+//! the stream breaks it connects again, backing off to a few seconds.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{TcpStream, ToSocketAddrs};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::thread;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use tracing::debug;
+use vl_core::CameraModel;
+
+use super::pixels::{PixelFormat, decode};
+use crate::drivers::{Camera, CameraError, Captured};
+
+/// No JPEG part is larger than this, nor a header line longer than
+/// `MAX_LINE`, nor a part's headers more than `MAX_HEADERS`: a stream that
+/// breaks these is no camera's.
+const MAX_PART: usize = 16 << 20;
+const MAX_LINE: usize = 8 << 10;
+const MAX_HEADERS: usize = 64;
+/// A camera that sends nothing for this long is gone.
+const SILENT: Duration = Duration::from_secs(2);
+/// `grab` waits this long for a frame newer than the last.
+const GRAB_WAIT: Duration = Duration::from_secs(1);
+/// Reconnecting backs off from the first to the second.
+const RETRY: (Duration, Duration) = (Duration::from_millis(200), Duration::from_secs(3));
+/// How long `open` waits for the first frame, which gives the image's size.
+const FIRST_FRAME: Duration = Duration::from_secs(5);
+
+/// Where the stream is: host, port and the request's path.
+#[derive(Debug, Clone, PartialEq)]
+struct Address {
+    host: String,
+    port: u16,
+    path: String,
+}
+
+impl Address {
+    fn parse(url: &str) -> Result<Address, CameraError> {
+        let rest = url.strip_prefix("http://").ok_or_else(|| {
+            CameraError(format!(
+                "'{url}' is no HTTP camera: it must start with http:// (https is not read)"
+            ))
+        })?;
+        let (authority, path) = match rest.find('/') {
+            Some(i) => (&rest[..i], &rest[i..]),
+            None => (rest, "/"),
+        };
+        if authority.contains('@') {
+            return Err(CameraError(format!(
+                "'{url}': a user and password in the address are not supported"
+            )));
+        }
+        let port_of = |port: &str| {
+            port.parse::<u16>()
+                .map_err(|_| CameraError(format!("'{url}': '{port}' is no port")))
+        };
+        let (host, port) = match authority.strip_prefix('[') {
+            // An IPv6 address, in brackets.
+            Some(bracketed) => {
+                let (host, after) = bracketed
+                    .split_once(']')
+                    .ok_or_else(|| CameraError(format!("'{url}': an unclosed '['")))?;
+                match after.strip_prefix(':') {
+                    Some(port) => (host, port_of(port)?),
+                    None => (host, 80),
+                }
+            }
+            None => match authority.rsplit_once(':') {
+                Some((host, port)) => (host, port_of(port)?),
+                None => (authority, 80),
+            },
+        };
+        if host.is_empty() {
+            return Err(CameraError(format!("'{url}' names no host")));
+        }
+        Ok(Address {
+            host: host.to_owned(),
+            port,
+            path: path.to_owned(),
+        })
+    }
+}
+
+/// The newest frame the reader has, and what went wrong last.
+#[derive(Default)]
+struct Newest {
+    jpeg: Option<(Vec<u8>, Instant)>,
+    /// Frames read so far: `grab` waits for this to pass what it had.
+    count: u64,
+    error: Option<String>,
+}
+
+struct Shared {
+    newest: Mutex<Newest>,
+    arrived: Condvar,
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, Newest> {
+        self.newest.lock().unwrap_or_else(|p| p.into_inner())
+    }
+}
+
+/// A camera at an `http://` URL serving MJPEG.
+pub struct HttpCamera {
+    url: String,
+    model: CameraModel,
+    shared: Arc<Shared>,
+    seen: u64,
+}
+
+impl HttpCamera {
+    /// Starts reading `url`; the camera is seen through `model`, or
+    /// (without one) as a camera looking straight down on a `floor_mm`
+    /// floor at `fps`, its size taken from its first frame.
+    pub fn open(
+        url: &str,
+        model: Option<CameraModel>,
+        floor_mm: (f64, f64),
+        fps: f64,
+    ) -> Result<HttpCamera, CameraError> {
+        let address = Address::parse(url)?;
+        let shared = Arc::new(Shared {
+            newest: Mutex::default(),
+            arrived: Condvar::new(),
+        });
+        let reader = shared.clone();
+        thread::Builder::new()
+            .name("vl-http-camera".into())
+            .spawn(move || read_forever(&address, &reader))
+            .map_err(|e| CameraError(format!("cannot start reading {url}: {e}")))?;
+        let model = match model {
+            Some(model) => model,
+            None => {
+                let deadline = Instant::now() + FIRST_FRAME;
+                let mut newest = shared.lock();
+                while newest.jpeg.is_none() && Instant::now() < deadline {
+                    newest = shared
+                        .arrived
+                        .wait_timeout(newest, deadline.saturating_duration_since(Instant::now()))
+                        .unwrap_or_else(|p| p.into_inner())
+                        .0;
+                }
+                let Some((jpeg, _)) = &newest.jpeg else {
+                    let why = newest
+                        .error
+                        .clone()
+                        .unwrap_or_else(|| "nothing came".into());
+                    return Err(CameraError(format!(
+                        "no frame from {url} within {} s ({why}); give --camera-calibration to start without one",
+                        FIRST_FRAME.as_secs()
+                    )));
+                };
+                let image = vl_core::decode_image(jpeg, Some(image::ImageFormat::Jpeg))
+                    .map_err(|e| CameraError(format!("the first frame from {url}: {e}")))?;
+                CameraModel::overhead(floor_mm.0, floor_mm.1, image.width(), fps)
+            }
+        };
+        Ok(HttpCamera {
+            url: url.to_owned(),
+            model,
+            shared,
+            seen: 0,
+        })
+    }
+}
+
+impl Camera for HttpCamera {
+    fn model(&self) -> CameraModel {
+        self.model
+    }
+
+    fn grab(&mut self) -> Result<Captured, CameraError> {
+        let deadline = Instant::now() + GRAB_WAIT;
+        let mut newest = self.shared.lock();
+        while newest.count == self.seen && Instant::now() < deadline {
+            newest = self
+                .shared
+                .arrived
+                .wait_timeout(newest, deadline.saturating_duration_since(Instant::now()))
+                .unwrap_or_else(|p| p.into_inner())
+                .0;
+        }
+        let fresh = newest.count != self.seen;
+        let (jpeg, taken) = match (&newest.jpeg, fresh) {
+            (Some((jpeg, taken)), true) => (jpeg.clone(), *taken),
+            _ => {
+                let why = newest
+                    .error
+                    .clone()
+                    .unwrap_or_else(|| "no new frame".into());
+                return Err(CameraError(format!("{}: {why}", self.url)));
+            }
+        };
+        self.seen = newest.count;
+        drop(newest);
+        let (w, h) = (self.model.width_px, self.model.height_px);
+        let image = decode(PixelFormat::Mjpeg, &jpeg, w, h, 0)
+            .map_err(|e| CameraError(format!("{}: {}", self.url, e.0)))?;
+        Ok(Captured { image, taken })
+    }
+}
+
+/// Reads the stream, again and again, until the camera is dropped.
+fn read_forever(address: &Address, shared: &Arc<Shared>) {
+    let mut wait = RETRY.0;
+    // Ends when the camera (the other holder of `shared`) is gone.
+    while Arc::strong_count(shared) > 1 {
+        let error = match stream(address, shared) {
+            Ok(()) => "the camera ended its stream".to_owned(),
+            Err(e) => e,
+        };
+        debug!("{}:{}: {error}", address.host, address.port);
+        let got_frames = {
+            let mut newest = shared.lock();
+            newest.error = Some(error);
+            newest.jpeg.is_some()
+        };
+        shared.arrived.notify_all();
+        thread::sleep(wait);
+        wait = if got_frames {
+            RETRY.0
+        } else {
+            (wait * 2).min(RETRY.1)
+        };
+        shared.lock().jpeg = None;
+    }
+}
+
+/// One connection: the request, the answer's headers, then parts until
+/// the stream breaks.
+fn stream(address: &Address, shared: &Arc<Shared>) -> Result<(), String> {
+    let socket = (address.host.as_str(), address.port)
+        .to_socket_addrs()
+        .map_err(|e| format!("cannot find {}: {e}", address.host))?
+        .next()
+        .ok_or_else(|| format!("{} has no address", address.host))?;
+    let mut tcp =
+        TcpStream::connect_timeout(&socket, SILENT).map_err(|e| format!("cannot connect: {e}"))?;
+    tcp.set_read_timeout(Some(SILENT))
+        .map_err(|e| e.to_string())?;
+    tcp.set_write_timeout(Some(SILENT))
+        .map_err(|e| e.to_string())?;
+    write!(
+        tcp,
+        "GET {} HTTP/1.1\r\nHost: {}\r\nUser-Agent: vl\r\nAccept: multipart/x-mixed-replace, image/jpeg\r\nConnection: close\r\n\r\n",
+        address.path, address.host
+    )
+    .map_err(|e| format!("cannot ask for the stream: {e}"))?;
+    let mut reader = BufReader::new(tcp);
+    let status = line(&mut reader)?;
+    let code = status.split_whitespace().nth(1).unwrap_or("");
+    if !status.starts_with("HTTP/1.") || code != "200" {
+        return Err(format!("the camera answered '{status}'"));
+    }
+    let answer = headers(&mut reader)?;
+    let content_type = header(&answer, "content-type").unwrap_or_default();
+    let boundary = content_type
+        .split(';')
+        .filter_map(|p| p.trim().strip_prefix("boundary="))
+        .next()
+        .map(|b| b.trim_matches('"').to_owned())
+        .filter(|_| content_type.to_ascii_lowercase().starts_with("multipart/"))
+        .ok_or_else(|| format!("the camera sends '{content_type}', not an MJPEG stream"))?;
+    shared.lock().error = None;
+    loop {
+        // Up to the boundary line (some cameras put blank lines first, some
+        // write the boundary with its dashes in the header too).
+        let delimiter = boundary.trim_start_matches('-');
+        let mut skipped = 0;
+        loop {
+            let text = line(&mut reader)?;
+            let core = text.trim().trim_start_matches('-');
+            if core == delimiter {
+                break;
+            }
+            if core.strip_suffix("--") == Some(delimiter) {
+                return Ok(());
+            }
+            skipped += 1;
+            if skipped > MAX_HEADERS {
+                return Err("no part boundary in the stream".into());
+            }
+        }
+        let part = headers(&mut reader)?;
+        let jpeg = match header(&part, "content-length") {
+            Some(length) => {
+                let length: usize = length
+                    .trim()
+                    .parse()
+                    .map_err(|_| format!("a part of length '{length}'"))?;
+                if length > MAX_PART {
+                    return Err(format!("a {length}-byte part, over {MAX_PART}"));
+                }
+                let mut jpeg = vec![0; length];
+                reader
+                    .read_exact(&mut jpeg)
+                    .map_err(|e| format!("the stream broke: {e}"))?;
+                jpeg
+            }
+            None => until_jpeg_end(&mut reader)?,
+        };
+        // A camera that says when it took the frame (ustreamer's and
+        // mjpg-streamer's X-Timestamp, Unix seconds) is believed.
+        let taken = header(&part, "x-timestamp")
+            .and_then(|t| t.trim().parse::<f64>().ok())
+            .and_then(|t| {
+                let now = SystemTime::now()
+                    .duration_since(UNIX_EPOCH)
+                    .ok()?
+                    .as_secs_f64();
+                let age = now - t;
+                (0.0..1.0)
+                    .contains(&age)
+                    .then(|| Instant::now() - Duration::from_secs_f64(age))
+            })
+            .unwrap_or_else(Instant::now);
+        {
+            let mut newest = shared.lock();
+            newest.jpeg = Some((jpeg, taken));
+            newest.count += 1;
+        }
+        shared.arrived.notify_all();
+        if Arc::strong_count(shared) == 1 {
+            return Ok(());
+        }
+    }
+}
+
+/// A part with no length: its bytes up to JPEG's end marker.
+fn until_jpeg_end(reader: &mut impl BufRead) -> Result<Vec<u8>, String> {
+    let mut jpeg = Vec::new();
+    loop {
+        let mut byte = [0u8];
+        reader
+            .read_exact(&mut byte)
+            .map_err(|e| format!("the stream broke: {e}"))?;
+        jpeg.push(byte[0]);
+        if jpeg.ends_with(&[0xFF, 0xD9]) {
+            return Ok(jpeg);
+        }
+        if jpeg.len() > MAX_PART {
+            return Err(format!("a part over {MAX_PART} bytes"));
+        }
+    }
+}
+
+/// One header line, without its CRLF.
+fn line(reader: &mut impl BufRead) -> Result<String, String> {
+    let mut bytes = Vec::new();
+    let n = reader
+        .take(MAX_LINE as u64)
+        .read_until(b'\n', &mut bytes)
+        .map_err(|e| format!("the stream broke: {e}"))?;
+    if n == 0 {
+        return Err("the camera closed the connection".into());
+    }
+    if !bytes.ends_with(b"\n") {
+        return Err(format!("a header line over {MAX_LINE} bytes"));
+    }
+    Ok(String::from_utf8_lossy(&bytes).trim_end().to_owned())
+}
+
+/// Header lines up to the blank one, as (lower-case name, value).
+fn headers(reader: &mut impl BufRead) -> Result<Vec<(String, String)>, String> {
+    let mut headers = Vec::new();
+    loop {
+        let text = line(reader)?;
+        if text.is_empty() {
+            return Ok(headers);
+        }
+        if headers.len() >= MAX_HEADERS {
+            return Err(format!("over {MAX_HEADERS} header lines"));
+        }
+        if let Some((name, value)) = text.split_once(':') {
+            headers.push((name.trim().to_ascii_lowercase(), value.trim().to_owned()));
+        }
+    }
+}
+
+fn header<'a>(headers: &'a [(String, String)], name: &str) -> Option<&'a str> {
+    headers
+        .iter()
+        .find(|(n, _)| n == name)
+        .map(|(_, v)| v.as_str())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn addresses_are_read_or_refused_with_a_reason() {
+        let a = Address::parse("http://10.0.0.5:8080/?action=stream").unwrap();
+        assert_eq!(
+            (a.host.as_str(), a.port, a.path.as_str()),
+            ("10.0.0.5", 8080, "/?action=stream")
+        );
+        let a = Address::parse("http://camera.lab").unwrap();
+        assert_eq!(
+            (a.host.as_str(), a.port, a.path.as_str()),
+            ("camera.lab", 80, "/")
+        );
+        let a = Address::parse("http://[::1]:81/stream").unwrap();
+        assert_eq!((a.host.as_str(), a.port), ("::1", 81));
+        for (url, says) in [
+            ("https://cam/", "must start with http://"),
+            ("http://:80/", "names no host"),
+            ("http://cam:http/", "'http' is no port"),
+            ("http://me:pw@cam/", "user and password"),
+        ] {
+            let e = Address::parse(url).unwrap_err().to_string();
+            assert!(e.contains(says), "{url}: {e}");
+        }
+    }
+}
