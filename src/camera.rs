@@ -168,6 +168,14 @@ impl Report for Calibrated {
                 "scale at the centre",
                 format!("{:.3} mm per px", camera.mm_per_px()),
             ),
+            (
+                "lens distortion",
+                format!(
+                    "k1 {:+.4}, k2 {:+.4}",
+                    camera.distortion().k1,
+                    camera.distortion().k2
+                ),
+            ),
         ];
         if let Some(truth) = self.truth_max_px {
             rows.push(("off the true camera", format!("{truth:.3} px at worst")));

@@ -55,6 +55,10 @@ pub(crate) enum OpticsPreset {
     /// Lens offset, blur, noise and a lighting gradient together, as an
     /// inexpensive webcam over a lab bench.
     Noisy,
+    /// The noisy camera with a wide lens's barrel distortion, 80 ms from
+    /// exposure to arrival, 20 ms exposures (motion blur), 5 % of frames
+    /// lost and 5 % with the robot's marker partly hidden.
+    Realistic,
 }
 
 /// How the simulated camera departs from an ideal one: a preset, and any
@@ -78,6 +82,22 @@ pub(crate) struct OpticsArgs {
     /// How far the camera leans from looking straight down, degrees.
     #[arg(long, allow_hyphen_values = true)]
     tilt_deg: Option<f64>,
+    /// The lens's radial distortion, as K1,K2 (radii in image widths;
+    /// barrel distortion has K1 < 0).
+    #[arg(long, allow_hyphen_values = true)]
+    lens: Option<Point>,
+    /// From a frame's exposure to its arrival, ms.
+    #[arg(long)]
+    delay_ms: Option<f64>,
+    /// How long the shutter is open, ms (a moving robot smears).
+    #[arg(long)]
+    exposure_ms: Option<f64>,
+    /// The share of frames lost (0–0.5).
+    #[arg(long)]
+    drop_rate: Option<f64>,
+    /// The share of frames with the robot's marker partly hidden (0–0.5).
+    #[arg(long)]
+    occlusion_rate: Option<f64>,
 }
 
 impl OpticsArgs {
@@ -89,7 +109,18 @@ impl OpticsArgs {
                 ..Optics::default()
             },
             OpticsPreset::Noisy => Optics::noisy(seed),
+            OpticsPreset::Realistic => Optics::realistic(seed),
         };
+        if let Some(k) = self.lens {
+            optics.distortion = vl_core::Distortion {
+                k1: k.x_mm,
+                k2: k.y_mm,
+            };
+        }
+        optics.delay_s = self.delay_ms.map_or(optics.delay_s, |ms| ms / 1e3);
+        optics.exposure_s = self.exposure_ms.map_or(optics.exposure_s, |ms| ms / 1e3);
+        optics.drop_rate = self.drop_rate.unwrap_or(optics.drop_rate);
+        optics.occlusion_rate = self.occlusion_rate.unwrap_or(optics.occlusion_rate);
         if let Some(p) = self.lens_offset {
             optics.lens_offset_px = [p.x_mm, p.y_mm];
         }

@@ -34,7 +34,7 @@ fn the_simulated_camera_calibrates_within_half_a_pixel() {
         let rms = fit["reprojection"]["rms_px"].as_f64().unwrap();
         let truth = fit["truth_max_px"].as_f64().unwrap();
         println!("tilt {tilt}°: rms {rms:.3} px, {truth:.3} px off the true camera at worst");
-        assert_eq!(fit["reprojection"]["points"], 20);
+        assert_eq!(fit["reprojection"]["points"], 130);
         assert!(rms < 0.5 && truth < 0.5, "{fit}");
     }
 }

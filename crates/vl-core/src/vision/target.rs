@@ -25,22 +25,24 @@ pub struct DotTarget {
 }
 
 impl DotTarget {
-    /// A 5 × 4 grid of 12 mm dots spread over a `width_mm` × `height_mm`
-    /// floor, a tenth of it in from each side.
+    /// A 13 × 10 grid of 16 mm dots (big enough that their edges' pixels
+    /// average out) spread over a `width_mm` × `height_mm`
+    /// floor, 4 % of it in from each side: out to the corners, where a
+    /// lens bends the image most.
     pub fn spread_over(width_mm: f64, height_mm: f64) -> DotTarget {
-        let (cols, rows) = (5, 4);
+        let (cols, rows) = (13, 10);
         DotTarget {
             cols,
             rows,
             first_mm: Point {
-                x_mm: width_mm / 10.0,
-                y_mm: height_mm / 10.0,
+                x_mm: 0.04 * width_mm,
+                y_mm: 0.04 * height_mm,
             },
             spacing_mm: [
-                0.8 * width_mm / f64::from(cols - 1),
-                0.8 * height_mm / f64::from(rows - 1),
+                0.92 * width_mm / f64::from(cols - 1),
+                0.92 * height_mm / f64::from(rows - 1),
             ],
-            radius_mm: 12.0,
+            radius_mm: 16.0,
         }
     }
 
@@ -100,11 +102,7 @@ impl DotTarget {
             )));
         }
         // Reading order: by rows of `cols` dots from the top, each row left to right.
-        // Pixel (c, r) covers [c, c+1) × [r, r+1): its centre is c + ½.
-        let mut centres: Vec<[f64; 2]> = dots
-            .iter()
-            .map(|c| [c.centroid.x + 0.5, c.centroid.y + 0.5])
-            .collect();
+        let mut centres: Vec<[f64; 2]> = dots.iter().map(|c| weighted_centre(&grey, c)).collect();
         centres.sort_by(|a, b| a[1].total_cmp(&b[1]));
         for row in centres.chunks_mut(self.cols as usize) {
             row.sort_by(|a, b| a[0].total_cmp(&b[0]));
@@ -116,5 +114,44 @@ impl DotTarget {
     pub fn calibrate(&self, image: &RgbImage, fps: f64) -> Result<Calibration, CalibrationError> {
         let pairs = self.find(image)?;
         CameraModel::calibrated(image.width(), image.height(), fps, &pairs)
+    }
+}
+
+/// Where a dot's centre is, to a fraction of a pixel: its pixels (and
+/// those a pixel around, which blur greys) weighted by how much darker
+/// than the paper around it they are. The binary mask's centroid alone
+/// moves by whole pixels as the dot's edge crosses them, which the lens's
+/// fit would take for distortion. Pixel (c, r) covers [c, c+1) × [r, r+1):
+/// its centre is c + ½.
+fn weighted_centre(grey: &image::GrayImage, dot: &super::Component) -> [f64; 2] {
+    let [x, y, w, h] = dot.bbox;
+    let (iw, ih) = grey.dimensions();
+    let (x0, y0) = (x.saturating_sub(2), y.saturating_sub(2));
+    let (x1, y1) = ((x + w + 2).min(iw), (y + h + 2).min(ih));
+    // The paper's level: the brightest of the ring just outside the box.
+    let mut ring: Vec<u8> = Vec::new();
+    for c in x0..x1 {
+        ring.push(grey.get_pixel(c, y0).0[0]);
+        ring.push(grey.get_pixel(c, y1 - 1).0[0]);
+    }
+    for r in y0..y1 {
+        ring.push(grey.get_pixel(x0, r).0[0]);
+        ring.push(grey.get_pixel(x1 - 1, r).0[0]);
+    }
+    ring.sort_unstable();
+    let paper = f64::from(ring[ring.len() / 2]);
+    let (mut sum, mut sx, mut sy) = (0.0, 0.0, 0.0);
+    for r in y0..y1 {
+        for c in x0..x1 {
+            let weight = (paper - f64::from(grey.get_pixel(c, r).0[0])).max(0.0);
+            sum += weight;
+            sx += weight * (f64::from(c) + 0.5);
+            sy += weight * (f64::from(r) + 0.5);
+        }
+    }
+    if sum > 0.0 {
+        [sx / sum, sy / sum]
+    } else {
+        [dot.centroid.x + 0.5, dot.centroid.y + 0.5]
     }
 }
