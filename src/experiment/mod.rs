@@ -29,7 +29,7 @@ use crate::sim::{OpticsArgs, load_arena};
 #[derive(Subcommand)]
 pub(crate) enum ExperimentCommand {
     /// Run an experiment on the simulated lab, headless, and report how it went.
-    Run(RunArgs),
+    Run(Box<RunArgs>),
     /// Run every link profile × event/time control × seeds for both
     /// experiments and write report.md, report.json and plots.
     Report(matrix::ReportArgs),
@@ -379,7 +379,7 @@ pub(crate) fn run(
     command: ExperimentCommand,
 ) -> Result<ExitCode> {
     let args = match command {
-        ExperimentCommand::Run(args) => args,
+        ExperimentCommand::Run(args) => *args,
         ExperimentCommand::Report(args) => return matrix::report(runtime, args),
     };
     let timeout = crate::lab::seconds("--timeout", args.timeout)?;
