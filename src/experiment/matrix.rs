@@ -243,6 +243,7 @@ pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Res
                         seed,
                         ..Optics::default()
                     },
+                    compensate_latency: true,
                     frames: FramePolicy::EveryFrame,
                     scene: Vec::new(),
                     link: Some(link.clone()),

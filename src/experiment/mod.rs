@@ -102,6 +102,10 @@ pub(crate) struct RunArgs {
     control: Control,
     #[command(flatten)]
     optics: OpticsArgs,
+    /// Fold camera sightings in when they arrive, not when their frames
+    /// were taken: to measure what latency compensation is worth.
+    #[arg(long)]
+    no_latency_compensation: bool,
     #[command(flatten)]
     frames: FramesArgs,
     #[command(flatten)]
@@ -281,6 +285,7 @@ pub(crate) struct RunSpec {
     pub arena: Arena,
     pub seed: u64,
     pub optics: Optics,
+    pub compensate_latency: bool,
     pub frames: vl_host::FramePolicy,
     pub scene: Vec<Scheduled>,
     /// The link's name (as given) and model; none for straight loopback.
@@ -304,6 +309,7 @@ pub(crate) async fn run_one(spec: &RunSpec) -> Result<Run> {
     };
     let config = HostConfig {
         frames: spec.frames,
+        compensate_latency: spec.compensate_latency,
         ..HostConfig::default()
     };
     let host = Host::start_sim(([127, 0, 0, 1], 0).into(), lab, config)
@@ -409,6 +415,7 @@ pub(crate) fn run(
                 arena: arena.clone(),
                 seed,
                 optics: args.optics.optics(seed)?,
+                compensate_latency: !args.no_latency_compensation,
                 frames: args.frames.policy()?,
                 scene: args.scene.events.clone(),
                 link: link.clone(),

@@ -102,7 +102,7 @@ impl Host {
         arena: Arena,
         config: HostConfig,
     ) -> Result<Host, HostError> {
-        let lab = lab::Lab::spawn(devices, arena, config.frames);
+        let lab = lab::Lab::spawn(devices, arena, config.frames, config.compensate_latency);
         let listener = TcpListener::bind(listen)
             .await
             .map_err(|e| HostError::Bind(listen, e))?;

@@ -9,11 +9,15 @@
 //! through its optics and reports the model the lab *believes*. Only the
 //! `SimWitness` sees the truth, for judging a run afterwards.
 
-use std::sync::{Arc, Mutex, MutexGuard};
-use std::time::Instant;
+use std::collections::VecDeque;
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64Mcg;
 
 use vl_core::{Arena, CameraModel, Pose, RobotModel, WheelSpeeds};
-use vl_sim::{Optics, Scheduled, SimError, World};
+use vl_sim::{Optics, Renderer, Scheduled, SimError, World};
 
 use crate::drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness};
 
@@ -33,14 +37,69 @@ pub struct SimRobot {
     travel_mm: [f64; 2],
 }
 
-/// The simulated overhead camera.
+/// The simulated overhead camera: a thread of its own exposes a frame
+/// every period, as a real camera does whether anyone looks or not; each
+/// arrives the optics' delay later, and some never do.
 pub struct RenderedCamera {
-    world: Arc<Mutex<World>>,
-    /// The camera as built: what renders the frames.
-    nominal: CameraModel,
-    optics: Optics,
+    shared: Arc<InFlight>,
     /// The camera as the lab believes it is (its calibration).
     believed: CameraModel,
+    delay: Duration,
+}
+
+/// Frames exposed and not yet taken, oldest first.
+struct InFlight {
+    frames: Mutex<VecDeque<Captured>>,
+    exposed: Condvar,
+}
+
+/// Frames kept in flight at most: a second's worth at 15 fps.
+const IN_FLIGHT: usize = 16;
+
+impl RenderedCamera {
+    fn start(world: Arc<Mutex<World>>, setup: SimCameraSetup) -> RenderedCamera {
+        let shared = Arc::new(InFlight {
+            frames: Mutex::new(VecDeque::new()),
+            exposed: Condvar::new(),
+        });
+        let period = Duration::from_secs_f64(1.0 / setup.believed.fps.max(1.0));
+        let optics = setup.optics;
+        let mut renderer = Renderer::new(setup.nominal, optics);
+        let mut rng = Pcg64Mcg::seed_from_u64(optics.seed ^ 0xD205);
+        let exposing = shared.clone();
+        std::thread::Builder::new()
+            .name("vl-sim-camera".into())
+            .spawn(move || {
+                let mut next = Instant::now();
+                // Ends when the camera is dropped.
+                while Arc::strong_count(&exposing) > 1 {
+                    // Rendered from a copy: the robot's clock must not wait on a frame.
+                    let world = lock(&world).clone();
+                    let taken = Instant::now();
+                    let image = renderer.render(&world);
+                    if rng.random::<f64>() >= optics.drop_rate {
+                        let mut frames = lock(&exposing.frames);
+                        frames.push_back(Captured { image, taken });
+                        while frames.len() > IN_FLIGHT {
+                            frames.pop_front();
+                        }
+                        exposing.exposed.notify_all();
+                    }
+                    next += period;
+                    let now = Instant::now();
+                    if next < now {
+                        next = now;
+                    }
+                    std::thread::sleep(next - now);
+                }
+            })
+            .expect("the OS starts a thread");
+        RenderedCamera {
+            shared,
+            believed: setup.believed,
+            delay: Duration::from_secs_f64(optics.delay_s),
+        }
+    }
 }
 
 /// The simulator's knowledge of where the robot truly is.
@@ -80,20 +139,15 @@ pub fn sim_lab(
             odometry: start,
             travel_mm: [0.0; 2],
         },
-        RenderedCamera {
-            world: world.clone(),
-            nominal: camera.nominal,
-            optics: camera.optics,
-            believed: camera.believed,
-        },
+        RenderedCamera::start(world.clone(), camera),
         SimWitness { world },
     ))
 }
 
-/// The world, even if a thread panicked while holding it: the simulator's
-/// state is plain data and stays usable.
-fn lock(world: &Mutex<World>) -> MutexGuard<'_, World> {
-    world
+/// The world (or the frames), even if a thread panicked while holding
+/// it: the simulator's state is plain data and stays usable.
+fn lock<T>(shared: &Mutex<T>) -> MutexGuard<'_, T> {
+    shared
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
@@ -141,12 +195,29 @@ impl Camera for RenderedCamera {
     }
 
     fn grab(&mut self) -> Result<Captured, CameraError> {
-        // Rendered from a copy: the control loop must not wait on a frame.
-        let world = lock(&self.world).clone();
-        Ok(Captured {
-            image: world.render(&self.nominal, &self.optics),
-            taken: Instant::now(),
-        })
+        let deadline = Instant::now() + Duration::from_secs(1) + self.delay;
+        let mut frames = lock(&self.shared.frames);
+        loop {
+            // The newest frame that has arrived; older ones are passed over.
+            let arrived = frames.iter().rposition(|f| f.taken.elapsed() >= self.delay);
+            if let Some(newest) = arrived {
+                frames.drain(..newest);
+                return Ok(frames.pop_front().expect("found above"));
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(CameraError("the simulated camera sends no frames".into()));
+            }
+            let wait = frames.front().map_or(deadline - now, |f| {
+                self.delay.saturating_sub(f.taken.elapsed())
+            });
+            frames = self
+                .shared
+                .exposed
+                .wait_timeout(frames, wait.max(Duration::from_millis(1)))
+                .unwrap_or_else(|p| p.into_inner())
+                .0;
+        }
     }
 }
 

@@ -6,7 +6,7 @@ use serde::Serialize;
 use vl_core::{Arena, RobotModel, WheelSpeeds};
 
 use crate::world::{STEP_S, SimError, World};
-use crate::{Optics, camera_for};
+use crate::{Optics, Renderer, camera_for};
 
 /// Simulated seconds per wall-clock second.
 #[derive(Debug, Clone, Serialize)]
@@ -23,7 +23,7 @@ pub struct SimBench {
 pub fn bench(seconds: f64) -> Result<SimBench, SimError> {
     let timed = |camera_hz: Option<f64>| -> Result<f64, SimError> {
         let mut world = World::new(Arena::navigation(), RobotModel::khepera_ii(), 1)?;
-        let camera = camera_for(&world, 320, 30.0);
+        let mut renderer = Renderer::new(camera_for(&world, 320, 30.0), Optics::default());
         let frame_every = camera_hz.map(|hz| ((1.0 / hz) / STEP_S).round().max(1.0) as u64);
         let steps = (seconds / STEP_S) as u64;
         let started = Instant::now();
@@ -39,7 +39,7 @@ pub fn bench(seconds: f64) -> Result<SimBench, SimError> {
             });
             world.step();
             if frame_every.is_some_and(|every| step % every == 0) {
-                frames += std::hint::black_box(world.render(&camera, &Optics::default())).len();
+                frames += std::hint::black_box(renderer.render(&world)).len();
             }
         }
         std::hint::black_box(frames);

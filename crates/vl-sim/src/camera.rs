@@ -1,7 +1,7 @@
 //! The overhead camera: renders the arena and the robot, seen from above.
 
 use image::{Rgb, RgbImage};
-use rand::{Rng, SeedableRng};
+use rand::{Rng, RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
 use vl_core::{Calibration, CalibrationError, CameraModel, Distortion, DotTarget, Point, Shape};
@@ -165,43 +165,223 @@ pub fn camera_for(world: &World, width_px: u32, fps: f64) -> CameraModel {
 }
 
 impl World {
-    /// The overhead camera's view of the arena and the robot now. Each shape
-    /// is painted over the pixels its bounding box covers only, so a frame
-    /// costs about one pass over the image whatever the arena holds.
+    /// The overhead camera's view of the arena and the robot now (one
+    /// frame; a [`Renderer`] makes many faster).
     pub fn render(&self, camera: &CameraModel, optics: &Optics) -> RgbImage {
-        let arena = self.arena();
-        let robot = self.robot();
-        let pose = self.pose();
-        let camera = &optics.view(camera, arena.width_mm, arena.height_mm);
-        let mut image = floor_and_walls(
-            camera,
+        Renderer::new(*camera, *optics).render(self)
+    }
+}
+
+/// A camera's frames of a world. What does not move — floor, walls and
+/// obstacles, blurred and lit as the optics say — is drawn once for each
+/// layout of the arena and copied; each frame then draws only the robot's
+/// patch over it (smeared over the exposure, its marker sometimes partly
+/// hidden) and the sensor's noise over all.
+#[derive(Debug, Clone)]
+pub struct Renderer {
+    nominal: CameraModel,
+    optics: Optics,
+    backdrop: Option<Backdrop>,
+}
+
+#[derive(Debug, Clone)]
+struct Backdrop {
+    /// The arena's obstacles when it was drawn: people only add some.
+    obstacles: usize,
+    /// Before the lens's blur and the lamp.
+    sharp: RgbImage,
+    finished: RgbImage,
+}
+
+/// Poses a moving robot is drawn at over one exposure.
+const EXPOSURE_POSES: usize = 5;
+/// A cable across the marker, as something that hides part of it.
+const CABLE: Rgb<u8> = Rgb([48, 46, 44]);
+
+impl Renderer {
+    pub fn new(nominal: CameraModel, optics: Optics) -> Renderer {
+        Renderer {
+            nominal,
             optics,
-            arena.width_mm,
-            arena.height_mm,
-            Rgb(arena.walls.colour),
-        );
-        for obstacle in &arena.obstacles {
-            let colour = Rgb(obstacle.material.colour);
-            paint(&mut image, camera, optics, obstacle.shape.bounds(), |p| {
-                (obstacle.shape.distance(p) <= 0.0).then_some(colour)
+            backdrop: None,
+        }
+    }
+
+    pub fn optics(&self) -> &Optics {
+        &self.optics
+    }
+
+    /// The frame the camera takes of `world` now.
+    pub fn render(&mut self, world: &World) -> RgbImage {
+        let arena = world.arena();
+        let optics = self.optics;
+        let camera = optics.view(&self.nominal, arena.width_mm, arena.height_mm);
+        let stale = self
+            .backdrop
+            .as_ref()
+            .is_none_or(|b| b.obstacles != arena.obstacles.len());
+        if stale {
+            let sharp = still_scene(world, &camera, &optics);
+            let mut finished = sharp.clone();
+            if optics.blur_px > 0.0 {
+                blur(&mut finished, optics.blur_px);
+            }
+            light(
+                &mut finished,
+                &optics,
+                (0, 0),
+                (camera.width_px, camera.height_px),
+            );
+            self.backdrop = Some(Backdrop {
+                obstacles: arena.obstacles.len(),
+                sharp,
+                finished,
             });
         }
-        let marker = pose.to_world(robot.radius_mm * 0.45, 0.0);
-        let marker_r = robot.radius_mm * 0.35;
-        let r = robot.radius_mm;
-        let body = disc_bounds(pose.point(), r);
-        let covered = self.robot_covered();
-        paint(&mut image, camera, optics, body, |p| {
-            if covered {
-                (p.distance(pose.point()) <= r).then_some(HAND)
-            } else if p.distance(marker) <= marker_r {
-                Some(MARKER)
-            } else {
-                (p.distance(pose.point()) <= r).then_some(BODY)
-            }
-        });
-        finish(&mut image, optics, self.time_s());
+        let backdrop = self.backdrop.as_ref().expect("drawn above");
+        let mut image = backdrop.finished.clone();
+        draw_robot(&mut image, &backdrop.sharp, world, &camera, &optics);
+        if optics.noise > 0.0 {
+            let seed = optics.seed ^ (world.time_s() * 1e3).round() as u64;
+            add_noise(&mut image, &optics, seed);
+        }
         image
+    }
+}
+
+/// The floor, walls and obstacles, sharp.
+fn still_scene(world: &World, camera: &CameraModel, optics: &Optics) -> RgbImage {
+    let arena = world.arena();
+    let mut image = floor_and_walls(
+        camera,
+        optics,
+        arena.width_mm,
+        arena.height_mm,
+        Rgb(arena.walls.colour),
+    );
+    for obstacle in &arena.obstacles {
+        let colour = Rgb(obstacle.material.colour);
+        paint(&mut image, camera, optics, obstacle.shape.bounds(), |p| {
+            (obstacle.shape.distance(p) <= 0.0).then_some(colour)
+        });
+    }
+    image
+}
+
+/// Draws the robot over `image`: each pixel of its patch the mean of what
+/// it sees at each pose of the exposure (the robot's colour where the body
+/// is, `sharp`'s still scene elsewhere), then blurred and lit as the rest.
+fn draw_robot(
+    image: &mut RgbImage,
+    sharp: &RgbImage,
+    world: &World,
+    camera: &CameraModel,
+    optics: &Optics,
+) {
+    let robot = world.robot();
+    let (r, now) = (robot.radius_mm, world.pose());
+    // Back over the exposure along the wheels' motion.
+    let wheels = world.wheels();
+    let moving = optics.exposure_s > 0.0 && wheels != vl_core::WheelSpeeds::default();
+    let poses: Vec<vl_core::Pose> = if moving {
+        (0..EXPOSURE_POSES)
+            .map(|k| {
+                let back = optics.exposure_s * k as f64 / (EXPOSURE_POSES - 1) as f64;
+                now.advance(wheels, robot.wheel_base_mm, -back)
+            })
+            .collect()
+    } else {
+        vec![now]
+    };
+    let covered = world.robot_covered();
+    let mut rng =
+        Pcg64Mcg::seed_from_u64(optics.seed ^ 0xCAB1E ^ (world.time_s() * 1e3).round() as u64);
+    let cable = (optics.occlusion_rate > 0.0 && rng.random::<f64>() < optics.occlusion_rate)
+        .then(|| rng.random_range(0.0..std::f64::consts::PI));
+    let marker_r = r * 0.35;
+    let colour_at = |pose: &vl_core::Pose, p: Point| -> Option<Rgb<u8>> {
+        let marker = pose.to_world(r * 0.45, 0.0);
+        if p.distance(pose.point()) > r {
+            return None;
+        }
+        if covered {
+            return Some(HAND);
+        }
+        if let Some(angle) = cable {
+            // A band a third of the marker wide, through its centre.
+            let (s, c) = angle.sin_cos();
+            let across = (p.x_mm - marker.x_mm) * -s + (p.y_mm - marker.y_mm) * c;
+            if across.abs() <= marker_r / 3.0 && p.distance(marker) <= marker_r * 1.6 {
+                return Some(CABLE);
+            }
+        }
+        Some(if p.distance(marker) <= marker_r {
+            MARKER
+        } else {
+            BODY
+        })
+    };
+    // The patch: every pose's body, and the blur's reach around it twice
+    // (the outer ring only feeds the inner one's blur).
+    let reach = if optics.blur_px > 0.0 {
+        (3.0 * optics.blur_px).ceil() as u32
+    } else {
+        0
+    };
+    let (w, h) = image.dimensions();
+    let (mut c0, mut r0, mut c1, mut r1) = (w, h, 0u32, 0u32);
+    for pose in &poses {
+        let (lo, hi) = disc_bounds(pose.point(), r);
+        for (x, y) in [
+            (lo.x_mm, lo.y_mm),
+            (hi.x_mm, lo.y_mm),
+            (lo.x_mm, hi.y_mm),
+            (hi.x_mm, hi.y_mm),
+        ] {
+            let (c, rr) = camera.to_pixel(Point { x_mm: x, y_mm: y });
+            let [dx, dy] = optics.lens_offset_px;
+            let (c, rr) = (c + dx, rr + dy);
+            if !(c.is_finite() && rr.is_finite()) {
+                continue;
+            }
+            c0 = c0.min(c.floor().max(0.0) as u32);
+            r0 = r0.min(rr.floor().max(0.0) as u32);
+            c1 = c1.max((c.ceil() + 1.0).clamp(0.0, f64::from(w)) as u32);
+            r1 = r1.max((rr.ceil() + 1.0).clamp(0.0, f64::from(h)) as u32);
+        }
+    }
+    // A lens bends the box: a few pixels more, then the blur's reach twice.
+    let grow = 3 + 2 * reach;
+    let (c0, r0) = (c0.saturating_sub(grow), r0.saturating_sub(grow));
+    let (c1, r1) = ((c1 + grow).min(w), (r1 + grow).min(h));
+    if c0 >= c1 || r0 >= r1 {
+        return;
+    }
+    let mut patch = RgbImage::new(c1 - c0, r1 - r0);
+    for (pc, pr, px) in patch.enumerate_pixels_mut() {
+        let (c, rr) = (c0 + pc, r0 + pr);
+        let still = *sharp.get_pixel(c, rr);
+        let p = sample(camera, optics, c, rr);
+        let mut sum = [0u32; 3];
+        for pose in &poses {
+            let seen = colour_at(pose, p).unwrap_or(still);
+            for k in 0..3 {
+                sum[k] += u32::from(seen.0[k]);
+            }
+        }
+        let n = poses.len() as u32;
+        *px = Rgb(sum.map(|v| ((v + n / 2) / n) as u8));
+    }
+    if optics.blur_px > 0.0 {
+        blur(&mut patch, optics.blur_px);
+    }
+    light(&mut patch, optics, (c0, r0), (w, h));
+    // Only the inner part: its blur saw all its neighbours.
+    let (pw, ph) = patch.dimensions();
+    for pr in reach..ph.saturating_sub(reach) {
+        for pc in reach..pw.saturating_sub(reach) {
+            image.put_pixel(c0 + pc, r0 + pr, *patch.get_pixel(pc, pr));
+        }
     }
 }
 
@@ -355,9 +535,10 @@ fn finish(image: &mut RgbImage, optics: &Optics, time_s: f64) {
     if optics.blur_px > 0.0 {
         blur(image, optics.blur_px);
     }
-    if optics.lighting_gradient > 0.0 || optics.noise > 0.0 {
-        let seed = optics.seed ^ (time_s * 1e3).round() as u64;
-        shade(image, optics, seed);
+    let size = image.dimensions();
+    light(image, optics, (0, 0), size);
+    if optics.noise > 0.0 {
+        add_noise(image, optics, optics.seed ^ (time_s * 1e3).round() as u64);
     }
 }
 
@@ -396,24 +577,36 @@ fn blur(image: &mut RgbImage, sigma: f64) {
     }
 }
 
-/// Darkens towards the bottom-right corner and adds per-pixel noise: a
-/// sensor's noise on every channel of every pixel, 15 times a second, is
-/// too many Gaussian draws to make one by one, so each pixel takes one
-/// random word and three draws from a table of them.
-fn shade(image: &mut RgbImage, optics: &Optics, seed: u64) {
+/// Darkens towards the bottom-right corner of a `size` image, of which
+/// `image` is the part from `origin`: as under a single lamp.
+fn light(image: &mut RgbImage, optics: &Optics, origin: (u32, u32), size: (u32, u32)) {
+    if optics.lighting_gradient <= 0.0 {
+        return;
+    }
+    let (w, h) = (size.0 as f32, size.1 as f32);
+    let gradient = optics.lighting_gradient as f32;
+    for (c, r, px) in image.enumerate_pixels_mut() {
+        let along = ((origin.0 + c) as f32 / w + (origin.1 + r) as f32 / h) / 2.0;
+        let gain = 1.0 - gradient * along;
+        for ch in px.0.iter_mut() {
+            // Rounded half up: `as` truncates what is never negative.
+            *ch = (f32::from(*ch) * gain + 0.5) as u8;
+        }
+    }
+}
+
+/// Adds a sensor's noise: on every channel of every pixel, 15 times a
+/// second, too many Gaussian draws to make one by one, so each pixel takes
+/// one random word and three draws from a table of them.
+fn add_noise(image: &mut RgbImage, optics: &Optics, seed: u64) {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);
     let table = gaussian_table();
     let noise = optics.noise as f32;
-    let (w, h) = (image.width() as f32, image.height() as f32);
-    let gradient = optics.lighting_gradient as f32;
-    for (c, r, px) in image.enumerate_pixels_mut() {
-        let along = (c as f32 / w + r as f32 / h) / 2.0;
-        let gain = 1.0 - gradient * along;
+    for px in image.chunks_exact_mut(3) {
         let word = rng.next_u64();
-        for (k, ch) in px.0.iter_mut().enumerate() {
+        for (k, ch) in px.iter_mut().enumerate() {
             let draw = table[((word >> (16 * k)) & 0xFFFF) as usize];
-            let v = (f32::from(*ch) * gain + noise * draw).clamp(0.0, 255.0);
-            // Rounded half up: `as` truncates what is never negative.
+            let v = (f32::from(*ch) + noise * draw).clamp(0.0, 255.0);
             *ch = (v + 0.5) as u8;
         }
     }
@@ -511,6 +704,83 @@ mod tests {
             );
             assert!(fit.truth_max_px < 0.5, "{fit:?}");
         }
+    }
+
+    /// A renderer that keeps the still scene between frames draws what a
+    /// fresh one draws, frame after frame, and a box put down shows.
+    #[test]
+    fn the_kept_backdrop_is_what_a_fresh_render_draws() {
+        let mut w = World::new(Arena::navigation(), RobotModel::khepera_ii(), 0).unwrap();
+        w.schedule(crate::Scheduled {
+            at_s: 0.3,
+            event: crate::SceneEvent::Place("rect:600,100,40,40".parse().unwrap()),
+        });
+        let cam = camera_for(&w, 320, 15.0);
+        for optics in [Optics::default(), Optics::noisy(3), Optics::realistic(4)] {
+            let mut kept = Renderer::new(cam, optics);
+            for _ in 0..6 {
+                w.set_wheels(vl_core::WheelSpeeds {
+                    left_mm_s: 150.0,
+                    right_mm_s: 180.0,
+                });
+                w.run_for(0.1);
+                assert!(
+                    kept.render(&w) == w.render(&cam, &optics),
+                    "{optics:?} at {}",
+                    w.time_s()
+                );
+            }
+        }
+    }
+
+    fn long_exposure() -> Optics {
+        Optics {
+            exposure_s: 0.1,
+            ..Optics::default()
+        }
+    }
+
+    /// A moving robot smears over a long exposure, a still one does not;
+    /// a hidden marker shows less of itself.
+    #[test]
+    fn exposure_smears_and_a_cable_hides() {
+        let mut w = World::new(Arena::navigation(), RobotModel::khepera_ii(), 0).unwrap();
+        let cam = camera_for(&w, 640, 15.0);
+        let marker = |image: &RgbImage| image.pixels().filter(|p| **p == MARKER).count();
+        let at_rest = |w: &World| marker(&w.render(&cam, &long_exposure()));
+        assert!(
+            at_rest(&w) > 200,
+            "a still robot is sharp whatever the exposure"
+        );
+        w.set_wheels(vl_core::WheelSpeeds {
+            left_mm_s: 300.0,
+            right_mm_s: 300.0,
+        });
+        w.run_for(0.5);
+        let smeared = w.render(&cam, &long_exposure());
+        let sharp = w.render(&cam, &Optics::default());
+        assert!(
+            marker(&smeared) < marker(&sharp) / 2,
+            "{} vs {}",
+            marker(&smeared),
+            marker(&sharp)
+        );
+        let hidden = Optics {
+            occlusion_rate: 0.5,
+            ..Optics::default()
+        };
+        let mut partly = 0;
+        for k in 0..20 {
+            w.run_for(0.07 + 0.001 * f64::from(k));
+            let seen = marker(&w.render(&cam, &hidden));
+            let whole = marker(&w.render(&cam, &Optics::default()));
+            assert!(seen <= whole);
+            partly += usize::from(seen < whole * 4 / 5);
+        }
+        assert!(
+            (3..=17).contains(&partly),
+            "{partly} of 20 frames hid the marker"
+        );
     }
 
     #[test]

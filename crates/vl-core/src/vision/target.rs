@@ -25,24 +25,30 @@ pub struct DotTarget {
 }
 
 impl DotTarget {
-    /// A 13 × 10 grid of 16 mm dots (big enough that their edges' pixels
-    /// average out) spread over a `width_mm` × `height_mm`
-    /// floor, 4 % of it in from each side: out to the corners, where a
-    /// lens bends the image most.
+    /// A grid of 16 mm dots (big enough that their edges' pixels average
+    /// out) spread over a `width_mm` × `height_mm` floor as far out to the
+    /// corners, where a lens bends the image most, as leaves each dot clear
+    /// of the image's edge: at most 13 × 10, 3.5 radii apart or more.
     pub fn spread_over(width_mm: f64, height_mm: f64) -> DotTarget {
-        let (cols, rows) = (13, 10);
+        let radius_mm = 16.0;
+        let margin = |side: f64| 0.03 * side + radius_mm;
+        let count = |side: f64, most: u32| {
+            let span = side - 2.0 * margin(side);
+            ((span / (3.5 * radius_mm)).floor() as u32 + 1).clamp(2, most)
+        };
+        let (cols, rows) = (count(width_mm, 13), count(height_mm, 10));
         DotTarget {
             cols,
             rows,
             first_mm: Point {
-                x_mm: 0.04 * width_mm,
-                y_mm: 0.04 * height_mm,
+                x_mm: margin(width_mm),
+                y_mm: margin(height_mm),
             },
             spacing_mm: [
-                0.92 * width_mm / f64::from(cols - 1),
-                0.92 * height_mm / f64::from(rows - 1),
+                (width_mm - 2.0 * margin(width_mm)) / f64::from(cols - 1),
+                (height_mm - 2.0 * margin(height_mm)) / f64::from(rows - 1),
             ],
-            radius_mm: 16.0,
+            radius_mm,
         }
     }
 

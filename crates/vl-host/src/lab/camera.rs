@@ -134,6 +134,9 @@ pub(crate) struct CameraLoop {
     pub wanted: Arc<AtomicBool>,
     /// The floor's size, mm, over which scenes are compared.
     pub floor_mm: (f64, f64),
+    /// Fold each sighting in at its frame's exposure (else at its arrival,
+    /// as a lab that ignores its camera's delay does: for comparison).
+    pub compensate_latency: bool,
 }
 
 /// What the last frame sent showed, to tell whether the scene changed.
@@ -193,6 +196,11 @@ impl CameraLoop {
                     if let Some(pose) = seen.robot {
                         // A full queue means the control loop is behind: this
                         // sighting would be stale by the time it is read.
+                        let taken = if self.compensate_latency {
+                            taken
+                        } else {
+                            Instant::now()
+                        };
                         let _ = self.sightings.try_send(Sighting { taken, pose });
                     }
                     let _ = to_publish.try_send(Taken {

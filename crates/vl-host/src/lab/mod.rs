@@ -153,7 +153,12 @@ impl Lab {
     /// camera, its first frame maps the floor of `arena` and locates the
     /// robot; without one, the arena model is the map and odometry alone
     /// says where the robot is.
-    pub fn spawn(devices: Devices, arena: Arena, policy: FramePolicy) -> Lab {
+    pub fn spawn(
+        devices: Devices,
+        arena: Arena,
+        policy: FramePolicy,
+        compensate_latency: bool,
+    ) -> Lab {
         let since = Instant::now();
         let Devices {
             robot,
@@ -220,6 +225,7 @@ impl Lab {
                 policy,
                 wanted: frame_wanted.clone(),
                 floor_mm,
+                compensate_latency,
             };
             thread::Builder::new()
                 .name("vl-camera".into())

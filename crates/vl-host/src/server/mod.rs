@@ -57,6 +57,10 @@ pub struct HostConfig {
     pub nets: Option<PathBuf>,
     /// Drive the robot back to the lab's start pose after every run.
     pub reset: bool,
+    /// Fold each camera sighting into the pose estimate at its frame's
+    /// exposure rather than its arrival (off only to measure what that is
+    /// worth).
+    pub compensate_latency: bool,
 }
 
 impl HostConfig {
@@ -81,6 +85,7 @@ impl Default for HostConfig {
             grace: Duration::from_secs(10),
             nets: None,
             reset: true,
+            compensate_latency: true,
         }
     }
 }
