@@ -365,8 +365,8 @@ fn draw_robot(
         let mut sum = [0u32; 3];
         for pose in &poses {
             let seen = colour_at(pose, p).unwrap_or(still);
-            for k in 0..3 {
-                sum[k] += u32::from(seen.0[k]);
+            for (total, channel) in sum.iter_mut().zip(seen.0) {
+                *total += u32::from(channel);
             }
         }
         let n = poses.len() as u32;
