@@ -97,7 +97,7 @@ fn footage_that_is_not_there_is_a_clear_error() {
     );
     refused(
         &["host", "--camera", "webcam"],
-        "is no camera: use sim, none or dir:PATH",
+        "is no camera: use sim, none, http://… (an MJPEG stream), v4l2:/dev/videoN (a webcam) or dir:PATH",
     );
     refused(
         &["host", "--camera", &camera],

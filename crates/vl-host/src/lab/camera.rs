@@ -4,7 +4,7 @@
 
 use std::io::Cursor;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::SyncSender;
 use std::thread;
 use std::time::{Duration, Instant};
@@ -132,6 +132,8 @@ pub(crate) struct CameraLoop {
     pub policy: FramePolicy,
     /// A client asked for a frame.
     pub wanted: Arc<AtomicBool>,
+    /// How many clients watch.
+    pub watchers: Arc<AtomicUsize>,
     /// The floor's size, mm, over which scenes are compared.
     pub floor_mm: (f64, f64),
     /// Fold each sighting in at its frame's exposure (else at its arrival,
@@ -159,6 +161,7 @@ struct Taken {
 /// sightings the control loop steers by.
 struct Publisher {
     frames: watch::Sender<Option<Bytes>>,
+    watchers: Arc<AtomicUsize>,
     policy: FramePolicy,
     wanted: Arc<AtomicBool>,
     floor_mm: (f64, f64),
@@ -177,6 +180,7 @@ impl CameraLoop {
         let (to_publish, taken) = std::sync::mpsc::sync_channel::<Taken>(1);
         let publisher = Publisher {
             frames: self.frames.clone(),
+            watchers: self.watchers.clone(),
             policy: self.policy,
             wanted: self.wanted.clone(),
             floor_mm: self.floor_mm,
@@ -243,6 +247,14 @@ impl Publisher {
             event,
         }) = taken.recv()
         {
+            if self.watchers.load(Ordering::Relaxed) == 0 {
+                // Nobody to send to: keep no frame, which would be stale
+                // when someone comes.
+                if sent.take().is_some() {
+                    self.frames.send_replace(None);
+                }
+                continue;
+            }
             let Some(scene) = self.to_send(&seen, sent.as_ref()) else {
                 continue;
             };
@@ -292,6 +304,22 @@ impl Publisher {
             }
         };
         send.then_some(scene)
+    }
+}
+
+/// A client watching the frames, counted while it lives.
+pub(crate) struct Watching(Arc<AtomicUsize>);
+
+impl Watching {
+    pub(crate) fn new(watchers: &Arc<AtomicUsize>) -> Watching {
+        watchers.fetch_add(1, Ordering::Relaxed);
+        Watching(watchers.clone())
+    }
+}
+
+impl Drop for Watching {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::Relaxed);
     }
 }
 

@@ -11,7 +11,7 @@ mod camera;
 mod control;
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc;
 use std::thread;
 use std::time::{Duration, Instant};
@@ -26,6 +26,7 @@ use vl_core::{
 use crate::drivers::{Camera, Robot, Witness};
 pub use camera::FramePolicy;
 use camera::{CameraLoop, SIGHTINGS, first_look};
+pub(crate) use camera::Watching;
 pub(crate) use control::map_field;
 use control::{Control, Wiring};
 
@@ -138,8 +139,11 @@ pub struct Lab {
     requests: mpsc::Sender<LabRequest>,
     /// Newest robot feedback.
     pub feedback: watch::Receiver<Option<HostMessage>>,
-    /// Newest camera frame, encoded for the wire.
+    /// Newest camera frame, encoded for the wire…
     pub frames: watch::Receiver<Option<Bytes>>,
+    /// …while anyone watches (welcomed clients): nobody watching, no frame
+    /// is encoded.
+    pub(crate) watchers: Arc<AtomicUsize>,
     /// Runs that ended.
     pub finished: async_mpsc::UnboundedReceiver<Finished>,
     /// Whether the robot and the camera answer.
@@ -198,6 +202,7 @@ impl Lab {
         let status_tx = Arc::new(status_tx);
         let running = Arc::new(AtomicBool::new(true));
         let frame_wanted = Arc::new(AtomicBool::new(false));
+        let watchers = Arc::new(AtomicUsize::new(0));
         let event = Arc::new(AtomicU64::new(0));
         let wiring = Wiring {
             requests: request_rx,
@@ -224,6 +229,7 @@ impl Lab {
                 status: status_tx,
                 policy,
                 wanted: frame_wanted.clone(),
+                watchers: watchers.clone(),
                 floor_mm,
                 compensate_latency,
             };
@@ -237,6 +243,7 @@ impl Lab {
             requests,
             feedback,
             frames,
+            watchers,
             finished,
             status,
             running,

@@ -19,6 +19,7 @@ use vl_core::{ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES, Wire};
 use super::HostConfig;
 use super::admission::Ticket;
 use super::hub::{ToConnection, ToHub};
+use crate::lab::Watching;
 
 /// The WebSocket handshake must be done within this.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
@@ -48,6 +49,8 @@ pub(crate) struct Connection {
     pub(crate) hub: mpsc::Sender<ToHub>,
     pub(crate) feedback: watch::Receiver<Option<HostMessage>>,
     pub(crate) frames: watch::Receiver<Option<Bytes>>,
+    /// Counted among the frames' watchers once welcomed.
+    pub(crate) watchers: Arc<std::sync::atomic::AtomicUsize>,
     pub(crate) config: Arc<HostConfig>,
     pub(crate) ticket: Ticket,
 }
@@ -183,6 +186,7 @@ impl Connection {
         let mut ping = tokio::time::interval(PING_EVERY);
         let mut heard = Instant::now();
         let mut welcomed = false;
+        let mut watching = None;
         // A client faster than its rate is not read until it is within it
         // again: its own socket then holds it back, at no cost to the Host.
         // Commands are the exception: they are values, the newest wins, so
@@ -302,6 +306,7 @@ impl Connection {
                     }
                     Some(ToConnection::Subscribe) => {
                         welcomed = true;
+                        watching.get_or_insert_with(|| Watching::new(&self.watchers));
                         self.ticket.welcomed();
                         self.feedback.mark_changed();
                         self.frames.mark_changed();

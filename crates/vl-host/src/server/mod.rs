@@ -98,6 +98,7 @@ pub async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
     let (hub_tx, hub_rx) = mpsc::channel(HUB_QUEUE);
     let feedback = lab.feedback.clone();
     let frames = lab.frames.clone();
+    let watchers = lab.watchers.clone();
     let config = Arc::new(config);
     let supervisor = match config.supervisor() {
         Ok(supervisor) => supervisor,
@@ -111,7 +112,7 @@ pub async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
     // drops the lab, which stops the robot.
     tokio::select! {
         () = hub.run(hub_rx) => {}
-        () = accept(listener, hub_tx, feedback, frames, config) => {}
+        () = accept(listener, hub_tx, feedback, (frames, watchers), config) => {}
     }
 }
 
@@ -119,7 +120,10 @@ async fn accept(
     listener: TcpListener,
     hub: mpsc::Sender<hub::ToHub>,
     feedback: tokio::sync::watch::Receiver<Option<vl_core::HostMessage>>,
-    frames: tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
+    (frames, watchers): (
+        tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
+        Arc<std::sync::atomic::AtomicUsize>,
+    ),
     config: Arc<HostConfig>,
 ) {
     let admission = Admission::new();
@@ -145,6 +149,7 @@ async fn accept(
             hub: hub.clone(),
             feedback: feedback.clone(),
             frames: frames.clone(),
+            watchers: watchers.clone(),
             config: config.clone(),
             ticket,
         };
