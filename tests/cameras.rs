@@ -89,26 +89,8 @@ fn stream(mut client: TcpStream, arena: &Arena, truth: &Mutex<Pose>, on: &Atomic
 }
 
 fn headless(url: &str, goal: Option<&str>) -> serde_json::Value {
-    let mut args = vec![
-        "guest",
-        "--connect",
-        url,
-        "--headless",
-        "--json",
-        "--timeout",
-        "40",
-    ];
-    if let Some(goal) = goal {
-        args.extend(["--goal", goal]);
-    }
-    let out = vl(&args);
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
-        panic!(
-            "no report ({e}): {}{}",
-            common::stdout(&out),
-            common::stderr(&out)
-        )
-    })
+    let goal: Vec<&str> = goal.map(|g| vec!["--goal", g]).unwrap_or_default();
+    common::headless_run(url, 40, &goal)
 }
 
 #[test]

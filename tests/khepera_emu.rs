@@ -6,7 +6,7 @@ mod common;
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
-use common::{start_emulator, start_emulator_watched, start_khepera_host_with, vl_json};
+use common::{start_emulator, start_emulator_watched, start_khepera_host_with};
 
 use serialport::SerialPort;
 
@@ -168,15 +168,7 @@ fn characterising_the_emulator_recovers_its_speed_response() {
 fn navigation_without_a_camera(arena: &str) {
     let (_emulator, device, truth) = start_emulator_watched(&["--arena", arena]);
     let (_host, url) = start_khepera_host_with(&device, &["--arena", arena, "--no-reset"]);
-    let summary = vl_json(&[
-        "guest",
-        "--connect",
-        &url,
-        "--headless",
-        "--json",
-        "--timeout",
-        "60",
-    ]);
+    let summary = common::headless_run(&url, 60, &[]);
     assert_eq!(summary["reason"], "goal_reached", "{arena}: {summary}");
     assert_eq!(summary["collisions"], 0, "{arena}: {summary}");
     assert_eq!(summary["pose_source"], "odometry", "{arena}: {summary}");

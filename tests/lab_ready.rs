@@ -9,7 +9,7 @@ mod common;
 use std::time::Duration;
 
 use common::peer::Peer;
-use common::{start_emulator, start_host, start_khepera_host, vl_json};
+use common::{start_emulator, start_host, start_khepera_host};
 use serde_json::Value;
 
 /// The lab's start pose in the navigation arena, mm.
@@ -17,20 +17,7 @@ const START: (f64, f64) = (100.0, 120.0);
 
 /// A headless operator's whole run on `url`, as JSON.
 fn run(url: &str, extra: &[&str]) -> Value {
-    let args = [
-        &[
-            "guest",
-            "--connect",
-            url,
-            "--headless",
-            "--json",
-            "--timeout",
-            "120",
-        ],
-        extra,
-    ]
-    .concat();
-    vl_json(&args)
+    common::headless_run(url, 120, extra)
 }
 
 /// Real-time runs timed against each other share two cores badly: one

@@ -45,6 +45,33 @@ pub fn vl_json(args: &[&str]) -> serde_json::Value {
         .unwrap_or_else(|e| panic!("vl {args:?} printed no JSON ({e}): {}", stdout(&out)))
 }
 
+/// A headless operator's whole run on `url` (given up after `timeout_s`)
+/// as its JSON report, whether or not it reached the goal.
+pub fn headless_run(url: &str, timeout_s: u32, extra: &[&str]) -> serde_json::Value {
+    let timeout = timeout_s.to_string();
+    let args = [
+        &[
+            "guest",
+            "--connect",
+            url,
+            "--headless",
+            "--json",
+            "--timeout",
+            &timeout,
+        ],
+        extra,
+    ]
+    .concat();
+    let out = vl(&args);
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "vl {args:?} printed no report ({e}): {}{}",
+            stdout(&out),
+            stderr(&out)
+        )
+    })
+}
+
 /// Runs `vl ARGS…`, which must refuse with exit code 2 and say `needle`.
 pub fn refused(args: &[&str], needle: &str) {
     let out = vl(args);

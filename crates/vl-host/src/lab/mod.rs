@@ -25,8 +25,8 @@ use vl_core::{
 
 use crate::drivers::{Camera, Robot, Witness};
 pub use camera::FramePolicy;
-use camera::{CameraLoop, SIGHTINGS, first_look};
 pub(crate) use camera::Watching;
+use camera::{CameraLoop, SIGHTINGS, first_look};
 pub(crate) use control::map_field;
 use control::{Control, Wiring};
 
