@@ -29,6 +29,10 @@ const RANGE_SHARE: f64 = 0.8;
 /// A reading this many standard deviations from the map's is something
 /// the map does not show (a box, a hand), not a correction.
 const RANGE_GATE_SIGMAS: f64 = 3.0;
+/// Readings are folded in only once a wheel has rolled this far, mm,
+/// since the last: a robot at rest reads the same surfaces again, whose
+/// errors do not average out, and its estimate must not wander.
+const RANGE_AFTER_MM: f64 = 1.0;
 
 /// How much each source is trusted.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -83,6 +87,8 @@ pub struct Localiser {
     history: VecDeque<(f64, Vector3<f64>)>,
     last_sighting: Option<f64>,
     rejects: u32,
+    /// Wheel travel since the proximity readings were last folded in, mm.
+    rolled_mm: f64,
 }
 
 impl Localiser {
@@ -97,6 +103,7 @@ impl Localiser {
             history: VecDeque::new(),
             last_sighting: None,
             rejects: 0,
+            rolled_mm: 0.0,
         }
     }
 
@@ -167,6 +174,7 @@ impl Localiser {
             // errors move the pose along the heading and turn it.
             let b = self.uncertainty.wheel_base_mm.max(1.0);
             let (left_mm, right_mm) = (forward - turn * b / 2.0, forward + turn * b / 2.0);
+            self.rolled_mm += left_mm.abs().max(right_mm.abs());
             let k2 = self.uncertainty.wheel_slip.powi(2);
             let wheels = nalgebra::Matrix2::new(k2 * left_mm.abs(), 0.0, 0.0, k2 * right_mm.abs());
             let g = nalgebra::Matrix3x2::new(c / 2.0, c / 2.0, s / 2.0, s / 2.0, -1.0 / b, 1.0 / b);
@@ -191,6 +199,10 @@ impl Localiser {
     /// the pose, as the simulator and the IR response make readings. Returns
     /// how many readings were folded in.
     pub fn ranges(&mut self, robot: &RobotModel, arena: &Arena, proximity: &[u16]) -> usize {
+        if self.rolled_mm < RANGE_AFTER_MM {
+            return 0;
+        }
+        self.rolled_mm = 0.0;
         let mut folded = 0;
         for (mount, &reading) in robot.sensors.iter().zip(proximity) {
             let reading = f64::from(reading);
@@ -453,6 +465,31 @@ mod tests {
             prop_assert!(err_ranged < 6.0, "across the corridor: ranged {err_ranged:.1} mm, blind {err_blind:.1} mm");
             prop_assert!(err_blind > 2.0 * err_ranged, "ranged {err_ranged:.1} mm, blind {err_blind:.1} mm");
         }
+    }
+
+    /// A robot at rest reads the same walls again and again: its estimate
+    /// stays where it is.
+    #[test]
+    fn a_still_robot_is_not_moved_by_its_sensors() {
+        let robot = RobotModel::khepera_ii();
+        let arena = Arena::named("corridor").unwrap();
+        let start = arena.start;
+        let mut loc = Localiser::placed(start, uncertainty());
+        for k in 0..200u16 {
+            loc.odometry(f64::from(k) * 0.01, start);
+            // Readings off by a few per cent either way, as a sensor's are.
+            let proximity: Vec<u16> = robot
+                .sensors
+                .iter()
+                .map(|m| {
+                    let hit = arena.ray_hit(start.to_world(m.x_mm, m.y_mm), m.angle_rad);
+                    let v = ir_reading(hit.distance_mm) * if k % 2 == 0 { 1.04 } else { 0.97 };
+                    v.min(1023.0) as u16
+                })
+                .collect();
+            assert_eq!(loc.ranges(&robot, &arena, &proximity), 0);
+        }
+        assert_eq!(loc.pose(), start);
     }
 
     #[test]
