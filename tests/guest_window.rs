@@ -982,3 +982,54 @@ fn window_runs_on_noisy_optics_never_lose_the_robot() {
     }
     assert_eq!(ends.len(), runs);
 }
+
+/// A run the safety layer holds back for good ends, and the window says
+/// why in words: here a robot whose odometry slips so much, with no camera
+/// and sensors it cannot trust, that it cannot pass the arena's gaps.
+#[test]
+fn a_held_back_run_says_why_in_the_window() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let slippery = vl_core::RobotModel {
+        wheel_slip: 0.4,
+        sensor_range_mm: 1.0,
+        ..vl_core::RobotModel::khepera_ii()
+    };
+    let host = runtime
+        .block_on(Host::start_sim(
+            "127.0.0.1:0".parse().unwrap(),
+            SimLab {
+                camera: None,
+                robot: slippery,
+                ..SimLab::new(Arena::navigation())
+            },
+            HostConfig::default(),
+        ))
+        .unwrap();
+    let _entered = runtime.enter();
+    let mut harness = window(&host.url());
+    mount_navigation(&mut harness, |s| {
+        s.lab.is_some() && s.robot.is_some() && s.ready()
+    });
+    define_and_start(&mut harness);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while harness.state().session().done.is_none() {
+        assert!(Instant::now() < deadline, "the run never ended");
+        harness.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    harness.step();
+    harness.get_by_label_contains("Last run: held back by the safety layer, goal not reached");
+    harness.get_by_label_contains("Why: position uncertain by");
+    harness.get_by_label_contains("add a camera or widen the margin.");
+    // Too unsure where it is to drive back to the start by itself.
+    assert!(
+        harness.state().session().ready(),
+        "the lab does not drive back"
+    );
+    let _ = harness.render().map(|i| {
+        i.save(format!(
+            "{}/guest-held-back.png",
+            env!("CARGO_TARGET_TMPDIR")
+        ))
+    });
+}

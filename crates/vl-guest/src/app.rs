@@ -498,11 +498,11 @@ impl GuestApp {
                 };
                 ui.label(format!(
                     "Last run: {}{goal} after {:.1} s, {:.0} mm driven, {} contacts.",
-                    done.ending(),
-                    done.seconds,
-                    done.distance_mm,
-                    done.collisions
+                    done.reason, done.seconds, done.distance_mm, done.collisions
                 ));
+                if let Some(why) = done.held_back {
+                    ui.label(format!("Why: {why}."));
+                }
                 if let Some(who) = done.stopped_by {
                     ui.label(format!("The emergency stop was pressed by {who}."));
                 }

@@ -85,11 +85,13 @@ fn secret() -> String {
 /// Whether a run that ended so is followed by the drive back to the start
 /// pose. Not after an emergency stop (someone saw something wrong: nothing
 /// moves until the operator starts again), a fault (the robot does not
-/// answer) or a robot the camera lost (it would drive blind).
+/// answer), a robot the camera lost (it would drive blind) or one held
+/// back (it is too unsure where it is to pass what lies between it and
+/// the start).
 fn resets_after(reason: EndReason) -> bool {
     !matches!(
         reason,
-        EndReason::EmergencyStop | EndReason::Fault | EndReason::RobotLost
+        EndReason::EmergencyStop | EndReason::Fault | EndReason::RobotLost | EndReason::HeldBack
     )
 }
 
