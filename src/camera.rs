@@ -80,6 +80,10 @@ pub(crate) struct CalibrateArgs {
     /// A picture of a dot target laid on the floor (with --target).
     #[arg(long, conflicts_with = "sim", requires = "target")]
     image: Option<PathBuf>,
+    /// Or a frame from the lab's camera looking at the target (with
+    /// --target): http://… (an MJPEG stream) or v4l2:/dev/videoN[,…].
+    #[arg(long, conflicts_with_all = ["sim", "image", "points"], requires = "target", value_parser = crate::lab::parse_camera)]
+    camera: Option<crate::lab::CameraDriver>,
     /// The dot target as JSON: {"cols", "rows", "first_mm": {"x_mm", "y_mm"},
     /// "spacing_mm": [x, y], "radius_mm"}; its rows must run along the
     /// image's rows.
@@ -234,6 +238,13 @@ fn calibrate(args: CalibrateArgs) -> Result<ExitCode> {
             .map_err(|e| BadInput(format!("cannot read the image {}: {e}", path.display())))?
             .to_rgb8();
         (target.calibrate(&image, args.fps).map_err(bad)?, None)
+    } else if let Some(driver) = args.camera {
+        let target = load_target(args.target.as_ref().expect("clap requires --target"))?;
+        let floor = load_arena(&args.arena)?;
+        let mut camera = crate::lab::real_camera(driver, None, &floor)?
+            .ok_or_else(|| BadInput("--camera: give a real camera, http://… or v4l2:…".into()))?;
+        let frame = camera.grab().context("no frame from the camera")?;
+        (target.calibrate(&frame.image, args.fps).map_err(bad)?, None)
     } else if args.sim {
         let arena = load_arena(&args.arena)?;
         let optics = args.optics.optics(args.seed)?;
@@ -246,7 +257,7 @@ fn calibrate(args: CalibrateArgs) -> Result<ExitCode> {
         (calibration, Some(truth_max_px))
     } else {
         return Err(BadInput(
-            "say what to calibrate from: --points FILE --image-size WxH, --image PHOTO --target FILE, or --sim"
+            "say what to calibrate from: --points FILE --image-size WxH, --image PHOTO --target FILE, --camera URL --target FILE, or --sim"
                 .into(),
         )
         .into());

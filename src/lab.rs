@@ -183,7 +183,7 @@ const REPLAY_FPS: f64 = 15.0;
 
 /// Which camera watches the arena.
 #[derive(Clone, PartialEq, Debug)]
-enum CameraDriver {
+pub(crate) enum CameraDriver {
     /// The simulated overhead camera (watches the simulated robot only).
     Sim,
     /// No camera: Guests get feedback but no frames.
@@ -197,7 +197,7 @@ enum CameraDriver {
     V4l2(vl_host::V4l2Spec),
 }
 
-fn parse_camera(text: &str) -> Result<CameraDriver, String> {
+pub(crate) fn parse_camera(text: &str) -> Result<CameraDriver, String> {
     match text {
         "sim" => Ok(CameraDriver::Sim),
         "none" => Ok(CameraDriver::None),
@@ -216,7 +216,7 @@ fn parse_camera(text: &str) -> Result<CameraDriver, String> {
 
 /// The real camera `driver` names, seen through `calibration` or, without
 /// one, as looking straight down on the `arena`'s floor.
-fn real_camera(
+pub(crate) fn real_camera(
     driver: CameraDriver,
     calibration: Option<vl_core::CameraModel>,
     arena: &Arena,

@@ -32,16 +32,19 @@ fn frame(arena: &Arena, pose: Pose) -> Vec<u8> {
     jpeg
 }
 
-/// An MJPEG camera over HTTP, as mjpg-streamer serves one: the robot where
-/// the emulator last said it truly was. While `plugged` is false it
-/// answers nothing and drops whoever was watching.
+/// What the camera sees when a frame is taken, as a JPEG.
+type Scene = Arc<dyn Fn() -> Vec<u8> + Send + Sync>;
+
+/// An MJPEG camera over HTTP, as mjpg-streamer serves one, sending what
+/// its scene shows. While `plugged` is false it answers nothing and drops
+/// whoever was watching.
 struct HttpCamera {
     port: u16,
     plugged: Arc<AtomicBool>,
 }
 
 impl HttpCamera {
-    fn serve(arena: Arena, truth: Arc<Mutex<Pose>>) -> HttpCamera {
+    fn serve(scene: Scene) -> HttpCamera {
         let listener = TcpListener::bind("127.0.0.1:0").unwrap();
         let port = listener.local_addr().unwrap().port();
         let plugged = Arc::new(AtomicBool::new(true));
@@ -51,8 +54,8 @@ impl HttpCamera {
                 if !on.load(Ordering::SeqCst) {
                     continue; // dropped: the connection closes unanswered
                 }
-                let (arena, truth, on) = (arena.clone(), truth.clone(), on.clone());
-                thread::spawn(move || stream(client, &arena, &truth, &on));
+                let (scene, on) = (scene.clone(), on.clone());
+                thread::spawn(move || stream(client, &scene, &on));
             }
         });
         HttpCamera { port, plugged }
@@ -63,7 +66,7 @@ impl HttpCamera {
     }
 }
 
-fn stream(mut client: TcpStream, arena: &Arena, truth: &Mutex<Pose>, on: &AtomicBool) {
+fn stream(mut client: TcpStream, scene: &Scene, on: &AtomicBool) {
     // The request is read and not looked at: this camera has one stream.
     let mut request = [0u8; 1024];
     let _ = std::io::Read::read(&mut client, &mut request);
@@ -72,8 +75,7 @@ fn stream(mut client: TcpStream, arena: &Arena, truth: &Mutex<Pose>, on: &Atomic
         return;
     }
     while on.load(Ordering::SeqCst) {
-        let pose = *truth.lock().unwrap();
-        let jpeg = frame(arena, pose);
+        let jpeg = scene();
         let part = format!(
             "--boundarydonotcross\r\nContent-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n",
             jpeg.len()
@@ -117,7 +119,11 @@ fn a_network_camera_drives_runs_and_when_unplugged_stops_one_and_comes_back() {
             }
         });
     }
-    let camera = HttpCamera::serve(arena.clone(), truth.clone());
+    let scene: Scene = {
+        let (arena, truth) = (arena.clone(), truth.clone());
+        Arc::new(move || frame(&arena, *truth.lock().unwrap()))
+    };
+    let camera = HttpCamera::serve(scene);
     let (_host, url) = start_khepera_host_with(&device, &["--camera", &camera.url(), "--no-reset"]);
 
     // A whole run, steered by what the camera sees.
@@ -150,6 +156,46 @@ fn a_network_camera_drives_runs_and_when_unplugged_stops_one_and_comes_back() {
     assert!(
         (at.x_mm - 100.0).hypot(at.y_mm - 100.0) < 20.0,
         "the robot is truly at {at:?}"
+    );
+}
+
+#[test]
+fn a_network_camera_looking_at_the_target_gives_its_lens() {
+    let (k1, k2) = (-0.2, 0.12);
+    let target = vl_core::DotTarget::spread_over(800.0, 600.0);
+    let nominal = vl_core::CameraModel::overhead(800.0, 600.0, 640, FPS);
+    let optics = Optics {
+        distortion: vl_core::Distortion { k1, k2 },
+        lens_offset_px: [0.0, 0.0],
+        ..Optics::noisy(3)
+    };
+    let picture = vl_sim::render_target(&target, &nominal, &optics, 800.0, 600.0);
+    let mut jpeg = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95)
+        .encode_image(&picture)
+        .unwrap();
+    let camera = HttpCamera::serve(Arc::new(move || jpeg.clone()));
+    let dir = common::scratch("calibrate-http");
+    let file = dir.join("target.json");
+    std::fs::write(&file, serde_json::to_string(&target).unwrap()).unwrap();
+    let fit = common::vl_json(&[
+        "camera",
+        "calibrate",
+        "--camera",
+        &camera.url(),
+        "--target",
+        common::s(&file),
+        "--json",
+    ]);
+    let lens = &fit["camera"]["distortion"];
+    let (f1, f2) = (lens["k1"].as_f64().unwrap(), lens["k2"].as_f64().unwrap());
+    assert!(
+        (f1 - k1).abs() <= 0.1 * k1.abs() && (f2 - k2).abs() <= 0.1 * k2.abs(),
+        "{fit}"
+    );
+    assert!(
+        fit["reprojection"]["rms_px"].as_f64().unwrap() < 0.2,
+        "{fit}"
     );
 }
 
