@@ -230,12 +230,12 @@ pub(crate) fn real_camera(
         ),
         CameraDriver::Http(url) => Box::new(
             vl_host::HttpCamera::open(&url, calibration, floor, REPLAY_FPS)
-                .context("no camera to watch the arena with")?,
+                .context("cannot read the camera")?,
         ),
         #[cfg(target_os = "linux")]
         CameraDriver::V4l2(spec) => Box::new(
             vl_host::V4l2Camera::open(spec, calibration, floor)
-                .context("no camera to watch the arena with")?,
+                .context("cannot read the camera")?,
         ),
     };
     Ok(Some(camera))
@@ -677,7 +677,9 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             let Some(port) = args.port.as_deref() else {
                 bail!(BadInput("--robot khepera needs --port DEVICE".into()));
             };
-            let camera = real_camera(camera, calibration, &arena)?;
+            let camera = real_camera(camera, calibration, &arena).context(
+                "no camera to watch the arena with (given --camera-calibration, the Host does not wait for its first frame)",
+            )?;
             // A guard process holds the line and stops the robot if this one dies.
             let program = std::env::current_exe().context("cannot find the vl binary")?;
             let robot = KheperaSerial::guarded(program, port, args.baud, model, arena.start)

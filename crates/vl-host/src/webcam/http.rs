@@ -153,7 +153,7 @@ impl HttpCamera {
                         .clone()
                         .unwrap_or_else(|| "nothing came".into());
                     return Err(CameraError(format!(
-                        "no frame from {url} within {} s ({why}); give --camera-calibration to start without one",
+                        "no frame from {url} within {} s ({why})",
                         FIRST_FRAME.as_secs()
                     )));
                 };
