@@ -74,6 +74,18 @@ pub trait Camera: Send {
     fn grab(&mut self) -> Result<Captured, CameraError>;
 }
 
+/// How a real camera is believed to see the floor: as `calibration` says,
+/// or without one as looking straight down on a `floor_mm` floor, across
+/// its `width_px` columns, at `fps`.
+pub(crate) fn believed(
+    calibration: Option<CameraModel>,
+    floor_mm: (f64, f64),
+    width_px: u32,
+    fps: f64,
+) -> CameraModel {
+    calibration.unwrap_or_else(|| CameraModel::overhead(floor_mm.0, floor_mm.1, width_px, fps))
+}
+
 /// Where the robot truly is, which only a simulator knows. The Host hands
 /// it to nothing but a run's record, to measure afterwards how far the run
 /// strayed: it never steers, guards or ends a run by it.

@@ -11,7 +11,7 @@ use std::time::Instant;
 use image::RgbImage;
 use vl_core::{CameraModel, load_image};
 
-use crate::drivers::{Camera, CameraError, Captured};
+use crate::drivers::{Camera, CameraError, Captured, believed};
 
 /// Image files a footage directory may hold.
 const EXTENSIONS: [&str; 3] = ["png", "jpg", "jpeg"];
@@ -40,8 +40,7 @@ impl ReplayCamera {
             ))
         })?;
         let image = read(first)?;
-        let model = model
-            .unwrap_or_else(|| CameraModel::overhead(floor_mm.0, floor_mm.1, image.width(), fps));
+        let model = believed(model, floor_mm, image.width(), fps);
         Ok(ReplayCamera {
             dir: dir.to_owned(),
             frames,

@@ -15,7 +15,7 @@ use tracing::debug;
 use vl_core::CameraModel;
 
 use super::pixels::{PixelFormat, decode};
-use crate::drivers::{Camera, CameraError, Captured};
+use crate::drivers::{Camera, CameraError, Captured, believed};
 
 /// No JPEG part is larger than this, nor a header line longer than
 /// `MAX_LINE`, nor a part's headers more than `MAX_HEADERS`: a stream that
@@ -159,7 +159,7 @@ impl HttpCamera {
                 };
                 let image = vl_core::decode_image(jpeg, Some(image::ImageFormat::Jpeg))
                     .map_err(|e| CameraError(format!("the first frame from {url}: {e}")))?;
-                CameraModel::overhead(floor_mm.0, floor_mm.1, image.width(), fps)
+                believed(None, floor_mm, image.width(), fps)
             }
         };
         Ok(HttpCamera {

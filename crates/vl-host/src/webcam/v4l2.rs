@@ -15,7 +15,7 @@ use serde::Serialize;
 use vl_core::CameraModel;
 
 use super::pixels::{PixelFormat, decode};
-use crate::drivers::{Camera, CameraError, Captured};
+use crate::drivers::{Camera, CameraError, Captured, believed};
 
 /// What the user asked of the device: `v4l2:/dev/video0[,WxH][,Nfps][,mjpeg|yuyv]`.
 #[derive(Debug, Clone, PartialEq)]
@@ -147,8 +147,7 @@ impl V4l2Camera {
     ) -> Result<V4l2Camera, CameraError> {
         let started = start(&spec)?;
         let fps = f64::from(spec.fps.unwrap_or(15));
-        let model = model
-            .unwrap_or_else(|| CameraModel::overhead(floor_mm.0, floor_mm.1, started.width, fps));
+        let model = believed(model, floor_mm, started.width, fps);
         Ok(V4l2Camera {
             stride: started.stride,
             spec,
