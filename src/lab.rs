@@ -362,6 +362,10 @@ pub(crate) struct HostArgs {
     /// lab's start pose (where nothing may move unattended).
     #[arg(long)]
     no_reset: bool,
+    /// Fold camera sightings in when they arrive, not when their frames
+    /// were taken: to see what latency compensation is worth.
+    #[arg(long)]
+    no_latency_compensation: bool,
     /// Run the labs' controlled nets from this folder (as `vl lab nets
     /// --out DIR` writes them) instead of the built-in ones.
     #[arg(long)]
@@ -617,6 +621,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
         frames: args.frames.policy()?,
         nets: args.nets,
         reset: !args.no_reset,
+        compensate_latency: !args.no_latency_compensation,
         ..HostConfig::default()
     };
     // A folder of nets that cannot run is the user's to fix, before anything starts.

@@ -125,6 +125,23 @@ fn a_network_camera_drives_runs_and_when_unplugged_stops_one_and_comes_back() {
     };
     let camera = HttpCamera::serve(scene);
     let (_host, url) = start_khepera_host_with(&device, &["--camera", &camera.url(), "--no-reset"]);
+    // An observer hears what the Host says of its camera all along.
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let heard = {
+        let url = url.clone();
+        runtime.spawn(async move {
+            let mut observer = common::peer::Peer::connect(&url).await;
+            observer.hello("observer").await;
+            let mut camera = Vec::new();
+            while let Some(status) = observer.next_of("status", Duration::from_secs(60)).await {
+                camera.push(status["camera"].as_str().unwrap_or_default().to_owned());
+                if camera.ends_with(&["offline".to_owned(), "online".to_owned()]) {
+                    break;
+                }
+            }
+            camera
+        })
+    };
 
     // A whole run, steered by what the camera sees.
     let run = headless(&url, None);
@@ -152,6 +169,11 @@ fn a_network_camera_drives_runs_and_when_unplugged_stops_one_and_comes_back() {
     let again = headless(&url, Some("100,100"));
     assert_eq!(again["reason"], "goal_reached", "{again}");
     assert_eq!(again["pose_source"], "camera", "{again}");
+    let heard = runtime.block_on(heard).unwrap();
+    assert!(
+        heard.ends_with(&["offline".to_owned(), "online".to_owned()]),
+        "the camera was said to be {heard:?}"
+    );
     let at = *truth.lock().unwrap();
     assert!(
         (at.x_mm - 100.0).hypot(at.y_mm - 100.0) < 20.0,
