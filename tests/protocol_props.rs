@@ -200,37 +200,12 @@ fn drive() -> impl Strategy<Value = Drive> {
 }
 
 fn error_code() -> impl Strategy<Value = ErrorCode> {
-    use ErrorCode::*;
-    proptest::sample::select(vec![
-        BadMessage,
-        UnknownType,
-        TooLarge,
-        ProtocolMismatch,
-        HelloFirst,
-        Unauthorized,
-        OperatorTaken,
-        NotOperator,
-        UnknownExperiment,
-        InvalidDefinition,
-        NotAllowedNow,
-        StaleCommand,
-    ])
+    proptest::sample::select(<ErrorCode as strum::VariantArray>::VARIANTS)
 }
 
 fn summary() -> BoxedStrategy<Summary> {
-    use EndReason::*;
     (
-        proptest::sample::select(vec![
-            GoalReached,
-            Stopped,
-            TimeLimit,
-            OperatorLeft,
-            Fault,
-            EmergencyStop,
-            OperatorSilent,
-            RobotLost,
-            HeldBack,
-        ]),
+        proptest::sample::select(<EndReason as strum::VariantArray>::VARIANTS),
         any::<bool>(),
         any::<u64>(),
         pose(),

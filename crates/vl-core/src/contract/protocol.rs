@@ -82,7 +82,7 @@ impl Drive {
 }
 
 /// Why a run ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, strum::VariantArray)]
 #[serde(rename_all = "snake_case")]
 pub enum EndReason {
     GoalReached,
@@ -250,7 +250,7 @@ impl std::fmt::Display for Stopper {
 }
 
 /// Machine-readable reason in an `error` message.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, strum::VariantArray)]
 #[serde(rename_all = "snake_case")]
 pub enum ErrorCode {
     /// Not JSON, not an object, or a field of the wrong shape.
@@ -295,9 +295,13 @@ pub enum DeviceState {
     Absent,
 }
 
-/// Messages the Guest sends.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// Messages the Guest sends. Each travels as `"type"`: its variant's name
+/// in snake case, as serde writes it and `kind()` and `TYPES` list it.
+#[derive(
+    Debug, Clone, PartialEq, Serialize, Deserialize, strum::IntoStaticStr, strum::VariantNames,
+)]
 #[serde(tag = "type", rename_all = "snake_case")]
+#[strum(serialize_all = "snake_case")]
 pub enum GuestMessage {
     Hello {
         protocol: u32,
@@ -362,9 +366,12 @@ pub struct MountedLab {
     pub camera: CameraModel,
 }
 
-/// Messages the Host sends.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// Messages the Host sends, named on the wire as the Guest's are.
+#[derive(
+    Debug, Clone, PartialEq, Serialize, Deserialize, strum::IntoStaticStr, strum::VariantNames,
+)]
 #[serde(tag = "type", rename_all = "snake_case")]
+#[strum(serialize_all = "snake_case")]
 pub enum HostMessage {
     Welcome {
         session: u64,
@@ -501,50 +508,38 @@ pub trait Wire: Serialize + DeserializeOwned {
 impl GuestMessage {
     /// The `"type"` this message travels as.
     pub fn kind(&self) -> &'static str {
-        match self {
-            GuestMessage::Hello { .. } => "hello",
-            GuestMessage::Ping { .. } => "ping",
-            GuestMessage::Pong { .. } => "pong",
-            GuestMessage::Mount { .. } => "mount",
-            GuestMessage::Define { .. } => "define",
-            GuestMessage::Start => "start",
-            GuestMessage::Stop => "stop",
-            GuestMessage::Reset => "reset",
-            GuestMessage::EmergencyStop => "emergency_stop",
-            GuestMessage::Command { .. } => "command",
-            GuestMessage::RequestFrame => "request_frame",
-            GuestMessage::Bye => "bye",
-        }
+        self.into()
     }
 }
 
 impl Wire for GuestMessage {
-    const TYPES: &'static [&'static str] = &[
-        "hello",
-        "ping",
-        "pong",
-        "mount",
-        "define",
-        "start",
-        "stop",
-        "reset",
-        "emergency_stop",
-        "command",
-        "request_frame",
-        "bye",
-    ];
+    const TYPES: &'static [&'static str] = <GuestMessage as strum::VariantNames>::VARIANTS;
 }
 
 impl Wire for HostMessage {
-    const TYPES: &'static [&'static str] = &[
-        "welcome", "error", "ping", "pong", "mounted", "defined", "started", "feedback", "done",
-        "state", "status", "bye",
-    ];
+    const TYPES: &'static [&'static str] = <HostMessage as strum::VariantNames>::VARIANTS;
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The names `kind()` and `TYPES` give are the ones serde writes.
+    #[test]
+    fn message_names_are_serdes() {
+        for message in [
+            GuestMessage::EmergencyStop,
+            GuestMessage::RequestFrame,
+            GuestMessage::Start,
+            GuestMessage::Bye,
+        ] {
+            let wire: serde_json::Value = serde_json::from_str(&message.encode()).unwrap();
+            assert_eq!(wire["type"], message.kind());
+            assert!(GuestMessage::TYPES.contains(&message.kind()));
+        }
+        assert_eq!(GuestMessage::TYPES.len(), 12);
+        assert!(HostMessage::TYPES.contains(&"feedback") && HostMessage::TYPES.len() == 12);
+    }
 
     #[test]
     fn commands_take_wheels_or_velocities() {
