@@ -39,7 +39,7 @@ pub use model::homography::{CalibrationError, Homography};
 pub use model::khepera::{
     CommandError, KheperaCommand, KheperaReply, LedAction, MalformedReply, MotorMode, MotorStatus,
 };
-pub use model::lens::Distortion;
+pub use model::lens::{Distortion, LensError};
 pub use model::proximity::{MAX_READING, ir_distance, ir_reading};
 pub use model::response_fit::{Fit, FitError, Step as ResponseStep, fit_response};
 pub use model::robot::{

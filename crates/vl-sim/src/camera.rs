@@ -124,7 +124,7 @@ impl Optics {
             }
         }
         // A 4:3 image's corners: where a lens bends most.
-        self.distortion.check(640, 480)?;
+        self.distortion.check(640, 480).map_err(|e| e.to_string())?;
         if !(self.delay_s.is_finite() && (0.0..=2.0).contains(&self.delay_s)) {
             return Err(format!(
                 "the camera's delay is 0 to 2 s, not {} s",

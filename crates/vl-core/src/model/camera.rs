@@ -56,7 +56,9 @@ impl TryFrom<CameraWire> for CameraModel {
         if wire.width_px == 0 || wire.height_px == 0 {
             return Err("a camera's image must have pixels".into());
         }
-        wire.distortion.check(wire.width_px, wire.height_px)?;
+        wire.distortion
+            .check(wire.width_px, wire.height_px)
+            .map_err(|e| e.to_string())?;
         Ok(
             CameraModel::new(wire.width_px, wire.height_px, wire.fps, wire.floor_to_image)
                 .with_distortion(wire.distortion),

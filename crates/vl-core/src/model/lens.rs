@@ -6,6 +6,7 @@
 //! focal length in pixels, so k₁ and k₂ read as usual).
 
 use serde::{Deserialize, Serialize};
+use thiserror::Error;
 
 /// The two radial terms; both zero is a perfect lens.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
@@ -16,6 +17,15 @@ pub struct Distortion {
 
 /// Largest |k₁| or |k₂| a lens may have: beyond it, no webcam.
 const MAX_K: f64 = 2.0;
+
+/// Why two terms are no lens's.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum LensError {
+    #[error("a lens's k1 and k2 are finite and within ±{MAX_K}, not {k1} and {k2}")]
+    OutOfRange { k1: f64, k2: f64 },
+    #[error("a lens with k1 = {k1} and k2 = {k2} folds the image's corners over")]
+    Folds { k1: f64, k2: f64 },
+}
 
 impl Distortion {
     pub fn is_none(&self) -> bool {
@@ -74,25 +84,17 @@ impl Distortion {
     /// Whether this is a lens: finite, bounded, and bending every radius
     /// out to the image's corners one way (no fold, which would show a
     /// point twice).
-    pub fn check(&self, width: u32, height: u32) -> Result<(), String> {
-        if !(self.k1.is_finite() && self.k2.is_finite())
-            || self.k1.abs() > MAX_K
-            || self.k2.abs() > MAX_K
-        {
-            return Err(format!(
-                "a lens's k1 and k2 are finite and within ±{MAX_K}, not {} and {}",
-                self.k1, self.k2
-            ));
+    pub fn check(&self, width: u32, height: u32) -> Result<(), LensError> {
+        let (k1, k2) = (self.k1, self.k2);
+        if !(k1.is_finite() && k2.is_finite()) || k1.abs() > MAX_K || k2.abs() > MAX_K {
+            return Err(LensError::OutOfRange { k1, k2 });
         }
         let (cx, cy, f) = centre(width, height);
         let corner = cx.hypot(cy) / f * 1.2;
         for i in 0..=100 {
             let u2 = (corner * f64::from(i) / 100.0).powi(2);
-            if 1.0 + 3.0 * self.k1 * u2 + 5.0 * self.k2 * u2 * u2 <= 0.0 {
-                return Err(format!(
-                    "a lens with k1 = {} and k2 = {} folds the image's corners over",
-                    self.k1, self.k2
-                ));
+            if 1.0 + 3.0 * k1 * u2 + 5.0 * k2 * u2 * u2 <= 0.0 {
+                return Err(LensError::Folds { k1, k2 });
             }
         }
         Ok(())
@@ -146,6 +148,6 @@ mod tests {
         let e = Distortion { k1: -1.5, k2: 0.0 }
             .check(640, 480)
             .unwrap_err();
-        assert!(e.contains("folds"), "{e}");
+        assert!(e.to_string().contains("folds"), "{e}");
     }
 }
