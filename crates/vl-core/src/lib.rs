@@ -40,7 +40,7 @@ pub use model::khepera::{
     CommandError, KheperaCommand, KheperaReply, LedAction, MalformedReply, MotorMode, MotorStatus,
 };
 pub use model::lens::{Distortion, LensError};
-pub use model::proximity::{MAX_READING, ir_distance, ir_reading};
+pub use model::proximity::{MAX_READING, ir_distance, ir_reading, mapped_reading};
 pub use model::response_fit::{Fit, FitError, Step as ResponseStep, fit_response};
 pub use model::robot::{
     KHEPERA_WHEEL_SLIP, MAX_PULSES_PER_PERIOD, Point, Pose, RobotKind, RobotModel, SensorMount,

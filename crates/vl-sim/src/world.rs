@@ -3,7 +3,7 @@
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use thiserror::Error;
-use vl_core::{Arena, Material, Obstacle, Pose, RobotModel, WheelSpeeds, ir_reading};
+use vl_core::{Arena, Material, Obstacle, Pose, RobotModel, WheelSpeeds, mapped_reading};
 
 use crate::noise::gaussian;
 use crate::scene::{SceneEvent, Scheduled};
@@ -235,12 +235,9 @@ impl World {
             .sensors
             .iter()
             .map(|mount| {
-                let origin = pose.to_world(mount.x_mm, mount.y_mm);
-                let hit = arena.ray_hit(origin, pose.theta_rad + mount.angle_rad);
-                let value = if hit.distance_mm <= robot.sensor_range_mm {
-                    hit.reflectivity
-                        * ir_reading(hit.distance_mm)
-                        * (1.0 + READING_NOISE * rng.random_range(-1.0..1.0))
+                let (clean, distance_mm) = mapped_reading(arena, pose, mount);
+                let value = if distance_mm <= robot.sensor_range_mm {
+                    clean * (1.0 + READING_NOISE * rng.random_range(-1.0..1.0))
                 } else {
                     NOISE_FLOOR * rng.random::<f64>()
                 };

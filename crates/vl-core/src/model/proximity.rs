@@ -2,6 +2,24 @@
 //! simulator turns distances into readings by it, the Host's safety layer
 //! turns readings back into distances.
 
+use crate::{Arena, Pose, SensorMount};
+
+/// What the sensor at `mount` on a robot at `pose` reads of `arena`, noise
+/// aside — the IR response to the first surface its ray meets, scaled by
+/// how well that surface reflects — and how far that surface is, mm. The
+/// simulator adds the sensor's noise to it; the pose estimate compares
+/// real readings with it.
+pub fn mapped_reading(arena: &Arena, pose: Pose, mount: &SensorMount) -> (f64, f64) {
+    let hit = arena.ray_hit(
+        pose.to_world(mount.x_mm, mount.y_mm),
+        pose.theta_rad + mount.angle_rad,
+    );
+    (
+        hit.reflectivity * ir_reading(hit.distance_mm),
+        hit.distance_mm,
+    )
+}
+
 /// The highest reading: an obstacle touching the sensor.
 pub const MAX_READING: f64 = 1023.0;
 

@@ -8,7 +8,7 @@ use std::collections::VecDeque;
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::{Arena, Pose, RobotModel, ir_reading, wrap_angle};
+use crate::{Arena, Pose, RobotModel, mapped_reading, wrap_angle};
 
 /// How far back sightings may reach, s: a frame is grabbed, processed and
 /// handed over well within this.
@@ -212,14 +212,7 @@ impl Localiser {
                     y_mm: state.y,
                     theta_rad: state.z,
                 };
-                let hit = arena.ray_hit(
-                    pose.to_world(mount.x_mm, mount.y_mm),
-                    state.z + mount.angle_rad,
-                );
-                (
-                    hit.reflectivity * ir_reading(hit.distance_mm),
-                    hit.distance_mm,
-                )
+                mapped_reading(arena, pose, mount)
             };
             let (h, distance) = expected(&self.state);
             if reading < RANGE_MIN_READING || distance > RANGE_SHARE * robot.sensor_range_mm {
@@ -448,9 +441,9 @@ mod tests {
                 let slipping = WheelSpeeds { left_mm_s: wheels.left_mm_s * (1.0 + bias), ..wheels };
                 odometry = odometry.advance(slipping, robot.wheel_base_mm, 0.01);
                 let proximity: Vec<u16> = robot.sensors.iter().map(|m| {
-                    let hit = unmapped.ray_hit(truth.to_world(m.x_mm, m.y_mm), truth.theta_rad + m.angle_rad);
-                    let v = if hit.distance_mm <= robot.sensor_range_mm {
-                        hit.reflectivity * ir_reading(hit.distance_mm) * (1.0 + 0.03 * noise())
+                    let (clean, distance_mm) = mapped_reading(&unmapped, truth, m);
+                    let v = if distance_mm <= robot.sensor_range_mm {
+                        clean * (1.0 + 0.03 * noise())
                     } else { 5.0 };
                     v.round().clamp(0.0, 1023.0) as u16
                 }).collect();
@@ -482,8 +475,8 @@ mod tests {
                 .sensors
                 .iter()
                 .map(|m| {
-                    let hit = arena.ray_hit(start.to_world(m.x_mm, m.y_mm), m.angle_rad);
-                    let v = ir_reading(hit.distance_mm) * if k % 2 == 0 { 1.04 } else { 0.97 };
+                    let v =
+                        mapped_reading(&arena, start, m).0 * if k % 2 == 0 { 1.04 } else { 0.97 };
                     v.min(1023.0) as u16
                 })
                 .collect();

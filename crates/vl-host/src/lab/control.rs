@@ -586,7 +586,7 @@ impl Control {
     /// Whether a followed run has come no further along its path for
     /// `HELD_BACK_S` (the safety layer holding it back, or something in
     /// the way), and if so where and why.
-    fn held_back(&mut self, pose: vl_core::Pose) -> Option<HeldBack> {
+    fn held_back(&mut self, pose: Pose) -> Option<HeldBack> {
         let robot_radius = self.info.robot.radius_mm;
         let uncertain_mm = self.uncertain_mm();
         let run = self.run.as_mut()?;
@@ -608,13 +608,8 @@ impl Control {
         for &p in follower.ahead(ROOM_AHEAD_MM).iter().chain([&pose.point()]) {
             let room = run.surroundings.clearance(p) - robot_radius;
             if room < passes_mm {
-                let to_wall = p
-                    .x_mm
-                    .min(arena.width_mm - p.x_mm)
-                    .min(p.y_mm)
-                    .min(arena.height_mm - p.y_mm);
                 passes_mm = room;
-                wall = to_wall - robot_radius <= room + 1e-9;
+                wall = arena.wall_clearance(p) - robot_radius <= room + 1e-9;
             }
         }
         Some(HeldBack {

@@ -66,14 +66,18 @@ impl Arena {
         self.signed_clearance(p).max(0.0)
     }
 
+    /// Signed distance from `p` to the nearest of the four walls alone.
+    pub fn wall_clearance(&self, p: Point) -> f64 {
+        p.x_mm
+            .min(self.width_mm - p.x_mm)
+            .min(p.y_mm)
+            .min(self.height_mm - p.y_mm)
+    }
+
     /// [`Arena::clearance`] with a sign: negative beyond a wall or inside
     /// an obstacle, by how far.
     pub fn signed_clearance(&self, p: Point) -> f64 {
-        let walls = p
-            .x_mm
-            .min(self.width_mm - p.x_mm)
-            .min(p.y_mm)
-            .min(self.height_mm - p.y_mm);
+        let walls = self.wall_clearance(p);
         self.obstacles
             .iter()
             .map(|o| o.shape.signed_distance(p))
