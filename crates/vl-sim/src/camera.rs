@@ -329,31 +329,22 @@ fn draw_robot(
         0
     };
     let (w, h) = image.dimensions();
-    let (mut c0, mut r0, mut c1, mut r1) = (w, h, 0u32, 0u32);
-    for pose in &poses {
-        let (lo, hi) = disc_bounds(pose.point(), r);
-        for (x, y) in [
-            (lo.x_mm, lo.y_mm),
-            (hi.x_mm, lo.y_mm),
-            (lo.x_mm, hi.y_mm),
-            (hi.x_mm, hi.y_mm),
-        ] {
-            let (c, rr) = camera.to_pixel(Point { x_mm: x, y_mm: y });
-            let [dx, dy] = optics.lens_offset_px;
-            let (c, rr) = (c + dx, rr + dy);
-            if !(c.is_finite() && rr.is_finite()) {
-                continue;
-            }
-            c0 = c0.min(c.floor().max(0.0) as u32);
-            r0 = r0.min(rr.floor().max(0.0) as u32);
-            c1 = c1.max((c.ceil() + 1.0).clamp(0.0, f64::from(w)) as u32);
-            r1 = r1.max((rr.ceil() + 1.0).clamp(0.0, f64::from(h)) as u32);
-        }
-    }
-    // A lens bends the box: a few pixels more, then the blur's reach twice.
-    let grow = 3 + 2 * reach;
-    let (c0, r0) = (c0.saturating_sub(grow), r0.saturating_sub(grow));
-    let (c1, r1) = ((c1 + grow).min(w), (r1 + grow).min(h));
+    let boxes = poses.iter().map(|pose| disc_bounds(pose.point(), r));
+    let body = boxes
+        .reduce(|(lo, hi), (l, h)| {
+            let (x0, y0) = (lo.x_mm.min(l.x_mm), lo.y_mm.min(l.y_mm));
+            let (x1, y1) = (hi.x_mm.max(h.x_mm), hi.y_mm.max(h.y_mm));
+            (Point { x_mm: x0, y_mm: y0 }, Point { x_mm: x1, y_mm: y1 })
+        })
+        .expect("at least the pose now");
+    let (cols, rows) = pixel_box(camera, optics, body);
+    // The blur's reach twice, and a pixel for rounding.
+    let grow = 1 + 2 * reach;
+    let (c0, r0) = (
+        cols.start.saturating_sub(grow),
+        rows.start.saturating_sub(grow),
+    );
+    let (c1, r1) = ((cols.end + grow).min(w), (rows.end + grow).min(h));
     if c0 >= c1 || r0 >= r1 {
         return;
     }
@@ -484,15 +475,13 @@ fn floor_and_walls(
     })
 }
 
-/// Paints the pixels that see a floor point within `bounds` (mm) that
-/// `colour` gives a colour.
-fn paint(
-    image: &mut RgbImage,
+/// The columns and rows of the pixels that see the floor box `(lo, hi)`
+/// (mm), within the image.
+fn pixel_box(
     camera: &CameraModel,
     optics: &Optics,
     (lo, hi): (Point, Point),
-    colour: impl Fn(Point) -> Option<Rgb<u8>>,
-) {
+) -> (std::ops::Range<u32>, std::ops::Range<u32>) {
     let (w, h) = (camera.width_px, camera.height_px);
     let [dx, dy] = optics.lens_offset_px;
     // A homography takes the box to a quadrilateral inside its corners'
@@ -521,6 +510,19 @@ fn paint(
         ..clamp(extent(f64::max, f64::NEG_INFINITY, |p| p.0) + dx + 1.0, w);
     let rows = clamp(extent(f64::min, f64::INFINITY, |p| p.1) + dy, h)
         ..clamp(extent(f64::max, f64::NEG_INFINITY, |p| p.1) + dy + 1.0, h);
+    (cols, rows)
+}
+
+/// Paints the pixels that see a floor point within `bounds` (mm) that
+/// `colour` gives a colour.
+fn paint(
+    image: &mut RgbImage,
+    camera: &CameraModel,
+    optics: &Optics,
+    (lo, hi): (Point, Point),
+    colour: impl Fn(Point) -> Option<Rgb<u8>>,
+) {
+    let (cols, rows) = pixel_box(camera, optics, (lo, hi));
     for r in rows {
         for c in cols.clone() {
             if let Some(colour) = colour(sample(camera, optics, c, r)) {
