@@ -39,6 +39,8 @@ const IN_FLIGHT_BYTES: usize = 8 << 20;
 const FRAME_BYTES_HELD: usize = 2 << 20;
 /// How long the handshakes on either side may take.
 const HANDSHAKE: Duration = Duration::from_secs(10);
+/// How long a Guest has to answer the Media's close.
+const CLOSING: Duration = Duration::from_secs(1);
 /// Timers wake within a millisecond; the last stretch before a message is
 /// due is waited out by yielding, so delays are kept to a few microseconds.
 const SPIN: Duration = Duration::from_micros(1500);
@@ -226,6 +228,13 @@ async fn connection(
                     reason: why.clone().into(),
                 }))
                 .await;
+            // The closing handshake: a socket dropped while the Guest's
+            // hello is on its way is reset, and the reset can overtake the
+            // reason. Waiting for the Guest's own close lets it read why.
+            let _ = tokio::time::timeout(CLOSING, async {
+                while let Some(Ok(_)) = guest.next().await {}
+            })
+            .await;
             return Err(why);
         }
     };
