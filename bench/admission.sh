@@ -4,5 +4,5 @@
 #   bench/admission.sh [SECONDS]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-ADMISSION_SOAK_S=${1:-180} cargo test --release --test admission -- --nocapture 2>&1 |
+ADMISSION_SOAK_S=${1:-180} cargo test --release --test tests admission:: -- --nocapture 2>&1 |
   grep -E "bare connections|the relay|test result|panicked"

@@ -10,5 +10,5 @@ seeds=${2:-1}
 for seed in $(seq 1 "$seeds"); do
   echo "seed $seed, $messages messages"
   FUZZ_MESSAGES=$messages FUZZ_SEED=$seed \
-    cargo test --release --test fuzz -- --nocapture 2>&1 | grep -E "fuzzed|test result|panicked"
+    cargo test --release --test tests fuzz:: -- --nocapture 2>&1 | grep -E "fuzzed|test result|panicked"
 done

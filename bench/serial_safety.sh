@@ -7,5 +7,5 @@
 #   bench/serial_safety.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
-SERIAL_SWEEP=all cargo test --release --test serial_safety -- --nocapture 2>&1 |
+SERIAL_SWEEP=all cargo test --release --test tests serial_safety:: -- --nocapture 2>&1 |
   grep -E "baud|test result|panicked|failures"

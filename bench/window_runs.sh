@@ -4,5 +4,5 @@
 #   bench/window_runs.sh [RUNS]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-WINDOW_RUNS=${1:-20} cargo test --release --test guest_window window_runs -- --nocapture 2>&1 |
+WINDOW_RUNS=${1:-20} cargo test --release --test tests guest_window::window_runs -- --nocapture 2>&1 |
   grep -E "window run|test result|panicked"

@@ -5,7 +5,7 @@
 //! and observers that never read hold the relay to a bounded memory. The
 //! three-minute soak is `bench/admission.sh`; this is its short form.
 
-mod common;
+use crate::common;
 
 use std::net::SocketAddr;
 use std::sync::Arc;

@@ -3,7 +3,7 @@
 //! half a pixel of the truth; a picture of a dot target and a file of
 //! point pairs give the same camera; bad input refused with exit 2.
 
-mod common;
+use crate::common;
 
 use common::{refused, scratch, vl, vl_json};
 use serde_json::{Value, json};

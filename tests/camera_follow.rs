@@ -3,7 +3,7 @@
 //! simulated lab, where the camera is the only sensor of where the robot
 //! is. Each run is a real-time Host, so they go one at a time.
 
-mod common;
+use crate::common;
 
 use std::sync::Mutex;
 

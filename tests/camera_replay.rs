@@ -3,7 +3,7 @@
 //! floor and locates the robot from them, and says the camera is offline
 //! when the footage goes away — never a panic.
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 

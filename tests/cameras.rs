@@ -3,7 +3,7 @@
 //! Khepera, driving whole navigation runs and unplugged mid-run; and a
 //! webcam's MJPEG and YUYV buffers through the decode the V4L2 path uses.
 
-mod common;
+use crate::common;
 
 use std::io::Write;
 use std::net::{TcpListener, TcpStream};

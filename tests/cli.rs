@@ -1,7 +1,7 @@
 //! The `vl` binary as a newcomer meets it: its help, the headless demo and
 //! its JSON report, and clear failures.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 

@@ -2,7 +2,7 @@
 //! Media, event-based against time-based control, both experiments
 //! (`vl experiment report`), and one run's JSON (`vl experiment run`).
 
-mod common;
+use crate::common;
 
 use common::{s, scratch, vl};
 use serde_json::Value;

@@ -4,7 +4,7 @@
 //! goes, and hand-overs in quick succession. Each case is bounded in time
 //! and count, on loopback only; each prints what it measured.
 
-mod common;
+use crate::common;
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};

@@ -3,7 +3,7 @@
 //! attackers run in their own threads and runtime; this file has this one
 //! test, so no other test's Hosts share the machine with it.
 
-mod common;
+use crate::common;
 
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream as StdTcp;

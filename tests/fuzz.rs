@@ -6,7 +6,7 @@
 //! `FUZZ_MESSAGES` (default 3,000) and `FUZZ_SEED` (default 1) set the run;
 //! `bench/fuzz.sh` runs it for as long as asked.
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use egui::Vec2;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
-mod common;
+use crate::common;
 
 use vl_core::{Arena, Point, Role};
 use vl_guest::{GuestApp, Link, check_path, drag_path};

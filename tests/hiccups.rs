@@ -5,7 +5,7 @@
 //! Hosts share the machine's two cores with it: the 5 s are the lab's, not
 //! a busy test runner's.
 
-mod common;
+use crate::common;
 
 use std::time::{Duration, Instant};
 

@@ -2,7 +2,7 @@
 //! protocol document describes: an operator drives, an observer watches,
 //! and malformed input is answered without disturbing anyone.
 
-mod common;
+use crate::common;
 
 use std::time::{Duration, Instant};
 

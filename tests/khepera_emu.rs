@@ -1,7 +1,7 @@
 //! `vl khepera-emu` spoken to through `serialport` on its pseudo-terminal,
 //! as the Host's serial driver and K-Team's own tools would.
 
-mod common;
+use crate::common;
 
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};

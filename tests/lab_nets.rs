@@ -4,7 +4,7 @@
 //! and a Host driven with random actions over its socket stays in step
 //! with its net.
 
-mod common;
+use crate::common;
 
 use std::collections::{HashMap, HashSet, VecDeque};
 use std::path::{Path, PathBuf};

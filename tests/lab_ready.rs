@@ -4,7 +4,7 @@
 //! first did and takes as long; a headless operator that finishes says
 //! goodbye, so the next is welcomed at once.
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 

@@ -5,7 +5,7 @@
 //! each round trip should have been; the relay must reproduce that on real
 //! sockets, on top of its own cost (measured on a link of fixed delay).
 
-mod common;
+use crate::common;
 
 use std::time::{Duration, Instant};
 

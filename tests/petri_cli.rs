@@ -2,7 +2,7 @@
 //! (statecharts → nets → composition → analysis → controller), and clear
 //! refusals of bad input with exit code 2.
 
-mod common;
+use crate::common;
 
 use common::{refused, s, scratch, stdout, vl, vl_json as ok_json};
 use serde_json::Value;

@@ -2,7 +2,7 @@
 //! hand count confirms, a path around a wall, "no path", virtual
 //! obstacles, coarser cells, the SVG, and bad input refused with exit 2.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 

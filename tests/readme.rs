@@ -12,7 +12,7 @@
 //!   so the test runs beside anything already on 7400;
 //! - benchmarks run on small inputs: what is checked is that they run.
 
-mod common;
+use crate::common;
 
 use std::io::Write;
 use std::path::Path;

@@ -3,7 +3,7 @@
 //! with its `resume`, and freed when the grace runs out; the Guest
 //! reconnects by itself through an outage of the Media.
 
-mod common;
+use crate::common;
 
 use std::time::{Duration, Instant};
 

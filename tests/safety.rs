@@ -4,7 +4,7 @@
 //! in every shipped arena — must never let the robot touch anything, and
 //! must keep the run going until it is stopped.
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 

@@ -9,7 +9,7 @@
 //! period and a line exchange (the run's `done` comes after the stop was
 //! on the wire). `bench/serial_safety.sh` runs the whole sweep.
 
-mod common;
+use crate::common;
 
 use std::time::{Duration, Instant};
 

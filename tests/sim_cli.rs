@@ -1,7 +1,7 @@
 //! `vl sim …` through its command line: deterministic runs, camera frames,
 //! link statistics, speed, and named refusals of bad input.
 
-mod common;
+use crate::common;
 
 use common::{refused, vl, vl_json as json};
 

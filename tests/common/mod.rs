@@ -1,7 +1,6 @@
 //! What the integration tests share: running `vl` as a user would, keeping
 //! long-running `vl` processes (a Host, the Khepera emulator) alive for a
 //! test and killing them however it ends, and scratch directories.
-#![allow(dead_code)] // each test binary uses its own part of this
 
 pub mod peer;
 

@@ -1,0 +1,41 @@
+//! The integration tests, in one binary: each file is a module, and all of
+//! them share `common`. One binary links `vl` once, where thirty linked it
+//! thirty times.
+
+mod common;
+
+mod admission;
+mod camera_cli;
+mod camera_follow;
+mod camera_map;
+mod camera_replay;
+mod cameras;
+mod cli;
+mod experiment_media;
+mod faults;
+mod floods;
+mod following_in_sim;
+mod fuzz;
+mod gamepad;
+mod guest_window;
+mod hiccups;
+mod host_socket;
+mod khepera_emu;
+mod lab_nets;
+mod lab_ready;
+mod media;
+mod numbers;
+mod petri_cli;
+mod petri_corpus;
+mod petri_props;
+mod plan_cli;
+mod planning_props;
+mod protocol_docs;
+mod protocol_props;
+mod readme;
+mod reconnect;
+mod safety;
+mod serial_safety;
+mod sim_cli;
+mod sim_link;
+mod vision;
