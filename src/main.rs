@@ -137,6 +137,14 @@ impl<T: Named + Send + Sync + Clone> TypedValueParser for NamedParser<T> {
                 clap::error::ContextKind::ValidValue,
                 clap::error::ContextValue::Strings(e.known.iter().map(|s| s.to_string()).collect()),
             );
+            if let Some(now) = e.now {
+                error.insert(
+                    clap::error::ContextKind::Suggested,
+                    clap::error::ContextValue::StyledStrs(vec![
+                        format!("'{}' is called '{now}' now", e.name).into(),
+                    ]),
+                );
+            }
             error
         })
     }

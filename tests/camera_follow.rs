@@ -1,5 +1,5 @@
-//! The mobile-robotics lab run whole from outside (thesis ch. 5, B.1–B.3):
-//! `vl experiment run mobile` and `vl host` + `vl guest --headless` on the
+//! The navigation lab run whole from outside (thesis ch. 5, B.1–B.3):
+//! `vl experiment run navigation` and `vl host` + `vl guest --headless` on the
 //! simulated lab, where the camera is the only sensor of where the robot
 //! is. Each run is a real-time Host, so they go one at a time.
 
@@ -17,7 +17,7 @@ static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
 fn experiment(args: &[&str]) -> Value {
     let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
-    vl_json(&[&["experiment", "run", "mobile", "--json"], args].concat())
+    vl_json(&[&["experiment", "run", "navigation", "--json"], args].concat())
 }
 
 fn only_run(report: &Value) -> &Value {
@@ -231,7 +231,7 @@ fn a_robot_the_camera_loses_is_stopped_with_the_reason() {
     let out = vl(&[
         "experiment",
         "run",
-        "mobile",
+        "navigation",
         "--arena",
         "maze",
         "--scene-event",

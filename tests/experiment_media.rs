@@ -31,7 +31,7 @@ fn the_matrix_keeps_event_based_runs_synchronised_and_writes_its_report() {
     assert_eq!(
         runs.len(),
         18,
-        "6 profiles × mobile, teleop event, teleop time"
+        "6 profiles × navigation, teleoperation event, teleoperation time"
     );
     for run in runs {
         assert_eq!(run["reached_goal"], true, "{run}");
@@ -63,7 +63,7 @@ fn the_matrix_keeps_event_based_runs_synchronised_and_writes_its_report() {
         .find(|r| {
             r["profile"] == "intercontinental"
                 && r["control"] == "time"
-                && r["experiment"] == "teleop"
+                && r["experiment"] == "teleoperation"
         })
         .unwrap();
     assert!(
@@ -76,7 +76,7 @@ fn the_matrix_keeps_event_based_runs_synchronised_and_writes_its_report() {
         .find(|r| {
             r["profile"] == "geo-satellite"
                 && r["control"] == "event"
-                && r["experiment"] == "teleop"
+                && r["experiment"] == "teleoperation"
         })
         .unwrap();
     assert!(
@@ -109,10 +109,30 @@ fn the_matrix_keeps_event_based_runs_synchronised_and_writes_its_report() {
     assert_eq!(json["runs"].as_array().unwrap().len(), 18);
 }
 
+/// The experiments have one name each, everywhere; the names
+/// `vl experiment run` once had of its own are refused with the new one.
+#[test]
+fn the_old_experiment_names_are_refused_with_the_new() {
+    common::refused(
+        &["experiment", "run", "mobile"],
+        "'mobile' is called 'navigation' now",
+    );
+    common::refused(
+        &["experiment", "run", "teleop"],
+        "'teleop' is called 'teleoperation' now",
+    );
+}
+
 #[test]
 fn a_bad_profile_is_named() {
     common::refused(
-        &["experiment", "run", "teleop", "--profile", "carrier-pigeon"],
+        &[
+            "experiment",
+            "run",
+            "teleoperation",
+            "--profile",
+            "carrier-pigeon",
+        ],
         "'carrier-pigeon' is neither a link profile",
     );
 }
@@ -136,7 +156,7 @@ fn failed_runs_are_listed_with_their_reason() {
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stdout.contains("failed: mobile on lan"), "{stdout}");
+    assert!(stdout.contains("failed: navigation on lan"), "{stdout}");
     assert!(stdout.contains("left out of the figures"), "{stdout}");
     assert!(
         !stderr.contains('\u{1b}'),

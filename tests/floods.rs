@@ -1,7 +1,7 @@
 //! Floods from clients that hold no token, and a hundred half-sent 8 MiB
 //! frames, against one Host, while an operator is welcomed and drives. The
-//! attackers run in their own threads and runtime; this file has this one
-//! test, so no other test's Hosts share the machine with it.
+//! attackers run in their own threads and runtime; the test runs alone
+//! (tests/alone.rs), so no other test's Hosts share the machine with it.
 
 use crate::common;
 
@@ -152,6 +152,7 @@ const P99_LIMIT_MS: f64 = 10.0;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn floods_and_half_frames_do_not_slow_the_operator() {
+    let _alone = crate::alone();
     let (host, url) = start_host(&["--camera", "sim"]);
     let pid = host.0.id();
     let stop = Arc::new(AtomicBool::new(false));

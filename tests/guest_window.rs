@@ -5,10 +5,10 @@
 
 use std::time::{Duration, Instant};
 
+use crate::common;
 use egui::Vec2;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
-use crate::common;
 
 use vl_core::{Arena, Point, Role};
 use vl_guest::{GuestApp, Link, check_path, drag_path};

@@ -1,9 +1,8 @@
 //! Hiccups heal: a Host frozen for 0.7 s (its serial guard stops the robot
 //! meanwhile) and a robot that pauses for 2 s, each again and again, and
 //! every time a new run starts within 5 s of the hiccup's end, without
-//! restarting anything. The file has this one test, so no other test's
-//! Hosts share the machine's two cores with it: the 5 s are the lab's, not
-//! a busy test runner's.
+//! restarting anything. It runs alone (tests/alone.rs): the 5 s are the
+//! lab's, not a busy test runner's.
 
 use crate::common;
 
@@ -70,6 +69,7 @@ async fn new_run_within(op: &mut Peer, within: Duration) -> Option<Duration> {
 /// restarting anything.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_frozen_host_and_a_paused_robot_are_driven_again_within_5_s() {
+    let _alone = crate::alone();
     let (emulator, device) = start_emulator(&[]);
     // Healing is timed here, not the drive back to the start pose.
     let (host, url) = start_khepera_host_with(&device, &["--no-reset"]);

@@ -1,6 +1,6 @@
 //! The integration tests, in one binary: each file is a module, and all of
 //! them share `common`. One binary links `vl` once, where thirty linked it
-//! thirty times.
+//! thirty times. The tests that time the lab under load run in `alone`.
 
 mod common;
 
@@ -13,12 +13,10 @@ mod cameras;
 mod cli;
 mod experiment_media;
 mod faults;
-mod floods;
 mod following_in_sim;
 mod fuzz;
 mod gamepad;
 mod guest_window;
-mod hiccups;
 mod host_socket;
 mod khepera_emu;
 mod lab_nets;

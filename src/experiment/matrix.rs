@@ -1,5 +1,5 @@
 //! `vl experiment report`: the thesis's chapter 7 as one command. Every link
-//! profile × {mobile; teleop event-based; teleop time-based} × seeds, run
+//! profile × {navigation; teleoperation event-based; teleoperation time-based} × seeds, run
 //! a few at a time, then `report.md` (tables and plots), `report.json` and
 //! the plots as SVG and PNG.
 
@@ -12,12 +12,12 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 use serde::Serialize;
-use vl_core::Named;
+use vl_core::{Experiment, Named};
 use vl_host::FramePolicy;
 use vl_sim::{LinkModel, Optics, Profile};
 
 use super::plots::{self, EVENT, TIME};
-use super::{Control, Leg, Run, RunSpec, Which, line, run_one};
+use super::{Control, Leg, Run, RunSpec, line, run_one};
 use crate::report::{Report, Table, emit, yes};
 use crate::sim::load_arena;
 
@@ -52,7 +52,7 @@ pub(crate) struct ReportArgs {
 /// One cell of the matrix, over its seeds.
 #[derive(Serialize, Clone)]
 struct Cell {
-    experiment: Which,
+    experiment: Experiment,
     profile: String,
     control: Control,
     runs: usize,
@@ -102,7 +102,7 @@ impl Report for Matrix {
         for r in self.runs.iter().filter(|r| !r.succeeded()) {
             table = table.note(format!(
                 "failed: {} on {}, {} control, seed {}: {} ({} collisions); left out of the figures",
-                format!("{:?}", r.experiment).to_lowercase(),
+                r.experiment.to_string(),
                 r.profile.as_deref().unwrap_or("loopback"),
                 format!("{:?}", r.control).to_lowercase(),
                 r.seed,
@@ -145,10 +145,10 @@ fn headline(cells: &[Cell]) -> Table {
     let pair = |v: Option<[f64; 2]>, k: usize| v.map_or("–".into(), |v| format!("{:.1}", v[k]));
     for c in cells {
         table.row(vec![
-            format!("{:?}", c.experiment).to_lowercase(),
+            c.experiment.to_string(),
             c.profile.clone(),
             match (c.experiment, c.control) {
-                (Which::Mobile, _) => "host".into(),
+                (Experiment::Navigation, _) => "host".into(),
                 (_, Control::Event) => "event".into(),
                 (_, Control::Time) => "time".into(),
             },
@@ -226,17 +226,17 @@ pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Res
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let cells = [
-        (Which::Mobile, Control::Event),
-        (Which::Teleop, Control::Event),
-        (Which::Teleop, Control::Time),
+        (Experiment::Navigation, Control::Event),
+        (Experiment::Teleoperation, Control::Event),
+        (Experiment::Teleoperation, Control::Time),
     ];
     let mut specs = Vec::new();
     for link in &links {
-        for &(which, control) in &cells {
+        for &(experiment, control) in &cells {
             for k in 0..args.seeds {
                 let seed = args.seed + k;
                 specs.push(RunSpec {
-                    which,
+                    experiment,
                     arena: arena.clone(),
                     seed,
                     optics: Optics {
@@ -257,7 +257,7 @@ pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Res
     let total = specs.len();
     let started = Instant::now();
     eprintln!(
-        "vl experiment report: {total} runs ({} profiles × mobile, teleop event, teleop time × {} seeds), {} at a time",
+        "vl experiment report: {total} runs ({} profiles × navigation, teleoperation event, teleoperation time × {} seeds), {} at a time",
         links.len(),
         args.seeds,
         args.jobs
@@ -281,7 +281,7 @@ pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Res
             eprintln!(
                 "[{finished}/{total}] {:.0} s  {} {} {}: {}",
                 started.elapsed().as_secs_f64(),
-                format!("{:?}", run.experiment).to_lowercase(),
+                run.experiment.to_string(),
                 run.profile.as_deref().unwrap_or("loopback"),
                 format!("{:?}", run.control).to_lowercase(),
                 line(&run)
@@ -294,12 +294,12 @@ pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Res
     let mut summary = Vec::new();
     let mut timing = Vec::new();
     for (name, _) in &links {
-        for &(which, control) in &cells {
+        for &(experiment, control) in &cells {
             let these: Vec<&Run> = runs
                 .iter()
                 .filter(|r| {
                     r.profile.as_deref() == Some(name)
-                        && r.experiment == which
+                        && r.experiment == experiment
                         && r.control == control
                 })
                 .collect();
@@ -377,7 +377,7 @@ fn draw(dir: &Path, m: &Matrix, arena: &vl_core::Arena) -> Result<Vec<(String, P
     let mut out = Vec::new();
     let teleop = |profile: &str, control: Control| -> Option<&Run> {
         m.runs.iter().find(|r| {
-            r.experiment == Which::Teleop
+            r.experiment == Experiment::Teleoperation
                 && r.profile.as_deref() == Some(profile)
                 && r.control == control
                 && r.succeeded()
@@ -388,7 +388,7 @@ fn draw(dir: &Path, m: &Matrix, arena: &vl_core::Arena) -> Result<Vec<(String, P
         let mut v: Vec<(f64, f64)> = m
             .cells
             .iter()
-            .filter(|c| c.experiment == Which::Teleop && c.control == control)
+            .filter(|c| c.experiment == Experiment::Teleoperation && c.control == control)
             .filter_map(|c| pick(c).map(|y| (c.round_trip_p50_ms, y)))
             .collect();
         v.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -546,8 +546,8 @@ fn write_markdown(dir: &Path, m: &Matrix, pictures: &[(String, PathBuf)]) -> Res
     );
     let _ = writeln!(
         md,
-        "*mobile*: the Host follows the planned path from the camera's estimate (the Guest sends no \
-         commands, so pacing does not apply). *teleop*: a scripted operator steers toward waypoints \
+        "*navigation*: the Host follows the planned path from the camera's estimate (the Guest sends no \
+         commands, so pacing does not apply). *teleoperation*: a scripted operator steers toward waypoints \
          along the planned path from the feedback it sees, sending commands either after each \
          feedback (*event*) or every 20 ms (*time*). Errors in mm; *max gap*: the largest number \
          of events a command ran ahead of the feedback it was sent on (event-based control keeps \
@@ -573,7 +573,7 @@ fn write_markdown(dir: &Path, m: &Matrix, pictures: &[(String, PathBuf)]) -> Res
         ]);
         for r in failed {
             t.row(vec![
-                format!("{:?}", r.experiment).to_lowercase(),
+                r.experiment.to_string(),
                 r.profile.clone().unwrap_or_default(),
                 format!("{:?}", r.control).to_lowercase(),
                 r.seed.to_string(),

@@ -2,8 +2,8 @@
 //! ch. 7). Each run is a simulated Host on loopback, optionally behind the
 //! Media (a relay with a modelled Internet link), and a Guest against it
 //! over real sockets: mount, map from the camera, plan, define, then the
-//! Host follows the path (`mobile`) or a scripted operator steers along it
-//! from the delayed feedback (`teleop`). `vl experiment report` runs the
+//! Host follows the path (`navigation`) or a scripted operator steers along
+//! it from the delayed feedback (`teleoperation`). `vl experiment report` runs the
 //! whole matrix of links and control modes and writes a report with plots.
 
 mod matrix;
@@ -35,27 +35,6 @@ pub(crate) enum ExperimentCommand {
     Report(matrix::ReportArgs),
 }
 
-/// The experiments `vl experiment run` knows.
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum, Serialize, Debug)]
-#[serde(rename_all = "lowercase")]
-pub(crate) enum Which {
-    /// Navigation (thesis ch. 5): the Host follows a path planned on the
-    /// camera's map, steering from camera-based estimates.
-    Mobile,
-    /// Teleoperation (thesis ch. 6): a scripted operator steers toward
-    /// waypoints along the planned path from the feedback it sees.
-    Teleop,
-}
-
-impl Which {
-    fn experiment(self) -> Experiment {
-        match self {
-            Which::Mobile => Experiment::Navigation,
-            Which::Teleop => Experiment::Teleoperation,
-        }
-    }
-}
-
 /// How the operator's commands are paced.
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum, Serialize, Debug)]
 #[serde(rename_all = "lowercase")]
@@ -79,8 +58,11 @@ impl Control {
 
 #[derive(Args)]
 pub(crate) struct RunArgs {
-    #[arg(value_enum)]
-    which: Which,
+    /// navigation: the Host follows a path planned on the camera's map
+    /// (thesis ch. 5); teleoperation: a scripted operator steers toward
+    /// waypoints along it from the feedback it sees (thesis ch. 6).
+    #[arg(value_parser = crate::named::<Experiment>())]
+    experiment: Experiment,
     /// Arenas, comma-separated: shipped names or JSON files; `all` for
     /// every shipped one.
     #[arg(long, value_delimiter = ',', default_value = "navigation")]
@@ -97,7 +79,7 @@ pub(crate) struct RunArgs {
     /// talks to the Host straight over loopback.
     #[arg(long)]
     profile: Option<String>,
-    /// How the operator paces commands (teleop).
+    /// How the operator paces commands (teleoperation).
     #[arg(long, value_enum, default_value = "event")]
     control: Control,
     #[command(flatten)]
@@ -163,7 +145,7 @@ pub(crate) struct Legs {
 /// One run, as `--json` gives it.
 #[derive(Serialize, Clone, Debug)]
 pub(crate) struct Run {
-    pub experiment: Which,
+    pub experiment: Experiment,
     pub arena: String,
     pub seed: u64,
     /// The link between Guest and Host; none for straight loopback.
@@ -281,7 +263,7 @@ pub(crate) fn spread(s: Spread) -> String {
 /// What one run is: everything `run_one` needs.
 #[derive(Clone)]
 pub(crate) struct RunSpec {
-    pub which: Which,
+    pub experiment: Experiment,
     pub arena: Arena,
     pub seed: u64,
     pub optics: Optics,
@@ -332,15 +314,15 @@ pub(crate) async fn run_one(spec: &RunSpec) -> Result<Run> {
     };
     let url = media.as_ref().map_or_else(|| host.url(), Media::url);
     let script = Script {
-        experiment: spec.which.experiment(),
+        experiment: spec.experiment,
         timeout: spec.timeout,
         progress: spec.progress,
         control: spec.control.mode(),
         ..Script::default()
     };
-    let report = match spec.which {
-        Which::Mobile => vl_guest::drive_to_goal(&url, &script).await,
-        Which::Teleop => vl_guest::teleoperate(&url, &script).await,
+    let report = match spec.experiment {
+        Experiment::Navigation => vl_guest::drive_to_goal(&url, &script).await,
+        Experiment::Teleoperation => vl_guest::teleoperate(&url, &script).await,
     }
     .with_context(|| format!("the run on {} with seed {}", spec.arena.name, spec.seed))?;
     let delays = media.as_ref().map(|m| {
@@ -354,7 +336,7 @@ pub(crate) async fn run_one(spec: &RunSpec) -> Result<Run> {
     });
     let path = report.path.as_ref();
     Ok(Run {
-        experiment: spec.which,
+        experiment: spec.experiment,
         arena: spec.arena.name.clone(),
         seed: spec.seed,
         profile: spec.link.as_ref().map(|(name, _)| name.clone()),
@@ -411,7 +393,7 @@ pub(crate) fn run(
         for k in 0..args.runs {
             let seed = args.seed + k;
             let spec = RunSpec {
-                which: args.which,
+                experiment: args.experiment,
                 arena: arena.clone(),
                 seed,
                 optics: args.optics.optics(seed)?,

@@ -9,6 +9,9 @@ pub trait Named: Sized + Copy + PartialEq + 'static {
     /// Every value, in the order they are listed to users.
     const ALL: &'static [Self];
 
+    /// Ids once used for some values: refused, with the id to use now.
+    const FORMERLY: &'static [(&'static str, Self)] = &[];
+
     fn id(self) -> &'static str;
 
     /// The value with this id.
@@ -21,17 +24,25 @@ pub trait Named: Sized + Copy + PartialEq + 'static {
                 kind: Self::KIND,
                 name: id.to_owned(),
                 known: Self::ALL.iter().map(|v| v.id()).collect(),
+                now: Self::FORMERLY
+                    .iter()
+                    .find(|(old, _)| *old == id)
+                    .map(|(_, v)| v.id()),
             })
     }
 }
 
 /// An id that names nothing, with the ids that do.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown {kind} '{name}' (known: {known})", known = known.join(", "))]
+#[error("unknown {kind} '{name}'{renamed} (known: {known})",
+    renamed = now.map(|n| format!(": it is called '{n}' now")).unwrap_or_default(),
+    known = known.join(", "))]
 pub struct UnknownName {
     pub kind: &'static str,
     pub name: String,
     pub known: Vec<&'static str>,
+    /// The id of what `name` once named.
+    pub now: Option<&'static str>,
 }
 
 /// `Display`, `FromStr` and serde as the id, for a [`Named`] type.

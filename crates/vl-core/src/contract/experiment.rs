@@ -18,6 +18,11 @@ pub enum Experiment {
 impl Named for Experiment {
     const KIND: &'static str = "experiment";
     const ALL: &'static [Self] = &[Experiment::Navigation, Experiment::Teleoperation];
+    /// `vl experiment run` once had names of its own for them.
+    const FORMERLY: &'static [(&'static str, Self)] = &[
+        ("mobile", Experiment::Navigation),
+        ("teleop", Experiment::Teleoperation),
+    ];
 
     fn id(self) -> &'static str {
         match self {
