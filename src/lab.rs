@@ -203,7 +203,10 @@ pub(crate) fn parse_camera(text: &str) -> Result<CameraDriver, String> {
         "none" => Ok(CameraDriver::None),
         _ if text.starts_with("http://") => Ok(CameraDriver::Http(text.to_owned())),
         #[cfg(target_os = "linux")]
-        _ if text.starts_with("v4l2:") => Ok(CameraDriver::V4l2(text["v4l2:".len()..].parse()?)),
+        _ if text.starts_with("v4l2:") => text["v4l2:".len()..]
+            .parse()
+            .map(CameraDriver::V4l2)
+            .map_err(|e: vl_host::CameraError| e.to_string()),
         _ => match text.strip_prefix("dir:") {
             Some(dir) if !dir.is_empty() => Ok(CameraDriver::Replay(dir.into())),
             _ => Err(format!(
@@ -444,12 +447,8 @@ pub(crate) struct SceneArgs {
     /// At T s on the lab's clock, put an obstacle down (`T:place:SHAPE`,
     /// e.g. 3:place:rect:400,100,40,40) or hold a hand over the robot
     /// (`T:cover:SECONDS`); repeatable.
-    #[arg(long = "scene-event", value_parser = parse_scene_event)]
+    #[arg(long = "scene-event", value_parser = str::parse::<Scheduled>)]
     pub(crate) events: Vec<Scheduled>,
-}
-
-fn parse_scene_event(text: &str) -> Result<Scheduled, String> {
-    text.parse()
 }
 
 #[derive(clap::Args)]

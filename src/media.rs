@@ -151,7 +151,7 @@ pub(crate) async fn run(command: MediaCommand) -> Result<()> {
                 .collect::<Result<Vec<_>>>()?;
             let bench = vl_host::media_bench(messages as usize, &links)
                 .await
-                .map_err(|e| anyhow::anyhow!("the relay bench failed: {e}"))?;
+                .context("the relay bench failed")?;
             emit(&bench, json)
         }
         None => media(command.relay).await,

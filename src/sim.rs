@@ -35,7 +35,9 @@ impl RobotArgs {
         }
         let model = self.robot.model();
         Ok(match (self.radius_mm, self.wheel_base_mm) {
-            (Some(radius), Some(base)) => model.resized(radius, base).map_err(BadInput)?,
+            (Some(radius), Some(base)) => model
+                .resized(radius, base)
+                .map_err(|e| BadInput(e.to_string()))?,
             _ => model,
         })
     }
@@ -130,7 +132,7 @@ impl OpticsArgs {
         if let Some(deg) = self.tilt_deg {
             optics.tilt_rad = deg.to_radians();
         }
-        optics.check().map_err(BadInput)?;
+        optics.check().map_err(|e| BadInput(e.to_string()))?;
         Ok(optics)
     }
 }

@@ -152,7 +152,7 @@ const P99_LIMIT_MS: f64 = 10.0;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn floods_and_half_frames_do_not_slow_the_operator() {
-    let _alone = crate::alone();
+    let _alone = crate::alone().await;
     let (host, url) = start_host(&["--camera", "sim"]);
     let pid = host.0.id();
     let stop = Arc::new(AtomicBool::new(false));

@@ -69,7 +69,7 @@ async fn new_run_within(op: &mut Peer, within: Duration) -> Option<Duration> {
 /// restarting anything.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_frozen_host_and_a_paused_robot_are_driven_again_within_5_s() {
-    let _alone = crate::alone();
+    let _alone = crate::alone().await;
     let (emulator, device) = start_emulator(&[]);
     // Healing is timed here, not the drive back to the start pose.
     let (host, url) = start_khepera_host_with(&device, &["--no-reset"]);

@@ -102,7 +102,7 @@ impl Report for Matrix {
         for r in self.runs.iter().filter(|r| !r.succeeded()) {
             table = table.note(format!(
                 "failed: {} on {}, {} control, seed {}: {} ({} collisions); left out of the figures",
-                r.experiment.to_string(),
+                r.experiment,
                 r.profile.as_deref().unwrap_or("loopback"),
                 format!("{:?}", r.control).to_lowercase(),
                 r.seed,
@@ -281,7 +281,7 @@ pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Res
             eprintln!(
                 "[{finished}/{total}] {:.0} s  {} {} {}: {}",
                 started.elapsed().as_secs_f64(),
-                run.experiment.to_string(),
+                run.experiment,
                 run.profile.as_deref().unwrap_or("loopback"),
                 format!("{:?}", run.control).to_lowercase(),
                 line(&run)

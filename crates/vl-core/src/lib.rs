@@ -20,10 +20,13 @@ mod model;
 mod named;
 mod navigation;
 mod safety;
+mod syntax;
 mod teleop;
 mod vision;
 
-pub use contract::experiment::{Definition, Experiment, ExperimentInfo, Goal, LOOKAHEAD_MM};
+pub use contract::experiment::{
+    Definition, DefinitionError, Experiment, ExperimentInfo, Goal, LOOKAHEAD_MM,
+};
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::protocol::{
     DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HeldBack, HostMessage,
@@ -32,9 +35,11 @@ pub use contract::protocol::{
 };
 pub use contract::session::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use design::{DesignError, Designed, Interleaving, LabDesign, Rule, design};
-pub use images::{MAX_IMAGE_SIDE, decode_image, load_image};
-pub use model::arena::{Arena, ArenaError, Hit, Material, Obstacle, Shape};
-pub use model::camera::{Calibration, CameraModel, Reprojection};
+pub use images::{ImageError, MAX_IMAGE_SIDE, decode_image, load_image};
+pub use model::arena::{
+    Arena, ArenaError, Hit, MapImageError, Material, Obstacle, Shape, ShapeError,
+};
+pub use model::camera::{Calibration, CameraModel, CameraModelError, Reprojection};
 pub use model::homography::{CalibrationError, Homography};
 pub use model::khepera::{
     CommandError, KheperaCommand, KheperaReply, LedAction, MalformedReply, MotorMode, MotorStatus,
@@ -43,8 +48,8 @@ pub use model::lens::{Distortion, LensError};
 pub use model::proximity::{MAX_READING, ir_distance, ir_reading, mapped_reading};
 pub use model::response_fit::{Fit, FitError, Step as ResponseStep, fit_response};
 pub use model::robot::{
-    KHEPERA_WHEEL_SLIP, MAX_PULSES_PER_PERIOD, Point, Pose, RobotKind, RobotModel, SensorMount,
-    SpeedResponse, WheelSpeeds, wrap_angle,
+    KHEPERA_WHEEL_SLIP, MAX_PULSES_PER_PERIOD, Point, Pose, RobotKind, RobotModel, RobotModelError,
+    SensorMount, SpeedResponse, WheelSpeeds, wrap_angle,
 };
 pub use named::{Named, UnknownName};
 pub use navigation::analysis::{
@@ -61,6 +66,7 @@ pub use navigation::plan::{
 };
 pub use navigation::svg::{plan_svg, run_svg};
 pub use safety::{Guarded, Safety, Situation, Surroundings};
+pub use syntax::SyntaxError;
 pub use teleop::{Assisted, Joystick, MapField, Teleop, Vector, predict};
 pub use vision::{
     Centroid, Component, Connectivity, DotTarget, Look, Mask, RobotPose, Scene, Threshold,

@@ -21,10 +21,35 @@ pub enum RobotError {
     Io(std::io::Error),
 }
 
-/// A camera that vanished or sent an unreadable frame.
+/// Why a camera gives no frame. Each says which camera, and why, in words.
 #[derive(Debug, Error)]
-#[error("camera: {0}")]
-pub struct CameraError(pub String);
+pub enum CameraError {
+    /// Its address names no camera `vl` reads.
+    #[error("camera: {0}")]
+    Address(String),
+    /// It cannot be opened, or not set up as asked.
+    #[error("camera: {0}")]
+    Setup(String),
+    /// It sent nothing in time, or stopped: it may come back.
+    #[error("camera: {0}")]
+    Silent(String),
+    /// It sent a frame that is no image of the size it was set to.
+    #[error("camera: {0}")]
+    Frame(String),
+}
+
+impl CameraError {
+    /// The same error, said of the camera named `camera`.
+    pub(crate) fn within(self, camera: &str) -> CameraError {
+        let named = |why: String| format!("{camera}: {why}");
+        match self {
+            CameraError::Address(why) => CameraError::Address(named(why)),
+            CameraError::Setup(why) => CameraError::Setup(named(why)),
+            CameraError::Silent(why) => CameraError::Silent(named(why)),
+            CameraError::Frame(why) => CameraError::Frame(named(why)),
+        }
+    }
+}
 
 /// What one read of the robot tells.
 #[derive(Debug, Clone, PartialEq)]

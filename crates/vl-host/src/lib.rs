@@ -29,7 +29,8 @@ pub use khepera::KheperaSerial;
 pub use lab::{Devices, FramePolicy};
 pub use line::run_guard;
 pub use media::{
-    Delays, Media, MediaBench, MediaConfig, MediaError, Reproduced, RoundTrip, bench as media_bench,
+    Delays, Media, MediaBench, MediaBenchError, MediaConfig, MediaError, Reproduced, RoundTrip,
+    bench as media_bench,
 };
 pub use replay::ReplayCamera;
 pub use server::HostConfig;

@@ -34,7 +34,7 @@ impl ReplayCamera {
     ) -> Result<ReplayCamera, CameraError> {
         let frames = list(dir)?;
         let first = frames.first().ok_or_else(|| {
-            CameraError(format!(
+            CameraError::Setup(format!(
                 "no footage in {}: it holds no .png or .jpg images",
                 dir.display()
             ))
@@ -52,8 +52,9 @@ impl ReplayCamera {
 
 /// The images in `dir`, by name.
 fn list(dir: &Path) -> Result<Vec<PathBuf>, CameraError> {
-    let entries = std::fs::read_dir(dir)
-        .map_err(|e| CameraError(format!("cannot read the footage in {}: {e}", dir.display())))?;
+    let entries = std::fs::read_dir(dir).map_err(|e| {
+        CameraError::Setup(format!("cannot read the footage in {}: {e}", dir.display()))
+    })?;
     let mut frames: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
@@ -69,7 +70,7 @@ fn list(dir: &Path) -> Result<Vec<PathBuf>, CameraError> {
 fn read(path: &Path) -> Result<RgbImage, CameraError> {
     load_image(path)
         .map(|image| image.to_rgb8())
-        .map_err(|e| CameraError(format!("cannot read the frame {}: {e}", path.display())))
+        .map_err(|e| CameraError::Frame(format!("cannot read the frame {}: {e}", path.display())))
 }
 
 impl Camera for ReplayCamera {
@@ -83,7 +84,7 @@ impl Camera for ReplayCamera {
             self.frames = list(&self.dir)?;
             self.next = 0;
             if self.frames.is_empty() {
-                return Err(CameraError(format!(
+                return Err(CameraError::Silent(format!(
                     "the footage in {} is gone",
                     self.dir.display()
                 )));
@@ -93,7 +94,7 @@ impl Camera for ReplayCamera {
         self.next += 1;
         let (w, h) = (self.model.width_px, self.model.height_px);
         if image.dimensions() != (w, h) {
-            return Err(CameraError(format!(
+            return Err(CameraError::Frame(format!(
                 "frame {} is {}×{} px, the camera {w}×{h}",
                 self.frames[self.next - 1].display(),
                 image.width(),

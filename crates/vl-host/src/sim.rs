@@ -206,7 +206,9 @@ impl Camera for RenderedCamera {
             }
             let now = Instant::now();
             if now >= deadline {
-                return Err(CameraError("the simulated camera sends no frames".into()));
+                return Err(CameraError::Silent(
+                    "the simulated camera sends no frames".into(),
+                ));
             }
             let wait = frames.front().map_or(deadline - now, |f| {
                 self.delay.saturating_sub(f.taken.elapsed())

@@ -52,6 +52,27 @@ pub struct Optics {
     pub occlusion_rate: f64,
 }
 
+/// Camera options no camera has, named.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum OpticsError {
+    #[error("the camera may lean at most 45° from looking straight down, not {0:.1}°")]
+    Tilt(f64),
+    #[error("the lens offset must be finite")]
+    LensOffset,
+    #[error("the camera {what} must be zero or more, not {value}")]
+    Negative { what: &'static str, value: f64 },
+    #[error(transparent)]
+    Lens(#[from] vl_core::LensError),
+    #[error("the camera's delay is 0 to 2 s, not {0} s")]
+    Delay(f64),
+    #[error("the camera's exposure is 0 to 0.2 s, not {0} s")]
+    Exposure(f64),
+    #[error("the {what} is 0 to 0.5, not {value}")]
+    Share { what: &'static str, value: f64 },
+    #[error("the lighting gradient must be between 0 and 1, not {0}")]
+    Lighting(f64),
+}
+
 impl Optics {
     /// Lens offset, blur, sensor noise and a lighting gradient together, as
     /// an inexpensive webcam over a lab bench shows the floor.
@@ -105,54 +126,42 @@ impl Optics {
     }
 
     /// Whether the options make sense, naming the one that does not.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), OpticsError> {
         if !(self.tilt_rad.is_finite()
             && self.tilt_rad.abs() <= std::f64::consts::FRAC_PI_4 + 1e-12)
         {
-            return Err(format!(
-                "the camera may lean at most 45° from looking straight down, not {:.1}°",
-                self.tilt_rad.to_degrees()
-            ));
+            return Err(OpticsError::Tilt(self.tilt_rad.to_degrees()));
         }
         let [dx, dy] = self.lens_offset_px;
         if !(dx.is_finite() && dy.is_finite()) {
-            return Err("the lens offset must be finite".into());
+            return Err(OpticsError::LensOffset);
         }
-        for (what, v) in [("blur", self.blur_px), ("noise", self.noise)] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("the camera {what} must be zero or more, not {v}"));
+        for (what, value) in [("blur", self.blur_px), ("noise", self.noise)] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(OpticsError::Negative { what, value });
             }
         }
         // A 4:3 image's corners: where a lens bends most.
-        self.distortion.check(640, 480).map_err(|e| e.to_string())?;
+        self.distortion.check(640, 480)?;
         if !(self.delay_s.is_finite() && (0.0..=2.0).contains(&self.delay_s)) {
-            return Err(format!(
-                "the camera's delay is 0 to 2 s, not {} s",
-                self.delay_s
-            ));
+            return Err(OpticsError::Delay(self.delay_s));
         }
         if !(self.exposure_s.is_finite() && (0.0..=0.2).contains(&self.exposure_s)) {
-            return Err(format!(
-                "the camera's exposure is 0 to 0.2 s, not {} s",
-                self.exposure_s
-            ));
+            return Err(OpticsError::Exposure(self.exposure_s));
         }
-        for (what, v) in [
+        for (what, value) in [
             ("share of frames dropped", self.drop_rate),
             (
                 "share of frames with the marker hidden",
                 self.occlusion_rate,
             ),
         ] {
-            if !(0.0..=0.5).contains(&v) {
-                return Err(format!("the {what} is 0 to 0.5, not {v}"));
+            if !(0.0..=0.5).contains(&value) {
+                return Err(OpticsError::Share { what, value });
             }
         }
         if !(0.0..=1.0).contains(&self.lighting_gradient) {
-            return Err(format!(
-                "the lighting gradient must be between 0 and 1, not {}",
-                self.lighting_gradient
-            ));
+            return Err(OpticsError::Lighting(self.lighting_gradient));
         }
         Ok(())
     }

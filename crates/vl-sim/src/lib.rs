@@ -20,7 +20,9 @@ mod tcp;
 mod world;
 
 pub use bench::{SimBench, bench};
-pub use camera::{Optics, Renderer, SimCalibration, calibrate, camera_for, render_target};
+pub use camera::{
+    Optics, OpticsError, Renderer, SimCalibration, calibrate, camera_for, render_target,
+};
 pub use emulator::{Emulator, EmulatorError, Line};
 pub use khepera::Khepera;
 pub use link::{

@@ -5,7 +5,7 @@
 
 use std::str::FromStr;
 
-use vl_core::Shape;
+use vl_core::{Shape, SyntaxError};
 
 /// Something a person does.
 #[derive(Debug, Clone, PartialEq)]
@@ -27,23 +27,26 @@ pub struct Scheduled {
 const MAX_COVER_S: f64 = 3600.0;
 
 impl FromStr for Scheduled {
-    type Err = String;
+    type Err = SyntaxError;
 
     /// `T:place:SHAPE` (e.g. `3:place:rect:400,100,40,40`) or `T:cover:SECONDS`.
-    fn from_str(text: &str) -> Result<Scheduled, String> {
-        let form = "expected T:place:SHAPE or T:cover:SECONDS";
-        let (at, rest) = text
-            .split_once(':')
-            .ok_or_else(|| format!("{form}, not '{text}'"))?;
+    fn from_str(text: &str) -> Result<Scheduled, SyntaxError> {
+        let expected = "expected T:place:SHAPE or T:cover:SECONDS";
+        let form = || SyntaxError::Form {
+            expected,
+            got: text.to_owned(),
+        };
+        let (at, rest) = text.split_once(':').ok_or_else(form)?;
         let at_s: f64 = at
             .trim()
             .parse()
             .ok()
             .filter(|t: &f64| t.is_finite() && *t >= 0.0)
-            .ok_or_else(|| format!("'{at}' is not a time in seconds from 0 on"))?;
-        let (kind, what) = rest
-            .split_once(':')
-            .ok_or_else(|| format!("{form}, not '{text}'"))?;
+            .ok_or_else(|| SyntaxError::Range {
+                got: at.to_owned(),
+                what: "a time in seconds from 0 on".into(),
+            })?;
+        let (kind, what) = rest.split_once(':').ok_or_else(form)?;
         let event = match kind {
             "place" => SceneEvent::Place(what.parse()?),
             "cover" => SceneEvent::Cover(
@@ -51,11 +54,18 @@ impl FromStr for Scheduled {
                     .parse()
                     .ok()
                     .filter(|s: &f64| s.is_finite() && *s > 0.0 && *s <= MAX_COVER_S)
-                    .ok_or_else(|| {
-                        format!("'{what}' is not a cover time from 0 to {MAX_COVER_S} s")
+                    .ok_or_else(|| SyntaxError::Range {
+                        got: what.to_owned(),
+                        what: format!("a cover time from 0 to {MAX_COVER_S} s"),
                     })?,
             ),
-            other => return Err(format!("unknown scene event '{other}': {form}")),
+            other => {
+                return Err(SyntaxError::Unknown {
+                    kind: "scene event",
+                    got: other.to_owned(),
+                    expected,
+                });
+            }
         };
         Ok(Scheduled { at_s, event })
     }

@@ -4,7 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::{Arena, Named, Point, RobotModel, Shape};
+use crate::{Arena, Named, Point, RobotModel, Shape, ShapeError};
 
 /// The experiments a lab can offer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -130,6 +130,57 @@ pub const MAX_VIRTUAL_OBSTACLES: usize = 64;
 pub const MAX_POLYGON_VERTICES: usize = 256;
 pub const MAX_VIRTUAL_VERTICES: usize = 1024;
 
+/// What is wrong with a definition, in words a user can act on.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DefinitionError {
+    #[error("{what} must be a positive number, got {value}")]
+    NotPositive { what: &'static str, value: f64 },
+    #[error("the path has {0} points, more than the {MAX_PATH_POINTS} a definition may carry")]
+    TooManyPoints(usize),
+    #[error(
+        "there are {0} virtual obstacles, more than the {MAX_VIRTUAL_OBSTACLES} a definition may carry"
+    )]
+    TooManyObstacles(usize),
+    #[error(
+        "the virtual obstacles have {0} vertices in all, more than the {MAX_VIRTUAL_VERTICES} a definition may carry"
+    )]
+    TooManyVertices(usize),
+    #[error(
+        "virtual obstacle {index} has {vertices} vertices, more than the {MAX_POLYGON_VERTICES} a polygon may have"
+    )]
+    PolygonTooBig { index: usize, vertices: usize },
+    #[error("virtual obstacle {index}: {why}")]
+    BadObstacle { index: usize, why: ShapeError },
+    #[error(
+        "virtual obstacle {index} reaches ({:.0}, {:.0})–({:.0}, {:.0}) mm, far off the {:.0} × {:.0} mm arena",
+        lo.x_mm, lo.y_mm, hi.x_mm, hi.y_mm, arena_mm.0, arena_mm.1
+    )]
+    FarOff {
+        index: usize,
+        lo: Point,
+        hi: Point,
+        arena_mm: (f64, f64),
+    },
+    #[error(
+        "the goal ({:.0}, {:.0}) mm is outside the {:.0} × {:.0} mm arena",
+        goal.x_mm, goal.y_mm, arena_mm.0, arena_mm.1
+    )]
+    GoalOutside { goal: Point, arena_mm: (f64, f64) },
+    #[error(
+        "the robot cannot stand at the goal ({:.0}, {:.0}) mm: it overlaps an obstacle or wall",
+        .0.x_mm, .0.y_mm
+    )]
+    GoalBlocked(Point),
+    #[error("path point {0} is not a finite position")]
+    PathNotFinite(usize),
+    #[error(
+        "the look-ahead must be from {lo} to {hi} mm, not {0}",
+        lo = LOOKAHEAD_MM.start(),
+        hi = LOOKAHEAD_MM.end()
+    )]
+    Lookahead(f64),
+}
+
 impl Definition {
     /// Whether the Host follows this definition's path by itself in a run
     /// of `experiment`: a navigation run with a planned path. The
@@ -140,50 +191,45 @@ impl Definition {
 
     /// Checks the definition against the arena and robot it will run on,
     /// saying what is wrong in words a user can act on.
-    pub fn validate(&self, arena: &Arena, robot: &RobotModel) -> Result<(), String> {
-        let positive = |what: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
+    pub fn validate(&self, arena: &Arena, robot: &RobotModel) -> Result<(), DefinitionError> {
+        use DefinitionError as E;
+        let positive = |what: &'static str, value: f64| {
+            if value.is_finite() && value > 0.0 {
                 Ok(())
             } else {
-                Err(format!("{what} must be a positive number, got {v}"))
+                Err(E::NotPositive { what, value })
             }
         };
         if self.path.len() > MAX_PATH_POINTS {
-            return Err(format!(
-                "the path has {} points, more than the {MAX_PATH_POINTS} a definition may carry",
-                self.path.len()
-            ));
+            return Err(E::TooManyPoints(self.path.len()));
         }
         if self.virtual_obstacles.len() > MAX_VIRTUAL_OBSTACLES {
-            return Err(format!(
-                "there are {} virtual obstacles, more than the {MAX_VIRTUAL_OBSTACLES} a definition may carry",
-                self.virtual_obstacles.len()
-            ));
+            return Err(E::TooManyObstacles(self.virtual_obstacles.len()));
         }
         let vertices: usize = self.virtual_obstacles.iter().map(Shape::vertices).sum();
         if vertices > MAX_VIRTUAL_VERTICES {
-            return Err(format!(
-                "the virtual obstacles have {vertices} vertices in all, more than the {MAX_VIRTUAL_VERTICES} a definition may carry"
-            ));
+            return Err(E::TooManyVertices(vertices));
         }
-        for (i, o) in self.virtual_obstacles.iter().enumerate() {
+        let arena_mm = (arena.width_mm, arena.height_mm);
+        for (index, o) in self.virtual_obstacles.iter().enumerate() {
             if o.vertices() > MAX_POLYGON_VERTICES {
-                return Err(format!(
-                    "virtual obstacle {i} has {} vertices, more than the {MAX_POLYGON_VERTICES} a polygon may have",
-                    o.vertices()
-                ));
+                return Err(E::PolygonTooBig {
+                    index,
+                    vertices: o.vertices(),
+                });
             }
-            o.check()
-                .map_err(|why| format!("virtual obstacle {i}: {why}"))?;
+            o.check().map_err(|why| E::BadObstacle { index, why })?;
             // On the floor, give or take the arena's own size: numbers far
             // beyond it are a mistake, and would only cost time.
             let (lo, hi) = o.bounds();
-            let (w, h) = (arena.width_mm, arena.height_mm);
+            let (w, h) = arena_mm;
             if lo.x_mm < -w || lo.y_mm < -h || hi.x_mm > 2.0 * w || hi.y_mm > 2.0 * h {
-                return Err(format!(
-                    "virtual obstacle {i} reaches ({:.0}, {:.0})–({:.0}, {:.0}) mm, far off the {w:.0} × {h:.0} mm arena",
-                    lo.x_mm, lo.y_mm, hi.x_mm, hi.y_mm
-                ));
+                return Err(E::FarOff {
+                    index,
+                    lo,
+                    hi,
+                    arena_mm,
+                });
             }
         }
         if let Some(goal) = self.goal {
@@ -192,22 +238,18 @@ impl Definition {
             let inside = (0.0..=arena.width_mm).contains(&p.x_mm)
                 && (0.0..=arena.height_mm).contains(&p.y_mm);
             if !inside {
-                return Err(format!(
-                    "the goal ({:.0}, {:.0}) mm is outside the {:.0} × {:.0} mm arena",
-                    p.x_mm, p.y_mm, arena.width_mm, arena.height_mm
-                ));
+                return Err(E::GoalOutside { goal: p, arena_mm });
             }
             if !self.is_free(arena, p, robot.radius_mm) {
-                return Err(format!(
-                    "the robot cannot stand at the goal ({:.0}, {:.0}) mm: it overlaps an obstacle or wall",
-                    p.x_mm, p.y_mm
-                ));
+                return Err(E::GoalBlocked(p));
             }
         }
-        for (i, p) in self.path.iter().enumerate() {
-            if !(p.x_mm.is_finite() && p.y_mm.is_finite()) {
-                return Err(format!("path point {i} is not a finite position"));
-            }
+        if let Some(i) = self
+            .path
+            .iter()
+            .position(|p| !(p.x_mm.is_finite() && p.y_mm.is_finite()))
+        {
+            return Err(E::PathNotFinite(i));
         }
         if let Some(v) = self.max_speed_mm_s {
             positive("the speed limit", v)?;
@@ -215,11 +257,7 @@ impl Definition {
         if let Some(l) = self.lookahead_mm
             && !LOOKAHEAD_MM.contains(&l)
         {
-            return Err(format!(
-                "the look-ahead must be from {} to {} mm, not {l}",
-                LOOKAHEAD_MM.start(),
-                LOOKAHEAD_MM.end()
-            ));
+            return Err(E::Lookahead(l));
         }
         if let Some(t) = self.time_limit_s {
             positive("the time limit", t)?;
@@ -259,9 +297,9 @@ mod tests {
         let robot = RobotModel::khepera_ii();
         assert_eq!(goal(680.0, 470.0).validate(&arena, &robot), Ok(()));
         let outside = goal(900.0, 100.0).validate(&arena, &robot).unwrap_err();
-        assert!(outside.contains("outside"), "{outside}");
+        assert!(outside.to_string().contains("outside"), "{outside}");
         let blocked = goal(280.0, 100.0).validate(&arena, &robot).unwrap_err();
-        assert!(blocked.contains("overlaps"), "{blocked}");
+        assert!(blocked.to_string().contains("overlaps"), "{blocked}");
         let mut virtual_block = goal(680.0, 470.0);
         virtual_block.virtual_obstacles.push(Shape::Circle {
             x_mm: 680.0,
@@ -274,6 +312,7 @@ mod tests {
         assert!(
             slow.validate(&arena, &robot)
                 .unwrap_err()
+                .to_string()
                 .contains("speed limit")
         );
     }

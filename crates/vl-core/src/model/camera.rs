@@ -13,7 +13,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::Point;
 use crate::model::homography::{CalibrationError, Homography};
-use crate::model::lens::Distortion;
+use crate::model::lens::{Distortion, LensError};
 
 /// A camera: its image size and frame rate, and where each floor point
 /// appears in its images.
@@ -44,26 +44,32 @@ struct CameraWire {
 }
 
 impl TryFrom<CameraWire> for CameraModel {
-    type Error = String;
+    type Error = CameraModelError;
 
-    fn try_from(wire: CameraWire) -> Result<Self, String> {
+    fn try_from(wire: CameraWire) -> Result<Self, CameraModelError> {
         if !(wire.fps.is_finite() && wire.fps >= 0.0) {
-            return Err(format!(
-                "a camera's frame rate must be zero or more, not {}",
-                wire.fps
-            ));
+            return Err(CameraModelError::FrameRate(wire.fps));
         }
         if wire.width_px == 0 || wire.height_px == 0 {
-            return Err("a camera's image must have pixels".into());
+            return Err(CameraModelError::NoPixels);
         }
-        wire.distortion
-            .check(wire.width_px, wire.height_px)
-            .map_err(|e| e.to_string())?;
+        wire.distortion.check(wire.width_px, wire.height_px)?;
         Ok(
             CameraModel::new(wire.width_px, wire.height_px, wire.fps, wire.floor_to_image)
                 .with_distortion(wire.distortion),
         )
     }
+}
+
+/// A camera model no camera has.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CameraModelError {
+    #[error("a camera's frame rate must be zero or more, not {0}")]
+    FrameRate(f64),
+    #[error("a camera's image must have pixels")]
+    NoPixels,
+    #[error(transparent)]
+    Lens(#[from] LensError),
 }
 
 impl From<CameraModel> for CameraWire {

@@ -7,6 +7,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use crate::Named;
+use crate::syntax::{SyntaxError, parse_numbers};
 
 /// A planar pose in the arena frame: mm, origin at the arena's bottom-left
 /// corner, x right, y up, θ counter-clockwise from +x.
@@ -133,7 +134,7 @@ impl SpeedResponse {
     }
 
     /// Whether every figure is one a motor can have.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), RobotModelError> {
         let figures = [
             ("gain", self.gain, false),
             ("time constant", self.time_constant_s, true),
@@ -142,11 +143,39 @@ impl SpeedResponse {
         ];
         for (what, v, zero_ok) in figures {
             if !(v.is_finite() && (v > 0.0 || (zero_ok && v == 0.0))) {
-                return Err(format!("the speed response's {what} cannot be {v}"));
+                return Err(RobotModelError::Response { what, value: v });
             }
         }
         Ok(())
     }
+}
+
+/// A robot model that no robot can have, or a file that holds none.
+#[derive(Debug, thiserror::Error)]
+pub enum RobotModelError {
+    #[error("robot model file: {0}")]
+    Json(#[source] serde_json::Error),
+    #[error("the robot's {what} must be a positive number, not {value}")]
+    NotPositive { what: &'static str, value: f64 },
+    #[error("a wheel base of {wheel_base_mm} mm does not fit a body of radius {radius_mm} mm")]
+    TooWide { wheel_base_mm: f64, radius_mm: f64 },
+    #[error("sensor {0} is not at a finite place")]
+    SensorNotFinite(usize),
+    #[error("the robot's wheel slip must be from 0 to 1 mm per √mm, not {0}")]
+    WheelSlip(f64),
+    #[error("the speed response's {what} cannot be {value}")]
+    Response { what: &'static str, value: f64 },
+}
+
+/// Whether wheels `wheel_base_mm` apart fit under a body of `radius_mm`.
+fn fits(radius_mm: f64, wheel_base_mm: f64) -> Result<(), RobotModelError> {
+    if wheel_base_mm > 2.0 * radius_mm {
+        return Err(RobotModelError::TooWide {
+            wheel_base_mm,
+            radius_mm,
+        });
+    }
+    Ok(())
 }
 
 /// The robots `vl` knows by name.
@@ -208,15 +237,14 @@ impl RobotModel {
 
     /// A robot model from its JSON file (as `vl khepera characterise`
     /// writes), checked to be one that can exist.
-    pub fn from_json(text: &str) -> Result<RobotModel, String> {
-        let model: RobotModel =
-            serde_json::from_str(text).map_err(|e| format!("robot model file: {e}"))?;
+    pub fn from_json(text: &str) -> Result<RobotModel, RobotModelError> {
+        let model: RobotModel = serde_json::from_str(text).map_err(RobotModelError::Json)?;
         model.check()?;
         Ok(model)
     }
 
     /// Whether every figure is one a robot can have.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), RobotModelError> {
         let sizes = [
             ("radius", self.radius_mm),
             ("wheel base", self.wheel_base_mm),
@@ -226,48 +254,32 @@ impl RobotModel {
         ];
         for (what, v) in sizes {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!(
-                    "the robot's {what} must be a positive number, not {v}"
-                ));
+                return Err(RobotModelError::NotPositive { what, value: v });
             }
         }
-        if self.wheel_base_mm > 2.0 * self.radius_mm {
-            return Err(format!(
-                "a wheel base of {} mm does not fit a body of radius {} mm",
-                self.wheel_base_mm, self.radius_mm
-            ));
-        }
+        fits(self.radius_mm, self.wheel_base_mm)?;
         if let Some(i) = self
             .sensors
             .iter()
             .position(|s| !(s.x_mm.is_finite() && s.y_mm.is_finite() && s.angle_rad.is_finite()))
         {
-            return Err(format!("sensor {i} is not at a finite place"));
+            return Err(RobotModelError::SensorNotFinite(i));
         }
         if !(self.wheel_slip.is_finite() && (0.0..=1.0).contains(&self.wheel_slip)) {
-            return Err(format!(
-                "the robot's wheel slip must be from 0 to 1 mm per √mm, not {}",
-                self.wheel_slip
-            ));
+            return Err(RobotModelError::WheelSlip(self.wheel_slip));
         }
         self.response.check()
     }
 
     /// The same robot built to another size: the body's radius and the
     /// distance between the wheels; the sensors move out with the body.
-    pub fn resized(mut self, radius_mm: f64, wheel_base_mm: f64) -> Result<Self, String> {
+    pub fn resized(mut self, radius_mm: f64, wheel_base_mm: f64) -> Result<Self, RobotModelError> {
         for (what, v) in [("radius", radius_mm), ("wheel base", wheel_base_mm)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!(
-                    "the robot's {what} must be a positive number of mm, not {v}"
-                ));
+                return Err(RobotModelError::NotPositive { what, value: v });
             }
         }
-        if wheel_base_mm > 2.0 * radius_mm {
-            return Err(format!(
-                "a wheel base of {wheel_base_mm} mm does not fit a body of radius {radius_mm} mm"
-            ));
-        }
+        fits(radius_mm, wheel_base_mm)?;
         let scale = radius_mm / self.radius_mm;
         for mount in &mut self.sensors {
             mount.x_mm *= scale;
@@ -434,45 +446,31 @@ impl Point {
     }
 }
 
-/// Comma-separated finite numbers: how positions are written on a command line.
-pub(crate) fn parse_numbers(text: &str) -> Result<Vec<f64>, String> {
-    text.split(',')
-        .map(|n| {
-            let v: f64 = n
-                .trim()
-                .parse()
-                .map_err(|_| format!("'{n}' is not a number"))?;
-            if v.is_finite() {
-                Ok(v)
-            } else {
-                Err(format!("'{n}' is not a finite number"))
-            }
-        })
-        .collect()
-}
-
 /// Points `x,y;x,y;…`, mm.
-pub(crate) fn parse_points(text: &str) -> Result<Vec<Point>, String> {
+pub(crate) fn parse_points(text: &str) -> Result<Vec<Point>, SyntaxError> {
     text.split(';').map(|pair| pair.parse()).collect()
 }
 
 /// `x,y` in mm.
 impl FromStr for Point {
-    type Err = String;
+    type Err = SyntaxError;
 
-    fn from_str(text: &str) -> Result<Point, String> {
+    fn from_str(text: &str) -> Result<Point, SyntaxError> {
         match *parse_numbers(text)?.as_slice() {
             [x_mm, y_mm] => Ok(Point { x_mm, y_mm }),
-            _ => Err(format!("expected a point x,y in mm, not '{text}'")),
+            _ => Err(SyntaxError::Form {
+                expected: "expected a point x,y in mm",
+                got: text.to_owned(),
+            }),
         }
     }
 }
 
 /// `x,y` or `x,y,θ`: mm, and radians counter-clockwise from +x.
 impl FromStr for Pose {
-    type Err = String;
+    type Err = SyntaxError;
 
-    fn from_str(text: &str) -> Result<Pose, String> {
+    fn from_str(text: &str) -> Result<Pose, SyntaxError> {
         match *parse_numbers(text)?.as_slice() {
             [x_mm, y_mm] => Ok(Pose {
                 x_mm,
@@ -484,7 +482,10 @@ impl FromStr for Pose {
                 y_mm,
                 theta_rad,
             }),
-            _ => Err(format!("expected x,y or x,y,θ, not '{text}'")),
+            _ => Err(SyntaxError::Form {
+                expected: "expected x,y or x,y,θ",
+                got: text.to_owned(),
+            }),
         }
     }
 }
@@ -533,9 +534,9 @@ mod tests {
             );
         }
         let e = RobotModel::khepera_ii().resized(-1.0, 53.0).unwrap_err();
-        assert!(e.contains("radius must be a positive"), "{e}");
+        assert!(e.to_string().contains("radius must be a positive"), "{e}");
         let e = RobotModel::khepera_ii().resized(20.0, 53.0).unwrap_err();
-        assert!(e.contains("does not fit"), "{e}");
+        assert!(e.to_string().contains("does not fit"), "{e}");
         assert_eq!(
             "khepera-i".parse::<RobotKind>().map(RobotKind::model),
             Ok(RobotModel::khepera_i())
@@ -558,11 +559,17 @@ mod tests {
             })
         );
         assert_eq!("1, 2, 0.5".parse::<Pose>().map(|p| p.theta_rad), Ok(0.5));
-        assert!("1".parse::<Pose>().unwrap_err().contains("x,y or x,y,θ"));
+        assert!(
+            "1".parse::<Pose>()
+                .unwrap_err()
+                .to_string()
+                .contains("x,y or x,y,θ")
+        );
         assert!(
             "1,inf"
                 .parse::<Pose>()
                 .unwrap_err()
+                .to_string()
                 .contains("not a finite")
         );
         assert!("1,2,3".parse::<Point>().is_err());

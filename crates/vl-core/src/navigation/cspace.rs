@@ -63,7 +63,7 @@ impl Footprint {
                 points: points.clone(),
             }
             .check()
-            .or_else(bad),
+            .or_else(|e| bad(e.to_string())),
         }
     }
 

@@ -92,12 +92,34 @@ pub struct MediaBench {
     pub profiles: Vec<Reproduced>,
 }
 
+/// Why the Media's bench could not measure.
+#[derive(Debug, thiserror::Error)]
+pub enum MediaBenchError {
+    #[error("the bench's echo server cannot listen")]
+    Echo(#[source] std::io::Error),
+    #[error("the bench's relay does not start")]
+    Relay(#[source] super::MediaError),
+    #[error("the bench cannot reach {url}")]
+    Connect {
+        url: String,
+        #[source]
+        source: tokio_tungstenite::tungstenite::Error,
+    },
+    #[error("the bench cannot send")]
+    Send(#[source] tokio_tungstenite::tungstenite::Error),
+    #[error("{0} ended a connection mid-bench")]
+    Ended(&'static str),
+}
+
 /// An echo server on a free port: every text message goes straight back.
-async fn echo() -> Result<(String, tokio::task::JoinHandle<()>), String> {
+async fn echo() -> Result<(String, tokio::task::JoinHandle<()>), MediaBenchError> {
     let listener = TcpListener::bind(("127.0.0.1", 0))
         .await
-        .map_err(|e| e.to_string())?;
-    let url = format!("ws://{}", listener.local_addr().map_err(|e| e.to_string())?);
+        .map_err(MediaBenchError::Echo)?;
+    let url = format!(
+        "ws://{}",
+        listener.local_addr().map_err(MediaBenchError::Echo)?
+    );
     let server = tokio::spawn(async move {
         while let Ok((stream, _)) = listener.accept().await {
             let _ = stream.set_nodelay(true);
@@ -119,22 +141,25 @@ async fn echo() -> Result<(String, tokio::task::JoinHandle<()>), String> {
 type Socket =
     tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
-async fn connect(url: &str) -> Result<Socket, String> {
+async fn connect(url: &str) -> Result<Socket, MediaBenchError> {
     tokio_tungstenite::connect_async_with_config(url, None, true)
         .await
         .map(|(ws, _)| ws)
-        .map_err(|e| e.to_string())
+        .map_err(|source| MediaBenchError::Connect {
+            url: url.to_owned(),
+            source,
+        })
 }
 
 /// Sends `text` and waits for it to come back.
-async fn round_trip(ws: &mut Socket, text: &Message) -> Result<f64, String> {
+async fn round_trip(ws: &mut Socket, text: &Message) -> Result<f64, MediaBenchError> {
     let sent = Instant::now();
-    ws.send(text.clone()).await.map_err(|e| e.to_string())?;
+    ws.send(text.clone()).await.map_err(MediaBenchError::Send)?;
     loop {
         match ws.next().await {
             Some(Ok(m)) if m.is_text() => return Ok(sent.elapsed().as_secs_f64() * 1e3),
             Some(Ok(_)) => {}
-            other => return Err(format!("the echo stopped: {other:?}")),
+            _ => return Err(MediaBenchError::Ended("the echo")),
         }
     }
 }
@@ -158,7 +183,7 @@ fn zero() -> LinkModel {
 /// Each connection's (send time ms from the first send, round trip ms)
 /// through the relay at `url`, one message every `interval` for
 /// [`SENDING`].
-async fn trips(url: &str, interval: Duration) -> Result<Vec<Vec<(f64, f64)>>, String> {
+async fn trips(url: &str, interval: Duration) -> Result<Vec<Vec<(f64, f64)>>, MediaBenchError> {
     let per_connection = (SENDING.as_secs_f64() / interval.as_secs_f64()) as usize;
     let mut sockets = Vec::new();
     // One at a time, so the relay numbers them in this order.
@@ -179,9 +204,11 @@ async fn trips(url: &str, interval: Duration) -> Result<Vec<Vec<(f64, f64)>>, St
                 for i in 0..per_connection {
                     tokio::time::sleep_until((epoch + offset + interval * i as u32).into()).await;
                     sent.push(epoch.elapsed().as_secs_f64() * 1e3);
-                    sink.send(text.clone()).await.map_err(|e| e.to_string())?;
+                    sink.send(text.clone())
+                        .await
+                        .map_err(MediaBenchError::Send)?;
                 }
-                Ok::<_, String>(sent)
+                Ok::<_, MediaBenchError>(sent)
             };
             let receiver = async {
                 let mut back = Vec::new();
@@ -191,14 +218,14 @@ async fn trips(url: &str, interval: Duration) -> Result<Vec<Vec<(f64, f64)>>, St
                             back.push(epoch.elapsed().as_secs_f64() * 1e3)
                         }
                         Some(Ok(_)) => {}
-                        other => return Err(format!("the relay ended a connection: {other:?}")),
+                        _ => return Err(MediaBenchError::Ended("the relay")),
                     }
                 }
                 Ok(back)
             };
             let (sent, back) = tokio::join!(sender, receiver);
             let (sent, back) = (sent?, back?);
-            Ok::<_, String>(sent.iter().zip(&back).map(|(s, b)| (*s, b - s)).collect())
+            Ok::<_, MediaBenchError>(sent.iter().zip(&back).map(|(s, b)| (*s, b - s)).collect())
         }
     });
     futures_util::future::join_all(runs)
@@ -282,11 +309,11 @@ fn rtts(trips: Vec<Vec<(f64, f64)>>) -> Vec<f64> {
 pub async fn bench(
     messages: usize,
     profiles: &[(String, LinkModel)],
-) -> Result<MediaBench, String> {
+) -> Result<MediaBench, MediaBenchError> {
     let (echo_url, server) = echo().await?;
     let own_relay = Media::start(([127, 0, 0, 1], 0).into(), relay(&echo_url, zero()))
         .await
-        .map_err(|e| e.to_string())?;
+        .map_err(MediaBenchError::Relay)?;
     let mut direct_ws = connect(&echo_url).await?;
     let mut relayed_ws = connect(&own_relay.url()).await?;
     let (mut direct, mut relayed) = (Vec::new(), Vec::new());
@@ -303,11 +330,11 @@ pub async fn bench(
         // relay (the relay numbers connections from 0).
         let own = Media::start(([127, 0, 0, 1], 0).into(), relay(&echo_url, zero()))
             .await
-            .map_err(|e| e.to_string())?;
+            .map_err(MediaBenchError::Relay)?;
         let (own_mean_ms, own_sd_ms) = mean_sd(&rtts(trips(&own.url(), interval(model)).await?));
         let media = Media::start(([127, 0, 0, 1], 0).into(), relay(&echo_url, model.clone()))
             .await
-            .map_err(|e| e.to_string())?;
+            .map_err(MediaBenchError::Relay)?;
         let pairs = modelled(model, &trips(&media.url(), interval(model)).await?);
         let all: Vec<f64> = pairs.iter().map(|p| p.0).collect();
         let expected: Vec<f64> = pairs.iter().map(|p| p.1).collect();

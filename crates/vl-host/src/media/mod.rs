@@ -28,7 +28,7 @@ use crate::server::admission::{Admission, Ticket};
 
 mod bench;
 
-pub use bench::{MediaBench, Reproduced, RoundTrip, bench};
+pub use bench::{MediaBench, MediaBenchError, Reproduced, RoundTrip, bench};
 
 /// Bytes of text one direction of a connection may hold in flight; a link
 /// slower than what is sent into it closes rather than grow without end.

@@ -675,7 +675,7 @@ impl Hub {
                     return;
                 }
                 if let Err(why) = definition.validate(&self.lab.info.arena, &self.lab.info.robot) {
-                    return self.refuse(id, ErrorCode::InvalidDefinition, why);
+                    return self.refuse(id, ErrorCode::InvalidDefinition, why.to_string());
                 }
                 if self.experiment == Some(Experiment::Navigation)
                     && let Some(cspace) = &self.cspace

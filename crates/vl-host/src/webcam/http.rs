@@ -43,7 +43,7 @@ struct Address {
 impl Address {
     fn parse(url: &str) -> Result<Address, CameraError> {
         let rest = url.strip_prefix("http://").ok_or_else(|| {
-            CameraError(format!(
+            CameraError::Address(format!(
                 "'{url}' is no HTTP camera: it must start with http:// (https is not read)"
             ))
         })?;
@@ -52,20 +52,20 @@ impl Address {
             None => (rest, "/"),
         };
         if authority.contains('@') {
-            return Err(CameraError(format!(
+            return Err(CameraError::Address(format!(
                 "'{url}': a user and password in the address are not supported"
             )));
         }
         let port_of = |port: &str| {
             port.parse::<u16>()
-                .map_err(|_| CameraError(format!("'{url}': '{port}' is no port")))
+                .map_err(|_| CameraError::Address(format!("'{url}': '{port}' is no port")))
         };
         let (host, port) = match authority.strip_prefix('[') {
             // An IPv6 address, in brackets.
             Some(bracketed) => {
                 let (host, after) = bracketed
                     .split_once(']')
-                    .ok_or_else(|| CameraError(format!("'{url}': an unclosed '['")))?;
+                    .ok_or_else(|| CameraError::Address(format!("'{url}': an unclosed '['")))?;
                 match after.strip_prefix(':') {
                     Some(port) => (host, port_of(port)?),
                     None => (host, 80),
@@ -77,7 +77,7 @@ impl Address {
             },
         };
         if host.is_empty() {
-            return Err(CameraError(format!("'{url}' names no host")));
+            return Err(CameraError::Address(format!("'{url}' names no host")));
         }
         Ok(Address {
             host: host.to_owned(),
@@ -134,7 +134,7 @@ impl HttpCamera {
         thread::Builder::new()
             .name("vl-http-camera".into())
             .spawn(move || read_forever(&address, &reader))
-            .map_err(|e| CameraError(format!("cannot start reading {url}: {e}")))?;
+            .map_err(|e| CameraError::Setup(format!("cannot start reading {url}: {e}")))?;
         let model = match model {
             Some(model) => model,
             None => {
@@ -152,13 +152,13 @@ impl HttpCamera {
                         .error
                         .clone()
                         .unwrap_or_else(|| "nothing came".into());
-                    return Err(CameraError(format!(
+                    return Err(CameraError::Silent(format!(
                         "no frame from {url} within {} s ({why})",
                         FIRST_FRAME.as_secs()
                     )));
                 };
                 let image = vl_core::decode_image(jpeg, Some(image::ImageFormat::Jpeg))
-                    .map_err(|e| CameraError(format!("the first frame from {url}: {e}")))?;
+                    .map_err(|e| CameraError::Frame(format!("the first frame from {url}: {e}")))?;
                 believed(None, floor_mm, image.width(), fps)
             }
         };
@@ -195,14 +195,13 @@ impl Camera for HttpCamera {
                     .error
                     .clone()
                     .unwrap_or_else(|| "no new frame".into());
-                return Err(CameraError(format!("{}: {why}", self.url)));
+                return Err(CameraError::Silent(format!("{}: {why}", self.url)));
             }
         };
         self.seen = newest.count;
         drop(newest);
         let (w, h) = (self.model.width_px, self.model.height_px);
-        let image = decode(PixelFormat::Mjpeg, &jpeg, w, h, 0)
-            .map_err(|e| CameraError(format!("{}: {}", self.url, e.0)))?;
+        let image = decode(PixelFormat::Mjpeg, &jpeg, w, h, 0).map_err(|e| e.within(&self.url))?;
         Ok(Captured { image, taken })
     }
 }

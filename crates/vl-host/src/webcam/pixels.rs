@@ -36,12 +36,12 @@ pub fn decode(
 ) -> Result<RgbImage, CameraError> {
     let image = match format {
         PixelFormat::Mjpeg => decode_image(&with_huffman_tables(bytes), Some(ImageFormat::Jpeg))
-            .map_err(|e| CameraError(format!("an unreadable MJPEG frame: {e}")))?
+            .map_err(|e| CameraError::Frame(format!("an unreadable MJPEG frame: {e}")))?
             .to_rgb8(),
         PixelFormat::Yuyv => yuyv(bytes, width, height, stride)?,
     };
     if image.dimensions() != (width, height) {
-        return Err(CameraError(format!(
+        return Err(CameraError::Frame(format!(
             "a {}×{} px frame from a camera set to {width}×{height}",
             image.width(),
             image.height()
@@ -141,7 +141,7 @@ fn yuyv(bytes: &[u8], width: u32, height: u32, stride: usize) -> Result<RgbImage
     let stride = stride.max(row);
     let needed = stride * (height as usize).saturating_sub(1) + row;
     if !width.is_multiple_of(2) || bytes.len() < needed {
-        return Err(CameraError(format!(
+        return Err(CameraError::Frame(format!(
             "a YUYV frame of {} bytes cannot be {width}×{height} px",
             bytes.len()
         )));

@@ -27,12 +27,14 @@ pub struct V4l2Spec {
 }
 
 impl std::str::FromStr for V4l2Spec {
-    type Err = String;
+    type Err = CameraError;
 
     fn from_str(text: &str) -> Result<Self, Self::Err> {
         let mut parts = text.split(',');
         let device = parts.next().filter(|d| !d.is_empty()).ok_or_else(|| {
-            "v4l2: needs a device, as v4l2:/dev/video0[,640x480][,15fps][,mjpeg|yuyv]".to_owned()
+            CameraError::Address(
+                "v4l2: needs a device, as v4l2:/dev/video0[,640x480][,15fps][,mjpeg|yuyv]".into(),
+            )
         })?;
         let mut spec = V4l2Spec {
             device: device.into(),
@@ -51,17 +53,23 @@ impl std::str::FromStr for V4l2Spec {
                     fps.parse()
                         .ok()
                         .filter(|f| (1..=240).contains(f))
-                        .ok_or_else(|| format!("'{part}': a frame rate is 1fps to 240fps"))?,
+                        .ok_or_else(|| {
+                            CameraError::Address(format!(
+                                "'{part}': a frame rate is 1fps to 240fps"
+                            ))
+                        })?,
                 );
             } else if let Some((w, h)) = lower.split_once('x') {
                 let side = |v: &str| v.parse::<u32>().ok().filter(|v| (16..=8192).contains(v));
                 spec.size = Some(side(w).zip(side(h)).ok_or_else(|| {
-                    format!("'{part}': a size is WIDTHxHEIGHT, 16 to 8192 px a side")
+                    CameraError::Address(format!(
+                        "'{part}': a size is WIDTHxHEIGHT, 16 to 8192 px a side"
+                    ))
                 })?);
             } else {
-                return Err(format!(
+                return Err(CameraError::Address(format!(
                     "'{part}' is no camera setting: give a size (640x480), a rate (15fps) or a format (mjpeg, yuyv)"
-                ));
+                )));
             }
         }
         Ok(spec)
@@ -96,8 +104,8 @@ struct Started {
 /// Opens the device and starts its stream as `spec` asks.
 fn start(spec: &V4l2Spec) -> Result<Started, CameraError> {
     let path = spec.device.display();
-    let device =
-        Device::open(&spec.device).map_err(|e| CameraError(format!("cannot open {path}: {e}")))?;
+    let device = Device::open(&spec.device)
+        .map_err(|e| CameraError::Setup(format!("cannot open {path}: {e}")))?;
     let offered: Vec<Fourcc> = device
         .formats(BufType::VIDEO_CAPTURE)
         .filter_map(|f| f.ok().map(|f| f.pixel_format()))
@@ -105,12 +113,14 @@ fn start(spec: &V4l2Spec) -> Result<Started, CameraError> {
     let format = match spec.format {
         Some(format) if offered.contains(&fourcc(format)) => format,
         Some(format) => {
-            return Err(CameraError(format!("{path} does not offer {format}")));
+            return Err(CameraError::Setup(format!(
+                "{path} does not offer {format}"
+            )));
         }
         None if offered.contains(&Fourcc::MJPG) => PixelFormat::Mjpeg,
         None if offered.contains(&Fourcc::YUYV) => PixelFormat::Yuyv,
         None => {
-            return Err(CameraError(format!(
+            return Err(CameraError::Setup(format!(
                 "{path} offers neither MJPEG nor YUYV (it offers {offered:?})"
             )));
         }
@@ -118,16 +128,18 @@ fn start(spec: &V4l2Spec) -> Result<Started, CameraError> {
     let (w, h) = spec.size.unwrap_or((640, 480));
     let capture = device
         .video_capture(PixFormat::new(w, h, fourcc(format)))
-        .map_err(|e| CameraError(format!("{path} refuses {format} at {w}×{h}: {e}")))?;
+        .map_err(|e| CameraError::Setup(format!("{path} refuses {format} at {w}×{h}: {e}")))?;
     if let Some(fps) = spec.fps {
         capture
             .set_frame_interval(Fract::new(1, fps))
-            .map_err(|e| CameraError(format!("{path} refuses {fps} frames a second: {e}")))?;
+            .map_err(|e| {
+                CameraError::Setup(format!("{path} refuses {fps} frames a second: {e}"))
+            })?;
     }
     let (width, stride) = (capture.format().width(), capture.format().bytes_per_line());
     let stream = capture
         .into_stream()
-        .map_err(|e| CameraError(format!("{path} will not stream: {e}")))?;
+        .map_err(|e| CameraError::Setup(format!("{path} will not stream: {e}")))?;
     Ok(Started {
         stream,
         format,
@@ -193,14 +205,14 @@ impl Camera for V4l2Camera {
         };
         if let Err(e) = result {
             self.stream = None;
-            return Err(CameraError(format!("{path}: {e}")));
+            return Err(CameraError::Silent(format!("{path}: {e}")));
         }
         match frame {
             Some((image, taken)) => Ok(Captured {
                 image: image?,
                 taken,
             }),
-            None => Err(CameraError(format!("{path}: a damaged frame"))),
+            None => Err(CameraError::Frame(format!("{path}: a damaged frame"))),
         }
     }
 }
@@ -312,7 +324,7 @@ mod tests {
             ("/dev/video0,h264", "'h264' is no camera setting"),
         ] {
             let e = text.parse::<V4l2Spec>().unwrap_err();
-            assert!(e.contains(says), "{text}: {e}");
+            assert!(e.to_string().contains(says), "{text}: {e}");
         }
     }
 }

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use image::GrayImage;
 
+use super::MapImageError;
 use super::map::{MapImage, dark_boxes};
 use crate::{Arena, ArenaError, Obstacle};
 
@@ -39,7 +40,14 @@ impl Arena {
     /// A shipped arena by name: navigation, corridor, open or maze.
     pub fn named(name: &str) -> Option<Arena> {
         let (_, text, map) = SHIPPED.iter().find(|(n, ..)| *n == name)?;
-        let load = |_: &str| crate::decode_image(map, None).map(|i| i.to_luma8());
+        let load = |_: &str| {
+            crate::decode_image(map, None)
+                .map(|i| i.to_luma8())
+                .map_err(|why| MapImageError::Read {
+                    image: name.to_owned(),
+                    why,
+                })
+        };
         Some(Arena::from_json_with(text, load).expect("shipped arenas are valid"))
     }
 
@@ -53,9 +61,7 @@ impl Arena {
     /// must be loaded with [`Arena::from_json_with`].
     pub fn from_json(text: &str) -> Result<Arena, ArenaError> {
         Arena::from_json_with(text, |image| {
-            Err(format!(
-                "cannot load '{image}' here: no directory to find it in"
-            ))
+            Err(MapImageError::NoDirectory(image.to_owned()))
         })
     }
 
@@ -66,7 +72,7 @@ impl Arena {
     /// `load` reads the named image.
     pub fn from_json_with(
         text: &str,
-        load: impl FnOnce(&str) -> Result<GrayImage, String>,
+        load: impl FnOnce(&str) -> Result<GrayImage, MapImageError>,
     ) -> Result<Arena, ArenaError> {
         let syntax = |e: serde_json::Error| ArenaError::Syntax(e.to_string());
         let mut value: serde_json::Value = serde_json::from_str(text).map_err(syntax)?;
@@ -85,7 +91,7 @@ impl Arena {
                     map.mm_per_px
                 )));
             }
-            let image = load(&map.image).map_err(impossible)?;
+            let image = load(&map.image).map_err(|e| impossible(e.to_string()))?;
             let object = value.as_object_mut().expect("a map key means an object");
             let s = map.mm_per_px;
             object
@@ -130,7 +136,10 @@ impl Arena {
             let file: PathBuf = dir.join(image);
             crate::load_image(&file)
                 .map(|i| i.to_luma8())
-                .map_err(|e| format!("cannot read the map image {}: {e}", file.display()))
+                .map_err(|why| MapImageError::Read {
+                    image: file.display().to_string(),
+                    why,
+                })
         };
         Arena::from_json_with(&text, load).map_err(in_file)
     }

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 use thiserror::Error;
 
 pub use material::{Material, Obstacle};
-pub use shape::Shape;
+pub use shape::{Shape, ShapeError};
 
 use crate::{Point, Pose};
 
@@ -43,6 +43,18 @@ pub enum ArenaError {
         path: PathBuf,
         problem: Box<ArenaError>,
     },
+}
+
+/// Why an arena file's map image could not be had.
+#[derive(Debug, thiserror::Error)]
+pub enum MapImageError {
+    #[error("cannot read the map image {image}: {why}")]
+    Read {
+        image: String,
+        why: crate::ImageError,
+    },
+    #[error("cannot load '{0}' here: no directory to find it in")]
+    NoDirectory(String),
 }
 
 /// A rectangular walled arena with its obstacles, where the robot starts,
@@ -144,6 +156,7 @@ impl Arena {
         for (i, o) in self.obstacles.iter().enumerate() {
             o.shape
                 .check()
+                .map_err(|e| e.to_string())
                 .and_then(|()| o.material.check())
                 .map_err(|why| impossible(format!("obstacle {i}: {why}")))?;
         }

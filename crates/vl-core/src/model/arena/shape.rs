@@ -7,6 +7,20 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use crate::Point;
+use crate::syntax::{SyntaxError, parse_numbers};
+
+/// A shape that cannot exist.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ShapeError {
+    #[error("{0} not a finite position")]
+    NotFinite(&'static str),
+    #[error("its {what} must be a positive number, not {value}")]
+    NotPositive { what: &'static str, value: f64 },
+    #[error("a polygon needs at least 3 vertices, this one has {0}")]
+    TooFewVertices(usize),
+    #[error("the polygon encloses no area")]
+    NoArea,
+}
 
 /// A shape on the arena floor, in mm in the arena frame: an obstacle's
 /// geometry, or a virtual obstacle an experiment adds.
@@ -88,13 +102,13 @@ impl Shape {
 
     /// Whether the shape is one that can exist: finite, positive sizes, a
     /// polygon of at least three vertices enclosing some area.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), ShapeError> {
         let finite = |v: f64| v.is_finite();
-        let positive = |what: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
+        let positive = |what: &'static str, value: f64| {
+            if value.is_finite() && value > 0.0 {
                 Ok(())
             } else {
-                Err(format!("its {what} must be a positive number, not {v}"))
+                Err(ShapeError::NotPositive { what, value })
             }
         };
         match *self {
@@ -105,7 +119,7 @@ impl Shape {
                 height_mm,
             } => {
                 if !(finite(x_mm) && finite(y_mm)) {
-                    return Err("its corner is not a finite position".into());
+                    return Err(ShapeError::NotFinite("its corner is"));
                 }
                 positive("width", width_mm)?;
                 positive("height", height_mm)
@@ -116,22 +130,19 @@ impl Shape {
                 radius_mm,
             } => {
                 if !(finite(x_mm) && finite(y_mm)) {
-                    return Err("its centre is not a finite position".into());
+                    return Err(ShapeError::NotFinite("its centre is"));
                 }
                 positive("radius", radius_mm)
             }
             Shape::Polygon { ref points } => {
                 if points.len() < 3 {
-                    return Err(format!(
-                        "a polygon needs at least 3 vertices, this one has {}",
-                        points.len()
-                    ));
+                    return Err(ShapeError::TooFewVertices(points.len()));
                 }
                 if !points.iter().all(|p| finite(p.x_mm) && finite(p.y_mm)) {
-                    return Err("a polygon vertex is not a finite position".into());
+                    return Err(ShapeError::NotFinite("a polygon vertex is"));
                 }
                 if polygon_area(points).abs() < 1e-9 {
-                    return Err("the polygon encloses no area".into());
+                    return Err(ShapeError::NoArea);
                 }
                 Ok(())
             }
@@ -248,37 +259,43 @@ impl Shape {
 /// `rect:X,Y,W,H` (bottom-left corner), `circle:X,Y,R` or
 /// `polygon:X,Y;X,Y;…`, in mm: how a shape is written on a command line.
 impl FromStr for Shape {
-    type Err = String;
+    type Err = SyntaxError;
 
-    fn from_str(text: &str) -> Result<Shape, String> {
+    fn from_str(text: &str) -> Result<Shape, SyntaxError> {
+        let form = |expected, got: &str| SyntaxError::Form {
+            expected,
+            got: got.to_owned(),
+        };
         let (kind, numbers) = text
             .split_once(':')
-            .ok_or_else(|| format!("expected rect:…, circle:… or polygon:…, not '{text}'"))?;
+            .ok_or_else(|| form("expected rect:…, circle:… or polygon:…", text))?;
         let shape = match kind {
-            "rect" => match *crate::model::robot::parse_numbers(numbers)?.as_slice() {
+            "rect" => match *parse_numbers(numbers)?.as_slice() {
                 [x_mm, y_mm, width_mm, height_mm] => Shape::Rect {
                     x_mm,
                     y_mm,
                     width_mm,
                     height_mm,
                 },
-                _ => return Err(format!("rect needs X,Y,W,H, not '{numbers}'")),
+                _ => return Err(form("rect needs X,Y,W,H", numbers)),
             },
-            "circle" => match *crate::model::robot::parse_numbers(numbers)?.as_slice() {
+            "circle" => match *parse_numbers(numbers)?.as_slice() {
                 [x_mm, y_mm, radius_mm] => Shape::Circle {
                     x_mm,
                     y_mm,
                     radius_mm,
                 },
-                _ => return Err(format!("circle needs X,Y,R, not '{numbers}'")),
+                _ => return Err(form("circle needs X,Y,R", numbers)),
             },
             "polygon" => Shape::Polygon {
                 points: crate::model::robot::parse_points(numbers)?,
             },
             other => {
-                return Err(format!(
-                    "unknown shape '{other}': use rect, circle or polygon"
-                ));
+                return Err(SyntaxError::Unknown {
+                    kind: "shape",
+                    got: other.to_owned(),
+                    expected: "use rect, circle or polygon",
+                });
             }
         };
         shape.check()?;
@@ -352,11 +369,16 @@ mod tests {
         let line = Shape::Polygon {
             points: vec![p(0.0, 0.0), p(1.0, 1.0), p(2.0, 2.0)],
         };
-        assert!(line.check().unwrap_err().contains("no area"));
+        assert!(line.check().unwrap_err().to_string().contains("no area"));
         let two = Shape::Polygon {
             points: vec![p(0.0, 0.0), p(1.0, 1.0)],
         };
-        assert!(two.check().unwrap_err().contains("at least 3 vertices"));
+        assert!(
+            two.check()
+                .unwrap_err()
+                .to_string()
+                .contains("at least 3 vertices")
+        );
     }
 
     #[test]
@@ -379,16 +401,30 @@ mod tests {
             "circle:1,2,-3"
                 .parse::<Shape>()
                 .unwrap_err()
+                .to_string()
                 .contains("radius")
         );
         assert!(
             "square:1,2,3"
                 .parse::<Shape>()
                 .unwrap_err()
+                .to_string()
                 .contains("unknown shape")
         );
-        assert!("rect:1,2".parse::<Shape>().unwrap_err().contains("X,Y,W,H"));
-        assert!("circle:1,x,3".parse::<Shape>().unwrap_err().contains("'x'"));
+        assert!(
+            "rect:1,2"
+                .parse::<Shape>()
+                .unwrap_err()
+                .to_string()
+                .contains("X,Y,W,H")
+        );
+        assert!(
+            "circle:1,x,3"
+                .parse::<Shape>()
+                .unwrap_err()
+                .to_string()
+                .contains("'x'")
+        );
     }
 
     proptest::proptest! {
