@@ -1,18 +1,20 @@
 //! `vl camera …`: calibrating the lab's overhead camera, so a tilted or
 //! off-centre camera maps its pixels to floor millimetres.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use serde::{Deserialize, Serialize};
-use vl_core::{Calibration, CameraModel, DotTarget, Point};
+use vl_core::{Calibration, CameraModel, Point};
 use vl_sim::SimCalibration;
 
 use crate::BadInput;
+use crate::input::{
+    CameraDriver, OpticsArgs, load_arena, load_target, parse_camera, read_json, real_camera,
+};
 use crate::report::{Report, Table, emit};
-use crate::sim::{OpticsArgs, load_arena};
 
 #[derive(Subcommand)]
 pub(crate) enum CameraCommand {
@@ -82,8 +84,8 @@ pub(crate) struct CalibrateArgs {
     image: Option<PathBuf>,
     /// Or a frame from the lab's camera looking at the target (with
     /// --target): http://… (an MJPEG stream) or v4l2:/dev/videoN[,…].
-    #[arg(long, conflicts_with_all = ["sim", "image", "points"], requires = "target", value_parser = crate::lab::parse_camera)]
-    camera: Option<crate::lab::CameraDriver>,
+    #[arg(long, conflicts_with_all = ["sim", "image", "points"], requires = "target", value_parser = parse_camera)]
+    camera: Option<CameraDriver>,
     /// The dot target as JSON: {"cols", "rows", "first_mm": {"x_mm", "y_mm"},
     /// "spacing_mm": [x, y], "radius_mm"}; its rows must run along the
     /// image's rows.
@@ -241,7 +243,7 @@ fn calibrate(args: CalibrateArgs) -> Result<ExitCode> {
     } else if let Some(driver) = args.camera {
         let target = load_target(args.target.as_ref().expect("clap requires --target"))?;
         let floor = load_arena(&args.arena)?;
-        let mut camera = crate::lab::real_camera(driver, None, &floor)?
+        let mut camera = real_camera(driver, None, &floor)?
             .ok_or_else(|| BadInput("--camera: give a real camera, http://… or v4l2:…".into()))?;
         let frame = camera.grab().context("no frame from the camera")?;
         (target.calibrate(&frame.image, args.fps).map_err(bad)?, None)
@@ -276,48 +278,4 @@ fn calibrate(args: CalibrateArgs) -> Result<ExitCode> {
         args.json,
     )?;
     Ok(ExitCode::SUCCESS)
-}
-
-/// Reads `path` as JSON of a `kind` of file, naming the kind and what
-/// writes it when it is not one.
-fn read_json<T: serde::de::DeserializeOwned>(path: &Path, kind: &str) -> Result<T> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| BadInput(format!("cannot read the {kind} {}: {e}", path.display())))?;
-    Ok(serde_json::from_str(&text)
-        .map_err(|e| BadInput(format!("{} is not a {kind}: {e}", path.display())))?)
-}
-
-/// The camera model a calibration file (what `vl camera calibrate -o`
-/// writes) holds.
-pub(crate) fn load_calibration(path: &Path) -> Result<CameraModel> {
-    #[derive(Deserialize)]
-    struct File {
-        camera: CameraModel,
-    }
-    let file: File = read_json(
-        path,
-        "calibration file (as `vl camera calibrate -o` writes)",
-    )?;
-    Ok(file.camera)
-}
-
-/// A dot target described in `path`.
-pub(crate) fn load_target(path: &Path) -> Result<DotTarget> {
-    let target: DotTarget = read_json(path, "dot target description")?;
-    let sized = |v: f64| v.is_finite() && v > 0.0;
-    if !(sized(target.radius_mm)
-        && sized(target.spacing_mm[0])
-        && sized(target.spacing_mm[1])
-        && target.first_mm.x_mm.is_finite()
-        && target.first_mm.y_mm.is_finite()
-        && (1..=100).contains(&target.cols)
-        && (1..=100).contains(&target.rows))
-    {
-        return Err(BadInput(format!(
-            "{}: a target needs 1 to 100 columns and rows and positive, finite sizes",
-            path.display()
-        ))
-        .into());
-    }
-    Ok(target)
 }

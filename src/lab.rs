@@ -12,14 +12,14 @@ use vl_core::{Arena, Experiment, RobotKind, RobotModel, Role};
 use vl_guest::{
     ClientError, Report as RunReport, RoundTripMs, Script, ScriptError, Watched, WindowError,
 };
-use vl_host::{
-    Devices, FramePolicy, Host, HostConfig, KheperaSerial, Media, ReplayCamera, SimCamera, SimLab,
-};
-use vl_sim::Scheduled;
+use vl_host::{Devices, Host, HostConfig, KheperaSerial, Media, SimCamera, SimLab};
 
+use crate::input::{
+    CameraDriver, FramesArgs, OpticsArgs, RobotArgs, SceneArgs, load_calibration, load_robot_model,
+    parse_camera, real_camera, seconds,
+};
 use crate::media::LinkArgs;
 use crate::report::{Report, Table, count, emit};
-use crate::sim::{OpticsArgs, RobotArgs, load_robot_model};
 use crate::{BadInput, named};
 
 #[derive(clap::Args)]
@@ -178,72 +178,6 @@ enum RobotDriver {
     Khepera,
 }
 
-/// Frames per second recorded footage is played back at.
-const REPLAY_FPS: f64 = 15.0;
-
-/// Which camera watches the arena.
-#[derive(Clone, PartialEq, Debug)]
-pub(crate) enum CameraDriver {
-    /// The simulated overhead camera (watches the simulated robot only).
-    Sim,
-    /// No camera: Guests get feedback but no frames.
-    None,
-    /// Recorded footage: the images of a directory, played back in name order.
-    Replay(std::path::PathBuf),
-    /// A network camera streaming MJPEG over HTTP, at this URL.
-    Http(String),
-    /// A webcam on Video4Linux2.
-    #[cfg(target_os = "linux")]
-    V4l2(vl_host::V4l2Spec),
-}
-
-pub(crate) fn parse_camera(text: &str) -> Result<CameraDriver, String> {
-    match text {
-        "sim" => Ok(CameraDriver::Sim),
-        "none" => Ok(CameraDriver::None),
-        _ if text.starts_with("http://") => Ok(CameraDriver::Http(text.to_owned())),
-        #[cfg(target_os = "linux")]
-        _ if text.starts_with("v4l2:") => text["v4l2:".len()..]
-            .parse()
-            .map(CameraDriver::V4l2)
-            .map_err(|e: vl_host::CameraError| e.to_string()),
-        _ => match text.strip_prefix("dir:") {
-            Some(dir) if !dir.is_empty() => Ok(CameraDriver::Replay(dir.into())),
-            _ => Err(format!(
-                "'{text}' is no camera: use sim, none, http://… (an MJPEG stream), \
-                 v4l2:/dev/videoN (a webcam) or dir:PATH (recorded footage)"
-            )),
-        },
-    }
-}
-
-/// The real camera `driver` names, seen through `calibration` or, without
-/// one, as looking straight down on the `arena`'s floor.
-pub(crate) fn real_camera(
-    driver: CameraDriver,
-    calibration: Option<vl_core::CameraModel>,
-    arena: &Arena,
-) -> Result<Option<Box<dyn vl_host::Camera>>> {
-    let floor = (arena.width_mm, arena.height_mm);
-    let camera: Box<dyn vl_host::Camera> = match driver {
-        CameraDriver::Sim | CameraDriver::None => return Ok(None),
-        CameraDriver::Replay(dir) => Box::new(
-            ReplayCamera::open(&dir, calibration, floor, REPLAY_FPS)
-                .map_err(|e| BadInput(e.to_string()))?,
-        ),
-        CameraDriver::Http(url) => Box::new(
-            vl_host::HttpCamera::open(&url, calibration, floor, REPLAY_FPS)
-                .context("cannot read the camera")?,
-        ),
-        #[cfg(target_os = "linux")]
-        CameraDriver::V4l2(spec) => Box::new(
-            vl_host::V4l2Camera::open(spec, calibration, floor)
-                .context("cannot read the camera")?,
-        ),
-    };
-    Ok(Some(camera))
-}
-
 /// `vl host`: serve the lab, or measure how it answers.
 #[derive(clap::Args)]
 #[command(args_conflicts_with_subcommands = true)]
@@ -398,57 +332,6 @@ pub(crate) struct HostArgs {
     scene: SceneArgs,
     #[command(flatten)]
     link: LinkArgs,
-}
-
-/// A duration the user gave, in seconds: above 0 and at most a day.
-pub(crate) fn seconds(what: &str, s: f64) -> Result<Duration, BadInput> {
-    if s.is_finite() && s > 0.0 && s <= 86_400.0 {
-        Ok(Duration::from_secs_f64(s))
-    } else {
-        Err(BadInput(format!(
-            "{what} must be a number of seconds from 0 to a day, not {s}"
-        )))
-    }
-}
-
-/// Which camera frames the Host sends (thesis appendix G).
-#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum Frames {
-    /// Every frame the camera takes: live video.
-    EveryFrame,
-    /// Only when the scene changes beyond the robot, when a Guest asks, and
-    /// at least every --frame-interval; Guests draw the robot from its pose.
-    OnChange,
-}
-
-#[derive(clap::Args)]
-pub(crate) struct FramesArgs {
-    #[arg(long, value_enum, default_value = "every-frame")]
-    frames: Frames,
-    /// With --frames on-change: the longest time between two frames, s.
-    #[arg(long, default_value_t = 5.0)]
-    frame_interval: f64,
-}
-
-impl FramesArgs {
-    pub(crate) fn policy(&self) -> Result<FramePolicy> {
-        Ok(match self.frames {
-            Frames::EveryFrame => FramePolicy::EveryFrame,
-            Frames::OnChange => FramePolicy::OnChange {
-                max_interval: seconds("--frame-interval", self.frame_interval)?,
-            },
-        })
-    }
-}
-
-/// What people do in the simulated lab while it runs.
-#[derive(clap::Args)]
-pub(crate) struct SceneArgs {
-    /// At T s on the lab's clock, put an obstacle down (`T:place:SHAPE`,
-    /// e.g. 3:place:rect:400,100,40,40) or hold a hand over the robot
-    /// (`T:cover:SECONDS`); repeatable.
-    #[arg(long = "scene-event", value_parser = str::parse::<Scheduled>)]
-    pub(crate) events: Vec<Scheduled>,
 }
 
 #[derive(clap::Args)]
@@ -634,7 +517,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
         None => RobotModel::khepera_ii(),
     };
     let calibration = match &args.camera_calibration {
-        Some(path) => Some(crate::camera::load_calibration(path)?),
+        Some(path) => Some(load_calibration(path)?),
         None => None,
     };
     // Behind a modelled link the Host listens privately and the Media on --listen.

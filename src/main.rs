@@ -6,6 +6,7 @@
 mod alloc;
 mod camera;
 mod experiment;
+mod input;
 mod lab;
 mod media;
 mod nets;

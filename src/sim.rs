@@ -5,137 +5,13 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Subcommand;
-use vl_core::{Arena, Point, RobotKind, RobotModel};
+use vl_core::Point;
 use vl_sim::{Driver, LinkReport, Optics, Profile, RunReport, Script, SimBench, World, camera_for};
 
+use crate::input::{OpticsArgs, RobotArgs, load_arena, load_target};
 use crate::report::{Report, Table, emit};
 use crate::shipped::read_input;
 use crate::{BadInput, named};
-
-/// Which robot to simulate, and its size if not the stock one.
-#[derive(clap::Args)]
-pub(crate) struct RobotArgs {
-    #[arg(long, value_parser = named::<RobotKind>(), default_value = "khepera-ii")]
-    robot: RobotKind,
-    /// Build the robot with this body radius, mm (sensors move out with it).
-    #[arg(long, requires = "wheel_base_mm")]
-    radius_mm: Option<f64>,
-    /// … and this distance between its wheels, mm.
-    #[arg(long, requires = "radius_mm")]
-    wheel_base_mm: Option<f64>,
-    /// Or a whole robot model from a JSON file (`vl khepera characterise` writes one).
-    #[arg(long, conflicts_with_all = ["robot", "radius_mm"])]
-    robot_model: Option<PathBuf>,
-}
-
-impl RobotArgs {
-    pub(crate) fn model(&self) -> Result<RobotModel> {
-        if let Some(file) = &self.robot_model {
-            return load_robot_model(file);
-        }
-        let model = self.robot.model();
-        Ok(match (self.radius_mm, self.wheel_base_mm) {
-            (Some(radius), Some(base)) => model
-                .resized(radius, base)
-                .map_err(|e| BadInput(e.to_string()))?,
-            _ => model,
-        })
-    }
-}
-
-/// A robot model file; any problem with it is the user's input.
-pub(crate) fn load_robot_model(path: &Path) -> Result<RobotModel> {
-    let text = read_input(path)?;
-    Ok(RobotModel::from_json(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?)
-}
-
-/// A simulated camera's optics to start from.
-#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum OpticsPreset {
-    /// An ideal camera looking straight down.
-    None,
-    /// Lens offset, blur, noise and a lighting gradient together, as an
-    /// inexpensive webcam over a lab bench.
-    Noisy,
-    /// The noisy camera with a wide lens's barrel distortion, 80 ms from
-    /// exposure to arrival, 20 ms exposures (motion blur), 5 % of frames
-    /// lost and 5 % with the robot's marker partly hidden.
-    Realistic,
-}
-
-/// How the simulated camera departs from an ideal one: a preset, and any
-/// of its figures changed.
-#[derive(clap::Args)]
-pub(crate) struct OpticsArgs {
-    #[arg(long, value_enum, default_value = "none")]
-    optics: OpticsPreset,
-    /// Image shift in px, as DX,DY (lens off the sensor's axis).
-    #[arg(long, allow_hyphen_values = true)]
-    lens_offset: Option<Point>,
-    /// Gaussian blur, standard deviation in px.
-    #[arg(long)]
-    blur: Option<f64>,
-    /// Per-pixel noise, standard deviation in grey levels.
-    #[arg(long)]
-    noise: Option<f64>,
-    /// How much darker the bottom-right corner is (0–1).
-    #[arg(long)]
-    lighting: Option<f64>,
-    /// How far the camera leans from looking straight down, degrees.
-    #[arg(long, allow_hyphen_values = true)]
-    tilt_deg: Option<f64>,
-    /// The lens's radial distortion, as K1,K2 (radii in image widths;
-    /// barrel distortion has K1 < 0).
-    #[arg(long, allow_hyphen_values = true)]
-    lens: Option<Point>,
-    /// From a frame's exposure to its arrival, ms.
-    #[arg(long)]
-    delay_ms: Option<f64>,
-    /// How long the shutter is open, ms (a moving robot smears).
-    #[arg(long)]
-    exposure_ms: Option<f64>,
-    /// The share of frames lost (0–0.5).
-    #[arg(long)]
-    drop_rate: Option<f64>,
-    /// The share of frames with the robot's marker partly hidden (0–0.5).
-    #[arg(long)]
-    occlusion_rate: Option<f64>,
-}
-
-impl OpticsArgs {
-    /// The simulator's optics these flags ask for, checked.
-    pub(crate) fn optics(&self, seed: u64) -> Result<Optics> {
-        let mut optics = match self.optics {
-            OpticsPreset::None => Optics {
-                seed,
-                ..Optics::default()
-            },
-            OpticsPreset::Noisy => Optics::noisy(seed),
-            OpticsPreset::Realistic => Optics::realistic(seed),
-        };
-        if let Some(k) = self.lens {
-            optics.distortion = vl_core::Distortion {
-                k1: k.x_mm,
-                k2: k.y_mm,
-            };
-        }
-        optics.delay_s = self.delay_ms.map_or(optics.delay_s, |ms| ms / 1e3);
-        optics.exposure_s = self.exposure_ms.map_or(optics.exposure_s, |ms| ms / 1e3);
-        optics.drop_rate = self.drop_rate.unwrap_or(optics.drop_rate);
-        optics.occlusion_rate = self.occlusion_rate.unwrap_or(optics.occlusion_rate);
-        if let Some(p) = self.lens_offset {
-            optics.lens_offset_px = [p.x_mm, p.y_mm];
-        }
-        optics.blur_px = self.blur.unwrap_or(optics.blur_px);
-        optics.noise = self.noise.unwrap_or(optics.noise);
-        optics.lighting_gradient = self.lighting.unwrap_or(optics.lighting_gradient);
-        if let Some(deg) = self.tilt_deg {
-            optics.tilt_rad = deg.to_radians();
-        }
-        optics.check().map_err(|e| BadInput(e.to_string()))?;
-        Ok(optics)
-    }
-}
 
 #[derive(Subcommand)]
 pub(crate) enum SimCommand {
@@ -247,10 +123,7 @@ pub(crate) fn run(command: SimCommand) -> Result<ExitCode> {
             let optics = optics.optics(seed)?;
             let world = World::new(load_arena(&arena)?, robot.model()?, seed)
                 .map_err(|e| BadInput(e.to_string()))?;
-            let target = target
-                .as_deref()
-                .map(crate::camera::load_target)
-                .transpose()?;
+            let target = target.as_deref().map(load_target).transpose()?;
             render(&world, width, &optics, target.as_ref(), &output)
         }
         SimCommand::Bench { seconds, json } => {
@@ -294,11 +167,6 @@ pub(crate) fn run(command: SimCommand) -> Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
     }
-}
-
-/// A shipped arena or an arena file; any problem with it is the user's input.
-pub(crate) fn load_arena(name_or_path: &str) -> Result<Arena> {
-    Ok(Arena::load(name_or_path).map_err(|e| BadInput(e.to_string()))?)
 }
 
 fn sim_run(

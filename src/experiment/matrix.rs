@@ -18,8 +18,8 @@ use vl_sim::{LinkModel, Optics, Profile};
 
 use super::plots::{self, EVENT, TIME};
 use super::{Control, Leg, Run, RunSpec, line, run_one};
+use crate::input::{load_arena, seconds};
 use crate::report::{Report, Table, emit, yes};
-use crate::sim::load_arena;
 
 #[derive(Args)]
 pub(crate) struct ReportArgs {
@@ -212,7 +212,7 @@ fn cell(all: &[&Run]) -> Cell {
 }
 
 pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Result<ExitCode> {
-    let timeout = crate::lab::seconds("--timeout", args.timeout)?;
+    let timeout = seconds("--timeout", args.timeout)?;
     let names: Vec<String> = if args.profiles.is_empty() {
         Profile::ALL.iter().map(|p| p.id().to_owned()).collect()
     } else {

@@ -22,9 +22,8 @@ use vl_host::{Host, HostConfig, Media, MediaConfig, SimCamera, SimLab};
 use vl_sim::{LinkModel, Optics, Scheduled};
 
 use crate::BadInput;
-use crate::lab::{FramesArgs, SceneArgs};
+use crate::input::{FramesArgs, OpticsArgs, SceneArgs, load_arena, seconds};
 use crate::report::{Report, Table, count, emit, yes};
-use crate::sim::{OpticsArgs, load_arena};
 
 #[derive(Subcommand)]
 pub(crate) enum ExperimentCommand {
@@ -370,7 +369,7 @@ pub(crate) fn run(
         ExperimentCommand::Run(args) => *args,
         ExperimentCommand::Report(args) => return matrix::report(runtime, args),
     };
-    let timeout = crate::lab::seconds("--timeout", args.timeout)?;
+    let timeout = seconds("--timeout", args.timeout)?;
     let names: Vec<String> = if args.arena.iter().any(|a| a == "all") {
         Arena::shipped().map(str::to_owned).collect()
     } else {

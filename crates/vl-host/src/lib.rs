@@ -8,6 +8,8 @@
 
 mod characterise;
 mod drivers;
+#[cfg(test)]
+mod dummy;
 mod khepera;
 mod lab;
 mod line;

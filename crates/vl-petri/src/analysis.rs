@@ -9,20 +9,8 @@ use serde::Serialize;
 
 use crate::explore::{Bounds, ExploreError, Options, StateSpace, explore_until_dead};
 use crate::linalg::rank;
+use crate::liveness::Liveness;
 use crate::net::Net;
-
-/// Liveness level of a transition (Murata 1989), for a finite reachability graph.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
-pub enum Liveness {
-    /// Dead: never fires.
-    L0,
-    /// Fires in some firing sequence.
-    L1,
-    /// Fires infinitely often in some sequence (on a finite graph the same as L2).
-    L3,
-    /// Live: can fire again from every reachable marking.
-    L4,
-}
 
 /// What the state space and the incidence matrix say about a net.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -12,9 +12,9 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Mutex, MutexGuard, PoisonError};
 use std::time::Instant;
 
-use crate::explore::{
-    Bounds, Candidates, Compiled, ExploreError, Fired, Layout, Options, PAD, Progress, StateCount,
-    compile, fire, initial_layout, repack,
+use crate::explore::{Bounds, ExploreError, Options, Progress, StateCount};
+use crate::layout::{
+    Candidates, Compiled, Fired, Layout, PAD, compile, fire, initial_layout, repack,
 };
 use crate::markings::{EMPTY, Table, copy_marking, hash};
 use crate::net::Net;
@@ -31,12 +31,14 @@ const CHUNK: usize = 256;
 const BATCH: usize = 32;
 
 /// Counts every marking reachable from the initial one, and the firings
-/// between them, on `threads` threads (at least one), keeping no graph.
-pub(crate) fn count(
+/// between them, without keeping the graph: breadth first on `threads`
+/// threads (at least one), which find the same counts.
+pub fn count_states(
     net: &Net,
-    options: &mut Options,
+    mut options: Options,
     threads: usize,
 ) -> Result<StateCount, ExploreError> {
+    let options = &mut options;
     let compiled = compile(net);
     let candidates = Candidates::new(&compiled, net.places.len());
     let layout = initial_layout(net);
@@ -387,7 +389,7 @@ mod tests {
                 .unwrap();
         }
         for threads in [1, 2, 3] {
-            let found = count(&net, &mut Options::default(), threads).unwrap();
+            let found = count_states(&net, Options::default(), threads).unwrap();
             assert_eq!(found.states, 41 * 41 * 41, "{threads} threads");
             // A marking fires each counter below 40: 40·41² firings each.
             assert_eq!(found.edges, 3 * 40 * 41 * 41, "{threads} threads");

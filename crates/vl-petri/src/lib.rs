@@ -21,26 +21,28 @@ mod dot;
 mod explore;
 mod frontier;
 mod invariants;
+mod layout;
 mod linalg;
 mod lines;
+mod liveness;
 mod markings;
 mod net;
 mod onthefly;
 mod pnml;
 mod scxml;
 
-pub use analysis::{Analysis, Liveness, analyze, analyze_net, firing_sequence, incidence_rank};
+pub use analysis::{Analysis, analyze, analyze_net, firing_sequence, incidence_rank};
 pub use bench::{BenchRow, CorpusModel, Manifest, ManifestError, PeakMemory, bench_model};
 pub use compose::{ComposeError, compose, fuse_parallel_places};
 pub use control::{Added, Constraint, ControlError, Limits, synthesize};
 pub use coverability::{Coverability, CoverabilityError, OMEGA, coverability};
 pub use dot::{graph_to_dot, net_to_dot};
-pub use explore::{
-    Bounds, ExploreError, Options, Progress, StateCount, StateSpace, count_states, explore,
-};
+pub use explore::{Bounds, ExploreError, Options, Progress, StateCount, StateSpace, explore};
+pub use frontier::count_states;
 pub use invariants::{
     Invariant, TooManyInvariants, is_conservative, p_invariants, p_rows_within, t_invariants,
 };
+pub use liveness::Liveness;
 pub use net::{
     Arc, ArcKind, Marking, MarkingDisplay, Net, NetError, Place, PlaceId, Transition, TransitionId,
 };

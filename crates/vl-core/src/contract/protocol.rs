@@ -512,6 +512,16 @@ impl GuestMessage {
     }
 }
 
+impl HostMessage {
+    /// A refusal: what was refused (`code`) and why, in words.
+    pub fn error(code: ErrorCode, message: impl Into<String>) -> HostMessage {
+        HostMessage::Error {
+            code,
+            message: message.into(),
+        }
+    }
+}
+
 impl Wire for GuestMessage {
     const TYPES: &'static [&'static str] = <GuestMessage as strum::VariantNames>::VARIANTS;
 }

@@ -119,13 +119,6 @@ fn text_of(message: &HostMessage) -> Message {
     Message::text(message.encode())
 }
 
-pub(crate) fn error(code: ErrorCode, message: impl Into<String>) -> HostMessage {
-    HostMessage::Error {
-        code,
-        message: message.into(),
-    }
-}
-
 impl Connection {
     pub(crate) async fn run(mut self, stream: TcpStream) -> Result<(), tungstenite::Error> {
         let _ = stream.set_nodelay(true);
@@ -160,7 +153,7 @@ impl Connection {
             End::Closed | End::Left => {}
             End::Refused(code, why) => {
                 debug!(connection = self.id, %code, "closing: {why}");
-                let _ = put(&mut sink, text_of(&error(code, why))).await;
+                let _ = put(&mut sink, text_of(&HostMessage::error(code, why))).await;
                 // A client refused before it was welcomed is held, unread,
                 // for a while: one that reconnects at once to try again
                 // would otherwise cost a handshake each time.
@@ -234,7 +227,7 @@ impl Connection {
                     let text = match message {
                         Message::Text(text) => text,
                         Message::Binary(_) => {
-                            let reply = error(ErrorCode::BadMessage, "binary messages flow only from Host to Guest");
+                            let reply = HostMessage::error(ErrorCode::BadMessage, "binary messages flow only from Host to Guest");
                             if let Err(end) = put(sink, text_of(&reply)).await {
                                 return end;
                             }
@@ -263,7 +256,7 @@ impl Connection {
                             if before_hello >= MAX_BEFORE_HELLO {
                                 return End::Refused(ErrorCode::HelloFirst, "nothing but hello before hello".into());
                             }
-                            Some(error(ErrorCode::HelloFirst, "send hello first"))
+                            Some(HostMessage::error(ErrorCode::HelloFirst, "send hello first"))
                         }
                         Ok(message @ GuestMessage::Command { .. }) if !over_rate.is_zero() => {
                             // The one it replaces is never forwarded: it costs nothing.
@@ -290,7 +283,7 @@ impl Connection {
                             }
                             None
                         }
-                        Err(e) => Some(error(e.code(), e.to_string())),
+                        Err(e) => Some(HostMessage::error(e.code(), e.to_string())),
                     };
                     if let Some(reply) = reply
                         && let Err(end) = put(sink, text_of(&reply)).await

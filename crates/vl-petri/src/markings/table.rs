@@ -6,7 +6,7 @@ use std::hash::Hasher;
 use rustc_hash::FxHasher;
 
 use super::pages::Pages;
-use crate::explore::PAD;
+use crate::layout::PAD;
 
 /// The number of an empty slot; states are numbered from 1.
 pub(crate) const EMPTY: u32 = 0;

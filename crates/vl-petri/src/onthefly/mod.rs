@@ -20,11 +20,9 @@
 
 use std::time::Instant;
 
-use crate::analysis::Liveness;
-use crate::explore::{
-    Bounds, Candidates, Compiled, Fired, Layout, Options, PAD, PROGRESS_EVERY, Progress, compile,
-    fire, search_layout,
-};
+use crate::explore::{Bounds, Options, PROGRESS_EVERY, Progress};
+use crate::layout::{Candidates, Compiled, Fired, Layout, PAD, compile, fire, search_layout};
+use crate::liveness::Liveness;
 use crate::net::Net;
 
 mod pending;

@@ -1,0 +1,227 @@
+//! Who may drive: the hello that makes an operator or an observer, the
+//! operator's lease, the grace a dropped operator keeps, and leaving.
+
+use std::time::Instant;
+
+use tracing::info;
+use vl_core::{Action, EndReason, ErrorCode, HostMessage, PROTOCOL_VERSION, Role};
+
+use super::{Away, Hub, ToConnection};
+use crate::lab::LabRequest;
+
+/// A secret no client can guess: SipHash keyed afresh from the operating
+/// system's randomness by the standard library, over a counter and the
+/// clock, twice over for 128 bits.
+fn secret() -> String {
+    use std::hash::{BuildHasher, Hasher};
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static DRAWN: AtomicU64 = AtomicU64::new(0);
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    (0..2)
+        .map(|_| {
+            let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+            h.write_u64(DRAWN.fetch_add(1, Ordering::Relaxed));
+            h.write_u128(now);
+            format!("{:016x}", h.finish())
+        })
+        .collect()
+}
+
+impl Hub {
+    pub(super) fn hello(
+        &mut self,
+        id: u64,
+        protocol: u32,
+        role: Role,
+        token: Option<String>,
+        resume: Option<String>,
+    ) {
+        if protocol != PROTOCOL_VERSION {
+            return self.refuse(
+                id,
+                ErrorCode::ProtocolMismatch,
+                format!("this Host speaks protocol {PROTOCOL_VERSION}, not {protocol}"),
+            );
+        }
+        if role == Role::Operator {
+            if self.config.token.is_some() && token != self.config.token {
+                let why = match token {
+                    None => {
+                        "this lab's operators need its token: say hello with it (vl guest --token), or watch as an observer"
+                    }
+                    Some(_) => "the operator token is wrong",
+                };
+                return self.refuse(id, ErrorCode::Unauthorized, why);
+            }
+            let returning = match &self.away {
+                Some(away) if resume.as_deref() == Some(away.resume.as_str()) => true,
+                Some(away) => {
+                    let left = away.until.saturating_duration_since(Instant::now());
+                    return self.refuse(
+                        id,
+                        ErrorCode::OperatorTaken,
+                        format!(
+                            "the operator's link dropped; the role is held for them for {:.0} more s",
+                            left.as_secs_f64().ceil()
+                        ),
+                    );
+                }
+                None => false,
+            };
+            if self.operator.is_some() {
+                return self.refuse(
+                    id,
+                    ErrorCode::OperatorTaken,
+                    "another operator is driving; say hello again as an observer to watch",
+                );
+            }
+            self.operator = Some(id);
+            if returning {
+                self.away = None;
+                info!(connection = id, "the operator is back");
+            }
+            // Every welcome carries a fresh secret, so every drop has its
+            // grace (and an old secret, once used, opens nothing).
+            self.resume = Some(secret());
+        }
+        if let Some(client) = self.clients.get_mut(&id) {
+            client.role = Some(role);
+            let _ = client.out.try_send(ToConnection::Subscribe);
+        }
+        info!(connection = id, ?role, "welcomed");
+        self.send(
+            id,
+            HostMessage::Welcome {
+                session: id,
+                role,
+                experiments: self.config.experiments.iter().map(|e| e.info()).collect(),
+                resume: (role == Role::Operator)
+                    .then(|| self.resume.clone())
+                    .flatten(),
+            },
+        );
+        // A late observer catches up on what is mounted and defined.
+        if let Some(mounted) = self.mounted() {
+            self.send(id, mounted);
+        }
+        if let Some(definition) = self.definition.clone() {
+            self.send(id, HostMessage::Defined { definition });
+        }
+        self.send(id, self.status());
+        self.send(id, HostMessage::State(Box::new(self.supervisor.state())));
+        // An operator back within the grace takes up the run where it stood.
+        if role == Role::Operator && self.supervisor.allows(Action::Stop) {
+            self.last_command = Instant::now();
+            self.lab.request(LabRequest::Hold(false));
+            self.send(
+                id,
+                HostMessage::Started {
+                    event: self.last_event,
+                },
+            );
+        }
+    }
+
+    /// An operator who has sent no command for the lease time during a run
+    /// loses the run and the role, and stays on as an observer.
+    /// A run the Host itself steers along the defined path needs no
+    /// commands: its operator is not silent for sending none (a lost one
+    /// still ends it, through the connection's pings).
+    pub(super) fn check_lease(&mut self) {
+        if self
+            .away
+            .as_ref()
+            .is_some_and(|a| a.until <= Instant::now())
+        {
+            self.away = None;
+            info!("the operator did not come back within the grace: the role is free");
+            if self.supervisor.allows(Action::Stop) {
+                self.lab
+                    .request(LabRequest::Finish(EndReason::OperatorLeft));
+            }
+            self.release_operator();
+        }
+        let Some(id) = self.operator else { return };
+        if !self.supervisor.allows(Action::Stop)
+            || self.last_command.elapsed() < self.config.lease
+            || self.host_follows()
+        {
+            return;
+        }
+        let lease = self.config.lease.as_secs_f64();
+        info!(
+            connection = id,
+            "operator silent for {lease} s: the role is free"
+        );
+        self.lab
+            .request(LabRequest::Finish(EndReason::OperatorSilent));
+        self.release_operator();
+        if let Some(client) = self.clients.get_mut(&id) {
+            client.role = Some(Role::Observer);
+        }
+        self.refuse(
+            id,
+            ErrorCode::Timeout,
+            format!("no command for {lease} s: the run ended and you watch now; say hello as operator to drive again"),
+        );
+    }
+
+    /// Whether runs of what is mounted and defined follow a path on the Host.
+    pub(super) fn host_follows(&self) -> bool {
+        match (self.experiment, &self.definition) {
+            (Some(experiment), Some(definition)) => definition.host_follows(experiment),
+            _ => false,
+        }
+    }
+
+    /// The operator role is free again and the lab back to idle.
+    pub(super) fn release_operator(&mut self) {
+        self.operator = None;
+        self.resume = None;
+        if self.supervisor.allows(Action::Release) {
+            self.happened(Action::Release);
+        }
+        self.experiment = None;
+        self.definition = None;
+        self.cspace = None;
+        self.field = None;
+        self.fields.forget();
+    }
+
+    /// A connection closed: if it was the operator, the robot stops; the
+    /// lab returns to idle for the next person at once if they meant to leave,
+    /// or after the grace if their link dropped and they do not come back.
+    pub(super) fn leave(&mut self, id: u64, meant: bool) {
+        self.clients.remove(&id);
+        if self.operator != Some(id) {
+            return;
+        }
+        info!(connection = id, "operator left");
+        let running = self.supervisor.allows(Action::Stop);
+        // A link that dropped may come back: the role and the run are held
+        // for the grace, the robot still; a lab with nothing on it is free.
+        if let Some(resume) = self.resume.take()
+            && !meant
+            && !self.config.grace.is_zero()
+            && self.experiment.is_some()
+        {
+            self.operator = None;
+            self.away = Some(Away {
+                resume,
+                until: Instant::now() + self.config.grace,
+            });
+            if running {
+                self.lab.request(LabRequest::Hold(true));
+            }
+            return;
+        }
+        // A run the operator could stop is stopped for them.
+        if running {
+            self.lab
+                .request(LabRequest::Finish(EndReason::OperatorLeft));
+        }
+        self.release_operator();
+    }
+}

@@ -1,0 +1,351 @@
+//! The hub: the one owner of session state. It decides who is operator,
+//! runs the supervisor net that says which action may happen when, keeps
+//! the definition, relays commands to the lab, and enforces the operator's
+//! lease. It never waits on a client: each has a bounded outbox, and a
+//! client that lets it fill is let go.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use tokio::sync::mpsc;
+use tokio_tungstenite::tungstenite::Message;
+use tracing::{debug, info, warn};
+use vl_core::{
+    Action, CSpace, Definition, EndReason, ErrorCode, Experiment, GuestMessage, HostMessage,
+    MapField, MountedLab, Named, Readiness, Role, Stopper, Supervisor, Wire,
+};
+
+use super::HostConfig;
+use crate::lab::{Finished, Lab};
+use fields::{FieldWorker, Map};
+
+mod access;
+mod fields;
+mod operate;
+mod reset;
+#[cfg(test)]
+mod tests;
+
+/// Messages waiting for one client, at most; feedback and frames are not
+/// queued (each connection takes only the newest).
+pub(crate) const OUTBOX: usize = 64;
+/// How often the hub looks at the operator's lease.
+const LEASE_CHECK: Duration = Duration::from_millis(250);
+
+/// What a connection tells the hub.
+pub(crate) enum ToHub {
+    Join(u64, mpsc::Sender<ToConnection>),
+    Message(u64, GuestMessage),
+    /// The connection closed; true when the client meant to leave (said
+    /// bye or closed the WebSocket), false when its link dropped.
+    Leave(u64, bool),
+}
+
+/// What the hub tells a connection.
+pub(crate) enum ToConnection {
+    /// A message, encoded once for every client it goes to.
+    Send(Message),
+    /// The client was welcomed: start streaming feedback and frames.
+    Subscribe,
+}
+
+struct Client {
+    out: mpsc::Sender<ToConnection>,
+    role: Option<Role>,
+}
+
+/// An operator whose link dropped: the role is theirs until `until`, for
+/// a hello that carries `resume`.
+struct Away {
+    resume: String,
+    until: Instant,
+}
+
+/// Whether a run that ended so is followed by the drive back to the start
+/// pose. Not after an emergency stop (someone saw something wrong: nothing
+/// moves until the operator starts again), a fault (the robot does not
+/// answer), a robot the camera lost (it would drive blind) or one held
+/// back (it is too unsure where it is to pass what lies between it and
+/// the start).
+fn resets_after(reason: EndReason) -> bool {
+    !matches!(
+        reason,
+        EndReason::EmergencyStop | EndReason::Fault | EndReason::RobotLost | EndReason::HeldBack
+    )
+}
+
+/// The way back to the start pose, or why there is none.
+type ResetRoute = Result<Definition, String>;
+
+/// The one owner of session state.
+pub(crate) struct Hub {
+    lab: Lab,
+    config: Arc<HostConfig>,
+    supervisor: Supervisor,
+    clients: HashMap<u64, Client>,
+    operator: Option<u64>,
+    /// The operator's secret for coming back after a dropped link.
+    resume: Option<String>,
+    /// An operator whose link dropped, while their grace lasts.
+    away: Option<Away>,
+    /// The mounted experiment.
+    experiment: Option<Experiment>,
+    definition: Option<Definition>,
+    /// Event number of the last command accepted in this run.
+    last_event: u64,
+    /// The run's synchronisation so far: the largest `event − seen`, and
+    /// how many commands ran more than one event ahead.
+    max_event_gap: u64,
+    sync_violations: u64,
+    /// When the operator last started or commanded the run under way.
+    last_command: Instant,
+    /// The number of the run under way (kept until the lab reports its end).
+    run: Option<u64>,
+    /// How many runs have started.
+    runs: u64,
+    /// The mounted map grown by the robot's radius (the `cspace` chart's work).
+    cspace: Option<Arc<CSpace>>,
+    /// The map's potential field for teleoperation runs, over the C-space
+    /// and the definition's virtual obstacles (the `field` chart's work).
+    field: Option<Arc<MapField>>,
+    /// The lab's map, its C-space and field without virtual obstacles: the
+    /// same for every mount, so made once, when the Host starts.
+    map: Map,
+    /// Fields for definitions with virtual obstacles, made off the hub.
+    fields: FieldWorker,
+    /// Whether a run may start, and the run that drives the robot back
+    /// to the start pose while it may not.
+    readiness: Readiness,
+    reset_run: Option<u64>,
+    /// Routes back to the start pose, planned off the hub.
+    reset_routes: (
+        mpsc::UnboundedSender<ResetRoute>,
+        mpsc::UnboundedReceiver<ResetRoute>,
+    ),
+    /// Who pressed the emergency stop that is ending the run.
+    stopper: Option<Stopper>,
+}
+
+impl Hub {
+    pub(crate) fn new(lab: Lab, config: Arc<HostConfig>, supervisor: Supervisor) -> Hub {
+        Hub {
+            map: Map::new(&lab),
+            lab,
+            config,
+            supervisor,
+            clients: HashMap::new(),
+            operator: None,
+            resume: None,
+            away: None,
+            experiment: None,
+            definition: None,
+            last_event: 0,
+            max_event_gap: 0,
+            sync_violations: 0,
+            last_command: Instant::now(),
+            run: None,
+            runs: 0,
+            cspace: None,
+            field: None,
+            fields: FieldWorker::new(),
+            readiness: Readiness::Ready,
+            reset_run: None,
+            reset_routes: mpsc::unbounded_channel(),
+            stopper: None,
+        }
+    }
+
+    pub(crate) async fn run(mut self, mut inbox: mpsc::Receiver<ToHub>) {
+        let mut lease = tokio::time::interval(LEASE_CHECK);
+        let mut status = self.lab.status.clone();
+        loop {
+            tokio::select! {
+                // The lab sets a device's state before it ends the run that
+                // state ended: polling status first keeps that order on the
+                // wire, so a Guest reads the cause before the `done` it explains.
+                // Clients come last: however busy they keep the Hub, a run's
+                // end and a silent operator's lease are still seen.
+                biased;
+                Ok(()) = status.changed() => {
+                    status.mark_unchanged();
+                    self.broadcast(&self.status());
+                }
+                Some(Finished(run, mut summary)) = self.lab.finished.recv() => {
+                    if self.reset_run == Some(run) {
+                        self.reset_done(&summary);
+                        continue;
+                    }
+                    // Only the run under way may end: a previous operator's
+                    // run that ends late must not end the next one's.
+                    if self.run != Some(run) {
+                        debug!(run, "a past run's end, after the next began");
+                        continue;
+                    }
+                    self.run = None;
+                    if self.supervisor.allows(Action::Finish) {
+                        self.happened(Action::Finish);
+                    }
+                    summary.max_event_gap = self.max_event_gap;
+                    summary.sync_violations = self.sync_violations;
+                    summary.stopped_by = self.stopper.take().filter(|_| summary.reason == EndReason::EmergencyStop);
+                    info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
+                    let reset = resets_after(summary.reason);
+                    self.broadcast(&HostMessage::Done { summary });
+                    if reset {
+                        self.reset();
+                    }
+                }
+                Some(route) = self.reset_routes.1.recv() => self.reset_planned(route),
+                Some((number, field)) = self.fields.done.recv() => {
+                    if let Some(field) = self.fields.finished(&self.lab, number, field) {
+                        self.field = field.map(Arc::new);
+                        self.happened(Action::FieldBuilt);
+                    }
+                }
+                _ = lease.tick() => self.check_lease(),
+                message = inbox.recv() => match message {
+                    Some(ToHub::Join(id, out)) => {
+                        self.clients.insert(id, Client { out, role: None });
+                    }
+                    Some(ToHub::Message(id, message)) => self.handle(id, message),
+                    Some(ToHub::Leave(id, meant)) => self.leave(id, meant),
+                    None => return,
+                },
+            }
+            self.tell_state();
+        }
+    }
+
+    /// Queues `message` for client `id`; a client whose outbox is full is
+    /// let go (its connection says why and closes).
+    fn send_encoded(&mut self, id: u64, message: Message) {
+        let Some(client) = self.clients.get(&id) else {
+            return;
+        };
+        if let Err(mpsc::error::TrySendError::Full(_)) =
+            client.out.try_send(ToConnection::Send(message))
+        {
+            debug!(connection = id, "a client that does not read: let go");
+            self.clients.remove(&id);
+            self.leave(id, false);
+        }
+    }
+
+    fn send(&mut self, id: u64, message: HostMessage) {
+        self.send_encoded(id, Message::text(message.encode()));
+    }
+
+    fn refuse(&mut self, id: u64, code: ErrorCode, message: impl Into<String>) {
+        self.send(id, HostMessage::error(code, message));
+    }
+
+    /// Sends to every welcomed client, encoded once.
+    fn broadcast(&mut self, message: &HostMessage) {
+        let encoded = Message::text(message.encode());
+        let welcomed: Vec<u64> = self
+            .clients
+            .iter()
+            .filter(|(_, c)| c.role.is_some())
+            .map(|(id, _)| *id)
+            .collect();
+        for id in welcomed {
+            self.send_encoded(id, encoded.clone());
+        }
+    }
+
+    /// Tells every client what the supervisor fired since it last told,
+    /// and logs each firing.
+    fn tell_state(&mut self) {
+        let Some(state) = self.supervisor.take_state() else {
+            return;
+        };
+        for fired in &state.fired {
+            info!(lab = fired.lab.id(), transition = %fired.transition, "fired");
+        }
+        self.broadcast(&HostMessage::State(Box::new(state)));
+    }
+
+    /// Fires an action of the lab's own (a computation done, a run ended)
+    /// that the net should enable; says so in the log if it does not.
+    fn happened(&mut self, action: Action) {
+        if let Err(e) = self.supervisor.fire(action) {
+            warn!("the lab's net did not expect this: {e}");
+        }
+    }
+
+    fn handle(&mut self, id: u64, message: GuestMessage) {
+        let Some(role) = self.clients.get(&id).map(|c| c.role) else {
+            return;
+        };
+        match (role, message) {
+            (
+                None,
+                GuestMessage::Hello {
+                    protocol,
+                    role,
+                    token,
+                    resume,
+                },
+            ) => self.hello(id, protocol, role, token, resume),
+            (None, _) => self.refuse(id, ErrorCode::HelloFirst, "send hello first"),
+            // An observer (or an operator who lost the lease) may ask to drive.
+            (
+                Some(Role::Observer),
+                GuestMessage::Hello {
+                    protocol,
+                    role: Role::Operator,
+                    token,
+                    resume,
+                },
+            ) => self.hello(id, protocol, Role::Operator, token, resume),
+            (Some(_), GuestMessage::Hello { .. }) => {
+                self.refuse(id, ErrorCode::NotAllowedNow, "already said hello")
+            }
+            // Anyone watching may stop the robot: safety before roles.
+            (Some(_), GuestMessage::EmergencyStop) => self.emergency_stop(id),
+            // Anyone watching may want to see the scene.
+            (Some(_), GuestMessage::RequestFrame) => self.lab.request_frame(),
+            (Some(Role::Observer), other) => self.refuse(
+                id,
+                ErrorCode::NotOperator,
+                format!("observers watch; only the operator may {}", other.kind()),
+            ),
+            (Some(Role::Operator), message) => self.operate(id, message),
+        }
+    }
+
+    fn mounted(&self) -> Option<HostMessage> {
+        let info = &self.lab.info;
+        self.experiment.map(|experiment| {
+            HostMessage::Mounted(Box::new(MountedLab {
+                experiment,
+                arena: info.arena.clone(),
+                robot: info.robot.clone(),
+                camera: info.camera,
+            }))
+        })
+    }
+
+    /// Whether the supervisor enables `action` now; if not, tells the
+    /// operator why.
+    fn permitted(&mut self, id: u64, action: Action) -> bool {
+        match self.supervisor.check(action) {
+            Ok(()) => true,
+            Err(e) => {
+                self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
+                false
+            }
+        }
+    }
+
+    /// Fires `action` in the supervisor, or tells the operator why not.
+    fn supervise(&mut self, id: u64, action: Action) -> bool {
+        self.permitted(id, action) && self.supervisor.fire(action).is_ok()
+    }
+
+    /// The status every client is told: the devices, and whether a run may start.
+    fn status(&self) -> HostMessage {
+        self.lab.status.borrow().message(self.readiness)
+    }
+}

@@ -1,0 +1,235 @@
+//! What the operator does: mount, define, start, stop and command; and the
+//! emergency stop anyone may press.
+
+use std::time::Instant;
+
+use tracing::warn;
+use vl_core::{
+    Action, Definition, DeviceState, Drive, EndReason, ErrorCode, Experiment, GuestMessage,
+    HostMessage, Named, Readiness, Shape, Stopper,
+};
+
+use super::Hub;
+use crate::lab::LabRequest;
+
+impl Hub {
+    pub(super) fn operate(&mut self, id: u64, message: GuestMessage) {
+        match message {
+            GuestMessage::Mount { experiment } => self.mount(id, experiment),
+            GuestMessage::Define { definition } => self.define(id, definition),
+            GuestMessage::Reset => self.ask_reset(id),
+            GuestMessage::Start => self.start(id),
+            GuestMessage::Stop => self.stop(id),
+            GuestMessage::Command { event, seen, drive } => self.command(id, event, seen, drive),
+            GuestMessage::Hello { .. }
+            | GuestMessage::EmergencyStop
+            | GuestMessage::RequestFrame
+            | GuestMessage::Ping { .. }
+            | GuestMessage::Pong { .. }
+            | GuestMessage::Bye => {}
+        }
+    }
+
+    /// Mounts the experiment named `experiment`, if the lab offers it.
+    pub(super) fn mount(&mut self, id: u64, experiment: String) {
+        let offered = &self.config.experiments;
+        let Some(experiment) = Experiment::from_id(&experiment)
+            .ok()
+            .filter(|e| offered.contains(e))
+        else {
+            let ids: Vec<&str> = offered.iter().map(|e| e.id()).collect();
+            return self.refuse(
+                id,
+                ErrorCode::UnknownExperiment,
+                format!(
+                    "this Host has no experiment \"{experiment}\"; it offers {}",
+                    ids.join(", ")
+                ),
+            );
+        };
+        if let Err(e) = self.supervisor.mount(experiment) {
+            return self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
+        }
+        self.experiment = Some(experiment);
+        self.definition = None;
+        if let Some(mounted) = self.mounted() {
+            self.broadcast(&mounted);
+        }
+        self.build_cspace();
+    }
+
+    /// Takes the definition of the next run, once checked against the lab.
+    pub(super) fn define(&mut self, id: u64, definition: Definition) {
+        if !self.permitted(id, Action::Define) {
+            return;
+        }
+        if let Err(why) = definition.validate(&self.lab.info.arena, &self.lab.info.robot) {
+            return self.refuse(id, ErrorCode::InvalidDefinition, why.to_string());
+        }
+        if self.experiment == Some(Experiment::Navigation)
+            && let Some(cspace) = &self.cspace
+            && let Some(i) = definition
+                .path
+                .iter()
+                .position(|&p| !cspace.is_free(p, 0.0))
+        {
+            return self.refuse(
+                id,
+                ErrorCode::InvalidDefinition,
+                format!(
+                    "path point {i} is inside the C-space's obstacles: the robot's body would touch an obstacle there"
+                ),
+            );
+        }
+        self.supervise(id, Action::Define);
+        self.definition = Some(definition.clone());
+        self.broadcast(&HostMessage::Defined {
+            definition: definition.clone(),
+        });
+        // The path was checked against the C-space above.
+        if self.experiment == Some(Experiment::Navigation) {
+            self.happened(Action::PathPlanned);
+        }
+        self.build_field(&definition.virtual_obstacles);
+    }
+
+    /// Drives the robot back to its start pose, unless a run is under way.
+    pub(super) fn ask_reset(&mut self, id: u64) {
+        if self.supervisor.allows(Action::Stop) {
+            return self.refuse(
+                id,
+                ErrorCode::NotAllowedNow,
+                "a run is under way: stop it before the robot drives back to its start pose",
+            );
+        }
+        self.reset();
+    }
+
+    /// Starts a run of the mounted experiment, when the lab is ready.
+    pub(super) fn start(&mut self, id: u64) {
+        if self.readiness == Readiness::GettingReady {
+            return self.refuse(
+                id,
+                ErrorCode::NotAllowedNow,
+                "the lab is getting ready: the robot is driving back to its start pose; start when it is there",
+            );
+        }
+        if self.lab.status.borrow().robot != DeviceState::Online {
+            return self.refuse(
+                id,
+                ErrorCode::RobotOffline,
+                "the robot does not answer: a run can start when it is back",
+            );
+        }
+        if self.supervise(id, Action::Start)
+            && let Some(experiment) = self.experiment
+        {
+            self.last_event = 0;
+            self.max_event_gap = 0;
+            self.sync_violations = 0;
+            self.last_command = Instant::now();
+            self.runs += 1;
+            self.run = Some(self.runs);
+            let definition = self.definition.clone().unwrap_or_default();
+            self.lab.request(LabRequest::Start {
+                run: self.runs,
+                definition,
+                experiment,
+                field: self.field.clone(),
+                face: None,
+            });
+            self.broadcast(&HostMessage::Started { event: 0 });
+        }
+    }
+
+    /// Ends the run under way; the lab answers with its summary.
+    pub(super) fn stop(&mut self, id: u64) {
+        if self.supervise(id, Action::Stop) {
+            // The lab answers with the run's summary; `done` follows.
+            self.lab.request(LabRequest::Finish(EndReason::Stopped));
+        }
+    }
+
+    /// Passes a command on to the run, unless it is stale or not finite.
+    pub(super) fn command(&mut self, id: u64, event: u64, seen: Option<u64>, drive: Drive) {
+        if !self.permitted(id, Action::Command) {
+            return;
+        }
+        if event <= self.last_event {
+            return self.refuse(
+                id,
+                ErrorCode::StaleCommand,
+                format!(
+                    "command {event} is stale: {} was already executed",
+                    self.last_event
+                ),
+            );
+        }
+        if !drive.is_finite() {
+            return self.refuse(
+                id,
+                ErrorCode::BadMessage,
+                "command speeds must be finite numbers",
+            );
+        }
+        self.supervise(id, Action::Command);
+        if let Some(seen) = seen {
+            let gap = event.saturating_sub(seen);
+            self.max_event_gap = self.max_event_gap.max(gap);
+            self.sync_violations += u64::from(gap > 1);
+        }
+        self.last_event = event;
+        self.last_command = Instant::now();
+        self.lab.request(LabRequest::Drive { event, drive });
+    }
+
+    /// The mounted map's C-space (made when the Host started), then for
+    /// teleoperation the map's potential field over it.
+    pub(super) fn build_cspace(&mut self) {
+        self.cspace = self.map.cspace.clone();
+        self.happened(Action::CspaceBuilt);
+        self.build_field(&[]);
+    }
+
+    /// For teleoperation, the map's potential field over the C-space with
+    /// `virtual_obstacles` grown in too: at once without them, else made
+    /// off the hub (`field_built` fires when it is ready; the lab's net
+    /// keeps the operator from driving until then).
+    pub(super) fn build_field(&mut self, virtual_obstacles: &[Shape]) {
+        if self.experiment != Some(Experiment::Teleoperation) {
+            return;
+        }
+        if virtual_obstacles.is_empty() {
+            self.fields.forget();
+            self.field = self.map.field.clone();
+            self.happened(Action::FieldBuilt);
+        } else {
+            self.fields.ask(&self.lab, virtual_obstacles.to_vec());
+        }
+    }
+
+    /// Stops the running robot at once and ends the run; the next run needs
+    /// the operator's Start.
+    pub(super) fn emergency_stop(&mut self, id: u64) {
+        warn!(connection = id, "emergency stop");
+        if self.supervisor.allows(Action::Stop) {
+            self.stopper = self
+                .clients
+                .get(&id)
+                .and_then(|c| c.role)
+                .map(|role| Stopper { role, session: id });
+            self.lab
+                .request(LabRequest::Finish(EndReason::EmergencyStop));
+        }
+        // The drive back to the start pose stops too; the lab is ready
+        // where the robot stands, and the operator may ask again.
+        if self.readiness == Readiness::GettingReady {
+            if self.reset_run.is_some() {
+                self.lab
+                    .request(LabRequest::Finish(EndReason::EmergencyStop));
+            } else {
+                self.set_readiness(Readiness::Ready);
+            }
+        }
+    }
+}
