@@ -2,19 +2,19 @@
 //! long-running `vl` processes (a Host, the Khepera emulator) alive for a
 //! test and killing them however it ends, and scratch directories.
 
-pub mod peer;
+pub(crate) mod peer;
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 
 /// The `vl` binary under test.
-pub fn vl_bin() -> &'static str {
+pub(crate) fn vl_bin() -> &'static str {
     env!("CARGO_BIN_EXE_vl")
 }
 
 /// Runs `vl ARGS…` to the end with no display, as on a headless machine.
-pub fn vl(args: &[&str]) -> Output {
+pub(crate) fn vl(args: &[&str]) -> Output {
     Command::new(vl_bin())
         .args(args)
         .env_remove("DISPLAY")
@@ -23,16 +23,16 @@ pub fn vl(args: &[&str]) -> Output {
         .expect("vl runs")
 }
 
-pub fn stdout(o: &Output) -> String {
+pub(crate) fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
-pub fn stderr(o: &Output) -> String {
+pub(crate) fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// Runs `vl ARGS…`, which must succeed, and parses its stdout as JSON.
-pub fn vl_json(args: &[&str]) -> serde_json::Value {
+pub(crate) fn vl_json(args: &[&str]) -> serde_json::Value {
     let out = vl(args);
     assert!(
         out.status.success(),
@@ -46,7 +46,7 @@ pub fn vl_json(args: &[&str]) -> serde_json::Value {
 
 /// A headless operator's whole run on `url` (given up after `timeout_s`)
 /// as its JSON report, whether or not it reached the goal.
-pub fn headless_run(url: &str, timeout_s: u32, extra: &[&str]) -> serde_json::Value {
+pub(crate) fn headless_run(url: &str, timeout_s: u32, extra: &[&str]) -> serde_json::Value {
     let timeout = timeout_s.to_string();
     let args = [
         &[
@@ -72,7 +72,7 @@ pub fn headless_run(url: &str, timeout_s: u32, extra: &[&str]) -> serde_json::Va
 }
 
 /// Runs `vl ARGS…`, which must refuse with exit code 2 and say `needle`.
-pub fn refused(args: &[&str], needle: &str) {
+pub(crate) fn refused(args: &[&str], needle: &str) {
     let out = vl(args);
     assert_eq!(out.status.code(), Some(2), "vl {args:?}: {}", stderr(&out));
     assert!(
@@ -84,7 +84,7 @@ pub fn refused(args: &[&str], needle: &str) {
 }
 
 /// A `vl` process that is killed when the test ends, pass or fail.
-pub struct VlProcess(pub Child);
+pub(crate) struct VlProcess(pub Child);
 
 impl Drop for VlProcess {
     fn drop(&mut self) {
@@ -95,7 +95,7 @@ impl Drop for VlProcess {
 
 /// Starts `vl ARGS…` (in `dir`, if given) and returns it with the end of
 /// its first line after `prefix`: where it listens, or its device.
-pub fn start_vl_in(dir: Option<&Path>, args: &[&str], prefix: &str) -> (VlProcess, String) {
+pub(crate) fn start_vl_in(dir: Option<&Path>, args: &[&str], prefix: &str) -> (VlProcess, String) {
     let mut command = Command::new(vl_bin());
     command.args(args).stdout(Stdio::piped());
     if let Some(dir) = dir {
@@ -116,12 +116,12 @@ pub fn start_vl_in(dir: Option<&Path>, args: &[&str], prefix: &str) -> (VlProces
     (process, rest)
 }
 
-pub fn start_vl(args: &[&str], prefix: &str) -> (VlProcess, String) {
+pub(crate) fn start_vl(args: &[&str], prefix: &str) -> (VlProcess, String) {
     start_vl_in(None, args, prefix)
 }
 
 /// Starts `vl host` on the simulated lab on a free port; returns its URL.
-pub fn start_host(extra: &[&str]) -> (VlProcess, String) {
+pub(crate) fn start_host(extra: &[&str]) -> (VlProcess, String) {
     start_host_on(&[&["--robot", "sim"], extra].concat())
 }
 
@@ -131,18 +131,18 @@ fn start_host_on(args: &[&str]) -> (VlProcess, String) {
 }
 
 /// Starts `vl host` driving the Khepera on serial `device`; returns its URL.
-pub fn start_khepera_host(device: &str) -> (VlProcess, String) {
+pub(crate) fn start_khepera_host(device: &str) -> (VlProcess, String) {
     start_khepera_host_with(device, &[])
 }
 
 /// The same with `extra` arguments.
-pub fn start_khepera_host_with(device: &str, extra: &[&str]) -> (VlProcess, String) {
+pub(crate) fn start_khepera_host_with(device: &str, extra: &[&str]) -> (VlProcess, String) {
     start_host_on(&[&["--robot", "khepera", "--port", device], extra].concat())
 }
 
 /// Starts `vl media` in front of `upstream` with `profile` (a name or a
 /// file) and `extra` arguments; returns its URL.
-pub fn start_media(upstream: &str, profile: &str, extra: &[&str]) -> (VlProcess, String) {
+pub(crate) fn start_media(upstream: &str, profile: &str, extra: &[&str]) -> (VlProcess, String) {
     let args = [
         &[
             "media",
@@ -162,7 +162,7 @@ pub fn start_media(upstream: &str, profile: &str, extra: &[&str]) -> (VlProcess,
 }
 
 /// Starts `vl khepera-emu ARGS…`; returns its pseudo-terminal's device.
-pub fn start_emulator(extra: &[&str]) -> (VlProcess, String) {
+pub(crate) fn start_emulator(extra: &[&str]) -> (VlProcess, String) {
     let args = [&["khepera-emu"], extra].concat();
     let (process, rest) = start_vl(&args, "vl khepera-emu: ");
     let device = rest.rsplit(' ').next().expect("a device").to_owned();
@@ -171,7 +171,7 @@ pub fn start_emulator(extra: &[&str]) -> (VlProcess, String) {
 
 /// Starts `vl khepera-emu --truth ARGS…`; returns its device and the
 /// emulator's later lines (its robot's true pose and contacts) as they come.
-pub fn start_emulator_watched(
+pub(crate) fn start_emulator_watched(
     extra: &[&str],
 ) -> (VlProcess, String, std::sync::mpsc::Receiver<String>) {
     let args = [&["khepera-emu", "--truth"], extra].concat();
@@ -199,7 +199,7 @@ pub fn start_emulator_watched(
 }
 
 /// A fresh, empty directory for one test's files.
-pub fn scratch(name: &str) -> PathBuf {
+pub(crate) fn scratch(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("a scratch directory");
@@ -207,12 +207,12 @@ pub fn scratch(name: &str) -> PathBuf {
 }
 
 /// A path as the `&str` an argument list wants.
-pub fn s(p: &Path) -> &str {
+pub(crate) fn s(p: &Path) -> &str {
     p.to_str().expect("scratch paths are UTF-8")
 }
 
 /// A port nothing listens on right now.
-pub fn free_port() -> u16 {
+pub(crate) fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
         .and_then(|l| l.local_addr())
         .expect("a free port")

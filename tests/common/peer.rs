@@ -12,41 +12,43 @@ use tokio_tungstenite::{MaybeTlsStream, WebSocketStream, connect_async};
 /// A Guest's control period: how long after a feedback its next command goes.
 const CONTROL_PERIOD: Duration = Duration::from_millis(10);
 
-pub type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
+pub(crate) type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
 
-pub struct Peer {
+pub(crate) struct Peer {
     pub ws: Socket,
     /// Camera frames seen while waiting for text messages.
     pub frames: usize,
 }
 
 impl Peer {
-    pub async fn connect(url: &str) -> Peer {
+    pub(crate) async fn connect(url: &str) -> Peer {
         Peer::try_connect(url).await.expect("connects")
     }
 
-    pub async fn try_connect(url: &str) -> Result<Peer, tokio_tungstenite::tungstenite::Error> {
+    pub(crate) async fn try_connect(
+        url: &str,
+    ) -> Result<Peer, tokio_tungstenite::tungstenite::Error> {
         let (ws, _) = connect_async(url).await?;
         Ok(Peer { ws, frames: 0 })
     }
 
-    pub async fn send(&mut self, message: Value) {
+    pub(crate) async fn send(&mut self, message: Value) {
         self.send_text(&message.to_string()).await;
     }
 
-    pub async fn send_text(&mut self, text: &str) {
+    pub(crate) async fn send_text(&mut self, text: &str) {
         self.ws.send(Message::text(text)).await.expect("sends");
     }
 
     /// The next text message of `kind`, skipping others; `None` when none
     /// comes within `wait` or the connection ends.
-    pub async fn next_of(&mut self, kind: &str, wait: Duration) -> Option<Value> {
+    pub(crate) async fn next_of(&mut self, kind: &str, wait: Duration) -> Option<Value> {
         self.next_of_any(&[kind], wait).await
     }
 
     /// The next text message of one of `kinds`, skipping others; `None`
     /// when none comes within `wait` or the connection ends.
-    pub async fn next_of_any(&mut self, kinds: &[&str], wait: Duration) -> Option<Value> {
+    pub(crate) async fn next_of_any(&mut self, kinds: &[&str], wait: Duration) -> Option<Value> {
         tokio::time::timeout(wait, async {
             loop {
                 let v = self.next_text().await?;
@@ -61,7 +63,7 @@ impl Peer {
     }
 
     /// The next text message of any kind within 5 s.
-    pub async fn next_any(&mut self) -> Option<Value> {
+    pub(crate) async fn next_any(&mut self) -> Option<Value> {
         tokio::time::timeout(Duration::from_secs(5), self.next_text())
             .await
             .ok()
@@ -90,14 +92,14 @@ impl Peer {
     }
 
     /// The next text message of `kind`; panics after 5 s.
-    pub async fn expect(&mut self, kind: &str) -> Value {
+    pub(crate) async fn expect(&mut self, kind: &str) -> Value {
         self.next_of(kind, Duration::from_secs(5))
             .await
             .unwrap_or_else(|| panic!("no {kind} within 5 s"))
     }
 
     /// The next `error`, which must carry `code`.
-    pub async fn expect_error(&mut self, code: &str) -> Value {
+    pub(crate) async fn expect_error(&mut self, code: &str) -> Value {
         let e = self.expect("error").await;
         assert_eq!(e["code"], code, "{e}");
         assert!(!e["message"].as_str().unwrap_or("").is_empty());
@@ -105,7 +107,7 @@ impl Peer {
     }
 
     /// The first feedback the Host produced at least `ms` after `since`.
-    pub async fn feedback_after(&mut self, since: &Value, ms: f64) -> Value {
+    pub(crate) async fn feedback_after(&mut self, since: &Value, ms: f64) -> Value {
         let t0 = since["t_ms"].as_f64().expect("feedback has t_ms");
         loop {
             let f = self.expect("feedback").await;
@@ -115,7 +117,7 @@ impl Peer {
         }
     }
 
-    pub async fn hello(&mut self, role: &str) -> Value {
+    pub(crate) async fn hello(&mut self, role: &str) -> Value {
         self.send(json!({"type": "hello", "protocol": 1, "role": role}))
             .await;
         self.expect("welcome").await
@@ -123,7 +125,7 @@ impl Peer {
 
     /// Mounts `experiment` and starts a run on the defaults, once the lab
     /// is ready (after a run the robot first drives back to its start).
-    pub async fn start(&mut self, experiment: &str) {
+    pub(crate) async fn start(&mut self, experiment: &str) {
         self.send(json!({"type": "mount", "experiment": experiment}))
             .await;
         self.expect("mounted").await;
@@ -131,7 +133,7 @@ impl Peer {
     }
 
     /// Starts a run of what is mounted, once the lab is ready.
-    pub async fn start_run(&mut self) {
+    pub(crate) async fn start_run(&mut self) {
         for _ in 0..30 {
             self.send(json!({"type": "start"})).await;
             let answer = self
@@ -151,7 +153,7 @@ impl Peer {
     }
 
     /// Waits until the Host says the lab is ready.
-    pub async fn ready(&mut self) {
+    pub(crate) async fn ready(&mut self) {
         loop {
             let status = self
                 .next_of("status", Duration::from_secs(60))
@@ -165,7 +167,7 @@ impl Peer {
 
     /// Sends command `event` (`drive` holds its speeds), waits for its
     /// feedback and then a control period, as a Guest's loop does.
-    pub async fn command(&mut self, event: u64, drive: Value) -> Value {
+    pub(crate) async fn command(&mut self, event: u64, drive: Value) -> Value {
         let mut message = drive;
         message["type"] = json!("command");
         message["event"] = json!(event);
@@ -182,7 +184,7 @@ impl Peer {
 }
 
 /// Whether every number in `v` is finite (and none is null where a number was).
-pub fn finite(v: &Value) -> bool {
+pub(crate) fn finite(v: &Value) -> bool {
     match v {
         Value::Number(n) => n.as_f64().is_some_and(f64::is_finite),
         Value::Object(o) => o.values().all(finite),
@@ -192,14 +194,14 @@ pub fn finite(v: &Value) -> bool {
 }
 
 /// Feedback whose pose and wheels are finite numbers.
-pub fn assert_finite_feedback(f: &Value) {
+pub(crate) fn assert_finite_feedback(f: &Value) {
     for key in ["pose", "wheels"] {
         assert!(f[key].is_object() && finite(&f[key]), "{key} in {f}");
     }
 }
 
 /// Resident and peak memory of process `pid`, MB.
-pub fn memory_mb(pid: u32) -> (f64, f64) {
+pub(crate) fn memory_mb(pid: u32) -> (f64, f64) {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
     let field = |name: &str| {
         status

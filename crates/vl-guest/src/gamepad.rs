@@ -14,11 +14,11 @@ use vl_core::Joystick;
 
 /// Readings within this of centre count as the stick at rest: sticks
 /// rarely return exactly to it.
-pub const DEAD_ZONE: f64 = 0.08;
+pub(crate) const DEAD_ZONE: f64 = 0.08;
 
 /// An absolute axis's range, as the device reports it.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AxisRange {
+pub(crate) struct AxisRange {
     pub minimum: i32,
     pub maximum: i32,
 }
@@ -26,7 +26,7 @@ pub struct AxisRange {
 impl AxisRange {
     /// A raw value as −1..1 from the minimum to the maximum, with the dead
     /// zone at the centre taken out.
-    pub fn normalise(&self, raw: i32) -> f64 {
+    pub(crate) fn normalise(&self, raw: i32) -> f64 {
         let span = f64::from(self.maximum) - f64::from(self.minimum);
         if span <= 0.0 {
             return 0.0;
@@ -65,7 +65,7 @@ impl PadInput {
 
 /// The stick from its two axes' normalised readings (y as evdev reports
 /// it, positive toward the operator), kept within the unit circle.
-pub fn stick(x: f64, y_toward_operator: f64) -> Joystick {
+pub(crate) fn stick(x: f64, y_toward_operator: f64) -> Joystick {
     let (x, y) = (x, -y_toward_operator);
     let length = x.hypot(y);
     if length > 1.0 {
@@ -100,7 +100,7 @@ pub struct Effect {
 }
 
 /// Forces weaker than this are not rendered: the pad stays still in the open.
-pub const FELT: f64 = 0.02;
+pub(crate) const FELT: f64 = 0.02;
 
 /// The effect for `force` in joystick axes (x right, y forward, each −1..1):
 /// rumble as strong as the force, and a constant force pushing the stick

@@ -33,19 +33,19 @@ const GUARD_START: Duration = Duration::from_secs(3);
 const GUARD_EXIT: Duration = Duration::from_secs(1);
 
 /// One exchange at a time with a robot.
-pub trait Line: Send {
+pub(crate) trait Line: Send {
     /// Sends `command` (without a line ending) and returns the reply line.
     fn exchange(&mut self, command: &str) -> Result<String, RobotError>;
 }
 
 /// A robot's serial port, opened directly.
-pub struct SerialLine {
+pub(crate) struct SerialLine {
     port: Box<dyn SerialPort>,
 }
 
 impl SerialLine {
     /// Opens `device` at `baud`: 8 data bits, no parity, 2 stop bits.
-    pub fn open(device: &str, baud: u32) -> Result<SerialLine, RobotError> {
+    pub(crate) fn open(device: &str, baud: u32) -> Result<SerialLine, RobotError> {
         let port = serialport::new(device, baud)
             .data_bits(DataBits::Eight)
             .parity(Parity::None)
@@ -100,7 +100,7 @@ impl Line for SerialLine {
 }
 
 /// The Host's end of a guard process holding the port.
-pub struct GuardedLine {
+pub(crate) struct GuardedLine {
     guard: Child,
     to_guard: Option<ChildStdin>,
     replies: mpsc::Receiver<String>,
@@ -113,7 +113,11 @@ const GUARD_ERROR: &str = "!error ";
 impl GuardedLine {
     /// Starts `program serial-guard --port DEVICE --baud BAUD` (the `vl`
     /// binary) and waits for it to hold the port.
-    pub fn spawn(program: &Path, device: &str, baud: u32) -> Result<GuardedLine, RobotError> {
+    pub(crate) fn spawn(
+        program: &Path,
+        device: &str,
+        baud: u32,
+    ) -> Result<GuardedLine, RobotError> {
         let mut guard = Command::new(program)
             .args([
                 "serial-guard",

@@ -26,7 +26,7 @@ use crate::drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotRead
 const MAX_CATCH_UP_S: f64 = 0.03;
 
 /// The simulated robot.
-pub struct SimRobot {
+pub(crate) struct SimRobot {
     world: Arc<Mutex<World>>,
     model: RobotModel,
     since: Instant,
@@ -40,7 +40,7 @@ pub struct SimRobot {
 /// The simulated overhead camera: a thread of its own exposes a frame
 /// every period, as a real camera does whether anyone looks or not; each
 /// arrives the optics' delay later, and some never do.
-pub struct RenderedCamera {
+pub(crate) struct RenderedCamera {
     shared: Arc<InFlight>,
     /// The camera as the lab believes it is (its calibration).
     believed: CameraModel,
@@ -103,13 +103,13 @@ impl RenderedCamera {
 }
 
 /// The simulator's knowledge of where the robot truly is.
-pub struct SimWitness {
+pub(crate) struct SimWitness {
     world: Arc<Mutex<World>>,
 }
 
 /// How the simulated camera is set up: `nominal` looks straight down over
 /// the arena; `optics` spoil it; the lab believes `believed`.
-pub struct SimCameraSetup {
+pub(crate) struct SimCameraSetup {
     pub nominal: CameraModel,
     pub optics: Optics,
     pub believed: CameraModel,
@@ -117,7 +117,7 @@ pub struct SimCameraSetup {
 
 /// A simulated robot, camera and witness on `arena`, with `seed` for the
 /// sensor noise, and what people will do in the lab.
-pub fn sim_lab(
+pub(crate) fn sim_lab(
     arena: Arena,
     robot: RobotModel,
     seed: u64,

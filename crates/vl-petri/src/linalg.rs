@@ -8,7 +8,7 @@
 const PRIMES: [u64; 2] = [(1 << 61) - 1, 2_305_843_009_213_693_921];
 
 /// The rank of `m` (rows of equal length) over the rationals.
-pub fn rank(m: &[Vec<i64>]) -> usize {
+pub(crate) fn rank(m: &[Vec<i64>]) -> usize {
     PRIMES.iter().map(|&p| rank_mod(m, p)).max().unwrap_or(0)
 }
 
@@ -51,7 +51,7 @@ fn rank_mod(m: &[Vec<i64>], p: u64) -> usize {
 /// row divided by its gcd). A row whose elimination would overflow is
 /// kept, so a row said to be dependent always is one; a kept row may, in
 /// that rare case, be dependent after all.
-pub fn basis_rows(m: &[Vec<i64>], order: &[usize]) -> Vec<bool> {
+pub(crate) fn basis_rows(m: &[Vec<i64>], order: &[usize]) -> Vec<bool> {
     let mut kept = vec![false; m.len()];
     // Echelon rows, each as (its pivot column, its non-zero entries).
     let mut echelon: Vec<(usize, Vec<(usize, i128)>)> = Vec::new();

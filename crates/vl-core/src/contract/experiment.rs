@@ -120,15 +120,15 @@ pub const LOOKAHEAD_MM: std::ops::RangeInclusive<f64> = 5.0..=200.0;
 
 /// The most path points a definition may carry: a path across the largest
 /// arena at a quarter-cell spacing has a few thousand.
-pub const MAX_PATH_POINTS: usize = 10_000;
+pub(crate) const MAX_PATH_POINTS: usize = 10_000;
 /// The most virtual obstacles a definition may carry.
-pub const MAX_VIRTUAL_OBSTACLES: usize = 64;
+pub(crate) const MAX_VIRTUAL_OBSTACLES: usize = 64;
 /// The most vertices one virtual polygon may have, and all of a
 /// definition's virtual obstacles together (a box or circle counts 4): the
 /// safety layer measures the distance to them every control period, so
 /// their size bounds its time.
-pub const MAX_POLYGON_VERTICES: usize = 256;
-pub const MAX_VIRTUAL_VERTICES: usize = 1024;
+pub(crate) const MAX_POLYGON_VERTICES: usize = 256;
+pub(crate) const MAX_VIRTUAL_VERTICES: usize = 1024;
 
 /// What is wrong with a definition, in words a user can act on.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

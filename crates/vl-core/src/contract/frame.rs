@@ -16,7 +16,7 @@
 use thiserror::Error;
 
 /// Bytes before the image payload.
-pub const HEADER_LEN: usize = 36;
+pub(crate) const HEADER_LEN: usize = 36;
 const MAGIC: &[u8; 4] = b"VLF1";
 
 /// The largest frame either side accepts.

@@ -210,7 +210,7 @@ impl RobotKind {
 
 /// The Khepera's speed unit is encoder pulses per this period (its on-board
 /// speed controller's), s.
-pub const SPEED_PERIOD_S: f64 = 0.01;
+pub(crate) const SPEED_PERIOD_S: f64 = 0.01;
 /// The firmware's speed limit, pulses per speed period.
 pub const MAX_PULSES_PER_PERIOD: i64 = 127;
 

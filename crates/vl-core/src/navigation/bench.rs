@@ -13,7 +13,7 @@ use crate::{
 };
 
 /// The smallest map the benchmark's walls and gaps fit on, cells a side.
-pub const MIN_BENCH_CELLS: u32 = 50;
+pub(crate) const MIN_BENCH_CELLS: u32 = 50;
 
 /// Median milliseconds of each planning stage.
 #[derive(Debug, Clone, Serialize)]

@@ -31,7 +31,7 @@ pub enum CSpaceError {
 
 /// The most cells (over all θ slices) a C-space may have: about 1.5 GB
 /// of grids, NF1 values and queue.
-pub const MAX_CELLS: u64 = 200_000_000;
+pub(crate) const MAX_CELLS: u64 = 200_000_000;
 
 /// A square-celled occupancy grid: `blocked` is row-major from the top row.
 #[derive(Debug, Clone, PartialEq)]

@@ -196,7 +196,7 @@ impl Follower {
 /// What the forward and side proximity sensors say about nearby obstacles,
 /// counting only readings above a threshold.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Avoidance {
+pub(crate) struct Avoidance {
     /// Turn away from the obstacles (positive left), 0–about 2.
     pub turn: f64,
     /// Strongest counted reading, 0–1.
@@ -208,7 +208,7 @@ pub struct Avoidance {
 impl Avoidance {
     /// Each sensor facing forward or sideways turns the robot away from its
     /// side, more the nearer the obstacle (a Braitenberg-style deflection).
-    pub fn sense(robot: &RobotModel, proximity: &[u16], above: u16) -> Avoidance {
+    pub(crate) fn sense(robot: &RobotModel, proximity: &[u16], above: u16) -> Avoidance {
         let mut a = Avoidance::default();
         let span = f64::from(1023u16.saturating_sub(above).max(1));
         for (mount, &reading) in robot.sensors.iter().zip(proximity) {

@@ -90,7 +90,7 @@ impl Plan {
 }
 
 /// The cell the robot stands in at `pose`, if it is free.
-pub fn locate(cspace: &CSpace, pose: Pose, which: PathEnd) -> Result<Cell, NoPath> {
+pub(crate) fn locate(cspace: &CSpace, pose: Pose, which: PathEnd) -> Result<Cell, NoPath> {
     let grid = cspace.grid();
     let (w, h) = grid.size_mm();
     let (c, r) = grid.cell_of(pose.point()).ok_or(NoPath::OffMap {
@@ -366,7 +366,12 @@ fn knots(cspace: &CSpace, start: Pose, goal: Pose, cells: &[Cell]) -> Vec<Knot> 
 /// through every few cells, with knots added wherever a sample falls in a
 /// blocked cell, or straight lines between cell centres when even a knot
 /// at every cell does not keep it clear.
-pub fn smooth(cspace: &CSpace, start: Pose, goal: Pose, cells: &[Cell]) -> (Vec<Pose>, Smoothing) {
+pub(crate) fn smooth(
+    cspace: &CSpace,
+    start: Pose,
+    goal: Pose,
+    cells: &[Cell],
+) -> (Vec<Pose>, Smoothing) {
     let all = knots(cspace, start, goal, cells);
     let step = cspace.grid().cell_mm / SAMPLES_PER_CELL;
     let rho = heading_mm(cspace);

@@ -4,11 +4,11 @@
 
 /// A point the spline passes through: x, y and a third coordinate (the
 /// heading scaled to mm, or 0 for a robot whose heading does not matter).
-pub type Knot = [f64; 3];
+pub(crate) type Knot = [f64; 3];
 
 /// A natural cubic spline (zero curvature at both ends) in three coordinates.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Spline {
+pub(crate) struct Spline {
     /// Chord-length parameter of each knot; starts at 0.
     t: Vec<f64>,
     knots: Vec<Knot>,
@@ -19,7 +19,7 @@ pub struct Spline {
 impl Spline {
     /// The spline through `knots`, in order. Repeated consecutive knots are
     /// merged; a single knot gives a spline of length 0.
-    pub fn through(knots: &[Knot]) -> Spline {
+    pub(crate) fn through(knots: &[Knot]) -> Spline {
         let mut kept: Vec<Knot> = Vec::with_capacity(knots.len());
         let mut t = Vec::with_capacity(knots.len());
         for &k in knots {
@@ -50,7 +50,7 @@ impl Spline {
     }
 
     /// The knot interval holding parameter `t`.
-    pub fn interval(&self, t: f64) -> usize {
+    pub(crate) fn interval(&self, t: f64) -> usize {
         let n = self.t.len();
         if n < 2 {
             return 0;
@@ -83,19 +83,19 @@ impl Spline {
     /// included, each with its parameter. Uniform in the parameter within
     /// each interval, then halved wherever the curve runs faster than its
     /// chord.
-    pub fn sample(&self, step: f64) -> Vec<(f64, Knot)> {
+    pub(crate) fn sample(&self, step: f64) -> Vec<(f64, Knot)> {
         self.sample_intervals(0..self.intervals(), step)
     }
 
     /// The number of intervals between knots.
-    pub fn intervals(&self) -> usize {
+    pub(crate) fn intervals(&self) -> usize {
         self.knots.len().saturating_sub(1)
     }
 
     /// The part of [`Self::sample`] that falls in `intervals`, after their
     /// first knot (which the part before ends with) unless they start the
     /// spline: parts taken over adjoining ranges join into the whole.
-    pub fn sample_intervals(
+    pub(crate) fn sample_intervals(
         &self,
         intervals: std::ops::Range<usize>,
         step: f64,

@@ -43,14 +43,14 @@ const RETRY_MAX: Duration = Duration::from_secs(1);
 
 /// Whether the lab's devices answer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct LabStatus {
+pub(crate) struct LabStatus {
     pub robot: DeviceState,
     pub camera: DeviceState,
 }
 
 impl LabStatus {
     /// The status message, with whether the lab is `ready` for a run.
-    pub fn message(&self, lab: Readiness) -> HostMessage {
+    pub(crate) fn message(&self, lab: Readiness) -> HostMessage {
         HostMessage::Status {
             robot: self.robot,
             camera: self.camera,
@@ -94,7 +94,7 @@ pub struct Devices {
 
 /// What the lab is, as the Guest needs it at mount.
 #[derive(Debug, Clone)]
-pub struct LabInfo {
+pub(crate) struct LabInfo {
     /// The map: the floor as the camera saw it when the lab started (the
     /// arena model when the lab has no camera).
     pub arena: Arena,
@@ -104,7 +104,7 @@ pub struct LabInfo {
 
 /// Requests from the session to the control loop.
 #[derive(Debug)]
-pub enum LabRequest {
+pub(crate) enum LabRequest {
     /// A run of `experiment` begins. Teleoperation adds the potential
     /// fields to the operator's commands and feeds the push back as a
     /// force; navigation ends when the robot reaches the goal.
@@ -131,10 +131,10 @@ pub enum LabRequest {
 
 /// Run number `.0` ended; the session reports it.
 #[derive(Debug, Clone)]
-pub struct Finished(pub u64, pub Summary);
+pub(crate) struct Finished(pub u64, pub Summary);
 
 /// The session's handle on the running lab.
-pub struct Lab {
+pub(crate) struct Lab {
     pub info: LabInfo,
     requests: mpsc::Sender<LabRequest>,
     /// Newest robot feedback.
@@ -157,7 +157,7 @@ impl Lab {
     /// camera, its first frame maps the floor of `arena` and locates the
     /// robot; without one, the arena model is the map and odometry alone
     /// says where the robot is.
-    pub fn spawn(
+    pub(crate) fn spawn(
         devices: Devices,
         arena: Arena,
         policy: FramePolicy,
@@ -252,12 +252,12 @@ impl Lab {
     }
 
     /// Has the camera loop send its next frame, whatever the policy.
-    pub fn request_frame(&self) {
+    pub(crate) fn request_frame(&self) {
         self.frame_wanted.store(true, Ordering::Relaxed);
     }
 
     /// Passes a request to the control loop.
-    pub fn request(&self, request: LabRequest) {
+    pub(crate) fn request(&self, request: LabRequest) {
         // The control loop only ends when this handle is dropped.
         let _ = self.requests.send(request);
     }

@@ -94,7 +94,7 @@ impl Default for HostConfig {
 const HUB_QUEUE: usize = 256;
 
 /// Accepts connections on `listener` and serves the lab until the task is dropped.
-pub async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
+pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
     let (hub_tx, hub_rx) = mpsc::channel(HUB_QUEUE);
     let feedback = lab.feedback.clone();
     let frames = lab.frames.clone();
