@@ -639,8 +639,8 @@ pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Resul
             emit(&watched, args.json)?;
             return Ok(ExitCode::SUCCESS);
         }
-        let report =
-            interruptible(runtime, scripted(&args.connect, &script))?.map_err(guest_error)?;
+        let report = interruptible(runtime, vl_guest::run_script(&args.connect, &script))?
+            .map_err(guest_error)?;
         return finish(&report, args.json);
     }
     let pad = gamepad(&args.gamepad, args.dead_man)?;
@@ -698,7 +698,7 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
     }
     if args.headless || !has_display {
         let script = script(&args.run, None, !args.json);
-        let report = interruptible(runtime, scripted(&url, &script))??;
+        let report = interruptible(runtime, vl_guest::run_script(&url, &script))??;
         return finish(&report, args.json);
     }
     eprintln!("vl demo: simulated lab at {url}");
@@ -706,15 +706,6 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
     let pad = gamepad(&GamepadChoice::Auto, false)?;
     vl_guest::run_window(&url, Role::Operator, None, pad)?;
     Ok(ExitCode::SUCCESS)
-}
-
-/// The scripted Guest for the experiment: the Host follows the planned
-/// path in navigation; an operator steers along it in teleoperation.
-async fn scripted(url: &str, script: &Script) -> Result<RunReport, ScriptError> {
-    match script.experiment {
-        Experiment::Teleoperation => vl_guest::teleoperate(url, script).await,
-        Experiment::Navigation => vl_guest::drive_to_goal(url, script).await,
-    }
 }
 
 fn script(run: &RunArgs, token: Option<String>, progress: bool) -> Script {

@@ -1,10 +1,9 @@
 //! One way to print what a command found: a [`Table`] for people, or with
 //! `--json` the same report as JSON for programs.
 
-use std::fmt;
-
 use anyhow::Result;
 use serde::Serialize;
+pub(crate) use vl_core::table::{Table, count, yes};
 
 /// A report a command prints.
 pub(crate) trait Report: Serialize {
@@ -20,131 +19,4 @@ pub(crate) fn emit(report: &impl Report, json: bool) -> Result<()> {
         print!("{}", report.table());
     }
     Ok(())
-}
-
-/// Rows of cells printed in aligned columns: the first column to the
-/// left, the others (figures) to the right; a table of pairs keeps its
-/// values to the left. Lines before and after it stay as they are.
-#[derive(Debug, Default)]
-pub(crate) struct Table {
-    before: Vec<String>,
-    header: Option<Vec<String>>,
-    rows: Vec<Vec<String>>,
-    after: Vec<String>,
-    /// Name–value rows: values to the left.
-    pairs: bool,
-}
-
-impl Table {
-    /// A table of names and values.
-    pub(crate) fn pairs<'a>(rows: impl IntoIterator<Item = (&'a str, String)>) -> Table {
-        Table {
-            rows: rows
-                .into_iter()
-                .map(|(name, value)| vec![name.to_owned(), value])
-                .collect(),
-            pairs: true,
-            ..Table::default()
-        }
-    }
-
-    /// A table with a header row; add rows with [`Table::row`].
-    pub(crate) fn columns(header: &[&str]) -> Table {
-        Table {
-            header: Some(header.iter().map(|h| (*h).to_owned()).collect()),
-            ..Table::default()
-        }
-    }
-
-    pub(crate) fn row(&mut self, cells: Vec<String>) {
-        self.rows.push(cells);
-    }
-
-    /// A line printed above the table.
-    pub(crate) fn title(mut self, line: impl Into<String>) -> Table {
-        self.before.push(line.into());
-        self
-    }
-
-    /// A line printed below the table.
-    pub(crate) fn note(mut self, line: impl Into<String>) -> Table {
-        self.after.push(line.into());
-        self
-    }
-}
-
-impl fmt::Display for Table {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        for line in &self.before {
-            writeln!(f, "{line}")?;
-        }
-        let lines: Vec<&Vec<String>> = self.header.iter().chain(&self.rows).collect();
-        let columns = lines.iter().map(|l| l.len()).max().unwrap_or(0);
-        let width = |c: usize| {
-            lines
-                .iter()
-                .filter_map(|l| l.get(c))
-                .map(|cell| cell.chars().count())
-                .max()
-                .unwrap_or(0)
-        };
-        let widths: Vec<usize> = (0..columns).map(width).collect();
-        for line in lines {
-            let mut text = String::new();
-            for (c, cell) in line.iter().enumerate() {
-                let pad = widths[c] - cell.chars().count();
-                let last = c + 1 == line.len();
-                if c > 0 {
-                    text.push_str("  ");
-                }
-                if c == 0 || self.pairs {
-                    text.push_str(cell);
-                    if !last {
-                        text.push_str(&" ".repeat(pad));
-                    }
-                } else {
-                    text.push_str(&" ".repeat(pad));
-                    text.push_str(cell);
-                }
-            }
-            writeln!(f, "{}", text.trim_end())?;
-        }
-        for line in &self.after {
-            writeln!(f, "{line}")?;
-        }
-        Ok(())
-    }
-}
-
-/// "1 token", "2 tokens": a count with its noun, singular or plural.
-pub(crate) fn count(n: impl Into<u64>, singular: &str, plural: &str) -> String {
-    let n = n.into();
-    format!("{n} {}", if n == 1 { singular } else { plural })
-}
-
-/// "yes" or "no".
-pub(crate) fn yes(b: bool) -> &'static str {
-    if b { "yes" } else { "no" }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn columns_align_by_characters_not_bytes() {
-        let mut t = Table::columns(&["model", "states", "θ"]);
-        t.row(vec!["a".into(), "1".into(), "°".into()]);
-        t.row(vec!["longer".into(), "12345".into(), "10°".into()]);
-        assert_eq!(
-            t.to_string(),
-            "model   states    θ\n\
-             a            1    °\n\
-             longer   12345  10°\n"
-        );
-        let p = Table::pairs([("net", "x".to_owned()), ("bounded", "yes".to_owned())]);
-        assert_eq!(p.to_string(), "net      x\nbounded  yes\n");
-        assert_eq!(count(1u32, "token", "tokens"), "1 token");
-        assert_eq!(count(0u32, "token", "tokens"), "0 tokens");
-    }
 }

@@ -52,7 +52,7 @@ fn the_matrix_keeps_event_based_runs_synchronised_and_writes_its_report() {
         let legs = &run["delays"];
         assert!(legs["guest_to_host"]["p99"].is_number(), "{run}");
         assert!(legs["host_to_guest"]["p50"].is_number(), "{run}");
-        if run["control"] == "event" {
+        if run["pacing"] == "event" {
             assert!(run["max_event_gap"].as_u64() <= Some(1), "{run}");
             assert_eq!(run["sync_violations"], 0, "{run}");
         }
@@ -62,7 +62,7 @@ fn the_matrix_keeps_event_based_runs_synchronised_and_writes_its_report() {
         .iter()
         .find(|r| {
             r["profile"] == "intercontinental"
-                && r["control"] == "time"
+                && r["pacing"] == "time"
                 && r["experiment"] == "teleoperation"
         })
         .unwrap();
@@ -75,7 +75,7 @@ fn the_matrix_keeps_event_based_runs_synchronised_and_writes_its_report() {
         .iter()
         .find(|r| {
             r["profile"] == "geo-satellite"
-                && r["control"] == "event"
+                && r["pacing"] == "event"
                 && r["experiment"] == "teleoperation"
         })
         .unwrap();

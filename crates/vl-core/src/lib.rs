@@ -21,6 +21,7 @@ mod named;
 mod navigation;
 mod safety;
 mod syntax;
+pub mod table;
 mod teleop;
 mod vision;
 
@@ -56,8 +57,10 @@ pub use navigation::analysis::{
     ErrorMm, PathAnalysis, PathRecorder, PoseSource, distance_to_polyline, nearest_rank,
 };
 pub use navigation::bench::{PlanBench, PlanBenchError, bench as bench_planning};
-pub use navigation::cspace::{CSpace, CSpaceError, FAR, Footprint, Grid};
+pub use navigation::cspace::{CSpace, Footprint};
+pub use navigation::distance::FAR;
 pub use navigation::follow::{Follower, Following, Steer};
+pub use navigation::grid::{CSpaceError, Grid};
 pub use navigation::localise::{Fold, Localiser, Uncertainty};
 pub use navigation::nf1::{Cell, Nf1};
 pub use navigation::plan::{

@@ -126,6 +126,17 @@ pub enum ScriptError {
     NoPath(#[from] ArenaPlanError),
 }
 
+/// Runs `script` against the Host at `url`: the Host follows the planned
+/// path in navigation; a scripted operator steers along it in
+/// teleoperation. The one way `demo`, `guest --headless` and the
+/// experiments run a Guest without a window.
+pub async fn run_script(url: &str, script: &Script) -> Result<Report, ScriptError> {
+    match script.experiment {
+        Experiment::Navigation => drive_to_goal(url, script).await,
+        Experiment::Teleoperation => teleoperate(url, script).await,
+    }
+}
+
 /// Says on stderr that the Host does not answer or the link dropped,
 /// when progress is shown.
 fn tell(progress: bool, incoming: &Incoming) {

@@ -1,10 +1,12 @@
 //! The vl Guest: the user's side of the lab. `client` speaks to a Host,
 //! `session` holds what the Guest knows, `route` plans paths for the Host to follow,
 //! `gamepad` reads a real stick and renders the force on it,
-//! `app` draws it all in a window and `headless` scripts it without one.
+//! `app` draws it all in a window and `headless` scripts it without one;
+//! `experiment` runs the lab's experiments on a simulated Host, measured.
 
 mod app;
 mod client;
+pub mod experiment;
 mod gamepad;
 mod headless;
 mod netview;
@@ -19,7 +21,8 @@ pub use gamepad::{Effect, Pad, PadInput, effect};
 #[cfg(target_os = "linux")]
 pub use gamepad::{Gamepad, GamepadError};
 pub use headless::{
-    Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, teleoperate, watch,
+    Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, run_script, teleoperate,
+    watch,
 };
 pub use predict::Predictor;
 pub use route::{EditRefused, Route, check_path, drag_path};

@@ -14,21 +14,21 @@ mod khepera;
 mod link;
 mod noise;
 mod odometry;
+mod optics;
 mod scene;
 mod script;
 mod tcp;
 mod world;
 
 pub use bench::{SimBench, bench};
-pub use camera::{
-    Optics, OpticsError, Renderer, SimCalibration, calibrate, camera_for, render_target,
-};
+pub use camera::{Renderer, SimCalibration, calibrate, camera_for, render_target};
 pub use emulator::{Emulator, EmulatorError, Line};
 pub use khepera::Khepera;
 pub use link::{
     Distribution, Expected, Link, LinkModel, LinkReport, LinkStats, Loss, Profile, measure,
 };
 pub use odometry::{OdometryFit, measure_odometry};
+pub use optics::{Optics, OpticsError};
 pub use scene::{SceneEvent, Scheduled};
 pub use script::{Driver, RunReport, Script, ScriptError, Tracking, run};
 pub use tcp::{Delivery, LinkSpecError, MessageLink, RTO_MS};

@@ -5,7 +5,9 @@
 pub(crate) mod analysis;
 pub(crate) mod bench;
 pub(crate) mod cspace;
+pub(crate) mod distance;
 pub(crate) mod follow;
+pub(crate) mod grid;
 pub(crate) mod localise;
 pub(crate) mod nf1;
 pub(crate) mod plan;

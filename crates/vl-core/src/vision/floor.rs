@@ -9,7 +9,7 @@ use image::{GrayImage, Luma, RgbImage};
 use super::{Connectivity, Mask, binarise, components, grey, is_robot, otsu, robot_pose};
 use crate::model::arena::map::dark_boxes;
 use crate::model::camera::CameraModel;
-use crate::navigation::cspace::{CSpaceError, Grid};
+use crate::navigation::grid::{CSpaceError, Grid};
 use crate::{Arena, Material, Obstacle, Point, Pose};
 
 /// One frame, binarised and labelled: dark pixels are obstacles or the

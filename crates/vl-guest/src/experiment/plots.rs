@@ -5,18 +5,21 @@
 use std::path::{Path, PathBuf};
 use std::sync::Once;
 
-use anyhow::{Result, anyhow};
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use vl_core::Point;
 
+use super::ExperimentError;
+
+type Result<T> = std::result::Result<T, ExperimentError>;
+
 const SIZE: (u32, u32) = (800, 480);
 const FONT: &str = "sans-serif";
 
 /// Series colours: the first for event-based runs, the second for time-based.
-pub(crate) const EVENT: RGBColor = RGBColor(0x1f, 0x77, 0xb4);
-pub(crate) const TIME: RGBColor = RGBColor(0xd6, 0x27, 0x28);
+pub(super) const EVENT: RGBColor = RGBColor(0x1f, 0x77, 0xb4);
+pub(super) const TIME: RGBColor = RGBColor(0xd6, 0x27, 0x28);
 const PLANNED: RGBColor = RGBColor(0x99, 0x99, 0x99);
 /// A third series where there is one.
 const THIRD: RGBColor = RGBColor(0x2c, 0xa0, 0x2c);
@@ -47,20 +50,28 @@ fn both(dir: &Path, name: &str, picture: &impl Picture) -> Result<PathBuf> {
     {
         let root = SVGBackend::new(&svg, SIZE).into_drawing_area();
         picture.draw(&root)?;
-        root.present()
-            .map_err(|e| anyhow!("cannot write {}: {e}", svg.display()))?;
+        root.present().map_err(|e| draw_error(&svg, e))?;
     }
     {
         let root = BitMapBackend::new(&png, SIZE).into_drawing_area();
         picture.draw(&root)?;
-        root.present()
-            .map_err(|e| anyhow!("cannot write {}: {e}", png.display()))?;
+        root.present().map_err(|e| draw_error(&png, e))?;
     }
     Ok(PathBuf::from(format!("{name}.png")))
 }
 
-fn err(e: impl std::fmt::Display) -> anyhow::Error {
-    anyhow!("cannot draw: {e}")
+fn err(e: impl std::fmt::Display) -> ExperimentError {
+    ExperimentError::Draw {
+        what: "a plot".into(),
+        why: e.to_string(),
+    }
+}
+
+fn draw_error(file: &Path, e: impl std::fmt::Display) -> ExperimentError {
+    ExperimentError::Draw {
+        what: file.display().to_string(),
+        why: e.to_string(),
+    }
 }
 
 /// A chart with the report's look: white, titled, its axes labelled.
@@ -106,7 +117,7 @@ fn legend<'a, DB: DrawingBackend + 'a>(
 }
 
 /// A histogram of each leg's one-way delays, ms.
-pub(crate) fn delays(
+pub(super) fn delays(
     dir: &Path,
     name: &str,
     title: &str,
@@ -196,10 +207,10 @@ pub(crate) fn delays(
 }
 
 /// A labelled, coloured series of (x, y) points.
-pub(crate) type Series = (String, RGBColor, Vec<(f64, f64)>);
+pub(super) type Series = (String, RGBColor, Vec<(f64, f64)>);
 
 /// Lines of (x, y) points, one per labelled series.
-pub(crate) fn lines(
+pub(super) fn lines(
     dir: &Path,
     name: &str,
     title: &str,
@@ -267,7 +278,7 @@ pub(crate) fn lines(
 }
 
 /// The planned path and the paths the robot truly took, on the arena's floor.
-pub(crate) fn paths(
+pub(super) fn paths(
     dir: &Path,
     name: &str,
     title: &str,

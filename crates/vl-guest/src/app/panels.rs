@@ -1,0 +1,321 @@
+//! The side panel's controls: mount, define (the goal, the path, virtual
+//! obstacles, the settings) and execute, and the on-screen joystick.
+
+use egui::{Color32, Sense, Stroke, Vec2};
+use vl_core::{Action, Definition, Experiment, GuestMessage, LOOKAHEAD_MM};
+
+use super::*;
+
+impl GuestApp {
+    pub(super) fn controls(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Mount");
+        for experiment in self.session.experiments.clone() {
+            let mounted = self
+                .session
+                .lab
+                .as_ref()
+                .is_some_and(|l| l.experiment == experiment.id);
+            let button = egui::Button::new(&experiment.title).selected(mounted);
+            if ui
+                .add_enabled(self.session.allows(Action::Mount), button)
+                .clicked()
+            {
+                self.connection.send(GuestMessage::Mount {
+                    experiment: experiment.id.to_string(),
+                });
+            }
+        }
+        if let Some(lab) = self.session.lab.clone() {
+            ui.separator();
+            if self.session.is_operator() {
+                self.define_panel(ui, lab.experiment);
+            } else {
+                ui.heading("Definition");
+                ui.label(
+                    match self.session.definition.as_ref().and_then(|d| d.goal) {
+                        Some(goal) => format!(
+                            "the operator's goal: ({:.0}, {:.0}) mm",
+                            goal.x_mm, goal.y_mm
+                        ),
+                        None => "the operator has defined nothing yet".into(),
+                    },
+                );
+            }
+            ui.separator();
+            ui.heading("Execute");
+            if self.session.is_operator() {
+                self.execute_buttons(ui);
+            }
+            if !self.session.ready() {
+                ui.colored_label(
+                    Color32::YELLOW,
+                    "Getting ready: the robot drives back to its start pose.",
+                );
+            }
+            if let Some(done) = &self.session.done {
+                let goal = match (lab.experiment, done.reached_goal) {
+                    (_, true) => ", goal reached",
+                    (Experiment::Navigation, false) => ", goal not reached",
+                    (Experiment::Teleoperation, false) => "",
+                };
+                ui.label(format!(
+                    "Last run: {}{goal} after {:.1} s, {:.0} mm driven, {} contacts.",
+                    done.reason, done.seconds, done.distance_mm, done.collisions
+                ));
+                if let Some(why) = done.held_back {
+                    ui.label(format!("Why: {why}."));
+                }
+                if let Some(who) = done.stopped_by {
+                    ui.label(format!("The emergency stop was pressed by {who}."));
+                }
+            }
+        }
+        if self.session.role.is_some() {
+            ui.separator();
+            egui::CollapsingHeader::new("Lab net")
+                .default_open(false)
+                .show(ui, |ui| netview::show(ui, &self.session.nets));
+        }
+        if let Some(robot) = &self.session.robot {
+            ui.separator();
+            ui.heading("Robot");
+            ui.label(format!(
+                "pose ({:.0}, {:.0}) mm, {:.0}°",
+                robot.pose.x_mm,
+                robot.pose.y_mm,
+                robot.pose.theta_rad.to_degrees()
+            ));
+            ui.label(format!(
+                "wheels {:.0} / {:.0} mm/s{}",
+                robot.wheels.left_mm_s,
+                robot.wheels.right_mm_s,
+                if robot.contact { " · CONTACT" } else { "" }
+            ));
+            ui.label("proximity");
+            for (i, &value) in robot.proximity.iter().enumerate() {
+                ui.add(
+                    egui::ProgressBar::new(f32::from(value) / 1023.0)
+                        .text(format!("IR{i} {value}"))
+                        .desired_height(12.0),
+                );
+            }
+        }
+        if !self.session.errors.is_empty() {
+            ui.separator();
+            ui.heading("Host said");
+            for (_, message) in self.session.errors.iter().rev() {
+                ui.colored_label(Color32::LIGHT_RED, message);
+            }
+        }
+    }
+
+    /// The operator's definition: the goal (and in navigation the path
+    /// planned to it), virtual obstacles, the settings.
+    fn define_panel(&mut self, ui: &mut egui::Ui, experiment: Experiment) {
+        ui.heading("Define");
+        ui.label(match experiment {
+            Experiment::Navigation => {
+                "Click the view for a goal; Define plans the path the robot follows."
+            }
+            Experiment::Teleoperation => "Click the view for a target to drive to (optional).",
+        });
+        ui.horizontal(|ui| {
+            ui.label("goal x");
+            ui.add(egui::DragValue::new(&mut self.goal.x_mm).suffix(" mm"));
+            ui.label("y");
+            ui.add(egui::DragValue::new(&mut self.goal.y_mm).suffix(" mm"));
+        });
+        ui.horizontal(|ui| {
+            ui.label("within");
+            ui.add(
+                egui::DragValue::new(&mut self.goal.tolerance_mm)
+                    .range(1.0..=200.0)
+                    .suffix(" mm"),
+            );
+            if ui
+                .add_enabled(
+                    self.session.allows(Action::Define),
+                    egui::Button::new("Define"),
+                )
+                .clicked()
+            {
+                self.define();
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut self.drawing, "draw obstacles")
+                .on_hover_text(
+                    "drag on the view to draw a virtual obstacle the robot must keep out of",
+                );
+            let drawn = self.virtual_obstacles.len();
+            if drawn > 0 {
+                ui.label(format!("{drawn} drawn"));
+                if ui.button("Clear").clicked() {
+                    self.virtual_obstacles.clear();
+                }
+            }
+        });
+        if let Some(note) = &self.plan_note {
+            ui.label(note);
+        }
+        self.settings_panel(ui);
+    }
+
+    /// Start, Stop, and the drive back to the start pose.
+    fn execute_buttons(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            // Defining is optional: a run may start on the defaults.
+            if ui
+                .add_enabled(
+                    self.session.allows(Action::Start),
+                    egui::Button::new("Start"),
+                )
+                .clicked()
+            {
+                self.connection.send(GuestMessage::Start);
+            }
+            if ui
+                .add_enabled(self.session.allows(Action::Stop), egui::Button::new("Stop"))
+                .clicked()
+            {
+                self.connection.send(GuestMessage::Stop);
+            }
+            let between_runs = !self.session.nets.allows(Action::Stop) && self.session.ready();
+            if ui
+                .add_enabled(between_runs, egui::Button::new("Back to start"))
+                .on_hover_text(
+                    "the robot drives back to the lab's start pose, as it does after every run",
+                )
+                .clicked()
+            {
+                self.connection.send(GuestMessage::Reset);
+            }
+        });
+    }
+
+    /// Plans a path from the robot to the goal on the lab's map and defines
+    /// both. Navigation needs the path; in teleoperation, without one, the
+    /// goal alone is defined as a target to drive to by hand.
+    fn define(&mut self) {
+        let Some(lab) = &self.session.lab else { return };
+        let start = self
+            .session
+            .robot
+            .as_ref()
+            .map_or(lab.arena.start, |r| r.pose);
+        let obstacles = self.virtual_obstacles.clone();
+        let definition = match Route::plan(lab, start, self.goal, obstacles.clone(), &self.settings)
+        {
+            Ok(route) => {
+                self.plan_note = Some(format!(
+                    "path {:.0} mm; the body keeps {:.0} mm from obstacles",
+                    route.plan.length_mm,
+                    route.body_clearance_mm(lab)
+                ));
+                route.definition
+            }
+            Err(e) if lab.experiment == Experiment::Navigation => {
+                self.plan_note = Some(format!(
+                    "Not defined: no path to the goal ({e}). Move the goal, or clear the obstacles drawn."
+                ));
+                return;
+            }
+            Err(e) => {
+                self.plan_note = Some(format!("no path ({e}): drive there by hand"));
+                Definition {
+                    goal: Some(self.goal),
+                    virtual_obstacles: obstacles,
+                    max_speed_mm_s: self.settings.max_speed_mm_s,
+                    ..Definition::default()
+                }
+            }
+        };
+        self.connection.send(GuestMessage::Define { definition });
+    }
+
+    pub(super) fn joystick(&mut self, ui: &mut egui::Ui) {
+        // Smaller in a small window, so the view keeps the room.
+        let size = JOYSTICK_PX.min(ui.ctx().content_rect().height() * 0.2);
+        ui.horizontal(|ui| {
+            let (response, painter) = ui.allocate_painter(Vec2::splat(size), Sense::drag());
+            let centre = response.rect.center();
+            let radius = size / 2.0 - 4.0;
+            if let Some(pointer) = response.interact_pointer_pos().filter(|_| response.dragged()) {
+                let offset = (pointer - centre) / radius;
+                let offset = if offset.length() > 1.0 { offset.normalized() } else { offset };
+                self.joystick = Vec2::new(offset.x, -offset.y);
+            } else {
+                self.joystick = Vec2::ZERO;
+            }
+            painter.circle_stroke(centre, radius, Stroke::new(2.0, Color32::GRAY));
+            // Screen y runs down; the stick's y is forward.
+            let on_pad = |v: Vec2| centre + Vec2::new(v.x, -v.y) * radius;
+            if let Some(doing) = self.doing() {
+                painter.circle_stroke(on_pad(doing), 10.0, Stroke::new(2.0, Color32::WHITE));
+            }
+            let asked = self.asked;
+            painter.circle_filled(
+                on_pad(Vec2::new(asked.x as f32, asked.y as f32)),
+                14.0,
+                ROBOT_COLOUR,
+            );
+            let force = self.session.robot.as_ref().and_then(|r| r.force);
+            if let Some([fx, fy]) = force.filter(|f| f[0].hypot(f[1]) > 0.02) {
+                let tip = on_pad(Vec2::new(fx as f32, fy as f32));
+                painter.arrow(centre, tip - centre, Stroke::new(4.0, FORCE_COLOUR));
+            }
+            ui.vertical(|ui| {
+                ui.label("Drag the stick or hold the arrow keys to drive\n(commands flow while a run is started).");
+                ui.label("Filled: what you ask. Ring: what the robot does.");
+                if force.is_some() {
+                    ui.label("Red arrow: the obstacles' push you would feel.");
+                }
+                if self.session.robot.as_ref().is_some_and(|r| r.limited) {
+                    ui.colored_label(Color32::YELLOW, "The Host's safety layer is holding the robot back.");
+                }
+            });
+        });
+    }
+
+    /// The settings the next definition takes (thesis F.6), kept on change.
+    fn settings_panel(&mut self, ui: &mut egui::Ui) {
+        let before = self.settings;
+        egui::CollapsingHeader::new("Settings").show(ui, |ui| {
+            let s = &mut self.settings;
+            ui.horizontal(|ui| {
+                ui.label("look-ahead");
+                ui.add(
+                    egui::DragValue::new(&mut s.lookahead_mm)
+                        .range(LOOKAHEAD_MM)
+                        .suffix(" mm"),
+                );
+            });
+            ui.horizontal(|ui| {
+                ui.label("margin");
+                ui.add(
+                    egui::DragValue::new(&mut s.margin_mm)
+                        .range(MARGIN_MM)
+                        .suffix(" mm"),
+                );
+            });
+            ui.horizontal(|ui| {
+                let mut limited = s.max_speed_mm_s.is_some();
+                ui.checkbox(&mut limited, "speed limit");
+                let mut v = s.max_speed_mm_s.unwrap_or(200.0);
+                ui.add_enabled(
+                    limited,
+                    egui::DragValue::new(&mut v)
+                        .range(MAX_SPEED_MM_S)
+                        .suffix(" mm/s"),
+                );
+                s.max_speed_mm_s = limited.then_some(v);
+            });
+        });
+        if self.settings != before
+            && let Some(file) = &self.settings_file
+            && let Err(e) = self.settings.save(file)
+        {
+            self.plan_note = Some(e.to_string());
+        }
+    }
+}

@@ -1,0 +1,133 @@
+//! The matrix's report as Markdown: its figures, the runs that failed, the
+//! time analysis and the pictures.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use vl_core::table::{Table, yes};
+
+use super::matrix::{Matrix, headline};
+use super::{ExperimentError, Leg, Run};
+
+fn ms(v: Option<Leg>) -> [String; 4] {
+    match v {
+        Some(l) => [l.p50, l.p90, l.p99, l.max].map(|x| format!("{x:.1}")),
+        None => ["–".into(), "–".into(), "–".into(), "–".into()],
+    }
+}
+
+/// Writes report.md into `dir`, with the pictures named.
+pub(super) fn write(
+    dir: &Path,
+    m: &Matrix,
+    pictures: &[(String, PathBuf)],
+) -> Result<(), ExperimentError> {
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "# The Internet in the loop: event-based against time-based control\n"
+    );
+    let _ = writeln!(
+        md,
+        "{} runs on the `{}` arena, {} seed(s) per cell, over the Media (`vl media`) with each link \
+         profile; {:.0} s of wall time. Written by `vl experiment report`.\n",
+        m.runs.len(),
+        m.arena,
+        m.seeds,
+        m.wall_s
+    );
+    let _ = writeln!(
+        md,
+        "*navigation*: the Host follows the planned path from the camera's estimate (the Guest sends no \
+         commands, so pacing does not apply). *teleoperation*: a scripted operator steers toward waypoints \
+         along the planned path from the feedback it sees, sending commands either after each \
+         feedback (*event*) or every 20 ms (*time*). Errors in mm; *max gap*: the largest number \
+         of events a command ran ahead of the feedback it was sent on (event-based control keeps \
+         it at 1); *sync lost*: commands more than one event ahead; *predict*: the predictive \
+         display's pose against the feedback that came next; *stale*: the last reported pose \
+         against it.\n"
+    );
+    let _ = writeln!(md, "## Results\n\n```\n{}```\n", headline(&m.cells));
+    let failed: Vec<&Run> = m.runs.iter().filter(|r| !r.succeeded()).collect();
+    if !failed.is_empty() {
+        let _ = writeln!(
+            md,
+            "### Runs that failed\n\nCounted in *goal* above, left out of every other figure and \
+             picture:\n"
+        );
+        let mut t = Table::columns(&[
+            "experiment",
+            "profile",
+            "pacing",
+            "seed",
+            "ended",
+            "collisions",
+        ]);
+        for r in failed {
+            t.row(vec![
+                r.experiment.to_string(),
+                r.profile.clone().unwrap_or_default(),
+                r.pacing.to_string(),
+                r.seed.to_string(),
+                r.end.clone(),
+                r.collisions.to_string(),
+            ]);
+        }
+        let _ = writeln!(md, "```\n{t}```\n");
+    }
+    let _ = writeln!(
+        md,
+        "Event-based runs synchronised at every command: **{}**. Collisions over all runs: **{}**.\n",
+        yes(m.event_based_synchronised),
+        m.collisions
+    );
+    let _ = writeln!(md, "## Time analysis (thesis §7.4.3)\n");
+    let _ = writeln!(
+        md,
+        "One-way delays each message was held for, in ms, measured at the Media on one clock \
+         (frames: from leaving the Host's socket to reaching the Guest's; the Host's capture and \
+         encoding time is not in it); round trips measured by the Guest's pings (end to end, \
+         through the Host's WebSocket task; the p99 is the largest run's).\n"
+    );
+    let mut t = Table::columns(&["profile", "leg", "messages", "p50", "p90", "p99", "max"]);
+    for timing in &m.timing {
+        for (leg, v) in [
+            ("Guest → Host", timing.guest_to_host),
+            ("Host → Guest", timing.host_to_guest),
+            ("frames → Guest", timing.frames_to_guest),
+        ] {
+            let [a, b, c, d] = ms(v);
+            let messages = v.map_or("0".into(), |l| l.messages.to_string());
+            t.row(vec![
+                timing.profile.clone(),
+                leg.into(),
+                messages,
+                a,
+                b,
+                c,
+                d,
+            ]);
+        }
+        t.row(vec![
+            timing.profile.clone(),
+            "round trip (pings)".into(),
+            String::new(),
+            format!("{:.1}", timing.round_trip_p50_ms),
+            String::new(),
+            format!("{:.1}", timing.round_trip_p99_ms),
+            String::new(),
+        ]);
+    }
+    let _ = writeln!(md, "```\n{t}```\n");
+    let _ = writeln!(md, "## Pictures\n");
+    for (caption, png) in pictures {
+        let svg = png.with_extension("svg");
+        let _ = writeln!(
+            md,
+            "### {caption}\n\n![{caption}]({})\n\n([SVG]({}))\n",
+            png.display(),
+            svg.display()
+        );
+    }
+    super::write(&dir.join("report.md"), md)
+}

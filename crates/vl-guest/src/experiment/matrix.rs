@@ -1,0 +1,611 @@
+//! `vl experiment report`: the thesis's chapter 7 as one command. Every link
+//! profile × {navigation; teleoperation paced by event; by time} × seeds,
+//! run a few at a time, then `report.md` (tables and plots), `report.json`
+//! and the plots as SVG and PNG.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+use serde::Serialize;
+use vl_core::table::Table;
+use vl_core::{Arena, Experiment};
+use vl_host::{Delays, FramePolicy};
+use vl_sim::{LinkModel, Optics};
+
+use super::plots::{self, EVENT, TIME};
+use super::{ExperimentError, Leg, Pacing, Run, RunSpec, overall, run_one};
+use crate::session::Spread;
+
+/// One cell of the matrix, over its seeds.
+#[derive(Serialize, Clone)]
+pub struct Cell {
+    pub experiment: Experiment,
+    pub profile: String,
+    pub pacing: Pacing,
+    pub runs: usize,
+    pub reached_goal: usize,
+    pub collisions: u64,
+    /// The largest gap in any run, and the violations summed over runs.
+    pub max_event_gap: u64,
+    pub sync_violations: u64,
+    pub tracking_error_mm: Option<vl_core::ErrorMm>,
+    /// Of the runs that succeeded: none when none did.
+    pub completion_s: Option<f64>,
+    pub prediction_error_mm: Option<[f64; 2]>,
+    pub stale_error_mm: Option<[f64; 2]>,
+    /// The Guest's ping round trip, median over runs, ms.
+    pub round_trip_p50_ms: f64,
+}
+
+/// One profile's legs, pooled over its runs.
+#[derive(Serialize)]
+pub struct Timing {
+    pub profile: String,
+    pub guest_to_host: Option<Leg>,
+    pub host_to_guest: Option<Leg>,
+    pub frames_to_guest: Option<Leg>,
+    pub round_trip_p50_ms: f64,
+    /// The largest of the runs' p99 round trips.
+    pub round_trip_p99_ms: f64,
+}
+
+#[derive(Serialize)]
+pub struct Matrix {
+    pub profiles: Vec<String>,
+    pub seeds: u64,
+    pub arena: String,
+    pub wall_s: f64,
+    pub cells: Vec<Cell>,
+    pub timing: Vec<Timing>,
+    pub runs: Vec<Run>,
+    /// Event-based runs: every one within one event, none touching anything.
+    pub event_based_synchronised: bool,
+    pub collisions: u64,
+}
+
+impl Matrix {
+    /// The matrix of `runs` over the `links` (profile names) they were run
+    /// on, `seeds` per cell on `arena`, which took `wall_s`.
+    pub fn of(links: &[String], seeds: u64, arena: &str, wall_s: f64, runs: Vec<Run>) -> Matrix {
+        let mut summary = Vec::new();
+        let mut timing = Vec::new();
+        for name in links {
+            for &(experiment, pacing) in CELLS {
+                let these: Vec<&Run> = runs
+                    .iter()
+                    .filter(|r| {
+                        r.profile.as_deref() == Some(name)
+                            && r.experiment == experiment
+                            && r.pacing == pacing
+                    })
+                    .collect();
+                if !these.is_empty() {
+                    summary.push(cell(&these));
+                }
+            }
+            let of = |r: &&Run| r.profile.as_deref() == Some(name.as_str());
+            let pooled = |pick: fn(&Delays) -> &Vec<f64>| -> Vec<f64> {
+                runs.iter()
+                    .filter(of)
+                    .filter_map(|r| r.delays.as_ref())
+                    .flat_map(|d| pick(&d.samples).iter().copied())
+                    .collect()
+            };
+            let mut rtt: Vec<f64> = runs
+                .iter()
+                .filter(of)
+                .map(|r| r.round_trip_ms.p50)
+                .collect();
+            rtt.sort_by(f64::total_cmp);
+            let mut rtt99: Vec<f64> = runs
+                .iter()
+                .filter(of)
+                .map(|r| r.round_trip_ms.p99)
+                .collect();
+            rtt99.sort_by(f64::total_cmp);
+            timing.push(Timing {
+                profile: name.clone(),
+                guest_to_host: Leg::of(&pooled(|d| &d.to_host)),
+                host_to_guest: Leg::of(&pooled(|d| &d.to_guest)),
+                frames_to_guest: Leg::of(&pooled(|d| &d.frames_to_guest)),
+                round_trip_p50_ms: rtt.get(rtt.len() / 2).copied().unwrap_or(f64::NAN),
+                round_trip_p99_ms: rtt99.last().copied().unwrap_or(f64::NAN),
+            });
+        }
+        Matrix {
+            profiles: links.to_vec(),
+            seeds,
+            arena: arena.to_owned(),
+            wall_s,
+            event_based_synchronised: runs
+                .iter()
+                .filter(|r| r.pacing == Pacing::Event)
+                .all(|r| r.max_event_gap <= 1 && r.sync_violations == 0),
+            collisions: runs.iter().map(|r| r.collisions).sum(),
+            cells: summary,
+            timing,
+            runs,
+        }
+    }
+
+    /// Writes report.md, report.json and the pictures into `dir`, drawing
+    /// the paths over `arena`.
+    pub fn write(&self, dir: &Path, arena: &Arena) -> Result<(), ExperimentError> {
+        let pictures = draw(dir, self, arena)?;
+        super::markdown::write(dir, self, &pictures)?;
+        let json = serde_json::to_string_pretty(self).map_err(|e| ExperimentError::Draw {
+            what: "report.json".into(),
+            why: e.to_string(),
+        })?;
+        super::write(&dir.join("report.json"), json)
+    }
+}
+
+/// The matrix's figures, a row per cell.
+pub fn headline(cells: &[Cell]) -> Table {
+    let mut table = Table::columns(&[
+        "experiment",
+        "profile",
+        "pacing",
+        "goal",
+        "collisions",
+        "max gap",
+        "sync lost",
+        "track mean",
+        "track max",
+        "seconds",
+        "predict mean",
+        "predict max",
+        "stale mean",
+        "rtt p50",
+    ]);
+    let pair = |v: Option<[f64; 2]>, k: usize| v.map_or("–".into(), |v| format!("{:.1}", v[k]));
+    for c in cells {
+        table.row(vec![
+            c.experiment.to_string(),
+            c.profile.clone(),
+            match (c.experiment, c.pacing) {
+                (Experiment::Navigation, _) => "host".into(),
+                (_, Pacing::Event) => "event".into(),
+                (_, Pacing::Time) => "time".into(),
+            },
+            format!("{}/{}", c.reached_goal, c.runs),
+            c.collisions.to_string(),
+            c.max_event_gap.to_string(),
+            c.sync_violations.to_string(),
+            c.tracking_error_mm
+                .map_or("–".into(), |e| format!("{:.1}", e.mean)),
+            c.tracking_error_mm
+                .map_or("–".into(), |e| format!("{:.1}", e.max)),
+            c.completion_s.map_or("–".into(), |s| format!("{s:.1}")),
+            pair(c.prediction_error_mm, 0),
+            pair(c.prediction_error_mm, 1),
+            pair(c.stale_error_mm, 0),
+            format!("{:.0}", c.round_trip_p50_ms),
+        ]);
+    }
+    table
+}
+
+/// A cell of the matrix: how many of its runs reached the goal, and the
+/// figures of those that succeeded (a failed run's would mislead; the
+/// report lists it with why it ended).
+fn cell(all: &[&Run]) -> Cell {
+    let first = all[0];
+    let runs: Vec<&Run> = all.iter().copied().filter(|r| r.succeeded()).collect();
+    let owned: Vec<Run> = runs.iter().map(|r| (*r).clone()).collect();
+    let spreads = |pick: fn(&Run) -> Spread| {
+        let s: Vec<Spread> = runs
+            .iter()
+            .map(|r| pick(r))
+            .filter(|s| s.count > 0)
+            .collect();
+        (!s.is_empty()).then(|| {
+            [
+                s.iter().map(|s| s.mean).sum::<f64>() / s.len() as f64,
+                s.iter().map(|s| s.max).fold(0.0, f64::max),
+            ]
+        })
+    };
+    // The link's round trip is the link's, whatever became of the run.
+    let mut rtts: Vec<f64> = all.iter().map(|r| r.round_trip_ms.p50).collect();
+    rtts.sort_by(f64::total_cmp);
+    Cell {
+        experiment: first.experiment,
+        profile: first.profile.clone().unwrap_or_default(),
+        pacing: first.pacing,
+        runs: all.len(),
+        reached_goal: all.iter().filter(|r| r.reached_goal).count(),
+        collisions: all.iter().map(|r| r.collisions).sum(),
+        max_event_gap: all.iter().map(|r| r.max_event_gap).max().unwrap_or(0),
+        sync_violations: all.iter().map(|r| r.sync_violations).sum(),
+        tracking_error_mm: overall(&owned, |r| r.tracking_error_mm),
+        completion_s: (!runs.is_empty())
+            .then(|| runs.iter().map(|r| r.completion_s).sum::<f64>() / runs.len() as f64),
+        prediction_error_mm: spreads(|r| r.prediction_error_mm),
+        stale_error_mm: spreads(|r| r.stale_error_mm),
+        round_trip_p50_ms: rtts[rtts.len() / 2],
+    }
+}
+
+/// The cells of the matrix: navigation, and teleoperation paced by event
+/// and by time.
+pub(super) const CELLS: &[(Experiment, Pacing)] = &[
+    (Experiment::Navigation, Pacing::Event),
+    (Experiment::Teleoperation, Pacing::Event),
+    (Experiment::Teleoperation, Pacing::Time),
+];
+
+/// The runs of every cell on every link, `seeds` seeds from `seed` each.
+pub fn cells_of(
+    links: &[(String, LinkModel)],
+    arena: &Arena,
+    seeds: std::ops::Range<u64>,
+    timeout: Duration,
+) -> Vec<RunSpec> {
+    let mut specs = Vec::new();
+    for link in links {
+        for &(experiment, pacing) in CELLS {
+            for seed in seeds.clone() {
+                specs.push(RunSpec {
+                    experiment,
+                    arena: arena.clone(),
+                    seed,
+                    optics: Optics {
+                        seed,
+                        ..Optics::default()
+                    },
+                    compensate_latency: true,
+                    frames: FramePolicy::EveryFrame,
+                    scene: Vec::new(),
+                    link: Some(link.clone()),
+                    pacing,
+                    timeout,
+                    progress: false,
+                });
+            }
+        }
+    }
+    specs
+}
+
+/// Runs `specs`, `jobs` at a time, telling `finished` of each as it ends
+/// (how many have, and the run); the runs come back in the order of `specs`.
+pub async fn run_all(
+    specs: Vec<RunSpec>,
+    jobs: usize,
+    mut finished: impl FnMut(usize, &Run),
+) -> Result<Vec<Run>, ExperimentError> {
+    let total = specs.len();
+    let slots = Arc::new(tokio::sync::Semaphore::new(jobs.max(1)));
+    let mut tasks = tokio::task::JoinSet::new();
+    for (i, spec) in specs.into_iter().enumerate() {
+        let slots = slots.clone();
+        tasks.spawn(async move {
+            let _slot = slots.acquire_owned().await;
+            (i, run_one(&spec).await)
+        });
+    }
+    let mut runs: Vec<Option<Run>> = vec![None; total];
+    let mut done = 0;
+    while let Some(joined) = tasks.join_next().await {
+        let (i, run) = joined.map_err(ExperimentError::Panicked)?;
+        let run = run?;
+        done += 1;
+        finished(done, &run);
+        runs[i] = Some(run);
+    }
+    Ok(runs.into_iter().flatten().collect())
+}
+
+/// The pictures, by what they show: (caption, PNG file name).
+fn draw(dir: &Path, m: &Matrix, arena: &Arena) -> Result<Vec<(String, PathBuf)>, ExperimentError> {
+    let mut out = Vec::new();
+    let teleop = |profile: &str, pacing: Pacing| -> Option<&Run> {
+        m.runs.iter().find(|r| {
+            r.experiment == Experiment::Teleoperation
+                && r.profile.as_deref() == Some(profile)
+                && r.pacing == pacing
+                && r.succeeded()
+        })
+    };
+    // Tracking and prediction against the round trip, event against time.
+    let by_delay = |pacing: Pacing, pick: fn(&Cell) -> Option<f64>| -> Vec<(f64, f64)> {
+        let mut v: Vec<(f64, f64)> = m
+            .cells
+            .iter()
+            .filter(|c| c.experiment == Experiment::Teleoperation && c.pacing == pacing)
+            .filter_map(|c| pick(c).map(|y| (c.round_trip_p50_ms, y)))
+            .collect();
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        v
+    };
+    let tracking = |c: &Cell| c.tracking_error_mm.map(|e| e.mean);
+    out.push((
+        "Tracking error against the round trip: teleoperation, event-based against time-based"
+            .to_owned(),
+        plots::lines(
+            dir,
+            "tracking-vs-delay",
+            "Teleoperation: tracking error against delay",
+            (
+                "round trip, ms (median of the Guest's pings)",
+                "mean distance of the true path to the planned, mm",
+            ),
+            &[
+                (
+                    "event-based".into(),
+                    EVENT,
+                    by_delay(Pacing::Event, tracking),
+                ),
+                ("time-based".into(), TIME, by_delay(Pacing::Time, tracking)),
+            ],
+            true,
+        )?,
+    ));
+    let predicted = |c: &Cell| c.prediction_error_mm.map(|e| e[0]);
+    let stale = |c: &Cell| c.stale_error_mm.map(|e| e[0]);
+    out.push((
+        "The predictive display's error against the round trip, beside showing the last feedback alone".to_owned(),
+        plots::lines(
+            dir,
+            "prediction-vs-delay",
+            "Predicted pose against the last reported pose (event-based)",
+            ("round trip, ms", "mean error against the next feedback, mm"),
+            &[
+                ("predicted (ghost)".into(), EVENT, by_delay(Pacing::Event, predicted)),
+                ("last reported".into(), TIME, by_delay(Pacing::Event, stale)),
+            ],
+            true,
+        )?,
+    ));
+    for t in &m.timing {
+        let runs: Vec<&Run> = m
+            .runs
+            .iter()
+            .filter(|r| r.profile.as_deref() == Some(t.profile.as_str()))
+            .collect();
+        let up: Vec<f64> = runs
+            .iter()
+            .filter_map(|r| r.delays.as_ref())
+            .flat_map(|d| d.samples.to_host.iter().copied())
+            .collect();
+        let down: Vec<f64> = runs
+            .iter()
+            .filter_map(|r| r.delays.as_ref())
+            .flat_map(|d| d.samples.to_guest.iter().copied())
+            .collect();
+        let frames: Vec<f64> = runs
+            .iter()
+            .filter_map(|r| r.delays.as_ref())
+            .flat_map(|d| d.samples.frames_to_guest.iter().copied())
+            .collect();
+        out.push((
+            format!("One-way delays on {}", t.profile),
+            plots::delays(
+                dir,
+                &format!("delays-{}", t.profile),
+                &format!("One-way delays: {}", t.profile),
+                &[
+                    ("Guest to Host", &up),
+                    ("Host to Guest", &down),
+                    ("frames to Guest", &frames),
+                ],
+            )?,
+        ));
+        let trace = |pacing: Pacing| -> Vec<(f64, f64)> {
+            teleop(&t.profile, pacing)
+                .and_then(|r| r.report.as_ref())
+                .map(|r| r.gaps.iter().map(|&(s, g)| (s, g as f64)).collect())
+                .unwrap_or_default()
+        };
+        out.push((
+            format!("Synchronisation over time on {}: each command's event ahead of the feedback it was sent on", t.profile),
+            plots::lines(
+                dir,
+                &format!("sync-{}", t.profile),
+                &format!("Synchronisation: {}", t.profile),
+                ("seconds into the run", "command event − feedback event seen"),
+                &[
+                    ("event-based".into(), EVENT, trace(Pacing::Event)),
+                    ("time-based".into(), TIME, trace(Pacing::Time)),
+                ],
+                false,
+            )?,
+        ));
+        let taken = |pacing: Pacing, label: &str, colour| {
+            teleop(&t.profile, pacing)
+                .and_then(|r| r.report.as_ref())
+                .and_then(|r| r.path.as_ref())
+                .map(|p| (label.to_owned(), colour, p.truth.clone()))
+        };
+        let planned = teleop(&t.profile, Pacing::Event)
+            .and_then(|r| r.report.as_ref())
+            .map(|r| r.planned.clone())
+            .unwrap_or_default();
+        let paths: Vec<_> = [
+            taken(Pacing::Event, "event-based", EVENT),
+            taken(Pacing::Time, "time-based", TIME),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        out.push((
+            format!(
+                "Paths driven by the scripted operator on {} (first seed)",
+                t.profile
+            ),
+            plots::paths(
+                dir,
+                &format!("paths-{}", t.profile),
+                &format!("Teleoperation paths: {}", t.profile),
+                (arena.width_mm, arena.height_mm),
+                &planned,
+                &paths,
+            )?,
+        ));
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::headless::RoundTripMs;
+    use vl_core::{ErrorMm, PoseSource};
+
+    /// A run on `profile` that reached its goal or not, with a tracking
+    /// error of mean `track` (max twice that) and a round trip of `rtt` ms.
+    fn run(
+        experiment: Experiment,
+        pacing: Pacing,
+        profile: &str,
+        reached: bool,
+        track: f64,
+        rtt: f64,
+    ) -> Run {
+        Run {
+            experiment,
+            arena: "open".into(),
+            seed: 0,
+            profile: Some(profile.into()),
+            pacing,
+            reached_goal: reached,
+            end: if reached {
+                "goal reached"
+            } else {
+                "time limit"
+            }
+            .into(),
+            pose_source: PoseSource::default(),
+            collisions: u64::from(!reached),
+            commands: 10,
+            max_event_gap: if pacing == Pacing::Time { 4 } else { 1 },
+            sync_violations: if pacing == Pacing::Time { 3 } else { 0 },
+            tracking_error_mm: Some(ErrorMm {
+                mean: track,
+                max: 2.0 * track,
+                rms: track,
+            }),
+            estimate_error_mm: None,
+            completion_s: 10.0,
+            prediction_error_mm: Spread::default(),
+            stale_error_mm: Spread::default(),
+            round_trip_ms: RoundTripMs {
+                p50: rtt,
+                p99: 2.0 * rtt,
+            },
+            delays: None,
+            video_bytes: 0,
+            frames_sent: 0,
+            svg: None,
+            report: None,
+        }
+    }
+
+    #[test]
+    fn a_leg_s_percentiles_are_nearest_ranks() {
+        let ms: Vec<f64> = (1..=100).rev().map(f64::from).collect();
+        let leg = Leg::of(&ms).expect("a leg");
+        assert_eq!(
+            (leg.messages, leg.p50, leg.p90, leg.p99, leg.max),
+            (100, 50.0, 90.0, 99.0, 100.0)
+        );
+        assert!(Leg::of(&[]).is_none());
+    }
+
+    #[test]
+    fn over_all_runs_means_are_averaged_and_maxima_kept() {
+        let runs = [
+            run(Experiment::Navigation, Pacing::Event, "lan", true, 2.0, 1.0),
+            run(Experiment::Navigation, Pacing::Event, "lan", true, 4.0, 1.0),
+        ];
+        let e = overall(&runs, |r| r.tracking_error_mm).expect("errors");
+        assert_eq!((e.mean, e.max), (3.0, 8.0));
+        assert!((e.rms - 10f64.sqrt()).abs() < 1e-12);
+        assert!(overall(&runs, |r| r.estimate_error_mm).is_none());
+    }
+
+    #[test]
+    fn a_cell_counts_every_run_and_measures_only_those_that_succeeded() {
+        let runs = [
+            run(
+                Experiment::Teleoperation,
+                Pacing::Event,
+                "lan",
+                true,
+                2.0,
+                3.0,
+            ),
+            run(
+                Experiment::Teleoperation,
+                Pacing::Event,
+                "lan",
+                false,
+                50.0,
+                5.0,
+            ),
+            run(
+                Experiment::Teleoperation,
+                Pacing::Event,
+                "lan",
+                true,
+                4.0,
+                4.0,
+            ),
+        ];
+        let c = cell(&runs.iter().collect::<Vec<_>>());
+        assert_eq!((c.runs, c.reached_goal, c.collisions), (3, 2, 1));
+        assert_eq!(
+            c.tracking_error_mm.map(|e| e.mean),
+            Some(3.0),
+            "the failed run left out"
+        );
+        // The link's round trip is the median over every run, failed or not.
+        assert_eq!(c.round_trip_p50_ms, 4.0);
+    }
+
+    #[test]
+    fn the_matrix_has_a_cell_per_profile_and_pacing_and_judges_event_pacing() {
+        let runs = vec![
+            run(Experiment::Navigation, Pacing::Event, "lan", true, 1.0, 1.0),
+            run(
+                Experiment::Teleoperation,
+                Pacing::Event,
+                "lan",
+                true,
+                2.0,
+                1.0,
+            ),
+            run(
+                Experiment::Teleoperation,
+                Pacing::Time,
+                "lan",
+                true,
+                3.0,
+                1.0,
+            ),
+            run(
+                Experiment::Teleoperation,
+                Pacing::Event,
+                "far",
+                true,
+                5.0,
+                300.0,
+            ),
+        ];
+        let links = ["lan".to_owned(), "far".to_owned()];
+        let m = Matrix::of(&links, 1, "open", 1.0, runs.clone());
+        assert_eq!(m.cells.len(), 4);
+        assert_eq!(m.timing.len(), 2);
+        assert_eq!(m.timing[1].round_trip_p50_ms, 300.0);
+        assert!(
+            m.event_based_synchronised,
+            "time pacing's gaps do not count"
+        );
+        let mut late = runs;
+        late[1].max_event_gap = 2;
+        assert!(!Matrix::of(&links, 1, "open", 1.0, late).event_based_synchronised);
+    }
+}

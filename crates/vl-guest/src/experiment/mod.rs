@@ -1,0 +1,344 @@
+//! The lab's experiments run headless and measured (thesis ch. 7). Each run
+//! is a simulated Host on loopback, optionally behind the Media (a relay
+//! with a modelled Internet link), and the scripted Guest against it over
+//! real sockets: mount, map from the camera, plan, define, then the Host
+//! follows the path (navigation) or a scripted operator steers along it
+//! from the delayed feedback (teleoperation). The matrix (`matrix`) runs
+//! every link profile × pacing × seeds and writes the report (`markdown`,
+//! `plots`).
+
+mod markdown;
+mod matrix;
+mod plots;
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use serde::Serialize;
+use vl_core::table::count;
+use vl_core::{ARENA_CELL_MM, Arena, ErrorMm, Experiment, PoseSource, run_svg};
+use vl_host::{Delays, FramePolicy, Host, HostConfig, Media, MediaConfig, SimCamera, SimLab};
+use vl_sim::{LinkModel, Optics, Scheduled};
+
+use crate::headless::{Report, RoundTripMs, Script, ScriptError, run_script};
+use crate::session::{ControlMode, Spread, TIME_PERIOD};
+pub use matrix::{Cell, Matrix, Timing, cells_of, headline, run_all};
+
+/// Why an experiment could not be run or reported.
+#[derive(Debug, thiserror::Error)]
+pub enum ExperimentError {
+    #[error("cannot start the simulated Host")]
+    Host(#[source] vl_host::HostError),
+    #[error("cannot start the Media")]
+    Media(#[source] vl_host::MediaError),
+    #[error("the run on {arena} with seed {seed}")]
+    Run {
+        arena: String,
+        seed: u64,
+        #[source]
+        source: ScriptError,
+    },
+    #[error("a run panicked")]
+    Panicked(#[source] tokio::task::JoinError),
+    #[error("cannot write {}", path.display())]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("cannot draw {what}: {why}")]
+    Draw { what: String, why: String },
+}
+
+/// Writes `contents` to `path`, saying which file could not be written.
+fn write(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), ExperimentError> {
+    std::fs::write(path, contents).map_err(|source| ExperimentError::Write {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+/// How the scripted operator paces its commands.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Pacing {
+    /// Command s + 1 only after the feedback for s (thesis §3.5).
+    Event,
+    /// A command every 20 ms, whatever has come back.
+    Time,
+}
+
+impl vl_core::Named for Pacing {
+    const KIND: &'static str = "pacing";
+    const ALL: &'static [Self] = &[Pacing::Event, Pacing::Time];
+
+    fn id(self) -> &'static str {
+        match self {
+            Pacing::Event => "event",
+            Pacing::Time => "time",
+        }
+    }
+}
+
+vl_core::named_by_id!(Pacing);
+
+impl Pacing {
+    fn mode(self) -> ControlMode {
+        match self {
+            Pacing::Event => ControlMode::Event,
+            Pacing::Time => ControlMode::Time {
+                period: TIME_PERIOD,
+            },
+        }
+    }
+}
+
+/// Percentiles of one leg's one-way delay, ms.
+#[derive(Serialize, Clone, Copy, Debug)]
+pub struct Leg {
+    pub messages: usize,
+    pub p50: f64,
+    pub p90: f64,
+    pub p99: f64,
+    pub max: f64,
+}
+
+impl Leg {
+    fn of(ms: &[f64]) -> Option<Leg> {
+        if ms.is_empty() {
+            return None;
+        }
+        let mut sorted = ms.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let at = |q: f64| vl_core::nearest_rank(&sorted, q).unwrap_or(f64::NAN);
+        Some(Leg {
+            messages: sorted.len(),
+            p50: at(0.5),
+            p90: at(0.9),
+            p99: at(0.99),
+            max: at(1.0),
+        })
+    }
+}
+
+/// The one-way delays each leg saw, measured at the Media.
+#[derive(Serialize, Clone, Debug)]
+pub struct Legs {
+    pub guest_to_host: Option<Leg>,
+    pub host_to_guest: Option<Leg>,
+    /// Camera frames: from leaving the Host to reaching the Guest.
+    pub frames_to_guest: Option<Leg>,
+    /// Every delay, for the report's histograms (not in --json).
+    #[serde(skip)]
+    pub samples: Delays,
+}
+
+/// One run, as `--json` gives it.
+#[derive(Serialize, Clone, Debug)]
+pub struct Run {
+    pub experiment: Experiment,
+    pub arena: String,
+    pub seed: u64,
+    /// The link between Guest and Host; none for straight loopback.
+    pub profile: Option<String>,
+    pub pacing: Pacing,
+    pub reached_goal: bool,
+    pub end: String,
+    pub pose_source: PoseSource,
+    pub collisions: u64,
+    /// Commands the operator sent, the largest gap between a command and
+    /// the feedback it was sent on, and the commands more than one ahead.
+    pub commands: u64,
+    pub max_event_gap: u64,
+    pub sync_violations: u64,
+    /// The true pose's distance to the planned path.
+    pub tracking_error_mm: Option<ErrorMm>,
+    /// The estimate's distance to the true pose.
+    pub estimate_error_mm: Option<ErrorMm>,
+    /// The run's length on the lab's clock.
+    pub completion_s: f64,
+    /// The predicted pose against the feedback that later arrived, and the
+    /// last reported pose against it.
+    pub prediction_error_mm: Spread,
+    pub stale_error_mm: Spread,
+    pub round_trip_ms: RoundTripMs,
+    pub delays: Option<Legs>,
+    pub video_bytes: u64,
+    pub frames_sent: u64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub svg: Option<PathBuf>,
+    /// The planned and the true path, for the report's pictures.
+    #[serde(skip)]
+    pub report: Option<Report>,
+}
+
+impl Run {
+    pub fn succeeded(&self) -> bool {
+        self.reached_goal && self.collisions == 0
+    }
+}
+
+pub fn spread(s: Spread) -> String {
+    if s.count == 0 {
+        "–".into()
+    } else {
+        format!("{:.1}", s.mean)
+    }
+}
+
+/// What one run is: everything `run_one` needs.
+#[derive(Clone)]
+pub struct RunSpec {
+    pub experiment: Experiment,
+    pub arena: Arena,
+    pub seed: u64,
+    pub optics: Optics,
+    pub compensate_latency: bool,
+    pub frames: FramePolicy,
+    pub scene: Vec<Scheduled>,
+    /// The link's name (as given) and model; none for straight loopback.
+    pub link: Option<(String, LinkModel)>,
+    pub pacing: Pacing,
+    pub timeout: Duration,
+    pub progress: bool,
+}
+
+/// Runs one experiment: a simulated Host, the Media in front of it when a
+/// link is given, and the scripted Guest through it.
+pub async fn run_one(spec: &RunSpec) -> Result<Run, ExperimentError> {
+    let lab = SimLab {
+        seed: spec.seed,
+        camera: Some(SimCamera {
+            optics: spec.optics,
+            calibration: None,
+        }),
+        scene: spec.scene.clone(),
+        ..SimLab::new(spec.arena.clone())
+    };
+    let config = HostConfig {
+        frames: spec.frames,
+        compensate_latency: spec.compensate_latency,
+        ..HostConfig::default()
+    };
+    let host = Host::start_sim(([127, 0, 0, 1], 0).into(), lab, config)
+        .await
+        .map_err(ExperimentError::Host)?;
+    let media = match &spec.link {
+        Some((_, model)) => Some(
+            Media::start(
+                ([127, 0, 0, 1], 0).into(),
+                MediaConfig {
+                    upstream: host.url(),
+                    model: model.clone(),
+                    seed: spec.seed,
+                },
+            )
+            .await
+            .map_err(ExperimentError::Media)?,
+        ),
+        None => None,
+    };
+    let url = media.as_ref().map_or_else(|| host.url(), Media::url);
+    let script = Script {
+        experiment: spec.experiment,
+        timeout: spec.timeout,
+        progress: spec.progress,
+        control: spec.pacing.mode(),
+        ..Script::default()
+    };
+    let report = run_script(&url, &script)
+        .await
+        .map_err(|source| ExperimentError::Run {
+            arena: spec.arena.name.clone(),
+            seed: spec.seed,
+            source,
+        })?;
+    let delays = media.as_ref().map(|m| {
+        let samples = m.delays();
+        Legs {
+            guest_to_host: Leg::of(&samples.to_host),
+            host_to_guest: Leg::of(&samples.to_guest),
+            frames_to_guest: Leg::of(&samples.frames_to_guest),
+            samples,
+        }
+    });
+    let path = report.path.as_ref();
+    Ok(Run {
+        experiment: spec.experiment,
+        arena: spec.arena.name.clone(),
+        seed: spec.seed,
+        profile: spec.link.as_ref().map(|(name, _)| name.clone()),
+        pacing: spec.pacing,
+        reached_goal: report.reached_goal,
+        end: report.ending(),
+        pose_source: report.pose_source,
+        collisions: report.collisions,
+        commands: report.commands,
+        max_event_gap: report.max_event_gap,
+        sync_violations: report.sync_violations,
+        tracking_error_mm: path.and_then(|p| p.path_error_mm),
+        estimate_error_mm: path.and_then(|p| p.estimate_error_mm),
+        completion_s: report.sim_seconds,
+        prediction_error_mm: report.prediction_error_mm,
+        stale_error_mm: report.stale_error_mm,
+        round_trip_ms: report.round_trip_ms,
+        delays,
+        video_bytes: report.video_bytes,
+        frames_sent: report.frames,
+        svg: None,
+        report: Some(report),
+    })
+}
+
+/// A run's outcome in a line of progress.
+pub fn line(run: &Run) -> String {
+    let strayed = run.tracking_error_mm.map_or(String::new(), |e| {
+        format!(
+            ", {:.1} mm from the planned path on average, {:.1} at most",
+            e.mean, e.max
+        )
+    });
+    let outcome = if run.reached_goal {
+        "reached the goal"
+    } else {
+        "did not reach the goal"
+    };
+    format!(
+        "{} seed {}: {outcome} in {:.1} s, {}{strayed}",
+        run.arena,
+        run.seed,
+        run.completion_s,
+        count(run.collisions, "collision", "collisions"),
+    )
+}
+
+/// Over `runs`: the mean of their means, the largest max, the rms of rms.
+pub fn overall(runs: &[Run], pick: fn(&Run) -> Option<ErrorMm>) -> Option<ErrorMm> {
+    let all: Vec<ErrorMm> = runs.iter().filter_map(pick).collect();
+    (!all.is_empty()).then(|| ErrorMm {
+        mean: all.iter().map(|e| e.mean).sum::<f64>() / all.len() as f64,
+        max: all.iter().map(|e| e.max).fold(0.0, f64::max),
+        rms: (all.iter().map(|e| e.rms * e.rms).sum::<f64>() / all.len() as f64).sqrt(),
+    })
+}
+
+/// Writes the run's picture (planned, estimated and true paths) into
+/// `dir`, named by arena and seed.
+pub fn picture(
+    dir: &Path,
+    arena: &Arena,
+    seed: u64,
+    report: Option<&Report>,
+) -> Result<PathBuf, ExperimentError> {
+    let file = dir.join(format!("{}-seed{seed}.svg", arena.name));
+    let Some((report, path)) = report.and_then(|r| r.path.as_ref().map(|p| (r, p))) else {
+        return Ok(file);
+    };
+    let svg = run_svg(arena, ARENA_CELL_MM, &report.planned, path).map_err(|e| {
+        ExperimentError::Draw {
+            what: format!("arena {}", arena.name),
+            why: e.to_string(),
+        }
+    })?;
+    write(&file, svg)?;
+    Ok(file)
+}
