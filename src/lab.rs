@@ -486,13 +486,14 @@ fn arena_from(name: &str, start: Option<vl_core::Pose>) -> Result<Arena> {
     Ok(arena)
 }
 
-pub(crate) async fn host(args: HostArgs) -> Result<()> {
+/// The Host's configuration from its flags, checked before anything starts.
+fn host_config(args: &HostArgs) -> Result<HostConfig> {
     if args.experiments.is_empty() {
         bail!(BadInput("--experiments names none to offer".into()));
     }
     let config = HostConfig {
-        token: args.token,
-        experiments: args.experiments,
+        token: args.token.clone(),
+        experiments: args.experiments.clone(),
         lease: seconds("--lease", args.lease)?,
         ping_timeout: seconds("--ping-timeout", args.ping_timeout)?,
         grace: if args.grace == 0.0 {
@@ -501,7 +502,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             seconds("--grace", args.grace)?
         },
         frames: args.frames.policy()?,
-        nets: args.nets,
+        nets: args.nets.clone(),
         reset: !args.no_reset,
         compensate_latency: !args.no_latency_compensation,
         ..HostConfig::default()
@@ -510,6 +511,11 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
     config
         .supervisor()
         .map_err(|e| BadInput(format!("--nets: {e}")))?;
+    Ok(config)
+}
+
+pub(crate) async fn host(args: HostArgs) -> Result<()> {
+    let config = host_config(&args)?;
     let arena = arena_from(&args.arena, args.start)?;
     let optics = args.optics.optics(args.seed)?;
     let model = match &args.robot_model {

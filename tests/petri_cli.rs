@@ -11,6 +11,36 @@ fn example(name: &str) -> String {
     format!("{}/examples/statecharts/{name}", env!("CARGO_MANIFEST_DIR"))
 }
 
+/// The composed lab's analysis, as the thesis reads it: six states, safe,
+/// live, reversible, conservative, with every figure in the JSON.
+fn analyzed_as_the_thesis_says(lab: &std::path::Path) -> serde_json::Value {
+    let a = ok_json(&["petri", "analyze", "--json", s(lab)]);
+    assert_eq!(a["states"], 6);
+    assert_eq!(a["bounded"], true);
+    assert_eq!(a["safe"], true);
+    assert_eq!(a["deadlock"], false);
+    assert_eq!(a["live"], true, "the experiment can always proceed");
+    assert_eq!(a["reversible"], true, "the lab can always return to idle");
+    assert_eq!(a["conservative"], true);
+    for key in [
+        "places",
+        "transitions",
+        "edges",
+        "max_tokens_in_place",
+        "max_tokens_per_marking",
+        "deadlock_trace",
+        "quasi_live",
+        "p_flow_basis_dim",
+        "t_flow_basis_dim",
+        "seconds",
+        "peak_heap_bytes",
+        "peak_resident_bytes",
+    ] {
+        assert!(a.get(key).is_some(), "analyze --json lacks {key}");
+    }
+    a
+}
+
 #[test]
 fn statecharts_to_a_controlled_lab_net() {
     let dir = scratch("methodology");
@@ -56,31 +86,7 @@ fn statecharts_to_a_controlled_lab_net() {
         .success()
     );
 
-    let a = ok_json(&["petri", "analyze", "--json", s(&lab)]);
-    assert_eq!(a["states"], 6);
-    assert_eq!(a["bounded"], true);
-    assert_eq!(a["safe"], true);
-    assert_eq!(a["deadlock"], false);
-    assert_eq!(a["live"], true, "the experiment can always proceed");
-    assert_eq!(a["reversible"], true, "the lab can always return to idle");
-    assert_eq!(a["conservative"], true);
-    for key in [
-        "places",
-        "transitions",
-        "edges",
-        "max_tokens_in_place",
-        "max_tokens_per_marking",
-        "deadlock_trace",
-        "quasi_live",
-        "p_flow_basis_dim",
-        "t_flow_basis_dim",
-        "seconds",
-        "peak_heap_bytes",
-        "peak_resident_bytes",
-    ] {
-        assert!(a.get(key).is_some(), "analyze --json lacks {key}");
-    }
-
+    let a = analyzed_as_the_thesis_says(&lab);
     // Forbid starting a run while the robot's last command is unanswered, and
     // limit the lab to one defined experiment at a time.
     let out = vl(&[

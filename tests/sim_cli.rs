@@ -174,6 +174,17 @@ fn bad_input_is_named() {
         &["sim", "render", "--lighting", "1.5", "-o", "/dev/null"],
         "lighting gradient must be between 0 and 1",
     );
+    let bad = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("bad-script.txt");
+    std::fs::write(&bad, "0 100\n").unwrap();
+    refused(
+        &["sim", "run", "--script", bad.to_str().unwrap()],
+        "script line 1",
+    );
+}
+
+/// Arena files with something wrong are refused, saying what and where.
+#[test]
+fn bad_arena_files_are_named() {
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
     let write = |name: &str, text: &str| {
         let p = dir.join(name);
@@ -250,12 +261,6 @@ fn bad_input_is_named() {
         ])
         .status
         .success()
-    );
-    let bad = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("bad-script.txt");
-    std::fs::write(&bad, "0 100\n").unwrap();
-    refused(
-        &["sim", "run", "--script", bad.to_str().unwrap()],
-        "script line 1",
     );
 }
 

@@ -314,20 +314,7 @@ impl Session {
                 self.last_sent = None;
                 self.predictor.start();
             }
-            HostMessage::Started { event } => {
-                self.errors.clear();
-                self.running = true;
-                self.done = None;
-                self.sent_event = event;
-                self.last_sent = None;
-                self.max_event_gap = 0;
-                self.sync_violations = 0;
-                self.gaps.clear();
-                self.run_started = Some(Instant::now());
-                self.prediction_error = Spread::default();
-                self.stale_error = Spread::default();
-                self.predictor.start();
-            }
+            HostMessage::Started { event } => self.started(event),
             HostMessage::Feedback {
                 event,
                 t_ms,
@@ -338,35 +325,17 @@ impl Session {
                 force,
                 limited,
                 source,
-            } => {
-                // Feedback can only move forward in time; an older one is stale.
-                if self.robot.as_ref().is_some_and(|r| r.t_ms > t_ms) {
-                    return;
-                }
-                let now = Instant::now();
-                if self.running
-                    && let Some((ghost, reported)) = self.predictor.judge(pose, now)
-                {
-                    self.prediction_error.add(ghost);
-                    self.stale_error.add(reported);
-                }
-                self.predictor.feedback(event, pose, wheels, now);
-                if let Some(lab) = &self.lab {
-                    self.predictor.remember(&lab.robot, now);
-                }
-                self.feedback_at = Some(now);
-                self.robot = Some(RobotState {
-                    event,
-                    t_ms,
-                    pose,
-                    wheels,
-                    proximity,
-                    contact,
-                    force,
-                    limited,
-                    source,
-                });
-            }
+            } => self.feedback(RobotState {
+                event,
+                t_ms,
+                pose,
+                wheels,
+                proximity,
+                contact,
+                force,
+                limited,
+                source,
+            }),
             HostMessage::Done { summary } => {
                 self.interrupted = false;
                 self.running = false;
@@ -378,6 +347,45 @@ impl Session {
             // The connection answers pings and bye itself.
             HostMessage::Ping { .. } | HostMessage::Pong { .. } | HostMessage::Bye => {}
         }
+    }
+
+    /// A new run began at `event`: its record starts afresh.
+    fn started(&mut self, event: u64) {
+        self.errors.clear();
+        self.running = true;
+        self.done = None;
+        self.sent_event = event;
+        self.last_sent = None;
+        self.max_event_gap = 0;
+        self.sync_violations = 0;
+        self.gaps.clear();
+        self.run_started = Some(Instant::now());
+        self.prediction_error = Spread::default();
+        self.stale_error = Spread::default();
+        self.predictor.start();
+    }
+
+    /// The robot as the newest feedback reports it; the prediction is
+    /// judged against it.
+    fn feedback(&mut self, robot: RobotState) {
+        // Feedback can only move forward in time; an older one is stale.
+        if self.robot.as_ref().is_some_and(|r| r.t_ms > robot.t_ms) {
+            return;
+        }
+        let now = Instant::now();
+        if self.running
+            && let Some((ghost, reported)) = self.predictor.judge(robot.pose, now)
+        {
+            self.prediction_error.add(ghost);
+            self.stale_error.add(reported);
+        }
+        self.predictor
+            .feedback(robot.event, robot.pose, robot.wheels, now);
+        if let Some(lab) = &self.lab {
+            self.predictor.remember(&lab.robot, now);
+        }
+        self.feedback_at = Some(now);
+        self.robot = Some(robot);
     }
 
     /// Forgets everything a Host told: a welcome opens a new connection,

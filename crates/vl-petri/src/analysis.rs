@@ -279,15 +279,11 @@ fn components(space: &StateSpace, transitions: usize) -> Components {
     }
     let liveness = (0..transitions)
         .map(|t| {
-            if in_terminals[t] == terminals && terminals > 0 {
-                Liveness::L4
-            } else if cycles[t] {
-                Liveness::L3
-            } else if fires[t] {
-                Liveness::L1
-            } else {
-                Liveness::L0
-            }
+            Liveness::of(
+                in_terminals[t] == terminals && terminals > 0,
+                cycles[t],
+                fires[t],
+            )
         })
         .collect();
     Components {

@@ -228,98 +228,133 @@ pub fn synthesize(
         let text = constraint.to_string();
         match constraint {
             Constraint::Linear { terms, bound } => {
-                let mut l = vec![0i64; plant.places.len()];
-                for (place, k) in terms {
-                    let p = plant
-                        .place(place)
-                        .ok_or_else(|| ControlError::UnknownPlace {
-                            constraint: text.clone(),
-                            place: place.clone(),
-                        })?;
-                    l[p.0] += k;
-                }
-                let l = admissible(&d, l, &uncontrollable, &unobservable).map_err(|why| {
-                    ControlError::NoController {
-                        constraint: text.clone(),
-                        why,
-                    }
-                })?;
-                let value: i64 = l
-                    .iter()
-                    .zip(&plant.places)
-                    .map(|(k, p)| k * i64::from(p.initial))
-                    .sum();
-                if value > *bound {
-                    return Err(ControlError::ViolatedInitially {
-                        constraint: text,
-                        value,
-                        bound: *bound,
-                    });
-                }
-                let id = unique_id(&net, &format!("monitor{}", n + 1));
-                let initial =
-                    u32::try_from(bound - value).map_err(|_| ControlError::NoController {
-                        constraint: text.clone(),
-                        why: "the monitor would need more than 2³² tokens".into(),
-                    })?;
-                let p = net.add_place(&id, initial).expect("the id is unused");
-                let enforced = Constraint::Linear {
-                    terms: l
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, k)| **k != 0)
-                        .map(|(i, &k)| (plant.places[i].id.clone(), k))
-                        .collect(),
-                    bound: *bound,
-                };
-                net.places[p.0].name = format!("monitor: {enforced}");
-                for t in 0..plant.transitions.len() {
-                    // D_c[t] = −(L·D)[t]
-                    let change = -effect(&d, &l, t);
-                    let weight = u32::try_from(change.unsigned_abs()).unwrap_or(u32::MAX);
-                    let kind = match change.signum() {
-                        1 => ArcKind::Output,
-                        -1 => ArcKind::Input,
-                        _ => continue,
-                    };
-                    net.add_arc(kind, &id, TransitionId(t), weight)
-                        .expect("monitor and transition exist");
-                }
-                added.push(Added::Monitor {
-                    place: id,
-                    initial,
-                    enforced,
-                });
+                let limits = (&d[..], &uncontrollable[..], &unobservable[..]);
+                added.push(monitor(plant, &mut net, limits, n, terms, *bound, text)?);
             }
             Constraint::IfThenNot { place, transition } => {
-                let p: PlaceId = plant
-                    .place(place)
-                    .ok_or_else(|| ControlError::UnknownPlace {
-                        constraint: text.clone(),
-                        place: place.clone(),
-                    })?;
-                let t = plant.transition(transition).ok_or_else(|| {
-                    ControlError::UnknownTransition {
-                        constraint: text.clone(),
-                        transition: transition.clone(),
-                    }
-                })?;
-                if uncontrollable.contains(&t) {
-                    return Err(ControlError::NoController {
-                        constraint: text,
-                        why: format!("'{transition}' is uncontrollable, so nothing may disable it"),
-                    });
-                }
-                net.add_arc(ArcKind::Inhibitor, &plant.places[p.0].id, t, 1)
-                    .expect("place and transition exist");
-                added.push(Added::Inhibitor {
-                    place: place.clone(),
-                    transition: transition.clone(),
-                });
+                added.push(inhibitor(
+                    plant,
+                    &mut net,
+                    &uncontrollable,
+                    place,
+                    transition,
+                    text,
+                )?);
             }
         }
     }
     Ok((net, added))
+}
+
+/// The monitor place that enforces constraint `n`, `terms · m ≤ bound`
+/// (its words `text`), added to `net`; `limits` are the plant's incidence
+/// matrix and its uncontrollable and unobservable transitions.
+fn monitor(
+    plant: &Net,
+    net: &mut Net,
+    (d, uncontrollable, unobservable): (&[Vec<i64>], &[TransitionId], &[TransitionId]),
+    n: usize,
+    terms: &[(String, i64)],
+    bound: i64,
+    text: String,
+) -> Result<Added, ControlError> {
+    let mut l = vec![0i64; plant.places.len()];
+    for (place, k) in terms {
+        let p = plant
+            .place(place)
+            .ok_or_else(|| ControlError::UnknownPlace {
+                constraint: text.clone(),
+                place: place.clone(),
+            })?;
+        l[p.0] += k;
+    }
+    let l = admissible(d, l, uncontrollable, unobservable).map_err(|why| {
+        ControlError::NoController {
+            constraint: text.clone(),
+            why,
+        }
+    })?;
+    let value: i64 = l
+        .iter()
+        .zip(&plant.places)
+        .map(|(k, p)| k * i64::from(p.initial))
+        .sum();
+    if value > bound {
+        return Err(ControlError::ViolatedInitially {
+            constraint: text,
+            value,
+            bound,
+        });
+    }
+    let id = unique_id(net, &format!("monitor{}", n + 1));
+    let initial = u32::try_from(bound - value).map_err(|_| ControlError::NoController {
+        constraint: text.clone(),
+        why: "the monitor would need more than 2³² tokens".into(),
+    })?;
+    let p = net.add_place(&id, initial).expect("the id is unused");
+    let enforced = Constraint::Linear {
+        terms: l
+            .iter()
+            .enumerate()
+            .filter(|(_, k)| **k != 0)
+            .map(|(i, &k)| (plant.places[i].id.clone(), k))
+            .collect(),
+        bound,
+    };
+    net.places[p.0].name = format!("monitor: {enforced}");
+    for t in 0..plant.transitions.len() {
+        // D_c[t] = −(L·D)[t]
+        let change = -effect(d, &l, t);
+        let weight = u32::try_from(change.unsigned_abs()).unwrap_or(u32::MAX);
+        let kind = match change.signum() {
+            1 => ArcKind::Output,
+            -1 => ArcKind::Input,
+            _ => continue,
+        };
+        net.add_arc(kind, &id, TransitionId(t), weight)
+            .expect("monitor and transition exist");
+    }
+    Ok(Added::Monitor {
+        place: id,
+        initial,
+        enforced,
+    })
+}
+
+/// The inhibitor arc that keeps `transition` from firing while `place` is
+/// marked, added to `net`.
+fn inhibitor(
+    plant: &Net,
+    net: &mut Net,
+    uncontrollable: &[TransitionId],
+    place: &str,
+    transition: &str,
+    text: String,
+) -> Result<Added, ControlError> {
+    let p: PlaceId = plant
+        .place(place)
+        .ok_or_else(|| ControlError::UnknownPlace {
+            constraint: text.clone(),
+            place: place.to_owned(),
+        })?;
+    let t = plant
+        .transition(transition)
+        .ok_or_else(|| ControlError::UnknownTransition {
+            constraint: text.clone(),
+            transition: transition.to_owned(),
+        })?;
+    if uncontrollable.contains(&t) {
+        return Err(ControlError::NoController {
+            constraint: text,
+            why: format!("'{transition}' is uncontrollable, so nothing may disable it"),
+        });
+    }
+    net.add_arc(ArcKind::Inhibitor, &plant.places[p.0].id, t, 1)
+        .expect("place and transition exist");
+    Ok(Added::Inhibitor {
+        place: place.to_owned(),
+        transition: transition.to_owned(),
+    })
 }
 
 /// L tightened to L + R₁ (R₁ ≥ 0) so that uncontrollable transitions cannot

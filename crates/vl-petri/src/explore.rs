@@ -241,6 +241,53 @@ fn start(net: &Net, options: &mut Options, keep: Keep) -> Result<Found, ExploreE
     })
 }
 
+/// The index of the first `states` markings of `store`, `stride` bytes each.
+fn index(store: &[u8], stride: usize, states: usize) -> HashTable<u32> {
+    let mut table = HashTable::with_capacity(states);
+    for id in 0..states {
+        let s = id * stride;
+        table.insert_unique(hash_of(&store[s..s + stride]), id as u32, |&id| {
+            let s = id as usize * stride;
+            hash_of(&store[s..s + stride])
+        });
+    }
+    table
+}
+
+/// The number of `marking` in `store`, which takes it as the next state
+/// if it is new (no more than `max_states` of them).
+#[inline]
+fn intern(
+    table: &mut HashTable<u32>,
+    store: &mut Vec<u8>,
+    stride: usize,
+    marking: &[u8],
+    states: &mut usize,
+    max_states: usize,
+) -> Result<u32, Stop> {
+    let hash = hash_of(marking);
+    let found = table
+        .find(hash, |&id| {
+            let s = id as usize * stride;
+            store[s..s + stride] == *marking
+        })
+        .copied();
+    if let Some(id) = found {
+        return Ok(id);
+    }
+    if *states >= max_states {
+        return Err(Stop::Limit);
+    }
+    let id = *states as u32;
+    store.extend_from_slice(marking);
+    *states += 1;
+    table.insert_unique(hash, id, |&id| {
+        let s = id as usize * stride;
+        hash_of(&store[s..s + stride])
+    });
+    Ok(id)
+}
+
 /// The reachability graph's edges, in compressed adjacency form.
 struct Graph {
     edges_from: Vec<u64>,
@@ -337,14 +384,7 @@ fn run(
                     // The old index goes before the new one is built, so
                     // the two are never held together.
                     drop(std::mem::take(&mut table));
-                    table = HashTable::with_capacity(states);
-                    for id in 0..states {
-                        let s = id * stride;
-                        table.insert_unique(hash_of(&store[s..s + stride]), id as u32, |&id| {
-                            let s = id as usize * stride;
-                            hash_of(&store[s..s + stride])
-                        });
-                    }
+                    table = index(&store, stride, states);
                     next = vec![0u8; stride + PAD];
                     packed = vec![0u8; stride + PAD];
                     edges = edges_before;
@@ -353,29 +393,14 @@ fn run(
                     continue 'states;
                 }
             }
-            let hash = hash_of(&next[..stride]);
-            let found = table
-                .find(hash, |&id| {
-                    let s = id as usize * stride;
-                    store[s..s + stride] == next[..stride]
-                })
-                .copied();
-            let target = match found {
-                Some(id) => id,
-                None => {
-                    if states >= options.max_states {
-                        return Err(Stop::Limit);
-                    }
-                    let id = states as u32;
-                    store.extend_from_slice(&next[..stride]);
-                    states += 1;
-                    table.insert_unique(hash, id, |&id| {
-                        let s = id as usize * stride;
-                        hash_of(&store[s..s + stride])
-                    });
-                    id
-                }
-            };
+            let target = intern(
+                &mut table,
+                &mut store,
+                stride,
+                &next[..stride],
+                &mut states,
+                options.max_states,
+            )?;
             edges += 1;
             edge_to.push(target);
             edge_by.push(t);

@@ -15,3 +15,19 @@ pub enum Liveness {
     /// Live: can fire again from every reachable marking.
     L4,
 }
+
+impl Liveness {
+    /// The level of a transition that fires inside every terminal strongly
+    /// connected component, on some cycle, or at all.
+    pub(crate) fn of(in_every_terminal: bool, on_a_cycle: bool, fires: bool) -> Liveness {
+        if in_every_terminal {
+            Liveness::L4
+        } else if on_a_cycle {
+            Liveness::L3
+        } else if fires {
+            Liveness::L1
+        } else {
+            Liveness::L0
+        }
+    }
+}

@@ -70,12 +70,13 @@ pub fn from_pnml(text: &str) -> Result<Net, PnmlError> {
         .descendants()
         .find(|n| n.has_tag_name_local("net"))
         .ok_or(PnmlError::NoNet)?;
-    let lines = Lines::new(text);
-    let line = |n: Node| lines.of(n.range().start);
-    let mut net = Net::new(net_node.attribute("id").unwrap_or("net"));
-
+    let mut reader = Reader {
+        lines: Lines::new(text),
+        net: Net::new(net_node.attribute("id").unwrap_or("net")),
+        kinds: HashMap::new(),
+        alias: HashMap::new(),
+    };
     // Nodes first, from every page; arcs once every node is known.
-    let mut kinds: HashMap<String, NodeKind> = HashMap::new();
     let mut references: Vec<(String, String, u32)> = Vec::new();
     let mut arcs = Vec::new();
     for n in net_node.descendants().filter(Node::is_element) {
@@ -90,90 +91,139 @@ pub fn from_pnml(text: &str) -> Result<Net, PnmlError> {
             .attribute("id")
             .ok_or_else(|| PnmlError::MissingId {
                 element: tag.to_owned(),
-                line: line(n),
+                line: reader.line(n),
             })?
             .to_owned();
-        let duplicate = || PnmlError::DuplicateId {
-            id: id.clone(),
-            line: line(n),
-        };
         match tag {
-            "place" => {
-                if kinds.insert(id.clone(), NodeKind::Place).is_some() {
-                    return Err(duplicate());
-                }
-                let p = net.add_place(&id, 0).map_err(|_| duplicate())?;
-                let place = &mut net.places[p.0];
-                place.name = name_of(n).unwrap_or_else(|| id.clone());
-                if let Some(m) = child(n, "initialMarking") {
-                    place.initial = number(m, "initial marking", line(m))?;
-                }
-                if let Some(c) = child(n, "capacity") {
-                    let cap = number(c, "capacity", line(c))?;
-                    // PIPE writes 0 for "no capacity".
-                    place.capacity = (cap > 0).then_some(cap);
-                }
-            }
-            "transition" => {
-                if kinds.insert(id.clone(), NodeKind::Transition).is_some() {
-                    return Err(duplicate());
-                }
-                let label = n
-                    .children()
-                    .filter(|c| {
-                        c.has_tag_name_local("toolspecific") && c.attribute("tool") == Some("vl")
-                    })
-                    .find_map(|c| child(c, "label"))
-                    .and_then(|l| l.text())
-                    .map(str::trim);
-                let t = net.add_transition(&id, label).map_err(|_| duplicate())?;
-                net.transitions[t.0].name = name_of(n).unwrap_or_else(|| id.clone());
-            }
+            "place" => reader.place(n, id)?,
+            "transition" => reader.transition(n, id)?,
             "referencePlace" | "referenceTransition" => {
                 let target = n.attribute("ref").unwrap_or_default().to_owned();
-                references.push((id, target, line(n)));
+                references.push((id, target, reader.line(n)));
             }
             _ => arcs.push(n),
         }
     }
-
-    // A reference node stands for the node it points to (possibly via other references).
-    let mut alias: HashMap<String, String> = HashMap::new();
-    for (id, target, l) in &references {
-        if kinds.contains_key(id) || alias.contains_key(id) {
-            return Err(PnmlError::DuplicateId {
-                id: id.clone(),
-                line: *l,
-            });
-        }
-        alias.insert(id.clone(), target.clone());
+    reader.references(&references)?;
+    for a in arcs {
+        reader.arc(a)?;
     }
-    let resolve = |id: &str| -> Option<(String, NodeKind)> {
+    Ok(reader.net)
+}
+
+/// A net as it is read: its nodes' kinds by id, and what each reference
+/// node stands for.
+struct Reader {
+    lines: Lines,
+    net: Net,
+    kinds: HashMap<String, NodeKind>,
+    alias: HashMap<String, String>,
+}
+
+impl Reader {
+    fn line(&self, n: Node) -> u32 {
+        self.lines.of(n.range().start)
+    }
+
+    /// `id` is a new node of `kind`, or the net has it twice.
+    fn new_node(&mut self, n: Node, id: &str, kind: NodeKind) -> Result<(), PnmlError> {
+        if self.kinds.insert(id.to_owned(), kind).is_some() {
+            return Err(self.duplicate(n, id));
+        }
+        Ok(())
+    }
+
+    fn duplicate(&self, n: Node, id: &str) -> PnmlError {
+        PnmlError::DuplicateId {
+            id: id.to_owned(),
+            line: self.line(n),
+        }
+    }
+
+    fn place(&mut self, n: Node, id: String) -> Result<(), PnmlError> {
+        self.new_node(n, &id, NodeKind::Place)?;
+        let p = self
+            .net
+            .add_place(&id, 0)
+            .map_err(|_| self.duplicate(n, &id))?;
+        let initial = match child(n, "initialMarking") {
+            Some(m) => Some(number(m, "initial marking", self.line(m))?),
+            None => None,
+        };
+        let capacity = match child(n, "capacity") {
+            Some(c) => Some(number(c, "capacity", self.line(c))?),
+            None => None,
+        };
+        let place = &mut self.net.places[p.0];
+        place.name = name_of(n).unwrap_or_else(|| id.clone());
+        if let Some(initial) = initial {
+            place.initial = initial;
+        }
+        // PIPE writes 0 for "no capacity".
+        if let Some(cap) = capacity {
+            place.capacity = (cap > 0).then_some(cap);
+        }
+        Ok(())
+    }
+
+    fn transition(&mut self, n: Node, id: String) -> Result<(), PnmlError> {
+        self.new_node(n, &id, NodeKind::Transition)?;
+        let label = n
+            .children()
+            .filter(|c| c.has_tag_name_local("toolspecific") && c.attribute("tool") == Some("vl"))
+            .find_map(|c| child(c, "label"))
+            .and_then(|l| l.text())
+            .map(str::trim);
+        let t = self
+            .net
+            .add_transition(&id, label)
+            .map_err(|_| self.duplicate(n, &id))?;
+        self.net.transitions[t.0].name = name_of(n).unwrap_or(id);
+        Ok(())
+    }
+
+    /// A reference node stands for the node it points to (possibly via
+    /// other references); each must end at a node.
+    fn references(&mut self, references: &[(String, String, u32)]) -> Result<(), PnmlError> {
+        for (id, target, l) in references {
+            if self.kinds.contains_key(id) || self.alias.contains_key(id) {
+                return Err(PnmlError::DuplicateId {
+                    id: id.clone(),
+                    line: *l,
+                });
+            }
+            self.alias.insert(id.clone(), target.clone());
+        }
+        for (id, target, l) in references {
+            if self.resolve(id).is_none() {
+                return Err(PnmlError::DanglingReference {
+                    id: id.clone(),
+                    target: target.clone(),
+                    line: *l,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The node `id` names, through any references, and its kind.
+    fn resolve(&self, id: &str) -> Option<(String, NodeKind)> {
         let mut current = id.to_owned();
-        for _ in 0..=alias.len() {
-            if let Some(kind) = kinds.get(&current) {
+        for _ in 0..=self.alias.len() {
+            if let Some(kind) = self.kinds.get(&current) {
                 return Some((current, *kind));
             }
-            current = alias.get(&current)?.clone();
+            current = self.alias.get(&current)?.clone();
         }
         None
-    };
-    for (id, target, l) in &references {
-        if resolve(id).is_none() {
-            return Err(PnmlError::DanglingReference {
-                id: id.clone(),
-                target: target.clone(),
-                line: *l,
-            });
-        }
     }
 
-    for a in arcs {
-        let l = line(a);
+    fn arc(&mut self, a: Node) -> Result<(), PnmlError> {
+        let l = self.line(a);
         let id = a.attribute("id").unwrap_or_default().to_owned();
         let end = |attr: &str| {
             let node = a.attribute(attr).unwrap_or_default();
-            resolve(node).ok_or_else(|| PnmlError::MissingNode {
+            self.resolve(node).ok_or_else(|| PnmlError::MissingNode {
                 arc: id.clone(),
                 node: node.to_owned(),
                 line: l,
@@ -182,7 +232,7 @@ pub fn from_pnml(text: &str) -> Result<Net, PnmlError> {
         let (source, source_kind) = end("source")?;
         let (target, target_kind) = end("target")?;
         let weight = match child(a, "inscription") {
-            Some(w) => number(w, "arc weight", line(w))?,
+            Some(w) => number(w, "arc weight", self.line(w))?,
             None => 1,
         };
         if weight == 0 {
@@ -199,22 +249,25 @@ pub fn from_pnml(text: &str) -> Result<Net, PnmlError> {
             }
             _ => return Err(PnmlError::SameKind { arc: id, line: l }),
         };
-        let t: TransitionId = net
+        let t: TransitionId = self
+            .net
             .transition(&transition)
             .expect("resolved to a transition");
-        net.add_arc(kind, &place, t, weight).map_err(|e| match e {
-            NetError::ZeroWeight { .. } => PnmlError::ZeroWeight {
-                arc: id.clone(),
-                line: l,
-            },
-            _ => PnmlError::MissingNode {
-                arc: id.clone(),
-                node: place.clone(),
-                line: l,
-            },
-        })?;
+        self.net
+            .add_arc(kind, &place, t, weight)
+            .map_err(|e| match e {
+                NetError::ZeroWeight { .. } => PnmlError::ZeroWeight {
+                    arc: id.clone(),
+                    line: l,
+                },
+                _ => PnmlError::MissingNode {
+                    arc: id.clone(),
+                    node: place.clone(),
+                    line: l,
+                },
+            })?;
+        Ok(())
     }
-    Ok(net)
 }
 
 /// The first child element called `tag` (any namespace).

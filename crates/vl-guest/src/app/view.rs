@@ -18,25 +18,7 @@ impl GuestApp {
     /// The camera image with what the Guest knows drawn over it; without a
     /// camera, the arena as its model describes it.
     pub(super) fn camera_view(&mut self, ui: &mut egui::Ui) {
-        if let Some(frame) = &self.session.frame {
-            let seq = frame.header.seq;
-            if self.texture.as_ref().is_none_or(|(shown, _)| *shown != seq) {
-                let size = [frame.image.width() as usize, frame.image.height() as usize];
-                let image = egui::ColorImage::from_rgba_unmultiplied(size, frame.image.as_raw());
-                match &mut self.texture {
-                    Some((shown, texture)) => {
-                        texture.set(image, TextureOptions::NEAREST);
-                        *shown = seq;
-                    }
-                    None => {
-                        let texture =
-                            ui.ctx()
-                                .load_texture("camera", image, TextureOptions::NEAREST);
-                        self.texture = Some((seq, texture));
-                    }
-                }
-            }
-        }
+        self.take_frame(ui.ctx());
         let image_size = match (&self.texture, &self.session.lab) {
             (Some((_, texture)), _) => texture.size_vec2(),
             (None, Some(lab)) => Vec2::new(lab.camera.width_px as f32, lab.camera.height_px as f32),
@@ -58,11 +40,87 @@ impl GuestApp {
             .max(0.1);
         let (rect, response) = ui.allocate_exact_size(image_size * scale, Sense::click_and_drag());
         response.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Image, true, CAMERA_VIEW));
-        let on_floor = |pos: Pos2, lab: &MountedLab| {
-            let col = (pos.x - rect.min.x) / rect.width() * lab.camera.width_px as f32;
-            let row = (pos.y - rect.min.y) / rect.height() * lab.camera.height_px as f32;
-            lab.camera.to_arena(f64::from(col), f64::from(row))
-        };
+        let on_floor = |pos: Pos2, lab: &MountedLab| on_floor(rect, pos, lab);
+        self.interact(ui, &response, rect);
+        let painter = ui.painter_at(rect);
+        match (&self.texture, &self.session.lab) {
+            (Some((_, texture)), _) => {
+                painter.image(
+                    texture.id(),
+                    rect,
+                    Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+                    Color32::WHITE,
+                );
+            }
+            (None, Some(lab)) => {
+                painter.rect_filled(rect, 0.0, FLOOR_COLOUR);
+                let view = View::new(rect, lab);
+                for obstacle in &lab.arena.obstacles {
+                    view.fill(&painter, &obstacle.shape, OBSTACLE_COLOUR);
+                }
+            }
+            (None, None) => {}
+        }
+        if let Some(lab) = self.session.lab.clone() {
+            let view = View::new(rect, &lab);
+            if self.show_cspace {
+                painter.add(self.cspace_mesh(&view, &lab));
+            }
+            if self.trail.len() > 1 {
+                let line: Vec<Pos2> = self.trail.iter().map(|&p| view.to_screen(p)).collect();
+                painter.line(line, Stroke::new(1.5, TRAIL_COLOUR));
+            }
+            self.overlay(&painter, &view, &lab);
+            for obstacle in &self.virtual_obstacles {
+                view.outline(
+                    &painter,
+                    obstacle,
+                    Stroke::new(1.5, VIRTUAL_COLOUR.gamma_multiply(0.7)),
+                );
+            }
+            if let (Some(from), Some(pos)) = (self.drag_from, response.interact_pointer_pos())
+                && let Some(shape) = drawn_box(from, on_floor(pos, &lab))
+            {
+                view.outline(&painter, &shape, Stroke::new(1.5, VIRTUAL_COLOUR));
+            }
+            // The path as it would be bent, while a sample is dragged.
+            if let (Some(index), Some(pos), Some(definition)) = (
+                self.dragging_sample,
+                response.interact_pointer_pos(),
+                &self.session.definition,
+            ) && let Ok(bent) = drag_path(&definition.path, index, on_floor(pos, &lab))
+            {
+                let line: Vec<Pos2> = bent.iter().map(|&p| view.to_screen(p)).collect();
+                painter.line(line, Stroke::new(1.5, PATH_COLOUR.gamma_multiply(0.6)));
+            }
+        }
+    }
+
+    /// Takes the newest camera frame into the view's texture.
+    fn take_frame(&mut self, ctx: &egui::Context) {
+        if let Some(frame) = &self.session.frame {
+            let seq = frame.header.seq;
+            if self.texture.as_ref().is_none_or(|(shown, _)| *shown != seq) {
+                let size = [frame.image.width() as usize, frame.image.height() as usize];
+                let image = egui::ColorImage::from_rgba_unmultiplied(size, frame.image.as_raw());
+                match &mut self.texture {
+                    Some((shown, texture)) => {
+                        texture.set(image, TextureOptions::NEAREST);
+                        *shown = seq;
+                    }
+                    None => {
+                        let texture = ctx.load_texture("camera", image, TextureOptions::NEAREST);
+                        self.texture = Some((seq, texture));
+                    }
+                }
+            }
+        }
+    }
+
+    /// What a click or drag on the view does: draws a virtual obstacle,
+    /// bends the path, or places the goal.
+    fn interact(&mut self, ui: &egui::Ui, response: &egui::Response, rect: Rect) {
+        let on_floor = |pos: Pos2, lab: &MountedLab| on_floor(rect, pos, lab);
         if let (Some(pos), Some(lab)) = (response.interact_pointer_pos(), &self.session.lab) {
             let p = on_floor(pos, lab);
             // A drag is seen to start only once the pointer has moved a
@@ -94,71 +152,23 @@ impl GuestApp {
                 }
             }
         }
-        let painter = ui.painter_at(rect);
-        match (&self.texture, &self.session.lab) {
-            (Some((_, texture)), _) => {
-                painter.image(
-                    texture.id(),
-                    rect,
-                    Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
-                    Color32::WHITE,
-                );
+    }
+
+    /// The C-space's cells as one mesh of quads, edge to edge: no seams
+    /// where outlines or anti-aliased edges would overlap.
+    fn cspace_mesh(&mut self, view: &View, lab: &MountedLab) -> egui::Mesh {
+        let mut mesh = egui::Mesh::default();
+        for cell in self.cspace_boxes(lab) {
+            let corners = view.outline_of(cell);
+            let first = mesh.vertices.len() as u32;
+            for &corner in &corners {
+                mesh.colored_vertex(corner, CSPACE_COLOUR);
             }
-            (None, Some(lab)) => {
-                painter.rect_filled(rect, 0.0, FLOOR_COLOUR);
-                let view = View::new(rect, lab);
-                for obstacle in &lab.arena.obstacles {
-                    view.fill(&painter, &obstacle.shape, OBSTACLE_COLOUR);
-                }
-            }
-            (None, None) => {}
-        }
-        if let Some(lab) = self.session.lab.clone() {
-            let view = View::new(rect, &lab);
-            if self.show_cspace {
-                // One mesh of the cells' quads, edge to edge: no seams where
-                // outlines or anti-aliased edges would overlap.
-                let mut mesh = egui::Mesh::default();
-                for cell in self.cspace_boxes(&lab) {
-                    let corners = view.outline_of(cell);
-                    let first = mesh.vertices.len() as u32;
-                    for &corner in &corners {
-                        mesh.colored_vertex(corner, CSPACE_COLOUR);
-                    }
-                    for k in 1..corners.len().saturating_sub(1) as u32 {
-                        mesh.add_triangle(first, first + k, first + k + 1);
-                    }
-                }
-                painter.add(mesh);
-            }
-            if self.trail.len() > 1 {
-                let line: Vec<Pos2> = self.trail.iter().map(|&p| view.to_screen(p)).collect();
-                painter.line(line, Stroke::new(1.5, TRAIL_COLOUR));
-            }
-            self.overlay(&painter, &view, &lab);
-            for obstacle in &self.virtual_obstacles {
-                view.outline(
-                    &painter,
-                    obstacle,
-                    Stroke::new(1.5, VIRTUAL_COLOUR.gamma_multiply(0.7)),
-                );
-            }
-            if let (Some(from), Some(pos)) = (self.drag_from, response.interact_pointer_pos())
-                && let Some(shape) = drawn_box(from, on_floor(pos, &lab))
-            {
-                view.outline(&painter, &shape, Stroke::new(1.5, VIRTUAL_COLOUR));
-            }
-            // The path as it would be bent, while a sample is dragged.
-            if let (Some(index), Some(pos), Some(definition)) = (
-                self.dragging_sample,
-                response.interact_pointer_pos(),
-                &self.session.definition,
-            ) && let Ok(bent) = drag_path(&definition.path, index, on_floor(pos, &lab))
-            {
-                let line: Vec<Pos2> = bent.iter().map(|&p| view.to_screen(p)).collect();
-                painter.line(line, Stroke::new(1.5, PATH_COLOUR.gamma_multiply(0.6)));
+            for k in 1..corners.len().saturating_sub(1) as u32 {
+                mesh.add_triangle(first, first + k, first + k + 1);
             }
         }
+        mesh
     }
 
     /// Under the view: what is overlaid, what its colours mean, and how
@@ -458,4 +468,11 @@ impl<'a> View<'a> {
             Stroke::new(1.0, colour),
         ));
     }
+}
+
+/// The point on the floor under `pos` in the view `rect`.
+fn on_floor(rect: Rect, pos: Pos2, lab: &MountedLab) -> Point {
+    let col = (pos.x - rect.min.x) / rect.width() * lab.camera.width_px as f32;
+    let row = (pos.y - rect.min.y) / rect.height() * lab.camera.height_px as f32;
+    lab.camera.to_arena(f64::from(col), f64::from(row))
 }

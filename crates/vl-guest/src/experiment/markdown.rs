@@ -48,33 +48,7 @@ pub(super) fn write(
          against it.\n"
     );
     let _ = writeln!(md, "## Results\n\n```\n{}```\n", headline(&m.cells));
-    let failed: Vec<&Run> = m.runs.iter().filter(|r| !r.succeeded()).collect();
-    if !failed.is_empty() {
-        let _ = writeln!(
-            md,
-            "### Runs that failed\n\nCounted in *goal* above, left out of every other figure and \
-             picture:\n"
-        );
-        let mut t = Table::columns(&[
-            "experiment",
-            "profile",
-            "pacing",
-            "seed",
-            "ended",
-            "collisions",
-        ]);
-        for r in failed {
-            t.row(vec![
-                r.experiment.to_string(),
-                r.profile.clone().unwrap_or_default(),
-                r.pacing.to_string(),
-                r.seed.to_string(),
-                r.end.clone(),
-                r.collisions.to_string(),
-            ]);
-        }
-        let _ = writeln!(md, "```\n{t}```\n");
-    }
+    failed_runs(&mut md, m);
     let _ = writeln!(
         md,
         "Event-based runs synchronised at every command: **{}**. Collisions over all runs: **{}**.\n",
@@ -89,6 +63,22 @@ pub(super) fn write(
          encoding time is not in it); round trips measured by the Guest's pings (end to end, \
          through the Host's WebSocket task; the p99 is the largest run's).\n"
     );
+    let _ = writeln!(md, "```\n{}```\n", timing(m));
+    let _ = writeln!(md, "## Pictures\n");
+    for (caption, png) in pictures {
+        let svg = png.with_extension("svg");
+        let _ = writeln!(
+            md,
+            "### {caption}\n\n![{caption}]({})\n\n([SVG]({}))\n",
+            png.display(),
+            svg.display()
+        );
+    }
+    super::write(&dir.join("report.md"), md)
+}
+
+/// Each profile's legs and round trips, ms.
+fn timing(m: &Matrix) -> Table {
     let mut t = Table::columns(&["profile", "leg", "messages", "p50", "p90", "p99", "max"]);
     for timing in &m.timing {
         for (leg, v) in [
@@ -118,16 +108,36 @@ pub(super) fn write(
             String::new(),
         ]);
     }
-    let _ = writeln!(md, "```\n{t}```\n");
-    let _ = writeln!(md, "## Pictures\n");
-    for (caption, png) in pictures {
-        let svg = png.with_extension("svg");
+    t
+}
+
+/// The runs that failed, with why, if any did.
+fn failed_runs(md: &mut String, m: &Matrix) {
+    let failed: Vec<&Run> = m.runs.iter().filter(|r| !r.succeeded()).collect();
+    if !failed.is_empty() {
         let _ = writeln!(
             md,
-            "### {caption}\n\n![{caption}]({})\n\n([SVG]({}))\n",
-            png.display(),
-            svg.display()
+            "### Runs that failed\n\nCounted in *goal* above, left out of every other figure and \
+             picture:\n"
         );
+        let mut t = Table::columns(&[
+            "experiment",
+            "profile",
+            "pacing",
+            "seed",
+            "ended",
+            "collisions",
+        ]);
+        for r in failed {
+            t.row(vec![
+                r.experiment.to_string(),
+                r.profile.clone().unwrap_or_default(),
+                r.pacing.to_string(),
+                r.seed.to_string(),
+                r.end.clone(),
+                r.collisions.to_string(),
+            ]);
+        }
+        let _ = writeln!(md, "```\n{t}```\n");
     }
-    super::write(&dir.join("report.md"), md)
 }

@@ -129,6 +129,16 @@ impl Matrix {
         }
     }
 
+    /// The first teleoperation run on `profile` paced so that succeeded.
+    fn teleop(&self, profile: &str, pacing: Pacing) -> Option<&Run> {
+        self.runs.iter().find(|r| {
+            r.experiment == Experiment::Teleoperation
+                && r.profile.as_deref() == Some(profile)
+                && r.pacing == pacing
+                && r.succeeded()
+        })
+    }
+
     /// Writes report.md, report.json and the pictures into `dir`, drawing
     /// the paths over `arena`.
     pub fn write(&self, dir: &Path, arena: &Arena) -> Result<(), ExperimentError> {
@@ -302,14 +312,6 @@ pub async fn run_all(
 /// The pictures, by what they show: (caption, PNG file name).
 fn draw(dir: &Path, m: &Matrix, arena: &Arena) -> Result<Vec<(String, PathBuf)>, ExperimentError> {
     let mut out = Vec::new();
-    let teleop = |profile: &str, pacing: Pacing| -> Option<&Run> {
-        m.runs.iter().find(|r| {
-            r.experiment == Experiment::Teleoperation
-                && r.profile.as_deref() == Some(profile)
-                && r.pacing == pacing
-                && r.succeeded()
-        })
-    };
     // Tracking and prediction against the round trip, event against time.
     let by_delay = |pacing: Pacing, pick: fn(&Cell) -> Option<f64>| -> Vec<(f64, f64)> {
         let mut v: Vec<(f64, f64)> = m
@@ -361,91 +363,105 @@ fn draw(dir: &Path, m: &Matrix, arena: &Arena) -> Result<Vec<(String, PathBuf)>,
         )?,
     ));
     for t in &m.timing {
-        let runs: Vec<&Run> = m
-            .runs
-            .iter()
-            .filter(|r| r.profile.as_deref() == Some(t.profile.as_str()))
-            .collect();
-        let up: Vec<f64> = runs
-            .iter()
-            .filter_map(|r| r.delays.as_ref())
-            .flat_map(|d| d.samples.to_host.iter().copied())
-            .collect();
-        let down: Vec<f64> = runs
-            .iter()
-            .filter_map(|r| r.delays.as_ref())
-            .flat_map(|d| d.samples.to_guest.iter().copied())
-            .collect();
-        let frames: Vec<f64> = runs
-            .iter()
-            .filter_map(|r| r.delays.as_ref())
-            .flat_map(|d| d.samples.frames_to_guest.iter().copied())
-            .collect();
-        out.push((
-            format!("One-way delays on {}", t.profile),
-            plots::delays(
-                dir,
-                &format!("delays-{}", t.profile),
-                &format!("One-way delays: {}", t.profile),
-                &[
-                    ("Guest to Host", &up),
-                    ("Host to Guest", &down),
-                    ("frames to Guest", &frames),
-                ],
-            )?,
-        ));
-        let trace = |pacing: Pacing| -> Vec<(f64, f64)> {
-            teleop(&t.profile, pacing)
-                .and_then(|r| r.report.as_ref())
-                .map(|r| r.gaps.iter().map(|&(s, g)| (s, g as f64)).collect())
-                .unwrap_or_default()
-        };
-        out.push((
-            format!("Synchronisation over time on {}: each command's event ahead of the feedback it was sent on", t.profile),
-            plots::lines(
-                dir,
-                &format!("sync-{}", t.profile),
-                &format!("Synchronisation: {}", t.profile),
-                ("seconds into the run", "command event − feedback event seen"),
-                &[
-                    ("event-based".into(), EVENT, trace(Pacing::Event)),
-                    ("time-based".into(), TIME, trace(Pacing::Time)),
-                ],
-                false,
-            )?,
-        ));
-        let taken = |pacing: Pacing, label: &str, colour| {
-            teleop(&t.profile, pacing)
-                .and_then(|r| r.report.as_ref())
-                .and_then(|r| r.path.as_ref())
-                .map(|p| (label.to_owned(), colour, p.truth.clone()))
-        };
-        let planned = teleop(&t.profile, Pacing::Event)
-            .and_then(|r| r.report.as_ref())
-            .map(|r| r.planned.clone())
-            .unwrap_or_default();
-        let paths: Vec<_> = [
-            taken(Pacing::Event, "event-based", EVENT),
-            taken(Pacing::Time, "time-based", TIME),
-        ]
-        .into_iter()
-        .flatten()
-        .collect();
-        out.push((
-            format!(
-                "Paths driven by the scripted operator on {} (first seed)",
-                t.profile
-            ),
-            plots::paths(
-                dir,
-                &format!("paths-{}", t.profile),
-                &format!("Teleoperation paths: {}", t.profile),
-                (arena.width_mm, arena.height_mm),
-                &planned,
-                &paths,
-            )?,
-        ));
+        out.extend(profile_pictures(dir, m, t, arena)?);
     }
+    Ok(out)
+}
+
+/// The pictures of one profile's runs: the legs' delays, the
+/// synchronisation over time, and the paths driven.
+fn profile_pictures(
+    dir: &Path,
+    m: &Matrix,
+    t: &Timing,
+    arena: &Arena,
+) -> Result<Vec<(String, PathBuf)>, ExperimentError> {
+    let mut out = Vec::new();
+    let teleop = |pacing: Pacing| m.teleop(&t.profile, pacing);
+    let runs: Vec<&Run> = m
+        .runs
+        .iter()
+        .filter(|r| r.profile.as_deref() == Some(t.profile.as_str()))
+        .collect();
+    let up: Vec<f64> = runs
+        .iter()
+        .filter_map(|r| r.delays.as_ref())
+        .flat_map(|d| d.samples.to_host.iter().copied())
+        .collect();
+    let down: Vec<f64> = runs
+        .iter()
+        .filter_map(|r| r.delays.as_ref())
+        .flat_map(|d| d.samples.to_guest.iter().copied())
+        .collect();
+    let frames: Vec<f64> = runs
+        .iter()
+        .filter_map(|r| r.delays.as_ref())
+        .flat_map(|d| d.samples.frames_to_guest.iter().copied())
+        .collect();
+    out.push((
+        format!("One-way delays on {}", t.profile),
+        plots::delays(
+            dir,
+            &format!("delays-{}", t.profile),
+            &format!("One-way delays: {}", t.profile),
+            &[
+                ("Guest to Host", &up),
+                ("Host to Guest", &down),
+                ("frames to Guest", &frames),
+            ],
+        )?,
+    ));
+    let trace = |pacing: Pacing| -> Vec<(f64, f64)> {
+        teleop(pacing)
+            .and_then(|r| r.report.as_ref())
+            .map(|r| r.gaps.iter().map(|&(s, g)| (s, g as f64)).collect())
+            .unwrap_or_default()
+    };
+    out.push((
+        format!("Synchronisation over time on {}: each command's event ahead of the feedback it was sent on", t.profile),
+        plots::lines(
+            dir,
+            &format!("sync-{}", t.profile),
+            &format!("Synchronisation: {}", t.profile),
+            ("seconds into the run", "command event − feedback event seen"),
+            &[
+                ("event-based".into(), EVENT, trace(Pacing::Event)),
+                ("time-based".into(), TIME, trace(Pacing::Time)),
+            ],
+            false,
+        )?,
+    ));
+    let taken = |pacing: Pacing, label: &str, colour| {
+        teleop(pacing)
+            .and_then(|r| r.report.as_ref())
+            .and_then(|r| r.path.as_ref())
+            .map(|p| (label.to_owned(), colour, p.truth.clone()))
+    };
+    let planned = teleop(Pacing::Event)
+        .and_then(|r| r.report.as_ref())
+        .map(|r| r.planned.clone())
+        .unwrap_or_default();
+    let paths: Vec<_> = [
+        taken(Pacing::Event, "event-based", EVENT),
+        taken(Pacing::Time, "time-based", TIME),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    out.push((
+        format!(
+            "Paths driven by the scripted operator on {} (first seed)",
+            t.profile
+        ),
+        plots::paths(
+            dir,
+            &format!("paths-{}", t.profile),
+            &format!("Teleoperation paths: {}", t.profile),
+            (arena.width_mm, arena.height_mm),
+            &planned,
+            &paths,
+        )?,
+    ));
     Ok(out)
 }
 

@@ -119,6 +119,25 @@ fn text_of(message: &HostMessage) -> Message {
     Message::text(message.encode())
 }
 
+/// What reading a client's messages keeps between them. A client faster
+/// than its rate is not read until it is within it again: its own socket
+/// then holds it back, at no cost to the Host. Commands are the exception:
+/// they are values, the newest wins, so one over the rate waits (in place
+/// of any before it) for the rate to allow it, and reading goes on: an
+/// emergency stop behind a flood of commands is never held back by them.
+struct Reading {
+    clock: Instant,
+    /// When the client was last heard from.
+    heard: Instant,
+    welcomed: bool,
+    messages: Bucket,
+    bytes: Bucket,
+    /// Reading waits until then.
+    paused_until: Option<tokio::time::Instant>,
+    held_command: Option<(tokio::time::Instant, GuestMessage)>,
+    before_hello: u32,
+}
+
 impl Connection {
     pub(crate) async fn run(mut self, stream: TcpStream) -> Result<(), tungstenite::Error> {
         let _ = stream.set_nodelay(true);
@@ -174,120 +193,34 @@ impl Connection {
         source: &mut futures_util::stream::SplitStream<WebSocketStream<TcpStream>>,
         inbox: &mut mpsc::Receiver<ToConnection>,
     ) -> End {
-        let clock = Instant::now();
         let hello_by = tokio::time::Instant::now() + self.config.hello_timeout;
         let mut ping = tokio::time::interval(PING_EVERY);
-        let mut heard = Instant::now();
-        let mut welcomed = false;
         let mut watching = None;
-        // A client faster than its rate is not read until it is within it
-        // again: its own socket then holds it back, at no cost to the Host.
-        // Commands are the exception: they are values, the newest wins, so
-        // one over the rate waits (in place of any before it) for the rate
-        // to allow it, and reading goes on: an emergency stop behind a
-        // flood of commands is never held back by them.
-        let mut messages = Bucket::new(RATE_PER_S, BURST);
-        let mut bytes = Bucket::new(BYTES_PER_S, BYTES_BURST);
-        let mut paused_until: Option<tokio::time::Instant> = None;
-        let mut held_command: Option<(tokio::time::Instant, GuestMessage)> = None;
-        let mut before_hello = 0u32;
+        let mut r = Reading {
+            clock: Instant::now(),
+            heard: Instant::now(),
+            welcomed: false,
+            messages: Bucket::new(RATE_PER_S, BURST),
+            bytes: Bucket::new(BYTES_PER_S, BYTES_BURST),
+            paused_until: None,
+            held_command: None,
+            before_hello: 0,
+        };
         let mut evicted = self.ticket.evicted.clone();
         loop {
             tokio::select! {
-                () = async { tokio::time::sleep_until(paused_until.unwrap_or_else(tokio::time::Instant::now)).await }, if paused_until.is_some() => {
-                    paused_until = None;
+                () = async { tokio::time::sleep_until(r.paused_until.unwrap_or_else(tokio::time::Instant::now)).await }, if r.paused_until.is_some() => {
+                    r.paused_until = None;
                 }
-                () = async { tokio::time::sleep_until(held_command.as_ref().map_or_else(tokio::time::Instant::now, |(at, _)| *at)).await }, if held_command.is_some() => {
-                    if let Some((_, command)) = held_command.take()
+                () = async { tokio::time::sleep_until(r.held_command.as_ref().map_or_else(tokio::time::Instant::now, |(at, _)| *at)).await }, if r.held_command.is_some() => {
+                    if let Some((_, command)) = r.held_command.take()
                         && self.hub.send(ToHub::Message(self.id, command)).await.is_err()
                     {
                         return End::Closed;
                     }
                 }
-                incoming = source.next(), if paused_until.is_none() => {
-                    let message = match incoming {
-                        None => return End::Closed,
-                        Some(Ok(Message::Close(_))) => return End::Left,
-                        Some(Err(tungstenite::Error::Capacity(e))) => {
-                            // The rest of that message cannot be skipped.
-                            return End::Refused(ErrorCode::TooLarge, format!("message too large: {e}"));
-                        }
-                        Some(Err(e)) => return End::Failed(e),
-                        Some(Ok(message)) => message,
-                    };
-                    heard = Instant::now();
-                    let over_rate = messages.take(1.0);
-                    let over_bytes = bytes.take(message.len() as f64);
-                    if !over_bytes.is_zero() {
-                        paused_until = Some(tokio::time::Instant::now() + over_bytes);
-                    }
-                    if !welcomed && message.len() > MAX_BEFORE_HELLO_BYTES {
-                        return End::Refused(ErrorCode::TooLarge, "a message this large before hello".into());
-                    }
-                    let text = match message {
-                        Message::Text(text) => text,
-                        Message::Binary(_) => {
-                            let reply = HostMessage::error(ErrorCode::BadMessage, "binary messages flow only from Host to Guest");
-                            if let Err(end) = put(sink, text_of(&reply)).await {
-                                return end;
-                            }
-                            continue;
-                        }
-                        // WebSocket pings are answered by tungstenite.
-                        _ => continue,
-                    };
-                    let reply = match GuestMessage::decode(text.as_str()) {
-                        Ok(GuestMessage::Ping { t }) => Some(HostMessage::Pong { t }),
-                        Ok(GuestMessage::Pong { t }) => {
-                            let rtt_ms = clock.elapsed().as_secs_f64() * 1e3 - t;
-                            debug!(connection = self.id, rtt_ms, "round trip");
-                            None
-                        }
-                        Ok(GuestMessage::Bye) => return End::Left,
-                        Ok(message @ GuestMessage::Hello { .. }) => {
-                            if self.hub.send(ToHub::Message(self.id, message)).await.is_err() {
-                                return End::Closed;
-                            }
-                            None
-                        }
-                        // Before hello nothing else reaches the hub.
-                        Ok(_) if !welcomed => {
-                            before_hello += 1;
-                            if before_hello >= MAX_BEFORE_HELLO {
-                                return End::Refused(ErrorCode::HelloFirst, "nothing but hello before hello".into());
-                            }
-                            Some(HostMessage::error(ErrorCode::HelloFirst, "send hello first"))
-                        }
-                        Ok(message @ GuestMessage::Command { .. }) if !over_rate.is_zero() => {
-                            // The one it replaces is never forwarded: it costs nothing.
-                            let wait = match held_command.take() {
-                                Some((at, _)) => {
-                                    messages.refund(1.0);
-                                    at.saturating_duration_since(tokio::time::Instant::now())
-                                }
-                                None => over_rate,
-                            };
-                            held_command = Some((tokio::time::Instant::now() + wait, message));
-                            None
-                        }
-                        Ok(message) => {
-                            if matches!(message, GuestMessage::Command { .. }) {
-                                // A newer command than the one held: that one is stale.
-                                held_command = None;
-                            } else if !over_rate.is_zero() && !matches!(message, GuestMessage::EmergencyStop) {
-                                let until = tokio::time::Instant::now() + over_rate;
-                                paused_until = Some(paused_until.map_or(until, |p| p.max(until)));
-                            }
-                            if self.hub.send(ToHub::Message(self.id, message)).await.is_err() {
-                                return End::Closed;
-                            }
-                            None
-                        }
-                        Err(e) => Some(HostMessage::error(e.code(), e.to_string())),
-                    };
-                    if let Some(reply) = reply
-                        && let Err(end) = put(sink, text_of(&reply)).await
-                    {
+                incoming = source.next(), if r.paused_until.is_none() => {
+                    if let Err(end) = self.read(incoming, sink, &mut r).await {
                         return end;
                     }
                 }
@@ -298,7 +231,7 @@ impl Connection {
                         }
                     }
                     Some(ToConnection::Subscribe) => {
-                        welcomed = true;
+                        r.welcomed = true;
                         watching.get_or_insert_with(|| Watching::new(&self.watchers));
                         self.ticket.welcomed();
                         self.feedback.mark_changed();
@@ -309,7 +242,7 @@ impl Connection {
                         return End::Refused(ErrorCode::SlowReader, "messages for you piled up unread".into());
                     }
                 },
-                Ok(()) = self.feedback.changed(), if welcomed => {
+                Ok(()) = self.feedback.changed(), if r.welcomed => {
                     let latest = self.feedback.borrow_and_update().clone();
                     if let Some(message) = latest
                         && let Err(end) = put(sink, text_of(&message)).await
@@ -317,7 +250,7 @@ impl Connection {
                         return end;
                     }
                 }
-                Ok(()) = self.frames.changed(), if welcomed => {
+                Ok(()) = self.frames.changed(), if r.welcomed => {
                     let latest = self.frames.borrow_and_update().clone();
                     if let Some(frame) = latest
                         && let Err(end) = put(sink, Message::Binary(frame)).await
@@ -325,7 +258,7 @@ impl Connection {
                         return end;
                     }
                 }
-                () = tokio::time::sleep_until(hello_by), if !welcomed => {
+                () = tokio::time::sleep_until(hello_by), if !r.welcomed => {
                     let why = format!("no hello within {} s", self.config.hello_timeout.as_secs_f64());
                     return End::Refused(ErrorCode::Timeout, why);
                 }
@@ -339,16 +272,143 @@ impl Connection {
                     return End::Closed;
                 }
                 _ = ping.tick() => {
-                    if heard.elapsed() > self.config.ping_timeout {
+                    if r.heard.elapsed() > self.config.ping_timeout {
                         let why = format!("nothing heard for {} s", self.config.ping_timeout.as_secs_f64());
                         return End::Refused(ErrorCode::Timeout, why);
                     }
-                    let t = clock.elapsed().as_secs_f64() * 1e3;
+                    let t = r.clock.elapsed().as_secs_f64() * 1e3;
                     if let Err(end) = put(sink, text_of(&HostMessage::Ping { t })).await {
                         return end;
                     }
                 }
             }
         }
+    }
+
+    /// Takes in what the client sent, within its rates.
+    async fn read(
+        &mut self,
+        incoming: Option<Result<Message, tungstenite::Error>>,
+        sink: &mut Sink,
+        r: &mut Reading,
+    ) -> Result<(), End> {
+        let message = match incoming {
+            None => return Err(End::Closed),
+            Some(Ok(Message::Close(_))) => return Err(End::Left),
+            Some(Err(tungstenite::Error::Capacity(e))) => {
+                // The rest of that message cannot be skipped.
+                return Err(End::Refused(
+                    ErrorCode::TooLarge,
+                    format!("message too large: {e}"),
+                ));
+            }
+            Some(Err(e)) => return Err(End::Failed(e)),
+            Some(Ok(message)) => message,
+        };
+        r.heard = Instant::now();
+        let over_rate = r.messages.take(1.0);
+        let over_bytes = r.bytes.take(message.len() as f64);
+        if !over_bytes.is_zero() {
+            r.paused_until = Some(tokio::time::Instant::now() + over_bytes);
+        }
+        if !r.welcomed && message.len() > MAX_BEFORE_HELLO_BYTES {
+            return Err(End::Refused(
+                ErrorCode::TooLarge,
+                "a message this large before hello".into(),
+            ));
+        }
+        let text = match message {
+            Message::Text(text) => text,
+            Message::Binary(_) => {
+                let reply = HostMessage::error(
+                    ErrorCode::BadMessage,
+                    "binary messages flow only from Host to Guest",
+                );
+                return put(sink, text_of(&reply)).await;
+            }
+            // WebSocket pings are answered by tungstenite.
+            _ => return Ok(()),
+        };
+        let reply = self.route(text.as_str(), r, over_rate).await?;
+        match reply {
+            Some(reply) => put(sink, text_of(&reply)).await,
+            None => Ok(()),
+        }
+    }
+
+    /// Passes a text message on to the hub, or answers it here (pings,
+    /// refusals before hello); over the rate, a command waits in place of
+    /// any before it and anything else pauses reading.
+    async fn route(
+        &mut self,
+        text: &str,
+        r: &mut Reading,
+        over_rate: Duration,
+    ) -> Result<Option<HostMessage>, End> {
+        Ok(match GuestMessage::decode(text) {
+            Ok(GuestMessage::Ping { t }) => Some(HostMessage::Pong { t }),
+            Ok(GuestMessage::Pong { t }) => {
+                let rtt_ms = r.clock.elapsed().as_secs_f64() * 1e3 - t;
+                debug!(connection = self.id, rtt_ms, "round trip");
+                None
+            }
+            Ok(GuestMessage::Bye) => return Err(End::Left),
+            Ok(message @ GuestMessage::Hello { .. }) => {
+                if self
+                    .hub
+                    .send(ToHub::Message(self.id, message))
+                    .await
+                    .is_err()
+                {
+                    return Err(End::Closed);
+                }
+                None
+            }
+            // Before hello nothing else reaches the hub.
+            Ok(_) if !r.welcomed => {
+                r.before_hello += 1;
+                if r.before_hello >= MAX_BEFORE_HELLO {
+                    return Err(End::Refused(
+                        ErrorCode::HelloFirst,
+                        "nothing but hello before hello".into(),
+                    ));
+                }
+                Some(HostMessage::error(
+                    ErrorCode::HelloFirst,
+                    "send hello first",
+                ))
+            }
+            Ok(message @ GuestMessage::Command { .. }) if !over_rate.is_zero() => {
+                // The one it replaces is never forwarded: it costs nothing.
+                let wait = match r.held_command.take() {
+                    Some((at, _)) => {
+                        r.messages.refund(1.0);
+                        at.saturating_duration_since(tokio::time::Instant::now())
+                    }
+                    None => over_rate,
+                };
+                r.held_command = Some((tokio::time::Instant::now() + wait, message));
+                None
+            }
+            Ok(message) => {
+                if matches!(message, GuestMessage::Command { .. }) {
+                    // A newer command than the one held: that one is stale.
+                    r.held_command = None;
+                } else if !over_rate.is_zero() && !matches!(message, GuestMessage::EmergencyStop) {
+                    let until = tokio::time::Instant::now() + over_rate;
+                    r.paused_until = Some(r.paused_until.map_or(until, |p| p.max(until)));
+                }
+                if self
+                    .hub
+                    .send(ToHub::Message(self.id, message))
+                    .await
+                    .is_err()
+                {
+                    return Err(End::Closed);
+                }
+                None
+            }
+            Err(e) => Some(HostMessage::error(e.code(), e.to_string())),
+        })
     }
 }

@@ -345,25 +345,21 @@ impl<'a> Search<'a> {
                 self.flag_top(flags);
             }
         }
+        Ok(self.reading())
+    }
+
+    /// What the search found, each transition's liveness read off the
+    /// terminal components and the cycles it closed.
+    fn reading(self) -> Reading {
         let transitions = self.compiled.len();
         let mut l4 = vec![false; transitions];
         for &t in self.in_every_terminal.iter().flatten() {
             l4[t as usize] = true;
         }
         let liveness = (0..transitions)
-            .map(|t| {
-                if l4[t] {
-                    Liveness::L4
-                } else if self.cycles[t] {
-                    Liveness::L3
-                } else if self.fires[t] {
-                    Liveness::L1
-                } else {
-                    Liveness::L0
-                }
-            })
+            .map(|t| Liveness::of(l4[t], self.cycles[t], self.fires[t]))
             .collect();
-        Ok(Reading {
+        Reading {
             states: self.states,
             edges: self.edges,
             bounds: self.bounds,
@@ -371,7 +367,7 @@ impl<'a> Search<'a> {
             components: self.components,
             liveness,
             bytes_per_marking: self.layout.stride,
-        })
+        }
     }
 
     /// Moves the top marking down the edge `t` to `next` (its packing).
