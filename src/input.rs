@@ -304,3 +304,17 @@ pub(crate) struct SceneArgs {
     #[arg(long = "scene-event", value_parser = str::parse::<Scheduled>)]
     pub(crate) events: Vec<Scheduled>,
 }
+
+/// The arena `name` (shipped, or a JSON file) with the robot put at
+/// `start` when one is given: where the simulated robot stands, and where
+/// a real one's dead reckoning begins.
+pub(crate) fn arena_from(name: &str, start: Option<vl_core::Pose>) -> Result<Arena> {
+    let mut arena = Arena::load(name).map_err(|e| BadInput(e.to_string()))?;
+    if let Some(start) = start {
+        arena.start = start;
+        arena
+            .check()
+            .map_err(|e| BadInput(format!("--start: {e}")))?;
+    }
+    Ok(arena)
+}

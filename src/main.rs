@@ -6,8 +6,10 @@
 mod alloc;
 mod camera;
 mod experiment;
+mod guest;
+mod host;
 mod input;
-mod lab;
+mod khepera;
 mod media;
 mod nets;
 mod petri;
@@ -39,11 +41,11 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Serve the lab to Guests over WebSocket (on the lab machine).
-    Host(Box<lab::HostCommand>),
+    Host(Box<host::HostCommand>),
     /// Open the Guest window on a Host (on the user's desktop).
-    Guest(lab::GuestArgs),
+    Guest(guest::GuestArgs),
     /// Run a Host on the simulated lab and a Guest against it, in one process.
-    Demo(lab::DemoArgs),
+    Demo(guest::DemoArgs),
     /// Relay Guests to a Host through a modelled Internet link (the Media).
     Media(media::MediaCommand),
     /// The labs' own nets: statecharts to the controlled nets the Host runs.
@@ -53,13 +55,13 @@ enum Command {
     #[command(subcommand)]
     Petri(petri::PetriCommand),
     /// Emulate a Khepera II on a pseudo-terminal, backed by the simulator.
-    KheperaEmu(lab::KheperaArgs),
+    KheperaEmu(khepera::KheperaArgs),
     /// Tools for a real Khepera on its serial line.
     #[command(subcommand)]
-    Khepera(lab::KheperaTool),
+    Khepera(khepera::KheperaTool),
     /// Holds a robot's serial line for `vl host` (started by it).
     #[command(hide = true)]
-    SerialGuard(lab::GuardArgs),
+    SerialGuard(khepera::GuardArgs),
     /// The simulator's tools: scripted runs, camera frames, link models, speed.
     #[command(subcommand)]
     Sim(sim::SimCommand),
@@ -188,18 +190,18 @@ fn run(cli: Cli) -> Result<ExitCode> {
     let runtime = || tokio::runtime::Runtime::new().context("cannot start the async runtime");
     match cli.command {
         Command::Host(command) => runtime()?
-            .block_on(lab::host_command(*command))
+            .block_on(host::host_command(*command))
             .map(|()| ExitCode::SUCCESS),
-        Command::Guest(args) => lab::guest(&runtime()?, args),
-        Command::Demo(args) => lab::demo(&runtime()?, args),
+        Command::Guest(args) => guest::guest(&runtime()?, args),
+        Command::Demo(args) => guest::demo(&runtime()?, args),
         Command::Media(args) => runtime()?
             .block_on(media::run(args))
             .map(|()| ExitCode::SUCCESS),
         Command::Lab(command) => nets::run(command),
         Command::Petri(command) => petri::run(command),
-        Command::KheperaEmu(args) => lab::khepera_emu(args),
-        Command::Khepera(tool) => lab::khepera(tool),
-        Command::SerialGuard(args) => lab::serial_guard(args),
+        Command::KheperaEmu(args) => khepera::khepera_emu(args),
+        Command::Khepera(tool) => khepera::khepera(tool),
+        Command::SerialGuard(args) => khepera::serial_guard(args),
         Command::Sim(command) => sim::run(command),
         Command::Vision(command) => vision::run(command),
         Command::Plan(args) => plan::run(args),

@@ -20,3 +20,13 @@ pub(crate) fn emit(report: &impl Report, json: bool) -> Result<()> {
     }
     Ok(())
 }
+
+/// Error statistics in a table cell; a dash when nothing was measured.
+pub(crate) fn error_mm(e: Option<vl_core::ErrorMm>) -> String {
+    e.map_or("–".into(), |e| {
+        format!(
+            "mean {:.1} mm, max {:.1} mm, rms {:.1} mm",
+            e.mean, e.max, e.rms
+        )
+    })
+}

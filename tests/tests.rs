@@ -36,4 +36,5 @@ mod safety;
 mod serial_safety;
 mod sim_cli;
 mod sim_link;
+mod structure;
 mod vision;

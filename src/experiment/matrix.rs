@@ -9,7 +9,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 use vl_core::Named;
-use vl_guest::experiment::{Matrix, cells_of, headline, line, run_all};
+use vl_guest::experiment::{Matrix, cells_of, headline, line, run_all, write_report};
 use vl_sim::{LinkModel, Profile};
 
 use crate::input::{load_arena, seconds};
@@ -112,7 +112,7 @@ pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Res
         started.elapsed().as_secs_f64(),
         runs,
     );
-    matrix.write(&args.out, &arena)?;
+    write_report(&args.out, &matrix, &arena)?;
     emit(&matrix, args.json)?;
     if !args.json {
         println!(

@@ -132,7 +132,7 @@ impl Report for Runs {
             "{}; {} failed; tracking error over all: {}",
             count(self.runs.len() as u64, "run", "runs"),
             failed,
-            crate::lab::error_mm(self.tracking_error_mm)
+            crate::report::error_mm(self.tracking_error_mm)
         ));
         table
     }

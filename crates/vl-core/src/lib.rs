@@ -12,6 +12,84 @@
 //! - the safety layer every wheel command passes on the Host.
 //!
 //! Modules are private; what other crates use is re-exported here.
+//!
+//! Where things are:
+//!
+//! - `contract/` `protocol`, `frame`, `experiment`, `session`: protocol v1's
+//!   messages and codec; camera frames on the wire (36-byte header); the
+//!   `Experiment`s a lab offers and the `Definition` a user gives, with its
+//!   validation; the session supervisor: the labs' controlled nets as `vl lab
+//!   nets` wrote them (`docs/nets/<lab>/controlled.pnml`, built in), whose
+//!   enabled transitions decide what may happen (mount, define, start, stop,
+//!   command, finish, release, and the lab's own cspace_built, path_planned,
+//!   field_built), telling a `NetState` (marking, enabled events, transitions
+//!   fired) and followed by the Guest
+//!
+//! - `design/` `pipeline`, `report`: the labs designed by their own nets:
+//!   each lab's statecharts (`crates/vl-core/nets/`, a `lab.toml` per lab
+//!   naming its charts, uncontrollable events and controllers), through
+//!   from-scxml → compose → the uncontrolled composition's bad interleavings
+//!   per rule → controllers → the controlled net checked and its parallel
+//!   places fused; the PNML, DOT and Markdown report `vl lab nets` writes
+//!
+//! - `model/` `robot`, `proximity`, `response_fit`, `khepera`, `camera`,
+//!   `lens`, `arena/` (`shape`, `material`, `map`, `load`): poses, points,
+//!   wheel speeds, the robot model and differential-drive kinematics, its
+//!   measured `wheel_slip` (how fast odometry grows uncertain), its
+//!   `SpeedResponse` (gain, time constant, acceleration limit, dead time: the
+//!   law the simulator moves by and the safety layer brakes by); the IR
+//!   response and its inverse, and what a sensor reads of the map
+//!   (`mapped_reading`, which the simulator adds noise to and the pose
+//!   estimate compares with); fitting the response to measured steps (thesis
+//!   C.2); `KheperaCommand`/`KheperaReply`, the Khepera's serial protocol for
+//!   both its ends; the camera's mm↔pixel model (a homography and the lens's
+//!   radial distortion k₁, k₂, fitted by DLT/SVD and then together by
+//!   Levenberg–Marquardt from point pairs); the arena: shape geometry
+//!   (bounds, distance, rays, `FromStr`), what obstacles are made of (IR
+//!   reflectivity, colour), top-view images whose dark pixels become
+//!   obstacles, and `Arena::load` (shipped by name, or a JSON file)
+//!
+//! - `vision/` `threshold`, `components`, `robot`, `floor`, `target`:
+//!   OpenCV-compatible grey and Otsu, connected components over row runs with
+//!   closed-form moments, Hu invariants and holes, the robot's pose from its
+//!   marker; `inspect` runs the pipeline, `bench` times it; `floor::look`,
+//!   what one frame says (the robot's pose, the floor's occupancy without the
+//!   robot, the map as an `Arena`, the robot painted out); the dot target a
+//!   camera is calibrated from, each dot's centre weighted by its darkness
+//!
+//! - `navigation/` `cspace`, `nf1`, `spline`, `plan`, `follow`, `localise`,
+//!   `analysis`, `svg`, `bench`: occupancy grids grown by a disc (the exact
+//!   distance transform, taken only as far as the disc reaches, rows split
+//!   over two threads) or per-θ polygon footprint; the NF1 wavefront (held
+//!   front by front) and its descent; chord-length cubic splines; planning
+//!   with validation and exact clearance (each pose looks a few cells around
+//!   it; the whole-map transform only for a path far from everything), and
+//!   `plan_route`, the one way a path to a goal is planned for a robot in its
+//!   arena (its samples pushed clear of obstacles as far as the room allows);
+//!   the path follower (`Follower::for_definition`); the pose estimate,
+//!   odometry (its uncertainty grown by each wheel's slip) and camera
+//!   sightings folded in at their frames' exposure, or with no camera the
+//!   proximity readings against the map, in an extended Kalman filter
+//!   (`Localiser`); path analysis, followed against planned (`PathRecorder`);
+//!   the plan and a run as SVG; the planning benchmark (each stage, and the
+//!   whole plan timed as one job)
+//!
+//! - `safety`: the safety layer every wheel command passes on the Host:
+//!   `Surroundings` (exact signed clearance to walls, obstacles, virtual
+//!   obstacles, whose boxes are worked out once per run), `Safety::guard`
+//!   (brake the command out through the speed response after the pose's age —
+//!   what the wheels were told goes on until the command reaches them — and
+//!   the control period; keep the turn, give up forward speed until the robot
+//!   can stop clear; past a face only moving out passes)
+//!
+//! - `images`: `load_image`/`decode_image`, the one way an image from
+//!   outside (arena maps, `vl vision`/`vl plan` inputs, camera frames at the
+//!   Guest) is decoded: its size is checked against 8192 px a side and 256 MB
+//!   before anything is allocated
+//!
+//! - `named`: `Named`: kinds users name by a fixed id (experiment, robot,
+//!   link profile, connectivity) — one id list, one parser, serde as the id;
+//!   the binary's `named()` value parser lists the ids in `--help`
 
 mod contract;
 mod design;

@@ -3,6 +3,35 @@
 //! `gamepad` reads a real stick and renders the force on it,
 //! `app` draws it all in a window and `headless` scripts it without one;
 //! `experiment` runs the lab's experiments on a simulated Host, measured.
+//!
+//! In detail:
+//!
+//! - modules: the user's side: the connection, opened at once and connected
+//!   on its own task so an unreachable Host is an event, not a failure, tried
+//!   again with back-off from the first attempt and whenever an established
+//!   link drops (the back-off starting afresh only once a Host welcomed it),
+//!   saying hello with the operator's resume secret, giving up at once on
+//!   something that answers but is no vl Host, and saying goodbye on close
+//!   (`client`); one `Session` state type, which forgets everything a Host
+//!   told at every welcome (a Host started again begins its clocks, frames
+//!   and marking anew), with its pacing (event- or time-based) and
+//!   synchronisation count (`session`); the predictive display's model, the
+//!   pose now from the last feedback and the commands in flight through the
+//!   speed response and the watchdog, judged by later feedback (`predict`);
+//!   `Route`, the one way the window and the scripted Guest plan a path, and
+//!   a dragged path's bending and C-space check (`route`); the user's
+//!   settings kept as TOML between sessions (`settings`); gamepads through
+//!   evdev and the force → rumble/constant-force mapping (`gamepad`); the
+//!   small live view of the lab's net in users' words, folded at first
+//!   (`netview`); the egui window — a one-line status bar, repainting four
+//!   times a second at idle and every 30 ms while something moves — with the
+//!   emergency stop, the force arrows, the predictive display's ghost with a
+//!   legend, the driven trail, the age of what is shown (a frame as old as
+//!   its capture), Back to start and who pressed STOP, virtual obstacles
+//!   drawn by dragging, the C-space overlay, path editing and the settings
+//!   panel (`app`); the scripted Guests: the Host following a defined path,
+//!   an operator steering along it from the delayed feedback, lag-aware as a
+//!   person is, and the watching observer (`headless`)
 
 mod app;
 mod client;

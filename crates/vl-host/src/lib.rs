@@ -5,6 +5,60 @@
 //! controller `characterise` measures), runs the experiment control loop (`lab`) and serves Guests
 //! over WebSocket (`server`); and the Media, a relay that puts a modelled
 //! Internet link between Guests and a Host (`media`).
+//!
+//! In detail:
+//!
+//! - modules: the lab machine: hardware behind small traits (`drivers`:
+//!   `Robot`, which reports odometry, never a true pose; `Camera`, which
+//!   reports its calibration; `Witness`, the simulator's truth, for a run's
+//!   record only; typed `RobotError`), their simulated implementations
+//!   (`sim`: the camera exposes frames on a thread of its own, which arrive
+//!   the optics' delay later, some never) beside real cameras — an MJPEG
+//!   stream over HTTP read on a thread that keeps the newest frame and
+//!   reconnects, a V4L2 webcam through `linuxvideo`, both through one decode
+//!   of MJPEG (standard Huffman tables put back) and YUYV (`webcam`) — and
+//!   the real Khepera on a serial line with dead-reckoning odometry
+//!   (`khepera`) held through a guard process that stops the robot when the
+//!   Host dies or freezes (`line`; hidden `vl serial-guard`), its speed
+//!   controller's characterisation (`characterise`; `vl khepera
+//!   characterise`), the real-time loops (`lab/`): the camera loop maps the
+//!   floor from the first frame and locates the robot in every frame at the
+//!   control loop's priority, while a niced thread picks (by its
+//!   `FramePolicy`), encodes and sends frames to Guests, newest only, and
+//!   nothing while no welcomed client watches (`camera`); the control loop
+//!   fuses sightings and odometry, acts on a command as it arrives (at most
+//!   every 2 ms) and otherwise every 10 ms, follows a defined path or the
+//!   operator, applies the watchdog, assistance, then the safety layer (its
+//!   margin widened by the estimate's uncertainty) before every wheel
+//!   command, ends a followed run that comes no further for 5 s saying where
+//!   and why (`held_back`), turns in place to a heading at a run's goal when
+//!   asked, and records the run's paths (`control`); the WebSocket server
+//!   (`server/`): who gets a connection, at most 256 of which 32 not yet
+//!   welcomed and 8 of those from one address, a newcomer pushing out the
+//!   oldest silent one of its own address, or else of the address holding the
+//!   most, bare sockets before upgraded ones — idle sockets from one machine
+//!   only push out each other (`admission`, which the Media uses too); one
+//!   task per connection with the handshake, hello, ping and write timeouts,
+//!   size and rate limits and a bounded outbox (`connection`); the hub, sole
+//!   owner of session state, which asks the supervisor before every action,
+//!   gives the map's C-space and teleoperation field (made once, when the
+//!   Host starts) on mount and builds each definition's field with its
+//!   virtual obstacles off the hub, on one blocking thread, the newest
+//!   definition waiting in place of older ones, tells every client each
+//!   change of the net's marking, takes the emergency stop from anyone, ends
+//!   the run of an operator whose lease runs out, holds the role and the run
+//!   (robot still) for an operator whose link dropped until the grace ends,
+//!   makes the lab ready after a run (not after an emergency stop, a fault, a
+//!   lost robot or a run held back) by planning a route back to the start
+//!   pose off the hub and driving it as a run of its own, refusing Start
+//!   meanwhile, says who pressed an emergency stop, and counts each run's
+//!   synchronisation from the commands' `seen` (`hub`); the operator-latency
+//!   benchmark, `vl host bench` (`bench`); the Media, a relay that holds each
+//!   message for the delay a `MessageLink` gives it, closes a Guest's
+//!   connection with the reason when its Host does not answer, closes and
+//!   refuses connections during a scheduled disconnect, keeps for a client
+//!   that does not read only the newest 2 MiB of frames, records each leg's
+//!   delays and measures its own cost (`media`)
 
 mod characterise;
 mod drivers;

@@ -246,14 +246,7 @@ fn components(space: &StateSpace, transitions: usize) -> Components {
                         let members = &stack[from..];
                         if members.iter().all(|&w| flags[w as usize] & EXITS == 0) {
                             terminals += 1;
-                            for &w in members {
-                                for (t, _) in space.successors(w as usize) {
-                                    if seen_in[t] != count {
-                                        seen_in[t] = count;
-                                        in_terminals[t] += 1;
-                                    }
-                                }
-                            }
+                            fired_inside(space, members, count, &mut seen_in, &mut in_terminals);
                         }
                         for &w in members {
                             flags[w as usize] &= !ON_STACK;
@@ -289,6 +282,25 @@ fn components(space: &StateSpace, transitions: usize) -> Components {
     Components {
         count: count as usize,
         liveness,
+    }
+}
+
+/// Counts, once for the terminal component `count` of `members`, each
+/// transition that fires inside it.
+fn fired_inside(
+    space: &StateSpace,
+    members: &[u32],
+    count: u32,
+    seen_in: &mut [u32],
+    in_terminals: &mut [usize],
+) {
+    for &w in members {
+        for (t, _) in space.successors(w as usize) {
+            if seen_in[t] != count {
+                seen_in[t] = count;
+                in_terminals[t] += 1;
+            }
+        }
     }
 }
 

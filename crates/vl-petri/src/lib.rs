@@ -11,6 +11,20 @@
 //! synthesis (`control`), pictures (`dot`), and benchmarks on the Model
 //! Checking Contest's models (`bench`). Modules are private; what other
 //! crates use is re-exported here.
+//!
+//! In detail:
+//!
+//! - modules: the thesis's methodology as a library: the net model with
+//!   weights, inhibitor arcs, capacities and labels (`net`), PNML in/out
+//!   (`pnml`), SCXML statecharts to nets (`scxml`), the reachability graph
+//!   (`explore`), and the properties read off it (`analysis`) or during a
+//!   depth-first search that keeps no graph (`onthefly`), the states counted
+//!   on several threads (`frontier`), both over tables of packed markings
+//!   mapped from the system (`markings`), Karp–Miller coverability
+//!   (`coverability`), minimal P/T-invariants (`invariants`), synchronous
+//!   composition and parallel place fusion (`compose`), controller synthesis
+//!   by monitor places and inhibitor arcs (`control`), Graphviz pictures
+//!   (`dot`), the corpus manifest and one model's benchmark (`bench`)
 
 mod analysis;
 mod bench;
@@ -30,6 +44,7 @@ mod net;
 mod onthefly;
 mod pnml;
 mod scxml;
+mod verdict;
 
 pub use analysis::{Analysis, analyze, analyze_net, firing_sequence, incidence_rank};
 pub use bench::{BenchRow, CorpusModel, Manifest, ManifestError, PeakMemory, bench_model};
@@ -48,3 +63,4 @@ pub use net::{
 };
 pub use pnml::{PnmlError, from_pnml, to_pnml};
 pub use scxml::{ScxmlError, from_scxml};
+pub use verdict::{Verdict, conservative, verdict};

@@ -6,6 +6,28 @@
 //! Also here: the Khepera's serial protocol answered by the simulated
 //! robot (and put on a pseudo-terminal), the Internet link as a model, and
 //! scripted or path-following runs with a fingerprint of their trace.
+//!
+//! In detail:
+//!
+//! - modules: a deterministic simulator: the Khepera on its arena at a fixed
+//!   10 ms step with a seeded generator — first-order speed response, wheel
+//!   slip, contact (`world`), the IR response scaled by reflectivity
+//!   (`proximity`), the overhead camera with optional lens offset, blur,
+//!   noise, lighting gradient, tilt, barrel distortion, motion blur over the
+//!   exposure, a cable across the marker, drawn by a `Renderer` that keeps
+//!   the still scene between frames, and its calibration from a rendered dot
+//!   target (`camera`), how far odometry drifts from the truth over UMBmark
+//!   squares (`odometry`, `vl sim odometry`), people's doings on the virtual
+//!   clock: a box put down, a hand over the robot (`scene`), the Khepera
+//!   protocol answered by the simulated robot (`khepera`, over `vl-core`'s
+//!   `KheperaCommand`) and put on a pseudo-terminal with a real line's timing
+//!   at its baud, each command and reply taking its characters' time
+//!   (`emulator`, `vl khepera-emu`), the Internet link as a netem-style model
+//!   with named `Profile`s (`link`) and as a WebSocket's messages see it over
+//!   TCP — in order, a loss as a retransmission's wait, a disconnect as a
+//!   closed connection — with profiles from name or JSON file (`tcp`), runs
+//!   scripted or following the path a Guest would plan, lasting as long as
+//!   that path needs (`script`), and its real-time factor (`bench`)
 
 mod bench;
 mod camera;

@@ -6,7 +6,10 @@ use std::path::{Path, PathBuf};
 
 use vl_core::table::{Table, yes};
 
-use super::matrix::{Matrix, headline};
+use vl_core::{Arena, Experiment};
+
+use super::Pacing;
+use super::matrix::{Cell, Matrix, draw};
 use super::{ExperimentError, Leg, Run};
 
 fn ms(v: Option<Leg>) -> [String; 4] {
@@ -16,12 +19,66 @@ fn ms(v: Option<Leg>) -> [String; 4] {
     }
 }
 
+/// Writes report.md, report.json and the pictures into `dir`, drawing
+/// the paths over `arena`.
+pub fn write_report(dir: &Path, m: &Matrix, arena: &Arena) -> Result<(), ExperimentError> {
+    let pictures = draw(dir, m, arena)?;
+    write(dir, m, &pictures)?;
+    let json = serde_json::to_string_pretty(m).map_err(|e| ExperimentError::Draw {
+        what: "report.json".into(),
+        why: e.to_string(),
+    })?;
+    super::write(&dir.join("report.json"), json)
+}
+
+/// The matrix's figures, a row per cell.
+pub fn headline(cells: &[Cell]) -> Table {
+    let mut table = Table::columns(&[
+        "experiment",
+        "profile",
+        "pacing",
+        "goal",
+        "collisions",
+        "max gap",
+        "sync lost",
+        "track mean",
+        "track max",
+        "seconds",
+        "predict mean",
+        "predict max",
+        "stale mean",
+        "rtt p50",
+    ]);
+    let pair = |v: Option<[f64; 2]>, k: usize| v.map_or("–".into(), |v| format!("{:.1}", v[k]));
+    for c in cells {
+        table.row(vec![
+            c.experiment.to_string(),
+            c.profile.clone(),
+            match (c.experiment, c.pacing) {
+                (Experiment::Navigation, _) => "host".into(),
+                (_, Pacing::Event) => "event".into(),
+                (_, Pacing::Time) => "time".into(),
+            },
+            format!("{}/{}", c.reached_goal, c.runs),
+            c.collisions.to_string(),
+            c.max_event_gap.to_string(),
+            c.sync_violations.to_string(),
+            c.tracking_error_mm
+                .map_or("–".into(), |e| format!("{:.1}", e.mean)),
+            c.tracking_error_mm
+                .map_or("–".into(), |e| format!("{:.1}", e.max)),
+            c.completion_s.map_or("–".into(), |s| format!("{s:.1}")),
+            pair(c.prediction_error_mm, 0),
+            pair(c.prediction_error_mm, 1),
+            pair(c.stale_error_mm, 0),
+            format!("{:.0}", c.round_trip_p50_ms),
+        ]);
+    }
+    table
+}
+
 /// Writes report.md into `dir`, with the pictures named.
-pub(super) fn write(
-    dir: &Path,
-    m: &Matrix,
-    pictures: &[(String, PathBuf)],
-) -> Result<(), ExperimentError> {
+fn write(dir: &Path, m: &Matrix, pictures: &[(String, PathBuf)]) -> Result<(), ExperimentError> {
     let mut md = String::new();
     let _ = writeln!(
         md,

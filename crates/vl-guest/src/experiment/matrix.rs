@@ -8,7 +8,6 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use serde::Serialize;
-use vl_core::table::Table;
 use vl_core::{Arena, Experiment};
 use vl_host::{Delays, FramePolicy};
 use vl_sim::{LinkModel, Optics};
@@ -138,64 +137,6 @@ impl Matrix {
                 && r.succeeded()
         })
     }
-
-    /// Writes report.md, report.json and the pictures into `dir`, drawing
-    /// the paths over `arena`.
-    pub fn write(&self, dir: &Path, arena: &Arena) -> Result<(), ExperimentError> {
-        let pictures = draw(dir, self, arena)?;
-        super::markdown::write(dir, self, &pictures)?;
-        let json = serde_json::to_string_pretty(self).map_err(|e| ExperimentError::Draw {
-            what: "report.json".into(),
-            why: e.to_string(),
-        })?;
-        super::write(&dir.join("report.json"), json)
-    }
-}
-
-/// The matrix's figures, a row per cell.
-pub fn headline(cells: &[Cell]) -> Table {
-    let mut table = Table::columns(&[
-        "experiment",
-        "profile",
-        "pacing",
-        "goal",
-        "collisions",
-        "max gap",
-        "sync lost",
-        "track mean",
-        "track max",
-        "seconds",
-        "predict mean",
-        "predict max",
-        "stale mean",
-        "rtt p50",
-    ]);
-    let pair = |v: Option<[f64; 2]>, k: usize| v.map_or("–".into(), |v| format!("{:.1}", v[k]));
-    for c in cells {
-        table.row(vec![
-            c.experiment.to_string(),
-            c.profile.clone(),
-            match (c.experiment, c.pacing) {
-                (Experiment::Navigation, _) => "host".into(),
-                (_, Pacing::Event) => "event".into(),
-                (_, Pacing::Time) => "time".into(),
-            },
-            format!("{}/{}", c.reached_goal, c.runs),
-            c.collisions.to_string(),
-            c.max_event_gap.to_string(),
-            c.sync_violations.to_string(),
-            c.tracking_error_mm
-                .map_or("–".into(), |e| format!("{:.1}", e.mean)),
-            c.tracking_error_mm
-                .map_or("–".into(), |e| format!("{:.1}", e.max)),
-            c.completion_s.map_or("–".into(), |s| format!("{s:.1}")),
-            pair(c.prediction_error_mm, 0),
-            pair(c.prediction_error_mm, 1),
-            pair(c.stale_error_mm, 0),
-            format!("{:.0}", c.round_trip_p50_ms),
-        ]);
-    }
-    table
 }
 
 /// A cell of the matrix: how many of its runs reached the goal, and the
@@ -310,7 +251,11 @@ pub async fn run_all(
 }
 
 /// The pictures, by what they show: (caption, PNG file name).
-fn draw(dir: &Path, m: &Matrix, arena: &Arena) -> Result<Vec<(String, PathBuf)>, ExperimentError> {
+pub(super) fn draw(
+    dir: &Path,
+    m: &Matrix,
+    arena: &Arena,
+) -> Result<Vec<(String, PathBuf)>, ExperimentError> {
     let mut out = Vec::new();
     // Tracking and prediction against the round trip, event against time.
     let by_delay = |pacing: Pacing, pick: fn(&Cell) -> Option<f64>| -> Vec<(f64, f64)> {

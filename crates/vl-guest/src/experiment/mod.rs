@@ -22,7 +22,8 @@ use vl_sim::{LinkModel, Optics, Scheduled};
 
 use crate::headless::{Report, RoundTripMs, Script, ScriptError, run_script};
 use crate::session::{ControlMode, Spread, TIME_PERIOD};
-pub use matrix::{Cell, Matrix, Timing, cells_of, headline, run_all};
+pub use markdown::{headline, write_report};
+pub use matrix::{Cell, Matrix, Timing, cells_of, run_all};
 
 /// Why an experiment could not be run or reported.
 #[derive(Debug, thiserror::Error)]

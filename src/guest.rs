@@ -1,0 +1,326 @@
+//! `vl guest`: the window, or a scripted Guest without one; `vl demo`
+//! runs a Guest against a simulated Host in the same process.
+
+use std::net::SocketAddr;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use vl_core::{Arena, Experiment, Role};
+use vl_guest::{
+    ClientError, Report as RunReport, RoundTripMs, Script, ScriptError, Watched, WindowError,
+};
+use vl_host::{Host, HostConfig, Media, SimLab};
+
+use crate::media::LinkArgs;
+use crate::report::{Report, Table, count, emit, error_mm};
+use crate::{BadInput, named};
+
+#[derive(clap::Args)]
+pub(crate) struct GuestArgs {
+    /// The Host's WebSocket URL.
+    #[arg(long, default_value = "ws://127.0.0.1:7400")]
+    connect: String,
+    /// Watch only; another person drives.
+    #[arg(long)]
+    observer: bool,
+    /// The operator token the Host asks for.
+    #[arg(long)]
+    token: Option<String>,
+    /// No window: drive the robot to the experiment's goal and report; as
+    /// an observer, watch until a run ends (or --timeout) and report.
+    #[arg(long)]
+    headless: bool,
+    /// With --headless: print the report as JSON.
+    #[arg(long, requires = "headless")]
+    json: bool,
+    /// A real gamepad or joystick to drive with and feel the force on:
+    /// auto (the first one found), none, or its /dev/input/eventN device.
+    #[arg(long, default_value = "auto")]
+    gamepad: GamepadChoice,
+    /// Count the gamepad's stick only while its dead-man button (left
+    /// shoulder or trigger) is held.
+    #[arg(long)]
+    dead_man: bool,
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+/// Which gamepad the window reads.
+#[derive(Clone, Debug)]
+enum GamepadChoice {
+    Auto,
+    None,
+    Device(std::path::PathBuf),
+}
+
+impl std::str::FromStr for GamepadChoice {
+    type Err = std::convert::Infallible;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        Ok(match text {
+            "auto" => GamepadChoice::Auto,
+            "none" => GamepadChoice::None,
+            path => GamepadChoice::Device(path.into()),
+        })
+    }
+}
+
+/// The gamepad asked for: gamepads are read through Linux's evdev.
+fn gamepad(choice: &GamepadChoice, dead_man: bool) -> Result<Option<Box<dyn vl_guest::Pad>>> {
+    #[cfg(target_os = "linux")]
+    {
+        use vl_guest::Gamepad;
+        let pad = match choice {
+            GamepadChoice::None => None,
+            GamepadChoice::Auto => Gamepad::find(dead_man),
+            GamepadChoice::Device(path) => {
+                Some(Gamepad::open(path, dead_man).map_err(|e| BadInput(e.to_string()))?)
+            }
+        };
+        if let Some(pad) = &pad {
+            let feel = if pad.has_force_feedback() {
+                "with force feedback"
+            } else {
+                "without force feedback"
+            };
+            eprintln!(
+                "vl guest: driving with {} ({feel})",
+                vl_guest::Pad::name(pad)
+            );
+        }
+        Ok(pad.map(|p| Box::new(p) as Box<dyn vl_guest::Pad>))
+    }
+    #[cfg(not(target_os = "linux"))]
+    match choice {
+        GamepadChoice::Device(_) => {
+            Err(BadInput("gamepads are read through Linux's evdev only".into()).into())
+        }
+        _ => {
+            let _ = dead_man;
+            Ok(None)
+        }
+    }
+}
+
+#[derive(clap::Args)]
+pub(crate) struct DemoArgs {
+    /// No window: a scripted Guest drives the robot to the goal and reports.
+    #[arg(long)]
+    headless: bool,
+    /// Print the headless report as JSON.
+    #[arg(long)]
+    json: bool,
+    /// Seed for the simulator's noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    #[command(flatten)]
+    link: LinkArgs,
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct RunArgs {
+    /// Experiment to mount for a headless run.
+    #[arg(long, value_parser = named::<Experiment>(), default_value = "navigation")]
+    experiment: Experiment,
+    /// Give up a headless run (stop watching, as an observer) after this many seconds.
+    #[arg(long, default_value_t = 60.0)]
+    timeout: f64,
+    /// Where a headless run drives to, x,y mm (default: the arena's goal).
+    #[arg(long, allow_hyphen_values = true)]
+    goal: Option<vl_core::Point>,
+}
+
+/// A Guest error: an address that cannot be a Host's is the user's input.
+fn guest_error(e: impl Into<anyhow::Error>) -> anyhow::Error {
+    let e = e.into();
+    let bad_url = |c: &ClientError| matches!(c, ClientError::BadUrl { .. });
+    let is_bad_url = match e.downcast_ref::<ScriptError>() {
+        Some(ScriptError::Connect(c)) => bad_url(c),
+        _ => match e.downcast_ref::<WindowError>() {
+            Some(WindowError::Address(c)) => bad_url(c),
+            _ => false,
+        },
+    };
+    if is_bad_url {
+        BadInput(e.to_string()).into()
+    } else {
+        e
+    }
+}
+
+pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Result<ExitCode> {
+    let role = if args.observer {
+        Role::Observer
+    } else {
+        Role::Operator
+    };
+    if args.headless {
+        let script = script(&args.run, args.token, !args.json);
+        if role == Role::Observer {
+            let watched = interruptible(runtime, vl_guest::watch(&args.connect, &script))?
+                .map_err(guest_error)?;
+            emit(&watched, args.json)?;
+            return Ok(ExitCode::SUCCESS);
+        }
+        let report = interruptible(runtime, vl_guest::run_script(&args.connect, &script))?
+            .map_err(guest_error)?;
+        return finish(&report, args.json);
+    }
+    let pad = gamepad(&args.gamepad, args.dead_man)?;
+    let _entered = runtime.enter();
+    let shown = vl_guest::run_window(&args.connect, role, args.token, pad);
+    // The window is gone and with it its connection: give the goodbye
+    // time to leave, so an operator's role is free at once.
+    std::thread::sleep(GOODBYE_WAIT);
+    shown.map_err(guest_error)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// How long a Guest that ends lets its connection's goodbye go out.
+const GOODBYE_WAIT: Duration = Duration::from_millis(300);
+
+/// Runs a headless Guest until it ends or Ctrl-C; on Ctrl-C its connection
+/// is dropped, which closes the WebSocket (a goodbye: the Host frees the
+/// operator's role at once), and the Guest exits with 130.
+fn interruptible<T>(
+    runtime: &tokio::runtime::Runtime,
+    guest: impl std::future::Future<Output = T>,
+) -> Result<T> {
+    runtime.block_on(async {
+        tokio::select! {
+            done = guest => Ok(done),
+            _ = tokio::signal::ctrl_c() => {
+                tokio::time::sleep(GOODBYE_WAIT).await;
+                eprintln!("vl guest: interrupted; said goodbye to the Host");
+                std::process::exit(130);
+            }
+        }
+    })
+}
+
+pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<ExitCode> {
+    let listen: SocketAddr = ([127, 0, 0, 1], 0).into();
+    let host = runtime
+        .block_on(Host::start_sim(
+            listen,
+            SimLab {
+                seed: args.seed,
+                ..SimLab::new(Arena::navigation())
+            },
+            HostConfig::default(),
+        ))
+        .context("cannot start the simulated Host")?;
+    let media = runtime.block_on(args.link.front(listen, &host.url()))?;
+    let url = media.as_ref().map_or_else(|| host.url(), Media::url);
+    let has_display =
+        std::env::var_os("DISPLAY").is_some() || std::env::var_os("WAYLAND_DISPLAY").is_some();
+    if !args.headless && !has_display {
+        eprintln!(
+            "vl demo: no display (neither DISPLAY nor WAYLAND_DISPLAY is set); running headless"
+        );
+    }
+    if args.headless || !has_display {
+        let script = script(&args.run, None, !args.json);
+        let report = interruptible(runtime, vl_guest::run_script(&url, &script))??;
+        return finish(&report, args.json);
+    }
+    eprintln!("vl demo: simulated lab at {url}");
+    let _entered = runtime.enter();
+    let pad = gamepad(&GamepadChoice::Auto, false)?;
+    vl_guest::run_window(&url, Role::Operator, None, pad)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn script(run: &RunArgs, token: Option<String>, progress: bool) -> Script {
+    Script {
+        experiment: run.experiment,
+        goal: run.goal.map(vl_core::Goal::at),
+        token,
+        timeout: Duration::from_secs_f64(run.timeout.clamp(0.0, 1e6)),
+        progress,
+        ..Script::default()
+    }
+}
+
+/// Prints the run's report; success means the robot reached its goal.
+fn finish(report: &RunReport, json: bool) -> Result<ExitCode> {
+    emit(report, json)?;
+    if report.reached_goal {
+        Ok(ExitCode::SUCCESS)
+    } else {
+        eprintln!("vl: the robot did not reach the goal ({})", report.ending());
+        Ok(ExitCode::FAILURE)
+    }
+}
+
+fn round_trip(rtt: &RoundTripMs) -> String {
+    format!("p50 {:.2} ms, p99 {:.2} ms", rtt.p50, rtt.p99)
+}
+
+impl Report for RunReport {
+    fn table(&self) -> Table {
+        let pose = self.final_pose;
+        Table::pairs([
+            (
+                "reached goal",
+                crate::report::yes(self.reached_goal).to_owned(),
+            ),
+            ("end", self.ending()),
+            ("events", self.events.to_string()),
+            (
+                "final pose",
+                format!(
+                    "({:.1}, {:.1}) mm, {:.1}°",
+                    pose.x_mm,
+                    pose.y_mm,
+                    pose.theta_rad.to_degrees()
+                ),
+            ),
+            ("lab time", format!("{:.2} s", self.sim_seconds)),
+            ("distance", format!("{:.0} mm", self.distance_mm)),
+            ("collisions", self.collisions.to_string()),
+            ("pose from", self.pose_source.to_string()),
+            (
+                "path error",
+                error_mm(self.path.as_ref().and_then(|p| p.path_error_mm)),
+            ),
+            (
+                "estimate error",
+                error_mm(self.path.as_ref().and_then(|p| p.estimate_error_mm)),
+            ),
+            (
+                "frames",
+                format!("{} ({:.0} kB)", self.frames, self.video_bytes as f64 / 1e3),
+            ),
+            ("round trip", round_trip(&self.round_trip_ms)),
+        ])
+    }
+}
+
+impl Report for Watched {
+    fn table(&self) -> Table {
+        let run = match &self.run {
+            Some(done) => format!(
+                "{} after {:.1} s, {}",
+                done.ending(),
+                done.seconds,
+                count(done.events, "event", "events")
+            ),
+            None => "none ended while watching".into(),
+        };
+        Table::pairs([
+            (
+                "mounted",
+                self.experiment
+                    .map_or("nothing".to_owned(), |e| e.title().to_owned()),
+            ),
+            ("run", run),
+            ("feedback", self.feedback.to_string()),
+            ("frames", self.frames.to_string()),
+            ("round trip", round_trip(&self.round_trip_ms)),
+        ])
+    }
+}

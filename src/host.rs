@@ -1,0 +1,309 @@
+//! `vl host`: serve the lab on a simulated or real robot and camera, or
+//! measure how it answers (`vl host bench`).
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use vl_core::{Experiment, RobotModel};
+use vl_host::{Devices, Host, HostConfig, KheperaSerial, SimCamera, SimLab};
+
+use crate::input::{
+    CameraDriver, FramesArgs, OpticsArgs, SceneArgs, arena_from, load_calibration,
+    load_robot_model, parse_camera, real_camera, seconds,
+};
+use crate::media::LinkArgs;
+use crate::report::{Report, Table, emit};
+use crate::{BadInput, named};
+
+#[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
+enum RobotDriver {
+    /// The simulated Khepera II.
+    Sim,
+    /// A Khepera I/II on the serial line --port.
+    Khepera,
+}
+
+/// `vl host`: serve the lab, or measure how it answers.
+#[derive(clap::Args)]
+#[command(args_conflicts_with_subcommands = true)]
+pub(crate) struct HostCommand {
+    #[command(subcommand)]
+    tool: Option<HostTool>,
+    #[command(flatten)]
+    serve: HostArgs,
+}
+
+#[derive(clap::Subcommand)]
+enum HostTool {
+    /// Time an operator's command to the feedback of its event on a
+    /// simulated Host (camera streaming) while observers read everything.
+    Bench {
+        /// Observers connected and reading.
+        #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(0..=1000))]
+        observers: u64,
+        /// Commands timed, each sent when the last one's feedback arrived.
+        #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+        commands: u64,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+impl Report for vl_host::OperatorLatency {
+    fn table(&self) -> Table {
+        Table::pairs([
+            ("observers reading", self.observers.to_string()),
+            ("commands timed", self.commands.to_string()),
+            ("p50", format!("{:.2} ms", self.p50_ms)),
+            ("p90", format!("{:.2} ms", self.p90_ms)),
+            ("p99", format!("{:.2} ms", self.p99_ms)),
+            ("max", format!("{:.2} ms", self.max_ms)),
+            (
+                "feedback to the slowest observer",
+                format!("{:.1} /s", self.observer_feedback_hz),
+            ),
+            (
+                "frames to the slowest observer",
+                format!("{:.1} /s", self.observer_frames_hz),
+            ),
+        ])
+        .title("an operator's command to the feedback of its event, on loopback:")
+    }
+}
+
+pub(crate) async fn host_command(command: HostCommand) -> Result<()> {
+    match command.tool {
+        Some(HostTool::Bench {
+            observers,
+            commands,
+            json,
+        }) => {
+            let latency = vl_host::operator_latency(observers as usize, commands as usize)
+                .await
+                .context("the operator bench failed")?;
+            emit(&latency, json)
+        }
+        None => host(command.serve).await,
+    }
+}
+
+#[derive(clap::Args)]
+pub(crate) struct HostArgs {
+    /// Which robot to drive.
+    #[arg(long, value_enum, default_value = "sim")]
+    robot: RobotDriver,
+    /// The serial device of a Khepera (with --robot khepera).
+    #[arg(long, required_if_eq("robot", "khepera"))]
+    port: Option<String>,
+    /// The serial line's speed (with --robot khepera).
+    #[arg(long, default_value_t = 38_400)]
+    baud: u32,
+    /// Which camera to watch the arena with: sim, none, http://… (a network
+    /// camera's MJPEG stream), v4l2:/dev/videoN[,640x480][,15fps][,mjpeg|yuyv]
+    /// (a webcam), or dir:PATH to play recorded footage back (its images in
+    /// name order, 15 a second); a real robot has no simulated camera, so
+    /// the default there is none.
+    #[arg(
+        long,
+        value_parser = parse_camera,
+        default_value_if("robot", "khepera", "none"),
+        default_value = "sim"
+    )]
+    camera: CameraDriver,
+    /// The arena the robot is in: a shipped one or a JSON file. A real robot
+    /// starts dead reckoning at its start pose.
+    #[arg(long, default_value = "navigation")]
+    arena: String,
+    /// The experiments to offer, comma-separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_parser = named::<Experiment>(),
+        default_value = "navigation,teleoperation"
+    )]
+    experiments: Vec<Experiment>,
+    /// Address to listen on; port 0 picks a free one.
+    #[arg(long, default_value = "127.0.0.1:7400", value_parser = crate::listen_address)]
+    listen: SocketAddr,
+    /// Operators must present this token in their hello.
+    #[arg(long)]
+    token: Option<String>,
+    /// An operator who sends no command for this many seconds during a run
+    /// loses the run and the role.
+    #[arg(long, default_value_t = 30.0)]
+    lease: f64,
+    /// A client the Host hears nothing from for this many seconds (no
+    /// answer to its pings) is disconnected.
+    #[arg(long, default_value_t = 10.0)]
+    ping_timeout: f64,
+    /// An operator whose link drops keeps the role and the run this many
+    /// seconds (the robot held still) to reconnect; 0 frees them at once.
+    #[arg(long, default_value_t = 10.0)]
+    grace: f64,
+    /// Leave the robot where a run ends, instead of driving it back to the
+    /// lab's start pose (where nothing may move unattended).
+    #[arg(long)]
+    no_reset: bool,
+    /// Fold camera sightings in when they arrive, not when their frames
+    /// were taken: to see what latency compensation is worth.
+    #[arg(long)]
+    no_latency_compensation: bool,
+    /// Run the labs' controlled nets from this folder (as `vl lab nets
+    /// --out DIR` writes them) instead of the built-in ones.
+    #[arg(long)]
+    nets: Option<PathBuf>,
+    /// Seed for the simulator's noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Where the robot starts, x,y[,θ] mm and rad: the simulated robot is
+    /// put there, a real one starts dead reckoning there (default: the
+    /// arena's start).
+    #[arg(long, allow_hyphen_values = true)]
+    start: Option<vl_core::Pose>,
+    /// The robot's model from a JSON file (`vl khepera characterise`
+    /// writes one; default: the Khepera II's).
+    #[arg(long)]
+    robot_model: Option<std::path::PathBuf>,
+    /// The camera's calibration (`vl camera calibrate -o` writes one).
+    /// Without it a simulated camera is calibrated from a dot target when
+    /// the Host starts.
+    #[arg(long)]
+    camera_calibration: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    optics: OpticsArgs,
+    #[command(flatten)]
+    frames: FramesArgs,
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    link: LinkArgs,
+}
+
+/// The Host's configuration from its flags, checked before anything starts.
+fn host_config(args: &HostArgs) -> Result<HostConfig> {
+    if args.experiments.is_empty() {
+        bail!(BadInput("--experiments names none to offer".into()));
+    }
+    let config = HostConfig {
+        token: args.token.clone(),
+        experiments: args.experiments.clone(),
+        lease: seconds("--lease", args.lease)?,
+        ping_timeout: seconds("--ping-timeout", args.ping_timeout)?,
+        grace: if args.grace == 0.0 {
+            Duration::ZERO
+        } else {
+            seconds("--grace", args.grace)?
+        },
+        frames: args.frames.policy()?,
+        nets: args.nets.clone(),
+        reset: !args.no_reset,
+        compensate_latency: !args.no_latency_compensation,
+        ..HostConfig::default()
+    };
+    // A folder of nets that cannot run is the user's to fix, before anything starts.
+    config
+        .supervisor()
+        .map_err(|e| BadInput(format!("--nets: {e}")))?;
+    Ok(config)
+}
+
+pub(crate) async fn host(args: HostArgs) -> Result<()> {
+    let config = host_config(&args)?;
+    let arena = arena_from(&args.arena, args.start)?;
+    let optics = args.optics.optics(args.seed)?;
+    let model = match &args.robot_model {
+        Some(file) => load_robot_model(file)?,
+        None => RobotModel::khepera_ii(),
+    };
+    let calibration = match &args.camera_calibration {
+        Some(path) => Some(load_calibration(path)?),
+        None => None,
+    };
+    // Behind a modelled link the Host listens privately and the Media on --listen.
+    let linked = args.link.model()?.is_some();
+    let public = args.listen;
+    let listen: SocketAddr = if linked {
+        ([127, 0, 0, 1], 0).into()
+    } else {
+        public
+    };
+    let host = match (args.robot, args.camera) {
+        (RobotDriver::Sim, CameraDriver::Replay(_)) => {
+            return Err(BadInput(
+                "recorded footage shows a recorded robot, not the simulated one: replay it with --robot khepera".into(),
+            )
+            .into());
+        }
+        (RobotDriver::Sim, camera @ (CameraDriver::Sim | CameraDriver::None)) => {
+            let lab = SimLab {
+                arena,
+                robot: model,
+                seed: args.seed,
+                camera: (camera == CameraDriver::Sim).then_some(SimCamera {
+                    optics,
+                    calibration,
+                }),
+                scene: args.scene.events,
+            };
+            Host::start_sim(listen, lab, config).await
+        }
+        (RobotDriver::Sim, _) => {
+            return Err(BadInput(
+                "a real camera watches a real robot, not the simulated one: use --robot khepera".into(),
+            )
+            .into());
+        }
+        (RobotDriver::Khepera, CameraDriver::Sim) => {
+            return Err(BadInput(
+                "the simulated camera watches only the simulated robot; use --camera none".into(),
+            )
+            .into());
+        }
+        (RobotDriver::Khepera, camera) => {
+            let Some(port) = args.port.as_deref() else {
+                bail!(BadInput("--robot khepera needs --port DEVICE".into()));
+            };
+            let camera = real_camera(camera, calibration, &arena).context(
+                "no camera to watch the arena with (given --camera-calibration, the Host does not wait for its first frame)",
+            )?;
+            // A guard process holds the line and stops the robot if this one dies.
+            let program = std::env::current_exe().context("cannot find the vl binary")?;
+            let robot = KheperaSerial::guarded(program, port, args.baud, model, arena.start)
+                .context("no Khepera to drive")?;
+            let devices = Devices {
+                robot: Box::new(robot),
+                camera,
+                witness: None,
+            };
+            Host::start(listen, devices, arena, config).await
+        }
+    }
+    .context("cannot start the Host")?;
+    let media = args.link.front(public, &host.url()).await?;
+    // Scripts and tests read the bound address from this first line.
+    match &media {
+        Some(media) => println!(
+            "vl host listening on {} (through a modelled link to {})",
+            media.url(),
+            host.url()
+        ),
+        None => println!("vl host listening on {}", host.url()),
+    }
+    let relaying = async {
+        match media {
+            Some(media) => media.wait().await,
+            None => std::future::pending().await,
+        }
+    };
+    tokio::select! {
+        () = host.wait() => bail!("the server stopped"),
+        () = relaying => bail!("the Media stopped"),
+        signal = tokio::signal::ctrl_c() => {
+            signal.context("cannot wait for Ctrl-C")?;
+            eprintln!("vl host: stopping");
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,182 @@
+//! `vl khepera-emu` stands in for the robot on a pseudo-terminal; `vl
+//! khepera characterise` measures a real one's speed response; the hidden
+//! `vl serial-guard` holds its line for a Host.
+
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use vl_core::RobotKind;
+use vl_host::KheperaSerial;
+
+use crate::input::{RobotArgs, arena_from};
+use crate::report::{Report, Table, count, emit};
+use crate::{BadInput, named};
+
+#[derive(clap::Args)]
+pub(crate) struct KheperaArgs {
+    /// The arena the simulated robot drives in: a shipped one or a JSON file.
+    #[arg(long, default_value = "navigation")]
+    arena: String,
+    #[command(flatten)]
+    robot: RobotArgs,
+    /// The line speed to emulate: each command and reply takes the time
+    /// its characters take at this baud, as on a real serial cable.
+    #[arg(long, default_value_t = 38_400)]
+    baud: u32,
+    /// Also make a symlink to the device here.
+    #[arg(long)]
+    link: Option<std::path::PathBuf>,
+    /// Answer at once, whatever --baud says (a line no real robot has).
+    #[arg(long)]
+    instant_line: bool,
+    /// Print each command line received, with the milliseconds since start.
+    #[arg(long)]
+    log_commands: bool,
+    /// Print the robot's true pose and its contacts so far 20 times a
+    /// second (`truth T X Y θ CONTACTS`): what tests judge a run by, and
+    /// render a camera's frames from.
+    #[arg(long)]
+    truth: bool,
+    /// Where the robot is put, x,y[,θ] mm and rad (default: the arena's
+    /// start); give `vl host` the same to dead-reckon from it.
+    #[arg(long, allow_hyphen_values = true)]
+    start: Option<vl_core::Pose>,
+    /// Seed for the sensors' noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+/// `vl serial-guard`: holds a robot's serial line for `vl host` and stops
+/// the robot when the Host's end closes.
+#[derive(clap::Args)]
+pub(crate) struct GuardArgs {
+    #[arg(long)]
+    port: String,
+    #[arg(long, default_value_t = 38_400)]
+    baud: u32,
+}
+
+pub(crate) fn serial_guard(args: GuardArgs) -> Result<ExitCode> {
+    // A Host that dies mid-exchange leaves the reply nowhere to go: the
+    // guard must see that as an error and stop the robot, not be killed
+    // by SIGPIPE as a filter would be.
+    // SAFETY: setting one signal's action before the guard starts any thread.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_IGN);
+    }
+    // The Host heard of any failure through the pipe already.
+    Ok(match vl_host::run_guard(&args.port, args.baud) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(_) => ExitCode::FAILURE,
+    })
+}
+
+/// `vl khepera …`: tools for a real Khepera on its serial line.
+#[derive(clap::Subcommand)]
+pub(crate) enum KheperaTool {
+    /// Measure the speed controller's step response through the serial
+    /// driver (thesis C.2) and write a robot model file for `vl host`,
+    /// `vl sim` and `vl khepera-emu` (--robot-model). The robot drives back
+    /// and forth up to about 100 mm along its heading: give it room.
+    Characterise(CharacteriseArgs),
+}
+
+#[derive(clap::Args)]
+pub(crate) struct CharacteriseArgs {
+    /// The robot's serial device.
+    #[arg(long)]
+    port: String,
+    #[arg(long, default_value_t = 38_400)]
+    baud: u32,
+    /// Which Khepera it is (its size and sensors).
+    #[arg(long, value_parser = named::<RobotKind>(), default_value = "khepera-ii")]
+    robot: RobotKind,
+    /// Where to write the robot model with the fitted response.
+    #[arg(short, long, default_value = "khepera-model.json")]
+    output: std::path::PathBuf,
+    #[arg(long)]
+    json: bool,
+}
+
+/// What `vl khepera characterise` found.
+#[derive(serde::Serialize)]
+struct Characterised {
+    fit: vl_core::Fit,
+    model_file: std::path::PathBuf,
+}
+
+impl Report for Characterised {
+    fn table(&self) -> Table {
+        let r = self.fit.response;
+        Table::pairs([
+            ("gain", format!("{:.3}", r.gain)),
+            (
+                "time constant",
+                format!("{:.1} ms", r.time_constant_s * 1e3),
+            ),
+            ("acceleration", format!("{:.0} mm/s²", r.max_accel_mm_s2)),
+            ("dead time", format!("{:.1} ms", r.dead_time_s * 1e3)),
+            (
+                "fit",
+                format!(
+                    "{:.1} mm/s RMS over {}",
+                    self.fit.rms_mm_s,
+                    count(self.fit.samples as u64, "sample", "samples")
+                ),
+            ),
+            ("model", format!("wrote {}", self.model_file.display())),
+        ])
+    }
+}
+
+pub(crate) fn khepera(tool: KheperaTool) -> Result<ExitCode> {
+    let KheperaTool::Characterise(args) = tool;
+    let mut model = args.robot.model();
+    let mut robot = KheperaSerial::open(
+        &args.port,
+        args.baud,
+        model.clone(),
+        vl_core::Pose::default(),
+    )
+    .context("no Khepera to characterise")?;
+    let quiet = args.json;
+    let fit = vl_host::characterise(&mut robot, &mut |step: &str| {
+        if !quiet {
+            eprintln!("{step} …");
+        }
+    })?;
+    model.response = fit.response;
+    model.name = format!("{} (characterised)", model.name);
+    let text = serde_json::to_string_pretty(&model)?;
+    std::fs::write(&args.output, text + "\n")
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    emit(
+        &Characterised {
+            fit,
+            model_file: args.output,
+        },
+        args.json,
+    )?;
+    Ok(ExitCode::SUCCESS)
+}
+
+pub(crate) fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
+    let model = args.robot.model()?;
+    let name = model.name.clone();
+    let arena = arena_from(&args.arena, args.start)?;
+    let world = vl_sim::World::new(arena, model, args.seed).map_err(|e| BadInput(e.to_string()))?;
+    let line = vl_sim::Line {
+        baud: args.baud,
+        timing: !args.instant_line,
+        log_commands: args.log_commands,
+        truth: args.truth,
+    };
+    let mut emulator =
+        vl_sim::Emulator::open(vl_sim::Khepera::new(world), line, args.link.as_deref())?;
+    // Scripts and tests read the device from this first line.
+    println!("vl khepera-emu: {name} on {}", emulator.device());
+    use std::io::Write as _;
+    std::io::stdout().flush()?;
+    emulator.run()?;
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,203 @@
+//! The code's shape, checked from its files: no source file over 700
+//! lines, no two files that import each other, no public function that
+//! says what went wrong as a bare `String`.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// The most lines a source file outside `tests/` may have.
+const MOST_LINES: usize = 700;
+
+/// Every `.rs` file under `dir`.
+fn sources(dir: &Path) -> Vec<PathBuf> {
+    let mut found = Vec::new();
+    let mut stack = vec![dir.to_owned()];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap().flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                found.push(path);
+            }
+        }
+    }
+    found.sort();
+    found
+}
+
+/// The source roots: the binary's and each crate's.
+fn roots() -> Vec<PathBuf> {
+    let top = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut roots = vec![top.join("src")];
+    for entry in std::fs::read_dir(top.join("crates")).unwrap().flatten() {
+        roots.push(entry.path().join("src"));
+    }
+    roots.sort();
+    roots
+}
+
+/// The text of a file without its `#[cfg(test)] mod tests` and comments.
+fn code(path: &Path) -> String {
+    let text = std::fs::read_to_string(path).unwrap();
+    let text = match text.find("#[cfg(test)]\nmod tests") {
+        Some(i) => &text[..i],
+        None => &text,
+    };
+    text.lines()
+        .map(|l| l.split("//").next().unwrap_or(""))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn no_source_file_is_over_700_lines() {
+    let long: Vec<String> = roots()
+        .iter()
+        .flat_map(|r| sources(r))
+        .filter(|p| !p.ends_with("tests.rs"))
+        .filter_map(|p| {
+            let n = std::fs::read_to_string(&p).unwrap().lines().count();
+            (n > MOST_LINES).then(|| format!("{} ({n})", p.display()))
+        })
+        .collect();
+    assert!(long.is_empty(), "over {MOST_LINES} lines: {long:?}");
+}
+
+/// A module's path within its crate, from its file.
+fn module_of(root: &Path, file: &Path) -> Vec<String> {
+    let rel = file.strip_prefix(root).unwrap().with_extension("");
+    let mut parts: Vec<String> = rel
+        .components()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect();
+    if matches!(
+        parts.last().map(String::as_str),
+        Some("mod" | "lib" | "main")
+    ) {
+        parts.pop();
+    }
+    parts
+}
+
+/// The paths `text` names through `crate::`, `super::` and `self::`, as
+/// paths from the crate's root, for a file whose module is `module`.
+fn named_paths(text: &str, module: &[String]) -> Vec<Vec<String>> {
+    let ident = |c: char| c.is_alphanumeric() || c == '_';
+    let mut paths = Vec::new();
+    for (head, base) in [
+        ("crate::", Vec::new()),
+        ("super::", module[..module.len().saturating_sub(1)].to_vec()),
+        ("self::", module.to_vec()),
+    ] {
+        for (at, _) in text.match_indices(head) {
+            if text[..at].chars().next_back().is_some_and(ident) {
+                continue;
+            }
+            let mut path = base.clone();
+            let mut rest = &text[at + head.len()..];
+            loop {
+                let name: String = rest.chars().take_while(|&c| ident(c)).collect();
+                if name.is_empty() {
+                    break;
+                }
+                path.push(name.clone());
+                rest = &rest[name.len()..];
+                match rest.strip_prefix("::") {
+                    Some(r) => rest = r,
+                    None => break,
+                }
+            }
+            // A group `{a, b::c}` names each of its items.
+            if let Some(group) = rest.strip_prefix('{') {
+                let group = &group[..group.find('}').unwrap_or(group.len())];
+                for item in group.split(',') {
+                    let mut item_path = path.clone();
+                    item_path.extend(
+                        item.trim()
+                            .split("::")
+                            .map(|s| s.split(" as ").next().unwrap().trim().to_owned())
+                            .filter(|s| !s.is_empty() && s != "self"),
+                    );
+                    paths.push(item_path);
+                }
+            }
+            paths.push(path);
+        }
+    }
+    paths
+}
+
+#[test]
+fn no_two_files_import_each_other() {
+    let mut pairs = Vec::new();
+    for root in roots() {
+        let files: BTreeMap<Vec<String>, PathBuf> = sources(&root)
+            .into_iter()
+            .map(|f| (module_of(&root, &f), f))
+            .collect();
+        let file_of = |path: &[String]| {
+            (0..=path.len())
+                .rev()
+                .find_map(|n| files.get(&path[..n]).cloned())
+        };
+        let mut edges = BTreeSet::new();
+        for (module, file) in &files {
+            for path in named_paths(&code(file), module) {
+                if let Some(target) = file_of(&path)
+                    && &target != file
+                {
+                    edges.insert((file.clone(), target));
+                }
+            }
+        }
+        for (a, b) in &edges {
+            if a < b && edges.contains(&(b.clone(), a.clone())) {
+                pairs.push(format!("{} ↔ {}", a.display(), b.display()));
+            }
+        }
+    }
+    assert!(pairs.is_empty(), "files that import each other: {pairs:#?}");
+}
+
+#[test]
+fn no_public_function_returns_a_string_as_its_error() {
+    let mut found = Vec::new();
+    let crates = roots()
+        .into_iter()
+        .filter(|r| r.components().any(|c| c.as_os_str() == "crates"));
+    for root in crates {
+        for file in sources(&root) {
+            let text = code(&file);
+            for (at, _) in text
+                .match_indices("pub fn ")
+                .chain(text.match_indices("pub async fn "))
+            {
+                let signature = &text[at..text[at..].find('{').map_or(text.len(), |e| at + e)];
+                let returns = signature.rsplit("->").next().unwrap_or("");
+                if signature.contains("->")
+                    && returns.contains("Result<")
+                    && returns.replace(' ', "").contains(",String>")
+                {
+                    found.push(format!(
+                        "{}: {}",
+                        file.display(),
+                        signature.lines().next().unwrap()
+                    ));
+                }
+            }
+        }
+    }
+    assert!(found.is_empty(), "{found:#?}");
+}
+
+#[test]
+fn the_checks_see_what_they_look_for() {
+    // A mutual import and its paths, as the checker reads them.
+    let module = vec!["server".to_owned(), "hub".to_owned()];
+    let paths = named_paths("use super::connection::{error, Ticket};", &module);
+    assert!(paths.contains(&vec!["server".into(), "connection".into(), "error".into()]));
+    let paths = named_paths("use crate::lab::{Lab, map_field};", &module);
+    assert!(paths.contains(&vec!["lab".into(), "map_field".into()]));
+    assert!(named_paths("my_crate::x", &module).is_empty());
+}
