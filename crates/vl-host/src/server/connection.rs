@@ -214,7 +214,7 @@ impl Connection {
                 }
                 () = async { tokio::time::sleep_until(r.held_command.as_ref().map_or_else(tokio::time::Instant::now, |(at, _)| *at)).await }, if r.held_command.is_some() => {
                     if let Some((_, command)) = r.held_command.take()
-                        && self.hub.send(ToHub::Message(self.id, command)).await.is_err()
+                        && self.to_hub(command).await.is_err()
                     {
                         return End::Closed;
                     }
@@ -336,6 +336,14 @@ impl Connection {
         }
     }
 
+    /// Passes `message` to the hub; the connection ends with the hub.
+    async fn to_hub(&self, message: GuestMessage) -> Result<(), End> {
+        self.hub
+            .send(ToHub::Message(self.id, message))
+            .await
+            .map_err(|_| End::Closed)
+    }
+
     /// Passes a text message on to the hub, or answers it here (pings,
     /// refusals before hello); over the rate, a command waits in place of
     /// any before it and anything else pauses reading.
@@ -354,14 +362,7 @@ impl Connection {
             }
             Ok(GuestMessage::Bye) => return Err(End::Left),
             Ok(message @ GuestMessage::Hello { .. }) => {
-                if self
-                    .hub
-                    .send(ToHub::Message(self.id, message))
-                    .await
-                    .is_err()
-                {
-                    return Err(End::Closed);
-                }
+                self.to_hub(message).await?;
                 None
             }
             // Before hello nothing else reaches the hub.
@@ -398,14 +399,7 @@ impl Connection {
                     let until = tokio::time::Instant::now() + over_rate;
                     r.paused_until = Some(r.paused_until.map_or(until, |p| p.max(until)));
                 }
-                if self
-                    .hub
-                    .send(ToHub::Message(self.id, message))
-                    .await
-                    .is_err()
-                {
-                    return Err(End::Closed);
-                }
+                self.to_hub(message).await?;
                 None
             }
             Err(e) => Some(HostMessage::error(e.code(), e.to_string())),

@@ -159,6 +159,17 @@ impl Client {
         self.next("mounted").await;
     }
 
+    /// Defines a run to the goal at (`x_mm`, `y_mm`).
+    async fn define_goal(&self, x_mm: f64, y_mm: f64) {
+        self.say(GuestMessage::Define {
+            definition: Definition {
+                goal: Some(Goal::at(Point { x_mm, y_mm })),
+                ..Definition::default()
+            },
+        })
+        .await;
+    }
+
     async fn command(&self, event: u64, v: f64) {
         self.say(GuestMessage::Command {
             event,
@@ -361,16 +372,7 @@ async fn a_goal_off_the_arena_is_refused_with_where_it_is() {
     let mut rig = Rig::plain();
     let mut op = rig.welcomed(Role::Operator).await;
     op.mount("navigation").await;
-    op.say(GuestMessage::Define {
-        definition: Definition {
-            goal: Some(Goal::at(Point {
-                x_mm: 900.0,
-                y_mm: 100.0,
-            })),
-            ..Definition::default()
-        },
-    })
-    .await;
+    op.define_goal(900.0, 100.0).await;
     let (code, why) = op.refused().await;
     assert_eq!(code, ErrorCode::InvalidDefinition);
     assert!(why.contains("outside the 600 × 600 mm arena"), "{why}");
@@ -381,16 +383,7 @@ async fn a_late_observer_catches_up_on_the_mount_and_definition() {
     let mut rig = Rig::plain();
     let mut op = rig.welcomed(Role::Operator).await;
     op.mount("navigation").await;
-    op.say(GuestMessage::Define {
-        definition: Definition {
-            goal: Some(Goal::at(Point {
-                x_mm: 500.0,
-                y_mm: 120.0,
-            })),
-            ..Definition::default()
-        },
-    })
-    .await;
+    op.define_goal(500.0, 120.0).await;
     op.next("defined").await;
     let mut late = rig.welcomed(Role::Observer).await;
     late.next("mounted").await;
