@@ -15,7 +15,7 @@
 //!
 //! Where things are:
 //!
-//! - `contract/` `protocol`, `frame`, `experiment`, `session`: protocol v1's
+//! - `contract/` `protocol`, `frame`, `experiment`, `supervisor`: protocol v1's
 //!   messages and codec; camera frames on the wire (36-byte header); the
 //!   `Experiment`s a lab offers and the `Definition` a user gives, with its
 //!   validation; the session supervisor: the labs' controlled nets as `vl lab
@@ -112,7 +112,7 @@ pub use contract::protocol::{
     MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Readiness, Role, Stopper, Summary, WATCHDOG,
     Wire, ending,
 };
-pub use contract::session::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
+pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use design::{DesignError, Designed, Interleaving, LabDesign, Rule, design};
 pub use images::{ImageError, MAX_IMAGE_SIDE, decode_image, load_image};
 pub use model::arena::{

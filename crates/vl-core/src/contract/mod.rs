@@ -5,4 +5,4 @@
 pub(crate) mod experiment;
 pub(crate) mod frame;
 pub(crate) mod protocol;
-pub(crate) mod session;
+pub(crate) mod supervisor;
