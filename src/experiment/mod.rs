@@ -11,7 +11,8 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use serde::Serialize;
 use vl_core::{Arena, ErrorMm, Experiment};
-use vl_guest::experiment::{Pacing, Run, RunSpec, line, overall, picture, run_one, spread};
+use vl_guest::Pacing;
+use vl_guest::experiment::{Run, RunSpec, line, overall, picture, run_one, spread};
 
 use crate::input::{FramesArgs, OpticsArgs, SceneArgs, load_arena, seconds};
 use crate::named;

@@ -16,7 +16,7 @@ use vl_core::{
 
 use crate::client::{ClientError, Connection, Incoming, open};
 use crate::route::Route;
-use crate::session::{ControlMode, RoundTrips, Session, Spread};
+use crate::session::{Pacing, RoundTrips, Session, Spread};
 use crate::settings::Settings;
 
 /// What the scripted session does.
@@ -31,7 +31,7 @@ pub struct Script {
     /// Print a line of progress to stderr every second.
     pub progress: bool,
     /// How an operator's commands are paced (teleoperation).
-    pub control: ControlMode,
+    pub pacing: Pacing,
     /// How long an unreachable Host is tried again before giving up.
     pub connect_within: Duration,
 }
@@ -44,7 +44,7 @@ impl Default for Script {
             token: None,
             timeout: Duration::from_secs(60),
             progress: false,
-            control: ControlMode::Event,
+            pacing: Pacing::Event,
             connect_within: Duration::from_secs(10),
         }
     }
@@ -284,7 +284,7 @@ async fn welcomed(url: &str, role: Role, script: &Script) -> Result<Scripted, Sc
 /// on the camera view, defines it and starts the run.
 async fn started(url: &str, script: &Script) -> Result<(Scripted, Route, Goal), ScriptError> {
     let mut guest = welcomed(url, Role::Operator, script).await?;
-    guest.session.control = script.control;
+    guest.session.pacing = script.pacing;
     let ignore = |_: &mut Session, _: &Connection| {};
     guest.connection.send(GuestMessage::Mount {
         experiment: script.experiment.to_string(),
@@ -409,7 +409,7 @@ fn steer(seen: Pose, target: Point, to_goal_mm: f64, lag_s: f64) -> Drive {
 
 /// Connects to `url` as operator, plans a path to the goal, defines it and
 /// drives the robot along it by commands — steering toward waypoints on
-/// the path from the feedback as it arrives, paced by `script.control` —
+/// the path from the feedback as it arrives, paced by `script.pacing` —
 /// and stops the run when the feedback shows the goal reached.
 pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptError> {
     let (mut guest, route, goal) = started(url, script).await?;

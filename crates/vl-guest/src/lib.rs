@@ -56,6 +56,6 @@ pub use headless::{
 pub use predict::Predictor;
 pub use route::{EditRefused, Route, check_path, drag_path};
 pub use session::{
-    CameraFrame, ControlMode, Devices, Link, RobotState, RoundTrips, Session, Spread, TIME_PERIOD,
+    CameraFrame, Devices, Link, Pacing, RobotState, RoundTrips, Session, Spread, TIME_PERIOD,
 };
 pub use settings::{Settings, SettingsError};

@@ -88,14 +88,28 @@ impl RoundTrips {
 
 /// How the Guest paces its commands (thesis §3.5).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ControlMode {
+pub enum Pacing {
     /// Command s + 1 only once feedback for s has come back: the reference
     /// is the event, so Guest and Host stay within one event of each other.
     Event,
-    /// A command every `period`, whatever has come back: the reference is
-    /// time, as in classic teleoperation.
-    Time { period: Duration },
+    /// A command every [`TIME_PERIOD`], whatever has come back: the
+    /// reference is time, as in classic teleoperation.
+    Time,
 }
+
+impl vl_core::Named for Pacing {
+    const KIND: &'static str = "pacing";
+    const ALL: &'static [Self] = &[Pacing::Event, Pacing::Time];
+
+    fn id(self) -> &'static str {
+        match self {
+            Pacing::Event => "event",
+            Pacing::Time => "time",
+        }
+    }
+}
+
+vl_core::named_by_id!(Pacing);
 
 /// The period of time-based control: the Host's feedback period.
 pub const TIME_PERIOD: Duration = Duration::from_millis(20);
@@ -164,7 +178,7 @@ pub struct Session {
     interrupted: bool,
     pub devices: Option<Devices>,
     /// How commands are paced.
-    pub control: ControlMode,
+    pub pacing: Pacing,
     /// When the last command left.
     last_sent: Option<Instant>,
     /// The largest gap between a command sent and the feedback seen, and
@@ -215,7 +229,7 @@ impl Default for Session {
             sent_event: 0,
             interrupted: false,
             devices: None,
-            control: ControlMode::Event,
+            pacing: Pacing::Event,
             last_sent: None,
             max_event_gap: 0,
             sync_violations: 0,
@@ -457,11 +471,11 @@ impl Session {
         if !self.running {
             return None;
         }
-        let due = match self.control {
-            ControlMode::Event => seen >= self.sent_event,
-            ControlMode::Time { period } => self
+        let due = match self.pacing {
+            Pacing::Event => seen >= self.sent_event,
+            Pacing::Time => self
                 .last_sent
-                .is_none_or(|at| now.saturating_duration_since(at) >= period),
+                .is_none_or(|at| now.saturating_duration_since(at) >= TIME_PERIOD),
         };
         if !due {
             return None;

@@ -21,7 +21,7 @@ use vl_host::{Delays, FramePolicy, Host, HostConfig, Media, MediaConfig, SimCame
 use vl_sim::{LinkModel, Optics, Scheduled};
 
 use crate::headless::{Report, RoundTripMs, Script, ScriptError, run_script};
-use crate::session::{ControlMode, Spread, TIME_PERIOD};
+use crate::session::{Pacing, Spread};
 pub use markdown::{headline, write_report};
 pub use matrix::{Cell, Matrix, Timing, cells_of, run_all};
 
@@ -57,40 +57,6 @@ fn write(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), ExperimentError>
         path: path.to_owned(),
         source,
     })
-}
-
-/// How the scripted operator paces its commands.
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
-pub enum Pacing {
-    /// Command s + 1 only after the feedback for s (thesis §3.5).
-    Event,
-    /// A command every 20 ms, whatever has come back.
-    Time,
-}
-
-impl vl_core::Named for Pacing {
-    const KIND: &'static str = "pacing";
-    const ALL: &'static [Self] = &[Pacing::Event, Pacing::Time];
-
-    fn id(self) -> &'static str {
-        match self {
-            Pacing::Event => "event",
-            Pacing::Time => "time",
-        }
-    }
-}
-
-vl_core::named_by_id!(Pacing);
-
-impl Pacing {
-    fn mode(self) -> ControlMode {
-        match self {
-            Pacing::Event => ControlMode::Event,
-            Pacing::Time => ControlMode::Time {
-                period: TIME_PERIOD,
-            },
-        }
-    }
 }
 
 /// Percentiles of one leg's one-way delay, ms.
@@ -243,7 +209,7 @@ pub async fn run_one(spec: &RunSpec) -> Result<Run, ExperimentError> {
         experiment: spec.experiment,
         timeout: spec.timeout,
         progress: spec.progress,
-        control: spec.pacing.mode(),
+        pacing: spec.pacing,
         ..Script::default()
     };
     let report = run_script(&url, &script)
