@@ -12,7 +12,7 @@ use vl_petri::verdict;
 use crate::alloc::{peak_bytes, peak_resident_bytes};
 use crate::report::{Report, Table, count, emit, yes};
 
-use super::io::*;
+use super::io::{cost_rows, load, place_ids, with_progress};
 
 /// `vl petri analyze`: the keys a program reads. Properties that need the
 /// full reachability graph are null for an unbounded net.

@@ -14,7 +14,7 @@ use crate::alloc::Counting;
 use crate::report::{Report, Table, emit};
 use crate::shipped::{CORPUS_MANIFEST, corpus_model, read_input};
 
-use super::io::*;
+use super::io::load;
 
 /// When and where the manifest's verifypn figures were recorded.
 const VERIFYPN_RECORDED: &str = "recorded 2026-11-21, Debian 12, 2 cores";

@@ -8,7 +8,7 @@ use vl_petri::{compose, fuse_parallel_places, to_pnml};
 
 use crate::report::count;
 
-use super::io::*;
+use super::io::{load, write_file};
 
 pub(super) fn compose_command(paths: &[PathBuf], fuse: bool, output: &Path) -> Result<ExitCode> {
     let nets = paths.iter().map(|p| load(p)).collect::<Result<Vec<_>>>()?;

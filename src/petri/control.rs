@@ -8,7 +8,7 @@ use vl_petri::{Added, Constraint, ControlError, Limits, synthesize, to_pnml};
 
 use crate::BadInput;
 
-use super::io::*;
+use super::io::{load, write_file};
 
 pub(super) fn control_command(
     path: &Path,

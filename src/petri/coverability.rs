@@ -11,7 +11,7 @@ use vl_petri::{Coverability, CoverabilityError, Net, coverability, graph_to_dot}
 use crate::BadInput;
 use crate::report::{Report, Table, emit, yes};
 
-use super::io::*;
+use super::io::{load, omega_marking, place_ids, write_file};
 
 /// `vl petri coverability`.
 #[derive(Serialize)]

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use vl_petri::{graph_to_dot, net_to_dot};
 
-use super::io::*;
+use super::io::{explore_with_progress, load};
 
 pub(super) fn dot_command(path: &Path, reachability: bool, max_states: usize) -> Result<ExitCode> {
     let net = load(path)?;

@@ -10,7 +10,7 @@ use crate::BadInput;
 use crate::report::count;
 use crate::shipped::read_input;
 
-use super::io::*;
+use super::io::write_file;
 
 pub(super) fn from_scxml_command(path: &Path, output: &Path) -> Result<ExitCode> {
     let text = read_input(path)?;

@@ -9,7 +9,7 @@ use vl_petri::{Invariant, Net, TooManyInvariants, is_conservative, p_invariants,
 
 use crate::report::{Report, Table, count, emit, yes};
 
-use super::io::*;
+use super::io::load;
 
 /// `vl petri invariants`: each invariant as element id → weight.
 #[derive(Serialize)]

@@ -12,7 +12,7 @@ use vl_petri::count_states;
 use crate::alloc::{peak_bytes, peak_resident_bytes};
 use crate::report::{Report, Table, count, emit};
 
-use super::io::*;
+use super::io::{cost_rows, load, with_progress};
 
 /// `vl petri states`: what exploration alone finds, as `verifypn -e` reports it.
 #[derive(Serialize)]

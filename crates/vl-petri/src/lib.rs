@@ -63,4 +63,4 @@ pub use net::{
 };
 pub use pnml::{PnmlError, from_pnml, to_pnml};
 pub use scxml::{ScxmlError, from_scxml};
-pub use verdict::{Verdict, conservative, verdict};
+pub use verdict::{Verdict, verdict};

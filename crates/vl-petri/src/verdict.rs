@@ -36,7 +36,7 @@ pub struct Verdict {
 
 /// Whether a positive weighting of all places is invariant, if the minimal
 /// P-invariants can be listed within their limits.
-pub fn conservative(net: &Net) -> Option<bool> {
+fn conservative(net: &Net) -> Option<bool> {
     let rows = CONSERVATIVE_ROWS.min(p_rows_within(net, CONSERVATIVE_BYTES));
     let invariants = p_invariants(net, rows).ok()?;
     Some(is_conservative(net.places.len(), &invariants))

@@ -18,10 +18,8 @@ use vl_core::{
 
 use crate::client::{ClientError, Connection, open};
 use crate::gamepad::Pad;
-use crate::netview;
-use crate::route::{Route, check_path, drag_path};
 use crate::session::{Link, Session};
-use crate::settings::{MARGIN_MM, MAX_SPEED_MM_S, Settings};
+use crate::settings::Settings;
 
 mod panels;
 mod view;

@@ -4,7 +4,10 @@
 use egui::{Color32, Sense, Stroke, Vec2};
 use vl_core::{Action, Definition, Experiment, GuestMessage, LOOKAHEAD_MM};
 
-use super::*;
+use super::{FORCE_COLOUR, GuestApp, JOYSTICK_PX, ROBOT_COLOUR};
+use crate::netview;
+use crate::route::Route;
+use crate::settings::{MARGIN_MM, MAX_SPEED_MM_S};
 
 impl GuestApp {
     pub(super) fn controls(&mut self, ui: &mut egui::Ui) {

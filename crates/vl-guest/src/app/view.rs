@@ -5,7 +5,15 @@
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureOptions, Vec2};
 use vl_core::{Definition, GuestMessage, MountedLab, Point, Pose, Shape, arena_of, disc_cspace};
 
-use super::*;
+use std::time::Instant;
+
+use super::{
+    CAMERA_VIEW, CSPACE_COLOUR, CSpaceKey, FLOOR_COLOUR, FORCE_ARROW_MM, FORCE_COLOUR,
+    GHOST_COLOUR, GOAL_COLOUR, GuestApp, OBSTACLE_COLOUR, PATH_COLOUR, ROBOT_COLOUR, TRAIL_COLOUR,
+    VIRTUAL_COLOUR,
+};
+use crate::route::{check_path, drag_path};
+use crate::session::Link;
 
 /// How near the pointer must be to a path sample to grab it, px.
 const GRAB_PX: f32 = 10.0;
