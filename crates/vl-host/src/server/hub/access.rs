@@ -169,7 +169,7 @@ impl Hub {
     }
 
     /// Whether runs of what is mounted and defined follow a path on the Host.
-    pub(super) fn host_follows(&self) -> bool {
+    fn host_follows(&self) -> bool {
         match (self.experiment, &self.definition) {
             (Some(experiment), Some(definition)) => definition.host_follows(experiment),
             _ => false,
@@ -177,7 +177,7 @@ impl Hub {
     }
 
     /// The operator role is free again and the lab back to idle.
-    pub(super) fn release_operator(&mut self) {
+    fn release_operator(&mut self) {
         self.operator = None;
         self.resume = None;
         if self.supervisor.allows(Action::Release) {

@@ -31,7 +31,7 @@ impl Hub {
     }
 
     /// Mounts the experiment named `experiment`, if the lab offers it.
-    pub(super) fn mount(&mut self, id: u64, experiment: String) {
+    fn mount(&mut self, id: u64, experiment: String) {
         let offered = &self.config.experiments;
         let Some(experiment) = Experiment::from_id(&experiment)
             .ok()
@@ -59,7 +59,7 @@ impl Hub {
     }
 
     /// Takes the definition of the next run, once checked against the lab.
-    pub(super) fn define(&mut self, id: u64, definition: Definition) {
+    fn define(&mut self, id: u64, definition: Definition) {
         if !self.permitted(id, Action::Define) {
             return;
         }
@@ -94,7 +94,7 @@ impl Hub {
     }
 
     /// Drives the robot back to its start pose, unless a run is under way.
-    pub(super) fn ask_reset(&mut self, id: u64) {
+    fn ask_reset(&mut self, id: u64) {
         if self.supervisor.allows(Action::Stop) {
             return self.refuse(
                 id,
@@ -106,7 +106,7 @@ impl Hub {
     }
 
     /// Starts a run of the mounted experiment, when the lab is ready.
-    pub(super) fn start(&mut self, id: u64) {
+    fn start(&mut self, id: u64) {
         if self.readiness == Readiness::GettingReady {
             return self.refuse(
                 id,
@@ -143,7 +143,7 @@ impl Hub {
     }
 
     /// Ends the run under way; the lab answers with its summary.
-    pub(super) fn stop(&mut self, id: u64) {
+    fn stop(&mut self, id: u64) {
         if self.supervise(id, Action::Stop) {
             // The lab answers with the run's summary; `done` follows.
             self.lab.request(LabRequest::Finish(EndReason::Stopped));
@@ -151,7 +151,7 @@ impl Hub {
     }
 
     /// Passes a command on to the run, unless it is stale or not finite.
-    pub(super) fn command(&mut self, id: u64, event: u64, seen: Option<u64>, drive: Drive) {
+    fn command(&mut self, id: u64, event: u64, seen: Option<u64>, drive: Drive) {
         if !self.permitted(id, Action::Command) {
             return;
         }
@@ -185,7 +185,7 @@ impl Hub {
 
     /// The mounted map's C-space (made when the Host started), then for
     /// teleoperation the map's potential field over it.
-    pub(super) fn build_cspace(&mut self) {
+    fn build_cspace(&mut self) {
         self.cspace = self.map.cspace.clone();
         self.happened(Action::CspaceBuilt);
         self.build_field(&[]);
@@ -195,7 +195,7 @@ impl Hub {
     /// `virtual_obstacles` grown in too: at once without them, else made
     /// off the hub (`field_built` fires when it is ready; the lab's net
     /// keeps the operator from driving until then).
-    pub(super) fn build_field(&mut self, virtual_obstacles: &[Shape]) {
+    fn build_field(&mut self, virtual_obstacles: &[Shape]) {
         if self.experiment != Some(Experiment::Teleoperation) {
             return;
         }
