@@ -7,13 +7,11 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use vl_core::{Arena, Experiment, Role};
-use vl_guest::{
-    ClientError, Report as RunReport, RoundTripMs, Script, ScriptError, Watched, WindowError,
-};
+use vl_guest::{ClientError, Report as RunReport, Script, ScriptError, WindowError};
 use vl_host::{Host, HostConfig, Media, SimLab};
 
 use crate::media::LinkArgs;
-use crate::report::{Report, Table, count, emit, error_mm};
+use crate::report::emit;
 use crate::{BadInput, named};
 
 #[derive(clap::Args)]
@@ -253,74 +251,5 @@ fn finish(report: &RunReport, json: bool) -> Result<ExitCode> {
     } else {
         eprintln!("vl: the robot did not reach the goal ({})", report.ending());
         Ok(ExitCode::FAILURE)
-    }
-}
-
-fn round_trip(rtt: &RoundTripMs) -> String {
-    format!("p50 {:.2} ms, p99 {:.2} ms", rtt.p50, rtt.p99)
-}
-
-impl Report for RunReport {
-    fn table(&self) -> Table {
-        let pose = self.final_pose;
-        Table::pairs([
-            (
-                "reached goal",
-                crate::report::yes(self.reached_goal).to_owned(),
-            ),
-            ("end", self.ending()),
-            ("events", self.events.to_string()),
-            (
-                "final pose",
-                format!(
-                    "({:.1}, {:.1}) mm, {:.1}°",
-                    pose.x_mm,
-                    pose.y_mm,
-                    pose.theta_rad.to_degrees()
-                ),
-            ),
-            ("lab time", format!("{:.2} s", self.sim_seconds)),
-            ("distance", format!("{:.0} mm", self.distance_mm)),
-            ("collisions", self.collisions.to_string()),
-            ("pose from", self.pose_source.to_string()),
-            (
-                "path error",
-                error_mm(self.path.as_ref().and_then(|p| p.path_error_mm)),
-            ),
-            (
-                "estimate error",
-                error_mm(self.path.as_ref().and_then(|p| p.estimate_error_mm)),
-            ),
-            (
-                "frames",
-                format!("{} ({:.0} kB)", self.frames, self.video_bytes as f64 / 1e3),
-            ),
-            ("round trip", round_trip(&self.round_trip_ms)),
-        ])
-    }
-}
-
-impl Report for Watched {
-    fn table(&self) -> Table {
-        let run = match &self.run {
-            Some(done) => format!(
-                "{} after {:.1} s, {}",
-                done.ending(),
-                done.seconds,
-                count(done.events, "event", "events")
-            ),
-            None => "none ended while watching".into(),
-        };
-        Table::pairs([
-            (
-                "mounted",
-                self.experiment
-                    .map_or("nothing".to_owned(), |e| e.title().to_owned()),
-            ),
-            ("run", run),
-            ("feedback", self.feedback.to_string()),
-            ("frames", self.frames.to_string()),
-            ("round trip", round_trip(&self.round_trip_ms)),
-        ])
     }
 }

@@ -14,7 +14,7 @@ use crate::input::{
     load_robot_model, parse_camera, real_camera, seconds,
 };
 use crate::media::LinkArgs;
-use crate::report::{Report, Table, emit};
+use crate::report::emit;
 use crate::{BadInput, named};
 
 #[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
@@ -49,28 +49,6 @@ enum HostTool {
         #[arg(long)]
         json: bool,
     },
-}
-
-impl Report for vl_host::OperatorLatency {
-    fn table(&self) -> Table {
-        Table::pairs([
-            ("observers reading", self.observers.to_string()),
-            ("commands timed", self.commands.to_string()),
-            ("p50", format!("{:.2} ms", self.p50_ms)),
-            ("p90", format!("{:.2} ms", self.p90_ms)),
-            ("p99", format!("{:.2} ms", self.p99_ms)),
-            ("max", format!("{:.2} ms", self.max_ms)),
-            (
-                "feedback to the slowest observer",
-                format!("{:.1} /s", self.observer_feedback_hz),
-            ),
-            (
-                "frames to the slowest observer",
-                format!("{:.1} /s", self.observer_frames_hz),
-            ),
-        ])
-        .title("an operator's command to the feedback of its event, on loopback:")
-    }
 }
 
 pub(crate) async fn host_command(command: HostCommand) -> Result<()> {

@@ -11,7 +11,7 @@ use vl_host::{Media, MediaConfig};
 use vl_sim::{LinkModel, Profile};
 
 use crate::BadInput;
-use crate::report::{Report, Table, emit};
+use crate::report::emit;
 
 /// A modelled link to put in front of a lab.
 #[derive(clap::Args)]
@@ -81,56 +81,6 @@ enum MediaTool {
         #[arg(long)]
         json: bool,
     },
-}
-
-impl Report for vl_host::MediaBench {
-    fn table(&self) -> Table {
-        let mut table = Table::columns(&[
-            "profile",
-            "model rtt",
-            "relay rtt",
-            "ratio",
-            "model sd",
-            "relay sd",
-            "ratio",
-            "tracked sd",
-            "ratio",
-            "timing sd",
-            "hiccups",
-            "own rtt",
-        ]);
-        for p in &self.profiles {
-            table.row(vec![
-                p.profile.clone(),
-                format!("{:.3}", p.model_mean_ms),
-                format!("{:.3}", p.relay_mean_ms),
-                format!("{:.3}", p.relay_mean_ms / p.model_mean_ms),
-                format!("{:.3}", p.model_sd_ms),
-                format!("{:.3}", p.relay_sd_ms),
-                format!("{:.3}", p.relay_sd_ms / p.model_sd_ms),
-                format!("{:.3} ± {:.3}", p.tracked_sd_ms, p.tracked_se_ms),
-                format!("{:.3}", p.tracked_sd_ms / p.model_sd_ms),
-                format!("{:.3}", p.timing_sd_ms),
-                p.hiccups.to_string(),
-                format!("{:.3} ± {:.3}", p.own_mean_ms, p.own_sd_ms),
-            ]);
-        }
-        let (d, r, a) = (self.direct, self.relayed, self.added);
-        table
-            .title(format!(
-                "the relay's own cost, {} round trips each way, taken in turn (p50 / p99 ms): \
-                 straight {:.3} / {:.3}, through a zero-delay relay {:.3} / {:.3}, added {:.3} / {:.3}",
-                self.messages, d.p50_ms, d.p99_ms, r.p50_ms, r.p99_ms, a.p50_ms, a.p99_ms
-            ))
-            .title("each profile's round trip through the relay (its own cost taken away) against the same-seeded model on the same send times, ms:")
-            .note(
-                "8 connections for 5 s per profile, one message in flight on each; relay sd: the measured spread less \
-                 the zero-delay relay's (own rtt, mean ± sd, on the same traffic); tracked sd: the part of the spread \
-                 that follows the model message by message (± its standard error), leaving out hiccups: round trips more than 1 ms off their model's beyond \
-                 the usual offset; timing sd: each round trip \
-                 against its own model's, beyond the mean offset",
-            )
-    }
 }
 
 pub(crate) async fn run(command: MediaCommand) -> Result<()> {

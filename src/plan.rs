@@ -11,8 +11,8 @@ use clap::{Args, Subcommand};
 use image::GrayImage;
 use serde::Serialize;
 use vl_core::{
-    Arena, CSpace, Connectivity, Footprint, Grid, NoPath, Plan, PlanBench, PlanBenchError, Point,
-    Pose, RobotModel, Shape, Smoothing, plan, plan_svg,
+    Arena, CSpace, Connectivity, Footprint, Grid, NoPath, Plan, PlanBenchError, Point, Pose,
+    RobotModel, Shape, Smoothing, plan, plan_svg,
 };
 
 use crate::report::{Report, Table, count, emit};
@@ -245,27 +245,5 @@ impl Report for PlanReport {
         }
         rows.push(("planned in", format!("{:.2} ms", self.seconds * 1e3)));
         Table::pairs(rows)
-    }
-}
-
-impl Report for PlanBench {
-    fn table(&self) -> Table {
-        let mut table = Table::columns(&["stage", "median ms"]).title(format!(
-            "{0} × {0} map, path of {1} cells, median of {2}:",
-            self.size,
-            self.path_cells,
-            count(self.runs, "run", "runs")
-        ));
-        for (name, ms) in [
-            ("C-space (disc)", self.cspace_ms),
-            ("NF1 wavefront", self.nf1_ms),
-            ("descent", self.descent_ms),
-            ("spline + check", self.spline_ms),
-            ("clearance", self.clearance_ms),
-            ("whole plan", self.whole_ms),
-        ] {
-            table.row(vec![name.to_owned(), format!("{ms:.2}")]);
-        }
-        table
     }
 }

@@ -6,10 +6,10 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Subcommand;
 use vl_core::Point;
-use vl_sim::{Driver, LinkReport, Optics, Profile, RunReport, Script, SimBench, World, camera_for};
+use vl_sim::{Driver, LinkReport, Optics, Profile, Script, World, camera_for};
 
 use crate::input::{OpticsArgs, RobotArgs, load_arena, load_target};
-use crate::report::{Report, Table, emit};
+use crate::report::emit;
 use crate::shipped::read_input;
 use crate::{BadInput, named};
 
@@ -195,122 +195,6 @@ fn sim_run(
     }
     emit(&vl_sim::run(&mut world, &mut driver, duration), json)?;
     Ok(ExitCode::SUCCESS)
-}
-
-impl Report for RunReport {
-    fn table(&self) -> Table {
-        let p = self.final_pose;
-        let mut rows = vec![
-            ("simulated", format!("{:.2} s", self.sim_seconds)),
-            (
-                "final pose",
-                format!(
-                    "({:.1}, {:.1}) mm, {:.1}°",
-                    p.x_mm,
-                    p.y_mm,
-                    p.theta_rad.to_degrees()
-                ),
-            ),
-            ("distance", format!("{:.0} mm", self.distance_mm)),
-        ];
-        if let Some(t) = self.following {
-            rows.push((
-                "goal",
-                format!(
-                    "{} (path kept to within {:.1} mm on average, {:.1} mm at worst)",
-                    if t.reached_goal {
-                        "reached"
-                    } else {
-                        "not reached"
-                    },
-                    t.mean_error_mm,
-                    t.max_error_mm
-                ),
-            ));
-        }
-        rows.push(("collisions", self.collisions.to_string()));
-        rows.push(("trace hash", self.trace_hash.clone()));
-        Table::pairs(rows)
-    }
-}
-
-impl Report for LinkReport {
-    fn table(&self) -> Table {
-        let (m, e) = (&self.measured, &self.expected);
-        let mut table = Table::columns(&["", "measured", "profile"]).title(format!(
-            "{}: {} packets, one every {} ms, seed {}",
-            self.profile, self.packets, self.interval_ms, self.seed
-        ));
-        let rows = [
-            ("delay mean, ms", m.delay_mean_ms, Some(e.delay_mean_ms)),
-            ("jitter (sd), ms", m.jitter_ms, Some(e.jitter_ms)),
-            (
-                "loss rate, %",
-                m.loss_rate * 100.0,
-                Some(e.loss_rate * 100.0),
-            ),
-            ("loss burst", m.mean_loss_burst, Some(e.mean_loss_burst)),
-            ("delay p50, ms", m.delay_p50_ms, None),
-            ("delay p99, ms", m.delay_p99_ms, None),
-        ];
-        for (name, got, want) in rows {
-            table.row(vec![
-                name.to_owned(),
-                format!("{got:.4}"),
-                want.map_or(String::new(), |w| format!("{w:.4}")),
-            ]);
-        }
-        table.row(vec![
-            "duplicates".into(),
-            m.duplicates.to_string(),
-            String::new(),
-        ]);
-        table.row(vec![
-            "reorders".into(),
-            m.reorders.to_string(),
-            String::new(),
-        ]);
-        table
-    }
-}
-
-impl Report for vl_sim::OdometryFit {
-    fn table(&self) -> Table {
-        Table::pairs([
-            ("squares driven", self.squares.to_string()),
-            (
-                "wheel slip",
-                format!("{:.4} mm per √mm travelled", self.wheel_slip),
-            ),
-            (
-                "end position error",
-                format!(
-                    "mean {:.1} mm, max {:.1} mm",
-                    self.end_error_mean_mm, self.end_error_max_mm
-                ),
-            ),
-            (
-                "end heading error",
-                format!("{:.2}° rms", self.heading_error_rms_rad.to_degrees()),
-            ),
-        ])
-        .title("odometry against the truth, 300 mm squares at 200 mm/s:")
-    }
-}
-
-impl Report for SimBench {
-    fn table(&self) -> Table {
-        Table::pairs([
-            (
-                "real-time factor, no camera",
-                format!("{:.0}×", self.rtf_no_camera),
-            ),
-            (
-                "with 320×240 camera at 30 Hz",
-                format!("{:.0}×", self.rtf_camera),
-            ),
-        ])
-    }
 }
 
 fn render(

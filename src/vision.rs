@@ -7,10 +7,10 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Subcommand;
 use image::RgbImage;
-use vl_core::{Scene, Threshold, VisionBench, inspect};
+use vl_core::{Threshold, inspect};
 
 use crate::BadInput;
-use crate::report::{Report, Table, emit};
+use crate::report::emit;
 
 #[derive(Subcommand)]
 pub(crate) enum VisionCommand {
@@ -56,54 +56,4 @@ fn load(path: &Path) -> Result<RgbImage> {
     Ok(vl_core::load_image(path)
         .map_err(|e| BadInput(format!("cannot read the image {}: {e}", path.display())))?
         .to_rgb8())
-}
-
-impl Report for Scene {
-    fn table(&self) -> Table {
-        let mut table = Table::columns(&["label", "area", "centroid", "bbox", "angle °", "hu1"])
-            .title(format!("threshold {}", self.threshold));
-        for c in &self.components {
-            let [x, y, w, h] = c.bbox;
-            table.row(vec![
-                c.label.to_string(),
-                c.area.to_string(),
-                format!("({:.1}, {:.1})", c.centroid.x, c.centroid.y),
-                format!("{x},{y} {w}×{h}"),
-                format!("{:.1}", c.orientation_rad.to_degrees()),
-                format!("{:.6}", c.hu[0]),
-            ]);
-        }
-        table.note(match self.robot {
-            Some(r) => format!(
-                "robot at ({:.1}, {:.1}) px, heading {:.1}°",
-                r.x,
-                r.y,
-                r.theta.to_degrees()
-            ),
-            None => "no robot found".to_owned(),
-        })
-    }
-}
-
-impl Report for VisionBench {
-    fn table(&self) -> Table {
-        Table::pairs([
-            ("frame", format!("{}×{} px", self.width, self.height)),
-            ("runs", self.runs.to_string()),
-            (
-                "per frame",
-                format!(
-                    "{:.3} ms (grey, Otsu, 8-connected components, moments, Hu, robot)",
-                    self.ms_per_frame
-                ),
-            ),
-            (
-                "in the loop",
-                format!(
-                    "{:.3} ms (locate the robot, label the floor: the Host's look at each frame)",
-                    self.look_ms_per_frame
-                ),
-            ),
-        ])
-    }
 }

@@ -9,11 +9,11 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 use vl_core::Named;
-use vl_guest::experiment::{Matrix, cells_of, headline, line, run_all, write_report};
+use vl_guest::experiment::{Matrix, cells_of, line, run_all, write_report};
 use vl_sim::{LinkModel, Profile};
 
 use crate::input::{load_arena, seconds};
-use crate::report::{Report, Table, emit, yes};
+use crate::report::emit;
 
 #[derive(Args)]
 pub(crate) struct ReportArgs {
@@ -41,35 +41,6 @@ pub(crate) struct ReportArgs {
     /// Print the summary as JSON (report.json is written either way).
     #[arg(long)]
     json: bool,
-}
-
-impl Report for Matrix {
-    fn table(&self) -> Table {
-        let mut table = headline(&self.cells);
-        for r in self.runs.iter().filter(|r| !r.succeeded()) {
-            table = table.note(format!(
-                "failed: {} on {}, {} pacing, seed {}: {} ({} collisions); left out of the figures",
-                r.experiment,
-                r.profile.as_deref().unwrap_or("loopback"),
-                r.pacing,
-                r.seed,
-                r.end,
-                r.collisions
-            ));
-        }
-        table
-            .title(format!(
-                "{} runs on {} in {:.0} s",
-                self.runs.len(),
-                self.arena,
-                self.wall_s
-            ))
-            .note(format!(
-                "event-based runs synchronised (gap ≤ 1 at every command): {}; collisions: {}",
-                yes(self.event_based_synchronised),
-                self.collisions
-            ))
-    }
 }
 
 pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Result<ExitCode> {

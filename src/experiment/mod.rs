@@ -9,14 +9,13 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use serde::Serialize;
-use vl_core::{Arena, ErrorMm, Experiment};
+use vl_core::{Arena, Experiment};
 use vl_guest::Pacing;
-use vl_guest::experiment::{Run, RunSpec, line, overall, picture, run_one, spread};
+use vl_guest::experiment::{RunSpec, Runs, line, picture, run_one};
 
 use crate::input::{FramesArgs, OpticsArgs, SceneArgs, load_arena, seconds};
 use crate::named;
-use crate::report::{Report, Table, count, emit, yes};
+use crate::report::emit;
 
 #[derive(Subcommand)]
 pub(crate) enum ExperimentCommand {
@@ -74,71 +73,6 @@ pub(crate) struct RunArgs {
     json: bool,
 }
 
-#[derive(Serialize)]
-struct Runs {
-    runs: Vec<Run>,
-    /// Every run reached its goal without touching anything.
-    all_succeeded: bool,
-    /// Over all runs: the mean of their mean tracking errors, and the largest.
-    tracking_error_mm: Option<ErrorMm>,
-    estimate_error_mm: Option<ErrorMm>,
-}
-
-fn mm(e: Option<ErrorMm>, pick: fn(&ErrorMm) -> f64) -> String {
-    e.map_or("–".into(), |e| format!("{:.1}", pick(&e)))
-}
-
-impl Report for Runs {
-    fn table(&self) -> Table {
-        let mut table = Table::columns(&[
-            "arena",
-            "seed",
-            "goal",
-            "collisions",
-            "track mean",
-            "track max",
-            "estimate max",
-            "gap",
-            "sync lost",
-            "predict mean",
-            "stale mean",
-            "seconds",
-            "video kB",
-        ]);
-        for run in &self.runs {
-            table.row(vec![
-                run.arena.clone(),
-                run.seed.to_string(),
-                yes(run.reached_goal).into(),
-                run.collisions.to_string(),
-                mm(run.tracking_error_mm, |e| e.mean),
-                mm(run.tracking_error_mm, |e| e.max),
-                mm(run.estimate_error_mm, |e| e.max),
-                run.max_event_gap.to_string(),
-                run.sync_violations.to_string(),
-                spread(run.prediction_error_mm),
-                spread(run.stale_error_mm),
-                format!("{:.2}", run.completion_s),
-                format!("{:.0}", run.video_bytes as f64 / 1e3),
-            ]);
-        }
-        let failed = self.runs.iter().filter(|r| !r.succeeded()).count();
-        let mut table = table.title(
-            "errors in mm; tracking: the true pose to the planned path; estimate: the \
-             estimate to the true pose; gap: the largest command event ahead of the feedback \
-             it was sent on; predict/stale: the predicted / last reported pose against the \
-             feedback that came next",
-        );
-        table = table.note(format!(
-            "{}; {} failed; tracking error over all: {}",
-            count(self.runs.len() as u64, "run", "runs"),
-            failed,
-            crate::report::error_mm(self.tracking_error_mm)
-        ));
-        table
-    }
-}
-
 pub(crate) fn run(
     runtime: &tokio::runtime::Runtime,
     command: ExperimentCommand,
@@ -192,12 +126,7 @@ pub(crate) fn run(
             runs.push(run);
         }
     }
-    let report = Runs {
-        tracking_error_mm: overall(&runs, |r| r.tracking_error_mm),
-        estimate_error_mm: overall(&runs, |r| r.estimate_error_mm),
-        all_succeeded: runs.iter().all(Run::succeeded),
-        runs,
-    };
+    let report = Runs::of(runs);
     emit(&report, args.json)?;
     Ok(if report.all_succeeded {
         ExitCode::SUCCESS

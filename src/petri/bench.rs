@@ -94,9 +94,14 @@ pub(super) fn bench_command(
             analyze_process_peak_mb: whole.1,
         });
     }
-    emit(&rows, json)?;
+    emit(&Bench(rows), json)?;
     Ok(ExitCode::SUCCESS)
 }
+
+/// Every model's line, printed as one table.
+#[derive(Serialize)]
+#[serde(transparent)]
+struct Bench(Vec<BenchLine>);
 
 /// One model's benchmark: exploring and analysing in this process, and
 /// `vl petri analyze` on it as a whole process, as a user runs it.
@@ -133,7 +138,7 @@ fn analyze_process(model: &Path) -> Result<(f64, f64)> {
     Ok((seconds, peak))
 }
 
-impl Report for Vec<BenchLine> {
+impl Report for Bench {
     fn table(&self) -> Table {
         let mut table = Table::columns(&[
             "model",
@@ -150,7 +155,7 @@ impl Report for Vec<BenchLine> {
             "verifypn s*",
             "verifypn MB*",
         ]);
-        for line in self {
+        for line in &self.0 {
             let r = &line.row;
             table.row(vec![
                 r.model.clone(),

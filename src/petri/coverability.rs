@@ -5,65 +5,14 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use serde::Serialize;
-use vl_petri::{Coverability, CoverabilityError, Net, coverability, graph_to_dot};
+use vl_petri::{CoverabilityError, CoverabilityReport, coverability, graph_to_dot};
 
 use crate::BadInput;
-use crate::report::{Report, Table, emit, yes};
+use crate::report::emit;
 
-use super::io::{load, omega_marking, place_ids, write_file};
+use super::io::{load, write_file};
 
 /// `vl petri coverability`.
-#[derive(Serialize)]
-struct CoverabilityReport {
-    bounded: bool,
-    unbounded_places: Vec<String>,
-    maximal: Vec<serde_json::Map<String, serde_json::Value>>,
-    nodes: usize,
-}
-
-impl CoverabilityReport {
-    fn new(net: &Net, c: &Coverability) -> CoverabilityReport {
-        CoverabilityReport {
-            bounded: c.bounded(),
-            unbounded_places: place_ids(net, &c.unbounded),
-            maximal: c
-                .maximal()
-                .into_iter()
-                .map(|m| omega_marking(net, m))
-                .collect(),
-            nodes: c.nodes.len(),
-        }
-    }
-}
-
-impl Report for CoverabilityReport {
-    fn table(&self) -> Table {
-        let unbounded = if self.unbounded_places.is_empty() {
-            "–".to_owned()
-        } else {
-            self.unbounded_places.join(", ")
-        };
-        let mut table = Table::pairs([
-            ("bounded", yes(self.bounded).to_owned()),
-            ("unbounded places", unbounded),
-            ("graph nodes", self.nodes.to_string()),
-        ])
-        .note("maximal markings:");
-        for m in &self.maximal {
-            let cells: Vec<String> = m
-                .iter()
-                .map(|(p, v)| {
-                    let v = v.as_str().map_or_else(|| v.to_string(), str::to_owned);
-                    format!("{p}={v}")
-                })
-                .collect();
-            table = table.note(format!("  {{{}}}", cells.join(", ")));
-        }
-        table
-    }
-}
-
 pub(super) fn coverability_command(
     path: &Path,
     json: bool,
@@ -84,6 +33,6 @@ pub(super) fn coverability_command(
         );
         write_file(file, &picture)?;
     }
-    emit(&CoverabilityReport::new(&net, &c), json)?;
+    emit(&CoverabilityReport::of(&net, &c), json)?;
     Ok(ExitCode::SUCCESS)
 }

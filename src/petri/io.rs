@@ -1,14 +1,15 @@
 //! What the petri subcommands share: reading and writing nets, a search
-//! with its progress shown, and how its cost and places are printed.
+//! with its progress shown, and what it cost.
 
 use std::io::IsTerminal;
 use std::path::Path;
+use std::time::Instant;
 
 use anyhow::Result;
-use vl_petri::{ExploreError, Net, OMEGA, Options, Progress, StateSpace, explore, from_pnml};
+use vl_petri::{Cost, ExploreError, Net, Options, Progress, StateSpace, explore, from_pnml};
 
 use crate::BadInput;
-use crate::report::count;
+use crate::alloc::{peak_bytes, peak_resident_bytes};
 use crate::shipped::read_input;
 
 /// Reads a PNML file (or a shipped example net); any problem with it is
@@ -67,50 +68,11 @@ pub(super) fn with_progress<T>(
     }
 }
 
-/// The time and memory rows of `analyze` and `states`.
-pub(super) fn cost_rows(
-    states: usize,
-    seconds: f64,
-    peak_heap_bytes: usize,
-    peak_resident_bytes: usize,
-    bytes_per_marking: usize,
-) -> [(&'static str, String); 2] {
-    [
-        (
-            "time",
-            format!(
-                "{seconds:.3} s, {} states/s",
-                (states as f64 / seconds.max(1e-9)) as u64
-            ),
-        ),
-        (
-            "memory",
-            format!(
-                "{:.1} MB heap peak, {:.1} MB resident peak, {} per marking",
-                peak_heap_bytes as f64 / 1e6,
-                peak_resident_bytes as f64 / 1e6,
-                count(bytes_per_marking as u64, "byte", "bytes")
-            ),
-        ),
-    ]
-}
-
-pub(super) fn place_ids(net: &Net, places: &[usize]) -> Vec<String> {
-    places.iter().map(|&p| net.places[p].id.clone()).collect()
-}
-
-/// An ω-marking: place id → count or "ω", empty places left out.
-pub(super) fn omega_marking(net: &Net, m: &[u32]) -> serde_json::Map<String, serde_json::Value> {
-    m.iter()
-        .zip(&net.places)
-        .filter(|(v, _)| **v > 0)
-        .map(|(&v, p)| {
-            let value = if v == OMEGA {
-                serde_json::json!("ω")
-            } else {
-                serde_json::json!(v)
-            };
-            (p.id.clone(), value)
-        })
-        .collect()
+/// What a search begun at `started` cost this process.
+pub(super) fn cost_since(started: Instant) -> Cost {
+    Cost {
+        seconds: started.elapsed().as_secs_f64(),
+        peak_heap_bytes: peak_bytes(),
+        peak_resident_bytes: peak_resident_bytes(),
+    }
 }

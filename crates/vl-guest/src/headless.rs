@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use thiserror::Error;
+use vl_core::table::{Table, count, yes};
 use vl_core::{
     ArenaPlanError, Drive, EndReason, ErrorCode, Experiment, Goal, GuestMessage, HeldBack,
     HostMessage, PROTOCOL_VERSION, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
@@ -55,6 +56,13 @@ impl Default for Script {
 pub struct RoundTripMs {
     pub p50: f64,
     pub p99: f64,
+}
+
+impl RoundTripMs {
+    /// The percentiles in a table cell.
+    fn cell(&self) -> String {
+        format!("p50 {:.2} ms, p99 {:.2} ms", self.p50, self.p99)
+    }
 }
 
 impl From<&RoundTrips> for RoundTripMs {
@@ -572,4 +580,66 @@ pub async fn watch(url: &str, script: &Script) -> Result<Watched, ScriptError> {
         frames,
         round_trip_ms,
     })
+}
+
+impl vl_core::table::Report for Report {
+    fn table(&self) -> Table {
+        let pose = self.final_pose;
+        Table::pairs([
+            ("reached goal", yes(self.reached_goal).to_owned()),
+            ("end", self.ending()),
+            ("events", self.events.to_string()),
+            (
+                "final pose",
+                format!(
+                    "({:.1}, {:.1}) mm, {:.1}°",
+                    pose.x_mm,
+                    pose.y_mm,
+                    pose.theta_rad.to_degrees()
+                ),
+            ),
+            ("lab time", format!("{:.2} s", self.sim_seconds)),
+            ("distance", format!("{:.0} mm", self.distance_mm)),
+            ("collisions", self.collisions.to_string()),
+            ("pose from", self.pose_source.to_string()),
+            (
+                "path error",
+                vl_core::ErrorMm::cell(self.path.as_ref().and_then(|p| p.path_error_mm)),
+            ),
+            (
+                "estimate error",
+                vl_core::ErrorMm::cell(self.path.as_ref().and_then(|p| p.estimate_error_mm)),
+            ),
+            (
+                "frames",
+                format!("{} ({:.0} kB)", self.frames, self.video_bytes as f64 / 1e3),
+            ),
+            ("round trip", self.round_trip_ms.cell()),
+        ])
+    }
+}
+
+impl vl_core::table::Report for Watched {
+    fn table(&self) -> Table {
+        let run = match &self.run {
+            Some(done) => format!(
+                "{} after {:.1} s, {}",
+                done.ending(),
+                done.seconds,
+                count(done.events, "event", "events")
+            ),
+            None => "none ended while watching".into(),
+        };
+        Table::pairs([
+            (
+                "mounted",
+                self.experiment
+                    .map_or("nothing".to_owned(), |e| e.title().to_owned()),
+            ),
+            ("run", run),
+            ("feedback", self.feedback.to_string()),
+            ("frames", self.frames.to_string()),
+            ("round trip", self.round_trip_ms.cell()),
+        ])
+    }
 }

@@ -8,7 +8,7 @@
 //! both over tables of packed markings (`markings`), Karp–Miller
 //! coverability (`coverability`), P- and
 //! T-invariants (`invariants`), composition (`compose`), controller
-//! synthesis (`control`), pictures (`dot`), and benchmarks on the Model
+//! synthesis (`control`), pictures (`dot`), what each analysis found in the net's names (`report`), tables people read (`table`), and benchmarks on the Model
 //! Checking Contest's models (`bench`). Modules are private; what other
 //! crates use is re-exported here.
 //!
@@ -43,7 +43,9 @@ mod markings;
 mod net;
 mod onthefly;
 mod pnml;
+mod report;
 mod scxml;
+pub mod table;
 mod verdict;
 
 pub use analysis::{Analysis, analyze, analyze_net, firing_sequence, incidence_rank};
@@ -62,5 +64,8 @@ pub use net::{
     Arc, ArcKind, Marking, MarkingDisplay, Net, NetError, Place, PlaceId, Transition, TransitionId,
 };
 pub use pnml::{PnmlError, from_pnml, to_pnml};
+pub use report::{
+    AnalysisReport, Cost, CoverabilityReport, InvariantsReport, StatesReport, Tokens,
+};
 pub use scxml::{ScxmlError, from_scxml};
 pub use verdict::{Verdict, verdict};

@@ -3,6 +3,7 @@
 use std::time::Instant;
 
 use serde::Serialize;
+use vl_core::table::{Report, Table};
 use vl_core::{Arena, RobotModel, WheelSpeeds};
 
 use crate::world::{STEP_S, SimError, World};
@@ -50,4 +51,19 @@ pub fn bench(seconds: f64) -> Result<SimBench, SimError> {
         rtf_no_camera: timed(None)?,
         rtf_camera: timed(Some(30.0))?,
     })
+}
+
+impl Report for SimBench {
+    fn table(&self) -> Table {
+        Table::pairs([
+            (
+                "real-time factor, no camera",
+                format!("{:.0}×", self.rtf_no_camera),
+            ),
+            (
+                "with 320×240 camera at 30 Hz",
+                format!("{:.0}×", self.rtf_camera),
+            ),
+        ])
+    }
 }

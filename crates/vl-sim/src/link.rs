@@ -14,6 +14,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
 use vl_core::Named;
+use vl_core::table::{Report, Table};
 
 use crate::noise::gaussian;
 
@@ -560,6 +561,46 @@ pub fn measure(link: &mut Link, packets: usize, interval_ms: f64, bytes: usize) 
         },
         duplicates,
         reorders,
+    }
+}
+
+impl Report for LinkReport {
+    fn table(&self) -> Table {
+        let (m, e) = (&self.measured, &self.expected);
+        let mut table = Table::columns(&["", "measured", "profile"]).title(format!(
+            "{}: {} packets, one every {} ms, seed {}",
+            self.profile, self.packets, self.interval_ms, self.seed
+        ));
+        let rows = [
+            ("delay mean, ms", m.delay_mean_ms, Some(e.delay_mean_ms)),
+            ("jitter (sd), ms", m.jitter_ms, Some(e.jitter_ms)),
+            (
+                "loss rate, %",
+                m.loss_rate * 100.0,
+                Some(e.loss_rate * 100.0),
+            ),
+            ("loss burst", m.mean_loss_burst, Some(e.mean_loss_burst)),
+            ("delay p50, ms", m.delay_p50_ms, None),
+            ("delay p99, ms", m.delay_p99_ms, None),
+        ];
+        for (name, got, want) in rows {
+            table.row(vec![
+                name.to_owned(),
+                format!("{got:.4}"),
+                want.map_or(String::new(), |w| format!("{w:.4}")),
+            ]);
+        }
+        table.row(vec![
+            "duplicates".into(),
+            m.duplicates.to_string(),
+            String::new(),
+        ]);
+        table.row(vec![
+            "reorders".into(),
+            m.reorders.to_string(),
+            String::new(),
+        ]);
+        table
     }
 }
 

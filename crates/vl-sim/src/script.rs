@@ -4,6 +4,7 @@
 
 use serde::Serialize;
 use thiserror::Error;
+use vl_core::table::{Report, Table};
 use vl_core::{
     ArenaPlanError, Definition, Follower, Goal, Point, Pose, Steer, WheelSpeeds, plan_route,
 };
@@ -203,6 +204,43 @@ pub fn run(world: &mut World, driver: &mut Driver, seconds: f64) -> RunReport {
             max_error_mm: error_max,
         }),
         trace_hash: format!("{:016x}", trace.0),
+    }
+}
+
+impl Report for RunReport {
+    fn table(&self) -> Table {
+        let p = self.final_pose;
+        let mut rows = vec![
+            ("simulated", format!("{:.2} s", self.sim_seconds)),
+            (
+                "final pose",
+                format!(
+                    "({:.1}, {:.1}) mm, {:.1}°",
+                    p.x_mm,
+                    p.y_mm,
+                    p.theta_rad.to_degrees()
+                ),
+            ),
+            ("distance", format!("{:.0} mm", self.distance_mm)),
+        ];
+        if let Some(t) = self.following {
+            rows.push((
+                "goal",
+                format!(
+                    "{} (path kept to within {:.1} mm on average, {:.1} mm at worst)",
+                    if t.reached_goal {
+                        "reached"
+                    } else {
+                        "not reached"
+                    },
+                    t.mean_error_mm,
+                    t.max_error_mm
+                ),
+            ));
+        }
+        rows.push(("collisions", self.collisions.to_string()));
+        rows.push(("trace hash", self.trace_hash.clone()));
+        Table::pairs(rows)
     }
 }
 

@@ -35,6 +35,18 @@ pub struct ErrorMm {
     pub rms: f64,
 }
 
+impl ErrorMm {
+    /// The statistics in a table cell; a dash when nothing was measured.
+    pub fn cell(e: Option<ErrorMm>) -> String {
+        e.map_or("–".into(), |e| {
+            format!(
+                "mean {:.1} mm, max {:.1} mm, rms {:.1} mm",
+                e.mean, e.max, e.rms
+            )
+        })
+    }
+}
+
 /// Running sums behind an [`ErrorMm`].
 #[derive(Debug, Clone, Copy, Default)]
 struct Errors {

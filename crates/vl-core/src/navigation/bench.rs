@@ -3,6 +3,7 @@
 
 use std::time::Instant;
 
+use crate::table::{Report, Table, count};
 use serde::Serialize;
 use thiserror::Error;
 
@@ -155,4 +156,26 @@ pub fn bench(size: u32, runs: u32) -> Result<PlanBench, PlanBenchError> {
         clearance_ms: median(&mut stages[4]),
         whole_ms: median(&mut stages[5]),
     })
+}
+
+impl Report for PlanBench {
+    fn table(&self) -> Table {
+        let mut table = Table::columns(&["stage", "median ms"]).title(format!(
+            "{0} × {0} map, path of {1} cells, median of {2}:",
+            self.size,
+            self.path_cells,
+            count(self.runs, "run", "runs")
+        ));
+        for (name, ms) in [
+            ("C-space (disc)", self.cspace_ms),
+            ("NF1 wavefront", self.nf1_ms),
+            ("descent", self.descent_ms),
+            ("spline + check", self.spline_ms),
+            ("clearance", self.clearance_ms),
+            ("whole plan", self.whole_ms),
+        ] {
+            table.row(vec![name.to_owned(), format!("{ms:.2}")]);
+        }
+        table
+    }
 }

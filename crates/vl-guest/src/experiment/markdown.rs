@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use vl_core::table::{Table, yes};
+use vl_core::table::{Report, Table, yes};
 
 use vl_core::{Arena, Experiment};
 
@@ -196,5 +196,34 @@ fn failed_runs(md: &mut String, m: &Matrix) {
             ]);
         }
         let _ = writeln!(md, "```\n{t}```\n");
+    }
+}
+
+impl Report for Matrix {
+    fn table(&self) -> Table {
+        let mut table = headline(&self.cells);
+        for r in self.runs.iter().filter(|r| !r.succeeded()) {
+            table = table.note(format!(
+                "failed: {} on {}, {} pacing, seed {}: {} ({} collisions); left out of the figures",
+                r.experiment,
+                r.profile.as_deref().unwrap_or("loopback"),
+                r.pacing,
+                r.seed,
+                r.end,
+                r.collisions
+            ));
+        }
+        table
+            .title(format!(
+                "{} runs on {} in {:.0} s",
+                self.runs.len(),
+                self.arena,
+                self.wall_s
+            ))
+            .note(format!(
+                "event-based runs synchronised (gap ≤ 1 at every command): {}; collisions: {}",
+                yes(self.event_based_synchronised),
+                self.collisions
+            ))
     }
 }

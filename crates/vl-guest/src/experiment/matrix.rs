@@ -411,14 +411,14 @@ fn profile_pictures(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::headless::RoundTripMs;
     use vl_core::{ErrorMm, PoseSource};
 
     /// A run on `profile` that reached its goal or not, with a tracking
     /// error of mean `track` (max twice that) and a round trip of `rtt` ms.
-    fn run(
+    pub(crate) fn run(
         experiment: Experiment,
         pacing: Pacing,
         profile: &str,

@@ -10,6 +10,7 @@
 mod markdown;
 mod matrix;
 mod plots;
+mod runs;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -24,6 +25,7 @@ use crate::headless::{Report, RoundTripMs, Script, ScriptError, run_script};
 use crate::session::{Pacing, Spread};
 pub use markdown::{headline, write_report};
 pub use matrix::{Cell, Matrix, Timing, cells_of, run_all};
+pub use runs::Runs;
 
 /// Why an experiment could not be run or reported.
 #[derive(Debug, thiserror::Error)]

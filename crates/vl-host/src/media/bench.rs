@@ -12,6 +12,7 @@ use futures_util::{SinkExt, StreamExt};
 use serde::Serialize;
 use tokio::net::TcpListener;
 use tokio_tungstenite::tungstenite::Message;
+use vl_core::table::{Report, Table};
 use vl_sim::{Delivery, LinkModel, MessageLink};
 
 use super::{Media, MediaConfig};
@@ -369,4 +370,54 @@ pub async fn bench(
         relayed,
         profiles: reproduced,
     })
+}
+
+impl Report for MediaBench {
+    fn table(&self) -> Table {
+        let mut table = Table::columns(&[
+            "profile",
+            "model rtt",
+            "relay rtt",
+            "ratio",
+            "model sd",
+            "relay sd",
+            "ratio",
+            "tracked sd",
+            "ratio",
+            "timing sd",
+            "hiccups",
+            "own rtt",
+        ]);
+        for p in &self.profiles {
+            table.row(vec![
+                p.profile.clone(),
+                format!("{:.3}", p.model_mean_ms),
+                format!("{:.3}", p.relay_mean_ms),
+                format!("{:.3}", p.relay_mean_ms / p.model_mean_ms),
+                format!("{:.3}", p.model_sd_ms),
+                format!("{:.3}", p.relay_sd_ms),
+                format!("{:.3}", p.relay_sd_ms / p.model_sd_ms),
+                format!("{:.3} ± {:.3}", p.tracked_sd_ms, p.tracked_se_ms),
+                format!("{:.3}", p.tracked_sd_ms / p.model_sd_ms),
+                format!("{:.3}", p.timing_sd_ms),
+                p.hiccups.to_string(),
+                format!("{:.3} ± {:.3}", p.own_mean_ms, p.own_sd_ms),
+            ]);
+        }
+        let (d, r, a) = (self.direct, self.relayed, self.added);
+        table
+            .title(format!(
+                "the relay's own cost, {} round trips each way, taken in turn (p50 / p99 ms): \
+                 straight {:.3} / {:.3}, through a zero-delay relay {:.3} / {:.3}, added {:.3} / {:.3}",
+                self.messages, d.p50_ms, d.p99_ms, r.p50_ms, r.p99_ms, a.p50_ms, a.p99_ms
+            ))
+            .title("each profile's round trip through the relay (its own cost taken away) against the same-seeded model on the same send times, ms:")
+            .note(
+                "8 connections for 5 s per profile, one message in flight on each; relay sd: the measured spread less \
+                 the zero-delay relay's (own rtt, mean ± sd, on the same traffic); tracked sd: the part of the spread \
+                 that follows the model message by message (± its standard error), leaving out hiccups: round trips more than 1 ms off their model's beyond \
+                 the usual offset; timing sd: each round trip \
+                 against its own model's, beyond the mean offset",
+            )
+    }
 }

@@ -11,6 +11,7 @@ use futures_util::{SinkExt, StreamExt};
 use serde::Serialize;
 use tokio::task::JoinSet;
 use tokio_tungstenite::tungstenite::Message;
+use vl_core::table::{Report, Table};
 use vl_core::{
     Arena, Drive, Experiment, GuestMessage, HostMessage, Named, PROTOCOL_VERSION, Role, Wire,
     nearest_rank,
@@ -236,4 +237,26 @@ pub async fn operator_latency(
         observer_feedback_hz: slowest.0 as f64 / seconds,
         observer_frames_hz: slowest.1 as f64 / seconds,
     })
+}
+
+impl Report for OperatorLatency {
+    fn table(&self) -> Table {
+        Table::pairs([
+            ("observers reading", self.observers.to_string()),
+            ("commands timed", self.commands.to_string()),
+            ("p50", format!("{:.2} ms", self.p50_ms)),
+            ("p90", format!("{:.2} ms", self.p90_ms)),
+            ("p99", format!("{:.2} ms", self.p99_ms)),
+            ("max", format!("{:.2} ms", self.max_ms)),
+            (
+                "feedback to the slowest observer",
+                format!("{:.1} /s", self.observer_feedback_hz),
+            ),
+            (
+                "frames to the slowest observer",
+                format!("{:.1} /s", self.observer_frames_hz),
+            ),
+        ])
+        .title("an operator's command to the feedback of its event, on loopback:")
+    }
 }

@@ -3,6 +3,13 @@
 
 use std::fmt;
 
+/// A result people read as a table and programs as JSON: its table is
+/// written beside the type so every command and window shows it alike.
+pub trait Report: serde::Serialize {
+    /// The result as people read it.
+    fn table(&self) -> Table;
+}
+
 /// Rows of cells printed in aligned columns: the first column to the
 /// left, the others (figures) to the right; a table of pairs keeps its
 /// values to the left. Lines before and after it stay as they are.

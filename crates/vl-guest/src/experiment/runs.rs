@@ -1,0 +1,121 @@
+//! A series of runs of one experiment (`vl experiment run`): each run's
+//! figures in a row and the errors over all of them.
+
+use serde::Serialize;
+use vl_core::ErrorMm;
+use vl_core::table::{Report, Table, count, yes};
+
+use super::{Run, overall, spread};
+
+/// A series of runs of one experiment and what they add up to.
+#[derive(Serialize)]
+pub struct Runs {
+    pub runs: Vec<Run>,
+    /// Every run reached its goal without touching anything.
+    pub all_succeeded: bool,
+    /// Over all runs: the mean of their mean tracking errors, and the largest.
+    pub tracking_error_mm: Option<ErrorMm>,
+    pub estimate_error_mm: Option<ErrorMm>,
+}
+
+fn mm(e: Option<ErrorMm>, pick: fn(&ErrorMm) -> f64) -> String {
+    e.map_or("–".into(), |e| format!("{:.1}", pick(&e)))
+}
+
+impl Report for Runs {
+    fn table(&self) -> Table {
+        let mut table = Table::columns(&[
+            "arena",
+            "seed",
+            "goal",
+            "collisions",
+            "track mean",
+            "track max",
+            "estimate max",
+            "gap",
+            "sync lost",
+            "predict mean",
+            "stale mean",
+            "seconds",
+            "video kB",
+        ]);
+        for run in &self.runs {
+            table.row(vec![
+                run.arena.clone(),
+                run.seed.to_string(),
+                yes(run.reached_goal).into(),
+                run.collisions.to_string(),
+                mm(run.tracking_error_mm, |e| e.mean),
+                mm(run.tracking_error_mm, |e| e.max),
+                mm(run.estimate_error_mm, |e| e.max),
+                run.max_event_gap.to_string(),
+                run.sync_violations.to_string(),
+                spread(run.prediction_error_mm),
+                spread(run.stale_error_mm),
+                format!("{:.2}", run.completion_s),
+                format!("{:.0}", run.video_bytes as f64 / 1e3),
+            ]);
+        }
+        let failed = self.runs.iter().filter(|r| !r.succeeded()).count();
+        let mut table = table.title(
+            "errors in mm; tracking: the true pose to the planned path; estimate: the \
+             estimate to the true pose; gap: the largest command event ahead of the feedback \
+             it was sent on; predict/stale: the predicted / last reported pose against the \
+             feedback that came next",
+        );
+        table = table.note(format!(
+            "{}; {} failed; tracking error over all: {}",
+            count(self.runs.len() as u64, "run", "runs"),
+            failed,
+            ErrorMm::cell(self.tracking_error_mm)
+        ));
+        table
+    }
+}
+
+impl Runs {
+    /// The runs and their totals.
+    pub fn of(runs: Vec<Run>) -> Runs {
+        Runs {
+            tracking_error_mm: overall(&runs, |r| r.tracking_error_mm),
+            estimate_error_mm: overall(&runs, |r| r.estimate_error_mm),
+            all_succeeded: runs.iter().all(Run::succeeded),
+            runs,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::matrix::tests::run;
+    use crate::session::Pacing;
+    use vl_core::Experiment;
+
+    #[test]
+    fn one_failed_run_fails_the_series_and_its_errors_count() {
+        let ok = run(Experiment::Navigation, Pacing::Event, "lan", true, 2.0, 1.0);
+        let failed = run(
+            Experiment::Navigation,
+            Pacing::Event,
+            "lan",
+            false,
+            4.0,
+            1.0,
+        );
+        let runs = Runs::of(vec![ok.clone()]);
+        assert!(runs.all_succeeded);
+        let both = Runs::of(vec![ok, failed]);
+        assert!(!both.all_succeeded);
+        let e = both.tracking_error_mm.expect("two runs were tracked");
+        assert_eq!((e.mean, e.max), (3.0, 8.0));
+        let text = both.table().to_string();
+        assert!(text.contains("2 runs; 1 failed"), "{text}");
+    }
+
+    #[test]
+    fn no_runs_succeed_vacuously_with_no_errors() {
+        let none = Runs::of(Vec::new());
+        assert!(none.all_succeeded && none.tracking_error_mm.is_none());
+    }
+}
