@@ -6,15 +6,14 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use serde::{Deserialize, Serialize};
-use vl_core::{Calibration, CameraModel, Point};
+use serde::Serialize;
+use vl_core::{Calibration, CameraModel, ImageSize, Point, PointPair};
 use vl_sim::SimCalibration;
 
 use crate::BadInput;
-use crate::input::{
-    CameraDriver, OpticsArgs, load_arena, load_target, parse_camera, read_json, real_camera,
-};
+use crate::input::{OpticsArgs, load_arena, load_target, positive, read_json, real_camera};
 use crate::report::{Report, Table, emit};
+use vl_host::CameraSource;
 
 #[derive(Subcommand)]
 pub(crate) enum CameraCommand {
@@ -31,45 +30,6 @@ pub(crate) enum CameraCommand {
     },
 }
 
-/// The webcams found.
-#[cfg(target_os = "linux")]
-#[derive(Serialize)]
-#[serde(transparent)]
-struct Webcams(Vec<vl_host::DeviceInfo>);
-
-#[cfg(target_os = "linux")]
-impl Report for Webcams {
-    fn table(&self) -> Table {
-        if self.0.is_empty() {
-            return Table::pairs([]).note("no video capture devices (/dev/video*) on this machine");
-        }
-        let mut table = Table::columns(&["device", "camera", "format", "size", "frames/s"]);
-        for device in &self.0 {
-            let name = format!("{} ({})", device.card, device.driver);
-            if device.modes.is_empty() {
-                table.row(vec![
-                    device.path.display().to_string(),
-                    name.clone(),
-                    "no MJPEG or YUYV".into(),
-                    String::new(),
-                    String::new(),
-                ]);
-            }
-            for mode in &device.modes {
-                let fps: Vec<String> = mode.fps.iter().map(|f| format!("{f:.0}")).collect();
-                table.row(vec![
-                    device.path.display().to_string(),
-                    name.clone(),
-                    mode.format.to_string(),
-                    format!("{}×{}", mode.width, mode.height),
-                    fps.join(", "),
-                ]);
-            }
-        }
-        table.note("use one as: vl host --camera v4l2:DEVICE,WIDTHxHEIGHT,RATEfps,FORMAT")
-    }
-}
-
 #[derive(Args)]
 pub(crate) struct CalibrateArgs {
     /// A JSON list of pairs: [{"floor_mm": [x, y], "pixel": [column, row]}, …],
@@ -77,15 +37,15 @@ pub(crate) struct CalibrateArgs {
     #[arg(long, conflicts_with_all = ["image", "sim"], requires = "image_size")]
     points: Option<PathBuf>,
     /// The size of the camera's images the points were read from, WxH.
-    #[arg(long, value_parser = parse_size)]
-    image_size: Option<(u32, u32)>,
+    #[arg(long)]
+    image_size: Option<ImageSize>,
     /// A picture of a dot target laid on the floor (with --target).
     #[arg(long, conflicts_with = "sim", requires = "target")]
     image: Option<PathBuf>,
     /// Or a frame from the lab's camera looking at the target (with
     /// --target): http://… (an MJPEG stream) or v4l2:/dev/videoN[,…].
-    #[arg(long, conflicts_with_all = ["sim", "image", "points"], requires = "target", value_parser = parse_camera)]
-    camera: Option<CameraDriver>,
+    #[arg(long, conflicts_with_all = ["sim", "image", "points"], requires = "target", value_parser = str::parse::<CameraSource>)]
+    camera: Option<CameraSource>,
     /// The dot target as JSON: {"cols", "rows", "first_mm": {"x_mm", "y_mm"},
     /// "spacing_mm": [x, y], "radius_mm"}; its rows must run along the
     /// image's rows.
@@ -117,32 +77,6 @@ pub(crate) struct CalibrateArgs {
     json: bool,
 }
 
-fn parse_size(text: &str) -> Result<(u32, u32), String> {
-    let (w, h) = text
-        .split_once(['x', '×'])
-        .ok_or_else(|| format!("'{text}' is not WxH, e.g. 640x480"))?;
-    let px = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .ok()
-            .filter(|&v| (1..=vl_core::MAX_IMAGE_SIDE).contains(&v))
-            .ok_or_else(|| {
-                format!(
-                    "'{v}' is not a size in pixels from 1 to {}",
-                    vl_core::MAX_IMAGE_SIDE
-                )
-            })
-    };
-    Ok((px(w)?, px(h)?))
-}
-
-/// One known point: where it is on the floor and where the image shows it.
-#[derive(Deserialize)]
-struct PointPair {
-    floor_mm: [f64; 2],
-    pixel: [f64; 2],
-}
-
 /// What calibration found.
 #[derive(Serialize)]
 struct Calibrated {
@@ -157,36 +91,13 @@ struct Calibrated {
 
 impl Report for Calibrated {
     fn table(&self) -> Table {
-        let camera = &self.calibration.camera;
-        let fit = &self.calibration.reprojection;
-        let mut rows = vec![
-            (
-                "image",
-                format!(
-                    "{} × {} px at {} fps",
-                    camera.width_px, camera.height_px, camera.fps
-                ),
-            ),
-            ("points", fit.points.to_string()),
-            ("reprojection rms", format!("{:.3} px", fit.rms_px)),
-            ("reprojection max", format!("{:.3} px", fit.max_px)),
-            (
-                "scale at the centre",
-                format!("{:.3} mm per px", camera.mm_per_px()),
-            ),
-            (
-                "lens distortion",
-                format!(
-                    "k1 {:+.4}, k2 {:+.4}",
-                    camera.distortion().k1,
-                    camera.distortion().k2
-                ),
-            ),
-        ];
+        let mut table = self.calibration.table();
         if let Some(truth) = self.truth_max_px {
-            rows.push(("off the true camera", format!("{truth:.3} px at worst")));
+            table.row(vec![
+                "off the true camera".into(),
+                format!("{truth:.3} px at worst"),
+            ]);
         }
-        let mut table = Table::pairs(rows).title("camera calibration");
         if let Some(path) = &self.written_to {
             table = table.note(format!("wrote {}", path.display()));
         }
@@ -206,32 +117,24 @@ pub(crate) fn run(command: CameraCommand) -> Result<ExitCode> {
         #[cfg(target_os = "linux")]
         CameraCommand::List { json } => {
             let devices = vl_host::list_devices().context("cannot list the video devices")?;
-            emit(&Webcams(devices), json)?;
+            emit(&devices, json)?;
             Ok(ExitCode::SUCCESS)
         }
     }
 }
 
 fn calibrate(args: CalibrateArgs) -> Result<ExitCode> {
-    if !(args.fps.is_finite() && args.fps > 0.0) {
-        return Err(BadInput(format!("--fps must be a positive number, not {}", args.fps)).into());
-    }
+    positive("--fps", args.fps)?;
     let bad = |e: vl_core::CalibrationError| BadInput(e.to_string());
     let (calibration, truth_max_px) = if let Some(path) = &args.points {
-        let (w, h) = args.image_size.expect("clap requires --image-size");
+        let size = args.image_size.expect("clap requires --image-size");
         let pairs: Vec<PointPair> = read_json(
             path,
             "points file (a JSON list of {\"floor_mm\": [x, y], \"pixel\": [col, row]})",
         )?;
-        let pairs: Vec<(Point, [f64; 2])> = pairs
-            .into_iter()
-            .map(|p| {
-                let [x_mm, y_mm] = p.floor_mm;
-                (Point { x_mm, y_mm }, p.pixel)
-            })
-            .collect();
+        let pairs: Vec<(Point, [f64; 2])> = pairs.into_iter().map(Into::into).collect();
         (
-            CameraModel::calibrated(w, h, args.fps, &pairs).map_err(bad)?,
+            CameraModel::calibrated(size.width, size.height, args.fps, &pairs).map_err(bad)?,
             None,
         )
     } else if let Some(path) = &args.image {

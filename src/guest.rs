@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use vl_core::{Arena, Experiment, Role};
-use vl_guest::{ClientError, Report as RunReport, Script, ScriptError, WindowError};
+use vl_guest::{PadChoice, Report as RunReport, Script, ScriptError, WindowError};
 use vl_host::{Host, HostConfig, Media, SimLab};
 
 use crate::media::LinkArgs;
@@ -35,7 +35,7 @@ pub(crate) struct GuestArgs {
     /// A real gamepad or joystick to drive with and feel the force on:
     /// auto (the first one found), none, or its /dev/input/eventN device.
     #[arg(long, default_value = "auto")]
-    gamepad: GamepadChoice,
+    gamepad: PadChoice,
     /// Count the gamepad's stick only while its dead-man button (left
     /// shoulder or trigger) is held.
     #[arg(long)]
@@ -44,61 +44,18 @@ pub(crate) struct GuestArgs {
     run: RunArgs,
 }
 
-/// Which gamepad the window reads.
-#[derive(Clone, Debug)]
-enum GamepadChoice {
-    Auto,
-    None,
-    Device(std::path::PathBuf),
-}
-
-impl std::str::FromStr for GamepadChoice {
-    type Err = std::convert::Infallible;
-
-    fn from_str(text: &str) -> Result<Self, Self::Err> {
-        Ok(match text {
-            "auto" => GamepadChoice::Auto,
-            "none" => GamepadChoice::None,
-            path => GamepadChoice::Device(path.into()),
-        })
-    }
-}
-
-/// The gamepad asked for: gamepads are read through Linux's evdev.
-fn gamepad(choice: &GamepadChoice, dead_man: bool) -> Result<Option<Box<dyn vl_guest::Pad>>> {
-    #[cfg(target_os = "linux")]
-    {
-        use vl_guest::Gamepad;
-        let pad = match choice {
-            GamepadChoice::None => None,
-            GamepadChoice::Auto => Gamepad::find(dead_man),
-            GamepadChoice::Device(path) => {
-                Some(Gamepad::open(path, dead_man).map_err(|e| BadInput(e.to_string()))?)
-            }
+/// The gamepad asked for, said on the console when one is found.
+fn gamepad(choice: &PadChoice, dead_man: bool) -> Result<Option<Box<dyn vl_guest::Pad>>> {
+    let pad = choice.open(dead_man).map_err(|e| BadInput(e.to_string()))?;
+    if let Some(pad) = &pad {
+        let feel = if pad.has_force_feedback() {
+            "with force feedback"
+        } else {
+            "without force feedback"
         };
-        if let Some(pad) = &pad {
-            let feel = if pad.has_force_feedback() {
-                "with force feedback"
-            } else {
-                "without force feedback"
-            };
-            eprintln!(
-                "vl guest: driving with {} ({feel})",
-                vl_guest::Pad::name(pad)
-            );
-        }
-        Ok(pad.map(|p| Box::new(p) as Box<dyn vl_guest::Pad>))
+        eprintln!("vl guest: driving with {} ({feel})", pad.name());
     }
-    #[cfg(not(target_os = "linux"))]
-    match choice {
-        GamepadChoice::Device(_) => {
-            Err(BadInput("gamepads are read through Linux's evdev only".into()).into())
-        }
-        _ => {
-            let _ = dead_man;
-            Ok(None)
-        }
-    }
+    Ok(pad)
 }
 
 #[derive(clap::Args)]
@@ -134,15 +91,9 @@ pub(crate) struct RunArgs {
 /// A Guest error: an address that cannot be a Host's is the user's input.
 fn guest_error(e: impl Into<anyhow::Error>) -> anyhow::Error {
     let e = e.into();
-    let bad_url = |c: &ClientError| matches!(c, ClientError::BadUrl { .. });
-    let is_bad_url = match e.downcast_ref::<ScriptError>() {
-        Some(ScriptError::Connect(c)) => bad_url(c),
-        _ => match e.downcast_ref::<WindowError>() {
-            Some(WindowError::Address(c)) => bad_url(c),
-            _ => false,
-        },
-    };
-    if is_bad_url {
+    let bad = e.downcast_ref().is_some_and(ScriptError::is_bad_address)
+        || e.downcast_ref().is_some_and(WindowError::is_bad_address);
+    if bad {
         BadInput(e.to_string()).into()
     } else {
         e
@@ -227,7 +178,7 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
     }
     eprintln!("vl demo: simulated lab at {url}");
     let _entered = runtime.enter();
-    let pad = gamepad(&GamepadChoice::Auto, false)?;
+    let pad = gamepad(&PadChoice::Auto, false)?;
     vl_guest::run_window(&url, Role::Operator, None, pad)?;
     Ok(ExitCode::SUCCESS)
 }

@@ -7,11 +7,11 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use vl_core::{Experiment, RobotModel};
-use vl_host::{Devices, Host, HostConfig, KheperaSerial, SimCamera, SimLab};
+use vl_host::{CameraSource, Devices, Host, HostConfig, KheperaSerial, SimCamera, SimLab};
 
 use crate::input::{
-    CameraDriver, FramesArgs, OpticsArgs, SceneArgs, arena_from, load_calibration,
-    load_robot_model, parse_camera, real_camera, seconds,
+    FramesArgs, OpticsArgs, SceneArgs, arena_from, load_calibration, load_robot_model, real_camera,
+    seconds,
 };
 use crate::media::LinkArgs;
 use crate::report::emit;
@@ -85,11 +85,11 @@ pub(crate) struct HostArgs {
     /// the default there is none.
     #[arg(
         long,
-        value_parser = parse_camera,
+        value_parser = str::parse::<CameraSource>,
         default_value_if("robot", "khepera", "none"),
         default_value = "sim"
     )]
-    camera: CameraDriver,
+    camera: CameraSource,
     /// The arena the robot is in: a shipped one or a JSON file. A real robot
     /// starts dead reckoning at its start pose.
     #[arg(long, default_value = "navigation")]
@@ -208,18 +208,18 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
         public
     };
     let host = match (args.robot, args.camera) {
-        (RobotDriver::Sim, CameraDriver::Replay(_)) => {
+        (RobotDriver::Sim, CameraSource::Replay(_)) => {
             return Err(BadInput(
                 "recorded footage shows a recorded robot, not the simulated one: replay it with --robot khepera".into(),
             )
             .into());
         }
-        (RobotDriver::Sim, camera @ (CameraDriver::Sim | CameraDriver::None)) => {
+        (RobotDriver::Sim, camera @ (CameraSource::Sim | CameraSource::None)) => {
             let lab = SimLab {
                 arena,
                 robot: model,
                 seed: args.seed,
-                camera: (camera == CameraDriver::Sim).then_some(SimCamera {
+                camera: (camera == CameraSource::Sim).then_some(SimCamera {
                     optics,
                     calibration,
                 }),
@@ -233,7 +233,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             )
             .into());
         }
-        (RobotDriver::Khepera, CameraDriver::Sim) => {
+        (RobotDriver::Khepera, CameraSource::Sim) => {
             return Err(BadInput(
                 "the simulated camera watches only the simulated robot; use --camera none".into(),
             )

@@ -5,10 +5,10 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use serde::Deserialize;
 use vl_core::{Arena, CameraModel, DotTarget, Point, RobotKind, RobotModel};
-use vl_host::{FramePolicy, ReplayCamera};
+use vl_host::{CameraSource, FramePolicy};
 use vl_sim::{Optics, Scheduled};
 
 use crate::shipped::read_input;
@@ -170,88 +170,38 @@ pub(crate) fn load_calibration(path: &Path) -> Result<CameraModel> {
 /// A dot target described in `path`.
 pub(crate) fn load_target(path: &Path) -> Result<DotTarget> {
     let target: DotTarget = read_json(path, "dot target description")?;
-    let sized = |v: f64| v.is_finite() && v > 0.0;
-    if !(sized(target.radius_mm)
-        && sized(target.spacing_mm[0])
-        && sized(target.spacing_mm[1])
-        && target.first_mm.x_mm.is_finite()
-        && target.first_mm.y_mm.is_finite()
-        && (1..=100).contains(&target.cols)
-        && (1..=100).contains(&target.rows))
-    {
-        return Err(BadInput(format!(
-            "{}: a target needs 1 to 100 columns and rows and positive, finite sizes",
-            path.display()
-        ))
-        .into());
-    }
+    target
+        .check()
+        .map_err(|e| BadInput(format!("{}: {e}", path.display())))?;
     Ok(target)
 }
 
-/// Frames per second recorded footage is played back at.
-const REPLAY_FPS: f64 = 15.0;
-
-/// Which camera watches the arena.
-#[derive(Clone, PartialEq, Debug)]
-pub(crate) enum CameraDriver {
-    /// The simulated overhead camera (watches the simulated robot only).
-    Sim,
-    /// No camera: Guests get feedback but no frames.
-    None,
-    /// Recorded footage: the images of a directory, played back in name order.
-    Replay(std::path::PathBuf),
-    /// A network camera streaming MJPEG over HTTP, at this URL.
-    Http(String),
-    /// A webcam on Video4Linux2.
-    #[cfg(target_os = "linux")]
-    V4l2(vl_host::V4l2Spec),
-}
-
-pub(crate) fn parse_camera(text: &str) -> Result<CameraDriver, String> {
-    match text {
-        "sim" => Ok(CameraDriver::Sim),
-        "none" => Ok(CameraDriver::None),
-        _ if text.starts_with("http://") => Ok(CameraDriver::Http(text.to_owned())),
-        #[cfg(target_os = "linux")]
-        _ if text.starts_with("v4l2:") => text["v4l2:".len()..]
-            .parse()
-            .map(CameraDriver::V4l2)
-            .map_err(|e: vl_host::CameraError| e.to_string()),
-        _ => match text.strip_prefix("dir:") {
-            Some(dir) if !dir.is_empty() => Ok(CameraDriver::Replay(dir.into())),
-            _ => Err(format!(
-                "'{text}' is no camera: use sim, none, http://… (an MJPEG stream), \
-                 v4l2:/dev/videoN (a webcam) or dir:PATH (recorded footage)"
-            )),
-        },
-    }
-}
-
-/// The real camera `driver` names, seen through `calibration` or, without
-/// one, as looking straight down on the `arena`'s floor.
+/// The real camera `source` names (see [`CameraSource::open`]); footage
+/// that cannot be read is the user's input.
 pub(crate) fn real_camera(
-    driver: CameraDriver,
-    calibration: Option<vl_core::CameraModel>,
+    source: CameraSource,
+    calibration: Option<CameraModel>,
     arena: &Arena,
 ) -> Result<Option<Box<dyn vl_host::Camera>>> {
-    let floor = (arena.width_mm, arena.height_mm);
-    let camera: Box<dyn vl_host::Camera> = match driver {
-        CameraDriver::Sim | CameraDriver::None => return Ok(None),
-        CameraDriver::Replay(dir) => Box::new(
-            ReplayCamera::open(&dir, calibration, floor, REPLAY_FPS)
-                .map_err(|e| BadInput(e.to_string()))?,
-        ),
-        CameraDriver::Http(url) => Box::new(
-            vl_host::HttpCamera::open(&url, calibration, floor, REPLAY_FPS)
-                .context("cannot read the camera")?,
-        ),
-        #[cfg(target_os = "linux")]
-        CameraDriver::V4l2(spec) => Box::new(
-            vl_host::V4l2Camera::open(spec, calibration, floor)
-                .context("cannot read the camera")?,
-        ),
-    };
-    Ok(Some(camera))
+    let footage = matches!(source, CameraSource::Replay(_));
+    source.open(calibration, arena).map_err(|e| {
+        if footage {
+            BadInput(e.to_string()).into()
+        } else {
+            anyhow::Error::new(e).context("cannot read the camera")
+        }
+    })
+}
+
+/// A figure the user gave that must be a positive number.
+pub(crate) fn positive(what: &str, v: f64) -> Result<f64, BadInput> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(BadInput(format!(
+            "{what} must be a positive number, not {v}"
+        )))
+    }
 }
 
 /// A duration the user gave, in seconds: above 0 and at most a day.
@@ -305,16 +255,13 @@ pub(crate) struct SceneArgs {
     pub(crate) events: Vec<Scheduled>,
 }
 
-/// The arena `name` (shipped, or a JSON file) with the robot put at
-/// `start` when one is given: where the simulated robot stands, and where
-/// a real one's dead reckoning begins.
+/// The arena `name` (shipped, or a JSON file), started at `start` if given.
 pub(crate) fn arena_from(name: &str, start: Option<vl_core::Pose>) -> Result<Arena> {
-    let mut arena = Arena::load(name).map_err(|e| BadInput(e.to_string()))?;
-    if let Some(start) = start {
-        arena.start = start;
-        arena
-            .check()
-            .map_err(|e| BadInput(format!("--start: {e}")))?;
+    let arena = load_arena(name)?;
+    match start {
+        Some(start) => Ok(arena
+            .starting_at(start)
+            .map_err(|e| BadInput(format!("--start: {e}")))?),
+        None => Ok(arena),
     }
-    Ok(arena)
 }

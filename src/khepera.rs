@@ -9,7 +9,7 @@ use vl_core::RobotKind;
 use vl_host::KheperaSerial;
 
 use crate::input::{RobotArgs, arena_from};
-use crate::report::{Report, Table, count, emit};
+use crate::report::{Report, Table, emit};
 use crate::{BadInput, named};
 
 #[derive(clap::Args)]
@@ -107,25 +107,12 @@ struct Characterised {
 
 impl Report for Characterised {
     fn table(&self) -> Table {
-        let r = self.fit.response;
-        Table::pairs([
-            ("gain", format!("{:.3}", r.gain)),
-            (
-                "time constant",
-                format!("{:.1} ms", r.time_constant_s * 1e3),
-            ),
-            ("acceleration", format!("{:.0} mm/s²", r.max_accel_mm_s2)),
-            ("dead time", format!("{:.1} ms", r.dead_time_s * 1e3)),
-            (
-                "fit",
-                format!(
-                    "{:.1} mm/s RMS over {}",
-                    self.fit.rms_mm_s,
-                    count(self.fit.samples as u64, "sample", "samples")
-                ),
-            ),
-            ("model", format!("wrote {}", self.model_file.display())),
-        ])
+        let mut table = self.fit.table();
+        table.row(vec![
+            "model".into(),
+            format!("wrote {}", self.model_file.display()),
+        ]);
+        table
     }
 }
 

@@ -3,7 +3,6 @@
 //! simulated lab; the tool subcommands reach the libraries' algorithms.
 //! This crate only parses, dispatches and prints.
 
-mod alloc;
 mod camera;
 mod experiment;
 mod guest;
@@ -79,19 +78,12 @@ enum Command {
 }
 
 #[global_allocator]
-static ALLOCATOR: alloc::Counting = alloc::Counting;
+static ALLOCATOR: vl_petri::Counting = vl_petri::Counting;
 
 /// A problem with what the user gave (a file, an argument): exit code 2.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
 pub struct BadInput(pub String);
-
-impl std::fmt::Display for BadInput {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for BadInput {}
 
 /// Parses an address to listen on, suggesting the form when it is not one
 /// (`localhost` is a name, not an address and port).

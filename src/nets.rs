@@ -7,11 +7,10 @@ use std::process::{Command, ExitCode, Stdio};
 
 use anyhow::{Context, Result};
 use clap::Subcommand;
-use serde::Serialize;
-use vl_core::{Designed, LabDesign, Named};
+use vl_core::{Designed, LabDesign, Named, NetsReport};
 
 use crate::BadInput;
-use crate::report::{Report, Table, emit};
+use crate::report::emit;
 
 #[derive(Subcommand)]
 pub(crate) enum LabCommand {
@@ -33,90 +32,6 @@ pub(crate) enum LabCommand {
     },
 }
 
-/// One lab's outcome, as the table and `--json` show it.
-#[derive(Serialize)]
-struct LabRow {
-    lab: &'static str,
-    charts: usize,
-    /// Rules the uncontrolled composition can break.
-    broken_without: usize,
-    rules: usize,
-    places: usize,
-    transitions: usize,
-    markings: usize,
-    bounded: bool,
-    safe: bool,
-    live: bool,
-    reversible: bool,
-    deadlock_free: bool,
-    /// Rules the controlled net can still break.
-    broken_with: usize,
-    /// Files written, or (with --check) found different.
-    files: Vec<String>,
-}
-
-#[derive(Serialize)]
-struct NetsReport {
-    out: PathBuf,
-    check: bool,
-    pictures: bool,
-    labs: Vec<LabRow>,
-}
-
-impl Report for NetsReport {
-    fn table(&self) -> Table {
-        let yes = |b: bool| if b { "yes" } else { "NO" }.to_owned();
-        let mut table = Table::columns(&[
-            "lab",
-            "charts",
-            "broken without",
-            "places",
-            "transitions",
-            "markings",
-            "bounded",
-            "safe",
-            "live",
-            "reversible",
-            "deadlock-free",
-            "broken with",
-        ]);
-        for l in &self.labs {
-            table.row(vec![
-                l.lab.to_owned(),
-                l.charts.to_string(),
-                format!("{} of {}", l.broken_without, l.rules),
-                l.places.to_string(),
-                l.transitions.to_string(),
-                l.markings.to_string(),
-                yes(l.bounded),
-                yes(l.safe),
-                yes(l.live),
-                yes(l.reversible),
-                yes(l.deadlock_free),
-                format!("{} of {}", l.broken_with, l.rules),
-            ]);
-        }
-        let mut table = table.title(
-            "each lab's controlled net, and the rules broken without and with its controllers:",
-        );
-        for l in &self.labs {
-            let dir = self.out.join(l.lab);
-            table = table.note(if self.check {
-                match l.files.is_empty() {
-                    true => format!("{}: up to date", dir.display()),
-                    false => format!("{}: differs in {}", dir.display(), l.files.join(", ")),
-                }
-            } else {
-                format!("{}: wrote {}", dir.display(), l.files.join(", "))
-            });
-        }
-        if !self.check && !self.pictures {
-            table = table.note("Graphviz's `dot` is not installed: no SVG pictures");
-        }
-        table
-    }
-}
-
 pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
     let LabCommand::Nets {
         out,
@@ -135,11 +50,11 @@ pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
         let designed = vl_core::design(lab).map_err(|e| BadInput(e.to_string()))?;
         let dir = out.join(lab.lab.id());
         let files = if check {
-            differing(&designed, &dir)
+            designed.differing(&dir)
         } else {
             write(&designed, &dir, pictures)?
         };
-        labs.push(row(&designed, files));
+        labs.push(designed.summary(files));
     }
     let failed = labs
         .iter()
@@ -160,29 +75,6 @@ pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
     })
 }
 
-fn row(d: &Designed, files: Vec<String>) -> LabRow {
-    let a = &d.controlled_analysis;
-    let count = |v: &[(vl_core::Rule, Option<vl_core::Interleaving>)]| {
-        v.iter().filter(|(_, bad)| bad.is_some()).count()
-    };
-    LabRow {
-        lab: d.design.lab.id(),
-        charts: d.design.charts.len(),
-        broken_without: count(&d.bad),
-        rules: d.bad.len(),
-        places: a.places,
-        transitions: a.transitions,
-        markings: a.states,
-        bounded: a.bounded,
-        safe: a.safe,
-        live: a.live,
-        reversible: a.reversible,
-        deadlock_free: !a.deadlock,
-        broken_with: count(&d.still_bad),
-        files,
-    }
-}
-
 /// Writes the lab's files into `dir`, and SVG pictures of its nets when
 /// `pictures`; the names written.
 fn write(d: &Designed, dir: &Path, pictures: bool) -> Result<Vec<String>> {
@@ -199,16 +91,6 @@ fn write(d: &Designed, dir: &Path, pictures: bool) -> Result<Vec<String>> {
         written.push(name);
     }
     Ok(written)
-}
-
-/// The lab's files that are missing from `dir` or differ from what the
-/// pipeline makes now.
-fn differing(d: &Designed, dir: &Path) -> Vec<String> {
-    d.files()
-        .into_iter()
-        .filter(|(name, text)| std::fs::read_to_string(dir.join(name)).ok().as_ref() != Some(text))
-        .map(|(name, _)| name)
-        .collect()
 }
 
 fn graphviz() -> bool {

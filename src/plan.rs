@@ -9,13 +9,12 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use image::GrayImage;
-use serde::Serialize;
 use vl_core::{
-    Arena, CSpace, Connectivity, Footprint, Grid, NoPath, Plan, PlanBenchError, Point, Pose,
-    RobotModel, Shape, Smoothing, plan, plan_svg,
+    Arena, CSpace, Connectivity, Footprint, Grid, NoPath, PlanBenchError, PlanReport, Point, Pose,
+    RobotModel, Shape, plan, plan_svg,
 };
 
-use crate::report::{Report, Table, count, emit};
+use crate::report::emit;
 use crate::{BadInput, named};
 
 #[derive(Args)]
@@ -130,7 +129,7 @@ pub(crate) fn run(args: PlanArgs) -> Result<ExitCode> {
         )
         .with_context(|| format!("cannot write {}", path.display()))?;
     }
-    emit(&PlanReport::new(&cspace, plan.as_ref(), seconds), args.json)?;
+    emit(&PlanReport::of(&cspace, plan.as_ref(), seconds), args.json)?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -142,108 +141,4 @@ fn load_map(name: &str) -> Result<GrayImage> {
     let image = vl_core::load_image(std::path::Path::new(name))
         .map_err(|e| BadInput(format!("cannot read the map image {name}: {e}")))?;
     Ok(vl_core::grey(&image.to_rgb8()))
-}
-
-/// What `vl plan` prints; `--json` gives it whole.
-#[derive(Serialize)]
-struct PlanReport {
-    found: bool,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    reason: Option<String>,
-    grid: GridInfo,
-    nf1_start_value: Option<u32>,
-    grid_path: Vec<[u32; 2]>,
-    /// Heading slice of each grid path cell, when the C-space has several.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    grid_path_slices: Vec<u32>,
-    path: Vec<[f64; 2]>,
-    /// The planned heading at each sample, for a polygon robot.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    path_theta: Vec<f64>,
-    smoothing: Option<Smoothing>,
-    length_mm: Option<f64>,
-    min_clearance_mm: Option<f64>,
-    seconds: f64,
-}
-
-#[derive(Serialize)]
-struct GridInfo {
-    width: u32,
-    height: u32,
-    cell_mm: f64,
-    theta_slices: usize,
-}
-
-impl PlanReport {
-    fn new(cspace: &CSpace, plan: Option<&Plan>, seconds: f64) -> PlanReport {
-        let grid = cspace.grid();
-        let sliced = cspace.slices.len() > 1;
-        PlanReport {
-            found: plan.is_some(),
-            reason: plan.is_none().then(|| NoPath::Disconnected.to_string()),
-            grid: GridInfo {
-                width: grid.width,
-                height: grid.height,
-                cell_mm: grid.cell_mm,
-                theta_slices: cspace.slices.len(),
-            },
-            nf1_start_value: plan.map(|p| p.nf1_start_value),
-            grid_path: plan
-                .map(|p| p.grid_path.iter().map(|&(c, r, _)| [c, r]).collect())
-                .unwrap_or_default(),
-            grid_path_slices: plan
-                .filter(|_| sliced)
-                .map(|p| p.grid_path.iter().map(|&(_, _, k)| k).collect())
-                .unwrap_or_default(),
-            path: plan
-                .map(|p| p.path.iter().map(|q| [q.x_mm, q.y_mm]).collect())
-                .unwrap_or_default(),
-            path_theta: plan
-                .filter(|_| sliced)
-                .map(|p| p.path.iter().map(|q| q.theta_rad).collect())
-                .unwrap_or_default(),
-            smoothing: plan.map(|p| p.smoothing),
-            length_mm: plan.map(|p| p.length_mm),
-            min_clearance_mm: plan.map(|p| p.min_clearance_mm),
-            seconds,
-        }
-    }
-}
-
-impl Report for PlanReport {
-    fn table(&self) -> Table {
-        let g = &self.grid;
-        let mut rows = vec![(
-            "grid",
-            format!(
-                "{} × {} cells of {} mm, {}",
-                g.width,
-                g.height,
-                g.cell_mm,
-                count(g.theta_slices as u64, "θ slice", "θ slices")
-            ),
-        )];
-        if let Some(reason) = &self.reason {
-            rows.push(("no path", reason.clone()));
-        }
-        if let (Some(v), Some(len), Some(clear)) =
-            (self.nf1_start_value, self.length_mm, self.min_clearance_mm)
-        {
-            rows.push(("NF1 at start", count(v, "step", "steps")));
-            rows.push((
-                "grid path",
-                count(self.grid_path.len() as u64, "cell", "cells"),
-            ));
-            rows.push((
-                "smooth path",
-                format!(
-                    "{}, {len:.1} mm",
-                    count(self.path.len() as u64, "sample", "samples")
-                ),
-            ));
-            rows.push(("clearance", format!("{clear:.1} mm at the closest")));
-        }
-        rows.push(("planned in", format!("{:.2} ms", self.seconds * 1e3)));
-        Table::pairs(rows)
-    }
 }

@@ -8,7 +8,7 @@ use clap::Subcommand;
 use vl_core::Point;
 use vl_sim::{Driver, LinkReport, Optics, Profile, Script, World, camera_for};
 
-use crate::input::{OpticsArgs, RobotArgs, load_arena, load_target};
+use crate::input::{OpticsArgs, RobotArgs, load_arena, load_target, positive};
 use crate::report::emit;
 use crate::shipped::read_input;
 use crate::{BadInput, named};
@@ -127,12 +127,7 @@ pub(crate) fn run(command: SimCommand) -> Result<ExitCode> {
             render(&world, width, &optics, target.as_ref(), &output)
         }
         SimCommand::Bench { seconds, json } => {
-            if !(seconds.is_finite() && seconds > 0.0) {
-                return Err(BadInput(format!(
-                    "--seconds must be a positive number, not {seconds}"
-                ))
-                .into());
-            }
+            positive("--seconds", seconds)?;
             emit(&vl_sim::bench(seconds)?, json)?;
             Ok(ExitCode::SUCCESS)
         }
@@ -154,12 +149,7 @@ pub(crate) fn run(command: SimCommand) -> Result<ExitCode> {
             interval_ms,
             json,
         } => {
-            if !(interval_ms.is_finite() && interval_ms > 0.0) {
-                return Err(BadInput(format!(
-                    "--interval-ms must be a positive number, not {interval_ms}"
-                ))
-                .into());
-            }
+            positive("--interval-ms", interval_ms)?;
             emit(
                 &LinkReport::measure(profile, packets, interval_ms, seed),
                 json,

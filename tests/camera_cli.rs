@@ -206,6 +206,34 @@ fn bad_calibrations_are_refused_with_the_reason() {
         "is not WxH",
     );
     refused(&["camera", "calibrate"], "say what to calibrate from");
+    // A target no sheet could be: too many dots, or a dot of no size.
+    let photo = dir.join("photo.png");
+    image::RgbImage::from_pixel(64, 48, image::Rgb([220, 220, 220]))
+        .save(&photo)
+        .unwrap();
+    let target = |name: &str, cols: u32, radius: f64| {
+        write(
+            name,
+            json!({"cols": cols, "rows": 4, "first_mm": {"x_mm": 50, "y_mm": 50},
+                   "spacing_mm": [100, 100], "radius_mm": radius}),
+        )
+    };
+    for (file, reason) in [
+        (target("wide.json", 1000, 10.0), "not 1000 × 4"),
+        (target("flat.json", 5, 0.0), "sizes positive"),
+    ] {
+        refused(
+            &[
+                "camera",
+                "calibrate",
+                "--image",
+                photo.to_str().unwrap(),
+                "--target",
+                &file,
+            ],
+            reason,
+        );
+    }
     refused(
         &["camera", "calibrate", "--sim", "--tilt-deg", "60"],
         "at most 45°",

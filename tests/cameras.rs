@@ -308,7 +308,7 @@ fn webcam_buffers_decode_to_frames_the_robot_is_found_in() {
     }
     // A machine with a webcam opens it too, through the same decode.
     let devices = vl_host::list_devices().unwrap();
-    match devices.first() {
+    match devices.0.first() {
         Some(device) => {
             let spec: vl_host::V4l2Spec = device.path.display().to_string().parse().unwrap();
             let mut webcam = vl_host::V4l2Camera::open(spec, None, (800.0, 600.0))

@@ -9,8 +9,8 @@ use anyhow::Result;
 use vl_petri::{Cost, ExploreError, Net, Options, Progress, StateSpace, explore, from_pnml};
 
 use crate::BadInput;
-use crate::alloc::{peak_bytes, peak_resident_bytes};
 use crate::shipped::read_input;
+use vl_petri::{peak_bytes, peak_resident_bytes};
 
 /// Reads a PNML file (or a shipped example net); any problem with it is
 /// the user's input, exit code 2.

@@ -18,16 +18,6 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Subcommand;
 
-use analyze::analyze_command;
-use bench::bench_command;
-use compose::compose_command;
-use control::control_command;
-use coverability::coverability_command;
-use dot::dot_command;
-use from_scxml::from_scxml_command;
-use invariants::invariants_command;
-use states::states_command;
-
 #[derive(Subcommand)]
 pub(crate) enum PetriCommand {
     /// Explore the reachability graph and report boundedness, safeness,
@@ -152,47 +142,49 @@ pub(crate) fn run(command: PetriCommand) -> Result<ExitCode> {
             net,
             json,
             max_states,
-        } => analyze_command(&net, json, max_states),
+        } => analyze::analyze_command(&net, json, max_states),
         PetriCommand::States {
             net,
             json,
             max_states,
             threads,
-        } => states_command(&net, json, max_states, threads.into()),
+        } => states::states_command(&net, json, max_states, threads.into()),
         PetriCommand::Coverability {
             net,
             json,
             dot,
             max_nodes,
-        } => coverability_command(&net, json, dot.as_deref(), max_nodes),
+        } => coverability::coverability_command(&net, json, dot.as_deref(), max_nodes),
         PetriCommand::Invariants {
             net,
             json,
             max_rows,
-        } => invariants_command(&net, json, max_rows),
+        } => invariants::invariants_command(&net, json, max_rows),
         PetriCommand::Compose {
             nets,
             fuse_parallel_places,
             output,
-        } => compose_command(&nets, fuse_parallel_places, &output),
+        } => compose::compose_command(&nets, fuse_parallel_places, &output),
         PetriCommand::Control {
             net,
             constraints,
             uncontrollable,
             unobservable,
             output,
-        } => control_command(&net, &constraints, uncontrollable, unobservable, &output),
+        } => control::control_command(&net, &constraints, uncontrollable, unobservable, &output),
         PetriCommand::Bench {
             corpus,
             tier,
             models,
             json,
-        } => bench_command(corpus.as_deref(), &tier, &models, json),
-        PetriCommand::FromScxml { chart, output } => from_scxml_command(&chart, &output),
+        } => bench::bench_command(corpus.as_deref(), &tier, &models, json),
+        PetriCommand::FromScxml { chart, output } => {
+            from_scxml::from_scxml_command(&chart, &output)
+        }
         PetriCommand::Dot {
             net,
             reachability,
             max_states,
-        } => dot_command(&net, reachability, max_states),
+        } => dot::dot_command(&net, reachability, max_states),
     }
 }

@@ -115,12 +115,14 @@ pub use contract::protocol::{
     Wire, ending,
 };
 pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
-pub use design::{DesignError, Designed, Interleaving, LabDesign, Rule, design};
+pub use design::{
+    DesignError, Designed, Interleaving, LabDesign, LabRow, NetsReport, Rule, design,
+};
 pub use images::{ImageError, MAX_IMAGE_SIDE, decode_image, load_image};
 pub use model::arena::{
     Arena, ArenaError, Hit, MapImageError, Material, Obstacle, Shape, ShapeError,
 };
-pub use model::camera::{Calibration, CameraModel, CameraModelError, Reprojection};
+pub use model::camera::{Calibration, CameraModel, CameraModelError, PointPair, Reprojection};
 pub use model::homography::{CalibrationError, Homography};
 pub use model::khepera::{
     CommandError, KheperaCommand, KheperaReply, LedAction, MalformedReply, MotorMode, MotorStatus,
@@ -147,12 +149,13 @@ pub use navigation::plan::{
     ARENA_CELL_MM, ArenaPlanError, NoPath, PathEnd, Plan, Smoothing, clearance, disc_cspace, plan,
     plan_route, plan_route_with_margin,
 };
+pub use navigation::report::{GridInfo, PlanReport};
 pub use navigation::svg::{plan_svg, run_svg};
 pub use safety::{Guarded, Safety, Situation, Surroundings};
-pub use syntax::SyntaxError;
+pub use syntax::{ImageSize, SyntaxError};
 pub use teleop::{Assisted, Joystick, MapField, Teleop, Vector, predict};
 pub use vision::{
-    Centroid, Component, Connectivity, DotTarget, Look, Mask, RobotPose, Scene, Threshold,
-    ThresholdError, VisionBench, arena_of, bench as bench_vision, binarise, changed_cells,
-    components, grey, inspect, is_robot, label, look, otsu, robot_pose,
+    Centroid, Component, Connectivity, DotTarget, Look, Mask, RobotPose, Scene, TargetError,
+    Threshold, ThresholdError, VisionBench, arena_of, bench as bench_vision, binarise,
+    changed_cells, components, grey, inspect, is_robot, label, look, otsu, robot_pose,
 };

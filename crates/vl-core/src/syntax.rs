@@ -1,7 +1,9 @@
 //! How positions, shapes and scene events are written on a command line:
 //! comma-separated numbers, and what is wrong with text that says none.
 
-use crate::ShapeError;
+use std::str::FromStr;
+
+use crate::{MAX_IMAGE_SIDE, ShapeError};
 
 /// Text that does not say what it should, in words a user can act on.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -41,4 +43,68 @@ pub(crate) fn parse_numbers(text: &str) -> Result<Vec<f64>, SyntaxError> {
             }
         })
         .collect()
+}
+
+/// An image's size in pixels, written WxH (640x480 or 640×480), each side
+/// from 1 to [`MAX_IMAGE_SIDE`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageSize {
+    pub width: u32,
+    pub height: u32,
+}
+
+impl FromStr for ImageSize {
+    type Err = SyntaxError;
+
+    fn from_str(text: &str) -> Result<ImageSize, SyntaxError> {
+        let (w, h) = text
+            .split_once(['x', 'X', '×'])
+            .ok_or_else(|| SyntaxError::Range {
+                got: text.to_owned(),
+                what: "WxH, e.g. 640x480".into(),
+            })?;
+        let side = |v: &str| {
+            v.trim()
+                .parse::<u32>()
+                .ok()
+                .filter(|v| (1..=MAX_IMAGE_SIDE).contains(v))
+                .ok_or_else(|| SyntaxError::Range {
+                    got: v.to_owned(),
+                    what: format!("a size in pixels from 1 to {MAX_IMAGE_SIDE}"),
+                })
+        };
+        Ok(ImageSize {
+            width: side(w)?,
+            height: side(h)?,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_image_size_is_two_sides_within_the_limit() {
+        let size = |t: &str| t.parse::<ImageSize>();
+        assert_eq!(
+            size("640x480"),
+            Ok(ImageSize {
+                width: 640,
+                height: 480
+            })
+        );
+        assert_eq!(
+            size(" 8 × 6"),
+            Ok(ImageSize {
+                width: 8,
+                height: 6
+            })
+        );
+        let refused = |t: &str| size(t).unwrap_err().to_string();
+        assert_eq!(refused("640"), "'640' is not WxH, e.g. 640x480");
+        assert!(refused("0x10").contains("from 1 to 8192"));
+        assert!(refused("10x9000").starts_with("'9000' is not a size"));
+        assert!(refused("axb").starts_with("'a' is not a size"));
+    }
 }

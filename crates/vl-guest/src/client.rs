@@ -56,6 +56,13 @@ pub enum ClientError {
     Connect { url: String, cause: String },
 }
 
+impl ClientError {
+    /// Whether the address itself is no Host's: the user's to fix.
+    pub fn is_bad_address(&self) -> bool {
+        matches!(self, ClientError::BadUrl { .. })
+    }
+}
+
 /// Checks that `url` is one a Host listens on, with a hint when it is not.
 fn check_url(url: &str) -> Result<(), ClientError> {
     let bad = |why: String| ClientError::BadUrl {

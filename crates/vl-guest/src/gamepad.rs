@@ -10,6 +10,8 @@
 //! stick and from the force to the effects are pure functions, tested
 //! without any device.
 
+use std::path::PathBuf;
+
 use vl_core::Joystick;
 
 /// Readings within this of centre count as the stick at rest: sticks
@@ -82,6 +84,10 @@ pub(crate) fn stick(x: f64, y_toward_operator: f64) -> Joystick {
 /// it renders the force.
 pub trait Pad {
     fn name(&self) -> &str;
+    /// Whether it can render force (rumble or a constant force).
+    fn has_force_feedback(&self) -> bool {
+        false
+    }
     /// What the operator does now.
     fn poll(&mut self) -> PadInput;
     /// Renders the obstacles' push, in joystick axes.
@@ -130,19 +136,76 @@ pub fn effect(force: [f64; 2]) -> Effect {
 }
 
 #[cfg(target_os = "linux")]
-pub use device::{Gamepad, GamepadError};
+pub use device::Gamepad;
+
+/// Why the gamepad asked for cannot be driven with.
+#[derive(Debug, thiserror::Error)]
+pub enum GamepadError {
+    #[error("cannot open {path}: {source}")]
+    Open {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{0} has no stick (absolute X and Y axes) and buttons")]
+    NotAGamepad(PathBuf),
+    #[error("gamepads are read through Linux's evdev only")]
+    Unsupported,
+}
+
+/// Which gamepad the operator drives with, as `--gamepad` names it.
+#[derive(Clone, Debug)]
+pub enum PadChoice {
+    /// The first gamepad or joystick found, if any.
+    Auto,
+    None,
+    /// The device at this path (`/dev/input/eventN`).
+    Device(PathBuf),
+}
+
+impl std::str::FromStr for PadChoice {
+    type Err = std::convert::Infallible;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        Ok(match text {
+            "auto" => PadChoice::Auto,
+            "none" => PadChoice::None,
+            path => PadChoice::Device(path.into()),
+        })
+    }
+}
+
+impl PadChoice {
+    /// The gamepad chosen, open; none when none is asked for or found.
+    pub fn open(&self, needs_dead_man: bool) -> Result<Option<Box<dyn Pad>>, GamepadError> {
+        #[cfg(target_os = "linux")]
+        {
+            let pad = match self {
+                PadChoice::None => None,
+                PadChoice::Auto => Gamepad::find(needs_dead_man),
+                PadChoice::Device(path) => Some(Gamepad::open(path, needs_dead_man)?),
+            };
+            Ok(pad.map(|p| Box::new(p) as Box<dyn Pad>))
+        }
+        #[cfg(not(target_os = "linux"))]
+        match self {
+            PadChoice::Device(_) => Err(GamepadError::Unsupported),
+            _ => {
+                let _ = needs_dead_man;
+                Ok(None)
+            }
+        }
+    }
+}
 
 #[cfg(target_os = "linux")]
 mod device {
-    use std::path::{Path, PathBuf};
+    use std::path::Path;
 
+    use super::{AxisRange, Effect, GamepadError, Pad, PadInput, effect, stick};
     use evdev::{
         AbsoluteAxisCode, Device, EventSummary, FFEffect, FFEffectCode, FFEffectData, FFEffectKind,
         FFEnvelope, FFReplay, FFTrigger, KeyCode,
     };
-    use thiserror::Error;
-
-    use super::{AxisRange, Effect, Pad, PadInput, effect, stick};
 
     /// Buttons that stop the robot: B on a pad, the thumb button on a joystick.
     const STOP_BUTTONS: [KeyCode; 2] = [KeyCode::BTN_EAST, KeyCode::BTN_THUMB];
@@ -150,17 +213,6 @@ mod device {
     const DEAD_MAN_BUTTONS: [KeyCode; 2] = [KeyCode::BTN_TL, KeyCode::BTN_TRIGGER];
     /// How long an uploaded effect plays unless renewed, ms.
     const EFFECT_MS: u16 = 200;
-
-    #[derive(Debug, Error)]
-    pub enum GamepadError {
-        #[error("cannot open {path}: {source}")]
-        Open {
-            path: PathBuf,
-            source: std::io::Error,
-        },
-        #[error("{0} has no stick (absolute X and Y axes) and buttons")]
-        NotAGamepad(PathBuf),
-    }
 
     /// An open gamepad or joystick.
     pub struct Gamepad {
@@ -233,11 +285,6 @@ mod device {
             Ok(pad)
         }
 
-        /// Whether the device can render force (rumble or a constant force).
-        pub fn has_force_feedback(&self) -> bool {
-            self.rumble.is_some() || self.constant.is_some()
-        }
-
         /// Uploads the effects the device supports, at rest.
         fn prepare_effects(&mut self) {
             let supported = self.device.supported_ff().map(|s| {
@@ -259,6 +306,10 @@ mod device {
     impl Pad for Gamepad {
         fn name(&self) -> &str {
             &self.name
+        }
+
+        fn has_force_feedback(&self) -> bool {
+            self.rumble.is_some() || self.constant.is_some()
         }
 
         /// Takes in what happened since the last call.

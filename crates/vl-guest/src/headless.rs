@@ -134,6 +134,13 @@ pub enum ScriptError {
     NoPath(#[from] ArenaPlanError),
 }
 
+impl ScriptError {
+    /// Whether the Host's address itself is wrong: the user's to fix.
+    pub fn is_bad_address(&self) -> bool {
+        matches!(self, ScriptError::Connect(c) if c.is_bad_address())
+    }
+}
+
 /// Runs `script` against the Host at `url`: the Host follows the planned
 /// path in navigation; a scripted operator steers along it in
 /// teleoperation. The one way `demo`, `guest --headless` and the

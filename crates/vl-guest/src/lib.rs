@@ -46,9 +46,9 @@ mod settings;
 
 pub use app::{CAMERA_VIEW, GuestApp, WindowError, run_window};
 pub use client::{ClientError, Connection, Incoming, open};
-pub use gamepad::{Effect, Pad, PadInput, effect};
 #[cfg(target_os = "linux")]
-pub use gamepad::{Gamepad, GamepadError};
+pub use gamepad::Gamepad;
+pub use gamepad::{Effect, GamepadError, Pad, PadChoice, PadInput, effect};
 pub use headless::{
     Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, run_script, teleoperate,
     watch,

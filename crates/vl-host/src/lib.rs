@@ -71,6 +71,7 @@ mod media;
 mod replay;
 mod server;
 mod sim;
+mod source;
 mod webcam;
 
 use std::net::SocketAddr;
@@ -91,8 +92,9 @@ pub use media::{
 pub use replay::ReplayCamera;
 pub use server::HostConfig;
 pub use server::bench::{BenchError, OperatorLatency, operator_latency};
+pub use source::CameraSource;
 #[cfg(target_os = "linux")]
-pub use webcam::{DeviceInfo, V4l2Camera, V4l2Spec, list_devices};
+pub use webcam::{DeviceInfo, V4l2Camera, V4l2Spec, Webcams, list_devices};
 pub use webcam::{HttpCamera, PixelFormat, decode as decode_pixels};
 
 /// Why a Host could not start.

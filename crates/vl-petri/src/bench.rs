@@ -8,6 +8,7 @@ use std::time::Instant;
 use serde::Serialize;
 use thiserror::Error;
 
+use crate::table::{Report, Table};
 use crate::{ExploreError, Net, Options, analyze_net, count_states};
 
 /// The corpus's `manifest.csv`: one row per model.
@@ -202,6 +203,80 @@ pub fn bench_model(
         verifypn_recorded_seconds,
         verifypn_recorded_peak_kb,
     })
+}
+
+/// When and where the manifest's verifypn figures were recorded.
+const VERIFYPN_RECORDED: &str = "recorded 2026-11-21, Debian 12, 2 cores";
+
+/// Every model's line, printed as one table.
+#[derive(Debug, Serialize)]
+#[serde(transparent)]
+pub struct BenchReport(pub Vec<BenchLine>);
+
+/// One model's benchmark: exploring and analysing in this process, and
+/// `vl petri analyze` on it as a whole process, as a user runs it.
+#[derive(Debug, Serialize)]
+pub struct BenchLine {
+    #[serde(flatten)]
+    pub row: BenchRow,
+    /// Wall time of `vl petri analyze MODEL --json`, start to exit.
+    pub analyze_process_seconds: f64,
+    /// Its peak resident memory, MB.
+    pub analyze_process_peak_mb: f64,
+}
+
+impl Report for BenchReport {
+    fn table(&self) -> Table {
+        let mut table = Table::columns(&[
+            "model",
+            "states",
+            "ok",
+            "states s",
+            "2 threads",
+            "states/s",
+            "heap MB",
+            "B/marking",
+            "analyze s",
+            "process s",
+            "process MB",
+            "verifypn s*",
+            "verifypn MB*",
+        ]);
+        for line in &self.0 {
+            let r = &line.row;
+            table.row(vec![
+                r.model.clone(),
+                r.states.to_string(),
+                if r.certified() { "yes" } else { "NO" }.to_owned(),
+                format!("{:.2}", r.count_seconds),
+                format!(
+                    "{:.2} ({:.2}×)",
+                    r.count_seconds_on_two,
+                    r.count_seconds / r.count_seconds_on_two
+                ),
+                format!("{:.0}", r.states_per_second),
+                format!("{:.0}", r.count_peak_heap_bytes as f64 / 1e6),
+                r.bytes_per_marking.to_string(),
+                format!("{:.2}", r.analyze_seconds),
+                format!("{:.2}", line.analyze_process_seconds),
+                format!("{:.0}", line.analyze_process_peak_mb),
+                r.verifypn_recorded_seconds
+                    .map_or("–".to_owned(), |v| format!("{v:.2}")),
+                r.verifypn_recorded_peak_kb
+                    .map_or("–".to_owned(), |v| format!("{:.0}", v as f64 / 1e3)),
+            ]);
+        }
+        table
+            .note("ok: counting (on one thread and on two) and analysing all found the certified numbers of states and edges.")
+            .note("states s, analyze s: `vl petri states` and `vl petri analyze` as jobs in this process, one thread; 2 threads: `vl petri states --threads 2`, and its speed-up; heap MB: the most live at once while counting on one;")
+            .note("process s, process MB: `vl petri analyze MODEL --json` as a whole process (wall time, peak resident memory: the analysis maps its memory from the system, outside the heap).")
+            .note(format!(
+                "* recorded, not measured in this run: TAPAAL verifypn 3.1.1 -e as a whole process on a 2-core machine \
+                 like CI's, from the corpus manifest ({VERIFYPN_RECORDED}). Recorded times have differed from \
+                 side-by-side runs by -14 % to +40 %, so no ratio is printed: bench/petri_vs_verifypn.sh runs both \
+                 side by side"
+            ))
+    }
 }
 
 #[cfg(test)]

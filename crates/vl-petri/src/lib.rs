@@ -6,11 +6,14 @@
 //! off it (`analysis`), or read during a search that keeps no graph
 //! (`onthefly`), the state space counted on several threads (`frontier`),
 //! both over tables of packed markings (`markings`), Karp–Miller
-//! coverability (`coverability`), P- and
-//! T-invariants (`invariants`), composition (`compose`), controller
-//! synthesis (`control`), pictures (`dot`), what each analysis found in the net's names (`report`), tables people read (`table`), and benchmarks on the Model
-//! Checking Contest's models (`bench`). Modules are private; what other
-//! crates use is re-exported here.
+//! coverability (`coverability`), P- and T-invariants (`invariants`),
+//! composition (`compose`), controller synthesis (`control`), pictures
+//! (`dot`), and benchmarks on the Model Checking Contest's models (`bench`,
+//! with the counting allocator of `memory`). What each analysis found, in
+//! the net's own names, is a report (`report`) people read as a table and
+//! programs as JSON; the table (`table`, public) is every crate's, since
+//! every crate builds on this one. Modules are private; what other crates
+//! use is re-exported here.
 //!
 //! In detail:
 //!
@@ -40,6 +43,7 @@ mod linalg;
 mod lines;
 mod liveness;
 mod markings;
+mod memory;
 mod net;
 mod onthefly;
 mod pnml;
@@ -49,7 +53,9 @@ pub mod table;
 mod verdict;
 
 pub use analysis::{Analysis, analyze, analyze_net, firing_sequence, incidence_rank};
-pub use bench::{BenchRow, CorpusModel, Manifest, ManifestError, PeakMemory, bench_model};
+pub use bench::{
+    BenchLine, BenchReport, BenchRow, CorpusModel, Manifest, ManifestError, PeakMemory, bench_model,
+};
 pub use compose::{ComposeError, compose, fuse_parallel_places};
 pub use control::{Added, Constraint, ControlError, Limits, synthesize};
 pub use coverability::{Coverability, CoverabilityError, OMEGA, coverability};
@@ -60,6 +66,7 @@ pub use invariants::{
     Invariant, TooManyInvariants, is_conservative, p_invariants, p_rows_within, t_invariants,
 };
 pub use liveness::Liveness;
+pub use memory::{Counting, peak_bytes, peak_resident_bytes};
 pub use net::{
     Arc, ArcKind, Marking, MarkingDisplay, Net, NetError, Place, PlaceId, Transition, TransitionId,
 };

@@ -12,6 +12,7 @@
 
 mod pipeline;
 mod report;
+mod summary;
 
 use std::path::Path;
 
@@ -21,6 +22,7 @@ use thiserror::Error;
 use crate::{Experiment, Named};
 
 pub use pipeline::{Designed, Interleaving, design};
+pub use summary::{LabRow, NetsReport};
 
 /// One lab's charts and controllers, as written.
 #[derive(Debug, Clone)]

@@ -14,6 +14,7 @@ use nalgebra::{DMatrix, DVector};
 use crate::Point;
 use crate::model::homography::{CalibrationError, Homography};
 use crate::model::lens::{Distortion, LensError};
+use crate::table::{Report, Table};
 
 /// A camera: its image size and frame rate, and where each floor point
 /// appears in its images.
@@ -374,6 +375,53 @@ fn refine(start: CameraModel, pairs: &[(Point, [f64; 2])]) -> Option<CameraModel
         }
     }
     model(&p)
+}
+
+/// One known point of a points file (what `vl camera calibrate --points`
+/// reads): where it is on the floor and where the image shows it.
+#[derive(Debug, Clone, Copy, Deserialize)]
+pub struct PointPair {
+    pub floor_mm: [f64; 2],
+    pub pixel: [f64; 2],
+}
+
+impl From<PointPair> for (Point, [f64; 2]) {
+    fn from(p: PointPair) -> Self {
+        let [x_mm, y_mm] = p.floor_mm;
+        (Point { x_mm, y_mm }, p.pixel)
+    }
+}
+
+impl Report for Calibration {
+    fn table(&self) -> Table {
+        let camera = &self.camera;
+        let fit = &self.reprojection;
+        let rows = vec![
+            (
+                "image",
+                format!(
+                    "{} × {} px at {} fps",
+                    camera.width_px, camera.height_px, camera.fps
+                ),
+            ),
+            ("points", fit.points.to_string()),
+            ("reprojection rms", format!("{:.3} px", fit.rms_px)),
+            ("reprojection max", format!("{:.3} px", fit.max_px)),
+            (
+                "scale at the centre",
+                format!("{:.3} mm per px", camera.mm_per_px()),
+            ),
+            (
+                "lens distortion",
+                format!(
+                    "k1 {:+.4}, k2 {:+.4}",
+                    camera.distortion().k1,
+                    camera.distortion().k2
+                ),
+            ),
+        ];
+        Table::pairs(rows).title("camera calibration")
+    }
 }
 
 #[cfg(test)]

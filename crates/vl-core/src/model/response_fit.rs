@@ -4,6 +4,7 @@
 //! (which the acceleration limit does not touch), the acceleration limit
 //! from a large one.
 
+use crate::table::{Report, Table, count};
 use serde::Serialize;
 use thiserror::Error;
 
@@ -170,6 +171,29 @@ fn simulated_sse(r: &SpeedResponse, step: &Step) -> f64 {
         sse += (measured - v).powi(2);
     }
     sse
+}
+
+impl Report for Fit {
+    fn table(&self) -> Table {
+        let r = self.response;
+        Table::pairs([
+            ("gain", format!("{:.3}", r.gain)),
+            (
+                "time constant",
+                format!("{:.1} ms", r.time_constant_s * 1e3),
+            ),
+            ("acceleration", format!("{:.0} mm/s²", r.max_accel_mm_s2)),
+            ("dead time", format!("{:.1} ms", r.dead_time_s * 1e3)),
+            (
+                "fit",
+                format!(
+                    "{:.1} mm/s RMS over {}",
+                    self.rms_mm_s,
+                    count(self.samples as u64, "sample", "samples")
+                ),
+            ),
+        ])
+    }
 }
 
 #[cfg(test)]

@@ -11,5 +11,6 @@ pub(crate) mod grid;
 pub(crate) mod localise;
 pub(crate) mod nf1;
 pub(crate) mod plan;
+pub(crate) mod report;
 pub(crate) mod spline;
 pub(crate) mod svg;

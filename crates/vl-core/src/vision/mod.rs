@@ -25,7 +25,7 @@ use crate::{CameraModel, Named};
 pub use components::{Centroid, Component, components, label};
 pub use floor::{Look, arena_of, changed_cells, look};
 pub use robot::{RobotPose, is_robot, robot_pose};
-pub use target::DotTarget;
+pub use target::{DotTarget, TargetError};
 pub use threshold::{Mask, Threshold, ThresholdError, binarise, grey, otsu};
 
 /// Which pixels touch: edges only, or edges and corners.

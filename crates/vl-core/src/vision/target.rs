@@ -11,6 +11,18 @@ use crate::Point;
 use crate::model::camera::{Calibration, CameraModel};
 use crate::model::homography::CalibrationError;
 
+/// The most dots a target has along a side.
+const MAX_DOTS_A_SIDE: u32 = 100;
+
+/// A target description no target fits.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TargetError {
+    #[error("a target has 1 to {MAX_DOTS_A_SIDE} columns and rows of dots, not {0} × {1}")]
+    Dots(u32, u32),
+    #[error("a target's radius, spacing and first dot must be finite and its sizes positive")]
+    Sizes,
+}
+
 /// A calibration target: `cols` × `rows` dark dots laid on the floor, with
 /// the target's rows running roughly along the image's rows.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -50,6 +62,26 @@ impl DotTarget {
             ],
             radius_mm,
         }
+    }
+
+    /// Whether `vl` can look for it: 1 to 100 columns and
+    /// rows, and positive, finite sizes at a finite place.
+    pub fn check(&self) -> Result<(), TargetError> {
+        let sized = |v: f64| v.is_finite() && v > 0.0;
+        let dots = 1..=MAX_DOTS_A_SIDE;
+        if !(dots.contains(&self.cols) && dots.contains(&self.rows)) {
+            return Err(TargetError::Dots(self.cols, self.rows));
+        }
+        let [sx, sy] = self.spacing_mm;
+        if !(sized(self.radius_mm)
+            && sized(sx)
+            && sized(sy)
+            && self.first_mm.x_mm.is_finite()
+            && self.first_mm.y_mm.is_finite())
+        {
+            return Err(TargetError::Sizes);
+        }
+        Ok(())
     }
 
     /// The dots' centres in reading order: top row (largest y) first, each

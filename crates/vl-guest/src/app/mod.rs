@@ -496,3 +496,10 @@ pub enum WindowError {
     #[error("the Guest window failed: {0}")]
     Window(String),
 }
+
+impl WindowError {
+    /// Whether the Host's address itself is wrong: the user's to fix.
+    pub fn is_bad_address(&self) -> bool {
+        matches!(self, WindowError::Address(c) if c.is_bad_address())
+    }
+}

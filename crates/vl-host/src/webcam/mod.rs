@@ -12,4 +12,4 @@ mod v4l2;
 pub use http::HttpCamera;
 pub use pixels::{PixelFormat, decode};
 #[cfg(target_os = "linux")]
-pub use v4l2::{DeviceInfo, V4l2Camera, V4l2Spec, list_devices};
+pub use v4l2::{DeviceInfo, V4l2Camera, V4l2Spec, Webcams, list_devices};

@@ -12,7 +12,8 @@ use linuxvideo::format::{FrameSizes, PixFormat, PixelFormat as Fourcc};
 use linuxvideo::stream::ReadStream;
 use linuxvideo::{BufType, Device, Fract};
 use serde::Serialize;
-use vl_core::CameraModel;
+use vl_core::table::{Report, Table};
+use vl_core::{CameraModel, ImageSize, MAX_IMAGE_SIDE};
 
 use super::pixels::{PixelFormat, decode};
 use crate::drivers::{Camera, CameraError, Captured, believed};
@@ -25,6 +26,9 @@ pub struct V4l2Spec {
     pub fps: Option<u32>,
     pub format: Option<PixelFormat>,
 }
+
+/// The smallest image side a webcam is asked for, px.
+const MIN_SIDE: u32 = 16;
 
 impl std::str::FromStr for V4l2Spec {
     type Err = CameraError;
@@ -59,13 +63,17 @@ impl std::str::FromStr for V4l2Spec {
                             ))
                         })?,
                 );
-            } else if let Some((w, h)) = lower.split_once('x') {
-                let side = |v: &str| v.parse::<u32>().ok().filter(|v| (16..=8192).contains(v));
-                spec.size = Some(side(w).zip(side(h)).ok_or_else(|| {
-                    CameraError::Address(format!(
-                        "'{part}': a size is WIDTHxHEIGHT, 16 to 8192 px a side"
-                    ))
-                })?);
+            } else if lower.contains('x') {
+                let size = lower
+                    .parse::<ImageSize>()
+                    .ok()
+                    .filter(|s| s.width >= MIN_SIDE && s.height >= MIN_SIDE)
+                    .ok_or_else(|| {
+                        CameraError::Address(format!(
+                            "'{part}': a size is WIDTHxHEIGHT, {MIN_SIDE} to {MAX_IMAGE_SIDE} px a side"
+                        ))
+                    })?;
+                spec.size = Some((size.width, size.height));
             } else {
                 return Err(CameraError::Address(format!(
                     "'{part}' is no camera setting: give a size (640x480), a rate (15fps) or a format (mjpeg, yuyv)"
@@ -237,7 +245,7 @@ pub struct Mode {
 }
 
 /// The V4L2 capture devices on this machine.
-pub fn list_devices() -> std::io::Result<Vec<DeviceInfo>> {
+pub fn list_devices() -> std::io::Result<Webcams> {
     let mut devices = Vec::new();
     for device in linuxvideo::list()?.flatten() {
         if let Some(info) = describe(&device) {
@@ -245,7 +253,44 @@ pub fn list_devices() -> std::io::Result<Vec<DeviceInfo>> {
         }
     }
     devices.sort_by(|a, b| a.path.cmp(&b.path));
-    Ok(devices)
+    Ok(Webcams(devices))
+}
+
+/// The webcams found.
+#[derive(Debug, Serialize)]
+#[serde(transparent)]
+pub struct Webcams(pub Vec<DeviceInfo>);
+
+impl Report for Webcams {
+    fn table(&self) -> Table {
+        if self.0.is_empty() {
+            return Table::pairs([]).note("no video capture devices (/dev/video*) on this machine");
+        }
+        let mut table = Table::columns(&["device", "camera", "format", "size", "frames/s"]);
+        for device in &self.0 {
+            let name = format!("{} ({})", device.card, device.driver);
+            if device.modes.is_empty() {
+                table.row(vec![
+                    device.path.display().to_string(),
+                    name.clone(),
+                    "no MJPEG or YUYV".into(),
+                    String::new(),
+                    String::new(),
+                ]);
+            }
+            for mode in &device.modes {
+                let fps: Vec<String> = mode.fps.iter().map(|f| format!("{f:.0}")).collect();
+                table.row(vec![
+                    device.path.display().to_string(),
+                    name.clone(),
+                    mode.format.to_string(),
+                    format!("{}×{}", mode.width, mode.height),
+                    fps.join(", "),
+                ]);
+            }
+        }
+        table.note("use one as: vl host --camera v4l2:DEVICE,WIDTHxHEIGHT,RATEfps,FORMAT")
+    }
 }
 
 fn describe(device: &Device) -> Option<DeviceInfo> {

@@ -139,6 +139,14 @@ impl Arena {
             )
     }
 
+    /// The same arena with the robot put at `start`, checked: where the
+    /// simulated robot stands, and where a real one's dead reckoning begins.
+    pub fn starting_at(mut self, start: Pose) -> Result<Arena, ArenaError> {
+        self.start = start;
+        self.check()?;
+        Ok(self)
+    }
+
     /// Whether the arena can exist: a positive size, valid shapes, a start
     /// and a goal on the floor.
     pub fn check(&self) -> Result<(), ArenaError> {

@@ -1,11 +1,15 @@
-//! A global allocator that counts live and peak heap bytes, so commands can
-//! report the memory an analysis took (`peak_heap_bytes`), beside the
-//! process's peak resident memory as the kernel counts it.
+//! What an analysis costs in memory: a global allocator that counts live
+//! and peak heap bytes (a program installs it with `#[global_allocator]`),
+//! and the process's peak resident memory as the kernel counts it.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-pub(crate) struct Counting;
+use crate::PeakMemory;
+
+/// The system allocator, counting: install it as the program's global
+/// allocator for [`peak_bytes`] and [`PeakMemory`] to see the heap.
+pub struct Counting;
 
 static LIVE: AtomicUsize = AtomicUsize::new(0);
 static PEAK: AtomicUsize = AtomicUsize::new(0);
@@ -50,7 +54,7 @@ unsafe impl GlobalAlloc for Counting {
 }
 
 /// The most heap bytes live at once since the program started.
-pub(crate) fn peak_bytes() -> usize {
+pub fn peak_bytes() -> usize {
     PEAK.load(Ordering::Relaxed)
 }
 
@@ -58,7 +62,7 @@ pub(crate) fn peak_bytes() -> usize {
 /// calls the maximum resident set size): heap, mapped memory, code, stacks
 /// and all. On Linux it is the program's own high-water mark: getrusage's
 /// also counts what the process that started it held before the exec.
-pub(crate) fn peak_resident_bytes() -> usize {
+pub fn peak_resident_bytes() -> usize {
     #[cfg(target_os = "linux")]
     if let Some(kb) = std::fs::read_to_string("/proc/self/status")
         .ok()
@@ -83,7 +87,7 @@ pub(crate) fn peak_resident_bytes() -> usize {
 }
 
 /// Benchmarks in the libraries measure through the allocator.
-impl vl_petri::PeakMemory for Counting {
+impl PeakMemory for Counting {
     fn reset_peak(&self) {
         PEAK.store(LIVE.load(Ordering::Relaxed), Ordering::Relaxed);
     }
