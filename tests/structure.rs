@@ -1,12 +1,16 @@
-//! The code's shape, checked from its files: no source file over 700
-//! lines, no two files that import each other, no public function that
-//! says what went wrong as a bare `String`.
+//! The code's shape, checked from its files: a thin binary, no source file
+//! over 700 lines, no two files that import each other, no public function
+//! that says what went wrong as a bare `String`.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// The most lines a source file outside `tests/` may have.
 const MOST_LINES: usize = 700;
+
+/// The most lines the binary's `src/` may have in all: it parses,
+/// dispatches and prints; what it runs lives in the crates.
+const MOST_BINARY_LINES: usize = 3_000;
 
 /// Every `.rs` file under `dir`.
 fn sources(dir: &Path) -> Vec<PathBuf> {
@@ -48,6 +52,20 @@ fn code(path: &Path) -> String {
         .map(|l| l.split("//").next().unwrap_or(""))
         .collect::<Vec<_>>()
         .join("\n")
+}
+
+#[test]
+fn the_binary_only_parses_dispatches_and_prints() {
+    let top = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let lines: usize = sources(&top.join("src"))
+        .iter()
+        .map(|p| std::fs::read_to_string(p).unwrap().lines().count())
+        .sum();
+    assert!(
+        lines < MOST_BINARY_LINES,
+        "src/ has {lines} lines, {MOST_BINARY_LINES} at most: move what the command runs \
+         (results, their tables, checks of input) into the crate it belongs to"
+    );
 }
 
 #[test]
