@@ -11,7 +11,9 @@ use vl_core::{Calibration, CameraModel, ImageSize, Point, PointPair};
 use vl_sim::SimCalibration;
 
 use crate::BadInput;
-use crate::input::{OpticsArgs, load_arena, load_target, positive, read_json, real_camera};
+use crate::input::{
+    OpticsArgs, load_arena, load_rgb, load_target, positive, read_json, real_camera,
+};
 use crate::report::{Report, Table, emit};
 use vl_host::CameraSource;
 
@@ -139,9 +141,7 @@ fn calibrate(args: CalibrateArgs) -> Result<ExitCode> {
         )
     } else if let Some(path) = &args.image {
         let target = load_target(args.target.as_ref().expect("clap requires --target"))?;
-        let image = vl_core::load_image(path)
-            .map_err(|e| BadInput(format!("cannot read the image {}: {e}", path.display())))?
-            .to_rgb8();
+        let image = load_rgb(path, "image")?;
         (target.calibrate(&image, args.fps).map_err(bad)?, None)
     } else if let Some(driver) = args.camera {
         let target = load_target(args.target.as_ref().expect("clap requires --target"))?;

@@ -7,9 +7,10 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use vl_core::{Arena, Experiment, Role};
-use vl_guest::{PadChoice, Report as RunReport, Script, ScriptError, WindowError};
+use vl_guest::{Login, PadChoice, Report as RunReport, Script, ScriptError, WindowError};
 use vl_host::{Host, HostConfig, Media, SimLab};
 
+use crate::access::LoginArgs;
 use crate::media::LinkArgs;
 use crate::report::emit;
 use crate::{BadInput, named};
@@ -22,9 +23,8 @@ pub(crate) struct GuestArgs {
     /// Watch only; another person drives.
     #[arg(long)]
     observer: bool,
-    /// The operator token the Host asks for.
-    #[arg(long)]
-    token: Option<String>,
+    #[command(flatten)]
+    login: LoginArgs,
     /// No window: drive the robot to the experiment's goal and report; as
     /// an observer, watch until a run ends (or --timeout) and report.
     #[arg(long)]
@@ -107,7 +107,7 @@ pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Resul
         Role::Operator
     };
     if args.headless {
-        let script = script(&args.run, args.token, !args.json);
+        let script = script(&args.run, args.login.login()?, !args.json);
         if role == Role::Observer {
             let watched = interruptible(runtime, vl_guest::watch(&args.connect, &script))?
                 .map_err(guest_error)?;
@@ -120,7 +120,7 @@ pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Resul
     }
     let pad = gamepad(&args.gamepad, args.dead_man)?;
     let _entered = runtime.enter();
-    let shown = vl_guest::run_window(&args.connect, role, args.token, pad);
+    let shown = vl_guest::run_window(&args.connect, role, args.login.login()?, pad);
     // The window is gone and with it its connection: give the goodbye
     // time to leave, so an operator's role is free at once.
     std::thread::sleep(GOODBYE_WAIT);
@@ -172,22 +172,22 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
         );
     }
     if args.headless || !has_display {
-        let script = script(&args.run, None, !args.json);
+        let script = script(&args.run, Login::default(), !args.json);
         let report = interruptible(runtime, vl_guest::run_script(&url, &script))??;
         return finish(&report, args.json);
     }
     eprintln!("vl demo: simulated lab at {url}");
     let _entered = runtime.enter();
     let pad = gamepad(&PadChoice::Auto, false)?;
-    vl_guest::run_window(&url, Role::Operator, None, pad)?;
+    vl_guest::run_window(&url, Role::Operator, Login::default(), pad)?;
     Ok(ExitCode::SUCCESS)
 }
 
-fn script(run: &RunArgs, token: Option<String>, progress: bool) -> Script {
+fn script(run: &RunArgs, login: Login, progress: bool) -> Script {
     Script {
         experiment: run.experiment,
         goal: run.goal.map(vl_core::Goal::at),
-        token,
+        login,
         timeout: Duration::from_secs_f64(run.timeout.clamp(0.0, 1e6)),
         progress,
         ..Script::default()

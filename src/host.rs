@@ -7,11 +7,11 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use vl_core::{Experiment, RobotModel};
-use vl_host::{CameraSource, Devices, Host, HostConfig, KheperaSerial, SimCamera, SimLab};
+use vl_host::{CameraSource, Host, HostConfig, LabSpec, RobotSpec};
 
+use crate::access::AccessArgs;
 use crate::input::{
-    FramesArgs, OpticsArgs, SceneArgs, arena_from, load_calibration, load_robot_model, real_camera,
-    seconds,
+    FramesArgs, OpticsArgs, SceneArgs, arena_from, load_calibration, load_robot_model, seconds,
 };
 use crate::media::LinkArgs;
 use crate::report::emit;
@@ -103,15 +103,15 @@ pub(crate) struct HostArgs {
     )]
     experiments: Vec<Experiment>,
     /// Address to listen on; port 0 picks a free one.
-    #[arg(long, default_value = "127.0.0.1:7400", value_parser = crate::listen_address)]
+    #[arg(long, default_value = "127.0.0.1:7400", value_parser = vl_core::listen_address)]
     listen: SocketAddr,
-    /// Operators must present this token in their hello.
-    #[arg(long)]
-    token: Option<String>,
     /// An operator who sends no command for this many seconds during a run
     /// loses the run and the role.
     #[arg(long, default_value_t = 30.0)]
     lease: f64,
+    /// How long an operator drives while others wait in line (90s, 10m, 1h).
+    #[arg(long, value_parser = vl_core::span)]
+    slot: Option<Duration>,
     /// A client the Host hears nothing from for this many seconds (no
     /// answer to its pings) is disconnected.
     #[arg(long, default_value_t = 10.0)]
@@ -157,6 +157,8 @@ pub(crate) struct HostArgs {
     scene: SceneArgs,
     #[command(flatten)]
     link: LinkArgs,
+    #[command(flatten)]
+    access: AccessArgs,
 }
 
 /// The Host's configuration from its flags, checked before anything starts.
@@ -164,10 +166,10 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
     if args.experiments.is_empty() {
         bail!(BadInput("--experiments names none to offer".into()));
     }
-    let config = HostConfig {
-        token: args.token.clone(),
+    let mut config = HostConfig {
         experiments: args.experiments.clone(),
         lease: seconds("--lease", args.lease)?,
+        slot: args.slot,
         ping_timeout: seconds("--ping-timeout", args.ping_timeout)?,
         grace: if args.grace == 0.0 {
             Duration::ZERO
@@ -180,6 +182,7 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         compensate_latency: !args.no_latency_compensation,
         ..HostConfig::default()
     };
+    args.access.apply(&mut config)?;
     // A folder of nets that cannot run is the user's to fix, before anything starts.
     config
         .supervisor()
@@ -189,76 +192,48 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
 
 pub(crate) async fn host(args: HostArgs) -> Result<()> {
     let config = host_config(&args)?;
-    let arena = arena_from(&args.arena, args.start)?;
-    let optics = args.optics.optics(args.seed)?;
-    let model = match &args.robot_model {
-        Some(file) => load_robot_model(file)?,
-        None => RobotModel::khepera_ii(),
+    let robot = match args.robot {
+        RobotDriver::Sim => RobotSpec::Sim,
+        RobotDriver::Khepera => RobotSpec::Khepera {
+            port: args
+                .port
+                .clone()
+                .context("--robot khepera needs --port DEVICE")?,
+            baud: args.baud,
+            // A guard process holds the line and stops the robot if this one dies.
+            guard: std::env::current_exe().context("cannot find the vl binary")?,
+        },
     };
-    let calibration = match &args.camera_calibration {
-        Some(path) => Some(load_calibration(path)?),
-        None => None,
+    let spec = LabSpec {
+        robot,
+        camera: args.camera.clone(),
+        arena: arena_from(&args.arena, args.start)?,
+        model: match &args.robot_model {
+            Some(file) => load_robot_model(file)?,
+            None => RobotModel::khepera_ii(),
+        },
+        calibration: args
+            .camera_calibration
+            .as_deref()
+            .map(load_calibration)
+            .transpose()?,
+        optics: args.optics.optics(args.seed)?,
+        seed: args.seed,
+        scene: args.scene.events.clone(),
     };
     // Behind a modelled link the Host listens privately and the Media on --listen.
-    let linked = args.link.model()?.is_some();
     let public = args.listen;
-    let listen: SocketAddr = if linked {
-        ([127, 0, 0, 1], 0).into()
-    } else {
-        public
+    let listen: SocketAddr = match args.link.model()? {
+        Some(_) => ([127, 0, 0, 1], 0).into(),
+        None => public,
     };
-    let host = match (args.robot, args.camera) {
-        (RobotDriver::Sim, CameraSource::Replay(_)) => {
-            return Err(BadInput(
-                "recorded footage shows a recorded robot, not the simulated one: replay it with --robot khepera".into(),
-            )
-            .into());
+    let host = Host::serve(listen, spec, config).await.map_err(|e| {
+        if e.is_bad_input() {
+            BadInput(e.to_string()).into()
+        } else {
+            anyhow::Error::new(e)
         }
-        (RobotDriver::Sim, camera @ (CameraSource::Sim | CameraSource::None)) => {
-            let lab = SimLab {
-                arena,
-                robot: model,
-                seed: args.seed,
-                camera: (camera == CameraSource::Sim).then_some(SimCamera {
-                    optics,
-                    calibration,
-                }),
-                scene: args.scene.events,
-            };
-            Host::start_sim(listen, lab, config).await
-        }
-        (RobotDriver::Sim, _) => {
-            return Err(BadInput(
-                "a real camera watches a real robot, not the simulated one: use --robot khepera".into(),
-            )
-            .into());
-        }
-        (RobotDriver::Khepera, CameraSource::Sim) => {
-            return Err(BadInput(
-                "the simulated camera watches only the simulated robot; use --camera none".into(),
-            )
-            .into());
-        }
-        (RobotDriver::Khepera, camera) => {
-            let Some(port) = args.port.as_deref() else {
-                bail!(BadInput("--robot khepera needs --port DEVICE".into()));
-            };
-            let camera = real_camera(camera, calibration, &arena).context(
-                "no camera to watch the arena with (given --camera-calibration, the Host does not wait for its first frame)",
-            )?;
-            // A guard process holds the line and stops the robot if this one dies.
-            let program = std::env::current_exe().context("cannot find the vl binary")?;
-            let robot = KheperaSerial::guarded(program, port, args.baud, model, arena.start)
-                .context("no Khepera to drive")?;
-            let devices = Devices {
-                robot: Box::new(robot),
-                camera,
-                witness: None,
-            };
-            Host::start(listen, devices, arena, config).await
-        }
-    }
-    .context("cannot start the Host")?;
+    })?;
     let media = args.link.front(public, &host.url()).await?;
     // Scripts and tests read the bound address from this first line.
     match &media {

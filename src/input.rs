@@ -6,10 +6,9 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::Result;
-use serde::Deserialize;
 use vl_core::{Arena, CameraModel, DotTarget, Point, RobotKind, RobotModel};
 use vl_host::{CameraSource, FramePolicy};
-use vl_sim::{Optics, Scheduled};
+use vl_sim::{Optics, OpticsPreset, Scheduled};
 
 use crate::shipped::read_input;
 use crate::{BadInput, named};
@@ -51,25 +50,14 @@ pub(crate) fn load_robot_model(path: &Path) -> Result<RobotModel> {
     Ok(RobotModel::from_json(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?)
 }
 
-/// A simulated camera's optics to start from.
-#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum OpticsPreset {
-    /// An ideal camera looking straight down.
-    None,
-    /// Lens offset, blur, noise and a lighting gradient together, as an
-    /// inexpensive webcam over a lab bench.
-    Noisy,
-    /// The noisy camera with a wide lens's barrel distortion, 80 ms from
-    /// exposure to arrival, 20 ms exposures (motion blur), 5 % of frames
-    /// lost and 5 % with the robot's marker partly hidden.
-    Realistic,
-}
-
 /// How the simulated camera departs from an ideal one: a preset, and any
 /// of its figures changed.
 #[derive(clap::Args)]
 pub(crate) struct OpticsArgs {
-    #[arg(long, value_enum, default_value = "none")]
+    /// Optics to start from: none (an ideal camera looking straight
+    /// down), noisy (a cheap webcam: offset, blur, noise, uneven light) or
+    /// realistic (noisy, a wide lens, 80 ms late, motion blur, 5 % lost).
+    #[arg(long, value_parser = named::<OpticsPreset>(), default_value = "none")]
     optics: OpticsPreset,
     /// Image shift in px, as DX,DY (lens off the sensor's axis).
     #[arg(long, allow_hyphen_values = true)]
@@ -107,14 +95,7 @@ pub(crate) struct OpticsArgs {
 impl OpticsArgs {
     /// The simulator's optics these flags ask for, checked.
     pub(crate) fn optics(&self, seed: u64) -> Result<Optics> {
-        let mut optics = match self.optics {
-            OpticsPreset::None => Optics {
-                seed,
-                ..Optics::default()
-            },
-            OpticsPreset::Noisy => Optics::noisy(seed),
-            OpticsPreset::Realistic => Optics::realistic(seed),
-        };
+        let mut optics = self.optics.optics(seed);
         if let Some(k) = self.lens {
             optics.distortion = vl_core::Distortion {
                 k1: k.x_mm,
@@ -139,6 +120,13 @@ impl OpticsArgs {
     }
 }
 
+/// An image file in colour; one that cannot be read is the user's input.
+pub(crate) fn load_rgb(path: &Path, what: &str) -> Result<image::RgbImage> {
+    let image = vl_core::load_image(path)
+        .map_err(|e| BadInput(format!("cannot read the {what} {}: {e}", path.display())))?;
+    Ok(image.to_rgb8())
+}
+
 /// A shipped arena or an arena file; any problem with it is the user's input.
 pub(crate) fn load_arena(name_or_path: &str) -> Result<Arena> {
     Ok(Arena::load(name_or_path).map_err(|e| BadInput(e.to_string()))?)
@@ -153,18 +141,10 @@ pub(crate) fn read_json<T: serde::de::DeserializeOwned>(path: &Path, kind: &str)
         .map_err(|e| BadInput(format!("{} is not a {kind}: {e}", path.display())))?)
 }
 
-/// The camera model a calibration file (what `vl camera calibrate -o`
-/// writes) holds.
+/// The camera a calibration file (what `vl camera calibrate -o` writes) holds.
 pub(crate) fn load_calibration(path: &Path) -> Result<CameraModel> {
-    #[derive(Deserialize)]
-    struct File {
-        camera: CameraModel,
-    }
-    let file: File = read_json(
-        path,
-        "calibration file (as `vl camera calibrate -o` writes)",
-    )?;
-    Ok(file.camera)
+    let kind = "calibration file (as `vl camera calibrate -o` writes)";
+    Ok(read_json::<vl_core::Calibration>(path, kind)?.camera)
 }
 
 /// A dot target described in `path`.

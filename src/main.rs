@@ -3,6 +3,7 @@
 //! simulated lab; the tool subcommands reach the libraries' algorithms.
 //! This crate only parses, dispatches and prints.
 
+mod access;
 mod camera;
 mod experiment;
 mod guest;
@@ -18,13 +19,10 @@ mod shipped;
 mod sim;
 mod vision;
 
-use std::marker::PhantomData;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
-use clap::builder::{PossibleValue, TypedValueParser};
 use clap::{Parser, Subcommand};
-use vl_core::Named;
 
 #[derive(Parser)]
 #[command(
@@ -72,6 +70,9 @@ enum Command {
     /// Calibrate the overhead camera: its map from floor mm to pixels.
     #[command(subcommand)]
     Camera(camera::CameraCommand),
+    /// Keep a lab's accounts file: add, remove, passwd, list.
+    #[command(subcommand)]
+    Users(access::UsersCommand),
     /// Run the lab's experiments headless on the simulator and measure them.
     #[command(subcommand)]
     Experiment(experiment::ExperimentCommand),
@@ -85,69 +86,7 @@ static ALLOCATOR: vl_petri::Counting = vl_petri::Counting;
 #[error("{0}")]
 pub struct BadInput(pub String);
 
-/// Parses an address to listen on, suggesting the form when it is not one
-/// (`localhost` is a name, not an address and port).
-fn listen_address(text: &str) -> Result<std::net::SocketAddr, String> {
-    text.parse().map_err(|_| {
-        let port = text.rsplit_once(':').map_or("7400", |(_, p)| p);
-        format!(
-            "'{text}' is not an address and port: give 127.0.0.1:{port} for this machine only, \
-             or 0.0.0.0:{port} for every network it is on"
-        )
-    })
-}
-
-/// Parses a [`Named`] value by its id, listing the ids in `--help` and in
-/// the error for one that names nothing.
-#[derive(Clone)]
-pub(crate) struct NamedParser<T>(PhantomData<T>);
-
-pub(crate) fn named<T: Named + Send + Sync + Clone>() -> NamedParser<T> {
-    NamedParser(PhantomData)
-}
-
-impl<T: Named + Send + Sync + Clone> TypedValueParser for NamedParser<T> {
-    type Value = T;
-
-    fn parse_ref(
-        &self,
-        cmd: &clap::Command,
-        arg: Option<&clap::Arg>,
-        value: &std::ffi::OsStr,
-    ) -> Result<T, clap::Error> {
-        let text = value.to_string_lossy();
-        T::from_id(&text).map_err(|e| {
-            let mut error = clap::Error::new(clap::error::ErrorKind::InvalidValue).with_cmd(cmd);
-            if let Some(arg) = arg {
-                error.insert(
-                    clap::error::ContextKind::InvalidArg,
-                    clap::error::ContextValue::String(arg.to_string()),
-                );
-            }
-            error.insert(
-                clap::error::ContextKind::InvalidValue,
-                clap::error::ContextValue::String(text.into_owned()),
-            );
-            error.insert(
-                clap::error::ContextKind::ValidValue,
-                clap::error::ContextValue::Strings(e.known.iter().map(|s| s.to_string()).collect()),
-            );
-            if let Some(now) = e.now {
-                error.insert(
-                    clap::error::ContextKind::Suggested,
-                    clap::error::ContextValue::StyledStrs(vec![
-                        format!("'{}' is called '{now}' now", e.name).into(),
-                    ]),
-                );
-            }
-            error
-        })
-    }
-
-    fn possible_values(&self) -> Option<Box<dyn Iterator<Item = PossibleValue> + '_>> {
-        Some(Box::new(T::ALL.iter().map(|v| PossibleValue::new(v.id()))))
-    }
-}
+pub(crate) use vl_core::named_parser as named;
 
 fn main() -> ExitCode {
     // Like any Unix filter, end quietly when a reader such as `head` closes
@@ -199,5 +138,6 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Plan(args) => plan::run(args),
         Command::Camera(command) => camera::run(command),
         Command::Experiment(command) => experiment::run(&runtime()?, command),
+        Command::Users(command) => access::users(command),
     }
 }

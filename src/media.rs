@@ -111,7 +111,7 @@ pub(crate) async fn run(command: MediaCommand) -> Result<()> {
 #[derive(clap::Args)]
 pub(crate) struct MediaArgs {
     /// Address Guests connect to; port 0 picks a free one.
-    #[arg(long, default_value = "127.0.0.1:7401", value_parser = crate::listen_address)]
+    #[arg(long, default_value = "127.0.0.1:7401", value_parser = vl_core::listen_address)]
     listen: SocketAddr,
     /// The Host's WebSocket URL.
     #[arg(long, default_value = "ws://127.0.0.1:7400")]

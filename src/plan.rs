@@ -14,6 +14,7 @@ use vl_core::{
     RobotModel, Shape, plan, plan_svg,
 };
 
+use crate::input::load_rgb;
 use crate::report::emit;
 use crate::{BadInput, named};
 
@@ -138,7 +139,8 @@ fn load_map(name: &str) -> Result<GrayImage> {
     if let Some(map) = Arena::shipped_map(name) {
         return Ok(map);
     }
-    let image = vl_core::load_image(std::path::Path::new(name))
-        .map_err(|e| BadInput(format!("cannot read the map image {name}: {e}")))?;
-    Ok(vl_core::grey(&image.to_rgb8()))
+    Ok(vl_core::grey(&load_rgb(
+        std::path::Path::new(name),
+        "map image",
+    )?))
 }

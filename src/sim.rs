@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Subcommand;
 use vl_core::Point;
-use vl_sim::{Driver, LinkReport, Optics, Profile, Script, World, camera_for};
+use vl_sim::{Driver, LinkReport, Optics, Profile, Script, World};
 
 use crate::input::{OpticsArgs, RobotArgs, load_arena, load_target, positive};
 use crate::report::emit;
@@ -194,14 +194,7 @@ fn render(
     target: Option<&vl_core::DotTarget>,
     output: &Path,
 ) -> Result<ExitCode> {
-    let camera = camera_for(world, width.max(1), 15.0);
-    let image = match target {
-        Some(target) => {
-            let arena = world.arena();
-            vl_sim::render_target(target, &camera, optics, arena.width_mm, arena.height_mm)
-        }
-        None => world.render(&camera, optics),
-    };
+    let (image, camera) = world.overhead_view(width, optics, target);
     image
         .save(output)
         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", output.display()))?;

@@ -1,15 +1,14 @@
 //! `vl vision …`: what the overhead camera's frames tell, for calibrating
 //! the lab and checking the vision pipeline.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Subcommand;
-use image::RgbImage;
 use vl_core::{Threshold, inspect};
 
-use crate::BadInput;
+use crate::input::load_rgb;
 use crate::report::emit;
 
 #[derive(Subcommand)]
@@ -44,16 +43,14 @@ pub(crate) fn run(command: VisionCommand) -> Result<ExitCode> {
             threshold,
             invert,
             json,
-        } => emit(&inspect(&load(&image)?, threshold, invert), json)?,
-        VisionCommand::Bench { image, runs, json } => {
-            emit(&vl_core::bench_vision(&load(&image)?, runs), json)?
-        }
+        } => emit(
+            &inspect(&load_rgb(&image, "image")?, threshold, invert),
+            json,
+        )?,
+        VisionCommand::Bench { image, runs, json } => emit(
+            &vl_core::bench_vision(&load_rgb(&image, "image")?, runs),
+            json,
+        )?,
     }
     Ok(ExitCode::SUCCESS)
-}
-
-fn load(path: &Path) -> Result<RgbImage> {
-    Ok(vl_core::load_image(path)
-        .map_err(|e| BadInput(format!("cannot read the image {}: {e}", path.display())))?
-        .to_rgb8())
 }

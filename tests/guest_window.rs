@@ -11,7 +11,7 @@ use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 
 use vl_core::{Arena, Point, Role};
-use vl_guest::{GuestApp, Link, check_path, drag_path};
+use vl_guest::{GuestApp, Link, Login, check_path, drag_path};
 use vl_host::{Host, HostConfig, SimCamera, SimLab};
 
 /// The simulated camera paints the robot's body this colour.
@@ -34,11 +34,23 @@ fn window(url: &str) -> Harness<'static, GuestApp> {
 
 /// A Guest window on `url` as `role`, `size` px.
 fn window_as(url: &str, role: Role, size: Vec2) -> Harness<'static, GuestApp> {
-    let app = GuestApp::new(url, role, None).expect("a Host's address");
+    let app = GuestApp::new(url, role, Login::default()).expect("a Host's address");
     Harness::builder()
         .with_size(size)
         .wgpu()
         .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app)
+}
+
+/// A simulated Host on `runtime`, the navigation arena without a camera.
+fn host_without_camera(runtime: &tokio::runtime::Runtime, config: HostConfig) -> Host {
+    let lab = SimLab {
+        camera: None,
+        ..SimLab::new(Arena::navigation())
+    };
+    let listen = "127.0.0.1:0".parse().unwrap();
+    runtime
+        .block_on(Host::start_sim(listen, lab, config))
+        .unwrap()
 }
 
 /// Waits for the welcome, mounts the navigation experiment and waits
@@ -410,16 +422,7 @@ impl vl_guest::Pad for TestPad {
 #[test]
 fn a_gamepad_drives_feels_and_stops() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
-    let host = runtime
-        .block_on(Host::start_sim(
-            "127.0.0.1:0".parse().unwrap(),
-            SimLab {
-                camera: None,
-                ..SimLab::new(Arena::navigation())
-            },
-            HostConfig::default(),
-        ))
-        .unwrap();
+    let host = host_without_camera(&runtime, HostConfig::default());
     let _entered = runtime.enter();
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let felt = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
@@ -427,7 +430,7 @@ fn a_gamepad_drives_feels_and_stops() {
         stop: stop.clone(),
         felt: felt.clone(),
     };
-    let app = GuestApp::new(&host.url(), Role::Operator, None)
+    let app = GuestApp::new(&host.url(), Role::Operator, Login::default())
         .unwrap()
         .with_pad(Box::new(pad));
     let mut harness = Harness::builder()
@@ -660,18 +663,9 @@ fn settings_are_remembered_between_sessions() {
     )
     .unwrap();
     let runtime = tokio::runtime::Runtime::new().unwrap();
-    let host = runtime
-        .block_on(Host::start_sim(
-            "127.0.0.1:0".parse().unwrap(),
-            SimLab {
-                camera: None,
-                ..SimLab::new(Arena::navigation())
-            },
-            HostConfig::default(),
-        ))
-        .unwrap();
+    let host = host_without_camera(&runtime, HostConfig::default());
     let _entered = runtime.enter();
-    let app = GuestApp::new(&host.url(), Role::Operator, None)
+    let app = GuestApp::new(&host.url(), Role::Operator, Login::default())
         .expect("a Host's address")
         .with_settings_file(file.clone());
     let mut harness = Harness::builder()
@@ -1032,4 +1026,103 @@ fn a_held_back_run_says_why_in_the_window() {
             env!("CARGO_TARGET_TMPDIR")
         ))
     });
+}
+
+/// At a lab with accounts the window, refused as an anonymous operator,
+/// opens its login form; an account typed in logs in and drives, and the
+/// window says who it is.
+#[test]
+fn the_window_logs_in_with_an_account() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let mut users = vl_host::Users::default();
+    users
+        .add("ada", vl_host::AccountRole::Operator, "correct horse")
+        .unwrap();
+    let host = host_without_camera(
+        &runtime,
+        HostConfig {
+            users: Some(users),
+            ..HostConfig::default()
+        },
+    );
+    let _entered = runtime.enter();
+    let mut harness = window(&host.url());
+    step_until(&mut harness, "be refused", |app| {
+        !app.session().errors.is_empty()
+    });
+    harness.get_by_label_contains("this lab's operators log in");
+    harness.get_by_label_contains("not let in: log in");
+    for (role, text) in [
+        (egui::accesskit::Role::TextInput, "ada"),
+        (egui::accesskit::Role::PasswordInput, "correct horse"),
+    ] {
+        harness.get_by_role(role).click();
+        harness.step();
+        harness.get_by_role(role).type_text(text);
+        harness.step();
+    }
+    harness.step();
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-login.png"
+    ));
+    harness.get_by_label("Log in to drive").click();
+    step_until(&mut harness, "be welcomed as ada", |app| {
+        app.session().user.as_deref() == Some("ada")
+    });
+    assert_eq!(harness.state().session().role, Some(Role::Operator));
+    harness.get_by_label("Logged in as ada");
+    harness
+        .get_by_label("Navigate to a goal among obstacles")
+        .click();
+    step_until(&mut harness, "mount", |app| app.session().lab.is_some());
+    // The window's text never shows the password.
+    assert!(harness.query_by_label_contains("correct horse").is_none());
+}
+
+/// An observer joins the line with one click, sees its place and how long
+/// it waits, and drives when the operator's slot ends, the time left shown.
+#[test]
+fn an_observer_asks_for_control_and_gets_it_in_turn() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let host = host_without_camera(
+        &runtime,
+        HostConfig {
+            slot: Some(Duration::from_secs(2)),
+            ..HostConfig::default()
+        },
+    );
+    let url = host.url();
+    let _driver = runtime.block_on(async {
+        let mut driver = common::peer::Peer::connect(&url).await;
+        driver.hello("operator").await;
+        driver
+    });
+    let _entered = runtime.enter();
+    let mut harness = window_as(&url, Role::Observer, Vec2::new(1100.0, 720.0));
+    step_until(&mut harness, "be welcomed", |app| {
+        app.session().role.is_some()
+    });
+    harness.get_by_label("Ask for control").click();
+    step_until(&mut harness, "be in line", |app| {
+        app.session().queue.is_some()
+    });
+    harness
+        .get_by_label_contains("You are 1st in line for control (1 waiting), control within 0:0");
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-in-line.png"
+    ));
+    step_until(&mut harness, "get control", |app| {
+        app.session().role == Some(Role::Operator)
+    });
+    harness.get_by_label_contains("your slot: 0:0");
+    assert!(harness.query_by_label("Ask for control").is_none());
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-granted.png"
+    ));
 }

@@ -187,7 +187,34 @@ fn shipped_examples_are_found_by_name_anywhere() {
         .output()
         .unwrap();
     assert!(made.status.success(), "{}", common::stderr(&made));
-    assert!(std::fs::read_to_string(&out).unwrap().contains("<pnml"));
+    let pnml = std::fs::read_to_string(&out).unwrap();
+    assert!(pnml.contains("<pnml"));
+    // By its file name or its stem too, and the large corpus models by
+    // their path in the repository; anything else names the examples.
+    let run = |args: &[&str]| {
+        std::process::Command::new(common::vl_bin())
+            .current_dir(&dir)
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    for name in ["mount.scxml", "mount"] {
+        let again = dir.join(format!("{name}.pnml"));
+        let made = run(&["petri", "from-scxml", name, "-o", s(&again)]);
+        assert!(made.status.success(), "{name}: {}", common::stderr(&made));
+        assert_eq!(std::fs::read_to_string(&again).unwrap(), pnml, "{name}");
+    }
+    let kanban = "tests/petri-corpus/core/Kanban-PT-00005/model.pnml";
+    let states = run(&["petri", "dot", kanban]);
+    assert!(states.status.success(), "{}", common::stderr(&states));
+    let missing = run(&["petri", "analyze", "model.pnml"]);
+    assert_eq!(missing.status.code(), Some(2));
+    let e = common::stderr(&missing);
+    assert!(e.contains("cannot read model.pnml: "), "{e}");
+    assert!(
+        e.contains("shipped examples: examples/statecharts/mount.scxml"),
+        "{e}"
+    );
 }
 
 const PRODUCER: &str = r#"<?xml version="1.0"?>

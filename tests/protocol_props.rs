@@ -7,8 +7,8 @@ use serde_json::{Value, json};
 use vl_core::{
     Arena, CameraModel, Definition, Drive, EndReason, ErrorCode, ErrorMm, Experiment,
     ExperimentInfo, Goal, GuestMessage, HostMessage, Material, MountedLab, Named, Obstacle,
-    PathAnalysis, Point, Pose, PoseSource, RobotModel, Role, SensorMount, Shape, SpeedResponse,
-    Stopper, Summary, WheelSpeeds, Wire,
+    PathAnalysis, Point, Pose, PoseSource, RobotModel, Role, Secret, SensorMount, Shape,
+    SpeedResponse, Stopper, Summary, WheelSpeeds, Wire,
 };
 
 fn num() -> impl Strategy<Value = f64> {
@@ -312,8 +312,10 @@ fn guest_message() -> impl Strategy<Value = GuestMessage> {
                 GuestMessage::Hello {
                     protocol,
                     role,
-                    token,
+                    token: token.clone(),
                     resume,
+                    user: token.clone(),
+                    password: token.map(Secret),
                 }
             }),
         num().prop_map(|t| GuestMessage::Ping { t }),
@@ -348,6 +350,7 @@ fn host_message() -> impl Strategy<Value = HostMessage> {
                     session,
                     role,
                     experiments,
+                    user: resume.clone(),
                     resume,
                 }
             ),

@@ -11,7 +11,7 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use vl_core::{Arena, Experiment};
 use vl_guest::Pacing;
-use vl_guest::experiment::{RunSpec, Runs, line, picture, run_one};
+use vl_guest::experiment::{RunSpec, Runs};
 
 use crate::input::{FramesArgs, OpticsArgs, SceneArgs, load_arena, seconds};
 use crate::named;
@@ -98,35 +98,21 @@ pub(crate) fn run(
     if let Some(dir) = &args.svg {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
-    let total = arenas.len() as u64 * args.runs;
-    let mut runs = Vec::new();
-    for arena in &arenas {
-        for k in 0..args.runs {
-            let seed = args.seed + k;
-            let spec = RunSpec {
-                experiment: args.experiment,
-                arena: arena.clone(),
-                seed,
-                optics: args.optics.optics(seed)?,
-                compensate_latency: !args.no_latency_compensation,
-                frames: args.frames.policy()?,
-                scene: args.scene.events.clone(),
-                link: link.clone(),
-                pacing: args.pacing,
-                timeout,
-                progress: false,
-            };
-            let mut run = runtime.block_on(run_one(&spec))?;
-            if let Some(dir) = &args.svg {
-                run.svg = Some(picture(dir, arena, seed, run.report.as_ref())?);
-            }
-            if !args.json {
-                eprintln!("[{}/{total}] {}", runs.len() + 1, line(&run));
-            }
-            runs.push(run);
-        }
-    }
-    let report = Runs::of(runs);
+    let template = RunSpec {
+        experiment: args.experiment,
+        arena: Arena::navigation(),
+        seed: args.seed,
+        optics: args.optics.optics(args.seed)?,
+        compensate_latency: !args.no_latency_compensation,
+        frames: args.frames.policy()?,
+        scene: args.scene.events.clone(),
+        link,
+        pacing: args.pacing,
+        timeout,
+        progress: false,
+    };
+    let svg = args.svg.as_deref();
+    let report = runtime.block_on(Runs::run(&template, &arenas, args.runs, svg, !args.json))?;
     emit(&report, args.json)?;
     Ok(if report.all_succeeded {
         ExitCode::SUCCESS

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use vl_petri::{BenchLine, BenchReport, Manifest, bench_model, from_pnml};
+use vl_petri::{BenchLine, BenchReport, Manifest, bench_model};
 
 use crate::BadInput;
 use crate::report::emit;
@@ -43,41 +43,24 @@ pub(super) fn bench_command(
     }
     let mut rows: Vec<BenchLine> = Vec::new();
     for model in models {
-        let (net, file) = match corpus {
-            Some(dir) => (load(&dir.join(model.pnml()))?, None),
-            None => {
-                let text = corpus_model(model.pnml()).ok_or_else(|| {
-                    BadInput(format!(
-                        "{} is not built in (only the large tier is): \
-                         give --corpus tests/petri-corpus",
-                        model.name()
-                    ))
-                })?;
-                let net = from_pnml(text).map_err(|e| anyhow::anyhow!("{}: {e}", model.name()))?;
-                (net, Some(text))
-            }
-        };
+        if corpus.is_none() && corpus_model(model.pnml()).is_none() {
+            return Err(BadInput(format!(
+                "{} is not built in (only the large tier is): give --corpus tests/petri-corpus",
+                model.name()
+            ))
+            .into());
+        }
+        // A built-in model is read by its path in the repository.
+        let path = corpus
+            .unwrap_or(Path::new("tests/petri-corpus"))
+            .join(model.pnml());
+        let net = load(&path)?;
         if !json {
             eprint!("{} … ", model.name());
         }
         let row = bench_model(model, &net, &Counting)
             .map_err(|e| anyhow::anyhow!("{}: {e}", model.name()))?;
-        let whole = match (corpus, file) {
-            (Some(dir), _) => analyze_process(&dir.join(model.pnml()))?,
-            (None, Some(text)) => {
-                let path = std::env::temp_dir().join(format!(
-                    "vl-bench-{}-{}.pnml",
-                    std::process::id(),
-                    model.name()
-                ));
-                std::fs::write(&path, text)
-                    .with_context(|| format!("cannot write {}", path.display()))?;
-                let whole = analyze_process(&path);
-                let _ = std::fs::remove_file(&path);
-                whole?
-            }
-            (None, None) => unreachable!("a built-in model has its text"),
-        };
+        let whole = analyze_process(&path)?;
         if !json {
             eprintln!(
                 "{:.2} s counting, {:.2} s analysing, {:.2} s analysing as a process",

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use vl_petri::{graph_to_dot, net_to_dot};
 
-use super::io::{explore_with_progress, load};
+use super::io::{load, with_progress};
 
 pub(super) fn dot_command(path: &Path, reachability: bool, max_states: usize) -> Result<ExitCode> {
     let net = load(path)?;
@@ -14,7 +14,7 @@ pub(super) fn dot_command(path: &Path, reachability: bool, max_states: usize) ->
         print!("{}", net_to_dot(&net));
         return Ok(ExitCode::SUCCESS);
     }
-    let space = explore_with_progress(&net, path, max_states)?;
+    let space = with_progress(path, max_states, |options| vl_petri::explore(&net, options))?;
     let nodes: Vec<Vec<u32>> = (0..space.states()).map(|s| space.marking(s).0).collect();
     let edges: Vec<(usize, usize, usize)> = (0..space.states())
         .flat_map(|s| space.successors(s).map(move |(t, to)| (s, t, to)))

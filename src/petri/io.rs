@@ -6,7 +6,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::Result;
-use vl_petri::{Cost, ExploreError, Net, Options, Progress, StateSpace, explore, from_pnml};
+use vl_petri::{Cost, ExploreError, Net, Options, Progress, from_pnml};
 
 use crate::BadInput;
 use crate::shipped::read_input;
@@ -21,15 +21,6 @@ pub(super) fn load(path: &Path) -> Result<Net> {
 
 pub(super) fn write_file(path: &Path, text: &str) -> Result<()> {
     std::fs::write(path, text).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
-}
-
-/// Explores the reachability graph, showing progress on a terminal.
-pub(super) fn explore_with_progress(
-    net: &Net,
-    path: &Path,
-    max_states: usize,
-) -> Result<StateSpace> {
-    with_progress(path, max_states, |options| explore(net, options))
 }
 
 /// Runs a search (`explore` or `count_states`) with `--max-states`, its

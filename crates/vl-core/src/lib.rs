@@ -96,6 +96,8 @@ mod design;
 mod images;
 mod model;
 mod named;
+#[cfg(feature = "clap")]
+mod named_cli;
 mod navigation;
 mod safety;
 mod syntax;
@@ -111,8 +113,8 @@ pub use contract::experiment::{
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::protocol::{
     DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HeldBack, HostMessage,
-    MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Readiness, Role, Stopper, Summary, WATCHDOG,
-    Wire, ending,
+    MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Readiness, Role, Secret, Stopper, Summary,
+    WATCHDOG, Wire, ending,
 };
 pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use design::{
@@ -135,6 +137,8 @@ pub use model::robot::{
     SensorMount, SpeedResponse, WheelSpeeds, wrap_angle,
 };
 pub use named::{Named, UnknownName};
+#[cfg(feature = "clap")]
+pub use named_cli::{NamedParser, named_parser};
 pub use navigation::analysis::{
     ErrorMm, PathAnalysis, PathRecorder, PoseSource, distance_to_polyline, nearest_rank,
 };
@@ -152,7 +156,7 @@ pub use navigation::plan::{
 pub use navigation::report::{GridInfo, PlanReport};
 pub use navigation::svg::{plan_svg, run_svg};
 pub use safety::{Guarded, Safety, Situation, Surroundings};
-pub use syntax::{ImageSize, SyntaxError};
+pub use syntax::{ImageSize, SyntaxError, listen_address, span};
 pub use teleop::{Assisted, Joystick, MapField, Teleop, Vector, predict};
 pub use vision::{
     Centroid, Component, Connectivity, DotTarget, Look, Mask, RobotPose, Scene, TargetError,

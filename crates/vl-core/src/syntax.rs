@@ -1,7 +1,9 @@
 //! How positions, shapes and scene events are written on a command line:
 //! comma-separated numbers, and what is wrong with text that says none.
 
+use std::net::SocketAddr;
 use std::str::FromStr;
+use std::time::Duration;
 
 use crate::{MAX_IMAGE_SIDE, ShapeError};
 
@@ -45,6 +47,42 @@ pub(crate) fn parse_numbers(text: &str) -> Result<Vec<f64>, SyntaxError> {
         .collect()
 }
 
+/// An address to listen on, suggesting the form when it is not one
+/// (`localhost` is a name, not an address and port).
+pub fn listen_address(text: &str) -> Result<SocketAddr, SyntaxError> {
+    text.parse().map_err(|_| {
+        let port = text.rsplit_once(':').map_or("7400", |(_, p)| p);
+        SyntaxError::Range {
+            got: text.to_owned(),
+            what: format!(
+                "an address and port: give 127.0.0.1:{port} for this machine only, \
+                 or 0.0.0.0:{port} for every network it is on"
+            ),
+        }
+    })
+}
+
+/// A length of time as people write it: seconds (`90`, `90s`, `1.5`),
+/// minutes (`10m`) or hours (`1h`); more than nothing and at most a day.
+pub fn span(text: &str) -> Result<Duration, SyntaxError> {
+    let refused = || SyntaxError::Range {
+        got: text.to_owned(),
+        what: "a time from 0 to a day, as 90, 90s, 10m or 1h".into(),
+    };
+    let t = text.trim();
+    let (number, unit) = match t.char_indices().last() {
+        Some((i, 'h')) => (&t[..i], 3600.0),
+        Some((i, 'm')) => (&t[..i], 60.0),
+        Some((i, 's')) => (&t[..i], 1.0),
+        _ => (t, 1.0),
+    };
+    let seconds = number.trim().parse::<f64>().map_err(|_| refused())? * unit;
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 86_400.0) {
+        return Err(refused());
+    }
+    Ok(Duration::from_secs_f64(seconds))
+}
+
 /// An image's size in pixels, written WxH (640x480 or 640×480), each side
 /// from 1 to [`MAX_IMAGE_SIDE`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -83,6 +121,18 @@ impl FromStr for ImageSize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_span_is_seconds_minutes_or_hours_up_to_a_day() {
+        assert_eq!(span("90"), Ok(Duration::from_secs(90)));
+        assert_eq!(span("1.5s"), Ok(Duration::from_millis(1500)));
+        assert_eq!(span("10m"), Ok(Duration::from_secs(600)));
+        assert_eq!(span(" 1h "), Ok(Duration::from_secs(3600)));
+        for bad in ["0", "-5m", "25h", "NaNs", "m", "ten minutes", "1e400"] {
+            let e = span(bad).unwrap_err().to_string();
+            assert!(e.contains("a time from 0 to a day"), "{bad}: {e}");
+        }
+    }
 
     #[test]
     fn an_image_size_is_two_sides_within_the_limit() {

@@ -264,6 +264,22 @@ struct Remembered {
 }
 
 impl Remembered {
+    /// Keeps what a new connection needs from `message`: the operator's
+    /// secret, and the role a grant of control or its end gave.
+    fn heard(&mut self, message: &HostMessage) {
+        let (role, resume) = match message {
+            HostMessage::Welcome { resume, .. } => (None, resume),
+            HostMessage::Role { role, resume, .. } => (Some(*role), resume),
+            _ => return,
+        };
+        if let Some(secret) = resume {
+            self.resume = Some(secret.clone());
+        }
+        if let (Some(now), Some(GuestMessage::Hello { role, .. })) = (role, &mut self.hello) {
+            *role = now;
+        }
+    }
+
     /// The hello to say on a new connection: the last one, with the secret.
     fn hello_again(&self) -> Option<GuestMessage> {
         match self.hello.clone()? {
@@ -271,12 +287,16 @@ impl Remembered {
                 protocol,
                 role,
                 token,
+                user,
+                password,
                 ..
             } => Some(GuestMessage::Hello {
                 protocol,
                 role,
                 token,
                 resume: self.resume.clone(),
+                user,
+                password,
             }),
             _ => None,
         }
@@ -509,11 +529,9 @@ async fn carry(
                     }
                     Ok(HostMessage::Bye) => return Ended::Lost("the Host said bye".to_owned()),
                     Ok(message) => {
-                        if let HostMessage::Welcome { resume, .. } = &message {
+                        remembered.heard(&message);
+                        if let HostMessage::Welcome { .. } = &message {
                             *welcomed = true;
-                            if let Some(secret) = resume {
-                                remembered.resume = Some(secret.clone());
-                            }
                         }
                         let _ = deliver.send(Incoming::Message(Box::new(message)));
                     }

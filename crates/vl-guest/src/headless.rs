@@ -12,10 +12,11 @@ use thiserror::Error;
 use vl_core::table::{Table, count, yes};
 use vl_core::{
     ArenaPlanError, Drive, EndReason, ErrorCode, Experiment, Goal, GuestMessage, HeldBack,
-    HostMessage, PROTOCOL_VERSION, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
+    HostMessage, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
 };
 
 use crate::client::{ClientError, Connection, Incoming, open};
+use crate::login::Login;
 use crate::route::Route;
 use crate::session::{Pacing, RoundTrips, Session, Spread};
 use crate::settings::Settings;
@@ -26,7 +27,8 @@ pub struct Script {
     pub experiment: Experiment,
     /// Where to drive; the arena's suggested goal when absent.
     pub goal: Option<Goal>,
-    pub token: Option<String>,
+    /// Who the Guest says it is.
+    pub login: Login,
     /// The whole session must finish within this.
     pub timeout: Duration,
     /// Print a line of progress to stderr every second.
@@ -42,7 +44,7 @@ impl Default for Script {
         Script {
             experiment: Experiment::Navigation,
             goal: None,
-            token: None,
+            login: Login::default(),
             timeout: Duration::from_secs(60),
             progress: false,
             pacing: Pacing::Event,
@@ -274,12 +276,7 @@ impl Report {
 /// Connects to `url` and says hello as `role`.
 async fn welcomed(url: &str, role: Role, script: &Script) -> Result<Scripted, ScriptError> {
     let connection = open(url)?;
-    connection.send(GuestMessage::Hello {
-        protocol: PROTOCOL_VERSION,
-        role,
-        token: script.token.clone(),
-        resume: None,
-    });
+    connection.send(script.login.hello(role));
     let mut guest = Scripted {
         connection,
         session: Session::default(),
@@ -288,9 +285,41 @@ async fn welcomed(url: &str, role: Role, script: &Script) -> Result<Scripted, Sc
         timeout: script.timeout,
         connect_by: Instant::now() + script.connect_within,
     };
-    guest
+    match guest
         .until("say hello", |_, _| {}, |s| s.role.is_some())
-        .await?;
+        .await
+    {
+        // Someone else drives: watch, and wait in line for control.
+        Err(ScriptError::Refused {
+            code: ErrorCode::OperatorTaken,
+            message,
+            ..
+        }) if role == Role::Operator => {
+            if guest.progress {
+                eprintln!("{message}: waiting in line for control");
+            }
+            guest.connection.send(script.login.hello(Role::Observer));
+            guest
+                .until("watch", |_, _| {}, |s| s.role.is_some())
+                .await?;
+            guest.connection.send(GuestMessage::Queue);
+            let mut told = None;
+            let progress = guest.progress;
+            let tell_place = |s: &mut Session, _: &Connection| {
+                let position = s.queue.map(|q| q.position);
+                if progress && position.is_some() && position != told {
+                    told = position;
+                    eprintln!("{} in line for control", position.unwrap_or(0));
+                }
+            };
+            guest
+                .until("wait in line for control", tell_place, |s| {
+                    s.role == Some(Role::Operator)
+                })
+                .await?;
+        }
+        waited => waited?,
+    }
     Ok(guest)
 }
 

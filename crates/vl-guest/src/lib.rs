@@ -38,6 +38,7 @@ mod client;
 pub mod experiment;
 mod gamepad;
 mod headless;
+mod login;
 mod netview;
 mod predict;
 mod route;
@@ -53,9 +54,11 @@ pub use headless::{
     Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, run_script, teleoperate,
     watch,
 };
+pub use login::Login;
 pub use predict::Predictor;
 pub use route::{EditRefused, Route, check_path, drag_path};
 pub use session::{
-    CameraFrame, Devices, Link, Pacing, RobotState, RoundTrips, Session, Spread, TIME_PERIOD,
+    CameraFrame, Devices, InLine, Link, Pacing, RobotState, RoundTrips, Session, Spread,
+    TIME_PERIOD,
 };
 pub use settings::{Settings, SettingsError};

@@ -152,6 +152,8 @@ pub enum Link {
 #[derive(Debug, Clone)]
 pub struct Session {
     pub link: Link,
+    /// The account the Host welcomed this Guest as, if it logged in.
+    pub user: Option<String>,
     pub role: Option<Role>,
     pub session_id: Option<u64>,
     pub experiments: Vec<ExperimentInfo>,
@@ -206,6 +208,20 @@ pub struct Session {
     /// How many welcomes this Guest has had: each is a new connection,
     /// perhaps to a new Host, and starts what is shown afresh.
     pub welcomes: u64,
+    /// Where this Guest stands in the line for control, when it is in it.
+    pub queue: Option<InLine>,
+    /// When the operator's slot ends, for an operator whose slots have a length.
+    pub slot_ends: Option<Instant>,
+}
+
+/// A place in the line for control.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InLine {
+    /// 1: next.
+    pub position: u32,
+    pub length: u32,
+    /// When control comes at the latest, when slots have a length.
+    pub by: Option<Instant>,
 }
 
 impl Default for Session {
@@ -213,6 +229,7 @@ impl Default for Session {
         Session {
             link: Link::Connecting,
             role: None,
+            user: None,
             session_id: None,
             experiments: Vec::new(),
             lab: None,
@@ -243,6 +260,8 @@ impl Default for Session {
             nets: Supervisor::new(Experiment::ALL)
                 .expect("the shipped nets are built in and tested"),
             nets_agree: true,
+            queue: None,
+            slot_ends: None,
             welcomes: 0,
         }
     }
@@ -286,6 +305,7 @@ impl Session {
                 session,
                 role,
                 experiments,
+                user,
                 ..
             } => {
                 self.forget_the_host();
@@ -293,6 +313,7 @@ impl Session {
                 self.link = Link::Open;
                 self.session_id = Some(session);
                 self.role = Some(role);
+                self.user = user;
                 self.experiments = experiments;
             }
             HostMessage::Error { code, message } => {
@@ -357,6 +378,24 @@ impl Session {
             }
             HostMessage::Status { robot, camera, lab } => {
                 self.devices = Some(Devices { robot, camera, lab });
+            }
+            HostMessage::Queue {
+                position,
+                length,
+                wait_s,
+            } => {
+                self.queue = position.map(|position| InLine {
+                    position,
+                    length,
+                    by: wait_s.map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6))),
+                });
+            }
+            HostMessage::Role { role, slot_s, .. } => {
+                self.role = Some(role);
+                self.queue = None;
+                self.slot_ends = slot_s
+                    .filter(|_| role == Role::Operator)
+                    .map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6)));
             }
             // The connection answers pings and bye itself.
             HostMessage::Ping { .. } | HostMessage::Pong { .. } | HostMessage::Bye => {}

@@ -2,9 +2,13 @@
 //! (behind the traits in `drivers`: simulated in `sim`, a real Khepera on
 //! a serial line in `khepera`, recorded footage played back in `replay`,
 //! real cameras over HTTP or V4L2 in `webcam`; the Khepera's speed
-//! controller `characterise` measures), runs the experiment control loop (`lab`) and serves Guests
-//! over WebSocket (`server`); and the Media, a relay that puts a modelled
-//! Internet link between Guests and a Host (`media`).
+//! controller `characterise` measures), which camera `--camera` names
+//! (`source`) and which robot and camera go together (`setup`), runs the
+//! experiment control loop (`lab`) and serves Guests over WebSocket
+//! (`server`), letting in whom its accounts and token say (`accounts`:
+//! Argon2id accounts, the gate every hello passes with its delays and
+//! limits on failures, the audit log); and the Media, a relay that puts a
+//! modelled Internet link between Guests and a Host (`media`).
 //!
 //! In detail:
 //!
@@ -48,6 +52,8 @@
 //!   change of the net's marking, takes the emergency stop from anyone, ends
 //!   the run of an operator whose lease runs out, holds the role and the run
 //!   (robot still) for an operator whose link dropped until the grace ends,
+//!   keeps the line for control, first come first served, and ends an
+//!   operator's slot by handing control to the next (`hub::queue`),
 //!   makes the lab ready after a run (not after an emergency stop, a fault, a
 //!   lost robot or a run held back) by planning a route back to the start
 //!   pose off the hub and driving it as a run of its own, refusing Start
@@ -60,6 +66,7 @@
 //!   that does not read only the newest 2 MiB of frames, records each leg's
 //!   delays and measures its own cost (`media`)
 
+mod accounts;
 mod characterise;
 mod drivers;
 #[cfg(test)]
@@ -70,6 +77,7 @@ mod line;
 mod media;
 mod replay;
 mod server;
+mod setup;
 mod sim;
 mod source;
 mod webcam;
@@ -80,6 +88,12 @@ use tokio::net::TcpListener;
 use vl_core::{Arena, CalibrationError, CameraModel, RobotModel};
 use vl_sim::{Optics, Scheduled};
 
+pub use accounts::audit::{Audit, Entry as AuditEntry};
+pub use accounts::gate::{
+    Admitted, Credentials, FAILURE_DELAY, FAILURE_REFILL, FAILURES_BURST, Gate, Identity,
+    Observers, Refusal,
+};
+pub use accounts::users::{AccountRole, Member, Roster, Users, UsersError};
 pub use characterise::{CharacteriseError, characterise};
 pub use drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness};
 pub use khepera::KheperaSerial;
@@ -92,6 +106,7 @@ pub use media::{
 pub use replay::ReplayCamera;
 pub use server::HostConfig;
 pub use server::bench::{BenchError, OperatorLatency, operator_latency};
+pub use setup::{LabSpec, RobotSpec, SetupError};
 pub use source::CameraSource;
 #[cfg(target_os = "linux")]
 pub use webcam::{DeviceInfo, V4l2Camera, V4l2Spec, Webcams, list_devices};

@@ -29,6 +29,24 @@ impl World {
     pub fn render(&self, camera: &CameraModel, optics: &Optics) -> RgbImage {
         Renderer::new(*camera, *optics).render(self)
     }
+
+    /// One frame `width_px` wide from a camera straight above: of the
+    /// arena and the robot, or of a calibration `target` laid on its empty
+    /// floor; with the camera that took it (`vl sim render`).
+    pub fn overhead_view(
+        &self,
+        width_px: u32,
+        optics: &Optics,
+        target: Option<&DotTarget>,
+    ) -> (RgbImage, CameraModel) {
+        let camera = camera_for(self, width_px.max(1), 15.0);
+        let arena = self.arena();
+        let image = match target {
+            Some(target) => render_target(target, &camera, optics, arena.width_mm, arena.height_mm),
+            None => self.render(&camera, optics),
+        };
+        (image, camera)
+    }
 }
 
 /// A camera's frames of a world. What does not move — floor, walls and

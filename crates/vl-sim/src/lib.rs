@@ -50,7 +50,7 @@ pub use link::{
     Distribution, Expected, Link, LinkModel, LinkReport, LinkStats, Loss, Profile, measure,
 };
 pub use odometry::{OdometryFit, measure_odometry};
-pub use optics::{Optics, OpticsError};
+pub use optics::{Optics, OpticsError, OpticsPreset};
 pub use scene::{SceneEvent, Scheduled};
 pub use script::{Driver, RunReport, Script, ScriptError, Tracking, run};
 pub use tcp::{Delivery, LinkSpecError, MessageLink, RTO_MS};

@@ -25,6 +25,18 @@ pub const MAX_TEXT_BYTES: usize = 1 << 20;
 /// this long: the Host's watchdog, which the Guest's prediction expects.
 pub const WATCHDOG: std::time::Duration = std::time::Duration::from_millis(500);
 
+/// A password on the wire: a string in JSON, never shown by `Debug`, so
+/// no log line can hold one.
+#[derive(Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct Secret(pub String);
+
+impl std::fmt::Debug for Secret {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Secret(…)")
+    }
+}
+
 /// Who a connection speaks for: one operator drives, observers watch.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -100,6 +112,8 @@ pub enum EndReason {
     /// The safety layer held the robot back for so long that the run
     /// cannot go on: `Summary::held_back` says why.
     HeldBack,
+    /// The operator's slot ended and the next in line took control.
+    SlotEnded,
 }
 
 impl std::fmt::Display for EndReason {
@@ -114,6 +128,7 @@ impl std::fmt::Display for EndReason {
             EndReason::OperatorSilent => "operator silent",
             EndReason::RobotLost => "the camera lost the robot",
             EndReason::HeldBack => "held back by the safety layer",
+            EndReason::SlotEnded => "the operator's slot ended",
         })
     }
 }
@@ -275,6 +290,8 @@ pub enum ErrorCode {
     RobotOffline,
     /// The client did not read what the Host sent fast enough.
     SlowReader,
+    /// Too many failed logins from this address or for this account: wait.
+    TooManyAttempts,
 }
 
 /// As on the wire: `unknown_experiment`.
@@ -313,6 +330,11 @@ pub enum GuestMessage {
         /// theirs again.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         resume: Option<String>,
+        /// An account's name, with its `password`, at a lab with accounts.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        user: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        password: Option<Secret>,
     },
     /// `t` is the sender's clock, ms; the peer echoes it in `pong`.
     Ping {
@@ -352,6 +374,11 @@ pub enum GuestMessage {
     /// Send a camera frame now, from anyone welcomed: a Host that sends
     /// frames only when the scene changes answers with the next one.
     RequestFrame,
+    /// An observer asks for control: it joins the line for the operator's
+    /// role, and gets it when its turn comes.
+    Queue,
+    /// Leaves the line.
+    LeaveQueue,
     Bye,
 }
 
@@ -381,6 +408,9 @@ pub enum HostMessage {
         /// link, to get the role and the running experiment back.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         resume: Option<String>,
+        /// The account the Guest logged in as.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        user: Option<String>,
     },
     Error {
         code: ErrorCode,
@@ -391,6 +421,25 @@ pub enum HostMessage {
     },
     Pong {
         t: f64,
+    },
+    /// Where this Guest stands in the line for control: 1 is next; none
+    /// once it is out of the line. `wait_s` is the longest it may wait
+    /// when the operator's slots have a length.
+    Queue {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        position: Option<u32>,
+        length: u32,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        wait_s: Option<f64>,
+    },
+    /// This Guest's role changed: control granted (with the secret to come
+    /// back with after a dropped link, and the slot's length) or ended.
+    Role {
+        role: Role,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        resume: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        slot_s: Option<f64>,
     },
     Mounted(Box<MountedLab>),
     Defined {
@@ -541,14 +590,17 @@ mod tests {
             GuestMessage::EmergencyStop,
             GuestMessage::RequestFrame,
             GuestMessage::Start,
+            GuestMessage::Queue,
+            GuestMessage::LeaveQueue,
             GuestMessage::Bye,
         ] {
             let wire: serde_json::Value = serde_json::from_str(&message.encode()).unwrap();
             assert_eq!(wire["type"], message.kind());
             assert!(GuestMessage::TYPES.contains(&message.kind()));
         }
-        assert_eq!(GuestMessage::TYPES.len(), 12);
-        assert!(HostMessage::TYPES.contains(&"feedback") && HostMessage::TYPES.len() == 12);
+        assert_eq!(GuestMessage::TYPES.len(), 14);
+        assert!(HostMessage::TYPES.contains(&"feedback") && HostMessage::TYPES.len() == 14);
+        assert!(GuestMessage::TYPES.contains(&"leave_queue"));
     }
 
     #[test]

@@ -86,7 +86,7 @@ impl From<CameraModel> for CameraWire {
 }
 
 /// How well a calibration fits the points it was made from, px.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Reprojection {
     pub points: usize,
     pub rms_px: f64,
@@ -98,6 +98,8 @@ pub struct Reprojection {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Calibration {
     pub camera: CameraModel,
+    /// None in a file written by hand: the camera is all it says.
+    #[serde(default)]
     pub reprojection: Reprojection,
 }
 

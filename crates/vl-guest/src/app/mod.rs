@@ -12,12 +12,13 @@ use std::time::{Duration, Instant};
 
 use egui::{Color32, TextureHandle, Vec2};
 use vl_core::{
-    DeviceState, Drive, Goal, GuestMessage, Joystick, PROTOCOL_VERSION, Point, Readiness, Role,
-    Shape, Teleop, Vector,
+    DeviceState, Drive, ErrorCode, Goal, GuestMessage, Joystick, Point, Readiness, Role, Shape,
+    Teleop, Vector,
 };
 
 use crate::client::{ClientError, Connection, open};
 use crate::gamepad::Pad;
+use crate::login::Login;
 use crate::session::{Link, Session};
 use crate::settings::Settings;
 
@@ -56,7 +57,7 @@ const BUSY_REPAINT: Duration = Duration::from_millis(30);
 struct Address {
     url: String,
     role: Role,
-    token: Option<String>,
+    login: Login,
 }
 
 /// The Guest's window.
@@ -98,17 +99,19 @@ pub struct GuestApp {
     trail: Vec<Point>,
     /// The session's welcomes this window has caught up with.
     welcomes: u64,
+    /// What is typed in the login form: an account's name and password.
+    typed_login: (String, String),
 }
 
 impl GuestApp {
     /// A window on the Host at `url`, connecting as `role` straight away
     /// (on the current tokio runtime). Only an address that cannot be a
     /// Host's is refused; an unreachable Host is shown in the window.
-    pub fn new(url: &str, role: Role, token: Option<String>) -> Result<Self, ClientError> {
+    pub fn new(url: &str, role: Role, login: Login) -> Result<Self, ClientError> {
         let address = Address {
             url: url.to_owned(),
             role,
-            token,
+            login,
         };
         let connection = GuestApp::connect(&address)?;
         Ok(GuestApp {
@@ -132,6 +135,7 @@ impl GuestApp {
             pad: None,
             asked: Joystick::default(),
             trail: Vec::new(),
+            typed_login: Default::default(),
             welcomes: 0,
         })
     }
@@ -153,12 +157,7 @@ impl GuestApp {
     /// Opens a connection that says hello as soon as it is up.
     fn connect(address: &Address) -> Result<Connection, ClientError> {
         let connection = open(&address.url)?;
-        connection.send(GuestMessage::Hello {
-            protocol: PROTOCOL_VERSION,
-            role: address.role,
-            token: address.token.clone(),
-            resume: None,
-        });
+        connection.send(address.login.hello(address.role));
         Ok(connection)
     }
 
@@ -409,7 +408,14 @@ impl GuestApp {
                 },
             );
         };
+        let refused = s.errors.last().filter(|(code, _)| {
+            matches!(code, ErrorCode::Unauthorized | ErrorCode::TooManyAttempts)
+        });
         match &s.link {
+            Link::Connecting if s.role.is_none() && refused.is_some() => add(
+                "connected, not let in: log in with an account, or watch",
+                Color32::YELLOW,
+            ),
             Link::Connecting => add(
                 &format!("connecting to {}…", self.address.url),
                 Color32::YELLOW,
@@ -427,6 +433,13 @@ impl GuestApp {
         }
         if let (Some(role), Some(id)) = (s.role, s.session_id) {
             add(&format!("{role}, session {id}"), Color32::GRAY);
+        }
+        if let (Some(Role::Operator), Some(ends)) = (s.role, s.slot_ends) {
+            let left = ends.saturating_duration_since(std::time::Instant::now());
+            add(
+                &format!("your slot: {} left", panels::clock(left.as_secs())),
+                Color32::LIGHT_BLUE,
+            );
         }
         if let Some(devices) = s.devices {
             if devices.robot == DeviceState::Offline {
@@ -468,10 +481,10 @@ impl eframe::App for GuestApp {
 pub fn run_window(
     url: &str,
     role: Role,
-    token: Option<String>,
+    login: Login,
     pad: Option<Box<dyn Pad>>,
 ) -> Result<(), WindowError> {
-    let mut app = GuestApp::new(url, role, token)?;
+    let mut app = GuestApp::new(url, role, login)?;
     if let Some(file) = Settings::default_path() {
         app = app.with_settings_file(file);
     }

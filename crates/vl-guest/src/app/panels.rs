@@ -2,15 +2,20 @@
 //! obstacles, the settings) and execute, and the on-screen joystick.
 
 use egui::{Color32, Sense, Stroke, Vec2};
-use vl_core::{Action, Definition, Experiment, GuestMessage, LOOKAHEAD_MM};
+use vl_core::{Action, Definition, ErrorCode, Experiment, GuestMessage, LOOKAHEAD_MM, Role};
 
 use super::{FORCE_COLOUR, GuestApp, JOYSTICK_PX, ROBOT_COLOUR};
+use crate::login::Login;
 use crate::netview;
 use crate::route::Route;
 use crate::settings::{MARGIN_MM, MAX_SPEED_MM_S};
 
 impl GuestApp {
     pub(super) fn controls(&mut self, ui: &mut egui::Ui) {
+        self.account_panel(ui);
+        if self.session.role == Some(Role::Observer) {
+            self.line_panel(ui);
+        }
         ui.heading("Mount");
         for experiment in self.session.experiments.clone() {
             let mounted = self
@@ -79,6 +84,18 @@ impl GuestApp {
                 .default_open(false)
                 .show(ui, |ui| netview::show(ui, &self.session.nets));
         }
+        self.robot_panel(ui);
+        if !self.session.errors.is_empty() {
+            ui.separator();
+            ui.heading("Host said");
+            for (_, message) in self.session.errors.iter().rev() {
+                ui.colored_label(Color32::LIGHT_RED, message);
+            }
+        }
+    }
+
+    /// The robot as last reported: pose, wheels, proximity sensors.
+    fn robot_panel(&self, ui: &mut egui::Ui) {
         if let Some(robot) = &self.session.robot {
             ui.separator();
             ui.heading("Robot");
@@ -103,13 +120,87 @@ impl GuestApp {
                 );
             }
         }
-        if !self.session.errors.is_empty() {
+    }
+
+    /// Who the window is: the account it logged in as (and a way out), or a
+    /// form to log in with one, to drive or to watch.
+    fn account_panel(&mut self, ui: &mut egui::Ui) {
+        if let Some(user) = self.session.user.clone() {
+            ui.horizontal(|ui| {
+                ui.label(format!("Logged in as {user}"));
+                if ui.button("Log out").clicked() {
+                    self.log_in(Login::default(), Role::Observer);
+                }
+            });
             ui.separator();
-            ui.heading("Host said");
-            for (_, message) in self.session.errors.iter().rev() {
-                ui.colored_label(Color32::LIGHT_RED, message);
+            return;
+        }
+        let refused = self
+            .session
+            .errors
+            .iter()
+            .any(|(code, _)| *code == ErrorCode::Unauthorized);
+        egui::CollapsingHeader::new("Log in")
+            .default_open(refused || self.session.role.is_none())
+            .show(ui, |ui| {
+                let (user, password) = &mut self.typed_login;
+                ui.add(egui::TextEdit::singleline(user).hint_text("account"));
+                ui.add(
+                    egui::TextEdit::singleline(password)
+                        .password(true)
+                        .hint_text("password"),
+                );
+                let typed = !user.is_empty() && !password.is_empty();
+                ui.horizontal(|ui| {
+                    for (label, role) in [
+                        ("Log in to drive", Role::Operator),
+                        ("to watch", Role::Observer),
+                    ] {
+                        if ui.add_enabled(typed, egui::Button::new(label)).clicked() {
+                            let (user, password) = std::mem::take(&mut self.typed_login);
+                            self.log_in(Login::user(user, password), role);
+                        }
+                    }
+                });
+            });
+        ui.separator();
+    }
+
+    /// An observer's way to control: a place in line, and where it stands.
+    fn line_panel(&mut self, ui: &mut egui::Ui) {
+        match self.session.queue {
+            Some(place) => {
+                let wait = place.by.map_or(String::new(), |by| {
+                    let s = by.saturating_duration_since(std::time::Instant::now());
+                    format!(", control within {}", clock(s.as_secs()))
+                });
+                ui.label(format!(
+                    "You are {} in line for control ({} waiting){wait}.",
+                    ordinal(place.position),
+                    place.length
+                ));
+                if ui.button("Leave the line").clicked() {
+                    self.connection.send(GuestMessage::LeaveQueue);
+                }
+            }
+            None => {
+                if ui
+                    .button("Ask for control")
+                    .on_hover_text("Join the line: you drive when your turn comes")
+                    .clicked()
+                {
+                    self.connection.send(GuestMessage::Queue);
+                }
             }
         }
+        ui.separator();
+    }
+
+    /// Starts over on a new connection, saying hello as `login`.
+    fn log_in(&mut self, login: Login, role: Role) {
+        self.address.login = login;
+        self.address.role = role;
+        self.reconnect();
     }
 
     /// The operator's definition: the goal (and in navigation the path
@@ -321,4 +412,21 @@ impl GuestApp {
             self.plan_note = Some(e.to_string());
         }
     }
+}
+
+/// 1st, 2nd, 3rd, 4th…
+fn ordinal(n: u32) -> String {
+    let suffix = match (n % 10, n % 100) {
+        (1, 11) | (2, 12) | (3, 13) => "th",
+        (1, _) => "st",
+        (2, _) => "nd",
+        (3, _) => "rd",
+        _ => "th",
+    };
+    format!("{n}{suffix}")
+}
+
+/// Seconds as minutes and seconds: 9:05.
+pub(super) fn clock(seconds: u64) -> String {
+    format!("{}:{:02}", seconds / 60, seconds % 60)
 }

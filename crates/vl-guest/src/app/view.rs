@@ -32,6 +32,9 @@ impl GuestApp {
             (None, Some(lab)) => Vec2::new(lab.camera.width_px as f32, lab.camera.height_px as f32),
             (None, None) => {
                 let waiting = match &self.session.link {
+                    Link::Connecting if !self.session.errors.is_empty() => {
+                        "the Host has not let you in: see what it said, on the left"
+                    }
                     Link::Connecting => "connecting to the Host…",
                     Link::Unreachable { .. } => "no Host answers yet: trying again…",
                     Link::Reconnecting { .. } => "reconnecting to the Host…",

@@ -5,7 +5,12 @@ use serde::Serialize;
 use vl_core::ErrorMm;
 use vl_core::table::{Report, Table, count, yes};
 
-use super::{Run, overall, spread};
+use std::path::Path;
+
+use vl_core::Arena;
+use vl_sim::Optics;
+
+use super::{ExperimentError, Run, RunSpec, line, overall, picture, run_one, spread};
 
 /// A series of runs of one experiment and what they add up to.
 #[derive(Serialize)]
@@ -74,6 +79,44 @@ impl Report for Runs {
 }
 
 impl Runs {
+    /// Runs `template` `runs` times on each of `arenas`, run k with seed
+    /// `template.seed + k` (the lab's, the camera's and the link's); a
+    /// picture of each into `svg` when given; a line on stderr after each
+    /// when `progress`.
+    pub async fn run(
+        template: &RunSpec,
+        arenas: &[Arena],
+        runs: u64,
+        svg: Option<&Path>,
+        progress: bool,
+    ) -> Result<Runs, ExperimentError> {
+        let total = arenas.len() as u64 * runs;
+        let mut done = Vec::new();
+        for arena in arenas {
+            for k in 0..runs {
+                let seed = template.seed + k;
+                let spec = RunSpec {
+                    arena: arena.clone(),
+                    seed,
+                    optics: Optics {
+                        seed,
+                        ..template.optics
+                    },
+                    ..template.clone()
+                };
+                let mut run = run_one(&spec).await?;
+                if let Some(dir) = svg {
+                    run.svg = Some(picture(dir, arena, seed, run.report.as_ref())?);
+                }
+                if progress {
+                    eprintln!("[{}/{total}] {}", done.len() + 1, line(&run));
+                }
+                done.push(run);
+            }
+        }
+        Ok(Runs::of(done))
+    }
+
     /// The runs and their totals.
     pub fn of(runs: Vec<Run>) -> Runs {
         Runs {

@@ -108,6 +108,8 @@ fn hello(role: Role) -> GuestMessage {
         role,
         token: None,
         resume: None,
+        user: None,
+        password: None,
     }
 }
 

@@ -19,6 +19,7 @@ use vl_core::{ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES, Wire};
 use super::HostConfig;
 use super::admission::Ticket;
 use super::hub::{ToConnection, ToHub};
+use crate::accounts::gate::{Credentials, Gate};
 use crate::lab::Watching;
 
 /// The WebSocket handshake must be done within this.
@@ -52,6 +53,9 @@ pub(crate) struct Connection {
     /// Counted among the frames' watchers once welcomed.
     pub(crate) watchers: Arc<std::sync::atomic::AtomicUsize>,
     pub(crate) config: Arc<HostConfig>,
+    /// Who each hello proves its sender is.
+    pub(crate) gate: Arc<Gate>,
+    pub(crate) peer: std::net::SocketAddr,
     pub(crate) ticket: Ticket,
 }
 
@@ -361,9 +365,40 @@ impl Connection {
                 None
             }
             Ok(GuestMessage::Bye) => return Err(End::Left),
-            Ok(message @ GuestMessage::Hello { .. }) => {
-                self.to_hub(message).await?;
-                None
+            Ok(GuestMessage::Hello {
+                protocol,
+                role,
+                token,
+                resume,
+                user,
+                password,
+            }) => {
+                let hello = Credentials {
+                    role,
+                    user: user.as_deref(),
+                    password: password.as_ref().map(|p| p.0.as_str()),
+                    token: token.as_deref(),
+                };
+                match self.gate.check(self.id, self.peer.ip(), hello).await {
+                    Ok(admitted) => {
+                        let hello = ToHub::Hello {
+                            id: self.id,
+                            admitted,
+                            protocol,
+                            role,
+                            resume,
+                        };
+                        self.hub.send(hello).await.map_err(|_| End::Closed)?;
+                        None
+                    }
+                    Err(refused) => {
+                        r.before_hello += 1;
+                        if r.before_hello >= MAX_BEFORE_HELLO {
+                            return Err(End::Refused(refused.code, refused.why));
+                        }
+                        Some(HostMessage::error(refused.code, refused.why))
+                    }
+                }
             }
             // Before hello nothing else reaches the hub.
             Ok(_) if !r.welcomed => {

@@ -26,6 +26,9 @@ use tokio::sync::mpsc;
 use tracing::{debug, error, warn};
 use vl_core::{Experiment, Named, Supervisor, SupervisorError};
 
+use crate::accounts::audit::Audit;
+use crate::accounts::gate::{Gate, Observers};
+use crate::accounts::users::Users;
 use crate::lab::{FramePolicy, Lab};
 use admission::Admission;
 use connection::Connection;
@@ -34,13 +37,22 @@ use hub::Hub;
 /// How the Host admits people and how long it waits for them.
 #[derive(Debug, Clone)]
 pub struct HostConfig {
-    /// When set, an operator's `hello` must carry this token.
+    /// When set, an operator's `hello` must carry this token (or log in).
     pub token: Option<String>,
+    /// The lab's accounts: with them, operators log in.
+    pub users: Option<Users>,
+    /// With accounts, whether anyone may watch or only people with one.
+    pub observers: Observers,
+    /// Where who did what is logged (none: nowhere).
+    pub audit: Audit,
     /// What the lab offers, in the order Guests list it.
     pub experiments: Vec<Experiment>,
     /// An operator who sends no command for this long during a run loses
     /// the run and the role.
     pub lease: Duration,
+    /// How long the operator drives while others wait for control; none:
+    /// until they leave.
+    pub slot: Option<Duration>,
     /// A client that answers none of the Host's pings for this long is
     /// disconnected (a frozen or vanished Guest).
     pub ping_timeout: Duration,
@@ -77,8 +89,12 @@ impl Default for HostConfig {
     fn default() -> Self {
         HostConfig {
             token: None,
+            users: None,
+            observers: Observers::default(),
+            audit: Audit::default(),
             experiments: Experiment::ALL.to_vec(),
             lease: Duration::from_secs(30),
+            slot: None,
             ping_timeout: Duration::from_secs(10),
             hello_timeout: Duration::from_secs(10),
             frames: FramePolicy::EveryFrame,
@@ -107,12 +123,18 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
             return;
         }
     };
+    let gate = Arc::new(Gate::new(
+        config.users.clone(),
+        config.token.clone(),
+        config.observers,
+        config.audit.clone(),
+    ));
     let hub = Hub::new(lab, config.clone(), supervisor);
     // The hub lives exactly as long as the server: dropping this future
     // drops the lab, which stops the robot.
     tokio::select! {
         () = hub.run(hub_rx) => {}
-        () = accept(listener, hub_tx, feedback, (frames, watchers), config) => {}
+        () = accept(listener, hub_tx, feedback, (frames, watchers), config, gate) => {}
     }
 }
 
@@ -125,6 +147,7 @@ async fn accept(
         Arc<std::sync::atomic::AtomicUsize>,
     ),
     config: Arc<HostConfig>,
+    gate: Arc<Gate>,
 ) {
     let admission = Admission::new();
     let mut next_id = 1u64;
@@ -151,6 +174,8 @@ async fn accept(
             frames: frames.clone(),
             watchers: watchers.clone(),
             config: config.clone(),
+            gate: gate.clone(),
+            peer,
             ticket,
         };
         tokio::spawn(async move {

@@ -7,12 +7,14 @@ use tracing::info;
 use vl_core::{Action, EndReason, ErrorCode, HostMessage, PROTOCOL_VERSION, Role};
 
 use super::{Away, Hub, ToConnection};
+use crate::accounts::audit::Entry;
+use crate::accounts::gate::Admitted;
 use crate::lab::LabRequest;
 
 /// A secret no client can guess: SipHash keyed afresh from the operating
 /// system's randomness by the standard library, over a counter and the
 /// clock, twice over for 128 bits.
-fn secret() -> String {
+pub(super) fn secret() -> String {
     use std::hash::{BuildHasher, Hasher};
     use std::sync::atomic::{AtomicU64, Ordering};
     static DRAWN: AtomicU64 = AtomicU64::new(0);
@@ -30,14 +32,38 @@ fn secret() -> String {
 }
 
 impl Hub {
-    pub(super) fn hello(
+    /// A hello the gate let through: a first one, or an observer (or an
+    /// operator who lost the lease) asking to drive.
+    pub(super) fn greet(
         &mut self,
         id: u64,
+        admitted: Admitted,
         protocol: u32,
         role: Role,
-        token: Option<String>,
         resume: Option<String>,
     ) {
+        match self.clients.get(&id).map(|c| c.role) {
+            Some(None) => {}
+            Some(Some(Role::Observer)) if role == Role::Operator => {}
+            Some(Some(_)) => {
+                return self.refuse(id, ErrorCode::NotAllowedNow, "already said hello");
+            }
+            None => return,
+        }
+        if let Some(client) = self.clients.get_mut(&id) {
+            client.admitted = admitted;
+        }
+        self.hello(id, protocol, role, resume);
+        if self
+            .clients
+            .get(&id)
+            .is_some_and(|c| c.role == Some(Role::Observer))
+        {
+            self.reclaim_place(id);
+        }
+    }
+
+    fn hello(&mut self, id: u64, protocol: u32, role: Role, resume: Option<String>) {
         if protocol != PROTOCOL_VERSION {
             return self.refuse(
                 id,
@@ -45,52 +71,22 @@ impl Hub {
                 format!("this Host speaks protocol {PROTOCOL_VERSION}, not {protocol}"),
             );
         }
-        if role == Role::Operator {
-            if self.config.token.is_some() && token != self.config.token {
-                let why = match token {
-                    None => {
-                        "this lab's operators need its token: say hello with it (vl guest --token), or watch as an observer"
-                    }
-                    Some(_) => "the operator token is wrong",
-                };
-                return self.refuse(id, ErrorCode::Unauthorized, why);
-            }
-            let returning = match &self.away {
-                Some(away) if resume.as_deref() == Some(away.resume.as_str()) => true,
-                Some(away) => {
-                    let left = away.until.saturating_duration_since(Instant::now());
-                    return self.refuse(
-                        id,
-                        ErrorCode::OperatorTaken,
-                        format!(
-                            "the operator's link dropped; the role is held for them for {:.0} more s",
-                            left.as_secs_f64().ceil()
-                        ),
-                    );
-                }
-                None => false,
-            };
-            if self.operator.is_some() {
-                return self.refuse(
-                    id,
-                    ErrorCode::OperatorTaken,
-                    "another operator is driving; say hello again as an observer to watch",
-                );
-            }
-            self.operator = Some(id);
-            if returning {
-                self.away = None;
-                info!(connection = id, "the operator is back");
-            }
-            // Every welcome carries a fresh secret, so every drop has its
-            // grace (and an old secret, once used, opens nothing).
-            self.resume = Some(secret());
+        if role == Role::Operator && !self.take_control(id, resume.as_deref()) {
+            return;
         }
+        let mut user = None;
         if let Some(client) = self.clients.get_mut(&id) {
             client.role = Some(role);
+            user = client.admitted.identity.name().map(str::to_owned);
             let _ = client.out.try_send(ToConnection::Subscribe);
         }
         info!(connection = id, ?role, "welcomed");
+        self.config.audit.record(
+            Entry::new("welcome")
+                .connection(id)
+                .user(user.as_deref())
+                .detail(role.to_string()),
+        );
         self.send(
             id,
             HostMessage::Welcome {
@@ -100,8 +96,21 @@ impl Hub {
                 resume: (role == Role::Operator)
                     .then(|| self.resume.clone())
                     .flatten(),
+                user,
             },
         );
+        // An operator's slot, when slots have a length, is told with the role.
+        if let (Role::Operator, Some(until)) = (role, self.slot_until) {
+            let left = until.saturating_duration_since(Instant::now());
+            self.send(
+                id,
+                HostMessage::Role {
+                    role,
+                    resume: None,
+                    slot_s: Some(left.as_secs_f64()),
+                },
+            );
+        }
         // A late observer catches up on what is mounted and defined.
         if let Some(mounted) = self.mounted() {
             self.send(id, mounted);
@@ -122,6 +131,57 @@ impl Hub {
                 },
             );
         }
+    }
+
+    /// Makes `id` the operator, when the role is free and no one waits for
+    /// it (or it is theirs, held since their link dropped, and `resume`
+    /// says so); else tells them why not.
+    fn take_control(&mut self, id: u64, resume: Option<&str>) -> bool {
+        let returning = match &self.away {
+            Some(away) if resume == Some(away.resume.as_str()) => true,
+            Some(away) => {
+                let left = away.until.saturating_duration_since(Instant::now());
+                self.refuse(
+                    id,
+                    ErrorCode::OperatorTaken,
+                    format!(
+                        "the operator's link dropped; the role is held for them for {:.0} more s",
+                        left.as_secs_f64().ceil()
+                    ),
+                );
+                return false;
+            }
+            None => false,
+        };
+        if self.operator.is_some() {
+            self.refuse(
+                id,
+                ErrorCode::OperatorTaken,
+                "another operator is driving; say hello again as an observer to watch, and ask for control to be next",
+            );
+            return false;
+        }
+        if !returning && self.someone_waits() {
+            let waiting = self.queue.len();
+            self.refuse(
+                id,
+                ErrorCode::OperatorTaken,
+                format!("{waiting} waiting for control before you: watch as an observer and ask for control"),
+            );
+            return false;
+        }
+        if !returning {
+            self.slot_until = self.config.slot.map(|slot| Instant::now() + slot);
+        }
+        self.operator = Some(id);
+        if returning {
+            self.away = None;
+            info!(connection = id, "the operator is back");
+        }
+        // Every welcome carries a fresh secret, so every drop has its
+        // grace (and an old secret, once used, opens nothing).
+        self.resume = Some(secret());
+        true
     }
 
     /// An operator who has sent no command for the lease time during a run
@@ -176,10 +236,12 @@ impl Hub {
         }
     }
 
-    /// The operator role is free again and the lab back to idle.
-    fn release_operator(&mut self) {
+    /// The operator role is free again and the lab back to idle; the next
+    /// in line, if any, has it.
+    pub(super) fn release_operator(&mut self) {
         self.operator = None;
         self.resume = None;
+        self.slot_until = None;
         if self.supervisor.allows(Action::Release) {
             self.happened(Action::Release);
         }
@@ -188,6 +250,7 @@ impl Hub {
         self.cspace = None;
         self.field = None;
         self.fields.forget();
+        self.grant_next();
     }
 
     /// A connection closed: if it was the operator, the robot stops; the
@@ -196,7 +259,7 @@ impl Hub {
     pub(super) fn leave(&mut self, id: u64, meant: bool) {
         self.clients.remove(&id);
         if self.operator != Some(id) {
-            return;
+            return self.queued_left(id, meant);
         }
         info!(connection = id, "operator left");
         let running = self.supervisor.allows(Action::Stop);

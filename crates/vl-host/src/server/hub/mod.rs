@@ -17,12 +17,14 @@ use vl_core::{
 };
 
 use super::HostConfig;
+use crate::accounts::gate::Admitted;
 use crate::lab::{Finished, Lab};
 use fields::{FieldWorker, Map};
 
 mod access;
 mod fields;
 mod operate;
+mod queue;
 mod reset;
 #[cfg(test)]
 mod tests;
@@ -36,6 +38,14 @@ const LEASE_CHECK: Duration = Duration::from_millis(250);
 /// What a connection tells the hub.
 pub(crate) enum ToHub {
     Join(u64, mpsc::Sender<ToConnection>),
+    /// A hello whose sender the gate identified.
+    Hello {
+        id: u64,
+        admitted: Admitted,
+        protocol: u32,
+        role: Role,
+        resume: Option<String>,
+    },
     Message(u64, GuestMessage),
     /// The connection closed; true when the client meant to leave (said
     /// bye or closed the WebSocket), false when its link dropped.
@@ -53,6 +63,8 @@ pub(crate) enum ToConnection {
 struct Client {
     out: mpsc::Sender<ToConnection>,
     role: Option<Role>,
+    /// Who its hello proved it is.
+    admitted: Admitted,
 }
 
 /// An operator whose link dropped: the role is theirs until `until`, for
@@ -89,6 +101,10 @@ pub(crate) struct Hub {
     resume: Option<String>,
     /// An operator whose link dropped, while their grace lasts.
     away: Option<Away>,
+    /// Who waits for control, first first.
+    queue: std::collections::VecDeque<queue::Place>,
+    /// When the operator's slot ends, when slots have a length.
+    slot_until: Option<Instant>,
     /// The mounted experiment.
     experiment: Option<Experiment>,
     definition: Option<Definition>,
@@ -138,6 +154,8 @@ impl Hub {
             operator: None,
             resume: None,
             away: None,
+            queue: std::collections::VecDeque::new(),
+            slot_until: None,
             experiment: None,
             definition: None,
             last_event: 0,
@@ -203,10 +221,17 @@ impl Hub {
                         self.happened(Action::FieldBuilt);
                     }
                 }
-                _ = lease.tick() => self.check_lease(),
+                _ = lease.tick() => {
+                    self.check_lease();
+                    self.check_slot();
+                }
                 message = inbox.recv() => match message {
                     Some(ToHub::Join(id, out)) => {
-                        self.clients.insert(id, Client { out, role: None });
+                        let admitted = Admitted::anyone();
+                        self.clients.insert(id, Client { out, role: None, admitted });
+                    }
+                    Some(ToHub::Hello { id, admitted, protocol, role, resume }) => {
+                        self.greet(id, admitted, protocol, role, resume);
                     }
                     Some(ToHub::Message(id, message)) => self.handle(id, message),
                     Some(ToHub::Leave(id, meant)) => self.leave(id, meant),
@@ -279,33 +304,15 @@ impl Hub {
             return;
         };
         match (role, message) {
-            (
-                None,
-                GuestMessage::Hello {
-                    protocol,
-                    role,
-                    token,
-                    resume,
-                },
-            ) => self.hello(id, protocol, role, token, resume),
+            // Hellos come through the gate, as `ToHub::Hello`.
+            (_, GuestMessage::Hello { .. }) => {}
             (None, _) => self.refuse(id, ErrorCode::HelloFirst, "send hello first"),
-            // An observer (or an operator who lost the lease) may ask to drive.
-            (
-                Some(Role::Observer),
-                GuestMessage::Hello {
-                    protocol,
-                    role: Role::Operator,
-                    token,
-                    resume,
-                },
-            ) => self.hello(id, protocol, Role::Operator, token, resume),
-            (Some(_), GuestMessage::Hello { .. }) => {
-                self.refuse(id, ErrorCode::NotAllowedNow, "already said hello")
-            }
             // Anyone watching may stop the robot: safety before roles.
             (Some(_), GuestMessage::EmergencyStop) => self.emergency_stop(id),
             // Anyone watching may want to see the scene.
             (Some(_), GuestMessage::RequestFrame) => self.lab.request_frame(),
+            (Some(Role::Observer), GuestMessage::Queue) => self.join_queue(id),
+            (Some(Role::Observer), GuestMessage::LeaveQueue) => self.leave_queue(id),
             (Some(Role::Observer), other) => self.refuse(
                 id,
                 ErrorCode::NotOperator,

@@ -21,6 +21,9 @@ impl Hub {
             GuestMessage::Start => self.start(id),
             GuestMessage::Stop => self.stop(id),
             GuestMessage::Command { event, seen, drive } => self.command(id, event, seen, drive),
+            GuestMessage::Queue | GuestMessage::LeaveQueue => {
+                self.refuse(id, ErrorCode::NotAllowedNow, "you have control already");
+            }
             GuestMessage::Hello { .. }
             | GuestMessage::EmergencyStop
             | GuestMessage::RequestFrame

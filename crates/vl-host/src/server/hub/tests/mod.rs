@@ -1,7 +1,9 @@
 //! The hub and the control loop in-process: a dummy robot in the open
 //! arena, no camera, clients that are channels. Who may do what, the
 //! lease, the grace, hand-over, the emergency stop and the watchdog, each
-//! in well under a second.
+//! in well under a second; the line for control in `queue`.
+
+mod queue;
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -13,6 +15,8 @@ use vl_core::{
 };
 
 use super::{Hub, OUTBOX, ToConnection, ToHub};
+use crate::accounts::gate::{Admitted, Identity};
+use crate::accounts::users::AccountRole;
 use crate::dummy::{DummyHandle, DummyRobot};
 use crate::lab::{Devices, FramePolicy, Lab};
 use crate::server::HostConfig;
@@ -77,7 +81,7 @@ impl Rig {
     /// A client welcomed as `role`.
     async fn welcomed(&mut self, role: Role) -> Client {
         let mut client = self.join().await;
-        client.hello(role, None, None).await;
+        client.hello(role, None).await;
         client.welcome().await;
         client
     }
@@ -133,14 +137,43 @@ impl Client {
             .expect("the hub runs");
     }
 
-    async fn hello(&self, role: Role, token: Option<&str>, resume: Option<String>) {
-        self.say(GuestMessage::Hello {
-            protocol: PROTOCOL_VERSION,
+    async fn hello(&self, role: Role, resume: Option<String>) {
+        self.greet(PROTOCOL_VERSION, role, resume).await;
+    }
+
+    /// A hello the gate let through, anonymous.
+    async fn greet(&self, protocol: u32, role: Role, resume: Option<String>) {
+        self.greet_as(Admitted::anyone(), protocol, role, resume)
+            .await;
+    }
+
+    /// A hello from the account `name` with `role`, as the gate admitted it.
+    async fn hello_as(&self, name: &str, account: AccountRole, role: Role) {
+        let admitted = Admitted {
+            identity: Identity::Account {
+                name: name.into(),
+                role: account,
+            },
+            may_drive: account.may_drive(),
+        };
+        self.greet_as(admitted, PROTOCOL_VERSION, role, None).await;
+    }
+
+    async fn greet_as(
+        &self,
+        admitted: Admitted,
+        protocol: u32,
+        role: Role,
+        resume: Option<String>,
+    ) {
+        let hello = ToHub::Hello {
+            id: self.id,
+            admitted,
+            protocol,
             role,
-            token: token.map(str::to_owned),
             resume,
-        })
-        .await;
+        };
+        self.hub.send(hello).await.expect("the hub runs");
     }
 
     /// The connection closes: `meant` when the client said bye.
@@ -268,12 +301,7 @@ async fn another_protocol_is_refused_with_the_hosts() {
     let mut rig = Rig::plain();
     let mut client = rig.join().await;
     client
-        .say(GuestMessage::Hello {
-            protocol: PROTOCOL_VERSION + 1,
-            role: Role::Observer,
-            token: None,
-            resume: None,
-        })
+        .greet(PROTOCOL_VERSION + 1, Role::Observer, None)
         .await;
     let (code, why) = client.refused().await;
     assert_eq!(code, ErrorCode::ProtocolMismatch);
@@ -284,7 +312,7 @@ async fn another_protocol_is_refused_with_the_hosts() {
 async fn a_second_hello_is_refused() {
     let mut rig = Rig::plain();
     let mut client = rig.welcomed(Role::Observer).await;
-    client.hello(Role::Observer, None, None).await;
+    client.hello(Role::Observer, None).await;
     assert_eq!(client.refused().await.0, ErrorCode::NotAllowedNow);
 }
 
@@ -311,35 +339,10 @@ async fn one_operator_at_a_time() {
     let mut rig = Rig::plain();
     let _op = rig.welcomed(Role::Operator).await;
     let mut second = rig.join().await;
-    second.hello(Role::Operator, None, None).await;
+    second.hello(Role::Operator, None).await;
     let (code, why) = second.refused().await;
     assert_eq!(code, ErrorCode::OperatorTaken);
     assert!(why.contains("observer"), "says what to do instead: {why}");
-}
-
-#[tokio::test]
-async fn a_lab_with_a_token_asks_operators_for_it() {
-    let mut rig = Rig::new(HostConfig {
-        token: Some("secret".into()),
-        reset: false,
-        ..HostConfig::default()
-    });
-    let mut none = rig.join().await;
-    none.hello(Role::Operator, None, None).await;
-    let (code, why) = none.refused().await;
-    assert_eq!(code, ErrorCode::Unauthorized);
-    assert!(why.contains("--token"), "says how to give one: {why}");
-    none.hello(Role::Operator, Some("guess"), None).await;
-    assert_eq!(none.refused().await.0, ErrorCode::Unauthorized);
-    // Watching needs no token; driving needs the right one.
-    none.hello(Role::Observer, None, None).await;
-    none.welcome().await;
-    let mut right = rig.join().await;
-    right.hello(Role::Operator, Some("secret"), None).await;
-    assert!(
-        right.welcome().await.is_some(),
-        "an operator gets a resume secret"
-    );
 }
 
 #[tokio::test]
@@ -548,7 +551,7 @@ async fn a_silent_operator_loses_the_run_and_the_role() {
     assert_eq!(op.done().await.reason, EndReason::OperatorSilent);
     // The role is free for the next person.
     let mut next = rig.join().await;
-    next.hello(Role::Operator, None, None).await;
+    next.hello(Role::Operator, None).await;
     next.welcome().await;
 }
 
@@ -562,7 +565,7 @@ async fn an_operator_who_says_bye_frees_the_role_at_once() {
     op.leave(true).await;
     assert_eq!(observer.done().await.reason, EndReason::OperatorLeft);
     // The observer takes over, on the same connection.
-    observer.hello(Role::Operator, None, None).await;
+    observer.hello(Role::Operator, None).await;
     observer.welcome().await;
     observer.mount("navigation").await;
 }
@@ -575,7 +578,7 @@ async fn a_dropped_operator_is_held_for_and_comes_back_to_the_run() {
         ..HostConfig::default()
     });
     let mut op = rig.join().await;
-    op.hello(Role::Operator, None, None).await;
+    op.hello(Role::Operator, None).await;
     let resume = op.welcome().await.expect("a resume secret");
     op.mount("teleoperation").await;
     op.say(GuestMessage::Start).await;
@@ -586,17 +589,17 @@ async fn a_dropped_operator_is_held_for_and_comes_back_to_the_run() {
     // The robot is held still; the role is not anyone else's…
     rig.robot_stops().await;
     let mut other = rig.join().await;
-    other.hello(Role::Operator, None, None).await;
+    other.hello(Role::Operator, None).await;
     let (code, why) = other.refused().await;
     assert_eq!(code, ErrorCode::OperatorTaken);
     assert!(why.contains("held for them"), "{why}");
     // …nor theirs with a wrong secret; with the right one, the run goes on.
     other
-        .hello(Role::Operator, None, Some("not-the-secret".into()))
+        .hello(Role::Operator, Some("not-the-secret".into()))
         .await;
     assert_eq!(other.refused().await.0, ErrorCode::OperatorTaken);
     let mut back = rig.join().await;
-    back.hello(Role::Operator, None, Some(resume)).await;
+    back.hello(Role::Operator, Some(resume)).await;
     back.welcome().await;
     back.next("started").await;
     back.command(2, 80.0).await;
@@ -614,7 +617,7 @@ async fn a_dropped_operator_who_does_not_come_back_loses_the_run() {
     let mut observer = rig.welcomed(Role::Observer).await;
     op.leave(false).await;
     assert_eq!(observer.done().await.reason, EndReason::OperatorLeft);
-    observer.hello(Role::Operator, None, None).await;
+    observer.hello(Role::Operator, None).await;
     observer.welcome().await;
 }
 

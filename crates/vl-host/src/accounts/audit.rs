@@ -1,0 +1,141 @@
+//! The audit log: who did what at the lab, one JSON object a line —
+//! logins and failures, roles taken and given up, runs and their ends,
+//! refusals. Written by its own task from a bounded queue, so no session
+//! ever waits on the disk; what a full queue cannot take is counted and
+//! said in the log when there is room again.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use serde::Serialize;
+use tokio::sync::mpsc;
+use tracing::warn;
+
+/// Entries waiting to be written, at most.
+const QUEUE: usize = 1024;
+
+/// One thing that happened, as the log's line says it.
+#[derive(Debug, Clone, Serialize)]
+pub struct Entry {
+    /// Milliseconds since 1970 (UTC).
+    pub at_ms: u64,
+    /// What happened: `login`, `login_failed`, `rate_limited`, `welcome`,
+    /// `refused`, `run_started`, `run_ended`, `left`, `lost`.
+    pub event: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub connection: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub user: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub address: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub detail: Option<String>,
+}
+
+impl Entry {
+    pub fn new(event: &'static str) -> Entry {
+        Entry {
+            at_ms: SystemTime::now()
+                .duration_since(UNIX_EPOCH)
+                .map_or(0, |d| d.as_millis() as u64),
+            event,
+            connection: None,
+            user: None,
+            address: None,
+            detail: None,
+        }
+    }
+
+    pub fn connection(mut self, id: u64) -> Entry {
+        self.connection = Some(id);
+        self
+    }
+
+    pub fn user(mut self, user: Option<&str>) -> Entry {
+        self.user = user.map(str::to_owned);
+        self
+    }
+
+    pub fn address(mut self, address: impl ToString) -> Entry {
+        self.address = Some(address.to_string());
+        self
+    }
+
+    pub fn detail(mut self, detail: impl Into<String>) -> Entry {
+        self.detail = Some(detail.into());
+        self
+    }
+}
+
+/// Where entries go; cloning it shares the log. Without a file it only
+/// keeps nothing (a lab run without `--audit`).
+#[derive(Debug, Clone, Default)]
+pub struct Audit {
+    queue: Option<mpsc::Sender<Entry>>,
+    dropped: Arc<AtomicU64>,
+}
+
+impl Audit {
+    /// A log appended to `path`, by a task on the current runtime.
+    pub fn open(path: &Path) -> std::io::Result<Audit> {
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)?;
+        let (queue, entries) = mpsc::channel(QUEUE);
+        let dropped = Arc::new(AtomicU64::new(0));
+        let writer = Writer {
+            path: path.to_owned(),
+            file: std::io::BufWriter::new(file),
+            dropped: dropped.clone(),
+        };
+        tokio::task::spawn_blocking(move || writer.run(entries));
+        Ok(Audit {
+            queue: Some(queue),
+            dropped,
+        })
+    }
+
+    /// Logs `entry`, without waiting: a full queue counts it as dropped.
+    pub fn record(&self, entry: Entry) {
+        if let Some(queue) = &self.queue
+            && queue.try_send(entry).is_err()
+        {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+struct Writer {
+    path: PathBuf,
+    file: std::io::BufWriter<std::fs::File>,
+    dropped: Arc<AtomicU64>,
+}
+
+impl Writer {
+    fn run(mut self, mut entries: mpsc::Receiver<Entry>) {
+        while let Some(entry) = entries.blocking_recv() {
+            let dropped = self.dropped.swap(0, Ordering::Relaxed);
+            if dropped > 0 {
+                self.line(&Entry::new("dropped").detail(format!("{dropped} entries")));
+            }
+            self.line(&entry);
+            // Each line on disk as it happens: the log outlives a crash.
+            if entries.is_empty() && self.file.flush().is_err() {
+                warn!("cannot write the audit log {}", self.path.display());
+            }
+        }
+        let _ = self.file.flush();
+    }
+
+    fn line(&mut self, entry: &Entry) {
+        if let Ok(text) = serde_json::to_string(entry)
+            && writeln!(self.file, "{text}").is_err()
+        {
+            warn!("cannot write the audit log {}", self.path.display());
+        }
+    }
+}

@@ -1,0 +1,513 @@
+//! Who a hello proves its sender is: an account by name and password, a
+//! script by the lab's token, or no one. Wrong credentials are answered
+//! only after [`FAILURE_DELAY`]; each address and each account may fail
+//! [`FAILURES_BURST`] times and then once per [`FAILURE_REFILL`], beyond
+//! which attempts are refused without the cost of checking them; tokens
+//! are compared in constant time; every attempt is logged. Checking a
+//! password is slow on purpose, so it runs off the async threads, one at
+//! a time: a flood of logins cannot take the cores the robot's loop needs.
+
+use std::collections::HashMap;
+use std::net::IpAddr;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+use subtle::ConstantTimeEq;
+use tokio::sync::Semaphore;
+use tokio::time::Instant;
+use vl_core::{ErrorCode, Named, Role};
+
+use super::audit::{Audit, Entry};
+use super::users::{AccountRole, Users};
+
+/// How long a wrong password, name or token waits for its answer.
+pub const FAILURE_DELAY: Duration = Duration::from_secs(1);
+/// Failures an address or an account may have at once…
+pub const FAILURES_BURST: f64 = 10.0;
+/// …and how often one more is allowed after those.
+pub const FAILURE_REFILL: Duration = Duration::from_secs(6);
+/// Addresses whose failures are remembered, at most.
+const MAX_ADDRESSES: usize = 4096;
+
+/// Whether people who watch must log in too.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Observers {
+    /// Anyone may watch without an account.
+    #[default]
+    Anyone,
+    /// Only people with an account may watch.
+    Accounts,
+}
+
+impl Named for Observers {
+    const KIND: &'static str = "observers policy";
+    const ALL: &'static [Observers] = &[Observers::Anyone, Observers::Accounts];
+
+    fn id(self) -> &'static str {
+        match self {
+            Observers::Anyone => "anyone",
+            Observers::Accounts => "accounts",
+        }
+    }
+}
+
+vl_core::named_by_id!(Observers);
+
+/// Who a connection speaks for, as its hello proved.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Identity {
+    /// No one in particular.
+    Anonymous,
+    /// A script holding the lab's token: it may drive.
+    Token,
+    /// A person with an account.
+    Account { name: String, role: AccountRole },
+}
+
+impl Identity {
+    /// The account's name, if there is one.
+    pub fn name(&self) -> Option<&str> {
+        match self {
+            Identity::Account { name, .. } => Some(name),
+            _ => None,
+        }
+    }
+}
+
+/// Who a hello proved its sender is, and whether they may drive.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Admitted {
+    pub identity: Identity,
+    /// Whether they may take the operator's role, now or in their turn.
+    pub may_drive: bool,
+}
+
+impl Admitted {
+    /// No one in particular, at a lab that lets anyone drive.
+    pub fn anyone() -> Admitted {
+        Admitted {
+            identity: Identity::Anonymous,
+            may_drive: true,
+        }
+    }
+}
+
+/// A hello's credentials.
+#[derive(Debug, Clone, Copy)]
+pub struct Credentials<'a> {
+    pub role: Role,
+    pub user: Option<&'a str>,
+    pub password: Option<&'a str>,
+    pub token: Option<&'a str>,
+}
+
+/// Why a hello proves no one, as the client is told.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Refusal {
+    pub code: ErrorCode,
+    pub why: String,
+}
+
+fn refusal(code: ErrorCode, why: impl Into<String>) -> Refusal {
+    Refusal {
+        code,
+        why: why.into(),
+    }
+}
+
+/// Failures allowed, refilling over time.
+#[derive(Debug, Clone, Copy)]
+struct Allowance {
+    left: f64,
+    at: Instant,
+}
+
+impl Allowance {
+    fn full() -> Allowance {
+        Allowance {
+            left: FAILURES_BURST,
+            at: Instant::now(),
+        }
+    }
+
+    fn now(&mut self) -> f64 {
+        let refill = self.at.elapsed().as_secs_f64() / FAILURE_REFILL.as_secs_f64();
+        self.left = (self.left + refill).min(FAILURES_BURST);
+        self.at = Instant::now();
+        self.left
+    }
+}
+
+#[derive(Default)]
+struct Failures {
+    by_address: HashMap<IpAddr, Allowance>,
+    by_account: HashMap<String, Allowance>,
+}
+
+impl Failures {
+    /// Whether another attempt from `address` (for `account`) may be checked.
+    fn allowed(&mut self, address: IpAddr, account: Option<&str>) -> bool {
+        let by_address = self
+            .by_address
+            .get_mut(&address)
+            .is_none_or(|a| a.now() >= 1.0);
+        let by_account = account
+            .and_then(|name| self.by_account.get_mut(name))
+            .is_none_or(|a| a.now() >= 1.0);
+        by_address && by_account
+    }
+
+    fn failed(&mut self, address: IpAddr, account: Option<&str>) {
+        if self.by_address.len() >= MAX_ADDRESSES && !self.by_address.contains_key(&address) {
+            self.by_address.retain(|_, a| a.now() < FAILURES_BURST);
+            if self.by_address.len() >= MAX_ADDRESSES {
+                // Forget one rather than refuse everyone new.
+                let some = self.by_address.keys().next().copied();
+                if let Some(some) = some {
+                    self.by_address.remove(&some);
+                }
+            }
+        }
+        let take = |a: &mut Allowance| {
+            a.now();
+            a.left -= 1.0;
+        };
+        take(
+            self.by_address
+                .entry(address)
+                .or_insert_with(Allowance::full),
+        );
+        if let Some(name) = account {
+            take(
+                self.by_account
+                    .entry(name.to_owned())
+                    .or_insert_with(Allowance::full),
+            );
+        }
+    }
+}
+
+/// The lab's door: its accounts, its token, and the failures so far.
+pub struct Gate {
+    users: Option<Arc<Users>>,
+    token: Option<String>,
+    observers: Observers,
+    failures: Mutex<Failures>,
+    hashing: Semaphore,
+    audit: Audit,
+}
+
+impl Gate {
+    pub fn new(
+        users: Option<Users>,
+        token: Option<String>,
+        observers: Observers,
+        audit: Audit,
+    ) -> Gate {
+        Gate {
+            users: users.map(Arc::new),
+            token,
+            observers,
+            failures: Mutex::new(Failures::default()),
+            hashing: Semaphore::new(1),
+            audit,
+        }
+    }
+
+    fn failures(&self) -> MutexGuard<'_, Failures> {
+        self.failures
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// Whether an operator must prove who they are.
+    fn guarded(&self) -> bool {
+        self.users.is_some() || self.token.is_some()
+    }
+
+    /// Who `hello` proves its sender is, for the role it asks for.
+    pub async fn check(
+        &self,
+        connection: u64,
+        address: IpAddr,
+        hello: Credentials<'_>,
+    ) -> Result<Admitted, Refusal> {
+        let log = |event: &'static str| {
+            Entry::new(event)
+                .connection(connection)
+                .address(address)
+                .user(hello.user)
+        };
+        let identity = if hello.user.is_some() || hello.token.is_some() {
+            let account = hello.user.filter(|name| {
+                self.users
+                    .as_ref()
+                    .is_some_and(|u| u.role_of(name).is_some())
+            });
+            if !self.failures().allowed(address, account) {
+                self.audit.record(log("rate_limited"));
+                tokio::time::sleep(FAILURE_DELAY).await;
+                let wait = FAILURE_REFILL.as_secs();
+                return Err(refusal(
+                    ErrorCode::TooManyAttempts,
+                    format!("too many failed logins: wait {wait} s before the next try"),
+                ));
+            }
+            match self.prove(hello).await {
+                Ok(identity) => {
+                    self.audit
+                        .record(log("login").detail(hello.role.to_string()));
+                    identity
+                }
+                Err(why) => {
+                    self.failures().failed(address, account);
+                    self.audit.record(log("login_failed").detail(why.clone()));
+                    tokio::time::sleep(FAILURE_DELAY).await;
+                    return Err(refusal(ErrorCode::Unauthorized, why));
+                }
+            }
+        } else {
+            Identity::Anonymous
+        };
+        self.admits(&identity, hello.role).map_err(|why| {
+            self.audit.record(log("refused").detail(why.clone()));
+            refusal(ErrorCode::Unauthorized, why)
+        })?;
+        let may_drive = self.admits(&identity, Role::Operator).is_ok();
+        Ok(Admitted {
+            identity,
+            may_drive,
+        })
+    }
+
+    /// The identity the credentials prove, or why they prove none.
+    async fn prove(&self, hello: Credentials<'_>) -> Result<Identity, String> {
+        if let Some(name) = hello.user {
+            let Some(users) = &self.users else {
+                return Err("this lab has no accounts: leave out the user name".into());
+            };
+            let Some(password) = hello.password else {
+                return Err("a user name needs its password".into());
+            };
+            let (users, name, password) = (users.clone(), name.to_owned(), password.to_owned());
+            let _one_at_a_time = self.hashing.acquire().await;
+            let checked = tokio::task::spawn_blocking(move || {
+                users
+                    .verify(&name, &password)
+                    .map(|role| Identity::Account { name, role })
+            })
+            .await
+            .ok()
+            .flatten();
+            return checked.ok_or_else(|| "wrong user name or password".into());
+        }
+        let given = hello.token.unwrap_or_default();
+        match &self.token {
+            Some(token) if bool::from(token.as_bytes().ct_eq(given.as_bytes())) => {
+                Ok(Identity::Token)
+            }
+            Some(_) => Err("the operator token is wrong".into()),
+            None => Err("this lab has no token: leave it out".into()),
+        }
+    }
+
+    /// Whether `identity` may take `role` at this lab.
+    fn admits(&self, identity: &Identity, role: Role) -> Result<(), String> {
+        match (identity, role) {
+            (Identity::Anonymous, Role::Operator) if self.guarded() => {
+                Err(if self.users.is_some() {
+                    "this lab's operators log in with an account (its name and password), or watch as an observer".into()
+                } else {
+                    "this lab's operators need its token: say hello with it (vl guest --token), or watch as an observer".into()
+                })
+            }
+            (Identity::Anonymous, Role::Observer)
+                if self.users.is_some() && self.observers == Observers::Accounts =>
+            {
+                Err(
+                    "this lab's observers log in too: say hello with your user name and password"
+                        .into(),
+                )
+            }
+            (Identity::Account { role: account, .. }, Role::Operator) if !account.may_drive() => {
+                Err("your account may watch, not drive: say hello as an observer".into())
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn address(last: u8) -> IpAddr {
+        IpAddr::from([10, 0, 0, last])
+    }
+
+    fn hello<'a>(role: Role, user: Option<&'a str>, password: Option<&'a str>) -> Credentials<'a> {
+        Credentials {
+            role,
+            user,
+            password,
+            token: None,
+        }
+    }
+
+    fn with_token(role: Role, token: Option<&str>) -> Credentials<'_> {
+        Credentials {
+            token,
+            ..hello(role, None, None)
+        }
+    }
+
+    fn accounts(observers: Observers) -> Gate {
+        Gate::new(
+            Some(super::super::users::sample()),
+            None,
+            observers,
+            Audit::default(),
+        )
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_lab_with_a_token_asks_operators_for_it() {
+        let gate = Gate::new(
+            None,
+            Some("secret".into()),
+            Observers::Anyone,
+            Audit::default(),
+        );
+        let at = address(1);
+        let none = gate.check(1, at, with_token(Role::Operator, None)).await;
+        let why = none.unwrap_err();
+        assert_eq!(why.code, ErrorCode::Unauthorized);
+        assert!(why.why.contains("--token"), "says how to give one: {why:?}");
+        let started = tokio::time::Instant::now();
+        let wrong = gate
+            .check(2, at, with_token(Role::Operator, Some("guess")))
+            .await;
+        assert!(wrong.unwrap_err().why.contains("wrong"));
+        assert!(started.elapsed() >= FAILURE_DELAY, "a wrong token waits");
+        // Watching needs no token; driving needs the right one.
+        let watcher = gate.check(3, at, with_token(Role::Observer, None)).await;
+        assert_eq!(watcher.map(|a| a.identity), Ok(Identity::Anonymous));
+        let right = gate
+            .check(4, at, with_token(Role::Operator, Some("secret")))
+            .await;
+        assert_eq!(right.map(|a| a.identity), Ok(Identity::Token));
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn accounts_drive_by_their_role_and_observers_by_the_lab_s_policy() {
+        let gate = accounts(Observers::Anyone);
+        let at = address(1);
+        let ada = gate
+            .check(
+                1,
+                at,
+                hello(Role::Operator, Some("ada"), Some("correct horse")),
+            )
+            .await;
+        assert_eq!(
+            ada.map(|a| a.identity),
+            Ok(Identity::Account {
+                name: "ada".into(),
+                role: AccountRole::Operator
+            })
+        );
+        let wrong = gate
+            .check(
+                2,
+                at,
+                hello(Role::Operator, Some("ada"), Some("wrong horse")),
+            )
+            .await
+            .unwrap_err();
+        assert_eq!(wrong.code, ErrorCode::Unauthorized);
+        let bob = gate
+            .check(
+                3,
+                at,
+                hello(Role::Operator, Some("bob"), Some("battery staple")),
+            )
+            .await
+            .unwrap_err();
+        assert!(bob.why.contains("may watch, not drive"), "{bob:?}");
+        let anonymous = gate.check(4, at, hello(Role::Operator, None, None)).await;
+        assert!(
+            anonymous
+                .unwrap_err()
+                .why
+                .contains("log in with an account")
+        );
+        let watcher = gate.check(5, at, hello(Role::Observer, None, None)).await;
+        assert_eq!(
+            watcher.map(|a| (a.identity, a.may_drive)),
+            Ok((Identity::Anonymous, false))
+        );
+        let closed = accounts(Observers::Accounts);
+        let refused = closed.check(6, at, hello(Role::Observer, None, None)).await;
+        assert!(refused.unwrap_err().why.contains("observers log in"));
+        let bob = closed
+            .check(
+                7,
+                at,
+                hello(Role::Observer, Some("bob"), Some("battery staple")),
+            )
+            .await;
+        assert!(bob.is_ok());
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn wrong_logins_from_one_address_are_limited_and_others_are_not() {
+        let gate = accounts(Observers::Anyone);
+        let (guesser, elsewhere) = (address(1), address(2));
+        let started = tokio::time::Instant::now();
+        let (mut checked, mut limited) = (0, 0);
+        for n in 0..30 {
+            let guess = hello(Role::Operator, Some("ada"), Some("guess1234"));
+            match gate.check(n, guesser, guess).await.unwrap_err().code {
+                ErrorCode::Unauthorized => checked += 1,
+                ErrorCode::TooManyAttempts => limited += 1,
+                other => panic!("{other}"),
+            }
+        }
+        let refilled = started.elapsed().as_secs_f64() / FAILURE_REFILL.as_secs_f64();
+        assert!(
+            f64::from(checked) <= FAILURES_BURST + refilled + 1.0,
+            "{checked} guesses checked in {:?}",
+            started.elapsed()
+        );
+        assert!(limited >= 10, "only {limited} held back");
+        // Another address is not held back by this one's failures.
+        let ok = hello(Role::Observer, Some("bob"), Some("battery staple"));
+        assert!(gate.check(100, elsewhere, ok).await.is_ok());
+    }
+
+    #[test]
+    fn an_account_guessed_from_many_addresses_is_held_and_the_others_are_not() {
+        let mut failures = Failures::default();
+        for n in 0..FAILURES_BURST as u8 {
+            assert!(failures.allowed(address(n), Some("ada")));
+            failures.failed(address(n), Some("ada"));
+        }
+        assert!(!failures.allowed(address(200), Some("ada")));
+        assert!(failures.allowed(address(200), Some("bob")));
+        assert!(failures.allowed(address(200), None));
+        // An address that failed as often is held for any account.
+        for _ in 0..FAILURES_BURST as u8 {
+            failures.failed(address(201), None);
+        }
+        assert!(!failures.allowed(address(201), Some("bob")));
+    }
+
+    #[test]
+    fn the_failures_remembered_are_bounded() {
+        let mut failures = Failures::default();
+        for n in 0..(MAX_ADDRESSES as u32 + 100) {
+            failures.failed(IpAddr::from(n.to_be_bytes()), None);
+        }
+        assert!(failures.by_address.len() <= MAX_ADDRESSES);
+    }
+}

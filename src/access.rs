@@ -1,0 +1,177 @@
+//! Who may use the lab, from the command line: the Host's accounts, token
+//! and audit log (`AccessArgs`), a Guest's login (`LoginArgs`), and `vl
+//! users`, which keeps the accounts file. Secrets come from a file, the
+//! environment or a prompt, so no other user of the machine reads them
+//! in the process list.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use vl_guest::Login;
+use vl_host::{AccountRole, Audit, HostConfig, Observers, Users};
+
+use crate::report::emit;
+use crate::{BadInput, named};
+
+/// The Host's door.
+#[derive(clap::Args)]
+pub(crate) struct AccessArgs {
+    /// The lab's accounts (TOML; `vl users add` writes it): operators log in.
+    #[arg(long)]
+    users: Option<PathBuf>,
+    /// With --users: whether anyone may watch, or only people with an account.
+    #[arg(long, value_parser = named::<Observers>(), default_value = "anyone", requires = "users")]
+    observers: Observers,
+    /// Operators (scripts) may instead present this token; better from
+    /// the environment or --token-file than on the command line.
+    #[arg(long, env = "VL_TOKEN", hide_env_values = true)]
+    token: Option<String>,
+    /// A file whose first line is the operators' token.
+    #[arg(long, conflicts_with = "token")]
+    token_file: Option<PathBuf>,
+    /// Append who did what (logins, roles, runs, refusals) to this file,
+    /// JSON lines (default with --users: audit.jsonl beside it).
+    #[arg(long)]
+    audit: Option<PathBuf>,
+}
+
+/// The first line of `path`: a secret kept in a file.
+fn first_line(path: &Path) -> Result<String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())))?;
+    let line = text.lines().next().unwrap_or("").trim();
+    anyhow::ensure!(
+        !line.is_empty(),
+        BadInput(format!("{} is empty", path.display()))
+    );
+    Ok(line.to_owned())
+}
+
+fn users_from(path: &Path) -> Result<Users> {
+    Users::load(path).map_err(|e| BadInput(e.to_string()).into())
+}
+
+impl AccessArgs {
+    /// Puts the door these flags describe into `config`.
+    pub(crate) fn apply(&self, config: &mut HostConfig) -> Result<()> {
+        config.token = match &self.token_file {
+            Some(file) => Some(first_line(file)?),
+            None => self.token.clone(),
+        };
+        if let Some(path) = &self.users {
+            let users = users_from(path)?;
+            anyhow::ensure!(
+                !users.is_empty(),
+                BadInput(format!(
+                    "{} holds no account: add one with vl users add",
+                    path.display()
+                ))
+            );
+            config.users = Some(users);
+            config.observers = self.observers;
+        }
+        let audit = self
+            .audit
+            .clone()
+            .or_else(|| self.users.as_ref().map(|u| u.with_file_name("audit.jsonl")));
+        if let Some(path) = audit {
+            config.audit = Audit::open(&path)
+                .with_context(|| format!("cannot open the audit log {}", path.display()))?;
+        }
+        Ok(())
+    }
+}
+
+/// How a Guest logs in.
+#[derive(clap::Args)]
+pub(crate) struct LoginArgs {
+    /// Log in with this account; the password comes from VL_PASSWORD or a prompt.
+    #[arg(long)]
+    user: Option<String>,
+    /// The operator token the Host asks for (or VL_TOKEN, or --token-file).
+    #[arg(
+        long,
+        env = "VL_TOKEN",
+        hide_env_values = true,
+        conflicts_with = "user"
+    )]
+    token: Option<String>,
+    /// A file whose first line is the operator token.
+    #[arg(long, conflicts_with_all = ["token", "user"])]
+    token_file: Option<PathBuf>,
+}
+
+impl LoginArgs {
+    pub(crate) fn login(&self) -> Result<Login> {
+        if let Some(user) = &self.user {
+            return Ok(Login::user(
+                user,
+                password(&format!("{user}'s password: "))?,
+            ));
+        }
+        Ok(Login::token(match &self.token_file {
+            Some(file) => Some(first_line(file)?),
+            None => self.token.clone(),
+        }))
+    }
+}
+
+/// A password: VL_PASSWORD when set, else asked for on the terminal.
+fn password(prompt: &str) -> Result<String> {
+    if let Ok(password) = std::env::var("VL_PASSWORD") {
+        return Ok(password);
+    }
+    rpassword::prompt_password(prompt).context("no password: set VL_PASSWORD or run on a terminal")
+}
+
+/// `vl users`: keep a lab's accounts file.
+#[derive(clap::Subcommand)]
+pub(crate) enum UsersCommand {
+    /// Add an account (the password from VL_PASSWORD or a prompt).
+    Add {
+        file: PathBuf,
+        name: String,
+        #[arg(long, value_parser = named::<AccountRole>(), default_value = "operator")]
+        role: AccountRole,
+    },
+    /// Remove an account.
+    Remove { file: PathBuf, name: String },
+    /// Set an account's password (from VL_PASSWORD or a prompt), and its role.
+    Passwd {
+        file: PathBuf,
+        name: String,
+        #[arg(long, value_parser = named::<AccountRole>())]
+        role: Option<AccountRole>,
+    },
+    /// List the accounts and their roles.
+    List {
+        file: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+pub(crate) fn users(command: UsersCommand) -> Result<ExitCode> {
+    let (UsersCommand::Add { file, .. }
+    | UsersCommand::Remove { file, .. }
+    | UsersCommand::Passwd { file, .. }
+    | UsersCommand::List { file, .. }) = &command;
+    let mut users = users_from(file)?;
+    match &command {
+        UsersCommand::List { json, .. } => {
+            return emit(&users.roster(), *json).map(|()| ExitCode::SUCCESS);
+        }
+        UsersCommand::Add { name, role, .. } => {
+            users.add(name, *role, &password(&format!("{name}'s password: "))?)
+        }
+        UsersCommand::Remove { name, .. } => users.remove(name),
+        UsersCommand::Passwd { name, role, .. } => {
+            users.passwd(name, &password(&format!("{name}'s new password: "))?, *role)
+        }
+    }
+    .and_then(|()| users.save(file))
+    .map_err(|e| BadInput(e.to_string()))?;
+    eprintln!("{}: {} accounts", file.display(), users.accounts().len());
+    Ok(ExitCode::SUCCESS)
+}

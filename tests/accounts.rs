@@ -1,0 +1,324 @@
+//! Accounts over real sockets and the real CLI: `vl users` keeps the file
+//! (hashes, never passwords), `vl host --users` lets in who it names and
+//! no one else, answers wrong credentials only after a delay and logs
+//! every attempt; tokens come from a file or the environment.
+
+use std::path::Path;
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+
+use crate::common::peer::Peer;
+use crate::common::{self, s, scratch, start_host, vl_bin};
+
+/// `vl users ARGS` with `password` in VL_PASSWORD.
+fn users(args: &[&str], password: &str) -> Output {
+    Command::new(vl_bin())
+        .arg("users")
+        .args(args)
+        .env("VL_PASSWORD", password)
+        .output()
+        .expect("vl runs")
+}
+
+/// A lab's accounts: ada drives, bob watches, root runs the lab.
+fn accounts(dir: &Path) -> String {
+    let file = dir.join("users.toml");
+    for (name, role, password) in [
+        ("ada", "operator", "correct horse"),
+        ("bob", "observer", "battery staple"),
+        ("root", "admin", "admin password"),
+    ] {
+        let out = users(&["add", s(&file), name, "--role", role], password);
+        assert!(out.status.success(), "{}", common::stderr(&out));
+    }
+    s(&file).to_owned()
+}
+
+fn hello(role: &str, user: Option<&str>, password: Option<&str>) -> Value {
+    let mut hello = json!({"type": "hello", "protocol": 1, "role": role});
+    if let (Some(user), Some(password)) = (user, password) {
+        hello["user"] = json!(user);
+        hello["password"] = json!(password);
+    }
+    hello
+}
+
+/// What the Host answers `hello` with: a welcome or an error.
+async fn answer(url: &str, hello: Value) -> Value {
+    let mut peer = Peer::connect(url).await;
+    peer.send(hello).await;
+    peer.next_of_any(&["welcome", "error"], Duration::from_secs(10))
+        .await
+        .expect("an answer to hello")
+}
+
+#[test]
+fn vl_users_keeps_hashes_and_refuses_what_it_cannot_do() {
+    let dir = scratch("users-cli");
+    let file = accounts(&dir);
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert!(
+        text.contains("$argon2id$") && !text.contains("correct horse"),
+        "{text}"
+    );
+    let listed = common::vl_json(&["users", "list", &file, "--json"]);
+    assert_eq!(
+        listed["accounts"][0],
+        json!({"name": "ada", "role": "operator"})
+    );
+    assert!(
+        !listed.to_string().contains("argon2"),
+        "no hashes in the list"
+    );
+    let again = users(&["add", &file, "ada"], "another password");
+    assert_eq!(again.status.code(), Some(2));
+    assert!(common::stderr(&again).contains("already an account 'ada'"));
+    let short = users(&["add", &file, "eve"], "short");
+    assert!(common::stderr(&short).contains("8 to 256 bytes"));
+    let king = users(&["add", &file, "eve", "--role", "king"], "long enough");
+    assert!(common::stderr(&king).contains("invalid value 'king'"));
+    let out = users(
+        &["passwd", &file, "bob", "--role", "operator"],
+        "new password",
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let out = users(&["remove", &file, "root"], "");
+    assert!(out.status.success());
+    let listed = common::vl_json(&["users", "list", &file, "--json"]);
+    assert_eq!(listed["accounts"].as_array().unwrap().len(), 2);
+    assert_eq!(listed["accounts"][1]["role"], "operator");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_lab_with_accounts_lets_in_whom_it_names_and_logs_it() {
+    let dir = scratch("users-host");
+    let file = accounts(&dir);
+    let (_host, url) = start_host(&["--users", &file]);
+    let welcome = answer(&url, hello("operator", Some("ada"), Some("correct horse"))).await;
+    assert_eq!(welcome["type"], "welcome", "{welcome}");
+    assert_eq!(welcome["user"], "ada");
+    // Anyone may watch, by default; no one drives without logging in.
+    let watcher = answer(&url, hello("observer", None, None)).await;
+    assert_eq!(watcher["type"], "welcome", "{watcher}");
+    let anonymous = answer(&url, hello("operator", None, None)).await;
+    assert_eq!(anonymous["code"], "unauthorized");
+    assert!(
+        anonymous["message"]
+            .as_str()
+            .unwrap()
+            .contains("log in with an account"),
+        "{anonymous}"
+    );
+    let bob = answer(&url, hello("operator", Some("bob"), Some("battery staple"))).await;
+    assert!(
+        bob["message"]
+            .as_str()
+            .unwrap()
+            .contains("may watch, not drive"),
+        "{bob}"
+    );
+    // A wrong password and a name with no account alike: refused after the delay.
+    for (user, password) in [("ada", "wrong horse"), ("nobody", "correct horse")] {
+        let started = Instant::now();
+        let wrong = answer(&url, hello("observer", Some(user), Some(password))).await;
+        assert_eq!(wrong["code"], "unauthorized", "{wrong}");
+        assert_eq!(wrong["message"], "wrong user name or password");
+        assert!(
+            started.elapsed() >= Duration::from_secs(1),
+            "{user}: no delay"
+        );
+    }
+    // The audit log beside the accounts file has it all.
+    let audit = dir.join("audit.jsonl");
+    let by = Instant::now() + Duration::from_secs(5);
+    let events = loop {
+        let text = std::fs::read_to_string(&audit).unwrap_or_default();
+        let events: Vec<Value> = text
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        if events
+            .iter()
+            .filter(|e| e["event"] == "login_failed")
+            .count()
+            == 2
+            || Instant::now() > by
+        {
+            break events;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    let has = |event: &str, user: Option<&str>| {
+        events
+            .iter()
+            .any(|e| e["event"] == event && user.is_none_or(|u| e["user"] == u))
+    };
+    assert!(has("login", Some("ada")), "{events:?}");
+    assert!(has("welcome", Some("ada")), "{events:?}");
+    assert!(has("refused", Some("bob")), "{events:?}");
+    assert!(has("login_failed", Some("nobody")), "{events:?}");
+    assert!(
+        events.iter().all(|e| !e.to_string().contains("horse")),
+        "no password is logged"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_closed_lab_refuses_anonymous_observers() {
+    let dir = scratch("users-closed");
+    let file = accounts(&dir);
+    let (_host, url) = start_host(&["--users", &file, "--observers", "accounts"]);
+    let anonymous = answer(&url, hello("observer", None, None)).await;
+    assert!(
+        anonymous["message"]
+            .as_str()
+            .unwrap()
+            .contains("observers log in"),
+        "{anonymous}"
+    );
+    let bob = answer(&url, hello("observer", Some("bob"), Some("battery staple"))).await;
+    assert_eq!(bob["type"], "welcome", "{bob}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn tokens_come_from_a_file_or_the_environment() {
+    let dir = scratch("token-file");
+    let token = dir.join("token");
+    std::fs::write(&token, "s3cret\n").unwrap();
+    let (_host, url) = start_host(&["--token-file", s(&token)]);
+    let right = json!({"type": "hello", "protocol": 1, "role": "operator", "token": "s3cret"});
+    assert_eq!(answer(&url, right).await["type"], "welcome");
+    // A headless Guest reads it from VL_TOKEN.
+    let watched = Command::new(vl_bin())
+        .args(["guest", "--headless", "--connect", &url, "--timeout", "60"])
+        .env("VL_TOKEN", "s3cret")
+        .output()
+        .unwrap();
+    assert!(watched.status.success(), "{}", common::stderr(&watched));
+}
+
+#[test]
+fn a_headless_guest_logs_in_and_runs() {
+    let dir = scratch("users-guest");
+    let file = accounts(&dir);
+    let (_host, url) = start_host(&["--users", &file]);
+    let run = |user: &str, password: &str| {
+        Command::new(vl_bin())
+            .args([
+                "guest",
+                "--headless",
+                "--json",
+                "--connect",
+                &url,
+                "--user",
+                user,
+            ])
+            .env("VL_PASSWORD", password)
+            .output()
+            .unwrap()
+    };
+    let refused = run("ada", "wrong horse");
+    assert!(!refused.status.success());
+    assert!(common::stderr(&refused).contains("wrong user name or password"));
+    let done = run("ada", "correct horse");
+    assert!(done.status.success(), "{}", common::stderr(&done));
+    let report: Value = serde_json::from_slice(&done.stdout).unwrap();
+    assert_eq!(report["reached_goal"], true);
+}
+
+/// A password-bearing hello for the account `user`.
+fn login(role: &str, user: &str, password: &str) -> Value {
+    hello(role, Some(user), Some(password))
+}
+
+/// Two people want control of a lab whose slots last 2 s, with sixty
+/// anonymous people watching: the second waits first in line (told how
+/// long at most), keeps the place across a dropped link, and gets control
+/// when the slot ends; the first then watches.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_second_in_line_drives_when_the_first_s_slot_ends() {
+    let dir = scratch("queue-host");
+    let file = accounts(&dir);
+    let out = users(&["add", &file, "carol"], "carol's password");
+    assert!(out.status.success());
+    let (_host, url) = start_host(&["--users", &file, "--slot", "3s"]);
+    let mut watchers = Vec::new();
+    for _ in 0..60 {
+        let mut watcher = Peer::connect(&url).await;
+        watcher.hello("observer").await;
+        watchers.push(watcher);
+    }
+    let mut ada = Peer::connect(&url).await;
+    ada.send(login("operator", "ada", "correct horse")).await;
+    ada.expect("welcome").await;
+    let slot = ada.expect("role").await;
+    assert!(slot["slot_s"].as_f64().unwrap() <= 3.0, "{slot}");
+    let mut carol = Peer::connect(&url).await;
+    carol
+        .send(login("operator", "carol", "carol's password"))
+        .await;
+    carol.expect_error("operator_taken").await;
+    carol
+        .send(login("observer", "carol", "carol's password"))
+        .await;
+    carol.expect("welcome").await;
+    carol.send(json!({"type": "queue"})).await;
+    let place = carol.expect("queue").await;
+    assert_eq!(place["position"], 1, "{place}");
+    assert!(place["wait_s"].as_f64().unwrap() <= 3.0, "{place}");
+    // Her link drops (no close) and she comes back: still first.
+    drop(carol);
+    let mut carol = Peer::connect(&url).await;
+    carol
+        .send(login("observer", "carol", "carol's password"))
+        .await;
+    carol.expect("welcome").await;
+    assert_eq!(carol.expect("queue").await["position"], 1);
+    let granted = carol
+        .next_of("role", Duration::from_secs(10))
+        .await
+        .expect("control when the slot ends");
+    assert_eq!(granted["role"], "operator", "{granted}");
+    assert!(granted["resume"].is_string(), "{granted}");
+    // Ada watches now: told so, and refused what only the operator may do.
+    let mut told = ada.expect("role").await;
+    while told["role"] == "operator" {
+        told = ada.expect("role").await;
+    }
+    assert_eq!(told["role"], "observer");
+    ada.send(json!({"type": "mount", "experiment": "navigation"}))
+        .await;
+    ada.expect_error("not_operator").await;
+    carol
+        .send(json!({"type": "mount", "experiment": "navigation"}))
+        .await;
+    carol.expect("mounted").await;
+}
+
+/// A headless Guest that asks to drive a busy lab waits in line, then runs.
+#[test]
+fn a_headless_guest_waits_its_turn_and_runs() {
+    let dir = scratch("queue-guest");
+    let file = accounts(&dir);
+    let (_host, url) = start_host(&["--users", &file, "--slot", "2s"]);
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let mut ada = runtime.block_on(async {
+        let mut ada = Peer::connect(&url).await;
+        ada.send(login("operator", "ada", "correct horse")).await;
+        ada.expect("welcome").await;
+        ada
+    });
+    let out = Command::new(vl_bin())
+        .args(["guest", "--headless", "--connect", &url, "--user", "root"])
+        .env("VL_PASSWORD", "admin password")
+        .output()
+        .unwrap();
+    // Success is reaching the goal.
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let err = common::stderr(&out);
+    assert!(err.contains("waiting in line for control"), "{err}");
+    assert!(err.contains("1 in line for control"), "{err}");
+    runtime.block_on(async { ada.expect("role").await });
+}
