@@ -9,7 +9,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use vl_guest::Login;
-use vl_host::{AccountRole, Audit, HostConfig, Observers, Users};
+use vl_host::{AccountRole, Audit, HostConfig, Observers, Tls, Users};
 
 use crate::report::emit;
 use crate::{BadInput, named};
@@ -34,6 +34,16 @@ pub(crate) struct AccessArgs {
     /// JSON lines (default with --users: audit.jsonl beside it).
     #[arg(long)]
     audit: Option<PathBuf>,
+    /// Speak only WebSocket over TLS (wss://) with this PEM certificate chain…
+    #[arg(long, requires = "tls_key")]
+    tls_cert: Option<PathBuf>,
+    /// …and its PEM private key.
+    #[arg(long, requires = "tls_cert")]
+    tls_key: Option<PathBuf>,
+    /// Or with a certificate made now and signed by itself; Guests pin it
+    /// by the fingerprint in the address the Host prints (#pin=…).
+    #[arg(long, conflicts_with = "tls_cert")]
+    tls_self_signed: bool,
 }
 
 /// The first line of `path`: a secret kept in a file.
@@ -71,6 +81,13 @@ impl AccessArgs {
             config.users = Some(users);
             config.observers = self.observers;
         }
+        config.tls = match (&self.tls_cert, &self.tls_key) {
+            (Some(cert), Some(key)) => Some(Tls::from_files(cert, key)),
+            _ if self.tls_self_signed => Some(Tls::self_signed(vec!["localhost".into()])),
+            _ => None,
+        }
+        .transpose()
+        .map_err(|e| BadInput(e.to_string()))?;
         let audit = self
             .audit
             .clone()

@@ -120,16 +120,9 @@ pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Resul
     }
     let pad = gamepad(&args.gamepad, args.dead_man)?;
     let _entered = runtime.enter();
-    let shown = vl_guest::run_window(&args.connect, role, args.login.login()?, pad);
-    // The window is gone and with it its connection: give the goodbye
-    // time to leave, so an operator's role is free at once.
-    std::thread::sleep(GOODBYE_WAIT);
-    shown.map_err(guest_error)?;
+    vl_guest::run_window(&args.connect, role, args.login.login()?, pad).map_err(guest_error)?;
     Ok(ExitCode::SUCCESS)
 }
-
-/// How long a Guest that ends lets its connection's goodbye go out.
-const GOODBYE_WAIT: Duration = Duration::from_millis(300);
 
 /// Runs a headless Guest until it ends or Ctrl-C; on Ctrl-C its connection
 /// is dropped, which closes the WebSocket (a goodbye: the Host frees the
@@ -142,7 +135,7 @@ fn interruptible<T>(
         tokio::select! {
             done = guest => Ok(done),
             _ = tokio::signal::ctrl_c() => {
-                tokio::time::sleep(GOODBYE_WAIT).await;
+                tokio::time::sleep(vl_guest::GOODBYE_WAIT).await;
                 eprintln!("vl guest: interrupted; said goodbye to the Host");
                 std::process::exit(130);
             }
@@ -164,8 +157,7 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
         .context("cannot start the simulated Host")?;
     let media = runtime.block_on(args.link.front(listen, &host.url()))?;
     let url = media.as_ref().map_or_else(|| host.url(), Media::url);
-    let has_display =
-        std::env::var_os("DISPLAY").is_some() || std::env::var_os("WAYLAND_DISPLAY").is_some();
+    let has_display = vl_guest::display_available();
     if !args.headless && !has_display {
         eprintln!(
             "vl demo: no display (neither DISPLAY nor WAYLAND_DISPLAY is set); running headless"

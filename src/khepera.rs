@@ -57,13 +57,6 @@ pub(crate) struct GuardArgs {
 }
 
 pub(crate) fn serial_guard(args: GuardArgs) -> Result<ExitCode> {
-    // A Host that dies mid-exchange leaves the reply nowhere to go: the
-    // guard must see that as an error and stop the robot, not be killed
-    // by SIGPIPE as a filter would be.
-    // SAFETY: setting one signal's action before the guard starts any thread.
-    unsafe {
-        libc::signal(libc::SIGPIPE, libc::SIG_IGN);
-    }
     // The Host heard of any failure through the pipe already.
     Ok(match vl_host::run_guard(&args.port, args.baud) {
         Ok(()) => ExitCode::SUCCESS,

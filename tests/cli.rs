@@ -123,8 +123,8 @@ fn addresses_that_cannot_be_a_host_get_a_hint() {
         "it has no scheme: try ws://127.0.0.1:7400",
     );
     refused(
-        &["guest", "--connect", "wss://lab.example:7400"],
-        "wss:// (WebSocket over TLS) is not supported yet: connect with ws://lab.example:7400",
+        &["guest", "--connect", "wss://lab.example:7400/#pin=00"],
+        "is not a SHA-256 fingerprint: 64 hex digits",
     );
 }
 

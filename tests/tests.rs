@@ -38,4 +38,5 @@ mod serial_safety;
 mod sim_cli;
 mod sim_link;
 mod structure;
+mod tls;
 mod vision;

@@ -110,6 +110,7 @@ pub use vl_petri::table;
 pub use contract::experiment::{
     Definition, DefinitionError, Experiment, ExperimentInfo, Goal, LOOKAHEAD_MM,
 };
+pub use contract::fingerprint::Fingerprint;
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::protocol::{
     DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HeldBack, HostMessage,

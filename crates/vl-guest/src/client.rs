@@ -10,6 +10,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
+use crate::dial::Target;
 use futures_util::{SinkExt, StreamExt};
 use thiserror::Error;
 use tokio::sync::mpsc;
@@ -64,24 +65,11 @@ impl ClientError {
 }
 
 /// Checks that `url` is one a Host listens on, with a hint when it is not.
-fn check_url(url: &str) -> Result<(), ClientError> {
-    let bad = |why: String| ClientError::BadUrl {
+fn check_url(url: &str) -> Result<Target, ClientError> {
+    Target::of(url).map_err(|why| ClientError::BadUrl {
         url: url.to_owned(),
         why,
-    };
-    match url.split_once("://") {
-        Some(("ws", rest)) if !rest.is_empty() => Ok(()),
-        Some(("wss", rest)) => Err(bad(format!(
-            "wss:// (WebSocket over TLS) is not supported yet: connect with ws://{rest}, \
-             and where the link must be encrypted, through an SSH tunnel or a TLS proxy in \
-             front of the Host"
-        ))),
-        Some(("ws", _)) => Err(bad("it names no host".into())),
-        Some((scheme, rest)) => Err(bad(format!(
-            "a Host speaks WebSocket, not {scheme}://: try ws://{rest}"
-        ))),
-        None => Err(bad(format!("it has no scheme: try ws://{url}"))),
-    }
+    })
 }
 
 /// What went wrong, in words, said once: tungstenite's errors repeat
@@ -228,6 +216,9 @@ impl Connection {
     }
 }
 
+/// How long a Guest that ends lets its connection's goodbye go out.
+pub const GOODBYE_WAIT: Duration = Duration::from_millis(300);
+
 /// How long a goodbye may take.
 const GOODBYE: Duration = Duration::from_secs(1);
 
@@ -235,8 +226,7 @@ const GOODBYE: Duration = Duration::from_secs(1);
 const RECONNECT_FIRST: Duration = Duration::from_millis(250);
 const RECONNECT_MAX: Duration = Duration::from_secs(4);
 
-type Socket =
-    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+type Socket = tokio_tungstenite::WebSocketStream<Box<dyn vl_host::Io>>;
 
 /// Why serving a connection stopped.
 enum Ended {
@@ -316,7 +306,7 @@ impl Remembered {
 /// is sent while an established link is down is dropped: a command must
 /// not arrive late. [`Connection::close`] says goodbye.
 pub fn open(url: &str) -> Result<Connection, ClientError> {
-    check_url(url)?;
+    let target = check_url(url)?;
     let (outgoing, mut to_send) = mpsc::unbounded_channel::<GuestMessage>();
     let (to_guest, incoming) = mpsc::unbounded_channel();
     let waiting = Arc::new(Waiting::default());
@@ -331,7 +321,7 @@ pub fn open(url: &str) -> Result<Connection, ClientError> {
         let mut attempt = 0u32;
         let mut wait = RECONNECT_FIRST;
         loop {
-            let why = match connect(&url).await {
+            let why = match connect(&target).await {
                 // Something answered that is no vl Host: trying again
                 // will not change that.
                 Err(Refusal::NotAHost(cause)) => {
@@ -419,16 +409,27 @@ impl Deliver {
     }
 }
 
-/// Connects to `url`, within the connect timeout.
-async fn connect(url: &str) -> Result<Socket, Refusal> {
+/// Connects to `target`, within the connect timeout.
+async fn connect(target: &Target) -> Result<Socket, Refusal> {
     let config = WebSocketConfig::default()
         .max_message_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)))
         .max_frame_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)));
-    let connecting = tokio_tungstenite::connect_async_with_config(url, Some(config), true);
+    let connecting = async {
+        let stream = target.dial().await.map_err(|e| match e.get_ref() {
+            // A certificate that is not the pinned one will not become it.
+            Some(inner) if inner.is::<rustls::Error>() => Refusal::NotAHost(e.to_string()),
+            _ => Refusal::Unreachable(cause(&tungstenite::Error::Io(e))),
+        })?;
+        tokio_tungstenite::client_async_with_config(target.url.as_str(), stream, Some(config))
+            .await
+            .map_err(|e| match answered_not_as_a_host(&e) {
+                true => Refusal::NotAHost(cause(&e)),
+                false => Refusal::Unreachable(cause(&e)),
+            })
+    };
     match tokio::time::timeout(CONNECT_TIMEOUT, connecting).await {
         Ok(Ok((ws, _))) => Ok(ws),
-        Ok(Err(e)) if answered_not_as_a_host(&e) => Err(Refusal::NotAHost(cause(&e))),
-        Ok(Err(e)) => Err(Refusal::Unreachable(cause(&e))),
+        Ok(Err(refused)) => Err(refused),
         Err(_) => Err(Refusal::Unreachable(format!(
             "no answer within {} s",
             CONNECT_TIMEOUT.as_secs()
@@ -590,13 +591,14 @@ mod tests {
 
     #[test]
     fn addresses_that_cannot_be_a_host_get_a_hint() {
-        assert_eq!(check_url("ws://127.0.0.1:7400"), Ok(()));
+        assert!(check_url("ws://127.0.0.1:7400").is_ok());
+        assert!(check_url("wss://lab.example:7400").is_ok());
         let hint = |url: &str| check_url(url).unwrap_err().to_string();
         assert_eq!(
             hint("127.0.0.1:7400"),
             "'127.0.0.1:7400' is not a Host's address: it has no scheme: try ws://127.0.0.1:7400"
         );
-        assert!(hint("wss://lab.example:7400").contains("ws://lab.example:7400"));
+        assert!(hint("ws://lab.example:7400/#pin=ab").contains("SHA-256"));
         assert!(hint("http://lab:7400").contains("try ws://lab:7400"));
         assert!(hint("ws://").contains("names no host"));
     }

@@ -35,6 +35,7 @@
 
 mod app;
 mod client;
+mod dial;
 pub mod experiment;
 mod gamepad;
 mod headless;
@@ -45,8 +46,8 @@ mod route;
 mod session;
 mod settings;
 
-pub use app::{CAMERA_VIEW, GuestApp, WindowError, run_window};
-pub use client::{ClientError, Connection, Incoming, open};
+pub use app::{CAMERA_VIEW, GuestApp, WindowError, display_available, run_window};
+pub use client::{ClientError, Connection, GOODBYE_WAIT, Incoming, open};
 #[cfg(target_os = "linux")]
 pub use gamepad::Gamepad;
 pub use gamepad::{Effect, GamepadError, Pad, PadChoice, PadInput, effect};

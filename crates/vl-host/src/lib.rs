@@ -80,6 +80,7 @@ mod server;
 mod setup;
 mod sim;
 mod source;
+mod tls;
 mod webcam;
 
 use std::net::SocketAddr;
@@ -104,10 +105,11 @@ pub use media::{
     bench as media_bench,
 };
 pub use replay::ReplayCamera;
-pub use server::HostConfig;
 pub use server::bench::{BenchError, OperatorLatency, operator_latency};
+pub use server::{HostConfig, Io};
 pub use setup::{LabSpec, RobotSpec, SetupError};
 pub use source::CameraSource;
+pub use tls::{Tls, TlsError};
 #[cfg(target_os = "linux")]
 pub use webcam::{DeviceInfo, V4l2Camera, V4l2Spec, Webcams, list_devices};
 pub use webcam::{HttpCamera, PixelFormat, decode as decode_pixels};
@@ -165,6 +167,8 @@ impl SimLab {
 /// A Host, bound and serving its lab in the background.
 pub struct Host {
     pub addr: SocketAddr,
+    /// The certificate's fingerprint, when the Host speaks TLS.
+    pin: Option<vl_core::Fingerprint>,
     task: tokio::task::JoinHandle<()>,
 }
 
@@ -183,8 +187,9 @@ impl Host {
         let addr = listener
             .local_addr()
             .map_err(|e| HostError::Bind(listen, e))?;
+        let pin = config.tls.as_ref().map(|tls| tls.fingerprint);
         let task = tokio::spawn(server::serve(listener, lab, config));
-        Ok(Host { addr, task })
+        Ok(Host { addr, pin, task })
     }
 
     /// Binds `listen` and serves the simulated `lab`.
@@ -228,8 +233,13 @@ impl Host {
     }
 
     /// The WebSocket URL Guests connect to.
+    /// Where Guests connect: `ws://`, or with TLS `wss://` with the
+    /// certificate's fingerprint for the Guest to pin.
     pub fn url(&self) -> String {
-        format!("ws://{}", self.addr)
+        match self.pin {
+            Some(pin) => format!("wss://{}/#pin={pin}", self.addr),
+            None => format!("ws://{}", self.addr),
+        }
     }
 
     /// Serves until the process ends.

@@ -228,6 +228,14 @@ impl Drop for GuardedLine {
 /// said to the Host on the pipe, so an error returned here needs no more
 /// telling.
 pub fn run_guard(device: &str, baud: u32) -> Result<(), RobotError> {
+    // A Host that dies mid-exchange leaves the reply nowhere to go: the
+    // guard must see that as an error and stop the robot, not be killed
+    // by SIGPIPE as a filter would be.
+    #[cfg(target_os = "linux")]
+    // SAFETY: setting one signal's action before the guard starts any thread.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_IGN);
+    }
     let mut out = std::io::stdout().lock();
     let mut say = |line: &str| -> Result<(), RobotError> {
         writeln!(out, "{line}")

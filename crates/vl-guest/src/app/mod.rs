@@ -16,6 +16,7 @@ use vl_core::{
     Teleop, Vector,
 };
 
+use crate::client::GOODBYE_WAIT;
 use crate::client::{ClientError, Connection, open};
 use crate::gamepad::Pad;
 use crate::login::Login;
@@ -497,8 +498,17 @@ pub fn run_window(
             .with_inner_size([1100.0, 720.0]),
         ..Default::default()
     };
-    eframe::run_native("vl guest", options, Box::new(move |_cc| Ok(Box::new(app))))
-        .map_err(|e| WindowError::Window(e.to_string()))
+    let shown = eframe::run_native("vl guest", options, Box::new(move |_cc| Ok(Box::new(app))))
+        .map_err(|e| WindowError::Window(e.to_string()));
+    // The window is gone and with it its connection: give the goodbye
+    // time to leave, so an operator's role is free at once.
+    std::thread::sleep(GOODBYE_WAIT);
+    shown
+}
+
+/// Whether a window can open here: a display is set.
+pub fn display_available() -> bool {
+    std::env::var_os("DISPLAY").is_some() || std::env::var_os("WAYLAND_DISPLAY").is_some()
 }
 
 /// Why the window did not run.

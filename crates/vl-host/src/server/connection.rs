@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 
 use futures_util::stream::SplitSink;
 use futures_util::{SinkExt, StreamExt};
+use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, watch};
 use tokio_tungstenite::WebSocketStream;
@@ -107,7 +108,13 @@ impl Bucket {
     }
 }
 
-type Sink = SplitSink<WebSocketStream<TcpStream>, Message>;
+/// A connection's byte stream: plain TCP, or TLS over it.
+pub trait Io: AsyncRead + AsyncWrite + Unpin + Send {}
+
+impl<T: AsyncRead + AsyncWrite + Unpin + Send> Io for T {}
+
+type Socket = WebSocketStream<Box<dyn Io>>;
+type Sink = SplitSink<Socket, Message>;
 
 /// Writes `message`, within the write timeout.
 async fn put(sink: &mut Sink, message: Message) -> Result<(), End> {
@@ -150,7 +157,14 @@ impl Connection {
             .max_message_size(Some(MAX_TEXT_BYTES))
             .max_frame_size(Some(MAX_TEXT_BYTES))
             .max_write_buffer_size(WRITE_BUFFER);
-        let handshake = tokio_tungstenite::accept_async_with_config(stream, Some(ws_config));
+        let tls = self.config.tls.as_ref().map(|tls| tls.config.clone());
+        let handshake = async move {
+            let stream: Box<dyn Io> = match tls {
+                Some(tls) => Box::new(tokio_rustls::TlsAcceptor::from(tls).accept(stream).await?),
+                None => Box::new(stream),
+            };
+            tokio_tungstenite::accept_async_with_config(stream, Some(ws_config)).await
+        };
         let mut evicted = self.ticket.evicted.clone();
         let ws = tokio::select! {
             ws = tokio::time::timeout(HANDSHAKE_TIMEOUT, handshake) => match ws {
@@ -194,7 +208,7 @@ impl Connection {
     async fn serve(
         &mut self,
         sink: &mut Sink,
-        source: &mut futures_util::stream::SplitStream<WebSocketStream<TcpStream>>,
+        source: &mut futures_util::stream::SplitStream<Socket>,
         inbox: &mut mpsc::Receiver<ToConnection>,
     ) -> End {
         let hello_by = tokio::time::Instant::now() + self.config.hello_timeout;

@@ -15,6 +15,7 @@
 pub(crate) mod admission;
 pub(crate) mod bench;
 mod connection;
+pub use connection::Io;
 mod hub;
 
 use std::path::PathBuf;
@@ -30,6 +31,7 @@ use crate::accounts::audit::Audit;
 use crate::accounts::gate::{Gate, Observers};
 use crate::accounts::users::Users;
 use crate::lab::{FramePolicy, Lab};
+use crate::tls::Tls;
 use admission::Admission;
 use connection::Connection;
 use hub::Hub;
@@ -45,6 +47,8 @@ pub struct HostConfig {
     pub observers: Observers,
     /// Where who did what is logged (none: nowhere).
     pub audit: Audit,
+    /// WebSocket over TLS only (`wss://`), with this certificate.
+    pub tls: Option<Tls>,
     /// What the lab offers, in the order Guests list it.
     pub experiments: Vec<Experiment>,
     /// An operator who sends no command for this long during a run loses
@@ -92,6 +96,7 @@ impl Default for HostConfig {
             users: None,
             observers: Observers::default(),
             audit: Audit::default(),
+            tls: None,
             experiments: Experiment::ALL.to_vec(),
             lease: Duration::from_secs(30),
             slot: None,
