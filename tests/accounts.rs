@@ -96,9 +96,15 @@ async fn a_lab_with_accounts_lets_in_whom_it_names_and_logs_it() {
     let dir = scratch("users-host");
     let file = accounts(&dir);
     let (_host, url) = start_host(&["--users", &file]);
-    let welcome = answer(&url, hello("operator", Some("ada"), Some("correct horse"))).await;
-    assert_eq!(welcome["type"], "welcome", "{welcome}");
-    assert_eq!(welcome["user"], "ada");
+    let mut ada = Peer::connect(&url).await;
+    ada.send(hello("operator", Some("ada"), Some("correct horse")))
+        .await;
+    let welcome = ada.expect("welcome").await;
+    assert_eq!(welcome["user"], "ada", "{welcome}");
+    // A run of hers, started and stopped, is logged with her name.
+    ada.start("teleoperation").await;
+    ada.send(json!({"type": "stop"})).await;
+    ada.expect("done").await;
     // Anyone may watch, by default; no one drives without logging in.
     let watcher = answer(&url, hello("observer", None, None)).await;
     assert_eq!(watcher["type"], "welcome", "{watcher}");
@@ -157,6 +163,8 @@ async fn a_lab_with_accounts_lets_in_whom_it_names_and_logs_it() {
     };
     assert!(has("login", Some("ada")), "{events:?}");
     assert!(has("welcome", Some("ada")), "{events:?}");
+    assert!(has("run_started", Some("ada")), "{events:?}");
+    assert!(has("run_ended", None), "{events:?}");
     assert!(has("refused", Some("bob")), "{events:?}");
     assert!(has("login_failed", Some("nobody")), "{events:?}");
     assert!(
@@ -178,8 +186,32 @@ async fn a_closed_lab_refuses_anonymous_observers() {
             .contains("observers log in"),
         "{anonymous}"
     );
-    let bob = answer(&url, hello("observer", Some("bob"), Some("battery staple"))).await;
-    assert_eq!(bob["type"], "welcome", "{bob}");
+    let mut bob = Peer::connect(&url).await;
+    bob.send(hello("observer", Some("bob"), Some("battery staple")))
+        .await;
+    bob.expect("welcome").await;
+    // An observer may not do what only the operator may; the stop button
+    // stays everyone's.
+    for refused in [
+        json!({"type": "command", "event": 1, "left": 100, "right": 100}),
+        json!({"type": "mount", "experiment": "navigation"}),
+        json!({"type": "define", "goal": {"x_mm": 500, "y_mm": 300, "tolerance_mm": 15}}),
+        json!({"type": "start"}),
+        json!({"type": "stop"}),
+    ] {
+        bob.send(refused.clone()).await;
+        let e = bob.expect_error("not_operator").await;
+        assert!(
+            e["message"].as_str().unwrap().contains("observers watch"),
+            "{refused}: {e}"
+        );
+    }
+    bob.send(json!({"type": "emergency_stop"})).await;
+    assert!(
+        bob.next_of("error", Duration::from_millis(500))
+            .await
+            .is_none()
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -321,4 +353,52 @@ fn a_headless_guest_waits_its_turn_and_runs() {
     assert!(err.contains("waiting in line for control"), "{err}");
     assert!(err.contains("1 in line for control"), "{err}");
     runtime.block_on(async { ada.expect("role").await });
+}
+
+/// Forty wrong passwords from one address, eight connections at a time
+/// (as many as the Host admits from one address before hello), each trying
+/// again as soon as it is answered: the Host checks no more than its
+/// allowance and refuses the rest unchecked; one refill later the address
+/// may try again, and a right password gets in.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_flood_of_wrong_passwords_is_checked_only_as_far_as_allowed() {
+    let dir = scratch("users-flood");
+    let file = accounts(&dir);
+    let (_host, url) = start_host(&["--users", &file]);
+    let started = Instant::now();
+    let mut guessers = tokio::task::JoinSet::new();
+    for n in 0..8 {
+        let url = url.clone();
+        guessers.spawn(async move {
+            let mut peer = Peer::connect(&url).await;
+            let mut codes = Vec::new();
+            for k in 0..5 {
+                let guess = format!("guess {n} {k}");
+                peer.send(login("operator", "ada", &guess)).await;
+                let answer = peer.next_of("error", Duration::from_secs(10)).await;
+                codes.push(answer.map(|e| e["code"].as_str().unwrap_or("").to_owned()));
+            }
+            codes
+        });
+    }
+    let (mut checked, mut limited) = (0, 0);
+    while let Some(codes) = guessers.join_next().await {
+        for code in codes.unwrap().into_iter().flatten() {
+            match code.as_str() {
+                "unauthorized" => checked += 1,
+                "too_many_attempts" => limited += 1,
+                other => panic!("{other}"),
+            }
+        }
+    }
+    assert_eq!(checked + limited, 40, "every guess answered");
+    let refilled = started.elapsed().as_secs_f64() / 6.0;
+    assert!(
+        f64::from(checked) <= 10.0 + refilled.ceil() + 1.0,
+        "{checked} guesses checked in {:?}",
+        started.elapsed()
+    );
+    tokio::time::sleep(Duration::from_secs(6)).await;
+    let ada = answer(&url, login("observer", "ada", "correct horse")).await;
+    assert_eq!(ada["type"], "welcome", "{ada}");
 }

@@ -105,7 +105,7 @@ pub use media::{
     bench as media_bench,
 };
 pub use replay::ReplayCamera;
-pub use server::bench::{BenchError, OperatorLatency, operator_latency};
+pub use server::bench::{BenchError, Guessing, OperatorLatency, operator_latency};
 pub use server::{HostConfig, Io};
 pub use setup::{LabSpec, RobotSpec, SetupError};
 pub use source::CameraSource;

@@ -145,19 +145,16 @@ struct Failures {
 }
 
 impl Failures {
-    /// Whether another attempt from `address` (for `account`) may be checked.
-    fn allowed(&mut self, address: IpAddr, account: Option<&str>) -> bool {
-        let by_address = self
-            .by_address
-            .get_mut(&address)
-            .is_none_or(|a| a.now() >= 1.0);
-        let by_account = account
-            .and_then(|name| self.by_account.get_mut(name))
-            .is_none_or(|a| a.now() >= 1.0);
-        by_address && by_account
-    }
-
-    fn failed(&mut self, address: IpAddr, account: Option<&str>) {
+    /// Takes one failure's worth of allowance from `address` (and
+    /// `account`) for an attempt about to be checked: false, taking
+    /// nothing, when either has none left. Taken before the check, so
+    /// attempts checked at once cannot pass the limit together.
+    fn take(&mut self, address: IpAddr, account: Option<&str>) -> bool {
+        let left = |a: Option<&mut Allowance>| a.is_none_or(|a| a.now() >= 1.0);
+        let by_account = account.and_then(|name| self.by_account.get_mut(name));
+        if !left(by_account) || !left(self.by_address.get_mut(&address)) {
+            return false;
+        }
         if self.by_address.len() >= MAX_ADDRESSES && !self.by_address.contains_key(&address) {
             self.by_address.retain(|_, a| a.now() < FAILURES_BURST);
             if self.by_address.len() >= MAX_ADDRESSES {
@@ -184,6 +181,16 @@ impl Failures {
                     .or_insert_with(Allowance::full),
             );
         }
+        true
+    }
+
+    /// Gives back what an attempt that succeeded took.
+    fn refund(&mut self, address: IpAddr, account: Option<&str>) {
+        let give = |a: &mut Allowance| a.left = (a.left + 1.0).min(FAILURES_BURST);
+        self.by_address.get_mut(&address).map(give);
+        account
+            .and_then(|name| self.by_account.get_mut(name))
+            .map(give);
     }
 }
 
@@ -244,7 +251,7 @@ impl Gate {
                     .as_ref()
                     .is_some_and(|u| u.role_of(name).is_some())
             });
-            if !self.failures().allowed(address, account) {
+            if !self.failures().take(address, account) {
                 self.audit.record(log("rate_limited"));
                 tokio::time::sleep(FAILURE_DELAY).await;
                 let wait = FAILURE_REFILL.as_secs();
@@ -255,12 +262,12 @@ impl Gate {
             }
             match self.prove(hello).await {
                 Ok(identity) => {
+                    self.failures().refund(address, account);
                     self.audit
                         .record(log("login").detail(hello.role.to_string()));
                     identity
                 }
                 Err(why) => {
-                    self.failures().failed(address, account);
                     self.audit.record(log("login_failed").detail(why.clone()));
                     tokio::time::sleep(FAILURE_DELAY).await;
                     return Err(refusal(ErrorCode::Unauthorized, why));
@@ -489,24 +496,26 @@ mod tests {
     fn an_account_guessed_from_many_addresses_is_held_and_the_others_are_not() {
         let mut failures = Failures::default();
         for n in 0..FAILURES_BURST as u8 {
-            assert!(failures.allowed(address(n), Some("ada")));
-            failures.failed(address(n), Some("ada"));
+            assert!(failures.take(address(n), Some("ada")));
         }
-        assert!(!failures.allowed(address(200), Some("ada")));
-        assert!(failures.allowed(address(200), Some("bob")));
-        assert!(failures.allowed(address(200), None));
-        // An address that failed as often is held for any account.
+        assert!(!failures.take(address(200), Some("ada")));
+        assert!(failures.take(address(200), Some("bob")));
+        assert!(failures.take(address(200), None));
+        // An address that failed as often is held for any account…
         for _ in 0..FAILURES_BURST as u8 {
-            failures.failed(address(201), None);
+            failures.take(address(201), None);
         }
-        assert!(!failures.allowed(address(201), Some("bob")));
+        assert!(!failures.take(address(201), Some("bob")));
+        // …and an attempt that succeeded costs nothing.
+        failures.refund(address(201), None);
+        assert!(failures.take(address(201), None));
     }
 
     #[test]
     fn the_failures_remembered_are_bounded() {
         let mut failures = Failures::default();
         for n in 0..(MAX_ADDRESSES as u32 + 100) {
-            failures.failed(IpAddr::from(n.to_be_bytes()), None);
+            failures.take(IpAddr::from(n.to_be_bytes()), None);
         }
         assert!(failures.by_address.len() <= MAX_ADDRESSES);
     }

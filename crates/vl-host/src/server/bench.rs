@@ -5,6 +5,8 @@
 //! of its event is what the operator's loop waits for.
 
 use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use futures_util::{SinkExt, StreamExt};
@@ -13,10 +15,11 @@ use tokio::task::JoinSet;
 use tokio_tungstenite::tungstenite::Message;
 use vl_core::table::{Report, Table};
 use vl_core::{
-    Arena, Drive, Experiment, GuestMessage, HostMessage, Named, PROTOCOL_VERSION, Role, Wire,
-    nearest_rank,
+    Arena, Drive, ErrorCode, Experiment, GuestMessage, HostMessage, Named, PROTOCOL_VERSION, Role,
+    Secret, Wire, nearest_rank,
 };
 
+use crate::accounts::users::{AccountRole, Users};
 use crate::{Host, HostConfig, SimLab};
 
 /// Why the bench could not run.
@@ -47,7 +50,32 @@ pub struct OperatorLatency {
     pub observer_feedback_hz: f64,
     /// Camera frames the slowest-fed observer read per second.
     pub observer_frames_hz: f64,
+    /// The same commands again while one address tries wrong passwords.
+    pub under_guessing: Guessing,
 }
+
+/// The operator's round trips while wrong passwords pour in from one
+/// address, [`GUESSES_PER_S`] a second, until [`GUESSES`] have been tried.
+#[derive(Debug, Clone, Serialize)]
+pub struct Guessing {
+    pub commands: usize,
+    pub p50_ms: f64,
+    pub p99_ms: f64,
+    /// Guesses sent, and how the Host answered them: checked and refused
+    /// (`unauthorized`), refused unchecked (`too_many_attempts`), or not at
+    /// all (pushed out by the next before it was answered).
+    pub sent: u64,
+    pub checked: u64,
+    pub limited: u64,
+    pub unanswered: u64,
+}
+
+/// Wrong passwords tried during the bench's second round, and how fast.
+pub(crate) const GUESSES: u64 = 1000;
+pub(crate) const GUESSES_PER_S: f64 = 100.0;
+
+/// The bench's one account, whose operator it times.
+const ACCOUNT: (&str, &str) = ("bench", "bench password");
 
 type Socket =
     tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
@@ -102,14 +130,14 @@ async fn until<T>(
     }
 }
 
-fn hello(role: Role) -> GuestMessage {
+fn hello(role: Role, password: Option<&str>) -> GuestMessage {
     GuestMessage::Hello {
         protocol: PROTOCOL_VERSION,
         role,
         token: None,
         resume: None,
-        user: None,
-        password: None,
+        user: password.map(|_| ACCOUNT.0.to_owned()),
+        password: password.map(|p| Secret(p.to_owned())),
     }
 }
 
@@ -117,7 +145,7 @@ fn hello(role: Role) -> GuestMessage {
 /// not yet welcomed from one address.
 async fn observer(url: &str) -> Result<Socket, BenchError> {
     let mut ws = connect(url).await?;
-    say(&mut ws, &hello(Role::Observer)).await?;
+    say(&mut ws, &hello(Role::Observer, None)).await?;
     until(&mut ws, "watch", |m| {
         matches!(m, HostMessage::Welcome { .. }).then_some(())
     })
@@ -154,7 +182,15 @@ pub async fn operator_latency(
 ) -> Result<OperatorLatency, BenchError> {
     let listen: SocketAddr = ([127, 0, 0, 1], 0).into();
     let lab = SimLab::new(Arena::named("open").expect("the open arena ships with vl"));
-    let host = Host::start_sim(listen, lab, HostConfig::default()).await?;
+    let mut users = Users::default();
+    users
+        .add(ACCOUNT.0, AccountRole::Operator, ACCOUNT.1)
+        .expect("a good account");
+    let config = HostConfig {
+        users: Some(users),
+        ..HostConfig::default()
+    };
+    let host = Host::start_sim(listen, lab, config).await?;
     let url = host.url();
     let (stop_tx, stop) = tokio::sync::watch::channel(false);
     let mut watching = JoinSet::new();
@@ -163,7 +199,7 @@ pub async fn operator_latency(
         watching.spawn(observe(ws, stop.clone()));
     }
     let mut operator = connect(&url).await?;
-    say(&mut operator, &hello(Role::Operator)).await?;
+    say(&mut operator, &hello(Role::Operator, Some(ACCOUNT.1))).await?;
     until(&mut operator, "say hello", |m| {
         matches!(m, HostMessage::Welcome { .. }).then_some(())
     })
@@ -191,31 +227,9 @@ pub async fn operator_latency(
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     let began = Instant::now();
-    let mut took = Vec::with_capacity(commands);
-    for event in 1..=commands as u64 {
-        // Turning on the spot: the robot keeps clear of everything.
-        let drive = Drive::Wheels {
-            left: -40.0,
-            right: 40.0,
-        };
-        let sent = Instant::now();
-        say(
-            &mut operator,
-            &GuestMessage::Command {
-                event,
-                seen: Some(event - 1),
-                drive,
-            },
-        )
-        .await?;
-        until(&mut operator, "see a command's feedback", |m| match m {
-            HostMessage::Feedback { event: e, .. } if *e >= event => Some(()),
-            _ => None,
-        })
-        .await?;
-        took.push(sent.elapsed().as_secs_f64() * 1e3);
-    }
+    let mut took = time_commands(&mut operator, 1, commands, || false).await?;
     let seconds = began.elapsed().as_secs_f64();
+    let under_guessing = guessing(&mut operator, &url, commands).await?;
     let _ = say(&mut operator, &GuestMessage::Bye).await;
     let _ = stop_tx.send(true);
     let mut fed = Vec::new();
@@ -238,11 +252,118 @@ pub async fn operator_latency(
         max_ms: took.last().copied().unwrap_or(f64::NAN),
         observer_feedback_hz: slowest.0 as f64 / seconds,
         observer_frames_hz: slowest.1 as f64 / seconds,
+        under_guessing,
+    })
+}
+
+/// Times commands from event `first` on, each sent when the last one's
+/// feedback came: at least `commands`, and on while `more` says so.
+async fn time_commands(
+    operator: &mut Socket,
+    first: u64,
+    commands: usize,
+    more: impl Fn() -> bool,
+) -> Result<Vec<f64>, BenchError> {
+    let mut took = Vec::with_capacity(commands);
+    let mut event = first;
+    while took.len() < commands || more() {
+        // Turning on the spot: the robot keeps clear of everything.
+        let drive = Drive::Wheels {
+            left: -40.0,
+            right: 40.0,
+        };
+        let sent = Instant::now();
+        let command = GuestMessage::Command {
+            event,
+            seen: Some(event - 1),
+            drive,
+        };
+        say(operator, &command).await?;
+        until(operator, "see a command's feedback", |m| match m {
+            HostMessage::Feedback { event: e, .. } if *e >= event => Some(()),
+            _ => None,
+        })
+        .await?;
+        took.push(sent.elapsed().as_secs_f64() * 1e3);
+        event += 1;
+    }
+    Ok(took)
+}
+
+/// Counts of how the Host answered guesses.
+#[derive(Default)]
+struct Answers {
+    sent: AtomicU64,
+    checked: AtomicU64,
+    limited: AtomicU64,
+}
+
+/// One wrong password from this address, and how it was answered.
+async fn guess(url: String, answers: Arc<Answers>) {
+    let Ok(mut ws) = connect(&url).await else {
+        return;
+    };
+    if say(&mut ws, &hello(Role::Operator, Some("a wrong guess")))
+        .await
+        .is_err()
+    {
+        return;
+    }
+    answers.sent.fetch_add(1, Ordering::Relaxed);
+    let answer = until(&mut ws, "hear a guess answered", |m| match m {
+        HostMessage::Error { code, .. } => Some(*code),
+        _ => None,
+    });
+    match tokio::time::timeout(Duration::from_secs(3), answer).await {
+        Ok(Ok(ErrorCode::Unauthorized)) => answers.checked.fetch_add(1, Ordering::Relaxed),
+        Ok(Ok(ErrorCode::TooManyAttempts)) => answers.limited.fetch_add(1, Ordering::Relaxed),
+        _ => 0,
+    };
+}
+
+/// The operator's commands timed again while guesses pour in.
+async fn guessing(
+    operator: &mut Socket,
+    url: &str,
+    commands: usize,
+) -> Result<Guessing, BenchError> {
+    let answers = Arc::new(Answers::default());
+    let pour = {
+        let (url, answers) = (url.to_owned(), answers.clone());
+        tokio::spawn(async move {
+            let mut tries = JoinSet::new();
+            let mut every = tokio::time::interval(Duration::from_secs_f64(1.0 / GUESSES_PER_S));
+            for _ in 0..GUESSES {
+                every.tick().await;
+                tries.spawn(guess(url.clone(), answers.clone()));
+            }
+            while tries.join_next().await.is_some() {}
+        })
+    };
+    let first = commands as u64 + 1;
+    let mut took = time_commands(operator, first, commands, || !pour.is_finished()).await?;
+    took.sort_by(f64::total_cmp);
+    let q = |p| nearest_rank(&took, p).unwrap_or(f64::NAN);
+    let load = |n: &AtomicU64| n.load(Ordering::Relaxed);
+    let (sent, checked, limited) = (
+        load(&answers.sent),
+        load(&answers.checked),
+        load(&answers.limited),
+    );
+    Ok(Guessing {
+        commands: took.len(),
+        p50_ms: q(0.5),
+        p99_ms: q(0.99),
+        sent,
+        checked,
+        limited,
+        unanswered: sent - checked - limited,
     })
 }
 
 impl Report for OperatorLatency {
     fn table(&self) -> Table {
+        let g = &self.under_guessing;
         Table::pairs([
             ("observers reading", self.observers.to_string()),
             ("commands timed", self.commands.to_string()),
@@ -257,6 +378,23 @@ impl Report for OperatorLatency {
             (
                 "frames to the slowest observer",
                 format!("{:.1} /s", self.observer_frames_hz),
+            ),
+            (
+                "p99 under guessing",
+                format!(
+                    "{:.2} ms ({:.2}× idle; p50 {:.2} ms) over {} commands",
+                    g.p99_ms,
+                    g.p99_ms / self.p99_ms,
+                    g.p50_ms,
+                    g.commands
+                ),
+            ),
+            (
+                "wrong passwords",
+                format!(
+                    "{} sent from one address: {} checked, {} refused unchecked, {} pushed out unanswered",
+                    g.sent, g.checked, g.limited, g.unanswered
+                ),
             ),
         ])
         .title("an operator's command to the feedback of its event, on loopback:")

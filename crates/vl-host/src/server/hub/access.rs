@@ -74,10 +74,9 @@ impl Hub {
         if role == Role::Operator && !self.take_control(id, resume.as_deref()) {
             return;
         }
-        let mut user = None;
+        let user = self.user_of(id);
         if let Some(client) = self.clients.get_mut(&id) {
             client.role = Some(role);
-            user = client.admitted.identity.name().map(str::to_owned);
             let _ = client.out.try_send(ToConnection::Subscribe);
         }
         info!(connection = id, ?role, "welcomed");

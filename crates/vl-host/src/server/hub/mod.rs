@@ -17,6 +17,7 @@ use vl_core::{
 };
 
 use super::HostConfig;
+use crate::accounts::audit::Entry;
 use crate::accounts::gate::Admitted;
 use crate::lab::{Finished, Lab};
 use fields::{FieldWorker, Map};
@@ -208,6 +209,9 @@ impl Hub {
                     summary.sync_violations = self.sync_violations;
                     summary.stopped_by = self.stopper.take().filter(|_| summary.reason == EndReason::EmergencyStop);
                     info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
+                    self.config.audit.record(
+                        Entry::new("run_ended").detail(format!("run {run}: {}", summary.ending())),
+                    );
                     let reset = resets_after(summary.reason);
                     self.broadcast(&HostMessage::Done { summary });
                     if reset {
@@ -263,6 +267,12 @@ impl Hub {
 
     fn refuse(&mut self, id: u64, code: ErrorCode, message: impl Into<String>) {
         self.send(id, HostMessage::error(code, message));
+    }
+
+    /// The account client `id` logged in with, if any.
+    fn user_of(&self, id: u64) -> Option<String> {
+        let client = self.clients.get(&id)?;
+        client.admitted.identity.name().map(str::to_owned)
     }
 
     /// Sends to every welcomed client, encoded once.

@@ -10,6 +10,7 @@ use vl_core::{
 };
 
 use super::Hub;
+use crate::accounts::audit::Entry;
 use crate::lab::LabRequest;
 
 impl Hub {
@@ -133,6 +134,13 @@ impl Hub {
             self.last_command = Instant::now();
             self.runs += 1;
             self.run = Some(self.runs);
+            let user = self.user_of(id);
+            self.config.audit.record(
+                Entry::new("run_started")
+                    .connection(id)
+                    .user(user.as_deref())
+                    .detail(format!("run {}: {experiment}", self.runs)),
+            );
             let definition = self.definition.clone().unwrap_or_default();
             self.lab.request(LabRequest::Start {
                 run: self.runs,

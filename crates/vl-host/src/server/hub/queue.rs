@@ -41,7 +41,7 @@ impl Hub {
         if self.queue.iter().any(|p| p.id == Some(id)) {
             return self.refuse(id, ErrorCode::NotAllowedNow, "you are in line already");
         }
-        let account = client.admitted.identity.name().map(str::to_owned);
+        let account = self.user_of(id);
         self.queue.push_back(Place {
             id: Some(id),
             account: account.clone(),
@@ -85,11 +85,9 @@ impl Hub {
     /// A client welcomed with an account takes back the place that account
     /// held while its link was down.
     pub(super) fn reclaim_place(&mut self, id: u64) {
-        let account = self
-            .clients
-            .get(&id)
-            .and_then(|c| c.admitted.identity.name().map(str::to_owned));
-        let Some(account) = account else { return };
+        let Some(account) = self.user_of(id) else {
+            return;
+        };
         if let Some(place) = self
             .queue
             .iter_mut()
@@ -125,10 +123,9 @@ impl Hub {
         self.operator = Some(id);
         self.resume = Some(secret());
         self.slot_until = self.config.slot.map(|slot| Instant::now() + slot);
-        let mut user = None;
+        let user = self.user_of(id);
         if let Some(client) = self.clients.get_mut(&id) {
             client.role = Some(Role::Operator);
-            user = client.admitted.identity.name().map(str::to_owned);
             let _ = client.out.try_send(ToConnection::Subscribe);
         }
         info!(connection = id, "control granted");
