@@ -114,6 +114,8 @@ pub enum EndReason {
     HeldBack,
     /// The operator's slot ended and the next in line took control.
     SlotEnded,
+    /// One of the lab's administrators ended the operator's turn.
+    Kicked,
 }
 
 impl std::fmt::Display for EndReason {
@@ -129,6 +131,7 @@ impl std::fmt::Display for EndReason {
             EndReason::RobotLost => "the camera lost the robot",
             EndReason::HeldBack => "held back by the safety layer",
             EndReason::SlotEnded => "the operator's slot ended",
+            EndReason::Kicked => "ended by the lab's administrator",
         })
     }
 }
@@ -379,6 +382,11 @@ pub enum GuestMessage {
     Queue,
     /// Leaves the line.
     LeaveQueue,
+    /// From one of the lab's administrators: ends the turn of the Guest
+    /// with this `session` (its run stops and it watches) or its place in line.
+    Kick {
+        session: u64,
+    },
     Bye,
 }
 
@@ -598,7 +606,7 @@ mod tests {
             assert_eq!(wire["type"], message.kind());
             assert!(GuestMessage::TYPES.contains(&message.kind()));
         }
-        assert_eq!(GuestMessage::TYPES.len(), 14);
+        assert_eq!(GuestMessage::TYPES.len(), 15);
         assert!(HostMessage::TYPES.contains(&"feedback") && HostMessage::TYPES.len() == 14);
         assert!(GuestMessage::TYPES.contains(&"leave_queue"));
     }

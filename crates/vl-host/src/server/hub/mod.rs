@@ -321,6 +321,7 @@ impl Hub {
             (Some(_), GuestMessage::EmergencyStop) => self.emergency_stop(id),
             // Anyone watching may want to see the scene.
             (Some(_), GuestMessage::RequestFrame) => self.lab.request_frame(),
+            (Some(_), GuestMessage::Kick { session }) => self.kick(id, session),
             (Some(Role::Observer), GuestMessage::Queue) => self.join_queue(id),
             (Some(Role::Observer), GuestMessage::LeaveQueue) => self.leave_queue(id),
             (Some(Role::Observer), other) => self.refuse(

@@ -22,6 +22,7 @@ impl Hub {
             GuestMessage::Start => self.start(id),
             GuestMessage::Stop => self.stop(id),
             GuestMessage::Command { event, seen, drive } => self.command(id, event, seen, drive),
+            GuestMessage::Kick { .. } => {}
             GuestMessage::Queue | GuestMessage::LeaveQueue => {
                 self.refuse(id, ErrorCode::NotAllowedNow, "you have control already");
             }

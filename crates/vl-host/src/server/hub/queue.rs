@@ -2,7 +2,8 @@
 //! come first served; the operator's slot, when slots have a length, ends
 //! by handing control to the next in line (the run stopped, the lab made
 //! ready); a place held by an account survives a dropped link for the
-//! grace, so a reconnect keeps it.
+//! grace, so a reconnect keeps it. An administrator may end anyone's
+//! turn or place.
 
 use std::time::Instant;
 
@@ -12,6 +13,8 @@ use vl_core::{Action, EndReason, ErrorCode, HostMessage, Role};
 use super::access::secret;
 use super::{Hub, ToConnection};
 use crate::accounts::audit::Entry;
+use crate::accounts::gate::Identity;
+use crate::accounts::users::AccountRole;
 use crate::lab::LabRequest;
 
 /// Someone's place in the line.
@@ -185,6 +188,59 @@ impl Hub {
                 resume: None,
                 slot_s: None,
             },
+        );
+    }
+
+    /// An administrator ends `session`'s turn (its run stops, it watches,
+    /// the next in line drives) or its place in line.
+    pub(super) fn kick(&mut self, id: u64, session: u64) {
+        let admin = self.clients.get(&id).is_some_and(|c| {
+            matches!(
+                c.admitted.identity,
+                Identity::Account {
+                    role: AccountRole::Admin,
+                    ..
+                }
+            )
+        });
+        if !admin {
+            return self.refuse(
+                id,
+                ErrorCode::Unauthorized,
+                "only the lab's administrators may end someone's turn",
+            );
+        }
+        let by = self.user_of(id);
+        let entry = |what: &str| {
+            Entry::new("kicked")
+                .connection(session)
+                .user(by.as_deref())
+                .detail(what.to_owned())
+        };
+        if self.operator == Some(session) {
+            self.config.audit.record(entry("control"));
+            if self.supervisor.allows(Action::Stop) {
+                self.lab.request(LabRequest::Finish(EndReason::Kicked));
+            }
+            self.release_operator();
+            if let Some(client) = self.clients.get_mut(&session) {
+                client.role = Some(Role::Observer);
+            }
+            let watch = HostMessage::Role {
+                role: Role::Observer,
+                resume: None,
+                slot_s: None,
+            };
+            return self.send(session, watch);
+        }
+        if self.queue.iter().any(|p| p.id == Some(session)) {
+            self.config.audit.record(entry("place in line"));
+            return self.leave_queue(session);
+        }
+        self.refuse(
+            id,
+            ErrorCode::NotAllowedNow,
+            format!("session {session} neither drives nor waits in line"),
         );
     }
 

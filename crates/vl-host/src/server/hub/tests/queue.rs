@@ -154,3 +154,34 @@ async fn those_who_may_not_drive_get_no_place() {
     ada.say(GuestMessage::Queue).await;
     assert_eq!(ada.refused().await.0, ErrorCode::NotAllowedNow);
 }
+
+#[tokio::test]
+async fn an_administrator_ends_a_turn_and_a_place_and_no_one_else_may() {
+    let mut rig = slotted(Duration::from_secs(600));
+    let mut op = rig.running("teleoperation").await;
+    let mut next = rig.welcomed(Role::Observer).await;
+    next.say(GuestMessage::Queue).await;
+    assert_eq!(next.place().await.0, Some(1));
+    let mut last = rig.welcomed(Role::Observer).await;
+    last.say(GuestMessage::Queue).await;
+    assert_eq!(last.place().await.0, Some(2));
+    // Not an administrator: refused.
+    next.say(GuestMessage::Kick { session: op.id }).await;
+    assert_eq!(next.refused().await.0, ErrorCode::Unauthorized);
+    let mut root = rig.join().await;
+    root.hello_as("root", AccountRole::Admin, Role::Observer)
+        .await;
+    root.welcome().await;
+    root.say(GuestMessage::Kick { session: op.id }).await;
+    assert_eq!(op.role().await.0, Role::Observer);
+    assert_eq!(op.done().await.reason, EndReason::Kicked);
+    assert_eq!(next.role().await.0, Role::Operator);
+    root.say(GuestMessage::Kick { session: last.id }).await;
+    loop {
+        if last.place().await.0.is_none() {
+            break;
+        }
+    }
+    root.say(GuestMessage::Kick { session: last.id }).await;
+    assert_eq!(root.refused().await.0, ErrorCode::NotAllowedNow);
+}
