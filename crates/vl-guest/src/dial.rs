@@ -59,21 +59,26 @@ impl Target {
         if authority.is_empty() {
             return Err("it names no host".into());
         }
-        let (host, port) = match authority.rsplit_once(':') {
-            Some((host, port)) if !host.ends_with(']') || host.starts_with('[') => {
-                let port = port
-                    .parse()
-                    .map_err(|_| format!("'{port}' is not a port"))?;
-                (host, port)
-            }
-            _ => (authority, default_port),
+        // An IPv6 address is bracketed: its colons are not the port's.
+        let (host, port) = match authority.strip_prefix('[') {
+            Some(bracketed) => bracketed
+                .split_once(']')
+                .map(|(host, after)| (host, after.strip_prefix(':')))
+                .ok_or_else(|| format!("'{authority}' opens a bracket it does not close"))?,
+            None => match authority.rsplit_once(':') {
+                Some((host, port)) => (host, Some(port)),
+                None => (authority, None),
+            },
+        };
+        let port = match port {
+            Some(port) => port
+                .parse()
+                .map_err(|_| format!("'{port}' is not a port"))?,
+            None => default_port,
         };
         Ok(Target {
             url: format!("{scheme}://{rest}"),
-            host: host
-                .trim_start_matches('[')
-                .trim_end_matches(']')
-                .to_owned(),
+            host: host.to_owned(),
             port,
             tls: tls.then_some(pin),
         })
@@ -187,6 +192,8 @@ mod tests {
         assert_eq!((pinned.port, pinned.tls), (443, Some(Some(pin))));
         let v6 = Target::of("ws://[::1]:9000").unwrap();
         assert_eq!((v6.host.as_str(), v6.port), ("::1", 9000));
+        let v6 = Target::of("wss://[::1]/").unwrap();
+        assert_eq!((v6.host.as_str(), v6.port), ("::1", 443));
         for (bad, why) in [
             ("http://x:1", "not http://"),
             ("x:1", "no scheme"),

@@ -93,6 +93,8 @@ pub enum UsersError {
     BadPassword,
     #[error("the password cannot be hashed: {0}")]
     Hash(String),
+    #[error("a lab keeps at most {MAX_ACCOUNTS} accounts")]
+    TooMany,
 }
 
 /// Who has an account and with what role: what `vl users list` shows,
@@ -251,7 +253,7 @@ impl Users {
             return Err(UsersError::Exists(name.to_owned()));
         }
         if self.accounts.len() >= MAX_ACCOUNTS {
-            return Err(UsersError::Hash(format!("at most {MAX_ACCOUNTS} accounts")));
+            return Err(UsersError::TooMany);
         }
         self.accounts.push(Account {
             name: name.to_owned(),

@@ -160,7 +160,7 @@ impl Hub {
             );
             return false;
         }
-        if !returning && self.someone_waits() {
+        if !returning && !self.queue.is_empty() {
             let waiting = self.queue.len();
             self.refuse(
                 id,

@@ -103,11 +103,6 @@ impl Hub {
         }
     }
 
-    /// Whether people wait for control: a newcomer does not pass them.
-    pub(super) fn someone_waits(&self) -> bool {
-        !self.queue.is_empty()
-    }
-
     /// Gives control to the first in line who is here, when no one has it.
     pub(super) fn grant_next(&mut self) {
         if self.operator.is_some() || self.away.is_some() {
@@ -145,17 +140,22 @@ impl Hub {
         );
     }
 
-    /// Ends the operator's slot when its time is up and someone waits (the
-    /// run stopped, control handed on); with no one waiting it runs on for
-    /// another slot.
+    /// Gives up places whose grace ran out; ends the operator's slot when
+    /// its time is up and someone waits (the run stopped, control handed
+    /// on); with no one waiting it runs on for another slot.
     pub(super) fn check_slot(&mut self) {
+        // Places whose grace ran out are given up, slots or not.
+        let before = self.queue.len();
+        self.queue
+            .retain(|p| p.id.is_some() || p.away_until.is_some_and(|t| t > Instant::now()));
+        if self.queue.len() != before {
+            self.tell_queue();
+        }
         let (Some(until), Some(slot), Some(id)) =
             (self.slot_until, self.config.slot, self.operator)
         else {
             return;
         };
-        self.queue
-            .retain(|p| p.id.is_some() || p.away_until.is_some_and(|t| t > Instant::now()));
         if until > Instant::now() {
             return;
         }
