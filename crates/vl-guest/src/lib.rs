@@ -1,4 +1,5 @@
-//! The vl Guest: the user's side of the lab. `client` speaks to a Host,
+//! The vl Guest: the user's side of the lab. `client` speaks to a Host
+//! (reached over TCP or TLS by `dial`, saying who it is as `login` makes it),
 //! `session` holds what the Guest knows, `route` plans paths for the Host to follow,
 //! `gamepad` reads a real stick and renders the force on it,
 //! `app` draws it all in a window and `headless` scripts it without one;
@@ -12,7 +13,9 @@
 //!   link drops (the back-off starting afresh only once a Host welcomed it),
 //!   saying hello with the operator's resume secret, giving up at once on
 //!   something that answers but is no vl Host, and saying goodbye on close
-//!   (`client`); one `Session` state type, which forgets everything a Host
+//!   (`client`); `ws://` over TCP or `wss://` over TLS, trusting a pinned
+//!   certificate (`#pin=`) or the public authorities (`dial`); an account,
+//!   a token or no one, and the hello that says it (`login`); one `Session` state type, which forgets everything a Host
 //!   told at every welcome (a Host started again begins its clocks, frames
 //!   and marking anew), with its pacing (event- or time-based) and
 //!   synchronisation count (`session`); the predictive display's model, the
@@ -29,7 +32,9 @@
 //!   legend, the driven trail, the age of what is shown (a frame as old as
 //!   its capture), Back to start and who pressed STOP, virtual obstacles
 //!   drawn by dragging, the C-space overlay, path editing and the settings
-//!   panel (`app`); the scripted Guests: the Host following a defined path,
+//!   panel, the login form, the line for control and the slot's time left
+//!   (`app`); the scripted Guests, an operator on a busy lab waiting its
+//!   turn in line: the Host following a defined path,
 //!   an operator steering along it from the delayed feedback, lag-aware as a
 //!   person is, and the watching observer (`headless`)
 
