@@ -58,10 +58,8 @@ pub(crate) struct GuardArgs {
 
 pub(crate) fn serial_guard(args: GuardArgs) -> Result<ExitCode> {
     // The Host heard of any failure through the pipe already.
-    Ok(match vl_host::run_guard(&args.port, args.baud) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(_) => ExitCode::FAILURE,
-    })
+    let failed = vl_host::run_guard(&args.port, args.baud).is_err();
+    Ok(ExitCode::from(u8::from(failed)))
 }
 
 /// `vl khepera …`: tools for a real Khepera on its serial line.

@@ -89,11 +89,15 @@ pub struct BadInput(pub String);
 pub(crate) use vl_core::named_parser as named;
 
 fn main() -> ExitCode {
-    // Like any Unix filter, end quietly when a reader such as `head` closes
-    // the pipe, rather than panicking inside println!.
-    // SAFETY: restoring the default action of one signal before any thread starts.
-    unsafe {
-        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    let cli = Cli::parse();
+    // Tools end quietly, as Unix filters, when a reader such as `head` closes the pipe;
+    // servers outlive clients whose sockets close (TLS writes with writev).
+    if !matches!(
+        cli.command,
+        Command::Host(_) | Command::Guest(_) | Command::Demo(_) | Command::Media(_)
+    ) {
+        // SAFETY: restoring the default action of one signal before any thread starts.
+        unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
     }
     tracing_subscriber::fmt()
         .with_env_filter(
@@ -104,7 +108,7 @@ fn main() -> ExitCode {
         // Colour codes only where a terminal shows them, not in a log file.
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
-    match run(Cli::parse()) {
+    match run(cli) {
         Ok(code) => code,
         Err(e) => {
             eprintln!("vl: {e:#}");
