@@ -7,7 +7,7 @@ use std::process::{Command, ExitCode, Stdio};
 
 use anyhow::{Context, Result};
 use clap::Subcommand;
-use vl_core::{Designed, LabDesign, Named, NetsReport};
+use vl_core::{Designed, LabDesign, NetsReport};
 
 use crate::BadInput;
 use crate::report::emit;
@@ -48,7 +48,7 @@ pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
     let mut labs = Vec::new();
     for lab in &designs {
         let designed = vl_core::design(lab).map_err(|e| BadInput(e.to_string()))?;
-        let dir = out.join(lab.lab.id());
+        let dir = out.join(lab.lab);
         let files = if check {
             designed.differing(&dir)
         } else {

@@ -1,6 +1,7 @@
 //! The labs designed by their own nets: the checked-in nets are what the
 //! pipeline makes from the charts, they are sound by `vl petri` and by a
-//! naive check written here, an altered chart changes what a Host allows,
+//! naive check written here, an altered chart or access design changes what
+//! a Host allows,
 //! and a Host driven with random actions over its socket stays in step
 //! with its net.
 
@@ -595,6 +596,89 @@ fn an_altered_chart_changes_the_running_supervisor() {
         "{refused}"
     );
     assert!(refused.contains("define.given"), "{refused}");
+}
+
+/// The access design runs in the Host beside the lab's net: a rule added
+/// to it ("no one joins the line during a run") changes who the Host lets
+/// into line, and the report shows the interleaving it forbids.
+#[test]
+fn an_altered_access_design_changes_who_the_host_lets_in_line() {
+    let dir = common::scratch("lab-nets-access");
+    let charts = dir.join("charts");
+    copy_dir(&repo().join("crates/vl-core/nets"), &charts);
+    let design = charts.join("access/lab.toml");
+    let mut text = std::fs::read_to_string(&design).unwrap();
+    text.push_str(
+        "\n[[controller]]\nwhy = \"no one joins the line during a run\"\n\
+         rule = \"if execute.running then not ask\"\n",
+    );
+    std::fs::write(&design, text).unwrap();
+    let out = dir.join("nets");
+    let run = common::vl(&[
+        "lab",
+        "nets",
+        "--charts",
+        common::s(&charts),
+        "--out",
+        common::s(&out),
+    ]);
+    assert!(run.status.success(), "{}", common::stderr(&run));
+    let said = common::stdout(&run);
+    assert!(
+        said.contains("access: at most one operator: without controllers ask → ask → grant → grant; holds with them"),
+        "{said}"
+    );
+    assert!(
+        said.contains("access: no one joins the line during a run: without controllers"),
+        "{said}"
+    );
+
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    // Whether an observer may join the line while the operator's run goes.
+    let queue_during_a_run = |extra: &[&str]| {
+        let args = [&["--camera", "none", "--experiments", "navigation"], extra].concat();
+        let (_host, url) = common::start_host(&args);
+        runtime.block_on(async {
+            let mut op = Peer::connect(&url).await;
+            op.hello("operator").await;
+            let mut watcher = Peer::connect(&url).await;
+            watcher.hello("observer").await;
+            op.send(json!({"type": "mount", "experiment": "navigation"}))
+                .await;
+            op.expect("mounted").await;
+            op.send(
+                json!({"type": "define", "goal": {"x_mm": 680, "y_mm": 470, "tolerance_mm": 15}}),
+            )
+            .await;
+            op.expect("defined").await;
+            op.send(json!({"type": "start"})).await;
+            op.expect("started").await;
+            watcher.send(json!({"type": "queue"})).await;
+            let answer = loop {
+                let v = watcher.next_any().await.expect("the Host stays up");
+                match v["type"].as_str().unwrap() {
+                    "queue" => break Ok(v["position"].clone()),
+                    "error" => break Err(v["message"].as_str().unwrap().to_owned()),
+                    _ => {}
+                }
+            };
+            // Once the run has stopped, the line is open again.
+            op.send(json!({"type": "stop"})).await;
+            op.expect("done").await;
+            if answer.is_err() {
+                watcher.send(json!({"type": "queue"})).await;
+                assert_eq!(watcher.expect("queue").await["position"], 1);
+            }
+            answer
+        })
+    };
+    assert_eq!(queue_during_a_run(&[]), Ok(json!(1)), "the shipped design");
+    let refused = queue_during_a_run(&["--nets", common::s(&out)]).unwrap_err();
+    assert!(
+        refused.starts_with("the access net does not let someone watching ask now"),
+        "{refused}"
+    );
+    assert!(refused.contains("execute.running"), "{refused}");
 }
 
 fn copy_dir(from: &Path, to: &Path) {

@@ -107,6 +107,7 @@ mod vision;
 /// Results printed for people (vl-petri's, the crate every other builds on).
 pub use vl_petri::table;
 
+pub use contract::access::{AccessEvent, AccessNet, AccessRefused, Seat};
 pub use contract::experiment::{
     Definition, DefinitionError, Experiment, ExperimentInfo, Goal, LOOKAHEAD_MM,
 };
@@ -119,7 +120,7 @@ pub use contract::protocol::{
 };
 pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use design::{
-    DesignError, Designed, Interleaving, LabDesign, LabRow, NetsReport, Rule, design,
+    DesignError, Designed, Interleaving, LabDesign, LabRow, NetsReport, Rule, Verdict, design,
 };
 pub use images::{ImageError, MAX_IMAGE_SIDE, decode_image, load_image};
 pub use model::arena::{

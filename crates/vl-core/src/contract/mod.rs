@@ -1,8 +1,10 @@
 //! What Guest and Host agree on: the messages of protocol v1 and the
 //! camera frames between them, the experiments and their definitions, and
-//! the session supervisor that says which action may happen when, and the
-//! fingerprint a Guest pins a Host's certificate by.
+//! the session supervisor that says which action may happen when (with the
+//! access net that says who may drive), and the fingerprint a Guest pins a
+//! Host's certificate by.
 
+pub(crate) mod access;
 pub(crate) mod experiment;
 pub(crate) mod fingerprint;
 pub(crate) mod frame;

@@ -3,7 +3,8 @@
 //! built in), run live. An action is allowed exactly when a transition
 //! carrying its event is enabled in the mounted lab's net, so the Host and
 //! the Guest never reason about "which messages are valid now" in ad-hoc
-//! code, and changing a chart changes what they allow.
+//! code, and changing a chart changes what they allow. On the Host the
+//! access net runs beside it: an action happens only when both enable it.
 
 use std::path::Path;
 
@@ -11,6 +12,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 use vl_petri::{Marking, Net, TransitionId, from_pnml};
 
+use super::access::{AccessEvent, AccessNet, AccessRefused, Seat};
 use crate::{Experiment, Named};
 
 /// What the operator or the lab does: each is an event of the labs' nets.
@@ -151,6 +153,8 @@ const SHIPPED: [(Experiment, &str); 2] = [
 pub struct Supervisor {
     labs: Vec<LabNet>,
     mounted: Option<usize>,
+    /// Who may drive, on the Host; a Guest follows the lab's nets only.
+    access: Option<AccessNet>,
     /// Fired since [`Supervisor::take_state`] last said.
     fired: Vec<Fired>,
 }
@@ -204,8 +208,29 @@ impl Supervisor {
                 })
                 .collect(),
             mounted: None,
+            access: None,
             fired: Vec::new(),
         })
+    }
+
+    /// This supervisor with `access` run beside the labs' nets.
+    pub fn with_access(mut self, access: AccessNet) -> Supervisor {
+        self.access = Some(access);
+        self
+    }
+
+    /// Fires one person's access events, all or none (see
+    /// [`AccessNet::fire_all`]); without an access net, everything is allowed.
+    pub fn access(&mut self, steps: &[(AccessEvent, Seat)]) -> Result<(), AccessRefused> {
+        match &mut self.access {
+            Some(access) => access.fire_all(steps),
+            None => Ok(()),
+        }
+    }
+
+    /// How many people are at `seat` in the access net.
+    pub fn seated(&self, seat: Seat) -> Option<u32> {
+        self.access.as_ref().map(|a| a.at(seat))
     }
 
     /// The net that answers now: the mounted lab's, or before any mount
@@ -227,21 +252,34 @@ impl Supervisor {
 
     /// Whether `action` may happen now.
     pub fn allows(&self, action: Action) -> bool {
-        enabled_for(self.current(), action).is_some()
+        self.check(action).is_ok()
     }
 
     /// Says why `action` may not happen now, if it may not.
     pub fn check(&self, action: Action) -> Result<(), NotAllowed> {
-        enabled_for(self.current(), action)
-            .map(drop)
-            .ok_or_else(|| self.refusal(action))
+        if enabled_for(self.current(), action).is_none() {
+            return Err(self.refusal(action));
+        }
+        match &self.access {
+            Some(access) if !access.allows(action.event()) => Err(NotAllowed {
+                action,
+                event: action.event(),
+                lab: "access",
+                marking: access.marked(),
+            }),
+            _ => Ok(()),
+        }
     }
 
     /// Fires `action`'s transition, or says why it may not happen now. A
     /// release leaves no lab mounted.
     pub fn fire(&mut self, action: Action) -> Result<(), NotAllowed> {
+        self.check(action)?;
         let i = self.mounted.unwrap_or(0);
         fire_in(&mut self.labs[i], action, &mut self.fired).map_err(|()| self.refusal(action))?;
+        if let Some(access) = &mut self.access {
+            access.follow(action.event());
+        }
         if action == Action::Release {
             self.mounted = None;
         }

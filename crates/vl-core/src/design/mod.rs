@@ -8,12 +8,20 @@
 //! (uncontrollable), and its controllers, each a rule with the reason for
 //! it. Rules are `vl petri control` constraints whose transition may also
 //! be an event: `if execute.running then not define` forbids every
-//! transition labelled `define` while `execute.running` is marked.
+//! transition labelled `define` while `execute.running` is marked, and
+//! `grant@access.waiting` names those labelled `grant` that take from
+//! `access.waiting`.
+//!
+//! Beside the labs is the access design (`access/lab.toml`): who watches,
+//! waits and drives, composed with mount, define and execute. Its chart is
+//! everyone's at once (`[people]` puts one token per person in its initial
+//! state), and the Host runs its controlled net beside the mounted lab's.
 
 mod pipeline;
 mod report;
 mod summary;
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use serde::Deserialize;
@@ -22,15 +30,22 @@ use thiserror::Error;
 use crate::{Experiment, Named};
 
 pub use pipeline::{Designed, Interleaving, design};
-pub use summary::{LabRow, NetsReport};
+pub use summary::{LabRow, NetsReport, Verdict};
+
+/// The access design's folder, beside the labs'.
+pub(crate) const ACCESS: &str = "access";
 
 /// One lab's charts and controllers, as written.
 #[derive(Debug, Clone)]
 pub struct LabDesign {
-    pub lab: Experiment,
+    /// Its folder: a lab's id, or [`ACCESS`].
+    pub lab: &'static str,
     pub title: String,
     /// Each chart's name and SCXML text, in composition order.
     pub charts: Vec<(String, String)>,
+    /// Charts that are several people's at once, and how many: the chart's
+    /// initial state holds one token per person.
+    pub people: BTreeMap<String, u32>,
     /// Events a controller may not forbid.
     pub uncontrollable: Vec<String>,
     pub controllers: Vec<Rule>,
@@ -50,6 +65,8 @@ struct LabFile {
     charts: Vec<String>,
     #[serde(default)]
     uncontrollable: Vec<String>,
+    #[serde(default)]
+    people: BTreeMap<String, u32>,
     #[serde(default, rename = "controller")]
     controllers: Vec<Rule>,
 }
@@ -102,6 +119,14 @@ const SHIPPED: &[(&str, &str)] = &[
         include_str!("../../nets/common/cspace.scxml"),
     ),
     (
+        "common/access.scxml",
+        include_str!("../../nets/common/access.scxml"),
+    ),
+    (
+        "access/lab.toml",
+        include_str!("../../nets/access/lab.toml"),
+    ),
+    (
         "navigation/lab.toml",
         include_str!("../../nets/navigation/lab.toml"),
     ),
@@ -140,9 +165,8 @@ impl LabDesign {
                     why: "not among the shipped charts".to_owned(),
                 })
         };
-        Experiment::ALL
-            .iter()
-            .map(|&lab| LabDesign::from_files(lab, &read))
+        designs()
+            .map(|lab| LabDesign::from_files(lab, &read))
             .collect()
     }
 
@@ -156,17 +180,16 @@ impl LabDesign {
                 why: e.to_string(),
             })
         };
-        Experiment::ALL
-            .iter()
-            .map(|&lab| LabDesign::from_files(lab, &read))
+        designs()
+            .map(|lab| LabDesign::from_files(lab, &read))
             .collect()
     }
 
     fn from_files(
-        lab: Experiment,
+        lab: &'static str,
         read: &dyn Fn(&str) -> Result<String, DesignError>,
     ) -> Result<LabDesign, DesignError> {
-        let path = format!("{}/lab.toml", lab.id());
+        let path = format!("{lab}/lab.toml");
         let file: LabFile = toml::from_str(&read(&path)?).map_err(|e| DesignError::LabFile {
             path: path.clone(),
             why: e.to_string(),
@@ -175,7 +198,7 @@ impl LabDesign {
             .charts
             .iter()
             .map(|name| {
-                let own = read(&format!("{}/{name}.scxml", lab.id()));
+                let own = read(&format!("{lab}/{name}.scxml"));
                 let text = own.or_else(|_| read(&format!("common/{name}.scxml")))?;
                 Ok((name.clone(), text))
             })
@@ -185,9 +208,18 @@ impl LabDesign {
             title: file.title,
             charts,
             uncontrollable: file.uncontrollable,
+            people: file.people,
             controllers: file.controllers,
         })
     }
+}
+
+/// Each design's folder: the labs', then access.
+fn designs() -> impl Iterator<Item = &'static str> {
+    Experiment::ALL
+        .iter()
+        .map(|lab| lab.id())
+        .chain(std::iter::once(ACCESS))
 }
 
 #[cfg(test)]
@@ -203,7 +235,7 @@ mod tests {
                     println!("{text}");
                 }
             }
-            assert!(designed.sound(), "{}", lab.lab.id());
+            assert!(designed.sound(), "{}", lab.lab);
         }
     }
 }

@@ -9,7 +9,6 @@ use vl_petri::{
 };
 
 use super::{DesignError, LabDesign, Rule};
-use crate::Named;
 
 /// Reachable markings a lab's net may have before exploring gives up: the
 /// labs' nets have a few dozen.
@@ -50,7 +49,7 @@ pub struct Designed {
 
 /// Runs the whole pipeline on one lab's design.
 pub fn design(design: &LabDesign) -> Result<Designed, DesignError> {
-    let lab = design.lab.id().to_owned();
+    let lab = design.lab.to_owned();
     let charts = design
         .charts
         .iter()
@@ -62,6 +61,11 @@ pub fn design(design: &LabDesign) -> Result<Designed, DesignError> {
             };
             let mut net = from_scxml(text).map_err(|e| chart_error(e.to_string()))?;
             net.id = name.clone();
+            if let Some(&people) = design.people.get(name) {
+                for p in net.places.iter_mut().filter(|p| p.initial > 0) {
+                    p.initial = people;
+                }
+            }
             let (_, analysis) = analysed(&net, &lab, "chart's")?;
             Ok((net, analysis))
         })
@@ -164,17 +168,27 @@ fn without_dead(net: &Net, analysis: &Analysis) -> (Net, usize) {
     (kept, dropped)
 }
 
-/// The ids of the transitions labelled `event`.
+/// The ids of the transitions labelled `event`; with `event@place`, those
+/// of them that take from `place`.
 fn labelled(net: &Net, event: &str) -> Vec<String> {
+    let (event, from) = match event.split_once('@') {
+        Some((event, place)) => match net.place(place) {
+            Some(p) => (event, Some(p)),
+            None => return Vec::new(),
+        },
+        None => (event, None),
+    };
     net.transitions
         .iter()
         .filter(|t| t.label.as_deref() == Some(event))
+        .filter(|t| from.is_none_or(|p| t.pre.iter().any(|a| a.place == p)))
         .map(|t| t.id.clone())
         .collect()
 }
 
 /// A rule as the constraints synthesis takes: an if–then rule on an event
-/// becomes one rule per transition labelled with it.
+/// (or on `event@place`) becomes one rule per transition labelled with it
+/// (and taking from the place).
 fn expand(net: &Net, rule: &str) -> Result<Vec<Constraint>, String> {
     let constraint = Constraint::parse(rule).map_err(|e| e.to_string())?;
     match &constraint {

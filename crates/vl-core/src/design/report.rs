@@ -7,7 +7,6 @@ use vl_petri::{Added, Analysis, net_to_dot, to_pnml};
 
 use super::Designed;
 use super::pipeline::Interleaving;
-use crate::Named;
 
 impl Designed {
     /// Each file's name in the lab's folder and its contents.
@@ -22,11 +21,12 @@ impl Designed {
     }
 
     /// Whether the controlled net has every property a lab needs, and no
-    /// rule can be broken in it.
+    /// rule can be broken in it. A chart that is several people's at once
+    /// holds several tokens, so only one-person designs need be safe.
     pub fn sound(&self) -> bool {
         let a = &self.controlled_analysis;
         a.bounded
-            && a.safe
+            && (a.safe || !self.design.people.is_empty())
             && a.live
             && a.reversible
             && !a.deadlock
@@ -35,7 +35,7 @@ impl Designed {
 
     fn report(&self) -> String {
         let d = &self.design;
-        let lab = d.lab.id();
+        let lab = d.lab;
         let mut out = String::new();
         let _ = writeln!(out, "# {}: the lab's nets\n", d.title);
         let _ = writeln!(
@@ -104,11 +104,17 @@ impl Designed {
         let _ = writeln!(
             out,
             "\n{}\n\n![the uncontrolled net](uncontrolled.svg)\n\n![the controlled net](controlled.svg)",
-            if self.sound() {
-                "**The controlled net is bounded, safe, live, reversible and deadlock-free, and \
-                 no rule can be broken in it.**"
-            } else {
-                "**The controlled net is NOT sound: see above.**"
+            match (self.sound(), self.design.people.is_empty()) {
+                (true, true) => "**The controlled net is bounded, safe, live, reversible and \
+                 deadlock-free, and no rule can be broken in it.**"
+                    .to_owned(),
+                (true, false) => format!(
+                    "**The controlled net is bounded, live, reversible and deadlock-free, and no \
+                     rule can be broken in it.** It is not safe: {}'s places hold a token per \
+                     person.",
+                    self.people()
+                ),
+                (false, _) => "**The controlled net is NOT sound: see above.**".to_owned(),
             }
         );
         out
@@ -116,6 +122,16 @@ impl Designed {
 }
 
 impl Designed {
+    /// The charts that are several people's, as `access (3 people)`.
+    fn people(&self) -> String {
+        let d = &self.design;
+        d.people
+            .iter()
+            .map(|(chart, n)| format!("`{chart}` ({n} people)"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
     /// What synthesis added for one rule, in words.
     fn controllers(&self, added: &[Added]) -> String {
         let mut parts: Vec<String> = Vec::new();

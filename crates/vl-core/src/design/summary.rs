@@ -7,7 +7,6 @@ use serde::Serialize;
 
 use super::Rule;
 use super::pipeline::{Designed, Interleaving};
-use crate::Named;
 use crate::table::{Report, Table};
 
 /// One lab's outcome, as the table and `--json` show it.
@@ -23,6 +22,9 @@ pub struct LabRow {
     pub markings: usize,
     pub bounded: bool,
     pub safe: bool,
+    /// Whether a chart is several people's, so its places hold more than
+    /// one token by design and the net need not be safe.
+    pub crowd: bool,
     pub live: bool,
     pub reversible: bool,
     pub deadlock_free: bool,
@@ -30,6 +32,19 @@ pub struct LabRow {
     pub broken_with: usize,
     /// Files written, or (with --check) found different.
     pub files: Vec<String>,
+    /// Each rule: why, how the uncontrolled net breaks it, whether the
+    /// controlled one still can.
+    pub verdicts: Vec<Verdict>,
+}
+
+/// One rule of a lab, without and with its controllers.
+#[derive(Debug, Serialize)]
+pub struct Verdict {
+    pub why: String,
+    /// The events of the shortest sequence breaking it without the
+    /// controllers; none if it cannot be broken even then.
+    pub broken_by: Option<Vec<String>>,
+    pub holds: bool,
 }
 
 /// Every lab's outcome, and where its files are.
@@ -67,7 +82,10 @@ impl Report for NetsReport {
                 l.transitions.to_string(),
                 l.markings.to_string(),
                 yes(l.bounded),
-                yes(l.safe),
+                match (l.safe, l.crowd) {
+                    (false, true) => "no (people)".to_owned(),
+                    (safe, _) => yes(safe),
+                },
                 yes(l.live),
                 yes(l.reversible),
                 yes(l.deadlock_free),
@@ -77,6 +95,24 @@ impl Report for NetsReport {
         let mut table = table.title(
             "each lab's controlled net, and the rules broken without and with its controllers:",
         );
+        for l in &self.labs {
+            for v in &l.verdicts {
+                table = table.note(format!(
+                    "{}: {}: {}; {}",
+                    l.lab,
+                    v.why,
+                    match &v.broken_by {
+                        Some(events) => format!("without controllers {}", events.join(" → ")),
+                        None => "holds without controllers".to_owned(),
+                    },
+                    if v.holds {
+                        "holds with them"
+                    } else {
+                        "BROKEN with them"
+                    }
+                ));
+            }
+        }
         for l in &self.labs {
             let dir = self.out.join(l.lab);
             table = table.note(if self.check {
@@ -102,7 +138,7 @@ impl Designed {
         let count =
             |v: &[(Rule, Option<Interleaving>)]| v.iter().filter(|(_, bad)| bad.is_some()).count();
         LabRow {
-            lab: self.design.lab.id(),
+            lab: self.design.lab,
             charts: self.design.charts.len(),
             broken_without: count(&self.bad),
             rules: self.bad.len(),
@@ -111,11 +147,22 @@ impl Designed {
             markings: a.states,
             bounded: a.bounded,
             safe: a.safe,
+            crowd: !self.design.people.is_empty(),
             live: a.live,
             reversible: a.reversible,
             deadlock_free: !a.deadlock,
             broken_with: count(&self.still_bad),
             files,
+            verdicts: self
+                .bad
+                .iter()
+                .zip(&self.still_bad)
+                .map(|((rule, bad), (_, still))| Verdict {
+                    why: rule.why.clone(),
+                    broken_by: bad.as_ref().map(|b| b.events.clone()),
+                    holds: still.is_none(),
+                })
+                .collect(),
         }
     }
 

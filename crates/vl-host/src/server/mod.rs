@@ -25,7 +25,7 @@ use std::time::Duration;
 use tokio::net::TcpListener;
 use tokio::sync::mpsc;
 use tracing::{debug, error, warn};
-use vl_core::{Experiment, Named, Supervisor, SupervisorError};
+use vl_core::{AccessNet, Experiment, Named, Supervisor, SupervisorError};
 
 use crate::accounts::audit::Audit;
 use crate::accounts::gate::{Gate, Observers};
@@ -68,8 +68,9 @@ pub struct HostConfig {
     /// How long an operator whose link dropped keeps the role and the run
     /// (the robot held still meanwhile), to say hello again with `resume`.
     pub grace: Duration,
-    /// Where the labs' controlled nets are (`<dir>/<lab>/controlled.pnml`,
-    /// as `vl lab nets --out dir` writes them); the shipped ones if none.
+    /// Where the labs' and the access design's controlled nets are
+    /// (`<dir>/<lab>/controlled.pnml`, `<dir>/access/controlled.pnml`, as
+    /// `vl lab nets --out dir` writes them); the shipped ones if none.
     pub nets: Option<PathBuf>,
     /// Drive the robot back to the lab's start pose after every run.
     pub reset: bool,
@@ -80,12 +81,15 @@ pub struct HostConfig {
 }
 
 impl HostConfig {
-    /// The supervisor of the labs offered, from their controlled nets.
+    /// The supervisor of the labs offered, from their controlled nets,
+    /// with the access net beside them.
     pub fn supervisor(&self) -> Result<Supervisor, SupervisorError> {
-        match &self.nets {
-            Some(dir) => Supervisor::load(dir, &self.experiments),
-            None => Supervisor::new(&self.experiments),
-        }
+        Ok(match &self.nets {
+            Some(dir) => {
+                Supervisor::load(dir, &self.experiments)?.with_access(AccessNet::load(dir)?)
+            }
+            None => Supervisor::new(&self.experiments)?.with_access(AccessNet::new()?),
+        })
     }
 }
 

@@ -4,7 +4,9 @@
 use std::time::Instant;
 
 use tracing::info;
-use vl_core::{Action, EndReason, ErrorCode, HostMessage, PROTOCOL_VERSION, Role};
+use vl_core::{
+    AccessEvent, Action, EndReason, ErrorCode, HostMessage, PROTOCOL_VERSION, Role, Seat,
+};
 
 use super::{Away, Hub, ToConnection};
 use crate::accounts::audit::Entry;
@@ -169,6 +171,17 @@ impl Hub {
             );
             return false;
         }
+        // Asking and being granted at once, when the line is empty.
+        if !returning
+            && let Err(e) = self.supervisor.access(&[
+                (AccessEvent::Ask, Seat::Observer),
+                (AccessEvent::Advance, Seat::Waiting),
+                (AccessEvent::Grant, Seat::Head),
+            ])
+        {
+            self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
+            return false;
+        }
         if !returning {
             self.slot_until = self.config.slot.map(|slot| Instant::now() + slot);
         }
@@ -200,7 +213,7 @@ impl Hub {
                 self.lab
                     .request(LabRequest::Finish(EndReason::OperatorLeft));
             }
-            self.release_operator();
+            self.release_operator(AccessEvent::Leave);
         }
         let Some(id) = self.operator else { return };
         if !self.supervisor.allows(Action::Stop)
@@ -216,7 +229,7 @@ impl Hub {
         );
         self.lab
             .request(LabRequest::Finish(EndReason::OperatorSilent));
-        self.release_operator();
+        self.release_operator(AccessEvent::Leave);
         if let Some(client) = self.clients.get_mut(&id) {
             client.role = Some(Role::Observer);
         }
@@ -235,15 +248,17 @@ impl Hub {
         }
     }
 
-    /// The operator role is free again and the lab back to idle; the next
-    /// in line, if any, has it.
-    pub(super) fn release_operator(&mut self) {
+    /// The operator role is free again (`how`: their slot ended, they
+    /// left, or were kicked) and the lab back to idle, its run ended first;
+    /// the next in line, if any, has it.
+    pub(super) fn release_operator(&mut self, how: AccessEvent) {
         self.operator = None;
         self.resume = None;
         self.slot_until = None;
         if self.supervisor.allows(Action::Release) {
             self.happened(Action::Release);
         }
+        self.seat(how, Seat::Operator);
         self.experiment = None;
         self.definition = None;
         self.cspace = None;
@@ -284,6 +299,6 @@ impl Hub {
             self.lab
                 .request(LabRequest::Finish(EndReason::OperatorLeft));
         }
-        self.release_operator();
+        self.release_operator(AccessEvent::Leave);
     }
 }

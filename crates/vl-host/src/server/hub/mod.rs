@@ -12,8 +12,8 @@ use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::Message;
 use tracing::{debug, info, warn};
 use vl_core::{
-    Action, CSpace, Definition, EndReason, ErrorCode, Experiment, GuestMessage, HostMessage,
-    MapField, MountedLab, Named, Readiness, Role, Stopper, Supervisor, Wire,
+    AccessEvent, Action, CSpace, Definition, EndReason, ErrorCode, Experiment, GuestMessage,
+    HostMessage, MapField, MountedLab, Named, Readiness, Role, Stopper, Supervisor, Wire,
 };
 
 use super::HostConfig;
@@ -243,6 +243,7 @@ impl Hub {
                 },
             }
             self.tell_state();
+            debug_assert_eq!(self.seats_apart(), None, "the line and the access net agree");
         }
     }
 
@@ -323,7 +324,9 @@ impl Hub {
             (Some(_), GuestMessage::RequestFrame) => self.lab.request_frame(),
             (Some(_), GuestMessage::Kick { session }) => self.kick(id, session),
             (Some(Role::Observer), GuestMessage::Queue) => self.join_queue(id),
-            (Some(Role::Observer), GuestMessage::LeaveQueue) => self.leave_queue(id),
+            (Some(Role::Observer), GuestMessage::LeaveQueue) => {
+                self.leave_queue(id, AccessEvent::LeaveQueue)
+            }
             (Some(Role::Observer), other) => self.refuse(
                 id,
                 ErrorCode::NotOperator,

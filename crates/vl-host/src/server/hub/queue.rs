@@ -4,11 +4,16 @@
 //! ready); a place held by an account survives a dropped link for the
 //! grace, so a reconnect keeps it. An administrator may end anyone's
 //! turn or place.
+//!
+//! Every step is an event of the access net the supervisor runs: the line
+//! here is the order, the net says whether the step may happen (one
+//! operator, a grant only to the head, the run stopped before a slot
+//! ends). The first in line holds the net's head.
 
 use std::time::Instant;
 
-use tracing::info;
-use vl_core::{Action, EndReason, ErrorCode, HostMessage, Role};
+use tracing::{info, warn};
+use vl_core::{AccessEvent, Action, EndReason, ErrorCode, HostMessage, Role, Seat};
 
 use super::access::secret;
 use super::{Hub, ToConnection};
@@ -44,6 +49,12 @@ impl Hub {
         if self.queue.iter().any(|p| p.id == Some(id)) {
             return self.refuse(id, ErrorCode::NotAllowedNow, "you are in line already");
         }
+        if let Err(e) = self
+            .supervisor
+            .access(&[(AccessEvent::Ask, Seat::Observer)])
+        {
+            return self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
+        }
         let account = self.user_of(id);
         self.queue.push_back(Place {
             id: Some(id),
@@ -53,12 +64,17 @@ impl Hub {
         self.config
             .audit
             .record(Entry::new("queued").connection(id).user(account.as_deref()));
+        self.fill_head();
         self.grant_next();
         self.tell_queue();
     }
 
-    pub(super) fn leave_queue(&mut self, id: u64) {
-        self.queue.retain(|p| p.id != Some(id));
+    /// `id` gives up its place in line (`LeaveQueue`) or is removed from it
+    /// (`Kick`).
+    pub(super) fn leave_queue(&mut self, id: u64, how: AccessEvent) {
+        if let Some(index) = self.queue.iter().position(|p| p.id == Some(id)) {
+            self.drop_place(index, how);
+        }
         self.send(
             id,
             HostMessage::Queue {
@@ -74,15 +90,50 @@ impl Hub {
     /// place is kept for the grace, anyone else's is given up.
     pub(super) fn queued_left(&mut self, id: u64, meant: bool) {
         let grace = self.config.grace;
-        for place in self.queue.iter_mut().filter(|p| p.id == Some(id)) {
-            place.id = None;
-            if place.account.is_some() && !meant && !grace.is_zero() {
-                place.away_until = Some(Instant::now() + grace);
+        let Some(index) = self.queue.iter().position(|p| p.id == Some(id)) else {
+            return;
+        };
+        let place = &mut self.queue[index];
+        place.id = None;
+        if place.account.is_some() && !meant && !grace.is_zero() {
+            place.away_until = Some(Instant::now() + grace);
+        } else {
+            self.drop_place(index, AccessEvent::LeaveQueue);
+        }
+        self.tell_queue();
+    }
+
+    /// Takes the place at `index` out of the line as `how` says, in the
+    /// access net too, and moves the next up to the head.
+    fn drop_place(&mut self, index: usize, how: AccessEvent) {
+        let seat = if index == 0 {
+            Seat::Head
+        } else {
+            Seat::Waiting
+        };
+        self.seat(how, seat);
+        self.queue.remove(index);
+        self.fill_head();
+    }
+
+    /// The first in line moves up to the net's head when it is empty.
+    fn fill_head(&mut self) {
+        if !self.queue.is_empty() && self.supervisor.seated(Seat::Head) == Some(0) {
+            self.seat(AccessEvent::Advance, Seat::Waiting);
+        }
+    }
+
+    /// Fires an access event the line's own order says is due; a refusal
+    /// means the access net (a changed chart, say) forbids what the hub
+    /// does, which the log says. Whether it fired.
+    pub(super) fn seat(&mut self, event: AccessEvent, seat: Seat) -> bool {
+        match self.supervisor.access(&[(event, seat)]) {
+            Ok(()) => true,
+            Err(e) => {
+                warn!("{e}");
+                false
             }
         }
-        self.queue
-            .retain(|p| p.id.is_some() || p.away_until.is_some());
-        self.tell_queue();
     }
 
     /// A client welcomed with an account takes back the place that account
@@ -108,12 +159,20 @@ impl Hub {
         if self.operator.is_some() || self.away.is_some() {
             return;
         }
-        while let Some(place) = self.queue.pop_front() {
-            if let Some(id) = place.id {
-                self.grant(id);
-                self.tell_queue();
+        // A head whose link is down loses the place: the next is here.
+        while let Some(head) = self.queue.front() {
+            let Some(id) = head.id else {
+                self.drop_place(0, AccessEvent::LeaveQueue);
+                continue;
+            };
+            if !self.seat(AccessEvent::Grant, Seat::Head) {
                 return;
             }
+            self.queue.pop_front();
+            self.fill_head();
+            self.grant(id);
+            self.tell_queue();
+            return;
         }
     }
 
@@ -145,10 +204,16 @@ impl Hub {
     /// on); with no one waiting it runs on for another slot.
     pub(super) fn check_slot(&mut self) {
         // Places whose grace ran out are given up, slots or not.
-        let before = self.queue.len();
-        self.queue
-            .retain(|p| p.id.is_some() || p.away_until.is_some_and(|t| t > Instant::now()));
-        if self.queue.len() != before {
+        let now = Instant::now();
+        let lapsed: Vec<usize> = (self.queue.iter().enumerate())
+            .filter(|(_, p)| p.id.is_none() && p.away_until.is_none_or(|t| t <= now))
+            .map(|(i, _)| i)
+            .collect();
+        // From the back, so the indices ahead stay where they are.
+        for &index in lapsed.iter().rev() {
+            self.drop_place(index, AccessEvent::LeaveQueue);
+        }
+        if !lapsed.is_empty() {
             self.tell_queue();
         }
         let (Some(until), Some(slot), Some(id)) =
@@ -177,7 +242,7 @@ impl Hub {
         if self.supervisor.allows(Action::Stop) {
             self.lab.request(LabRequest::Finish(EndReason::SlotEnded));
         }
-        self.release_operator();
+        self.release_operator(AccessEvent::SlotEnd);
         if let Some(client) = self.clients.get_mut(&id) {
             client.role = Some(Role::Observer);
         }
@@ -222,7 +287,7 @@ impl Hub {
             if self.supervisor.allows(Action::Stop) {
                 self.lab.request(LabRequest::Finish(EndReason::Kicked));
             }
-            self.release_operator();
+            self.release_operator(AccessEvent::Kick);
             if let Some(client) = self.clients.get_mut(&session) {
                 client.role = Some(Role::Observer);
             }
@@ -235,13 +300,25 @@ impl Hub {
         }
         if self.queue.iter().any(|p| p.id == Some(session)) {
             self.config.audit.record(entry("place in line"));
-            return self.leave_queue(session);
+            return self.leave_queue(session, AccessEvent::Kick);
         }
         self.refuse(
             id,
             ErrorCode::NotAllowedNow,
             format!("session {session} neither drives nor waits in line"),
         );
+    }
+
+    /// Where the hub's own bookkeeping (the operator, one held for the
+    /// grace, the line) and the access net's seats differ, if they do;
+    /// checked after every step in debug builds.
+    pub(super) fn seats_apart(&self) -> Option<String> {
+        let driving = u32::from(self.operator.is_some() || self.away.is_some());
+        let line = self.queue.len() as u32;
+        let hub = [driving, line.min(1), line.saturating_sub(1)];
+        let seats = [Seat::Operator, Seat::Head, Seat::Waiting];
+        let net = seats.map(|seat| self.supervisor.seated(seat));
+        (net != hub.map(Some)).then(|| format!("hub {hub:?}, access net {net:?}"))
     }
 
     /// Tells everyone in line where they stand.
