@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
+use clap::ValueHint;
 use vl_guest::Login;
 use vl_host::{AccountRole, Audit, HostConfig, Observers, Tls, Users};
 
@@ -18,7 +19,7 @@ use crate::{BadInput, named};
 #[derive(clap::Args)]
 pub(crate) struct AccessArgs {
     /// The lab's accounts (TOML; `vl users add` writes it): operators log in.
-    #[arg(long)]
+    #[arg(long, value_hint = ValueHint::FilePath)]
     users: Option<PathBuf>,
     /// With --users: whether anyone may watch, or only people with an account.
     #[arg(long, value_parser = named::<Observers>(), default_value = "anyone", requires = "users")]
@@ -28,17 +29,17 @@ pub(crate) struct AccessArgs {
     #[arg(long, env = "VL_TOKEN", hide_env_values = true)]
     token: Option<String>,
     /// A file whose first line is the operators' token.
-    #[arg(long, conflicts_with = "token")]
+    #[arg(long, conflicts_with = "token", value_hint = ValueHint::FilePath)]
     token_file: Option<PathBuf>,
-    /// Append who did what (logins, roles, runs, refusals) to this file,
-    /// JSON lines (default with --users: audit.jsonl beside it).
-    #[arg(long)]
+    /// Append who did what (logins, roles, runs, refusals, faults) to this
+    /// file, JSON lines (default with --users: audit.jsonl beside it).
+    #[arg(long, value_hint = ValueHint::FilePath)]
     audit: Option<PathBuf>,
     /// Speak only WebSocket over TLS (wss://) with this PEM certificate chain…
-    #[arg(long, requires = "tls_key")]
+    #[arg(long, requires = "tls_key", value_hint = ValueHint::FilePath)]
     tls_cert: Option<PathBuf>,
     /// …and its PEM private key.
-    #[arg(long, requires = "tls_cert")]
+    #[arg(long, requires = "tls_cert", value_hint = ValueHint::FilePath)]
     tls_key: Option<PathBuf>,
     /// Or with a certificate made now and signed by itself; Guests pin it
     /// by the fingerprint in the address the Host prints (#pin=…).

@@ -6,12 +6,13 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
+use clap::ValueHint;
 use vl_core::{Experiment, RobotModel};
 use vl_host::{CameraSource, Host, HostConfig, LabSpec, RobotSpec};
 
 use crate::access::AccessArgs;
 use crate::input::{
-    FramesArgs, OpticsArgs, SceneArgs, arena_from, load_calibration, load_robot_model, seconds,
+    FramesArgs, OpticsArgs, SceneArgs, arena_from, load_calibration, load_robot_model,
 };
 use crate::media::LinkArgs;
 use crate::report::emit;
@@ -27,7 +28,7 @@ enum RobotDriver {
 
 /// `vl host`: serve the lab, or measure how it answers.
 #[derive(clap::Args)]
-#[command(args_conflicts_with_subcommands = true)]
+#[command(args_conflicts_with_subcommands = true, args_override_self = true)]
 pub(crate) struct HostCommand {
     #[command(subcommand)]
     tool: Option<HostTool>,
@@ -49,6 +50,17 @@ enum HostTool {
         #[arg(long)]
         json: bool,
     },
+    /// Ask a running Host how it is: devices, operator, line, runs today
+    /// (an administrator's login at a lab with accounts).
+    Status {
+        /// The Host's address, as a Guest gives it.
+        #[arg(default_value = "ws://127.0.0.1:7400")]
+        url: String,
+        #[command(flatten)]
+        login: crate::access::LoginArgs,
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 pub(crate) async fn host_command(command: HostCommand) -> Result<()> {
@@ -63,12 +75,20 @@ pub(crate) async fn host_command(command: HostCommand) -> Result<()> {
                 .context("the operator bench failed")?;
             emit(&latency, json)
         }
+        Some(HostTool::Status { url, login, json }) => {
+            emit(&vl_guest::host_status(&url, &login.login()?).await?, json)
+        }
         None => host(command.serve).await,
     }
 }
 
 #[derive(clap::Args)]
 pub(crate) struct HostArgs {
+    /// A lab file (TOML) of these options by name, e.g. `slot = "10m"`,
+    /// `users = "users.toml"` (paths from the file's folder); options
+    /// given here as well win.
+    #[arg(long, value_hint = ValueHint::FilePath)]
+    config: Option<PathBuf>,
     /// Which robot to drive.
     #[arg(long, value_enum, default_value = "sim")]
     robot: RobotDriver,
@@ -92,7 +112,7 @@ pub(crate) struct HostArgs {
     camera: CameraSource,
     /// The arena the robot is in: a shipped one or a JSON file. A real robot
     /// starts dead reckoning at its start pose.
-    #[arg(long, default_value = "navigation")]
+    #[arg(long, default_value = "navigation", value_hint = ValueHint::AnyPath)]
     arena: String,
     /// The experiments to offer, comma-separated.
     #[arg(
@@ -105,21 +125,21 @@ pub(crate) struct HostArgs {
     /// Address to listen on; port 0 picks a free one.
     #[arg(long, default_value = "127.0.0.1:7400", value_parser = vl_core::listen_address)]
     listen: SocketAddr,
-    /// An operator who sends no command for this many seconds during a run
-    /// loses the run and the role.
-    #[arg(long, default_value_t = 30.0)]
-    lease: f64,
+    /// An operator who sends no command this long (seconds, or 90s, 10m)
+    /// during a run loses the run and the role.
+    #[arg(long, default_value = "30", value_parser = vl_core::span)]
+    lease: Duration,
     /// How long an operator drives while others wait in line (90s, 10m, 1h).
     #[arg(long, value_parser = vl_core::span)]
     slot: Option<Duration>,
-    /// A client the Host hears nothing from for this many seconds (no
-    /// answer to its pings) is disconnected.
-    #[arg(long, default_value_t = 10.0)]
-    ping_timeout: f64,
-    /// An operator whose link drops keeps the role and the run this many
-    /// seconds (the robot held still) to reconnect; 0 frees them at once.
-    #[arg(long, default_value_t = 10.0)]
-    grace: f64,
+    /// A client the Host hears nothing from this long (no answer to its
+    /// pings) is disconnected.
+    #[arg(long, default_value = "10", value_parser = vl_core::span)]
+    ping_timeout: Duration,
+    /// An operator whose link drops keeps the role and the run this long
+    /// (the robot held still) to reconnect; 0 frees them at once.
+    #[arg(long, default_value = "10", value_parser = vl_core::span_or_none)]
+    grace: Duration,
     /// Leave the robot where a run ends, instead of driving it back to the
     /// lab's start pose (where nothing may move unattended).
     #[arg(long)]
@@ -130,7 +150,7 @@ pub(crate) struct HostArgs {
     no_latency_compensation: bool,
     /// Run the labs' controlled nets from this folder (as `vl lab nets
     /// --out DIR` writes them) instead of the built-in ones.
-    #[arg(long)]
+    #[arg(long, value_hint = ValueHint::DirPath)]
     nets: Option<PathBuf>,
     /// Seed for the simulator's noise.
     #[arg(long, default_value_t = 1)]
@@ -142,12 +162,12 @@ pub(crate) struct HostArgs {
     start: Option<vl_core::Pose>,
     /// The robot's model from a JSON file (`vl khepera characterise`
     /// writes one; default: the Khepera II's).
-    #[arg(long)]
+    #[arg(long, value_hint = ValueHint::FilePath)]
     robot_model: Option<std::path::PathBuf>,
     /// The camera's calibration (`vl camera calibrate -o` writes one).
     /// Without it a simulated camera is calibrated from a dot target when
     /// the Host starts.
-    #[arg(long)]
+    #[arg(long, value_hint = ValueHint::FilePath)]
     camera_calibration: Option<std::path::PathBuf>,
     #[command(flatten)]
     optics: OpticsArgs,
@@ -168,14 +188,10 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
     }
     let mut config = HostConfig {
         experiments: args.experiments.clone(),
-        lease: seconds("--lease", args.lease)?,
+        lease: args.lease,
         slot: args.slot,
-        ping_timeout: seconds("--ping-timeout", args.ping_timeout)?,
-        grace: if args.grace == 0.0 {
-            Duration::ZERO
-        } else {
-            seconds("--grace", args.grace)?
-        },
+        ping_timeout: args.ping_timeout,
+        grace: args.grace,
         frames: args.frames.policy()?,
         nets: args.nets.clone(),
         reset: !args.no_reset,
@@ -192,6 +208,9 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
 
 pub(crate) async fn host(args: HostArgs) -> Result<()> {
     let config = host_config(&args)?;
+    if let Some(file) = &args.config {
+        eprintln!("vl host: options from {}", file.display());
+    }
     let robot = match args.robot {
         RobotDriver::Sim => RobotSpec::Sim,
         RobotDriver::Khepera => RobotSpec::Khepera {

@@ -22,7 +22,7 @@ mod vision;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 #[derive(Parser)]
 #[command(
@@ -89,7 +89,12 @@ pub struct BadInput(pub String);
 pub(crate) use vl_core::named_parser as named;
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    // `vl host --config lab.toml`: the file's flags, then the command line's.
+    let cli = match vl_core::with_flag_file(std::env::args_os().collect(), &Cli::command(), "host")
+    {
+        Ok(args) => Cli::parse_from(args),
+        Err(e) => return report(&BadInput(e.to_string()).into()),
+    };
     // Tools end quietly, as Unix filters, when a reader such as `head` closes the pipe;
     // servers outlive clients whose sockets close (TLS writes with writev).
     if !matches!(
@@ -108,16 +113,16 @@ fn main() -> ExitCode {
         // Colour codes only where a terminal shows them, not in a log file.
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
-    match run(cli) {
-        Ok(code) => code,
-        Err(e) => {
-            eprintln!("vl: {e:#}");
-            if e.downcast_ref::<BadInput>().is_some() {
-                ExitCode::from(2)
-            } else {
-                ExitCode::FAILURE
-            }
-        }
+    run(cli).unwrap_or_else(|e| report(&e))
+}
+
+/// Says what went wrong; the user's input exits with 2.
+fn report(e: &anyhow::Error) -> ExitCode {
+    eprintln!("vl: {e:#}");
+    if e.downcast_ref::<BadInput>().is_some() {
+        ExitCode::from(2)
+    } else {
+        ExitCode::FAILURE
     }
 }
 

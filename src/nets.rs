@@ -2,12 +2,12 @@
 //! the controlled nets the Host runs, written (or checked) under
 //! `docs/nets/<lab>/`.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, ExitCode, Stdio};
+use std::path::PathBuf;
+use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Subcommand;
-use vl_core::{Designed, LabDesign, NetsReport};
+use vl_core::{LabDesign, NetsReport};
 
 use crate::BadInput;
 use crate::report::emit;
@@ -44,7 +44,7 @@ pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
         None => LabDesign::shipped(),
     }
     .map_err(|e| BadInput(e.to_string()))?;
-    let pictures = !check && graphviz();
+    let pictures = !check && vl_petri::graphviz_available();
     let mut labs = Vec::new();
     for lab in &designs {
         let designed = vl_core::design(lab).map_err(|e| BadInput(e.to_string()))?;
@@ -52,7 +52,7 @@ pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
         let files = if check {
             designed.differing(&dir)
         } else {
-            write(&designed, &dir, pictures)?
+            designed.write(&dir, pictures)?
         };
         labs.push(designed.summary(files));
     }
@@ -73,43 +73,4 @@ pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
     } else {
         ExitCode::SUCCESS
     })
-}
-
-/// Writes the lab's files into `dir`, and SVG pictures of its nets when
-/// `pictures`; the names written.
-fn write(d: &Designed, dir: &Path, pictures: bool) -> Result<Vec<String>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let mut written = Vec::new();
-    for (name, text) in d.files() {
-        let path = dir.join(&name);
-        std::fs::write(&path, &text).with_context(|| format!("cannot write {}", path.display()))?;
-        if pictures && let Some(stem) = name.strip_suffix(".dot") {
-            let svg = dir.join(format!("{stem}.svg"));
-            render(&path, &svg)?;
-            written.push(format!("{stem}.svg"));
-        }
-        written.push(name);
-    }
-    Ok(written)
-}
-
-fn graphviz() -> bool {
-    Command::new("dot")
-        .arg("-V")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
-}
-
-fn render(dot: &Path, svg: &Path) -> Result<()> {
-    let status = Command::new("dot")
-        .arg("-Tsvg")
-        .arg(dot)
-        .arg("-o")
-        .arg(svg)
-        .status()
-        .context("cannot run Graphviz's dot")?;
-    anyhow::ensure!(status.success(), "dot failed on {}", dot.display());
-    Ok(())
 }

@@ -402,3 +402,137 @@ async fn a_flood_of_wrong_passwords_is_checked_only_as_far_as_allowed() {
     let ada = answer(&url, login("observer", "ada", "correct horse")).await;
     assert_eq!(ada["type"], "welcome", "{ada}");
 }
+
+/// `GET path` on the Host at `url` (ws://…), with HTTP Basic `credentials`:
+/// the status line and the body.
+fn get(url: &str, path: &str, credentials: Option<&str>) -> (String, String) {
+    use base64::Engine;
+    use std::io::{Read, Write};
+    let authority = url.trim_start_matches("ws://").trim_end_matches('/');
+    let mut tcp = std::net::TcpStream::connect(authority).unwrap();
+    let authorization = credentials.map_or(String::new(), |c| {
+        let encoded = base64::engine::general_purpose::STANDARD.encode(c);
+        format!("Authorization: Basic {encoded}\r\n")
+    });
+    write!(
+        tcp,
+        "GET {path} HTTP/1.1\r\nHost: {authority}\r\n{authorization}\r\n"
+    )
+    .unwrap();
+    let mut answer = String::new();
+    tcp.read_to_string(&mut answer).unwrap();
+    let (head, body) = answer.split_once("\r\n\r\n").unwrap();
+    (head.lines().next().unwrap().to_owned(), body.to_owned())
+}
+
+/// One lab file holds the Host's options (paths read from its folder, the
+/// command line winning); an administrator, and only one, sees who
+/// drives and waits on `/status` and with `vl host status`; the audit log
+/// has the session's grants, runs and role changes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_lab_file_sets_the_host_up_and_its_administrator_sees_it() {
+    let dir = scratch("lab-file");
+    accounts(&dir);
+    let lab = dir.join("lab.toml");
+    std::fs::write(
+        &lab,
+        "camera = \"none\"\nexperiments = [\"teleoperation\"]\nslot = \"10m\"\n\
+         users = \"users.toml\"\nobservers = \"accounts\"\nlease = \"45s\"\n",
+    )
+    .unwrap();
+    let (_host, url) = start_host(&["--config", s(&lab), "--slot", "20m"]);
+    let mut ada = Peer::connect(&url).await;
+    ada.send(login("operator", "ada", "correct horse")).await;
+    let welcome = ada.expect("welcome").await;
+    let offered: Vec<&str> = (welcome["experiments"].as_array().unwrap().iter())
+        .map(|e| e["id"].as_str().unwrap())
+        .collect();
+    assert_eq!(offered, ["teleoperation"], "from the file");
+    let slot = ada.expect("role").await["slot_s"].as_f64().unwrap();
+    assert!(slot > 600.0, "the command line's 20m wins: {slot}");
+    assert_eq!(
+        answer(&url, hello("observer", None, None)).await["code"],
+        "unauthorized",
+        "observers = accounts, from the file"
+    );
+    ada.start("teleoperation").await;
+    let mut bob = Peer::connect(&url).await;
+    bob.send(login("observer", "bob", "battery staple")).await;
+    bob.expect("welcome").await;
+
+    // The status is the administrator's.
+    let (line, why) = get(&url, "/status", None);
+    assert!(line.contains("401"), "{line}");
+    assert!(why.contains("administrator"), "{why}");
+    let (line, why) = get(&url, "/status", Some("ada:correct horse"));
+    assert!(
+        line.contains("401") && why.contains("not an administrator"),
+        "{line} {why}"
+    );
+    let (line, body) = get(&url, "/status", Some("root:admin password"));
+    assert!(line.contains("200"), "{line}");
+    let status: Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(status["operator"]["user"], "ada", "{status}");
+    assert_eq!(status["mounted"], "teleoperation", "{status}");
+    assert_eq!(status["connected"], 2, "{status}");
+    assert_eq!(status["runs_today"], 1, "{status}");
+    assert_eq!(status["runs"][0]["user"], "ada", "{status}");
+    assert!(status["runs"][0]["ended"].is_null(), "{status}");
+    assert!(get(&url, "/other", None).0.contains("404"));
+    // …and the same through `vl host status`, as a table and as JSON.
+    let status_cli = |json: bool| {
+        let mut cmd = Command::new(vl_bin());
+        cmd.args(["host", "status", &url, "--user", "root"])
+            .env("VL_PASSWORD", "admin password");
+        if json {
+            cmd.arg("--json");
+        }
+        cmd.output().expect("vl runs")
+    };
+    let table = common::stdout(&status_cli(false));
+    assert!(table.contains("operator    ada (session"), "{table}");
+    let told: Value = serde_json::from_slice(&status_cli(true).stdout).unwrap();
+    assert_eq!(told["operator"], status["operator"]);
+
+    // An administrator ends ada's run; the log has the session.
+    let mut root = Peer::connect(&url).await;
+    root.send(login("observer", "root", "admin password")).await;
+    let session = status["operator"]["session"].clone();
+    root.expect("welcome").await;
+    root.send(json!({"type": "kick", "session": session})).await;
+    assert_eq!(ada.expect("done").await["summary"]["reason"], "kicked");
+    let logged = ["granted", "run_started", "run_ended", "kicked", "released"];
+    let by = Instant::now() + Duration::from_secs(5);
+    let audit = loop {
+        // The log is written off the hub, a moment later.
+        let text = std::fs::read_to_string(dir.join("audit.jsonl")).unwrap_or_default();
+        let all = logged
+            .iter()
+            .all(|e| text.contains(&format!("\"event\":\"{e}\"")));
+        if all || Instant::now() > by {
+            break text;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    for event in logged {
+        assert!(
+            audit.contains(&format!("\"event\":\"{event}\"")),
+            "{event}: {audit}"
+        );
+    }
+}
+
+/// A lab file with what is not an option of `vl host` is refused, naming it.
+#[test]
+fn a_lab_file_with_an_unknown_option_is_refused_naming_it() {
+    let dir = scratch("lab-file-unknown");
+    let lab = dir.join("lab.toml");
+    std::fs::write(&lab, "slots = \"10m\"\n").unwrap();
+    let run = common::vl(&["host", "--config", s(&lab)]);
+    assert_eq!(run.status.code(), Some(2));
+    let err = common::stderr(&run);
+    assert!(
+        err.contains("'slots' is not an option of `vl host`"),
+        "{err}"
+    );
+}

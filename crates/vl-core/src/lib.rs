@@ -93,6 +93,8 @@
 
 mod contract;
 mod design;
+#[cfg(feature = "clap")]
+mod flag_file;
 mod images;
 mod model;
 mod named;
@@ -113,6 +115,7 @@ pub use contract::experiment::{
 };
 pub use contract::fingerprint::Fingerprint;
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
+pub use contract::host_status::{HostStatus, Person, RunRecord};
 pub use contract::protocol::{
     DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HeldBack, HostMessage,
     MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Readiness, Role, Secret, Stopper, Summary,
@@ -122,6 +125,8 @@ pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, 
 pub use design::{
     DesignError, Designed, Interleaving, LabDesign, LabRow, NetsReport, Rule, Verdict, design,
 };
+#[cfg(feature = "clap")]
+pub use flag_file::{FlagFileError, with_flag_file};
 pub use images::{ImageError, MAX_IMAGE_SIDE, decode_image, load_image};
 pub use model::arena::{
     Arena, ArenaError, Hit, MapImageError, Material, Obstacle, Shape, ShapeError,
@@ -158,7 +163,7 @@ pub use navigation::plan::{
 pub use navigation::report::{GridInfo, PlanReport};
 pub use navigation::svg::{plan_svg, run_svg};
 pub use safety::{Guarded, Safety, Situation, Surroundings};
-pub use syntax::{ImageSize, SyntaxError, listen_address, span};
+pub use syntax::{ImageSize, SyntaxError, listen_address, span, span_or_none};
 pub use teleop::{Assisted, Joystick, MapField, Teleop, Vector, predict};
 pub use vision::{
     Centroid, Component, Connectivity, DotTarget, Look, Mask, RobotPose, Scene, TargetError,

@@ -83,6 +83,14 @@ pub fn span(text: &str) -> Result<Duration, SyntaxError> {
     Ok(Duration::from_secs_f64(seconds))
 }
 
+/// A [`span`], or `0` for none at all.
+pub fn span_or_none(text: &str) -> Result<Duration, SyntaxError> {
+    match text.trim().parse::<f64>() {
+        Ok(0.0) => Ok(Duration::ZERO),
+        _ => span(text),
+    }
+}
+
 /// An image's size in pixels, written WxH (640x480 or 640×480), each side
 /// from 1 to [`MAX_IMAGE_SIDE`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

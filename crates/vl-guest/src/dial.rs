@@ -84,6 +84,14 @@ impl Target {
         })
     }
 
+    /// `host:port`, as an HTTP request's `Host` names it.
+    pub(crate) fn authority(&self) -> String {
+        match self.host.contains(':') {
+            true => format!("[{}]:{}", self.host, self.port),
+            false => format!("{}:{}", self.host, self.port),
+        }
+    }
+
     /// A byte stream to the Host, TLS already shaken hands when asked for.
     pub(crate) async fn dial(&self) -> std::io::Result<Box<dyn Io>> {
         let tcp = TcpStream::connect((self.host.as_str(), self.port)).await?;

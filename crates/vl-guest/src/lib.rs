@@ -50,6 +50,7 @@ mod predict;
 mod route;
 mod session;
 mod settings;
+mod status;
 
 pub use app::{CAMERA_VIEW, GuestApp, WindowError, display_available, run_window};
 pub use client::{ClientError, Connection, GOODBYE_WAIT, Incoming, open};
@@ -68,3 +69,4 @@ pub use session::{
     TIME_PERIOD,
 };
 pub use settings::{Settings, SettingsError};
+pub use status::{StatusError, host_status};

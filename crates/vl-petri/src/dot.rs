@@ -3,9 +3,37 @@
 //! graph (reachability graph or coverability graph, markings as labels).
 
 use std::fmt::Write;
+use std::path::Path;
+use std::process::{Command, Stdio};
 
 use crate::coverability::OMEGA;
 use crate::net::Net;
+
+/// Whether Graphviz's `dot` is installed, to draw DOT files as SVG.
+pub fn graphviz_available() -> bool {
+    Command::new("dot")
+        .arg("-V")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// Draws the DOT file `dot` as the SVG file `svg` with Graphviz's `dot`;
+/// why not, in words.
+pub fn render_svg(dot: &Path, svg: &Path) -> Result<(), String> {
+    let status = Command::new("dot")
+        .arg("-Tsvg")
+        .arg(dot)
+        .arg("-o")
+        .arg(svg)
+        .status()
+        .map_err(|e| format!("cannot run Graphviz's dot: {e}"))?;
+    match status.success() {
+        true => Ok(()),
+        false => Err(format!("dot failed on {}", dot.display())),
+    }
+}
 
 fn quote(s: &str) -> String {
     format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))

@@ -78,6 +78,12 @@ pub enum AccessEvent {
     Kick,
 }
 
+impl fmt::Display for AccessEvent {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.event())
+    }
+}
+
 impl AccessEvent {
     /// The event its transitions carry in the net.
     fn event(self) -> &'static str {

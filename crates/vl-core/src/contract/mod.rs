@@ -8,5 +8,6 @@ pub(crate) mod access;
 pub(crate) mod experiment;
 pub(crate) mod fingerprint;
 pub(crate) mod frame;
+pub(crate) mod host_status;
 pub(crate) mod protocol;
 pub(crate) mod supervisor;

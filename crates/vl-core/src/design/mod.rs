@@ -75,6 +75,8 @@ struct LabFile {
 pub enum DesignError {
     #[error("cannot read {path}: {why}")]
     Read { path: String, why: String },
+    #[error("cannot write {path}: {why}")]
+    Write { path: String, why: String },
     #[error("{path}: {why}")]
     LabFile { path: String, why: String },
     #[error("{lab}: chart '{chart}': {why}")]

@@ -2,11 +2,12 @@
 //! report that reads like the thesis's analysis of it.
 
 use std::fmt::Write;
+use std::path::Path;
 
-use vl_petri::{Added, Analysis, net_to_dot, to_pnml};
+use vl_petri::{Added, Analysis, net_to_dot, render_svg, to_pnml};
 
-use super::Designed;
 use super::pipeline::Interleaving;
+use super::{DesignError, Designed};
 
 impl Designed {
     /// Each file's name in the lab's folder and its contents.
@@ -18,6 +19,28 @@ impl Designed {
             ("controlled.dot".into(), net_to_dot(&self.controlled)),
             ("report.md".into(), self.report()),
         ]
+    }
+
+    /// Writes the lab's files into `dir`, and SVG pictures of its nets
+    /// when `pictures` (Graphviz's `dot`); the names written.
+    pub fn write(&self, dir: &Path, pictures: bool) -> Result<Vec<String>, DesignError> {
+        let failed = |path: &Path, why: String| DesignError::Write {
+            path: path.display().to_string(),
+            why,
+        };
+        std::fs::create_dir_all(dir).map_err(|e| failed(dir, e.to_string()))?;
+        let mut written = Vec::new();
+        for (name, text) in self.files() {
+            let path = dir.join(&name);
+            std::fs::write(&path, &text).map_err(|e| failed(&path, e.to_string()))?;
+            if pictures && let Some(stem) = name.strip_suffix(".dot") {
+                let svg = dir.join(format!("{stem}.svg"));
+                render_svg(&path, &svg).map_err(|why| failed(&svg, why))?;
+                written.push(format!("{stem}.svg"));
+            }
+            written.push(name);
+        }
+        Ok(written)
     }
 
     /// Whether the controlled net has every property a lab needs, and no

@@ -227,6 +227,11 @@ impl Gate {
             .unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 
+    /// Whether the lab has accounts (so some things are an administrator's).
+    pub(crate) fn has_accounts(&self) -> bool {
+        self.users.is_some()
+    }
+
     /// Whether an operator must prove who they are.
     fn guarded(&self) -> bool {
         self.users.is_some() || self.token.is_some()

@@ -19,6 +19,7 @@ use vl_core::{ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES, Wire};
 
 use super::HostConfig;
 use super::admission::Ticket;
+use super::http::{self, Opening};
 use super::hub::{ToConnection, ToHub};
 use crate::accounts::gate::{Credentials, Gate};
 use crate::lab::Watching;
@@ -158,17 +159,32 @@ impl Connection {
             .max_frame_size(Some(MAX_TEXT_BYTES))
             .max_write_buffer_size(WRITE_BUFFER);
         let tls = self.config.tls.as_ref().map(|tls| tls.config.clone());
+        let (gate, hub) = (self.gate.clone(), self.hub.clone());
+        let who = (self.id, self.peer.ip());
         let handshake = async move {
             let stream: Box<dyn Io> = match tls {
                 Some(tls) => Box::new(tokio_rustls::TlsAcceptor::from(tls).accept(stream).await?),
                 None => Box::new(stream),
             };
-            tokio_tungstenite::accept_async_with_config(stream, Some(ws_config)).await
+            match http::opening(stream).await? {
+                Opening::WebSocket(stream) => {
+                    tokio_tungstenite::accept_async_with_config(stream, Some(ws_config))
+                        .await
+                        .map(Some)
+                }
+                Opening::Page(stream, page) => {
+                    http::answer(stream, page, who, &gate, &hub).await?;
+                    Ok(None)
+                }
+            }
         };
         let mut evicted = self.ticket.evicted.clone();
         let ws = tokio::select! {
             ws = tokio::time::timeout(HANDSHAKE_TIMEOUT, handshake) => match ws {
-                Ok(ws) => ws?,
+                Ok(Ok(Some(ws))) => ws,
+                // A page was asked for, and answered.
+                Ok(Ok(None)) => return Ok(()),
+                Ok(Err(e)) => return Err(e),
                 Err(_) => {
                     debug!(connection = self.id, "no handshake within {HANDSHAKE_TIMEOUT:?}");
                     return Ok(());

@@ -16,6 +16,7 @@ pub(crate) mod admission;
 pub(crate) mod bench;
 mod connection;
 pub use connection::Io;
+mod http;
 mod hub;
 
 use std::path::PathBuf;

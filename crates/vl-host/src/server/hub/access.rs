@@ -186,6 +186,13 @@ impl Hub {
             self.slot_until = self.config.slot.map(|slot| Instant::now() + slot);
         }
         self.operator = Some(id);
+        self.operator_user = self.user_of(id);
+        if !returning {
+            let entry = Entry::new("granted").connection(id);
+            self.config
+                .audit
+                .record(entry.user(self.operator_user.as_deref()));
+        }
         if returning {
             self.away = None;
             info!(connection = id, "the operator is back");
@@ -252,6 +259,14 @@ impl Hub {
     /// left, or were kicked) and the lab back to idle, its run ended first;
     /// the next in line, if any, has it.
     pub(super) fn release_operator(&mut self, how: AccessEvent) {
+        let entry = Entry::new("released").user(self.operator_user.take().as_deref());
+        self.config.audit.record(
+            match self.operator {
+                Some(id) => entry.connection(id),
+                None => entry,
+            }
+            .detail(how.to_string()),
+        );
         self.operator = None;
         self.resume = None;
         self.slot_until = None;

@@ -27,6 +27,7 @@ mod fields;
 mod operate;
 mod queue;
 mod reset;
+mod status;
 #[cfg(test)]
 mod tests;
 
@@ -48,6 +49,8 @@ pub(crate) enum ToHub {
         resume: Option<String>,
     },
     Message(u64, GuestMessage),
+    /// An administrator asks how the Host is.
+    Status(tokio::sync::oneshot::Sender<vl_core::HostStatus>),
     /// The connection closed; true when the client meant to leave (said
     /// bye or closed the WebSocket), false when its link dropped.
     Leave(u64, bool),
@@ -98,6 +101,8 @@ pub(crate) struct Hub {
     supervisor: Supervisor,
     clients: HashMap<u64, Client>,
     operator: Option<u64>,
+    /// The account of the operator (or of one held for the grace).
+    operator_user: Option<String>,
     /// The operator's secret for coming back after a dropped link.
     resume: Option<String>,
     /// An operator whose link dropped, while their grace lasts.
@@ -121,6 +126,10 @@ pub(crate) struct Hub {
     run: Option<u64>,
     /// How many runs have started.
     runs: u64,
+    /// The latest runs, for the administrator.
+    run_log: status::RunLog,
+    /// The devices' state last seen, to log faults and returns.
+    devices: crate::lab::LabStatus,
     /// The mounted map grown by the robot's radius (the `cspace` chart's work).
     cspace: Option<Arc<CSpace>>,
     /// The map's potential field for teleoperation runs, over the C-space
@@ -146,6 +155,7 @@ pub(crate) struct Hub {
 
 impl Hub {
     pub(crate) fn new(lab: Lab, config: Arc<HostConfig>, supervisor: Supervisor) -> Hub {
+        let devices = *lab.status.borrow();
         Hub {
             map: Map::new(&lab),
             lab,
@@ -165,6 +175,9 @@ impl Hub {
             last_command: Instant::now(),
             run: None,
             runs: 0,
+            operator_user: None,
+            run_log: status::RunLog::default(),
+            devices,
             cspace: None,
             field: None,
             fields: FieldWorker::new(),
@@ -188,6 +201,7 @@ impl Hub {
                 biased;
                 Ok(()) = status.changed() => {
                     status.mark_unchanged();
+                    self.devices_changed();
                     self.broadcast(&self.status());
                 }
                 Some(Finished(run, mut summary)) = self.lab.finished.recv() => {
@@ -202,6 +216,7 @@ impl Hub {
                         continue;
                     }
                     self.run = None;
+                    self.run_log.ended(run, summary.reason);
                     if self.supervisor.allows(Action::Finish) {
                         self.happened(Action::Finish);
                     }
@@ -238,12 +253,19 @@ impl Hub {
                         self.greet(id, admitted, protocol, role, resume);
                     }
                     Some(ToHub::Message(id, message)) => self.handle(id, message),
+                    Some(ToHub::Status(answer)) => {
+                        let _ = answer.send(self.host_status());
+                    }
                     Some(ToHub::Leave(id, meant)) => self.leave(id, meant),
                     None => return,
                 },
             }
             self.tell_state();
-            debug_assert_eq!(self.seats_apart(), None, "the line and the access net agree");
+            debug_assert_eq!(
+                self.seats_apart(),
+                None,
+                "the line and the access net agree"
+            );
         }
     }
 

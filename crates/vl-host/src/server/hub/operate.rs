@@ -136,6 +136,7 @@ impl Hub {
             self.runs += 1;
             self.run = Some(self.runs);
             let user = self.user_of(id);
+            self.run_log.started(self.runs, experiment, user.clone());
             self.config.audit.record(
                 Entry::new("run_started")
                     .connection(id)

@@ -25,9 +25,9 @@ use crate::lab::LabRequest;
 /// Someone's place in the line.
 pub(super) struct Place {
     /// Their connection; none while their link is down.
-    id: Option<u64>,
+    pub(super) id: Option<u64>,
     /// The account that holds the place across reconnects.
-    account: Option<String>,
+    pub(super) account: Option<String>,
     /// A place whose link dropped is kept until then.
     away_until: Option<Instant>,
 }
@@ -178,6 +178,7 @@ impl Hub {
 
     fn grant(&mut self, id: u64) {
         self.operator = Some(id);
+        self.operator_user = self.user_of(id);
         self.resume = Some(secret());
         self.slot_until = self.config.slot.map(|slot| Instant::now() + slot);
         let user = self.user_of(id);

@@ -1,0 +1,128 @@
+//! What an administrator sees of a running Host (`vl host status`, and
+//! `GET /status` on the Host's port): its devices, who drives, who waits
+//! in line, how many watch, and the runs of the day.
+
+use serde::{Deserialize, Serialize};
+
+use super::protocol::{DeviceState, EndReason, Readiness};
+use crate::table::{Report, Table};
+use crate::{Experiment, Named};
+
+/// The Host's state for its administrator.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HostStatus {
+    pub robot: DeviceState,
+    pub camera: DeviceState,
+    /// Whether a run may start (not while the robot drives back to its start).
+    pub lab: Readiness,
+    pub mounted: Option<Experiment>,
+    /// The run under way, by number.
+    pub run: Option<u64>,
+    pub operator: Option<Person>,
+    /// What is left of the operator's slot, when slots have a length.
+    pub slot_left_s: Option<f64>,
+    /// Who waits for control, first in line first.
+    pub queue: Vec<Person>,
+    /// Clients welcomed (the operator among them).
+    pub connected: u32,
+    /// Runs started since midnight (UTC).
+    pub runs_today: u32,
+    /// The latest runs, newest last: at most [`HostStatus::RUNS_KEPT`].
+    pub runs: Vec<RunRecord>,
+}
+
+impl HostStatus {
+    /// Runs the status lists.
+    pub const RUNS_KEPT: usize = 20;
+}
+
+/// Someone driving or waiting.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Person {
+    /// Their connection; none while their link is down (their role or
+    /// place is held for them).
+    pub session: Option<u64>,
+    /// The account they logged in with.
+    pub user: Option<String>,
+}
+
+/// One run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunRecord {
+    pub run: u64,
+    pub experiment: Experiment,
+    /// When it started, seconds since 1970 (UTC).
+    pub started_unix_s: u64,
+    pub user: Option<String>,
+    /// Why it ended; none while it goes on.
+    pub ended: Option<EndReason>,
+}
+
+impl std::fmt::Display for Person {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let who = self.user.as_deref().unwrap_or("anonymous");
+        match self.session {
+            Some(session) => write!(f, "{who} (session {session})"),
+            None => write!(f, "{who} (link down, held)"),
+        }
+    }
+}
+
+impl Report for HostStatus {
+    fn table(&self) -> Table {
+        let state = |s: DeviceState| {
+            match s {
+                DeviceState::Online => "online",
+                DeviceState::Offline => "OFFLINE",
+                DeviceState::Absent => "none",
+            }
+            .to_owned()
+        };
+        let mut table = Table::pairs([
+            ("robot", state(self.robot)),
+            ("camera", state(self.camera)),
+            ("lab", self.lab.to_string()),
+            (
+                "mounted",
+                self.mounted
+                    .map_or("nothing".into(), |e| e.title().to_owned()),
+            ),
+            (
+                "run",
+                self.run
+                    .map_or("none".into(), |run| format!("{run}, under way")),
+            ),
+            (
+                "operator",
+                self.operator
+                    .as_ref()
+                    .map_or("no one".into(), Person::to_string),
+            ),
+            (
+                "slot left",
+                match (&self.operator, self.slot_left_s) {
+                    (None, _) => "-".into(),
+                    (Some(_), None) => "no limit".into(),
+                    (Some(_), Some(s)) => format!("{}:{:02}", s as u64 / 60, s as u64 % 60),
+                },
+            ),
+            ("in line", self.queue.len().to_string()),
+            ("connected", self.connected.to_string()),
+            ("runs today", self.runs_today.to_string()),
+        ])
+        .title("the Host now:");
+        for (i, person) in self.queue.iter().enumerate() {
+            table = table.note(format!("in line {}: {person}", i + 1));
+        }
+        for r in &self.runs {
+            table = table.note(format!(
+                "run {} ({}) by {}: {}",
+                r.run,
+                r.experiment.id(),
+                r.user.as_deref().unwrap_or("anonymous"),
+                r.ended.map_or("under way".into(), |e| e.to_string())
+            ));
+        }
+        table
+    }
+}
