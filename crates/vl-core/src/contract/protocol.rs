@@ -295,6 +295,9 @@ pub enum ErrorCode {
     SlowReader,
     /// Too many failed logins from this address or for this account: wait.
     TooManyAttempts,
+    /// Every place to watch from is taken; the rest are kept for people
+    /// who may drive.
+    LabFull,
 }
 
 /// As on the wire: `unknown_experiment`.

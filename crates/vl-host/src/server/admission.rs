@@ -5,9 +5,11 @@
 //! address has used its budget, and otherwise the oldest silent one of the
 //! address holding the most: however many idle sockets one machine opens,
 //! they only ever push out each other, never a person connecting from
-//! elsewhere over a slow link.
+//! elsewhere over a slow link. Of the welcomed places, the last
+//! [`KEPT_FOR_DRIVERS`] are kept for people who may drive: however many
+//! come to watch, an operator still gets in.
 
-use std::collections::VecDeque;
+use std::collections::{HashSet, VecDeque};
 use std::net::IpAddr;
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -20,6 +22,8 @@ pub(crate) const MAX_UNWELCOMED: usize = 32;
 /// Of those, connections from one address: a class behind one router
 /// connecting at once, each saying hello within a round trip.
 pub(crate) const MAX_UNWELCOMED_PER_ADDRESS: usize = 8;
+/// Welcomed places only people who may drive take.
+pub(crate) const KEPT_FOR_DRIVERS: usize = 16;
 
 /// A connection not yet welcomed, with its eviction signal.
 struct Silent {
@@ -35,6 +39,8 @@ struct Counts {
     total: usize,
     /// Connections not yet welcomed, oldest first.
     unwelcomed: VecDeque<Silent>,
+    /// Connections seated to watch only.
+    watching: HashSet<u64>,
 }
 
 impl Counts {
@@ -149,6 +155,21 @@ impl Ticket {
         lock(&self.counts).unwelcomed.retain(|s| s.id != self.id);
     }
 
+    /// Takes a place for this connection's person: any place for one who
+    /// may drive, one not kept for drivers for one who only watches.
+    /// Whether there was one.
+    pub(crate) fn seat(&self, may_drive: bool) -> bool {
+        let mut counts = lock(&self.counts);
+        if may_drive || counts.watching.contains(&self.id) {
+            return true;
+        }
+        if counts.watching.len() >= MAX_CONNECTIONS - KEPT_FOR_DRIVERS {
+            return false;
+        }
+        counts.watching.insert(self.id);
+        true
+    }
+
     pub(crate) fn is_welcomed(&self) -> bool {
         !lock(&self.counts)
             .unwelcomed
@@ -162,6 +183,7 @@ impl Drop for Ticket {
         let mut counts = lock(&self.counts);
         counts.total -= 1;
         counts.unwelcomed.retain(|s| s.id != self.id);
+        counts.watching.remove(&self.id);
     }
 }
 
@@ -203,6 +225,36 @@ mod tests {
         drop((welcomed, newcomer));
         assert_eq!(lock(&admission.counts).total, 0);
         assert!(admission.admit(1000, HERE).is_some());
+    }
+
+    #[test]
+    fn watchers_never_take_the_places_kept_for_drivers() {
+        let admission = Admission::new();
+        let watchers: Vec<Ticket> = (0..(MAX_CONNECTIONS - KEPT_FOR_DRIVERS) as u64)
+            .map(|id| {
+                let t = admission.admit(id, address(id as u8)).unwrap();
+                assert!(t.seat(false), "watcher {id} seated");
+                t.welcomed();
+                t
+            })
+            .collect();
+        let late = admission.admit(5000, HERE).unwrap();
+        assert!(!late.seat(false), "no place left to watch from");
+        drop(late);
+        let drivers: Vec<Ticket> = (0..KEPT_FOR_DRIVERS as u64)
+            .map(|n| {
+                let t = admission.admit(6000 + n, HERE).unwrap();
+                assert!(t.seat(true), "driver {n} seated");
+                t.welcomed();
+                t
+            })
+            .collect();
+        assert!(admission.admit(7000, HERE).is_none(), "the Host is full");
+        // A watcher who leaves frees a place to watch from.
+        drop(watchers.into_iter().next());
+        let next = admission.admit(8000, HERE).unwrap();
+        assert!(next.seat(false));
+        drop(drivers);
     }
 
     #[test]

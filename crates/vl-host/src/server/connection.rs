@@ -410,6 +410,12 @@ impl Connection {
                     token: token.as_deref(),
                 };
                 match self.gate.check(self.id, self.peer.ip(), hello).await {
+                    Ok(admitted) if !self.ticket.seat(admitted.may_drive) => {
+                        return Err(End::Refused(
+                            ErrorCode::LabFull,
+                            "the lab is full: every place to watch from is taken (the rest are kept for those who may drive); try again later".into(),
+                        ));
+                    }
                     Ok(admitted) => {
                         let hello = ToHub::Hello {
                             id: self.id,
