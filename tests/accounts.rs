@@ -536,3 +536,24 @@ fn a_lab_file_with_an_unknown_option_is_refused_naming_it() {
         "{err}"
     );
 }
+
+/// Accounts added or removed with `vl users` while the lab runs count at
+/// the next login: no restart, and no one's session cut.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn accounts_changed_while_the_lab_runs_count_at_the_next_login() {
+    let dir = scratch("users-live");
+    let file = accounts(&dir);
+    let (_host, url) = start_host(&["--users", &file]);
+    let dan = login("observer", "dan", "dan's password");
+    assert_eq!(answer(&url, dan.clone()).await["code"], "unauthorized");
+    let out = users(&["add", &file, "dan"], "dan's password");
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let welcome = answer(&url, dan).await;
+    assert_eq!(welcome["user"], "dan", "{welcome}");
+    let out = users(&["remove", &file, "bob"], "");
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let bob = answer(&url, login("observer", "bob", "battery staple")).await;
+    assert_eq!(bob["code"], "unauthorized", "{bob}");
+    let audit = std::fs::read_to_string(dir.join("audit.jsonl")).unwrap_or_default();
+    assert!(audit.contains("\"event\":\"accounts_read\""), "{audit}");
+}

@@ -6,6 +6,8 @@
 //! are compared in constant time; every attempt is logged. Checking a
 //! password is slow on purpose, so it runs off the async threads, one at
 //! a time: a flood of logins cannot take the cores the robot's loop needs.
+//! The accounts file is read again when it changes, so accounts added or
+//! removed on a running lab count from the next login.
 
 use std::collections::HashMap;
 use std::net::IpAddr;
@@ -15,6 +17,7 @@ use std::time::Duration;
 use subtle::ConstantTimeEq;
 use tokio::sync::Semaphore;
 use tokio::time::Instant;
+use tracing::{info, warn};
 use vl_core::{ErrorCode, Named, Role};
 
 use super::audit::{Audit, Entry};
@@ -196,7 +199,8 @@ impl Failures {
 
 /// The lab's door: its accounts, its token, and the failures so far.
 pub struct Gate {
-    users: Option<Arc<Users>>,
+    /// Read again from their file when it changes.
+    users: Option<Mutex<Arc<Users>>>,
     token: Option<String>,
     observers: Observers,
     failures: Mutex<Failures>,
@@ -212,7 +216,7 @@ impl Gate {
         audit: Audit,
     ) -> Gate {
         Gate {
-            users: users.map(Arc::new),
+            users: users.map(|u| Mutex::new(Arc::new(u))),
             token,
             observers,
             failures: Mutex::new(Failures::default()),
@@ -225,6 +229,38 @@ impl Gate {
         self.failures
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// The accounts now: read again if their file changed (an account
+    /// added on the running lab); a file that no longer reads keeps the
+    /// accounts last read, and the log says why.
+    fn users(&self) -> Option<Arc<Users>> {
+        let mut current = self
+            .users
+            .as_ref()?
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        match current.reread() {
+            Some(Ok(users)) => {
+                info!(
+                    accounts = users.accounts().len(),
+                    "the accounts file changed: read again"
+                );
+                self.audit.record(
+                    Entry::new("accounts_read")
+                        .detail(format!("{} accounts", users.accounts().len())),
+                );
+                *current = Arc::new(users);
+            }
+            Some(Err(e)) => {
+                warn!("the accounts file changed but does not read; keeping the accounts: {e}");
+                let mut kept = Users::clone(&current);
+                kept.seen();
+                *current = Arc::new(kept);
+            }
+            None => {}
+        }
+        Some(current.clone())
     }
 
     /// Whether the lab has accounts (so some things are an administrator's).
@@ -251,11 +287,10 @@ impl Gate {
                 .user(hello.user)
         };
         let identity = if hello.user.is_some() || hello.token.is_some() {
-            let account = hello.user.filter(|name| {
-                self.users
-                    .as_ref()
-                    .is_some_and(|u| u.role_of(name).is_some())
-            });
+            let users = self.users();
+            let account = hello
+                .user
+                .filter(|name| users.as_ref().is_some_and(|u| u.role_of(name).is_some()));
             if !self.failures().take(address, account) {
                 self.audit.record(log("rate_limited"));
                 tokio::time::sleep(FAILURE_DELAY).await;
@@ -295,13 +330,13 @@ impl Gate {
     /// The identity the credentials prove, or why they prove none.
     async fn prove(&self, hello: Credentials<'_>) -> Result<Identity, String> {
         if let Some(name) = hello.user {
-            let Some(users) = &self.users else {
+            let Some(users) = self.users() else {
                 return Err("this lab has no accounts: leave out the user name".into());
             };
             let Some(password) = hello.password else {
                 return Err("a user name needs its password".into());
             };
-            let (users, name, password) = (users.clone(), name.to_owned(), password.to_owned());
+            let (name, password) = (name.to_owned(), password.to_owned());
             let _one_at_a_time = self.hashing.acquire().await;
             let checked = tokio::task::spawn_blocking(move || {
                 users

@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
+use std::time::SystemTime;
 
 use argon2::Argon2;
 use argon2::password_hash::rand_core::OsRng;
@@ -125,6 +126,15 @@ impl Report for Roster {
 pub struct Users {
     #[serde(default, rename = "user")]
     accounts: Vec<Account>,
+    /// The file they were read from, and when it was last changed then:
+    /// a Host reads it again when it changes.
+    #[serde(skip)]
+    source: Option<(PathBuf, Option<SystemTime>)>,
+}
+
+/// When the file at `path` last changed, if it is there.
+fn changed(path: &Path) -> Option<SystemTime> {
+    std::fs::metadata(path).and_then(|m| m.modified()).ok()
 }
 
 fn check_name(name: &str) -> Result<(), UsersError> {
@@ -164,9 +174,15 @@ fn matches(hash: &str, password: &str) -> bool {
 impl Users {
     /// The accounts in `path`; an empty list when the file does not exist yet.
     pub fn load(path: &Path) -> Result<Users, UsersError> {
+        let changed = changed(path);
         let text = match std::fs::read_to_string(path) {
             Ok(text) => text,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Users::default()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Ok(Users {
+                    source: Some((path.to_owned(), changed)),
+                    ..Users::default()
+                });
+            }
             Err(source) => {
                 return Err(UsersError::Read {
                     path: path.to_owned(),
@@ -178,7 +194,8 @@ impl Users {
             path: path.to_owned(),
             why,
         };
-        let users: Users = toml::from_str(&text).map_err(|e| format(e.to_string()))?;
+        let mut users: Users = toml::from_str(&text).map_err(|e| format(e.to_string()))?;
+        users.source = Some((path.to_owned(), changed));
         if users.accounts.len() > MAX_ACCOUNTS {
             return Err(format(format!("more than {MAX_ACCOUNTS} accounts")));
         }
@@ -217,6 +234,21 @@ impl Users {
             file.sync_all().map_err(write)?;
         }
         std::fs::rename(&temporary, path).map_err(write)
+    }
+
+    /// The accounts as their file has them now, when it changed since
+    /// these were read (`vl users add` on a running lab); none if it did not.
+    pub fn reread(&self) -> Option<Result<Users, UsersError>> {
+        let (path, read) = self.source.as_ref()?;
+        (changed(path) != *read).then(|| Users::load(path))
+    }
+
+    /// Takes the file as it is now for read, though it did not read (so
+    /// it is not read again until it changes again).
+    pub(crate) fn seen(&mut self) {
+        if let Some((path, read)) = &mut self.source {
+            *read = changed(path);
+        }
     }
 
     pub fn accounts(&self) -> &[Account] {
