@@ -549,15 +549,7 @@ fn an_altered_chart_changes_the_running_supervisor() {
     assert_ne!(altered, text, "the chart changed");
     std::fs::write(&chart, altered).unwrap();
     let out = dir.join("nets");
-    let run = common::vl(&[
-        "lab",
-        "nets",
-        "--charts",
-        common::s(&charts),
-        "--out",
-        common::s(&out),
-    ]);
-    assert!(run.status.success(), "{}", common::stderr(&run));
+    design_nets(&charts, &out);
 
     let runtime = tokio::runtime::Runtime::new().unwrap();
     let redefine = |extra: &[&str]| {
@@ -614,15 +606,7 @@ fn an_altered_access_design_changes_who_the_host_lets_in_line() {
     );
     std::fs::write(&design, text).unwrap();
     let out = dir.join("nets");
-    let run = common::vl(&[
-        "lab",
-        "nets",
-        "--charts",
-        common::s(&charts),
-        "--out",
-        common::s(&out),
-    ]);
-    assert!(run.status.success(), "{}", common::stderr(&run));
+    let run = design_nets(&charts, &out);
     let said = common::stdout(&run);
     assert!(
         said.contains("access: at most one operator: without controllers ask → ask → grant → grant; holds with them"),
@@ -679,6 +663,20 @@ fn an_altered_access_design_changes_who_the_host_lets_in_line() {
         "{refused}"
     );
     assert!(refused.contains("execute.running"), "{refused}");
+}
+
+/// `vl lab nets` from the charts in `charts` into `out`, which succeeds.
+fn design_nets(charts: &Path, out: &Path) -> std::process::Output {
+    let run = common::vl(&[
+        "lab",
+        "nets",
+        "--charts",
+        common::s(charts),
+        "--out",
+        common::s(out),
+    ]);
+    assert!(run.status.success(), "{}", common::stderr(&run));
+    run
 }
 
 fn copy_dir(from: &Path, to: &Path) {
