@@ -182,20 +182,17 @@ impl Hub {
             self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
             return false;
         }
-        if !returning {
-            self.slot_until = self.config.slot.map(|slot| Instant::now() + slot);
-        }
         self.operator = Some(id);
         self.operator_user = self.user_of(id);
-        if !returning {
+        if returning {
+            self.away = None;
+            info!(connection = id, "the operator is back");
+        } else {
+            self.slot_until = self.config.slot.map(|slot| Instant::now() + slot);
             let entry = Entry::new("granted").connection(id);
             self.config
                 .audit
                 .record(entry.user(self.operator_user.as_deref()));
-        }
-        if returning {
-            self.away = None;
-            info!(connection = id, "the operator is back");
         }
         // Every welcome carries a fresh secret, so every drop has its
         // grace (and an old secret, once used, opens nothing).

@@ -312,7 +312,7 @@ impl Hub {
 
     /// Where the hub's own bookkeeping (the operator, one held for the
     /// grace, the line) and the access net's seats differ, if they do;
-    /// checked after every step in debug builds.
+    /// checked after every step in debug builds, with the shipped nets.
     pub(super) fn seats_apart(&self) -> Option<String> {
         let driving = u32::from(self.operator.is_some() || self.away.is_some());
         let line = self.queue.len() as u32;
