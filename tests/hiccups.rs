@@ -25,42 +25,61 @@ fn signal(pid: u32, signal: libc::c_int) {
 async fn new_run_within(op: &mut Peer, within: Duration) -> Option<Duration> {
     let began = Instant::now();
     while began.elapsed() < within {
-        // A run still going (or one that ended by itself) makes way.
-        op.send(json!({"type": "stop"})).await;
         op.send(json!({"type": "start"})).await;
-        let Some(reply) = op
-            .next_of_any(&["started", "error"], Duration::from_millis(500))
-            .await
-        else {
+        let Some(reply) = answer_to_start(op).await else {
             continue;
         };
-        if reply["type"] == "started" {
-            // The robot must answer the run's first command, too.
-            let event = reply["event"].as_u64().unwrap_or(0) + 1;
-            op.send(json!({"type": "command", "event": event, "v": 50.0, "w": 0.0}))
-                .await;
-            let answered = tokio::time::timeout(Duration::from_secs(2), async {
-                loop {
-                    let v = op
-                        .next_of_any(&["feedback", "done"], Duration::from_secs(2))
-                        .await?;
-                    if v["type"] == "done" {
-                        return None;
-                    }
-                    if v["event"].as_u64() >= Some(event) {
-                        return Some(());
-                    }
-                }
-            })
-            .await;
-            if matches!(answered, Ok(Some(()))) {
-                return Some(began.elapsed());
+        if reply["type"] == "error" {
+            // A run still going makes way; one stopping (or ended by a
+            // fault) ends by itself. Its end is waited for, not guessed.
+            let message = reply["message"].as_str().unwrap_or_default();
+            if message.contains("execute.running") {
+                op.send(json!({"type": "stop"})).await;
+            }
+            if message.contains("execute.running") || message.contains("execute.stopping") {
+                op.next_of("done", Duration::from_secs(1)).await;
+            } else {
+                tokio::time::sleep(Duration::from_millis(100)).await;
             }
             continue;
         }
-        tokio::time::sleep(Duration::from_millis(100)).await;
+        // The robot must answer the run's first command, too.
+        let event = reply["event"].as_u64().unwrap_or(0) + 1;
+        op.send(json!({"type": "command", "event": event, "v": 50.0, "w": 0.0}))
+            .await;
+        let answered = tokio::time::timeout(Duration::from_secs(2), async {
+            loop {
+                let v = op
+                    .next_of_any(&["feedback", "done"], Duration::from_secs(2))
+                    .await?;
+                if v["type"] == "done" {
+                    return None;
+                }
+                if v["event"].as_u64() >= Some(event) {
+                    return Some(());
+                }
+            }
+        })
+        .await;
+        if matches!(answered, Ok(Some(()))) {
+            return Some(began.elapsed());
+        }
     }
     None
+}
+
+/// The answer to a `start`: `started`, or an error refusing it — not the
+/// refusal of an earlier stop or command still on its way.
+async fn answer_to_start(op: &mut Peer) -> Option<serde_json::Value> {
+    loop {
+        let reply = op
+            .next_of_any(&["started", "error"], Duration::from_millis(500))
+            .await?;
+        let message = reply["message"].as_str().unwrap_or_default();
+        if !(message.starts_with("cannot stop") || message.starts_with("cannot drive")) {
+            return Some(reply);
+        }
+    }
 }
 
 /// Hiccups heal: a Host frozen for 0.7 s (its guard stops the robot
