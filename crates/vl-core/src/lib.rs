@@ -109,7 +109,7 @@ mod vision;
 /// Results printed for people (vl-petri's, the crate every other builds on).
 pub use vl_petri::table;
 
-pub use contract::access::{AccessEvent, AccessNet, AccessRefused, Seat};
+pub use contract::access::{AccessEvent, AccessNet, AccessNetError, AccessRefused, Seat};
 pub use contract::experiment::{
     Definition, DefinitionError, Experiment, ExperimentInfo, Goal, LOOKAHEAD_MM,
 };

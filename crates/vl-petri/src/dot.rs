@@ -19,19 +19,27 @@ pub fn graphviz_available() -> bool {
         .is_ok_and(|s| s.success())
 }
 
-/// Draws the DOT file `dot` as the SVG file `svg` with Graphviz's `dot`;
-/// why not, in words.
-pub fn render_svg(dot: &Path, svg: &Path) -> Result<(), String> {
+/// Why a DOT file was not drawn.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error("cannot run Graphviz's dot: {0}")]
+    Run(std::io::Error),
+    #[error("dot failed on {0}")]
+    Failed(String),
+}
+
+/// Draws the DOT file `dot` as the SVG file `svg` with Graphviz's `dot`.
+pub fn render_svg(dot: &Path, svg: &Path) -> Result<(), RenderError> {
     let status = Command::new("dot")
         .arg("-Tsvg")
         .arg(dot)
         .arg("-o")
         .arg(svg)
         .status()
-        .map_err(|e| format!("cannot run Graphviz's dot: {e}"))?;
+        .map_err(RenderError::Run)?;
     match status.success() {
         true => Ok(()),
-        false => Err(format!("dot failed on {}", dot.display())),
+        false => Err(RenderError::Failed(dot.display().to_string())),
     }
 }
 

@@ -59,7 +59,7 @@ pub use bench::{
 pub use compose::{ComposeError, compose, fuse_parallel_places};
 pub use control::{Added, Constraint, ControlError, Limits, synthesize};
 pub use coverability::{Coverability, CoverabilityError, OMEGA, coverability};
-pub use dot::{graph_to_dot, graphviz_available, net_to_dot, render_svg};
+pub use dot::{RenderError, graph_to_dot, graphviz_available, net_to_dot, render_svg};
 pub use explore::{Bounds, ExploreError, Options, Progress, StateCount, StateSpace, explore};
 pub use frontier::count_states;
 pub use invariants::{

@@ -14,8 +14,6 @@ use std::path::Path;
 use thiserror::Error;
 use vl_petri::{Marking, Net, TransitionId, from_pnml};
 
-use super::supervisor::SupervisorError;
-
 /// The access design's folder, in `docs/nets/` and `vl lab nets --out`.
 const FOLDER: &str = "access";
 
@@ -99,6 +97,15 @@ impl AccessEvent {
     }
 }
 
+/// An access net that cannot run.
+#[derive(Debug, Error)]
+pub enum AccessNetError {
+    #[error("access: cannot read {path}: {why}")]
+    Read { path: String, why: String },
+    #[error("access: {0}")]
+    Net(String),
+}
+
 /// An access event the net does not enable now.
 #[derive(Debug, Error, PartialEq, Eq)]
 #[error(
@@ -123,33 +130,26 @@ pub struct AccessNet {
 
 impl AccessNet {
     /// The shipped net.
-    pub fn new() -> Result<AccessNet, SupervisorError> {
+    pub fn new() -> Result<AccessNet, AccessNetError> {
         AccessNet::parse(SHIPPED)
     }
 
     /// The net from `dir/access/controlled.pnml`, as `vl lab nets --out
     /// dir` writes it.
-    pub fn load(dir: &Path) -> Result<AccessNet, SupervisorError> {
+    pub fn load(dir: &Path) -> Result<AccessNet, AccessNetError> {
         let path = dir.join(FOLDER).join("controlled.pnml");
-        let text = std::fs::read_to_string(&path).map_err(|e| SupervisorError::Read {
-            lab: FOLDER,
+        let text = std::fs::read_to_string(&path).map_err(|e| AccessNetError::Read {
             path: path.display().to_string(),
             why: e.to_string(),
         })?;
         AccessNet::parse(&text)
     }
 
-    fn parse(text: &str) -> Result<AccessNet, SupervisorError> {
-        let mut net = from_pnml(text).map_err(|e| SupervisorError::Net {
-            lab: FOLDER,
-            why: e.to_string(),
+    fn parse(text: &str) -> Result<AccessNet, AccessNetError> {
+        let mut net = from_pnml(text).map_err(|e| AccessNetError::Net(e.to_string()))?;
+        let everyone = net.place(Seat::Observer.place()).ok_or_else(|| {
+            AccessNetError::Net(format!("the net has no place `{}`", Seat::Observer.place()))
         })?;
-        let everyone = net
-            .place(Seat::Observer.place())
-            .ok_or_else(|| SupervisorError::Net {
-                lab: FOLDER,
-                why: format!("the net has no place `{}`", Seat::Observer.place()),
-            })?;
         net.places[everyone.0].initial = PEOPLE;
         Ok(AccessNet {
             marking: net.initial_marking(),

@@ -100,6 +100,8 @@ pub enum SupervisorError {
     Net { lab: &'static str, why: String },
     #[error("no lab to supervise")]
     NoLab,
+    #[error(transparent)]
+    Access(#[from] super::access::AccessNetError),
 }
 
 /// What the supervisor did or is: the mounted lab, its marked places and
@@ -172,7 +174,7 @@ impl Supervisor {
                     .ok_or(SupervisorError::NoLab)?;
                 Ok((lab, parse(lab, text)?))
             })
-            .collect::<Result<Vec<_>, _>>()?;
+            .collect::<Result<Vec<_>, SupervisorError>>()?;
         Supervisor::from_nets(nets)
     }
 
@@ -190,7 +192,7 @@ impl Supervisor {
                 })?;
                 Ok((lab, parse(lab, &text)?))
             })
-            .collect::<Result<Vec<_>, _>>()?;
+            .collect::<Result<Vec<_>, SupervisorError>>()?;
         Supervisor::from_nets(nets)
     }
 

@@ -35,7 +35,7 @@ impl Designed {
             std::fs::write(&path, &text).map_err(|e| failed(&path, e.to_string()))?;
             if pictures && let Some(stem) = name.strip_suffix(".dot") {
                 let svg = dir.join(format!("{stem}.svg"));
-                render_svg(&path, &svg).map_err(|why| failed(&svg, why))?;
+                render_svg(&path, &svg).map_err(|e| failed(&svg, e.to_string()))?;
                 written.push(format!("{stem}.svg"));
             }
             written.push(name);

@@ -8,7 +8,6 @@ use std::time::{Duration, Instant};
 
 use futures_util::stream::SplitSink;
 use futures_util::{SinkExt, StreamExt};
-use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, watch};
 use tokio_tungstenite::WebSocketStream;
@@ -17,10 +16,10 @@ use tokio_tungstenite::tungstenite::{self, Bytes, Message};
 use tracing::debug;
 use vl_core::{ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES, Wire};
 
-use super::HostConfig;
 use super::admission::Ticket;
 use super::http::{self, Opening};
 use super::hub::{ToConnection, ToHub};
+use super::{HostConfig, Io};
 use crate::accounts::gate::{Credentials, Gate};
 use crate::lab::Watching;
 
@@ -108,11 +107,6 @@ impl Bucket {
         Duration::from_secs_f64((-self.tokens).max(0.0) / self.rate)
     }
 }
-
-/// A connection's byte stream: plain TCP, or TLS over it.
-pub trait Io: AsyncRead + AsyncWrite + Unpin + Send {}
-
-impl<T: AsyncRead + AsyncWrite + Unpin + Send> Io for T {}
 
 type Socket = WebSocketStream<Box<dyn Io>>;
 type Sink = SplitSink<Socket, Message>;

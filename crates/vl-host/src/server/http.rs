@@ -17,7 +17,7 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, ReadBuf};
 use tokio::sync::{mpsc, oneshot};
 use vl_core::{ErrorCode, Role};
 
-use super::connection::Io;
+use super::Io;
 use super::hub::ToHub;
 use crate::accounts::gate::{Credentials, Gate, Identity};
 use crate::accounts::users::AccountRole;

@@ -15,7 +15,6 @@
 pub(crate) mod admission;
 pub(crate) mod bench;
 mod connection;
-pub use connection::Io;
 mod http;
 mod hub;
 
@@ -115,6 +114,11 @@ impl Default for HostConfig {
         }
     }
 }
+
+/// A connection's byte stream: plain TCP, or TLS over it.
+pub trait Io: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send {}
+
+impl<T: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send> Io for T {}
 
 /// Messages waiting for the hub, from every connection together.
 const HUB_QUEUE: usize = 256;
