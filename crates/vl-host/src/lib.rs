@@ -75,6 +75,7 @@ mod khepera;
 mod lab;
 mod line;
 mod media;
+mod priority;
 mod replay;
 mod server;
 mod setup;

@@ -5,7 +5,8 @@
 //! which attempts are refused without the cost of checking them; tokens
 //! are compared in constant time; every attempt is logged. Checking a
 //! password is slow on purpose, so it runs off the async threads, one at
-//! a time: a flood of logins cannot take the cores the robot's loop needs.
+//! a time, on a thread of its own at the lowest priority: a flood of
+//! logins cannot take the cores the robot's loop and the operator need.
 //! The accounts file is read again when it changes, so accounts added or
 //! removed on a running lab count from the next login.
 
@@ -197,6 +198,31 @@ impl Failures {
     }
 }
 
+/// A password check, run on the checker's thread.
+type Check = Box<dyn FnOnce() + Send>;
+
+/// How much less password checks count than the Host's other threads, in
+/// nice levels: the least there is.
+const CHECKER_NICE: i32 = 19;
+
+/// Starts the password checker's thread, which ends with its sender.
+fn checker() -> std::sync::mpsc::Sender<Check> {
+    let (checks, inbox) = std::sync::mpsc::channel::<Check>();
+    let started = std::thread::Builder::new()
+        .name("password checks".into())
+        .spawn(move || {
+            crate::priority::yield_to_control(CHECKER_NICE, "password checker");
+            for check in inbox {
+                check();
+            }
+        });
+    if let Err(e) = started {
+        // Then every check fails to send, and every password is refused.
+        warn!("cannot start the password checker: {e}");
+    }
+    checks
+}
+
 /// The lab's door: its accounts, its token, and the failures so far.
 pub struct Gate {
     /// Read again from their file when it changes.
@@ -205,6 +231,8 @@ pub struct Gate {
     observers: Observers,
     failures: Mutex<Failures>,
     hashing: Semaphore,
+    /// The password checker's thread, fed one check at a time.
+    checker: std::sync::mpsc::Sender<Check>,
     audit: Audit,
 }
 
@@ -221,6 +249,7 @@ impl Gate {
             observers,
             failures: Mutex::new(Failures::default()),
             hashing: Semaphore::new(1),
+            checker: checker(),
             audit,
         }
     }
@@ -338,14 +367,15 @@ impl Gate {
             };
             let (name, password) = (name.to_owned(), password.to_owned());
             let _one_at_a_time = self.hashing.acquire().await;
-            let checked = tokio::task::spawn_blocking(move || {
-                users
-                    .verify(&name, &password)
-                    .map(|role| Identity::Account { name, role })
-            })
-            .await
-            .ok()
-            .flatten();
+            let (answer, checked) = tokio::sync::oneshot::channel();
+            let check = Box::new(move || {
+                let proved = users.verify(&name, &password);
+                let _ = answer.send(proved.map(|role| Identity::Account { name, role }));
+            });
+            let checked = match self.checker.send(check) {
+                Ok(()) => checked.await.ok().flatten(),
+                Err(_) => None,
+            };
             return checked.ok_or_else(|| "wrong user name or password".into());
         }
         let given = hello.token.unwrap_or_default();

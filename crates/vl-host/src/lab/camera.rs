@@ -235,7 +235,7 @@ impl CameraLoop {
 
 impl Publisher {
     fn run(self, taken: std::sync::mpsc::Receiver<Taken>) {
-        yield_to_control();
+        crate::priority::yield_to_control(CAMERA_NICE, "camera");
         let mut seq = 0u64;
         let mut sent: Option<Sent> = None;
         // Ends when the camera loop does.
@@ -327,24 +327,7 @@ impl Drop for Watching {
 /// in nice levels: choosing and encoding take milliseconds a frame, and
 /// must not delay commands, pings, sightings or the control loop when the
 /// machine is busy.
-#[cfg(target_os = "linux")]
-const CAMERA_NICE: libc::c_int = 10;
-
-/// Lowers the calling thread's priority (Linux sets nice per thread).
-fn yield_to_control() {
-    #[cfg(target_os = "linux")]
-    {
-        // SAFETY: gettid and setpriority only read their arguments; a
-        // failure leaves the priority as it was, which is only slower.
-        let done = unsafe {
-            let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
-            libc::setpriority(libc::PRIO_PROCESS, tid, CAMERA_NICE)
-        };
-        if done != 0 {
-            debug!("the camera thread keeps its priority");
-        }
-    }
-}
+const CAMERA_NICE: i32 = 10;
 
 /// `image` as JPEG, as webcams send it: a noisy frame is several times
 /// smaller than as PNG.
