@@ -513,11 +513,16 @@ async fn an_operator_token_refusal_says_what_to_do() {
         "{e}"
     );
     let mut wrong = Peer::connect(&url).await;
+    let asked = Instant::now();
     wrong
         .send(json!({"type": "hello", "protocol": 1, "role": "operator", "token": "guess"}))
         .await;
     let e = wrong.expect_error("unauthorized").await;
     assert!(e["message"].as_str().unwrap().contains("wrong"), "{e}");
+    assert!(
+        asked.elapsed() >= Duration::from_secs(1),
+        "a wrong token is answered only after the delay"
+    );
     let mut right = Peer::connect(&url).await;
     right
         .send(json!({"type": "hello", "protocol": 1, "role": "operator", "token": "s3cret"}))
