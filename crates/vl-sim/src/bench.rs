@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 use vl_core::table::{Report, Table};
-use vl_core::{Arena, RobotModel, WheelSpeeds};
+use vl_core::{Arena, ArenaPlanError, Definition, Goal, RobotModel, WheelSpeeds, plan_route};
 
 use crate::world::{STEP_S, SimError, World};
 use crate::{Optics, Renderer, camera_for};
@@ -17,11 +17,32 @@ pub struct SimBench {
     pub rtf_no_camera: f64,
     /// The same with a 320×240 camera frame rendered at 30 Hz.
     pub rtf_camera: f64,
+    /// A forecast (follower, safety layer, simulator) of the navigation
+    /// arena's planned run with [`FORECAST_SEEDS`] seeds: the simulated
+    /// seconds it covered, the wall-clock milliseconds it took, and so
+    /// how long a 60 s run's forecast with as many seeds takes, s.
+    pub forecast_sim_seconds: f64,
+    pub forecast_ms: f64,
+    pub forecast_60s_run_s: f64,
 }
+
+/// Why the bench could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum SimBenchError {
+    #[error(transparent)]
+    World(#[from] SimError),
+    #[error("cannot plan the bench's run: {0}")]
+    Plan(#[from] ArenaPlanError),
+    #[error(transparent)]
+    Forecast(#[from] crate::ForecastError),
+}
+
+/// Seeds a forecast runs with, in the bench: as a Host would.
+pub const FORECAST_SEEDS: [u64; 5] = [1, 2, 3, 4, 5];
 
 /// Runs the navigation arena for `seconds` of simulated time, once
 /// without and once with the camera, driving a slow circle.
-pub fn bench(seconds: f64) -> Result<SimBench, SimError> {
+pub fn bench(seconds: f64) -> Result<SimBench, SimBenchError> {
     let timed = |camera_hz: Option<f64>| -> Result<f64, SimError> {
         let mut world = World::new(Arena::navigation(), RobotModel::khepera_ii(), 1)?;
         let mut renderer = Renderer::new(camera_for(&world, 320, 30.0), Optics::default());
@@ -46,11 +67,42 @@ pub fn bench(seconds: f64) -> Result<SimBench, SimError> {
         std::hint::black_box(frames);
         Ok(seconds / started.elapsed().as_secs_f64())
     };
+    let (forecast_sim_seconds, forecast_ms) = forecast_timed()?;
     Ok(SimBench {
         sim_seconds: seconds,
         rtf_no_camera: timed(None)?,
         rtf_camera: timed(Some(30.0))?,
+        forecast_sim_seconds,
+        forecast_ms,
+        forecast_60s_run_s: 60.0 * FORECAST_SEEDS.len() as f64 * forecast_ms
+            / 1e3
+            / forecast_sim_seconds,
     })
+}
+
+/// Times a forecast of the navigation arena's run from its start to its
+/// goal, as planned: simulated seconds, wall-clock ms.
+fn forecast_timed() -> Result<(f64, f64), SimBenchError> {
+    let arena = Arena::navigation();
+    let robot = RobotModel::khepera_ii();
+    let goal = arena.goal.unwrap_or(arena.start.point());
+    let plan = plan_route(&arena, &[], &robot, arena.start, goal)?;
+    let definition = Definition {
+        goal: Some(Goal::at(goal)),
+        path: plan.points(),
+        ..Definition::default()
+    };
+    let started = Instant::now();
+    let forecast = crate::forecast(crate::Forecasting {
+        arena: &arena,
+        robot: &robot,
+        start: arena.start,
+        definition: &definition,
+        seeds: &FORECAST_SEEDS,
+    })?;
+    let ms = started.elapsed().as_secs_f64() * 1e3;
+    let simulated = forecast.runs.iter().map(|r| r.seconds).sum();
+    Ok((simulated, ms))
 }
 
 impl Report for SimBench {
@@ -63,6 +115,13 @@ impl Report for SimBench {
             (
                 "with 320×240 camera at 30 Hz",
                 format!("{:.0}×", self.rtf_camera),
+            ),
+            (
+                "a forecast, 5 seeds",
+                format!(
+                    "{:.1} s of runs in {:.1} ms: a 60 s run's in {:.2} s",
+                    self.forecast_sim_seconds, self.forecast_ms, self.forecast_60s_run_s
+                ),
             ),
         ])
     }

@@ -32,6 +32,7 @@
 mod bench;
 mod camera;
 mod emulator;
+mod forecast;
 mod khepera;
 mod link;
 mod noise;
@@ -42,9 +43,10 @@ mod script;
 mod tcp;
 mod world;
 
-pub use bench::{SimBench, bench};
+pub use bench::{FORECAST_SEEDS, SimBench, SimBenchError, bench};
 pub use camera::{Renderer, SimCalibration, calibrate, camera_for, render_target};
 pub use emulator::{Emulator, EmulatorError, Line};
+pub use forecast::{Forecast, ForecastError, Forecasting, LONGEST_S, SeedRun, Spread, forecast};
 pub use khepera::Khepera;
 pub use link::{
     Distribution, Expected, Link, LinkModel, LinkReport, LinkStats, Loss, Profile, measure,

@@ -4,7 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::{Arena, Named, Point, RobotModel, Shape, ShapeError};
+use crate::{Arena, Named, Point, RobotModel, Shape, ShapeError, WheelSpeeds};
 
 /// The experiments a lab can offer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -182,6 +182,19 @@ pub enum DefinitionError {
 }
 
 impl Definition {
+    /// `wheels` within the robot's limits and this definition's speed cap:
+    /// what a run of it may ask of the wheels, live or forecast.
+    pub fn capped(&self, robot: &RobotModel, wheels: WheelSpeeds) -> WheelSpeeds {
+        match self.max_speed_mm_s {
+            Some(limit) => {
+                let mut capped = robot.clone();
+                capped.max_wheel_speed_mm_s = capped.max_wheel_speed_mm_s.min(limit);
+                capped.clamp(wheels)
+            }
+            None => robot.clamp(wheels),
+        }
+    }
+
     /// Whether the Host follows this definition's path by itself in a run
     /// of `experiment`: a navigation run with a planned path. The
     /// operator's commands then only take over while they keep coming.

@@ -110,18 +110,6 @@ struct Run {
 }
 
 impl Run {
-    /// `wheels` within the robot's limits and the definition's speed cap.
-    fn capped(&self, robot: &RobotModel, wheels: WheelSpeeds) -> WheelSpeeds {
-        match self.definition.max_speed_mm_s {
-            Some(limit) => {
-                let mut capped = robot.clone();
-                capped.max_wheel_speed_mm_s = capped.max_wheel_speed_mm_s.min(limit);
-                capped.clamp(wheels)
-            }
-            None => robot.clamp(wheels),
-        }
-    }
-
     fn summary(self, reason: EndReason, events: u64, pose: Pose, source: PoseSource) -> Summary {
         Summary {
             reason,
@@ -369,7 +357,8 @@ impl Control {
                 let Some(run) = self.run.as_mut() else {
                     return false;
                 };
-                let wheels = run.capped(&self.info.robot, drive.wheels(&self.info.robot));
+                let wheels =
+                    (run.definition).capped(&self.info.robot, drive.wheels(&self.info.robot));
                 run.wheels = wheels;
                 run.commanded = true;
                 if let Some((desired, _)) = &mut run.assist {
@@ -424,7 +413,7 @@ impl Control {
             // The operator's fresh command takes over from the path.
             Some(follower) if !run.commanded || stale => {
                 let along = follower.step(&self.info.robot, pose, &reading.proximity);
-                run.capped(&self.info.robot, along.wheels())
+                run.definition.capped(&self.info.robot, along.wheels())
             }
             _ if stale => WheelSpeeds::default(),
             _ => run.wheels,
