@@ -173,21 +173,17 @@ impl AccessNet {
     /// Fires `event` for someone at `seat`, or says why it may not happen.
     pub fn fire(&mut self, event: AccessEvent, seat: Seat) -> Result<(), AccessRefused> {
         let from = self.net.place(seat.place());
-        let enabled: Vec<TransitionId> = self.enabled(event.event()).collect();
-        let t = enabled
-            .into_iter()
-            .find(|&t| {
-                from.is_some_and(|p| self.net.transitions[t.0].pre.iter().any(|a| a.place == p))
-            })
-            .ok_or_else(|| AccessRefused {
+        let out_of_seat = |t: &TransitionId| {
+            from.is_some_and(|p| self.net.transitions[t.0].pre.iter().any(|a| a.place == p))
+        };
+        let Some(t) = self.enabled(event.event()).find(out_of_seat) else {
+            return Err(AccessRefused {
                 event: event.event(),
                 seat,
                 marking: self.marked(),
-            })?;
-        self.marking = self
-            .net
-            .fire(&self.marking, t)
-            .expect("an enabled transition fires");
+            });
+        };
+        self.fire_at(t);
         Ok(())
     }
 
@@ -198,27 +194,28 @@ impl AccessNet {
             .map_or(0, |p| self.marking.tokens(p))
     }
 
-    /// Whether the lab's `event` may happen here: it may when an enabled
-    /// transition carries it, or when the net has none (not its concern).
-    pub(crate) fn allows(&self, event: &str) -> bool {
+    /// The transition the lab's `event` fires here: none when the net
+    /// carries no such event (not its concern), an error when it carries
+    /// it but none is enabled.
+    pub(crate) fn carrying(&self, event: &str) -> Result<Option<TransitionId>, ()> {
         let carried = self
             .net
             .transitions
             .iter()
             .any(|t| t.label.as_deref() == Some(event));
-        !carried || self.enabled(event).next().is_some()
+        match self.enabled(event).next() {
+            Some(t) => Ok(Some(t)),
+            None if carried => Err(()),
+            None => Ok(None),
+        }
     }
 
-    /// Fires the lab's `event` where the net has it; call when
-    /// [`AccessNet::allows`] says it may.
-    pub(crate) fn follow(&mut self, event: &str) {
-        let enabled = self.enabled(event).next();
-        if let Some(t) = enabled {
-            self.marking = self
-                .net
-                .fire(&self.marking, t)
-                .expect("an enabled transition fires");
-        }
+    /// Fires transition `t`, which [`AccessNet::carrying`] found enabled.
+    pub(crate) fn fire_at(&mut self, t: TransitionId) {
+        self.marking = self
+            .net
+            .fire(&self.marking, t)
+            .expect("an enabled transition fires");
     }
 
     fn enabled<'a>(&'a self, event: &'a str) -> impl Iterator<Item = TransitionId> + 'a {
@@ -245,6 +242,14 @@ impl AccessNet {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    impl AccessNet {
+        /// Fires the lab's `event`, which must be enabled.
+        fn take(&mut self, event: &str) {
+            let t = self.carrying(event).unwrap().expect("carried");
+            self.fire_at(t);
+        }
+    }
 
     #[test]
     fn the_line_is_fair_and_the_operator_one() {
@@ -277,18 +282,18 @@ mod tests {
             "one operator"
         );
         assert_eq!((a.at(Seat::Operator), a.at(Seat::Head)), (1, 1));
-        assert!(a.allows("start"), "the operator may run");
-        a.follow("mount");
-        a.follow("start");
+        assert!(a.carrying("start").is_ok(), "the operator may run");
+        a.take("mount");
+        a.take("start");
         assert!(
             a.fire(AccessEvent::SlotEnd, Seat::Operator).is_err(),
             "a run under way is stopped first"
         );
-        a.follow("release");
+        a.take("release");
         a.fire(AccessEvent::SlotEnd, Seat::Operator).unwrap();
-        assert!(!a.allows("start"), "no run without an operator");
+        assert!(a.carrying("start").is_err(), "no run without an operator");
         assert!(
-            a.allows("emergency_stop"),
+            a.carrying("emergency_stop").is_ok(),
             "events it has not are not its concern"
         );
     }

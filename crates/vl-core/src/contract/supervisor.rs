@@ -259,28 +259,33 @@ impl Supervisor {
 
     /// Says why `action` may not happen now, if it may not.
     pub fn check(&self, action: Action) -> Result<(), NotAllowed> {
-        if enabled_for(self.current(), action).is_none() {
-            return Err(self.refusal(action));
-        }
-        match &self.access {
-            Some(access) if !access.allows(action.event()) => Err(NotAllowed {
-                action,
-                event: action.event(),
-                lab: "access",
-                marking: access.marked(),
-            }),
-            _ => Ok(()),
-        }
+        self.enabled(action).map(drop)
+    }
+
+    /// The transitions `action` fires now: in the current lab's net, and
+    /// in the access net where it carries the event; or why it may not.
+    fn enabled(&self, action: Action) -> Result<(TransitionId, Option<TransitionId>), NotAllowed> {
+        let lab = enabled_for(self.current(), action).ok_or_else(|| self.refusal(action))?;
+        let Some(access) = &self.access else {
+            return Ok((lab, None));
+        };
+        let access_t = access.carrying(action.event()).map_err(|()| NotAllowed {
+            action,
+            event: action.event(),
+            lab: "access",
+            marking: access.marked(),
+        })?;
+        Ok((lab, access_t))
     }
 
     /// Fires `action`'s transition, or says why it may not happen now. A
     /// release leaves no lab mounted.
     pub fn fire(&mut self, action: Action) -> Result<(), NotAllowed> {
-        self.check(action)?;
+        let (lab, access_t) = self.enabled(action)?;
         let i = self.mounted.unwrap_or(0);
-        fire_in(&mut self.labs[i], action, &mut self.fired).map_err(|()| self.refusal(action))?;
-        if let Some(access) = &mut self.access {
-            access.follow(action.event());
+        fire_at(&mut self.labs[i], lab, &mut self.fired);
+        if let (Some(access), Some(t)) = (&mut self.access, access_t) {
+            access.fire_at(t);
         }
         if action == Action::Release {
             self.mounted = None;
@@ -297,8 +302,9 @@ impl Supervisor {
             return Err(self.refusal(Action::Mount));
         };
         if let Some(from) = self.mounted.filter(|&from| from != to) {
-            fire_in(&mut self.labs[from], Action::Release, &mut self.fired)
-                .map_err(|()| self.refusal(Action::Release))?;
+            let release = enabled_for(&self.labs[from], Action::Release)
+                .ok_or_else(|| self.refusal(Action::Release))?;
+            fire_at(&mut self.labs[from], release, &mut self.fired);
         }
         self.mounted = Some(to);
         self.fire(Action::Mount)
@@ -416,22 +422,19 @@ fn enabled_for(l: &LabNet, action: Action) -> Option<TransitionId> {
         .find(|t| l.net.transitions[t.0].label.as_deref() == Some(action.event()))
 }
 
-/// Fires `action`'s enabled transition in `l`, noting it in `fired`.
-fn fire_in(l: &mut LabNet, action: Action, fired: &mut Vec<Fired>) -> Result<(), ()> {
-    let t = enabled_for(l, action).ok_or(())?;
+/// Fires `l`'s enabled transition `t`, noting it in `fired` when it changed the marking.
+fn fire_at(l: &mut LabNet, t: TransitionId, fired: &mut Vec<Fired>) {
     let after = l
         .net
         .fire(&l.marking, t)
         .expect("an enabled transition fires");
     let before = std::mem::replace(&mut l.marking, after);
-    if before == l.marking {
-        return Ok(());
+    if before != l.marking {
+        fired.push(Fired {
+            lab: l.lab,
+            transition: l.net.transitions[t.0].id.clone(),
+        });
     }
-    fired.push(Fired {
-        lab: l.lab,
-        transition: l.net.transitions[t.0].id.clone(),
-    });
-    Ok(())
 }
 
 #[cfg(test)]

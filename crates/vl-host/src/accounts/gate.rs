@@ -329,7 +329,7 @@ impl Gate {
                     format!("too many failed logins: wait {wait} s before the next try"),
                 ));
             }
-            match self.prove(hello).await {
+            match self.prove(hello, users).await {
                 Ok(identity) => {
                     self.failures().refund(address, account);
                     self.audit
@@ -357,9 +357,14 @@ impl Gate {
     }
 
     /// The identity the credentials prove, or why they prove none.
-    async fn prove(&self, hello: Credentials<'_>) -> Result<Identity, String> {
+    /// `users`: the accounts now, as [`Gate::users`] read them for this check.
+    async fn prove(
+        &self,
+        hello: Credentials<'_>,
+        users: Option<Arc<Users>>,
+    ) -> Result<Identity, String> {
         if let Some(name) = hello.user {
-            let Some(users) = self.users() else {
+            let Some(users) = users else {
                 return Err("this lab has no accounts: leave out the user name".into());
             };
             let Some(password) = hello.password else {
