@@ -8,7 +8,8 @@
 //!   background until the next one of their kind, or the end;
 //! - the window has a display-free variant: `guest` gets `--headless`
 //!   (an observer, also `--timeout 1`: nobody drives while it watches);
-//! - fixed ports and the emulator's link become free ones in scratch space,
+//! - servers listen on a port of their own choosing, used in place of README's
+//!   in later commands, and the emulator's link is in scratch space,
 //!   so the test runs beside anything already on 7400;
 //! - benchmarks run on small inputs: what is checked is that they run.
 
@@ -18,7 +19,7 @@ use std::io::Write;
 use std::path::Path;
 use std::process::{Command, Stdio};
 
-use common::{VlProcess, free_port, scratch, start_vl_in, stderr, stdout, vl_bin};
+use common::{VlProcess, scratch, start_vl_in, stderr, stdout, vl_bin};
 
 /// The shell commands of README's ```sh block under `heading`, with
 /// continuation lines joined and comments dropped.
@@ -105,9 +106,13 @@ fn vl_args(command: &str) -> Vec<String> {
 
 /// What the test changes in a command, as the module says.
 fn for_test(args: &mut Vec<String>, ports: &[(String, String)], link: &str) {
+    let mut after_listen = false;
     for arg in args.iter_mut() {
-        for (from, to) in ports {
-            *arg = arg.replace(from, to);
+        // A server's own address is README's, for the caller to replace.
+        if !std::mem::replace(&mut after_listen, arg == "--listen") {
+            for (from, to) in ports {
+                *arg = arg.replace(from, to);
+            }
         }
         *arg = arg.replace("/tmp/khepera", link);
     }
@@ -154,15 +159,8 @@ fn complaint(said: &str) -> Option<&str> {
 fn every_command_in_readme_runs_as_written() {
     let readme = include_str!("../README.md");
     let dir = scratch("readme");
-    let ports: Vec<(String, String)> = ["7400", "7401", "7402"]
-        .iter()
-        .map(|p| {
-            (
-                format!("127.0.0.1:{p}"),
-                format!("127.0.0.1:{}", free_port()),
-            )
-        })
-        .collect();
+    // README's address of each server → where it really listens.
+    let mut ports: Vec<(String, String)> = Vec::new();
     let link = dir.join("khepera");
     let link = link.to_str().unwrap();
     let mut servers: Vec<(String, VlProcess)> = Vec::new();
@@ -191,8 +189,23 @@ fn every_command_in_readme_runs_as_written() {
                     "media" => "vl media listening on ",
                     _ => "vl khepera-emu: ",
                 };
+                // Bound by the server itself: a port picked beforehand
+                // could be taken by a parallel test in the meantime.
+                let mut argv = argv.clone();
+                let readme_addr = argv
+                    .iter()
+                    .position(|a| *a == "--listen")
+                    .map(|i| std::mem::replace(&mut argv[i + 1], "127.0.0.1:0"));
                 let (process, said) = start_vl_in(Some(&dir), &argv, prefix);
                 println!("  {prefix}{said}");
+                if let Some(readme_addr) = readme_addr {
+                    let bound = said
+                        .strip_prefix("ws://")
+                        .and_then(|s| s.split_whitespace().next())
+                        .unwrap_or_else(|| panic!("{kind} said no address: {said}"));
+                    ports.retain(|(from, _)| from != readme_addr);
+                    ports.push((readme_addr.to_owned(), bound.to_owned()));
+                }
                 servers.push((kind.to_owned(), process));
                 ran += 1;
                 continue;
