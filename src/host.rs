@@ -179,6 +179,8 @@ pub(crate) struct HostArgs {
     link: LinkArgs,
     #[command(flatten)]
     access: AccessArgs,
+    #[command(flatten)]
+    forecast: vl_host::ForecastSettings,
 }
 
 /// The Host's configuration from its flags, checked before anything starts.
@@ -196,6 +198,7 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         nets: args.nets.clone(),
         reset: !args.no_reset,
         compensate_latency: !args.no_latency_compensation,
+        forecast: args.forecast,
         ..HostConfig::default()
     };
     args.access.apply(&mut config)?;

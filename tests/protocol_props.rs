@@ -227,14 +227,17 @@ fn summary() -> BoxedStrategy<Summary> {
             pose_source(),
             proptest::option::of(path_analysis()),
         ),
-        proptest::option::of((num(), num(), any::<bool>(), num()).prop_map(
-            |(uncertain_mm, passes_mm, wall, margin_mm)| vl_core::HeldBack {
-                uncertain_mm,
-                passes_mm,
-                wall,
-                margin_mm,
-            },
-        )),
+        (
+            proptest::option::of((num(), num(), any::<bool>(), num()).prop_map(
+                |(uncertain_mm, passes_mm, wall, margin_mm)| vl_core::HeldBack {
+                    uncertain_mm,
+                    passes_mm,
+                    wall,
+                    margin_mm,
+                },
+            )),
+            proptest::option::of(gap()),
+        ),
     )
         .prop_map(
             |(
@@ -246,7 +249,7 @@ fn summary() -> BoxedStrategy<Summary> {
                 (collisions, max_event_gap, sync_violations),
                 stopped_by,
                 (closest_mm, speed_kept, pose_source, path),
-                held_back,
+                (held_back, forecast),
             )| {
                 Summary {
                     reason,
@@ -264,10 +267,92 @@ fn summary() -> BoxedStrategy<Summary> {
                     sync_violations,
                     stopped_by,
                     held_back,
+                    forecast,
                 }
             },
         )
         .boxed()
+}
+
+fn closest() -> impl Strategy<Value = vl_core::Closest> {
+    let to = prop_oneof![
+        Just(vl_core::Nearest::Wall),
+        (0..9usize).prop_map(vl_core::Nearest::Obstacle),
+        (0..9usize).prop_map(vl_core::Nearest::VirtualObstacle),
+    ];
+    (num(), point(), to).prop_map(|(mm, at, to)| vl_core::Closest { mm, at, to })
+}
+
+/// A forecast of one or two seeds, judged by some limits.
+fn verdict() -> impl Strategy<Value = vl_core::ForecastVerdict> {
+    let run = (
+        (any::<u64>(), any::<bool>(), num(), closest(), closest()),
+        (
+            any::<u32>(),
+            proptest::option::of(point()),
+            num(),
+            num(),
+            num(),
+        ),
+        proptest::collection::vec(point(), 0..5),
+    )
+        .prop_map(
+            |(
+                (seed, reached_goal, seconds, closest, end),
+                (collisions, first_contact, held_back_s, saturated_s, mean_error_mm),
+                path,
+            )| vl_core::SeedRun {
+                seed,
+                reached_goal,
+                seconds,
+                closest,
+                end,
+                collisions: u64::from(collisions),
+                first_contact,
+                held_back_s,
+                saturated_s,
+                mean_error_mm,
+                path,
+            },
+        );
+    let limits =
+        (num(), proptest::option::of(num())).prop_map(|(min_clearance_mm, max_seconds)| {
+            vl_core::ForecastLimits {
+                min_clearance_mm,
+                max_seconds,
+            }
+        });
+    (proptest::collection::vec(run, 1..3), num(), limits).prop_map(
+        |(runs, path_every_s, limits)| {
+            vl_core::ForecastVerdict::new(vl_core::Forecast { runs, path_every_s }, limits)
+        },
+    )
+}
+
+fn gap() -> impl Strategy<Value = vl_core::Gap> {
+    (
+        proptest::option::of(num()),
+        (num(), num(), num()),
+        proptest::option::of(num()),
+        proptest::option::of(num()),
+    )
+        .prop_map(
+            |(
+                forecast_s,
+                (run_s, path_mean_mm, path_max_mm),
+                forecast_closest_mm,
+                run_closest_mm,
+            )| {
+                vl_core::Gap {
+                    forecast_s,
+                    run_s,
+                    path_mean_mm,
+                    path_max_mm,
+                    forecast_closest_mm,
+                    run_closest_mm,
+                }
+            },
+        )
 }
 
 fn pose_source() -> impl Strategy<Value = PoseSource> {
@@ -368,6 +453,7 @@ fn host_message() -> impl Strategy<Value = HostMessage> {
             }
         ),
         definition().prop_map(|definition| HostMessage::Defined { definition }),
+        verdict().prop_map(|v| HostMessage::Forecast(Box::new(v))),
         any::<u64>().prop_map(|event| HostMessage::Started { event }),
         (
             any::<u64>(),
@@ -394,7 +480,9 @@ fn host_message() -> impl Strategy<Value = HostMessage> {
                     }
                 },
             ),
-        summary().prop_map(|summary| HostMessage::Done { summary }),
+        summary().prop_map(|summary| HostMessage::Done {
+            summary: Box::new(summary)
+        }),
         Just(HostMessage::Bye),
     ]
 }

@@ -15,6 +15,7 @@ mod cli;
 mod experiment_media;
 mod faults;
 mod following_in_sim;
+mod forecast;
 mod fuzz;
 mod gamepad;
 mod guest_window;

@@ -114,6 +114,10 @@ pub use contract::experiment::{
     Definition, DefinitionError, Experiment, ExperimentInfo, Goal, LOOKAHEAD_MM,
 };
 pub use contract::fingerprint::Fingerprint;
+pub use contract::forecast::{
+    Closest, Forecast, ForecastLimits, ForecastRefusal, ForecastVerdict, Gap, Nearest, SeedRun,
+    Spread,
+};
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::host_status::{HostStatus, Person, RunRecord};
 pub use contract::protocol::{

@@ -14,7 +14,7 @@
 //! moving away from an obstacle is always allowed: inside the margin, a
 //! command passes if it never brings the body nearer than it is.
 
-use crate::{Arena, Point, Pose, RobotModel, Shape, WheelSpeeds, ir_distance, ir_reading};
+use crate::{Arena, Nearest, Point, Pose, RobotModel, Shape, WheelSpeeds, ir_distance, ir_reading};
 
 /// Braking is checked in steps this long, s: 2 mm at 1 m/s.
 const CHECK_STEP_S: f64 = 0.002;
@@ -70,6 +70,26 @@ impl Surroundings {
             nearest = nearest.min(shape.signed_distance(p));
         }
         nearest
+    }
+
+    /// What is nearest `p`: a wall, one of the arena's obstacles or a
+    /// virtual one (a closest approach is told by what it was to).
+    pub fn nearest(&self, p: Point) -> Nearest {
+        let obstacles = self.arena.obstacles.iter().map(|o| &o.shape);
+        let virtuals = self.virtual_obstacles.iter().map(|(shape, ..)| shape);
+        obstacles
+            .enumerate()
+            .map(|(i, s)| (s.signed_distance(p), Nearest::Obstacle(i)))
+            .chain(
+                virtuals
+                    .enumerate()
+                    .map(|(i, s)| (s.signed_distance(p), Nearest::VirtualObstacle(i))),
+            )
+            .fold(
+                (self.arena.wall_clearance(p), Nearest::Wall),
+                |best, next| if next.0 < best.0 { next } else { best },
+            )
+            .1
     }
 }
 

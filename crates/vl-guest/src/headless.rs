@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use thiserror::Error;
-use vl_core::table::{Table, count, yes};
+use vl_core::table::{Report as _, Table, count, yes};
 use vl_core::{
     ArenaPlanError, Drive, EndReason, ErrorCode, Experiment, Goal, GuestMessage, HeldBack,
     HostMessage, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
@@ -134,6 +134,8 @@ pub enum ScriptError {
     NoGoal(Experiment),
     #[error("no path to the goal")]
     NoPath(#[from] ArenaPlanError),
+    #[error("the lab refused the definition after trying it on its twin: {0}")]
+    Forecast(String),
 }
 
 impl ScriptError {
@@ -355,6 +357,19 @@ async fn started(url: &str, script: &Script) -> Result<(Scripted, Route, Goal), 
     guest
         .until("define the goal", ignore, |s| s.definition.is_some())
         .await?;
+    if script.experiment == Experiment::Navigation {
+        guest
+            .until("be told the forecast", ignore, |s| s.forecast.is_some())
+            .await?;
+        let verdict = guest.session.forecast.as_ref().expect("told");
+        if script.progress {
+            eprintln!("{}", verdict.table());
+        }
+        if !verdict.passed() {
+            let why: Vec<String> = verdict.refusals.iter().map(|r| r.to_string()).collect();
+            return Err(ScriptError::Forecast(why.join("; ")));
+        }
+    }
     guest.connection.send(GuestMessage::Start);
     guest.until("start", ignore, |s| s.running).await?;
     Ok((guest, route, goal))

@@ -44,6 +44,7 @@ fn state_words<'a>(chart: &str, state: &'a str) -> &'a str {
         ("field", "waiting") => "waits for the C-space",
         (_, "building") => "being made",
         ("planning", "planning") => "being planned",
+        ("forecast", "unpassed") => "not passed yet",
         ("define", "default") => "defaults",
         ("following", "following") => "follows the path",
         ("teleoperation", "driving") => "driven by the operator",
@@ -56,6 +57,8 @@ pub(crate) fn event_words(event: &str) -> &str {
     match event {
         "cspace_built" => "C-space made",
         "path_planned" => "path planned",
+        "forecast_passed" => "forecast passed",
+        "forecast_failed" => "forecast refused",
         "field_built" => "force field made",
         "command" => "drive",
         "finish" => "run ends",

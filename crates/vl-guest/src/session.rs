@@ -159,6 +159,8 @@ pub struct Session {
     pub experiments: Vec<ExperimentInfo>,
     pub lab: Option<MountedLab>,
     pub definition: Option<Definition>,
+    /// The definition tried on the lab's twin, once the Host has.
+    pub forecast: Option<vl_core::ForecastVerdict>,
     pub running: bool,
     pub robot: Option<RobotState>,
     /// The newest camera image shown, decoded (see [`Session::decode_frame`]).
@@ -234,6 +236,7 @@ impl Default for Session {
             experiments: Vec::new(),
             lab: None,
             definition: None,
+            forecast: None,
             running: false,
             robot: None,
             frame: None,
@@ -325,13 +328,16 @@ impl Session {
             HostMessage::Mounted(lab) => {
                 self.lab = Some(*lab);
                 self.definition = None;
+                self.forecast = None;
                 self.done = None;
                 self.errors.clear();
             }
             HostMessage::Defined { definition } => {
                 self.definition = Some(definition);
+                self.forecast = None;
                 self.errors.clear();
             }
+            HostMessage::Forecast(verdict) => self.forecast = Some(*verdict),
             HostMessage::State(state) => {
                 self.nets_agree = self.nets.follow(&state);
                 // A run asked to stop takes no more commands, though its
@@ -374,7 +380,7 @@ impl Session {
             HostMessage::Done { summary } => {
                 self.interrupted = false;
                 self.running = false;
-                self.done = Some(summary);
+                self.done = Some(*summary);
             }
             HostMessage::Status { robot, camera, lab } => {
                 self.devices = Some(Devices { robot, camera, lab });
@@ -450,6 +456,7 @@ impl Session {
         let fresh = Session::default();
         self.lab = None;
         self.definition = None;
+        self.forecast = None;
         self.running = false;
         self.robot = None;
         self.frame = None;

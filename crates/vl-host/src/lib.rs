@@ -107,7 +107,7 @@ pub use media::{
 };
 pub use replay::ReplayCamera;
 pub use server::bench::{BenchError, Guessing, OperatorLatency, operator_latency};
-pub use server::{HostConfig, Io};
+pub use server::{ForecastSettings, HostConfig, Io, MOST_FORECAST_SEEDS};
 pub use setup::{LabSpec, RobotSpec, SetupError};
 pub use source::CameraSource;
 pub use tls::{Tls, TlsError};

@@ -99,6 +99,7 @@ fn forecast_timed() -> Result<(f64, f64), SimBenchError> {
         start: arena.start,
         definition: &definition,
         seeds: &FORECAST_SEEDS,
+        cancel: None,
     })?;
     let ms = started.elapsed().as_secs_f64() * 1e3;
     let simulated = forecast.runs.iter().map(|r| r.seconds).sum();

@@ -8,12 +8,12 @@
 //! well the path is kept — is what a lab can refuse a definition for
 //! before anything moves, and what a run is later compared with.
 
-use serde::Serialize;
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use thiserror::Error;
-use vl_core::table::{Report, Table};
 use vl_core::{
-    Arena, Definition, Follower, Point, Pose, RobotModel, Safety, Situation, Steer, Surroundings,
-    WheelSpeeds,
+    Arena, Closest, Definition, Follower, Forecast, Point, Pose, RobotModel, Safety, SeedRun,
+    Situation, Steer, Surroundings, WheelSpeeds,
 };
 
 use crate::world::{STEP_S, SimError, World};
@@ -21,8 +21,13 @@ use crate::world::{STEP_S, SimError, World};
 /// How often the proximity sensors are read, in steps: the Khepera's IR
 /// period, as the Host reads them.
 const SENSE_EVERY_STEPS: u64 = 2;
-/// A foreseen path keeps a point this often, in steps: 10 a second.
+/// A foreseen path keeps a point this often, in steps: 10 a second…
 const PATH_EVERY_STEPS: u64 = 10;
+/// …and at most this many points (a long run keeps fewer a second), so a
+/// forecast always fits in one message.
+const MOST_PATH_POINTS: usize = 600;
+/// How often a forecast looks whether it is still wanted, in steps.
+const CANCEL_EVERY_STEPS: u64 = 100;
 /// No forecast runs longer than this, s, whatever the definition says.
 pub const LONGEST_S: f64 = 600.0;
 
@@ -36,6 +41,8 @@ pub struct Forecasting<'a> {
     pub definition: &'a Definition,
     /// One forecast run per seed of the simulator's noise.
     pub seeds: &'a [u64],
+    /// Set when the forecast is no longer wanted (a newer definition).
+    pub cancel: Option<&'a AtomicBool>,
 }
 
 #[derive(Debug, Error, PartialEq)]
@@ -44,37 +51,10 @@ pub enum ForecastError {
     NoPath,
     #[error("no seeds to forecast with")]
     NoSeeds,
+    #[error("the forecast was cancelled")]
+    Cancelled,
     #[error("{0}")]
     World(#[from] SimError),
-}
-
-/// One seed's forecast run.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct SeedRun {
-    pub seed: u64,
-    pub reached_goal: bool,
-    /// Until the goal, or the run's time limit.
-    pub seconds: f64,
-    /// The least room between the body and anything (walls, obstacles,
-    /// virtual obstacles), mm, and where the robot was then.
-    pub closest_mm: f64,
-    pub closest_at: Point,
-    pub collisions: u64,
-    /// How long the safety layer changed what the follower asked, s.
-    pub held_back_s: f64,
-    /// How long the follower asked more of a wheel than it (or the
-    /// definition's cap) allows, s.
-    pub saturated_s: f64,
-    /// Mean distance from the defined path, mm.
-    pub mean_error_mm: f64,
-    /// Where the robot went, ten points a second.
-    pub path: Vec<Point>,
-}
-
-/// A definition's forecast: one run per seed.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Forecast {
-    pub runs: Vec<SeedRun>,
 }
 
 /// Forecasts `what`: one run per seed.
@@ -82,12 +62,25 @@ pub fn forecast(what: Forecasting<'_>) -> Result<Forecast, ForecastError> {
     if what.seeds.is_empty() {
         return Err(ForecastError::NoSeeds);
     }
-    let runs = what
+    let mut runs: Vec<SeedRun> = what
         .seeds
         .iter()
         .map(|&seed| run(&what, seed))
         .collect::<Result<_, _>>()?;
-    Ok(Forecast { runs })
+    // Every seed's path thinned alike, so that point i is at the same time.
+    let longest = runs.iter().map(|r| r.path.len()).max().unwrap_or(0);
+    let stride = longest.div_ceil(MOST_PATH_POINTS).max(1);
+    for r in &mut runs {
+        let last = r.path.last().copied();
+        r.path = r.path.iter().copied().step_by(stride).collect();
+        if r.path.last().copied() != last {
+            r.path.extend(last);
+        }
+    }
+    Ok(Forecast {
+        runs,
+        path_every_s: stride as f64 * PATH_EVERY_STEPS as f64 * STEP_S,
+    })
 }
 
 /// One forecast run, as the Host's control loop would drive it.
@@ -110,20 +103,34 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
     let room = |p: Point| surroundings.clearance(p) - robot.radius_mm;
     let mut told = WheelSpeeds::default();
     let mut proximity = world.proximity();
+    let start = what.start.point();
     let mut out = SeedRun {
         seed,
         reached_goal: false,
         seconds: 0.0,
-        closest_mm: room(what.start.point()),
-        closest_at: what.start.point(),
+        closest: Closest {
+            mm: room(start),
+            at: start,
+            to: surroundings.nearest(start),
+        },
+        end: Closest {
+            mm: room(start),
+            at: start,
+            to: surroundings.nearest(start),
+        },
         collisions: 0,
+        first_contact: None,
         held_back_s: 0.0,
         saturated_s: 0.0,
         mean_error_mm: 0.0,
-        path: vec![what.start.point()],
+        path: vec![start],
     };
     let (mut error_sum, mut steps) = (0.0, 0u64);
     while world.time_s() < limit_s {
+        if steps % CANCEL_EVERY_STEPS == 0 && what.cancel.is_some_and(|c| c.load(Ordering::Relaxed))
+        {
+            return Err(ForecastError::Cancelled);
+        }
         if steps % SENSE_EVERY_STEPS == 0 {
             proximity = world.proximity();
         }
@@ -152,124 +159,38 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
         steps += 1;
         let here = world.pose().point();
         let room = room(here);
-        if room < out.closest_mm {
-            (out.closest_mm, out.closest_at) = (room, here);
+        if room < out.closest.mm {
+            out.closest.mm = room;
+            out.closest.at = here;
+        }
+        if out.first_contact.is_none() && world.collisions() > 0 {
+            out.first_contact = Some(here);
         }
         error_sum += follower.distance_to_path(here);
         if steps % PATH_EVERY_STEPS == 0 {
             out.path.push(here);
         }
     }
-    out.path.push(world.pose().point());
+    out.closest.to = surroundings.nearest(out.closest.at);
+    let end = world.pose().point();
+    out.end = Closest {
+        mm: room(end),
+        at: end,
+        to: surroundings.nearest(end),
+    };
+    out.path.push(end);
     out.seconds = world.time_s();
     out.collisions = world.collisions();
     out.mean_error_mm = error_sum / steps.max(1) as f64;
     Ok(out)
 }
 
-/// The least, mean and most of some figure over the seeds.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Spread {
-    pub least: f64,
-    pub mean: f64,
-    pub most: f64,
-}
-
-impl Spread {
-    fn of(values: impl Iterator<Item = f64>) -> Spread {
-        let (mut least, mut most, mut sum, mut n) = (f64::INFINITY, f64::NEG_INFINITY, 0.0, 0);
-        for v in values {
-            (least, most, sum, n) = (least.min(v), most.max(v), sum + v, n + 1);
-        }
-        Spread {
-            least,
-            mean: sum / f64::from(n.max(1)),
-            most,
-        }
-    }
-}
-
-impl Forecast {
-    /// How many seeds reach the goal.
-    pub fn reached(&self) -> usize {
-        self.runs.iter().filter(|r| r.reached_goal).count()
-    }
-
-    /// The time to the goal over the seeds that reach it.
-    pub fn seconds(&self) -> Spread {
-        Spread::of(
-            self.runs
-                .iter()
-                .filter(|r| r.reached_goal)
-                .map(|r| r.seconds),
-        )
-    }
-
-    /// The closest approach over every seed, and where.
-    pub fn closest(&self) -> (f64, Point) {
-        self.runs
-            .iter()
-            .map(|r| (r.closest_mm, r.closest_at))
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-            .unwrap_or((f64::INFINITY, Point::default()))
-    }
-
-    pub fn collisions(&self) -> u64 {
-        self.runs.iter().map(|r| r.collisions).sum()
-    }
-
-    pub fn held_back_s(&self) -> Spread {
-        Spread::of(self.runs.iter().map(|r| r.held_back_s))
-    }
-
-    pub fn saturated_s(&self) -> Spread {
-        Spread::of(self.runs.iter().map(|r| r.saturated_s))
-    }
-
-    pub fn mean_error_mm(&self) -> Spread {
-        Spread::of(self.runs.iter().map(|r| r.mean_error_mm))
-    }
-}
-
-impl Report for Forecast {
-    fn table(&self) -> Table {
-        let spread = |s: Spread, unit: &str| {
-            format!(
-                "{:.1} {unit} (from {:.1} to {:.1})",
-                s.mean, s.least, s.most
-            )
-        };
-        let (closest, at) = self.closest();
-        Table::pairs([
-            (
-                "reaches the goal",
-                format!("{} of {} seeds", self.reached(), self.runs.len()),
-            ),
-            (
-                "time to the goal",
-                match self.reached() {
-                    0 => "never".to_owned(),
-                    _ => spread(self.seconds(), "s"),
-                },
-            ),
-            (
-                "closest approach",
-                format!("{closest:.1} mm, at ({:.0}, {:.0}) mm", at.x_mm, at.y_mm),
-            ),
-            ("contacts", self.collisions().to_string()),
-            ("held back", spread(self.held_back_s(), "s")),
-            ("wheels saturated", spread(self.saturated_s(), "s")),
-            ("off the path", spread(self.mean_error_mm(), "mm")),
-        ])
-        .title("the definition, tried on the lab's twin:")
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use proptest::prelude::*;
-    use vl_core::{Goal, Shape, plan_route};
+    use vl_core::table::Report;
+    use vl_core::{ForecastLimits, ForecastVerdict, Goal, Shape, plan_route};
 
     /// The navigation arena's own goal, planned from its start.
     fn planned() -> (Arena, RobotModel, Definition) {
@@ -292,6 +213,7 @@ mod tests {
             start: arena.start,
             definition,
             seeds,
+            cancel: None,
         })
         .unwrap()
     }
@@ -300,10 +222,13 @@ mod tests {
     fn a_planned_path_is_foreseen_to_reach_its_goal_clear_of_everything() {
         let (arena, robot, definition) = planned();
         let f = of(&arena, &robot, &definition, &[1, 2, 3]);
-        println!("{}", f.table());
+        println!(
+            "{}",
+            ForecastVerdict::new(f.clone(), ForecastLimits::default()).table()
+        );
         assert_eq!(f.reached(), 3, "{f:?}");
         assert_eq!(f.collisions(), 0);
-        let (closest, _) = f.closest();
+        let closest = f.closest().unwrap().mm;
         assert!(closest > 0.0, "{closest}");
         let t = f.seconds();
         assert!(t.least > 1.0 && t.most < 60.0, "{t:?}");
@@ -329,9 +254,13 @@ mod tests {
             "the safety layer holds the robot back"
         );
         assert!(blocked.held_back_s().most > clear.held_back_s().most);
-        let (closest, at) = blocked.closest();
-        assert!(closest < 10.0, "{closest}");
-        assert!(at.distance(middle) < 80.0, "{at:?} by {middle:?}");
+        let closest = blocked.closest().unwrap();
+        assert!(closest.mm < 10.0, "{closest:?}");
+        assert!(
+            closest.at.distance(middle) < 80.0,
+            "{closest:?} by {middle:?}"
+        );
+        assert_eq!(closest.to, vl_core::Nearest::VirtualObstacle(0));
     }
 
     #[test]
@@ -349,6 +278,7 @@ mod tests {
             start: arena.start,
             definition: &definition,
             seeds: &[1],
+            cancel: None,
         });
         assert_eq!(none, Err(ForecastError::NoPath));
     }
@@ -368,8 +298,9 @@ mod tests {
             prop_assert!(r.seconds <= LONGEST_S + STEP_S);
             prop_assert!(r.held_back_s <= r.seconds + 1e-9);
             prop_assert!(r.saturated_s <= r.seconds + 1e-9);
-            prop_assert!(r.closest_mm.is_finite());
-            prop_assert!(r.collisions == 0 || r.closest_mm <= 0.5);
+            prop_assert!(r.closest.mm.is_finite());
+            prop_assert!(r.collisions == 0 || r.closest.mm <= 0.5);
+            prop_assert!(r.path.len() <= MOST_PATH_POINTS + 1);
         }
     }
 }

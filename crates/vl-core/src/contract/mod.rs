@@ -7,6 +7,7 @@
 pub(crate) mod access;
 pub(crate) mod experiment;
 pub(crate) mod fingerprint;
+pub(crate) mod forecast;
 pub(crate) mod frame;
 pub(crate) mod host_status;
 pub(crate) mod protocol;

@@ -197,6 +197,9 @@ pub struct Summary {
     /// Why the safety layer would not let the run go on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub held_back: Option<HeldBack>,
+    /// The run against the forecast of its definition.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub forecast: Option<crate::Gap>,
 }
 
 impl Summary {
@@ -283,6 +286,8 @@ pub enum ErrorCode {
     NotOperator,
     UnknownExperiment,
     InvalidDefinition,
+    /// The definition, tried on the lab's twin, breaks the lab's limits.
+    ForecastRefused,
     /// The session supervisor does not allow this action now.
     NotAllowedNow,
     /// A command whose event number is not the next one.
@@ -457,6 +462,9 @@ pub enum HostMessage {
         #[serde(flatten)]
         definition: Definition,
     },
+    /// The definition, tried on the lab's twin: a run may start only when
+    /// its verdict passed (navigation).
+    Forecast(Box<crate::ForecastVerdict>),
     /// A run began; commands count from `event` + 1.
     Started {
         event: u64,
@@ -481,7 +489,7 @@ pub enum HostMessage {
         source: PoseSource,
     },
     Done {
-        summary: Summary,
+        summary: Box<Summary>,
     },
     /// The supervisor's net: sent on welcome and whenever a firing changes
     /// its marking.

@@ -34,6 +34,9 @@ pub enum Action {
     CspaceBuilt,
     /// The Host has checked (or planned) the defined path in its C-space.
     PathPlanned,
+    /// The definition's forecast passed the lab's limits, or did not.
+    ForecastPassed,
+    ForecastFailed,
     /// The Host has built the map's potential field for assisted driving.
     FieldBuilt,
 }
@@ -51,6 +54,8 @@ impl Action {
             Action::Release => "release",
             Action::CspaceBuilt => "cspace_built",
             Action::PathPlanned => "path_planned",
+            Action::ForecastPassed => "forecast_passed",
+            Action::ForecastFailed => "forecast_failed",
             Action::FieldBuilt => "field_built",
         }
     }
@@ -68,6 +73,8 @@ impl std::fmt::Display for Action {
             Action::Release => "release the lab",
             Action::CspaceBuilt => "finish the C-space",
             Action::PathPlanned => "finish the path",
+            Action::ForecastPassed => "pass the forecast",
+            Action::ForecastFailed => "refuse the forecast",
             Action::FieldBuilt => "finish the potential field",
         })
     }

@@ -137,6 +137,10 @@ const SHIPPED: &[(&str, &str)] = &[
         include_str!("../../nets/navigation/planning.scxml"),
     ),
     (
+        "navigation/forecast.scxml",
+        include_str!("../../nets/navigation/forecast.scxml"),
+    ),
+    (
         "navigation/following.scxml",
         include_str!("../../nets/navigation/following.scxml"),
     ),

@@ -130,6 +130,7 @@ impl Run {
             max_event_gap: 0,
             sync_violations: 0,
             stopped_by: None,
+            forecast: None,
             held_back: self.held_back,
         }
     }

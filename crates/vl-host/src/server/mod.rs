@@ -35,6 +35,7 @@ use crate::tls::Tls;
 use admission::Admission;
 use connection::Connection;
 use hub::Hub;
+pub use hub::{ForecastSettings, MOST_FORECAST_SEEDS};
 
 /// How the Host admits people and how long it waits for them.
 #[derive(Debug, Clone)]
@@ -78,6 +79,8 @@ pub struct HostConfig {
     /// exposure rather than its arrival (off only to measure what that is
     /// worth).
     pub compensate_latency: bool,
+    /// What a navigation definition's forecast must show for a run to start.
+    pub forecast: ForecastSettings,
 }
 
 impl HostConfig {
@@ -111,6 +114,7 @@ impl Default for HostConfig {
             nets: None,
             reset: true,
             compensate_latency: true,
+            forecast: ForecastSettings::default(),
         }
     }
 }

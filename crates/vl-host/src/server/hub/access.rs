@@ -276,6 +276,8 @@ impl Hub {
         self.cspace = None;
         self.field = None;
         self.fields.forget();
+        self.forecasts.forget();
+        self.verdict = None;
         self.grant_next();
     }
 

@@ -20,16 +20,20 @@ use super::HostConfig;
 use crate::accounts::audit::Entry;
 use crate::accounts::gate::Admitted;
 use crate::lab::{Finished, Lab};
-use fields::{FieldWorker, Map};
+use fields::Map;
+pub use forecasts::{ForecastSettings, MOST_SEEDS as MOST_FORECAST_SEEDS};
+use worker::Worker;
 
 mod access;
 mod fields;
+mod forecasts;
 mod operate;
 mod queue;
 mod reset;
 mod status;
 #[cfg(test)]
 mod tests;
+mod worker;
 
 /// Messages waiting for one client, at most; feedback and frames are not
 /// queued (each connection takes only the newest).
@@ -139,7 +143,11 @@ pub(crate) struct Hub {
     /// same for every mount, so made once, when the Host starts.
     map: Map,
     /// Fields for definitions with virtual obstacles, made off the hub.
-    fields: FieldWorker,
+    fields: Worker<Option<MapField>>,
+    /// Forecasts of navigation definitions, made off the hub, and the
+    /// verdict on the definition in force.
+    forecasts: Worker<forecasts::Forecasted>,
+    verdict: Option<vl_core::ForecastVerdict>,
     /// Whether a run may start, and the run that drives the robot back
     /// to the start pose while it may not.
     readiness: Readiness,
@@ -180,7 +188,9 @@ impl Hub {
             devices,
             cspace: None,
             field: None,
-            fields: FieldWorker::new(),
+            fields: Worker::new(),
+            forecasts: Worker::new(),
+            verdict: None,
             readiness: Readiness::Ready,
             reset_run: None,
             reset_routes: mpsc::unbounded_channel(),
@@ -223,19 +233,23 @@ impl Hub {
                     summary.max_event_gap = self.max_event_gap;
                     summary.sync_violations = self.sync_violations;
                     summary.stopped_by = self.stopper.take().filter(|_| summary.reason == EndReason::EmergencyStop);
+                    self.compare_with_forecast(&mut summary);
                     info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
                     self.config.audit.record(
                         Entry::new("run_ended").detail(format!("run {run}: {}", summary.ending())),
                     );
                     let reset = resets_after(summary.reason);
-                    self.broadcast(&HostMessage::Done { summary });
+                    self.broadcast(&HostMessage::Done { summary: Box::new(summary) });
                     if reset {
                         self.reset();
                     }
                 }
                 Some(route) = self.reset_routes.1.recv() => self.reset_planned(route),
+                Some((number, forecasted)) = self.forecasts.done.recv() => {
+                    self.forecast_done(number, forecasted);
+                }
                 Some((number, field)) = self.fields.done.recv() => {
-                    if let Some(field) = self.fields.finished(&self.lab, number, field) {
+                    if let Some(field) = self.fields.finished(number, field) {
                         self.field = field.map(Arc::new);
                         self.happened(Action::FieldBuilt);
                     }

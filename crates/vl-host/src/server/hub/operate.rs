@@ -10,6 +10,7 @@ use vl_core::{
 };
 
 use super::Hub;
+use super::fields::field_job;
 use crate::accounts::audit::Entry;
 use crate::lab::LabRequest;
 
@@ -57,6 +58,8 @@ impl Hub {
         }
         self.experiment = Some(experiment);
         self.definition = None;
+        self.forecasts.forget();
+        self.verdict = None;
         if let Some(mounted) = self.mounted() {
             self.broadcast(&mounted);
         }
@@ -91,9 +94,10 @@ impl Hub {
         self.broadcast(&HostMessage::Defined {
             definition: definition.clone(),
         });
-        // The path was checked against the C-space above.
+        // The path was checked against the C-space above; the twin tries it.
         if self.experiment == Some(Experiment::Navigation) {
             self.happened(Action::PathPlanned);
+            self.ask_forecast(&definition);
         }
         self.build_field(&definition.virtual_obstacles);
     }
@@ -217,7 +221,8 @@ impl Hub {
             self.field = self.map.field.clone();
             self.happened(Action::FieldBuilt);
         } else {
-            self.fields.ask(&self.lab, virtual_obstacles.to_vec());
+            self.fields
+                .ask(field_job(&self.lab, virtual_obstacles.to_vec()));
         }
     }
 

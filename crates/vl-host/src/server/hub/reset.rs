@@ -69,7 +69,7 @@ impl Hub {
     }
 
     /// Where the lab's newest feedback puts the robot.
-    fn robot_pose(&self) -> Option<Pose> {
+    pub(super) fn robot_pose(&self) -> Option<Pose> {
         match &*self.lab.feedback.borrow() {
             Some(HostMessage::Feedback { pose, .. }) => Some(*pose),
             _ => None,

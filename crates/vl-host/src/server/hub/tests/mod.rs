@@ -265,7 +265,7 @@ impl Client {
     /// The summary of the run that ends next.
     async fn done(&mut self) -> Summary {
         match self.next("done").await {
-            HostMessage::Done { summary } => summary,
+            HostMessage::Done { summary } => *summary,
             _ => unreachable!(),
         }
     }

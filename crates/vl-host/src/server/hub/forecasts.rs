@@ -1,0 +1,145 @@
+//! Every navigation definition tried on the lab's twin before the robot
+//! moves (issue 29): the hub asks for a forecast when a definition is
+//! given, off its own task; the verdict goes to everyone and fires
+//! `forecast_passed` or `forecast_failed` in the lab's net, whose rule lets
+//! a run start only on a passed one. When the run ends, its summary says
+//! how far it was from the forecast.
+
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+use tracing::{info, warn};
+use vl_core::{
+    Action, Definition, ErrorCode, ForecastLimits, ForecastVerdict, HostMessage, Readiness, Summary,
+};
+use vl_sim::{ForecastError, Forecasting, forecast};
+
+use super::Hub;
+
+/// The most seeds a forecast takes, whatever the lab asks.
+pub const MOST_SEEDS: u32 = 8;
+
+/// What a lab asks of a navigation definition's forecast before a run
+/// may start, besides reaching the goal without contact (`vl host` flags,
+/// or keys of its lab file).
+#[derive(Debug, Clone, Copy, PartialEq, clap::Args)]
+pub struct ForecastSettings {
+    /// The least room, mm, the forecast robot may come to anything.
+    #[arg(long = "min-clearance", value_name = "MM", default_value_t = 0.0, value_parser = clearance)]
+    pub min_clearance_mm: f64,
+    /// The longest a run may be forecast to take (90s, 10m).
+    #[arg(long, value_parser = vl_core::span)]
+    pub max_run: Option<Duration>,
+    /// How many seeds of sensor and wheel noise each forecast tries.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=i64::from(MOST_SEEDS)))]
+    pub forecast_seeds: u32,
+}
+
+/// A clearance in mm: a finite number from 0 to a metre.
+fn clearance(text: &str) -> Result<f64, String> {
+    text.parse::<f64>()
+        .ok()
+        .filter(|mm| (0.0..=1000.0).contains(mm))
+        .ok_or_else(|| format!("{text:?} is not a clearance from 0 to 1000 mm"))
+}
+
+impl ForecastSettings {
+    pub fn limits(&self) -> ForecastLimits {
+        ForecastLimits {
+            min_clearance_mm: self.min_clearance_mm,
+            max_seconds: self.max_run.map(|d| d.as_secs_f64()),
+        }
+    }
+}
+
+impl Default for ForecastSettings {
+    fn default() -> Self {
+        ForecastSettings {
+            min_clearance_mm: 0.0,
+            max_run: None,
+            forecast_seeds: 5,
+        }
+    }
+}
+
+/// A job's result: the verdict, or why there is none.
+pub(super) type Forecasted = Result<ForecastVerdict, ForecastError>;
+
+impl Hub {
+    /// Tries `definition` on the twin, off the hub; a forecast under way
+    /// for an older definition is cancelled.
+    pub(super) fn ask_forecast(&mut self, definition: &Definition) {
+        self.verdict = None;
+        // Without a path the operator's own commands drive, guarded live
+        // by the safety layer as in teleoperation: nothing to foresee.
+        if definition.path.is_empty() {
+            self.forecasts.forget();
+            return self.happened(Action::ForecastPassed);
+        }
+        let info = &self.lab.info;
+        // A robot driving back to the start pose starts the run from there.
+        let start = match (self.readiness, self.robot_pose()) {
+            (Readiness::Ready, Some(pose)) => pose,
+            _ => info.arena.start,
+        };
+        let (arena, robot, definition) =
+            (info.arena.clone(), info.robot.clone(), definition.clone());
+        let settings = self.config.forecast;
+        self.forecasts.ask(move |cancel: &AtomicBool| {
+            let seeds = 1..=u64::from(settings.forecast_seeds.clamp(1, MOST_SEEDS));
+            let seeds: Vec<u64> = seeds.collect();
+            let forecast = forecast(Forecasting {
+                arena: &arena,
+                robot: &robot,
+                start,
+                definition: &definition,
+                seeds: &seeds,
+                cancel: Some(cancel),
+            })?;
+            Ok(ForecastVerdict::new(forecast, settings.limits()))
+        });
+    }
+
+    /// A forecast ended: the newest one's verdict is told and fired.
+    pub(super) fn forecast_done(&mut self, number: u64, forecasted: Forecasted) {
+        let Some(forecasted) = self.forecasts.finished(number, forecasted) else {
+            return;
+        };
+        let verdict = match forecasted {
+            Ok(verdict) => verdict,
+            Err(e) => {
+                warn!("no forecast for the definition: {e}");
+                if let Some(operator) = self.operator {
+                    let why = format!("the definition cannot be tried on the lab's twin: {e}");
+                    self.refuse(operator, ErrorCode::InvalidDefinition, why);
+                }
+                return self.happened(Action::ForecastFailed);
+            }
+        };
+        let passed = verdict.passed();
+        info!(
+            passed,
+            reached = verdict.forecast.reached(),
+            "forecast of the definition"
+        );
+        self.broadcast(&HostMessage::Forecast(Box::new(verdict.clone())));
+        if let (false, Some(operator)) = (passed, self.operator) {
+            let why: Vec<String> = verdict.refusals.iter().map(|r| r.to_string()).collect();
+            let why = format!(
+                "the definition, tried on the lab's twin, is refused: {}; define another",
+                why.join("; ")
+            );
+            self.refuse(operator, ErrorCode::ForecastRefused, why);
+        }
+        self.verdict = Some(verdict);
+        self.happened(match passed {
+            true => Action::ForecastPassed,
+            false => Action::ForecastFailed,
+        });
+    }
+
+    /// Puts in `summary` how far its run was from the forecast.
+    pub(super) fn compare_with_forecast(&self, summary: &mut Summary) {
+        summary.forecast = self.verdict.as_ref().and_then(|v| v.forecast.gap(summary));
+    }
+}
