@@ -66,13 +66,16 @@ fn mount_navigation(
     step_until(harness, "see the mounted lab", |app| seen(app.session()));
 }
 
-/// Defines the goal shown (the window plans the path) and starts the run.
+/// Defines the goal shown (the window plans the path) and, once its
+/// forecast has passed, starts the run.
 fn define_and_start(harness: &mut Harness<'_, GuestApp>) {
+    let told = harness.state().session().forecasts;
     harness
         .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
         .click();
+    // Start waits for the new definition's forecast to pass.
     step_until(harness, "define", |app| {
-        app.session().allows(vl_core::Action::Start)
+        app.session().forecasts > told && app.session().allows(vl_core::Action::Start)
     });
     harness.get_by_label("Start").click();
     step_until(harness, "start", |app| app.session().running);
@@ -129,9 +132,11 @@ fn connected_view(harness: &mut Harness<'_, GuestApp>) {
     harness
         .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
         .click();
-    step_until(harness, "show the definition", |app| {
-        app.session().definition.is_some()
-    });
+    step_until(
+        harness,
+        "show the definition and its passed forecast",
+        |app| app.session().definition.is_some() && app.session().allows(vl_core::Action::Start),
+    );
     let path = harness.state().session().definition.clone().unwrap().path;
     assert!(path.len() > 100, "a planned path of {} points", path.len());
     harness.get_by_label_contains("mm from obstacles");
@@ -814,13 +819,14 @@ fn the_net_view_follows_the_marking_through_a_run() {
         harness.get_by_label("Lab net").click();
         harness.step();
         harness.get_by_label_contains("now: lab mounted");
-        harness.get_by_label("may happen: define, leave, mount, start");
+        harness.get_by_label("may happen: define, forecast passed, forecast refused, leave, mount");
         assert!(harness.state().session().nets_agree);
         harness
             .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
             .click();
-        step_until(harness, "define", |app| marked(app, "define.given"));
-        harness.get_by_label_contains(", path planned");
+        step_until(harness, "define", |app| marked(app, "forecast.passed"));
+        harness.step();
+        harness.get_by_label_contains(", forecast passed");
         harness.get_by_label("Start").click();
         step_until(harness, "start", |app| marked(app, "execute.running"));
         harness.get_by_label_contains("robot follows the path");
@@ -831,7 +837,7 @@ fn the_net_view_follows_the_marking_through_a_run() {
         step_until(harness, "finish the run", |app| {
             app.session().done.is_some() && marked(app, "execute.ready")
         });
-        harness.get_by_label("may happen: define, leave, mount, start");
+        harness.get_by_label("may happen: define, forecast passed, forecast refused, leave, mount");
         assert!(harness.state().session().nets_agree);
     });
 }
@@ -1125,4 +1131,90 @@ fn an_observer_asks_for_control_and_gets_it_in_turn() {
         env!("CARGO_TARGET_TMPDIR"),
         "/guest-window-granted.png"
     ));
+}
+
+/// Pixels of `image` within a little of `colour`.
+fn pixels_of(image: &image::RgbaImage, colour: [u8; 3]) -> usize {
+    image
+        .pixels()
+        .filter(|p| {
+            p.0[..3]
+                .iter()
+                .zip(colour)
+                .all(|(a, b)| a.abs_diff(b) <= 10)
+        })
+        .count()
+}
+
+/// Before Start the window shows the definition's forecast: its verdict
+/// and figures, and its runs as ghosts over the view that play on Play.
+/// A refused one says why, marks where, and Start stays disabled.
+#[test]
+fn the_forecast_is_previewed_before_start_and_a_refusal_is_shown() {
+    const FORECAST: [u8; 3] = [150, 150, 255];
+    const REFUSED: [u8; 3] = [230, 40, 40];
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let host = host_without_camera(&runtime, HostConfig::default());
+    let _entered = runtime.enter();
+    let mut harness = window(&host.url());
+    mount_navigation(&mut harness, |s| s.lab.is_some() && s.robot.is_some());
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
+        .click();
+    step_until(&mut harness, "be told the forecast", |app| {
+        app.session().forecast.is_some()
+    });
+    harness.get_by_label("Passed: the run may start.");
+    harness.get_by_label_contains("5 of 5 tries");
+    let still = harness.render().expect("the window renders");
+    harness.get_by_label("Play").click();
+    let played = Instant::now();
+    while played.elapsed() < Duration::from_millis(1500) {
+        harness.step();
+    }
+    harness.get_by_label("Pause");
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-forecast.png"
+    ));
+    assert!(
+        pixels_of(&image, FORECAST) > 200,
+        "the forecast's ghosts and paths are drawn"
+    );
+    assert_ne!(still.as_raw(), image.as_raw(), "the ghosts moved on Play");
+    assert!(harness.state().session().allows(vl_core::Action::Start));
+
+    // A lab that keeps 30 mm from everything refuses the same goal.
+    let strict = HostConfig {
+        forecast: vl_host::ForecastSettings {
+            min_clearance_mm: 30.0,
+            ..Default::default()
+        },
+        ..HostConfig::default()
+    };
+    let host = host_without_camera(&runtime, strict);
+    let mut harness = window(&host.url());
+    mount_navigation(&mut harness, |s| s.lab.is_some() && s.robot.is_some());
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
+        .click();
+    step_until(&mut harness, "be told the forecast", |app| {
+        app.session().forecast.is_some()
+    });
+    harness.get_by_label("Refused: define another.");
+    harness.get_by_label_contains("this lab keeps 30 mm");
+    for _ in 0..5 {
+        harness.step();
+    }
+    assert!(!harness.state().session().allows(vl_core::Action::Start));
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-forecast-refused.png"
+    ));
+    assert!(
+        pixels_of(&image, REFUSED) > 50,
+        "the refusal is shown in red"
+    );
 }

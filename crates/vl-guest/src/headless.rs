@@ -134,7 +134,7 @@ pub enum ScriptError {
     NoGoal(Experiment),
     #[error("no path to the goal")]
     NoPath(#[from] ArenaPlanError),
-    #[error("the lab refused the definition after trying it on its twin: {0}")]
+    #[error("the definition, tried on the lab's twin, is {0}")]
     Forecast(String),
 }
 
@@ -366,8 +366,7 @@ async fn started(url: &str, script: &Script) -> Result<(Scripted, Route, Goal), 
             eprintln!("{}", verdict.table());
         }
         if !verdict.passed() {
-            let why: Vec<String> = verdict.refusals.iter().map(|r| r.to_string()).collect();
-            return Err(ScriptError::Forecast(why.join("; ")));
+            return Err(ScriptError::Forecast(verdict.words()));
         }
     }
     guest.connection.send(GuestMessage::Start);

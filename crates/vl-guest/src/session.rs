@@ -161,6 +161,8 @@ pub struct Session {
     pub definition: Option<Definition>,
     /// The definition tried on the lab's twin, once the Host has.
     pub forecast: Option<vl_core::ForecastVerdict>,
+    /// How many forecasts the Host has told: a new one is told by the count.
+    pub forecasts: u64,
     pub running: bool,
     pub robot: Option<RobotState>,
     /// The newest camera image shown, decoded (see [`Session::decode_frame`]).
@@ -237,6 +239,7 @@ impl Default for Session {
             lab: None,
             definition: None,
             forecast: None,
+            forecasts: 0,
             running: false,
             robot: None,
             frame: None,
@@ -337,7 +340,10 @@ impl Session {
                 self.forecast = None;
                 self.errors.clear();
             }
-            HostMessage::Forecast(verdict) => self.forecast = Some(*verdict),
+            HostMessage::Forecast(verdict) => {
+                self.forecast = Some(*verdict);
+                self.forecasts += 1;
+            }
             HostMessage::State(state) => {
                 self.nets_agree = self.nets.follow(&state);
                 // A run asked to stop takes no more commands, though its

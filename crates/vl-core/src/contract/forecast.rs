@@ -329,8 +329,9 @@ impl ForecastVerdict {
     }
 }
 
-impl Report for ForecastVerdict {
-    fn table(&self) -> Table {
+impl ForecastVerdict {
+    /// The forecast's figures in words, for a table or a panel.
+    pub fn figures(&self) -> Vec<(&'static str, String)> {
         let f = &self.forecast;
         let mut rows = vec![
             (
@@ -349,7 +350,7 @@ impl Report for ForecastVerdict {
             rows.push((
                 "closest approach",
                 format!(
-                    "{:.1} mm to {}, at ({:.0}, {:.0}) mm",
+                    "{:.1} mm to {} at ({:.0}, {:.0})",
                     c.mm, c.to, c.at.x_mm, c.at.y_mm
                 ),
             ));
@@ -360,14 +361,25 @@ impl Report for ForecastVerdict {
             ("wheels saturated", format!("{} s", f.saturated_s())),
             ("off the path", format!("{} mm", f.mean_error_mm())),
         ]);
-        let verdict = match self.passed() {
+        rows
+    }
+
+    /// The verdict in words: passed, or refused and why.
+    pub fn words(&self) -> String {
+        match self.passed() {
             true => "passed: the run may start".to_owned(),
             false => {
                 let why: Vec<String> = self.refusals.iter().map(|r| r.to_string()).collect();
                 format!("refused: {}", why.join("; "))
             }
-        };
-        rows.push(("verdict", verdict));
+        }
+    }
+}
+
+impl Report for ForecastVerdict {
+    fn table(&self) -> Table {
+        let mut rows = self.figures();
+        rows.push(("verdict", self.words()));
         Table::pairs(rows).title("the definition, tried on the lab's twin:")
     }
 }

@@ -24,6 +24,7 @@ use crate::session::{Link, Session};
 use crate::settings::Settings;
 
 mod panels;
+mod preview;
 mod view;
 
 const JOYSTICK_PX: f32 = 140.0;
@@ -35,6 +36,8 @@ const VIRTUAL_COLOUR: Color32 = Color32::from_rgb(255, 150, 0);
 const FORCE_COLOUR: Color32 = Color32::from_rgb(255, 70, 90);
 /// The predictive display's ghost: where the robot is now, by prediction.
 const GHOST_COLOUR: Color32 = Color32::from_rgb(235, 90, 255);
+/// The forecast's ghosts and paths: the definition's runs on the lab's twin.
+const FORECAST_COLOUR: Color32 = Color32::from_rgb(150, 150, 255);
 const STOP_COLOUR: Color32 = Color32::from_rgb(200, 30, 30);
 /// The force arrow on the robot at full force, mm.
 const FORCE_ARROW_MM: f64 = 80.0;
@@ -102,6 +105,8 @@ pub struct GuestApp {
     welcomes: u64,
     /// What is typed in the login form: an account's name and password.
     typed_login: (String, String),
+    /// Where the forecast's preview is.
+    preview: preview::Preview,
 }
 
 impl GuestApp {
@@ -137,6 +142,7 @@ impl GuestApp {
             asked: Joystick::default(),
             trail: Vec::new(),
             typed_login: Default::default(),
+            preview: Default::default(),
             welcomes: 0,
         })
     }

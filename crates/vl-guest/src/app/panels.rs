@@ -54,6 +54,7 @@ impl GuestApp {
             if self.session.is_operator() {
                 self.execute_buttons(ui);
             }
+            self.forecast_panel(ui);
             if !self.session.ready() {
                 ui.colored_label(
                     Color32::YELLOW,
@@ -85,10 +86,15 @@ impl GuestApp {
                 .show(ui, |ui| netview::show(ui, &self.session.nets));
         }
         self.robot_panel(ui);
-        if !self.session.errors.is_empty() {
+        // A refused forecast is shown with the forecast, where it fails.
+        let errors: Vec<&str> = (self.session.errors.iter().rev())
+            .filter(|(code, _)| *code != ErrorCode::ForecastRefused)
+            .map(|(_, message)| message.as_str())
+            .collect();
+        if !errors.is_empty() {
             ui.separator();
             ui.heading("Host said");
-            for (_, message) in self.session.errors.iter().rev() {
+            for message in errors {
                 ui.colored_label(Color32::LIGHT_RED, message);
             }
         }

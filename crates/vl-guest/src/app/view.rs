@@ -9,8 +9,8 @@ use std::time::Instant;
 
 use super::{
     CAMERA_VIEW, CSPACE_COLOUR, CSpaceKey, FLOOR_COLOUR, FORCE_ARROW_MM, FORCE_COLOUR,
-    GHOST_COLOUR, GOAL_COLOUR, GuestApp, OBSTACLE_COLOUR, PATH_COLOUR, ROBOT_COLOUR, TRAIL_COLOUR,
-    VIRTUAL_COLOUR,
+    FORECAST_COLOUR, GHOST_COLOUR, GOAL_COLOUR, GuestApp, OBSTACLE_COLOUR, PATH_COLOUR,
+    ROBOT_COLOUR, TRAIL_COLOUR, VIRTUAL_COLOUR,
 };
 use crate::route::{check_path, drag_path};
 use crate::session::Link;
@@ -198,6 +198,9 @@ impl GuestApp {
             }
             legend(ui, TRAIL_COLOUR, "driven");
             legend(ui, PATH_COLOUR, "path");
+            if self.session.forecast.is_some() && !self.session.running {
+                legend(ui, FORECAST_COLOUR, "forecast");
+            }
             legend(ui, GOAL_COLOUR, "goal");
         });
         ui.label(self.ages());
@@ -346,6 +349,7 @@ impl GuestApp {
                 view.outline(painter, obstacle, Stroke::new(2.0, VIRTUAL_COLOUR));
             }
         }
+        self.forecast_overlay(painter, view, lab);
         if let Some(robot) = &self.session.robot {
             let centre = to_screen(robot.pose.point());
             let r = lab.robot.radius_mm as f32 * px_per_mm;
@@ -403,10 +407,10 @@ fn force_tip(pose: Pose, [right, ahead]: [f64; 2]) -> Option<Point> {
 
 /// Where the arena lands on screen: the camera model's pixels scaled into
 /// the view's rectangle.
-struct View<'a> {
+pub(super) struct View<'a> {
     rect: Rect,
     lab: &'a MountedLab,
-    px_per_mm: f32,
+    pub(super) px_per_mm: f32,
 }
 
 impl<'a> View<'a> {
@@ -421,7 +425,7 @@ impl<'a> View<'a> {
         }
     }
 
-    fn to_screen(&self, p: Point) -> Pos2 {
+    pub(super) fn to_screen(&self, p: Point) -> Pos2 {
         let camera = &self.lab.camera;
         let (c, r) = camera.to_pixel(p);
         self.rect.min

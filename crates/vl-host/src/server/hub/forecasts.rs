@@ -124,10 +124,9 @@ impl Hub {
         );
         self.broadcast(&HostMessage::Forecast(Box::new(verdict.clone())));
         if let (false, Some(operator)) = (passed, self.operator) {
-            let why: Vec<String> = verdict.refusals.iter().map(|r| r.to_string()).collect();
             let why = format!(
-                "the definition, tried on the lab's twin, is refused: {}; define another",
-                why.join("; ")
+                "the definition, tried on the lab's twin, is {}; define another",
+                verdict.words()
             );
             self.refuse(operator, ErrorCode::ForecastRefused, why);
         }

@@ -243,6 +243,12 @@ impl Hub {
                     if reset {
                         self.reset();
                     }
+                    // The next run starts elsewhere: the definition is tried again.
+                    if let (Some(Experiment::Navigation), Some(definition)) =
+                        (self.experiment, self.definition.clone())
+                    {
+                        self.ask_forecast(&definition);
+                    }
                 }
                 Some(route) = self.reset_routes.1.recv() => self.reset_planned(route),
                 Some((number, forecasted)) = self.forecasts.done.recv() => {
