@@ -340,10 +340,7 @@ impl Session {
                 self.forecast = None;
                 self.errors.clear();
             }
-            HostMessage::Forecast(verdict) => {
-                self.forecast = Some(*verdict);
-                self.forecasts += 1;
-            }
+            HostMessage::Forecast(verdict) => self.foreseen(*verdict),
             HostMessage::State(state) => {
                 self.nets_agree = self.nets.follow(&state);
                 // A run asked to stop takes no more commands, though its
@@ -412,6 +409,12 @@ impl Session {
             // The connection answers pings and bye itself.
             HostMessage::Ping { .. } | HostMessage::Pong { .. } | HostMessage::Bye => {}
         }
+    }
+
+    /// The Host tried the definition on the lab's twin.
+    fn foreseen(&mut self, verdict: vl_core::ForecastVerdict) {
+        self.forecast = Some(verdict);
+        self.forecasts += 1;
     }
 
     /// A new run began at `event`: its record starts afresh.
