@@ -139,7 +139,10 @@ async fn drive(
         .await
         .unwrap();
     expect(&mut rx, "mounted").await;
-    // Defining is optional: start straight away.
+    // No path: the commands drive, guarded live, and there is nothing
+    // for the lab's twin to try first.
+    tx.send(send(json!({"type": "define"}))).await.unwrap();
+    expect(&mut rx, "defined").await;
     tx.send(send(json!({"type": "start"}))).await.unwrap();
     expect(&mut rx, "started").await;
 

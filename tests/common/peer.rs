@@ -123,12 +123,17 @@ impl Peer {
         self.expect("welcome").await
     }
 
-    /// Mounts `experiment` and starts a run on the defaults, once the lab
-    /// is ready (after a run the robot first drives back to its start).
+    /// Mounts `experiment`, defines nothing but the defaults and starts a
+    /// run once the lab is ready (after a run the robot first drives back
+    /// to its start).
     pub(crate) async fn start(&mut self, experiment: &str) {
         self.send(json!({"type": "mount", "experiment": experiment}))
             .await;
         self.expect("mounted").await;
+        // No path: the operator's commands drive, with nothing for the
+        // lab's twin to try first.
+        self.send(json!({"type": "define"})).await;
+        self.expect("defined").await;
         self.start_run().await;
     }
 

@@ -18,7 +18,8 @@ use vl_core::{
 use crate::client::{ClientError, Connection, Incoming, open};
 use crate::login::Login;
 use crate::route::Route;
-use crate::session::{Pacing, RoundTrips, Session, Spread};
+pub use crate::session::RoundTripMs;
+use crate::session::{Pacing, Session, Spread};
 use crate::settings::Settings;
 
 /// What the scripted session does.
@@ -53,29 +54,6 @@ impl Default for Script {
     }
 }
 
-/// Percentiles of the round-trip time, ms.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
-pub struct RoundTripMs {
-    pub p50: f64,
-    pub p99: f64,
-}
-
-impl RoundTripMs {
-    /// The percentiles in a table cell.
-    fn cell(&self) -> String {
-        format!("p50 {:.2} ms, p99 {:.2} ms", self.p50, self.p99)
-    }
-}
-
-impl From<&RoundTrips> for RoundTripMs {
-    fn from(rtt: &RoundTrips) -> RoundTripMs {
-        RoundTripMs {
-            p50: rtt.quantile(0.5).unwrap_or(f64::NAN),
-            p99: rtt.quantile(0.99).unwrap_or(f64::NAN),
-        }
-    }
-}
-
 /// What the scripted session achieved.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Report {
@@ -99,6 +77,9 @@ pub struct Report {
     pub planned: Vec<Point>,
     /// The followed path against the planned one, as the Host measured it.
     pub path: Option<PathAnalysis>,
+    /// The run against the forecast of its definition.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub forecast: Option<vl_core::Gap>,
     /// Commands the operator sent.
     pub commands: u64,
     /// The synchronisation the Host counted: the largest gap between a
@@ -256,6 +237,7 @@ impl Scripted {
             pose_source: summary.pose_source,
             planned: route.definition.path,
             path: summary.path,
+            forecast: summary.forecast,
             commands: self.session.sent_event,
             max_event_gap: summary.max_event_gap,
             sync_violations: summary.sync_violations,
@@ -665,6 +647,10 @@ impl vl_core::table::Report for Report {
                 format!("{} ({:.0} kB)", self.frames, self.video_bytes as f64 / 1e3),
             ),
             ("round trip", self.round_trip_ms.cell()),
+            (
+                "against the forecast",
+                self.forecast.map_or("–".into(), |gap| gap.to_string()),
+            ),
         ])
     }
 }

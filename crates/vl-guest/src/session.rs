@@ -592,6 +592,29 @@ impl Session {
     }
 }
 
+/// Percentiles of the round-trip time, ms.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct RoundTripMs {
+    pub p50: f64,
+    pub p99: f64,
+}
+
+impl RoundTripMs {
+    /// The percentiles in a table cell.
+    pub(crate) fn cell(&self) -> String {
+        format!("p50 {:.2} ms, p99 {:.2} ms", self.p50, self.p99)
+    }
+}
+
+impl From<&RoundTrips> for RoundTripMs {
+    fn from(rtt: &RoundTrips) -> RoundTripMs {
+        RoundTripMs {
+            p50: rtt.quantile(0.5).unwrap_or(f64::NAN),
+            p99: rtt.quantile(0.99).unwrap_or(f64::NAN),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -618,8 +618,9 @@ mod tests {
             assert!(GuestMessage::TYPES.contains(&message.kind()));
         }
         assert_eq!(GuestMessage::TYPES.len(), 15);
-        assert!(HostMessage::TYPES.contains(&"feedback") && HostMessage::TYPES.len() == 14);
+        assert!(HostMessage::TYPES.contains(&"feedback") && HostMessage::TYPES.len() == 15);
         assert!(GuestMessage::TYPES.contains(&"leave_queue"));
+        assert!(HostMessage::TYPES.contains(&"forecast"));
     }
 
     #[test]

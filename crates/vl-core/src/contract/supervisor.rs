@@ -470,11 +470,17 @@ mod tests {
         assert!(!s.allows(Action::Define), "the C-space is being built");
         assert!(!s.allows(Action::Start), "the C-space is being built");
         s.fire(Action::CspaceBuilt).unwrap();
-        assert!(s.allows(Action::Start), "defining is optional");
+        assert!(!s.allows(Action::Start), "nothing tried on the twin yet");
         assert!(!s.allows(Action::Command), "no commands before a run");
         s.fire(Action::Define).unwrap();
         assert!(!s.allows(Action::Start), "the path is being checked");
         s.fire(Action::PathPlanned).unwrap();
+        assert!(!s.allows(Action::Start), "the forecast is under way");
+        s.fire(Action::ForecastFailed).unwrap();
+        assert!(!s.allows(Action::Start), "the forecast was refused");
+        s.fire(Action::Define).unwrap();
+        s.fire(Action::PathPlanned).unwrap();
+        s.fire(Action::ForecastPassed).unwrap();
         assert!(!s.allows(Action::Stop), "nothing to stop");
         s.fire(Action::Start).unwrap();
         s.fire(Action::Command).unwrap();
@@ -483,6 +489,8 @@ mod tests {
         s.fire(Action::Stop).unwrap();
         assert!(!s.allows(Action::Command), "stopping");
         s.fire(Action::Finish).unwrap();
+        assert!(!s.allows(Action::Start), "the next run starts elsewhere");
+        s.fire(Action::ForecastPassed).unwrap();
         s.fire(Action::Start).unwrap();
         s.fire(Action::Release).unwrap();
         assert_eq!(s.state().marking, {

@@ -48,6 +48,8 @@ pub fn headline(cells: &[Cell]) -> Table {
         "predict max",
         "stale mean",
         "rtt p50",
+        "vs forecast",
+        "fc path",
     ]);
     let pair = |v: Option<[f64; 2]>, k: usize| v.map_or("–".into(), |v| format!("{:.1}", v[k]));
     for c in cells {
@@ -72,6 +74,10 @@ pub fn headline(cells: &[Cell]) -> Table {
             pair(c.prediction_error_mm, 1),
             pair(c.stale_error_mm, 0),
             format!("{:.0}", c.round_trip_p50_ms),
+            c.forecast_time_off
+                .map_or("–".into(), |off| format!("{:.0} %", off * 100.0)),
+            c.forecast_path_mm
+                .map_or("–".into(), |mm| format!("{mm:.1}")),
         ]);
     }
     table
@@ -102,7 +108,9 @@ fn write(dir: &Path, m: &Matrix, pictures: &[(String, PathBuf)]) -> Result<(), E
          of events a command ran ahead of the feedback it was sent on (event-based control keeps \
          it at 1); *sync lost*: commands more than one event ahead; *predict*: the predictive \
          display's pose against the feedback that came next; *stale*: the last reported pose \
-         against it.\n"
+         against it; *vs forecast*: how far the run's time was off the forecast's on the lab's \
+         twin (mean of the runs), *fc path*: the mean distance between the run's path and the \
+         forecast's — the sim-to-real gap, run by run.\n"
     );
     let _ = writeln!(md, "## Results\n\n```\n{}```\n", headline(&m.cells));
     failed_runs(&mut md, m);

@@ -35,6 +35,10 @@ pub struct Cell {
     pub stale_error_mm: Option<[f64; 2]>,
     /// The Guest's ping round trip, median over runs, ms.
     pub round_trip_p50_ms: f64,
+    /// The runs against their forecasts: the mean share their time was
+    /// off by, and the mean distance between the paths, mm.
+    pub forecast_time_off: Option<f64>,
+    pub forecast_path_mm: Option<f64>,
 }
 
 /// One profile's legs, pooled over its runs.
@@ -177,7 +181,23 @@ fn cell(all: &[&Run]) -> Cell {
         prediction_error_mm: spreads(|r| r.prediction_error_mm),
         stale_error_mm: spreads(|r| r.stale_error_mm),
         round_trip_p50_ms: rtts[rtts.len() / 2],
+        forecast_time_off: mean(
+            all.iter()
+                .filter_map(|r| r.forecast?.time_off())
+                .map(f64::abs),
+        ),
+        forecast_path_mm: mean(
+            all.iter()
+                .filter_map(|r| r.forecast)
+                .map(|g| g.path_mean_mm),
+        ),
     }
+}
+
+/// The mean of `values`; none of none.
+fn mean(values: impl Iterator<Item = f64>) -> Option<f64> {
+    let (sum, n) = values.fold((0.0, 0u32), |(s, n), v| (s + v, n + 1));
+    (n > 0).then(|| sum / f64::from(n))
 }
 
 /// The cells of the matrix: navigation, and teleoperation paced by event
@@ -451,6 +471,7 @@ pub(super) mod tests {
             }),
             estimate_error_mm: None,
             completion_s: 10.0,
+            forecast: None,
             prediction_error_mm: Spread::default(),
             stale_error_mm: Spread::default(),
             round_trip_ms: RoundTripMs {

@@ -125,6 +125,9 @@ pub struct Run {
     pub estimate_error_mm: Option<ErrorMm>,
     /// The run's length on the lab's clock.
     pub completion_s: f64,
+    /// The run against the forecast of its definition (navigation).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub forecast: Option<vl_core::Gap>,
     /// The predicted pose against the feedback that later arrived, and the
     /// last reported pose against it.
     pub prediction_error_mm: Spread,
@@ -247,6 +250,7 @@ pub async fn run_one(spec: &RunSpec) -> Result<Run, ExperimentError> {
         tracking_error_mm: path.and_then(|p| p.path_error_mm),
         estimate_error_mm: path.and_then(|p| p.estimate_error_mm),
         completion_s: report.sim_seconds,
+        forecast: report.forecast,
         prediction_error_mm: report.prediction_error_mm,
         stale_error_mm: report.stale_error_mm,
         round_trip_ms: report.round_trip_ms,

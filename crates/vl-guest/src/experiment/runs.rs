@@ -42,6 +42,8 @@ impl Report for Runs {
             "predict mean",
             "stale mean",
             "seconds",
+            "forecast s",
+            "fc path",
             "video kB",
         ]);
         for run in &self.runs {
@@ -58,6 +60,10 @@ impl Report for Runs {
                 spread(run.prediction_error_mm),
                 spread(run.stale_error_mm),
                 format!("{:.2}", run.completion_s),
+                (run.forecast.and_then(|g| g.forecast_s))
+                    .map_or("–".into(), |s| format!("{s:.2}")),
+                run.forecast
+                    .map_or("–".into(), |g| format!("{:.1}", g.path_mean_mm)),
                 format!("{:.0}", run.video_bytes as f64 / 1e3),
             ]);
         }
@@ -66,16 +72,35 @@ impl Report for Runs {
             "errors in mm; tracking: the true pose to the planned path; estimate: the \
              estimate to the true pose; gap: the largest command event ahead of the feedback \
              it was sent on; predict/stale: the predicted / last reported pose against the \
-             feedback that came next",
+             feedback that came next; forecast s: the run's time on the lab's twin; fc path: \
+             the run's path to the twin's, mean",
         );
         table = table.note(format!(
-            "{}; {} failed; tracking error over all: {}",
+            "{}; {} failed; tracking error over all: {}{}",
             count(self.runs.len() as u64, "run", "runs"),
             failed,
-            ErrorMm::cell(self.tracking_error_mm)
+            ErrorMm::cell(self.tracking_error_mm),
+            twin_words(&self.runs)
         ));
         table
     }
+}
+
+/// How far the runs were from their forecasts, at most, in words.
+fn twin_words(runs: &[Run]) -> String {
+    let gaps: Vec<vl_core::Gap> = runs.iter().filter_map(|r| r.forecast).collect();
+    if gaps.is_empty() {
+        return String::new();
+    }
+    let time = gaps
+        .iter()
+        .filter_map(vl_core::Gap::time_off)
+        .fold(0.0, |most: f64, off| most.max(off.abs()));
+    let path = gaps.iter().map(|g| g.path_mean_mm).fold(0.0, f64::max);
+    format!(
+        "; against their forecasts: time off by at most {:.0} %, paths at most {path:.1} mm apart (mean)",
+        time * 100.0
+    )
 }
 
 impl Runs {
