@@ -82,14 +82,36 @@ pub fn nearest_rank(sorted: &[f64], q: f64) -> Option<f64> {
 }
 
 /// Distance from `p` to the polyline through `path`; infinite for no path.
+/// Compared squared, with one root at the end: a follower measures it
+/// every step against the whole path, and a root per segment was most of a
+/// forecast's time. Coordinates too large to square are measured as before.
 pub fn distance_to_polyline(path: &[Point], p: Point) -> f64 {
+    let squared = |a: Point, b: Point| {
+        let (dx, dy) = (b.x_mm - a.x_mm, b.y_mm - a.y_mm);
+        let len2 = dx * dx + dy * dy;
+        let t = match len2 > 0.0 {
+            true => (((p.x_mm - a.x_mm) * dx + (p.y_mm - a.y_mm) * dy) / len2).clamp(0.0, 1.0),
+            false => 0.0,
+        };
+        let (ex, ey) = (p.x_mm - (a.x_mm + t * dx), p.y_mm - (a.y_mm + t * dy));
+        ex * ex + ey * ey
+    };
     match path {
         [] => f64::INFINITY,
         [only] => p.distance(*only),
-        _ => path
-            .windows(2)
-            .map(|s| p.distance_to_segment(s[0], s[1]))
-            .fold(f64::INFINITY, f64::min),
+        _ => {
+            let least = path
+                .windows(2)
+                .map(|s| squared(s[0], s[1]))
+                .fold(f64::INFINITY, f64::min);
+            match least.is_finite() {
+                true => least.sqrt(),
+                false => path
+                    .windows(2)
+                    .map(|s| p.distance_to_segment(s[0], s[1]))
+                    .fold(f64::INFINITY, f64::min),
+            }
+        }
     }
 }
 
@@ -176,6 +198,30 @@ fn keep(points: &mut Vec<Point>, p: Point) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    fn point() -> impl Strategy<Value = Point> {
+        let coordinate = prop_oneof![-2000.0..2000.0, -1e150..1e150f64];
+        (coordinate.clone(), coordinate).prop_map(|(x_mm, y_mm)| Point { x_mm, y_mm })
+    }
+
+    proptest! {
+        /// The distance to a polyline is the least distance to its
+        /// segments, however it is worked out, and finite for finite points.
+        #[test]
+        fn the_polyline_distance_is_the_least_segment_distance(
+            path in proptest::collection::vec(point(), 2..12),
+            p in point(),
+        ) {
+            let by_segment = path
+                .windows(2)
+                .map(|s| p.distance_to_segment(s[0], s[1]))
+                .fold(f64::INFINITY, f64::min);
+            let d = distance_to_polyline(&path, p);
+            prop_assert!(d.is_finite());
+            prop_assert!((d - by_segment).abs() <= 1e-9 * by_segment.max(1.0), "{d} against {by_segment}");
+        }
+    }
 
     fn at(x: f64, y: f64) -> Pose {
         Pose {
