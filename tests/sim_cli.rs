@@ -149,6 +149,10 @@ fn link_and_bench_report_json() {
     let bench = json(&["sim", "bench", "--seconds", "20", "--json"]);
     assert!(bench["rtf_no_camera"].as_f64().unwrap() > 0.0);
     assert!(bench["rtf_camera"].as_f64().unwrap() > 0.0);
+    // The forecast's run is the minute the bench says it is.
+    let run_s = bench["forecast_run_s"].as_f64().unwrap();
+    assert!((50.0..70.0).contains(&run_s), "{run_s}");
+    assert!(bench["forecast_s"].as_f64().unwrap() > 0.0);
 }
 
 #[test]

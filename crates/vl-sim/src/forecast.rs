@@ -97,7 +97,7 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
     let mut world = World::new(arena, robot.clone(), seed)?;
     let limit_s = definition
         .time_limit_s
-        .unwrap_or(2.0 * follower.expected_seconds() + 5.0)
+        .unwrap_or(2.0 * follower.expected_seconds(definition.max_speed_mm_s) + 5.0)
         .min(LONGEST_S);
     let safety = Safety::default();
     let room = |p: Point| surroundings.clearance(p) - robot.radius_mm;

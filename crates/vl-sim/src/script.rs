@@ -110,7 +110,7 @@ impl Driver {
     /// turning room; a script's last line and then [`SCRIPT_TAIL_S`].
     pub fn duration_s(&self) -> f64 {
         match self {
-            Driver::Path(follower) => 2.0 * follower.expected_seconds() + 5.0,
+            Driver::Path(follower) => 2.0 * follower.expected_seconds(None) + 5.0,
             Driver::Script(script) => {
                 script.0.last().map_or(0.0, |&(t, _)| t.max(0.0)) + SCRIPT_TAIL_S
             }

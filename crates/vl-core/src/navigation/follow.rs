@@ -118,9 +118,13 @@ impl Follower {
         })
     }
 
-    /// How long the path takes at cruising speed, s.
-    pub fn expected_seconds(&self) -> f64 {
-        self.arc.last().copied().unwrap_or(0.0) / self.gains.cruise_mm_s.max(1e-9)
+    /// How long the path takes at cruising speed, or at `cap` (mm/s) if
+    /// that is slower, s.
+    pub fn expected_seconds(&self, cap: Option<f64>) -> f64 {
+        let speed = cap.map_or(self.gains.cruise_mm_s, |cap| {
+            cap.min(self.gains.cruise_mm_s)
+        });
+        self.arc.last().copied().unwrap_or(0.0) / speed.max(1e-9)
     }
 
     pub fn goal(&self) -> Point {
