@@ -6,7 +6,7 @@
 
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use futures_util::{SinkExt, StreamExt};
@@ -19,8 +19,9 @@ use vl_core::{
     Secret, Wire, nearest_rank,
 };
 
+use super::hub::ForecastJob;
 use crate::accounts::users::{AccountRole, Users};
-use crate::{Host, HostConfig, SimLab};
+use crate::{ForecastSettings, Host, HostConfig, SimLab};
 
 /// Why the bench could not run.
 #[derive(Debug, thiserror::Error)]
@@ -54,6 +55,25 @@ pub struct OperatorLatency {
     pub observer_frames_hz: f64,
     /// The same commands again while one address tries wrong passwords.
     pub under_guessing: Guessing,
+    /// The same commands again while the machine forecasts definitions.
+    pub while_forecasting: WhileForecasting,
+}
+
+/// The operator's round trips while the Host forecasts a minute's
+/// navigation run over and over, as its forecast worker would for a
+/// definition given again as soon as each verdict came (here beside a
+/// teleoperation run, which a Host's own forecasts never are), against a
+/// quiet round after each such round.
+#[derive(Debug, Clone, Serialize)]
+pub struct WhileForecasting {
+    pub commands: usize,
+    pub p50_ms: f64,
+    pub p99_ms: f64,
+    pub quiet_p50_ms: f64,
+    pub quiet_p99_ms: f64,
+    pub p99_ratio: f64,
+    /// Forecasts made while the commands were timed.
+    pub forecasts: u64,
 }
 
 /// The operator's round trips while wrong passwords pour in from one
@@ -247,6 +267,8 @@ pub async fn operator_latency(
     let mut took = time_commands(&mut operator, 1, commands, || false).await?;
     let seconds = began.elapsed().as_secs_f64();
     let under_guessing = guessing(&mut operator, &url, commands).await?;
+    let first = (commands + under_guessing.commands) as u64 + FLOODS as u64 * commands as u64 + 1;
+    let while_forecasting = forecasting(&mut operator, first, commands).await?;
     let _ = say(&mut operator, &GuestMessage::Bye).await;
     let _ = stop_tx.send(true);
     let mut fed = Vec::new();
@@ -270,6 +292,7 @@ pub async fn operator_latency(
         observer_feedback_hz: slowest.0 as f64 / seconds,
         observer_frames_hz: slowest.1 as f64 / seconds,
         under_guessing,
+        while_forecasting,
     })
 }
 
@@ -405,6 +428,79 @@ fn flood(url: &str, answers: Arc<Answers>) -> Result<std::thread::JoinHandle<()>
     }))
 }
 
+/// The operator's commands from event `first` on, timed while the Host
+/// forecasts without pause, then in a quiet round, [`FLOODS`] times.
+async fn forecasting(
+    operator: &mut Socket,
+    first: u64,
+    commands: usize,
+) -> Result<WhileForecasting, BenchError> {
+    // Rounds pooled as the floods are: a p99 of a few thousand trips is noisy.
+    let (mut busy, mut quiet, mut forecasts) = (Vec::new(), Vec::new(), 0);
+    let mut event = first;
+    for _ in 0..FLOODS {
+        let stop = Arc::new(AtomicBool::new(false));
+        let forecasting = forecaster(stop.clone());
+        let took = time_commands(operator, event, commands, || false).await?;
+        stop.store(true, Ordering::Relaxed);
+        forecasts += forecasting.join().unwrap_or(0);
+        event += took.len() as u64;
+        busy.extend(took);
+        let took = time_commands(operator, event, commands, || false).await?;
+        event += took.len() as u64;
+        quiet.extend(took);
+    }
+    busy.sort_by(f64::total_cmp);
+    quiet.sort_by(f64::total_cmp);
+    let q = |took: &[f64], p| nearest_rank(took, p).unwrap_or(f64::NAN);
+    Ok(WhileForecasting {
+        commands: busy.len(),
+        p50_ms: q(&busy, 0.5),
+        p99_ms: q(&busy, 0.99),
+        quiet_p50_ms: q(&quiet, 0.5),
+        quiet_p99_ms: q(&quiet, 0.99),
+        p99_ratio: q(&busy, 0.99) / q(&quiet, 0.99),
+        forecasts,
+    })
+}
+
+/// The navigation arena's planned path at a speed that makes it a
+/// minute's run: each forecast of it keeps a core busy a while.
+fn minute_run() -> vl_core::Definition {
+    let arena = Arena::navigation();
+    let robot = vl_core::RobotModel::khepera_ii();
+    let goal = arena.goal.unwrap_or(arena.start.point());
+    let path = vl_core::plan_route(&arena, &[], &robot, arena.start, goal)
+        .map(|plan| plan.points())
+        .unwrap_or_default();
+    vl_core::Definition {
+        goal: Some(vl_core::Goal::at(goal)),
+        path,
+        max_speed_mm_s: Some(17.0),
+        ..vl_core::Definition::default()
+    }
+}
+
+/// Forecasts of a minute's run, one after another until `stop`, as the
+/// Host's forecast worker makes them; how many were made.
+fn forecaster(stop: Arc<AtomicBool>) -> std::thread::JoinHandle<u64> {
+    let arena = Arena::navigation();
+    let job = ForecastJob {
+        start: arena.start,
+        arena,
+        robot: vl_core::RobotModel::khepera_ii(),
+        definition: minute_run(),
+        settings: ForecastSettings::default(),
+    };
+    std::thread::spawn(move || {
+        let mut made = 0;
+        while job.run(&stop).is_ok() {
+            made += 1;
+        }
+        made
+    })
+}
+
 impl Report for OperatorLatency {
     fn table(&self) -> Table {
         let g = &self.under_guessing;
@@ -442,6 +538,18 @@ impl Report for OperatorLatency {
                 format!(
                     "{} sent from one address in {FLOODS} floods: {} checked, {} refused unchecked, {} pushed out unanswered",
                     g.sent, g.checked, g.limited, g.unanswered
+                ),
+            ),
+            (
+                "p99 while forecasting",
+                format!(
+                    "{:.2} ms (p50 {:.2} ms) over {} commands, {} forecasts of a minute's run made meanwhile: {:.2}× the quiet round's {:.2} ms",
+                    self.while_forecasting.p99_ms,
+                    self.while_forecasting.p50_ms,
+                    self.while_forecasting.commands,
+                    self.while_forecasting.forecasts,
+                    self.while_forecasting.p99_ratio,
+                    self.while_forecasting.quiet_p99_ms
                 ),
             ),
         ])

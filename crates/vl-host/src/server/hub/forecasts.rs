@@ -10,7 +10,8 @@ use std::time::Duration;
 
 use tracing::{info, warn};
 use vl_core::{
-    Action, Definition, ErrorCode, ForecastLimits, ForecastVerdict, HostMessage, Readiness, Summary,
+    Action, Arena, Definition, ErrorCode, ForecastLimits, ForecastVerdict, HostMessage, Pose,
+    Readiness, RobotModel, Summary,
 };
 use vl_sim::{ForecastError, Forecasting, forecast};
 
@@ -63,7 +64,36 @@ impl Default for ForecastSettings {
 }
 
 /// A job's result: the verdict, or why there is none.
-pub(super) type Forecasted = Result<ForecastVerdict, ForecastError>;
+pub(crate) type Forecasted = Result<ForecastVerdict, ForecastError>;
+
+/// One forecast, as the Host makes it off the hub.
+pub(crate) struct ForecastJob {
+    pub(crate) arena: Arena,
+    pub(crate) robot: RobotModel,
+    pub(crate) start: Pose,
+    pub(crate) definition: Definition,
+    pub(crate) settings: ForecastSettings,
+}
+
+impl ForecastJob {
+    /// Makes the forecast, on a thread that runs only when nothing else
+    /// wants the machine: it can take a core for a while, and the control
+    /// loop and the operator come first. `cancel` ends it early.
+    pub(crate) fn run(&self, cancel: &AtomicBool) -> Forecasted {
+        crate::priority::only_when_idle("forecast");
+        let seeds = 1..=u64::from(self.settings.forecast_seeds.clamp(1, MOST_SEEDS));
+        let seeds: Vec<u64> = seeds.collect();
+        let forecast = forecast(Forecasting {
+            arena: &self.arena,
+            robot: &self.robot,
+            start: self.start,
+            definition: &self.definition,
+            seeds: &seeds,
+            cancel: Some(cancel),
+        })?;
+        Ok(ForecastVerdict::new(forecast, self.settings.limits()))
+    }
+}
 
 impl Hub {
     /// Tries `definition` on the twin, off the hub; a forecast under way
@@ -82,22 +112,15 @@ impl Hub {
             (Readiness::Ready, Some(pose)) => pose,
             _ => info.arena.start,
         };
-        let (arena, robot, definition) =
-            (info.arena.clone(), info.robot.clone(), definition.clone());
-        let settings = self.config.forecast;
-        self.forecasts.ask(move |cancel: &AtomicBool| {
-            let seeds = 1..=u64::from(settings.forecast_seeds.clamp(1, MOST_SEEDS));
-            let seeds: Vec<u64> = seeds.collect();
-            let forecast = forecast(Forecasting {
-                arena: &arena,
-                robot: &robot,
-                start,
-                definition: &definition,
-                seeds: &seeds,
-                cancel: Some(cancel),
-            })?;
-            Ok(ForecastVerdict::new(forecast, settings.limits()))
-        });
+        let job = ForecastJob {
+            arena: info.arena.clone(),
+            robot: info.robot.clone(),
+            start,
+            definition: definition.clone(),
+            settings: self.config.forecast,
+        };
+        self.forecasts
+            .ask(move |cancel: &AtomicBool| job.run(cancel));
     }
 
     /// A forecast ended: the newest one's verdict is told and fired.

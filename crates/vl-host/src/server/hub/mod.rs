@@ -21,6 +21,7 @@ use crate::accounts::audit::Entry;
 use crate::accounts::gate::Admitted;
 use crate::lab::{Finished, Lab};
 use fields::Map;
+pub(crate) use forecasts::ForecastJob;
 pub use forecasts::{ForecastSettings, MOST_SEEDS as MOST_FORECAST_SEEDS};
 use worker::Worker;
 
@@ -188,8 +189,8 @@ impl Hub {
             devices,
             cspace: None,
             field: None,
-            fields: Worker::new(),
-            forecasts: Worker::new(),
+            fields: Worker::new("vl field"),
+            forecasts: Worker::new("vl forecast"),
             verdict: None,
             readiness: Readiness::Ready,
             reset_run: None,

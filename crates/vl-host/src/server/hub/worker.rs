@@ -1,6 +1,7 @@
 //! Work the hub hands off its own task, newest first: a potential field
 //! for a definition's virtual obstacles, a definition's forecast. One job
-//! runs at a time on a blocking thread; a job asked for while one runs
+//! runs at a time on a thread of its own (which it may lower below the
+//! control loop's priority); a job asked for while one runs
 //! waits in place of any before it, and the running one is told it is no
 //! longer wanted. However many definitions a client sends, the hub never
 //! waits and at most one thread works per kind of job.
@@ -9,11 +10,14 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use tokio::sync::mpsc;
+use tracing::warn;
 
 /// A job: given the flag that says it is no longer wanted.
 type Job<T> = Box<dyn FnOnce(&AtomicBool) -> T + Send>;
 
 pub(super) struct Worker<T> {
+    /// What the job's threads are named.
+    name: &'static str,
     /// The number of the newest job asked for.
     asked: u64,
     /// The running job's "no longer wanted" flag, if one runs.
@@ -24,9 +28,10 @@ pub(super) struct Worker<T> {
 }
 
 impl<T: Send + 'static> Worker<T> {
-    pub(super) fn new() -> Worker<T> {
+    pub(super) fn new(name: &'static str) -> Worker<T> {
         let (done_tx, done) = mpsc::unbounded_channel();
         Worker {
+            name,
             asked: 0,
             running: None,
             waiting: None,
@@ -53,9 +58,16 @@ impl<T: Send + 'static> Worker<T> {
         let cancel = Arc::new(AtomicBool::new(false));
         self.running = Some(cancel.clone());
         let done = self.done_tx.clone();
-        tokio::task::spawn_blocking(move || {
-            let _ = done.send((number, job(&cancel)));
-        });
+        let spawned = std::thread::Builder::new()
+            .name(self.name.to_owned())
+            .spawn(move || {
+                let _ = done.send((number, job(&cancel)));
+            });
+        if let Err(e) = spawned {
+            // Nothing will end it: the next ask tries again.
+            warn!("cannot start a {} thread: {e}", self.name);
+            self.running = None;
+        }
     }
 
     /// A job ended: what it made, if it is the newest asked for.
