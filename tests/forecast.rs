@@ -175,7 +175,7 @@ async fn a_goal_in_an_obstacles_margin_is_refused_for_the_lab_s_clearance() {
         .expect("a goal by an obstacle");
     let path = planned(&arena, &robot, goal);
     let definition =
-        json!({"goal": {"x_mm": goal.x_mm, "y_mm": goal.y_mm, "tolerance_mm": 10}, "path": path});
+        json!({"goal": {"x_mm": goal.x_mm, "y_mm": goal.y_mm, "tolerance_mm": 2}, "path": path});
     let forecast = forecast_of(&mut op, definition).await;
     let reasons = reasons(&forecast);
     println!("{reasons:#?}");
@@ -215,4 +215,41 @@ async fn a_definition_too_long_for_the_lab_is_refused_and_a_new_one_may_start() 
     let forecast = forecast_of(&mut op, hop).await;
     assert_eq!(forecast["refusals"], json!([]), "{forecast}");
     op.start_run().await;
+}
+
+/// The twin is honest on the simulated lab: on every shipped arena, three
+/// seeds each, the run's time is within 15 % of its forecast's and its
+/// path within 5 mm (mean) of the forecast's.
+#[test]
+fn on_every_shipped_arena_runs_keep_to_their_forecasts() {
+    let report = common::vl_json(&[
+        "experiment",
+        "run",
+        "navigation",
+        "--arena",
+        "all",
+        "--runs",
+        "3",
+        "--json",
+    ]);
+    let runs = report["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 12);
+    for run in runs {
+        let gap = &run["forecast"];
+        let (arena, seed) = (&run["arena"], &run["seed"]);
+        let (run_s, forecast_s) = (
+            gap["run_s"].as_f64().unwrap(),
+            gap["forecast_s"].as_f64().unwrap(),
+        );
+        println!("{arena} seed {seed}: {gap}");
+        assert!(
+            (run_s - forecast_s).abs() / forecast_s <= 0.15,
+            "{arena} seed {seed}: {run_s:.2} s run, {forecast_s:.2} s foreseen"
+        );
+        let apart = gap["path_mean_mm"].as_f64().unwrap();
+        assert!(
+            apart <= 5.0,
+            "{arena} seed {seed}: paths {apart:.1} mm apart"
+        );
+    }
 }

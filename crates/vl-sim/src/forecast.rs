@@ -101,6 +101,11 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
         .min(LONGEST_S);
     let safety = Safety::default();
     let room = |p: Point| surroundings.clearance(p) - robot.radius_mm;
+    let closest = |p: Point| Closest {
+        mm: room(p),
+        at: p,
+        to: surroundings.nearest(p),
+    };
     let mut told = WheelSpeeds::default();
     let mut proximity = world.proximity();
     let start = what.start.point();
@@ -108,16 +113,8 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
         seed,
         reached_goal: false,
         seconds: 0.0,
-        closest: Closest {
-            mm: room(start),
-            at: start,
-            to: surroundings.nearest(start),
-        },
-        end: Closest {
-            mm: room(start),
-            at: start,
-            to: surroundings.nearest(start),
-        },
+        closest: closest(start),
+        end: closest(start),
         collisions: 0,
         first_contact: None,
         held_back_s: 0.0,
@@ -135,6 +132,11 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
             proximity = world.proximity();
         }
         let pose = world.pose();
+        // The run ends where the Host ends it: within the goal's tolerance.
+        if definition.at_goal(pose.point()) {
+            out.reached_goal = true;
+            break;
+        }
         let Steer::Drive(asked) = follower.step(robot, pose, &proximity) else {
             out.reached_goal = true;
             break;
@@ -173,11 +175,7 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
     }
     out.closest.to = surroundings.nearest(out.closest.at);
     let end = world.pose().point();
-    out.end = Closest {
-        mm: room(end),
-        at: end,
-        to: surroundings.nearest(end),
-    };
+    out.end = closest(end);
     out.path.push(end);
     out.seconds = world.time_s();
     out.collisions = world.collisions();

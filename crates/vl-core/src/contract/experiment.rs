@@ -195,6 +195,13 @@ impl Definition {
         }
     }
 
+    /// Whether `p` is within the goal's tolerance: where a navigation run
+    /// ends, live or forecast.
+    pub fn at_goal(&self, p: Point) -> bool {
+        self.goal
+            .is_some_and(|g| p.distance(g.point()) <= g.tolerance_mm)
+    }
+
     /// Whether the Host follows this definition's path by itself in a run
     /// of `experiment`: a navigation run with a planned path. The
     /// operator's commands then only take over while they keep coming.

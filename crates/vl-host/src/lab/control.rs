@@ -113,10 +113,7 @@ impl Run {
     fn summary(self, reason: EndReason, events: u64, pose: Pose, source: PoseSource) -> Summary {
         Summary {
             reason,
-            reached_goal: self
-                .definition
-                .goal
-                .is_some_and(|g| pose.point().distance(g.point()) <= g.tolerance_mm),
+            reached_goal: self.definition.at_goal(pose.point()),
             events,
             final_pose: pose,
             seconds: self.started.elapsed().as_secs_f64(),
@@ -518,11 +515,7 @@ impl Control {
         // A navigation run ends at its goal; in teleoperation a goal is a
         // target the summary reports on, and the operator ends the run.
         let reached = run.turning
-            || run.experiment == Experiment::Navigation
-                && run
-                    .definition
-                    .goal
-                    .is_some_and(|g| pose.point().distance(g.point()) <= g.tolerance_mm);
+            || run.experiment == Experiment::Navigation && run.definition.at_goal(pose.point());
         let timed_out = run
             .definition
             .time_limit_s
