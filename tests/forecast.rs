@@ -253,3 +253,39 @@ fn on_every_shipped_arena_runs_keep_to_their_forecasts() {
         );
     }
 }
+
+/// The lab's forecast limits come from flags or its lab file; numbers out
+/// of range are refused with the flag named, before anything starts.
+#[test]
+fn forecast_limits_out_of_range_are_refused_by_name() {
+    for (args, said) in [
+        (
+            &["host", "--min-clearance", "-3"][..],
+            "invalid value '-3' for '--min-clearance <MM>': \"-3\" is not a clearance from 0 to 1000 mm",
+        ),
+        (
+            &["host", "--min-clearance", "inf"],
+            "is not a clearance from 0 to 1000 mm",
+        ),
+        (
+            &["host", "--forecast-seeds", "0"],
+            "invalid value '0' for '--forecast-seeds <FORECAST_SEEDS>': 0 is not in 1..=8",
+        ),
+        (&["host", "--max-run", "2 days"], "--max-run"),
+    ] {
+        let out = common::vl(args);
+        assert!(!out.status.success(), "{args:?}");
+        let err = common::stderr(&out);
+        assert!(err.contains(said), "{args:?}: {err}");
+    }
+    let dir = common::scratch("forecast-lab-file");
+    let file = dir.join("lab.toml");
+    std::fs::write(&file, "min-clearance = 1e9\n").unwrap();
+    let out = common::vl(&["host", "--config", common::s(&file)]);
+    assert!(!out.status.success());
+    assert!(
+        common::stderr(&out).contains("--min-clearance"),
+        "{}",
+        common::stderr(&out)
+    );
+}

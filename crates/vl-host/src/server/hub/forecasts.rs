@@ -26,7 +26,7 @@ pub const MOST_SEEDS: u32 = 8;
 #[derive(Debug, Clone, Copy, PartialEq, clap::Args)]
 pub struct ForecastSettings {
     /// The least room, mm, the forecast robot may come to anything.
-    #[arg(long = "min-clearance", value_name = "MM", default_value_t = 0.0, value_parser = clearance)]
+    #[arg(long = "min-clearance", value_name = "MM", default_value_t = 0.0, value_parser = clearance, allow_hyphen_values = true)]
     pub min_clearance_mm: f64,
     /// The longest a run may be forecast to take (90s, 10m).
     #[arg(long, value_parser = vl_core::span)]
