@@ -187,7 +187,7 @@ async fn a_goal_in_an_obstacles_margin_is_refused_for_the_lab_s_clearance() {
         .map(|r| r.to_string())
         .collect::<String>();
     assert!(words.contains("\"obstacle\""), "{words}");
-    refused_in_words(&mut op, "from obstacle").await;
+    refused_in_words(&mut op, "from an obstacle").await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -25,7 +25,9 @@ impl std::fmt::Display for Nearest {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Nearest::Wall => f.write_str("a wall"),
-            Nearest::Obstacle(i) => write!(f, "obstacle {}", i + 1),
+            // A map the camera made is many small boxes: their numbers
+            // mean nothing to a user, who is shown where instead.
+            Nearest::Obstacle(_) => f.write_str("an obstacle"),
             Nearest::VirtualObstacle(i) => write!(f, "virtual obstacle {}", i + 1),
         }
     }
