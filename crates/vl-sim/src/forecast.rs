@@ -25,7 +25,7 @@ const SENSE_EVERY_STEPS: u64 = 2;
 const PATH_EVERY_STEPS: u64 = 10;
 /// …and at most this many points (a long run keeps fewer a second), so a
 /// forecast always fits in one message.
-const MOST_PATH_POINTS: usize = 600;
+const MOST_PATH_POINTS: usize = 300;
 /// How often a forecast looks whether it is still wanted, in steps.
 const CANCEL_EVERY_STEPS: u64 = 100;
 /// No forecast runs longer than this, s, whatever the definition says.
