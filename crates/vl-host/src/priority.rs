@@ -22,20 +22,3 @@ pub(crate) fn yield_to_control(nice: i32, what: &str) {
     #[cfg(not(target_os = "linux"))]
     let _ = (nice, what);
 }
-
-/// Lets the calling thread run only when nothing else wants the machine
-/// (Linux's SCHED_IDLE): for work that can take a whole core for a while,
-/// which even the lowest nice level lets take a share of a busy machine.
-pub(crate) fn only_when_idle(what: &str) {
-    #[cfg(target_os = "linux")]
-    {
-        let param = libc::sched_param { sched_priority: 0 };
-        // SAFETY: pid 0 is the calling thread; a failure leaves its
-        // scheduling as it was, which is only slower for the others.
-        if unsafe { libc::sched_setscheduler(0, libc::SCHED_IDLE, &param) } != 0 {
-            debug!("the {what} thread keeps its scheduling");
-        }
-    }
-    #[cfg(not(target_os = "linux"))]
-    let _ = what;
-}
