@@ -266,9 +266,10 @@ pub async fn operator_latency(
     let began = Instant::now();
     let mut took = time_commands(&mut operator, 1, commands, || false).await?;
     let seconds = began.elapsed().as_secs_f64();
-    let under_guessing = guessing(&mut operator, &url, commands).await?;
-    let first = (commands + under_guessing.commands) as u64 + FLOODS as u64 * commands as u64 + 1;
-    let while_forecasting = forecasting(&mut operator, first, commands).await?;
+    // The next command's event, carried through the rounds.
+    let mut event = took.len() as u64 + 1;
+    let under_guessing = guessing(&mut operator, &url, &mut event, commands).await?;
+    let while_forecasting = forecasting(&mut operator, &mut event, commands).await?;
     let _ = say(&mut operator, &GuestMessage::Bye).await;
     let _ = stop_tx.send(true);
     let mut fed = Vec::new();
@@ -361,23 +362,23 @@ async fn guess(url: String, answers: Arc<Answers>) {
     };
 }
 
-/// The operator's commands timed again while guesses pour in, and in a
-/// quiet round after each flood.
+/// The operator's commands from `event` on, timed again while guesses
+/// pour in, and in a quiet round after each flood.
 async fn guessing(
     operator: &mut Socket,
     url: &str,
+    event: &mut u64,
     commands: usize,
 ) -> Result<Guessing, BenchError> {
     let answers = Arc::new(Answers::default());
     let (mut flooded, mut quiet) = (Vec::new(), Vec::new());
-    let mut event = commands as u64 + 1;
     for _ in 0..FLOODS {
         let pour = flood(url, answers.clone())?;
-        let took = time_commands(operator, event, commands, || !pour.is_finished()).await?;
-        event += took.len() as u64;
+        let took = time_commands(operator, *event, commands, || !pour.is_finished()).await?;
+        *event += took.len() as u64;
         flooded.extend(took);
-        let took = time_commands(operator, event, commands, || false).await?;
-        event += took.len() as u64;
+        let took = time_commands(operator, *event, commands, || false).await?;
+        *event += took.len() as u64;
         quiet.extend(took);
     }
     flooded.sort_by(f64::total_cmp);
@@ -428,26 +429,25 @@ fn flood(url: &str, answers: Arc<Answers>) -> Result<std::thread::JoinHandle<()>
     }))
 }
 
-/// The operator's commands from event `first` on, timed while the Host
+/// The operator's commands from `event` on, timed while the Host
 /// forecasts without pause, then in a quiet round, [`FLOODS`] times.
 async fn forecasting(
     operator: &mut Socket,
-    first: u64,
+    event: &mut u64,
     commands: usize,
 ) -> Result<WhileForecasting, BenchError> {
     // Rounds pooled as the floods are: a p99 of a few thousand trips is noisy.
     let (mut busy, mut quiet, mut forecasts) = (Vec::new(), Vec::new(), 0);
-    let mut event = first;
     for _ in 0..FLOODS {
         let stop = Arc::new(AtomicBool::new(false));
         let forecasting = forecaster(stop.clone());
-        let took = time_commands(operator, event, commands, || false).await?;
+        let took = time_commands(operator, *event, commands, || false).await?;
         stop.store(true, Ordering::Relaxed);
         forecasts += forecasting.join().unwrap_or(0);
-        event += took.len() as u64;
+        *event += took.len() as u64;
         busy.extend(took);
-        let took = time_commands(operator, event, commands, || false).await?;
-        event += took.len() as u64;
+        let took = time_commands(operator, *event, commands, || false).await?;
+        *event += took.len() as u64;
         quiet.extend(took);
     }
     busy.sort_by(f64::total_cmp);
