@@ -49,14 +49,7 @@ pub(crate) struct AccessArgs {
 
 /// The first line of `path`: a secret kept in a file.
 fn first_line(path: &Path) -> Result<String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| BadInput(format!("cannot read {}: {e}", path.display())))?;
-    let line = text.lines().next().unwrap_or("").trim();
-    anyhow::ensure!(
-        !line.is_empty(),
-        BadInput(format!("{} is empty", path.display()))
-    );
-    Ok(line.to_owned())
+    vl_host::secret_from_file(path).map_err(|e| BadInput(e.to_string()).into())
 }
 
 fn users_from(path: &Path) -> Result<Users> {

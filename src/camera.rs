@@ -11,9 +11,7 @@ use vl_core::{Calibration, CameraModel, ImageSize, Point, PointPair};
 use vl_sim::SimCalibration;
 
 use crate::BadInput;
-use crate::input::{
-    OpticsArgs, load_arena, load_rgb, load_target, positive, read_json, real_camera,
-};
+use crate::input::{load_arena, load_rgb, load_target, positive, read_json, real_camera};
 use crate::report::{Report, Table, emit};
 use vl_host::CameraSource;
 
@@ -65,7 +63,7 @@ pub(crate) struct CalibrateArgs {
     #[arg(long, default_value_t = 640)]
     width: u32,
     #[command(flatten)]
-    optics: OpticsArgs,
+    optics: vl_host::OpticsSettings,
     /// Seed of the simulated camera's noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -152,7 +150,10 @@ fn calibrate(args: CalibrateArgs) -> Result<ExitCode> {
         (target.calibrate(&frame.image, args.fps).map_err(bad)?, None)
     } else if args.sim {
         let arena = load_arena(&args.arena)?;
-        let optics = args.optics.optics(args.seed)?;
+        let optics = args
+            .optics
+            .optics(args.seed)
+            .map_err(|e| BadInput(e.to_string()))?;
         let nominal =
             CameraModel::overhead(arena.width_mm, arena.height_mm, args.width.max(1), args.fps);
         let SimCalibration {

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::Result;
-use vl_core::{Arena, CameraModel, DotTarget, Point, RobotKind, RobotModel};
-use vl_host::{CameraSource, FramePolicy};
-use vl_sim::{Optics, OpticsPreset, Scheduled};
+use vl_core::{Arena, CameraModel, DotTarget, RobotKind, RobotModel};
+use vl_host::CameraSource;
+use vl_sim::Scheduled;
 
 use crate::shipped::read_input;
 use crate::{BadInput, named};
@@ -52,74 +52,6 @@ pub(crate) fn load_robot_model(path: &Path) -> Result<RobotModel> {
 
 /// How the simulated camera departs from an ideal one: a preset, and any
 /// of its figures changed.
-#[derive(clap::Args)]
-pub(crate) struct OpticsArgs {
-    /// Optics to start from: none (an ideal camera looking straight
-    /// down), noisy (a cheap webcam: offset, blur, noise, uneven light) or
-    /// realistic (noisy, a wide lens, 80 ms late, motion blur, 5 % lost).
-    #[arg(long, value_parser = named::<OpticsPreset>(), default_value = "none")]
-    optics: OpticsPreset,
-    /// Image shift in px, as DX,DY (lens off the sensor's axis).
-    #[arg(long, allow_hyphen_values = true)]
-    lens_offset: Option<Point>,
-    /// Gaussian blur, standard deviation in px.
-    #[arg(long)]
-    blur: Option<f64>,
-    /// Per-pixel noise, standard deviation in grey levels.
-    #[arg(long)]
-    noise: Option<f64>,
-    /// How much darker the bottom-right corner is (0–1).
-    #[arg(long)]
-    lighting: Option<f64>,
-    /// How far the camera leans from looking straight down, degrees.
-    #[arg(long, allow_hyphen_values = true)]
-    tilt_deg: Option<f64>,
-    /// The lens's radial distortion, as K1,K2 (radii in image widths;
-    /// barrel distortion has K1 < 0).
-    #[arg(long, allow_hyphen_values = true)]
-    lens: Option<Point>,
-    /// From a frame's exposure to its arrival, ms.
-    #[arg(long)]
-    delay_ms: Option<f64>,
-    /// How long the shutter is open, ms (a moving robot smears).
-    #[arg(long)]
-    exposure_ms: Option<f64>,
-    /// The share of frames lost (0–0.5).
-    #[arg(long)]
-    drop_rate: Option<f64>,
-    /// The share of frames with the robot's marker partly hidden (0–0.5).
-    #[arg(long)]
-    occlusion_rate: Option<f64>,
-}
-
-impl OpticsArgs {
-    /// The simulator's optics these flags ask for, checked.
-    pub(crate) fn optics(&self, seed: u64) -> Result<Optics> {
-        let mut optics = self.optics.optics(seed);
-        if let Some(k) = self.lens {
-            optics.distortion = vl_core::Distortion {
-                k1: k.x_mm,
-                k2: k.y_mm,
-            };
-        }
-        optics.delay_s = self.delay_ms.map_or(optics.delay_s, |ms| ms / 1e3);
-        optics.exposure_s = self.exposure_ms.map_or(optics.exposure_s, |ms| ms / 1e3);
-        optics.drop_rate = self.drop_rate.unwrap_or(optics.drop_rate);
-        optics.occlusion_rate = self.occlusion_rate.unwrap_or(optics.occlusion_rate);
-        if let Some(p) = self.lens_offset {
-            optics.lens_offset_px = [p.x_mm, p.y_mm];
-        }
-        optics.blur_px = self.blur.unwrap_or(optics.blur_px);
-        optics.noise = self.noise.unwrap_or(optics.noise);
-        optics.lighting_gradient = self.lighting.unwrap_or(optics.lighting_gradient);
-        if let Some(deg) = self.tilt_deg {
-            optics.tilt_rad = deg.to_radians();
-        }
-        optics.check().map_err(|e| BadInput(e.to_string()))?;
-        Ok(optics)
-    }
-}
-
 /// An image file in colour; one that cannot be read is the user's input.
 pub(crate) fn load_rgb(path: &Path, what: &str) -> Result<image::RgbImage> {
     let image = vl_core::load_image(path)
@@ -192,36 +124,6 @@ pub(crate) fn seconds(what: &str, s: f64) -> Result<Duration, BadInput> {
         Err(BadInput(format!(
             "{what} must be a number of seconds from 0 to a day, not {s}"
         )))
-    }
-}
-
-/// Which camera frames the Host sends (thesis appendix G).
-#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum Frames {
-    /// Every frame the camera takes: live video.
-    EveryFrame,
-    /// Only when the scene changes beyond the robot, when a Guest asks, and
-    /// at least every --frame-interval; Guests draw the robot from its pose.
-    OnChange,
-}
-
-#[derive(clap::Args)]
-pub(crate) struct FramesArgs {
-    #[arg(long, value_enum, default_value = "every-frame")]
-    frames: Frames,
-    /// With --frames on-change: the longest time between two frames, s.
-    #[arg(long, default_value_t = 5.0)]
-    frame_interval: f64,
-}
-
-impl FramesArgs {
-    pub(crate) fn policy(&self) -> Result<FramePolicy> {
-        Ok(match self.frames {
-            Frames::EveryFrame => FramePolicy::EveryFrame,
-            Frames::OnChange => FramePolicy::OnChange {
-                max_interval: seconds("--frame-interval", self.frame_interval)?,
-            },
-        })
     }
 }
 

@@ -8,7 +8,7 @@ use clap::Subcommand;
 use vl_core::Point;
 use vl_sim::{Driver, LinkReport, Optics, Profile, Script, World};
 
-use crate::input::{OpticsArgs, RobotArgs, load_arena, load_target, positive};
+use crate::input::{RobotArgs, load_arena, load_target, positive};
 use crate::report::emit;
 use crate::shipped::read_input;
 use crate::{BadInput, named};
@@ -50,7 +50,7 @@ pub(crate) enum SimCommand {
         #[command(flatten)]
         robot: RobotArgs,
         #[command(flatten)]
-        optics: OpticsArgs,
+        optics: vl_host::OpticsSettings,
         /// Seed of the camera noise.
         #[arg(long, default_value_t = 1)]
         seed: u64,
@@ -120,7 +120,7 @@ pub(crate) fn run(command: SimCommand) -> Result<ExitCode> {
             target,
             output,
         } => {
-            let optics = optics.optics(seed)?;
+            let optics = optics.optics(seed).map_err(|e| BadInput(e.to_string()))?;
             let world = World::new(load_arena(&arena)?, robot.model()?, seed)
                 .map_err(|e| BadInput(e.to_string()))?;
             let target = target.as_deref().map(load_target).transpose()?;

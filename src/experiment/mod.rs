@@ -13,7 +13,7 @@ use vl_core::{Arena, Experiment};
 use vl_guest::Pacing;
 use vl_guest::experiment::{RunSpec, Runs};
 
-use crate::input::{FramesArgs, OpticsArgs, SceneArgs, load_arena, seconds};
+use crate::input::{SceneArgs, load_arena, seconds};
 use crate::named;
 use crate::report::emit;
 
@@ -54,13 +54,13 @@ pub(crate) struct RunArgs {
     #[arg(long, visible_alias = "control", value_parser = named::<Pacing>(), default_value = "event")]
     pacing: Pacing,
     #[command(flatten)]
-    optics: OpticsArgs,
+    optics: vl_host::OpticsSettings,
     /// Fold camera sightings in when they arrive, not when their frames
     /// were taken: to measure what latency compensation is worth.
     #[arg(long)]
     no_latency_compensation: bool,
     #[command(flatten)]
-    frames: FramesArgs,
+    frames: vl_host::FrameSettings,
     #[command(flatten)]
     scene: SceneArgs,
     /// Write a picture of each run (planned, estimated and true paths) here.
@@ -102,9 +102,12 @@ pub(crate) fn run(
         experiment: args.experiment,
         arena: Arena::navigation(),
         seed: args.seed,
-        optics: args.optics.optics(args.seed)?,
+        optics: args
+            .optics
+            .optics(args.seed)
+            .map_err(|e| crate::BadInput(e.to_string()))?,
         compensate_latency: !args.no_latency_compensation,
-        frames: args.frames.policy()?,
+        frames: args.frames.policy(),
         scene: args.scene.events.clone(),
         link,
         pacing: args.pacing,

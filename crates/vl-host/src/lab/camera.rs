@@ -2,6 +2,7 @@
 //! the floor, every frame locates the robot for the control loop, and the
 //! frames the policy picks (appendix G) go to the Guests as JPEG.
 
+use crate::record::Feed;
 use std::io::Cursor;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
@@ -121,6 +122,37 @@ fn map_from(
     })
 }
 
+/// Which camera frames the Host sends (thesis appendix G), as `vl host`
+/// and `vl experiment` take it from flags.
+#[derive(Debug, Clone, clap::Args)]
+pub struct FrameSettings {
+    #[arg(long, value_enum, default_value = "every-frame")]
+    frames: Frames,
+    /// With --frames on-change: the longest time between two frames (5, 5s, 1m).
+    #[arg(long, default_value = "5", value_parser = vl_core::span)]
+    frame_interval: Duration,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Frames {
+    /// Every frame the camera takes: live video.
+    EveryFrame,
+    /// Only when the scene changes beyond the robot, when a Guest asks, and
+    /// at least every --frame-interval; Guests draw the robot from its pose.
+    OnChange,
+}
+
+impl FrameSettings {
+    pub fn policy(&self) -> FramePolicy {
+        match self.frames {
+            Frames::EveryFrame => FramePolicy::EveryFrame,
+            Frames::OnChange => FramePolicy::OnChange {
+                max_interval: self.frame_interval,
+            },
+        }
+    }
+}
+
 pub(crate) struct CameraLoop {
     pub camera: Box<dyn Camera>,
     pub frames: watch::Sender<Option<Bytes>>,
@@ -139,6 +171,8 @@ pub(crate) struct CameraLoop {
     /// Fold each sighting in at its frame's exposure (else at its arrival,
     /// as a lab that ignores its camera's delay does: for comparison).
     pub compensate_latency: bool,
+    /// The recorder, handed every frame sent while a run is recorded.
+    pub record: Feed,
 }
 
 /// What the last frame sent showed, to tell whether the scene changed.
@@ -166,6 +200,7 @@ struct Publisher {
     wanted: Arc<AtomicBool>,
     floor_mm: (f64, f64),
     model: CameraModel,
+    record: Feed,
 }
 
 impl CameraLoop {
@@ -185,6 +220,7 @@ impl CameraLoop {
             wanted: self.wanted.clone(),
             floor_mm: self.floor_mm,
             model,
+            record: self.record.clone(),
         };
         thread::Builder::new()
             .name("vl-frames".into())
@@ -272,8 +308,9 @@ impl Publisher {
                         event,
                         capture_us,
                     };
-                    let wire = header.encode(&bytes);
-                    self.frames.send_replace(Some(Bytes::from(wire)));
+                    let wire = Bytes::from(header.encode(&bytes));
+                    self.record.frame(&wire);
+                    self.frames.send_replace(Some(wire));
                     sent = Some(Sent { at: started, scene });
                 }
                 Err(e) => warn!("could not encode a camera frame: {e}"),
