@@ -11,9 +11,7 @@ use vl_core::{Experiment, RobotModel};
 use vl_host::{CameraSource, Host, HostConfig, LabSpec, RobotSpec};
 
 use crate::access::AccessArgs;
-use crate::input::{
-    FramesArgs, OpticsArgs, SceneArgs, arena_from, load_calibration, load_robot_model,
-};
+use crate::input::{SceneArgs, arena_from, load_calibration, load_robot_model};
 use crate::media::LinkArgs;
 use crate::report::emit;
 use crate::{BadInput, named};
@@ -170,9 +168,9 @@ pub(crate) struct HostArgs {
     #[arg(long, value_hint = ValueHint::FilePath)]
     camera_calibration: Option<std::path::PathBuf>,
     #[command(flatten)]
-    optics: OpticsArgs,
+    optics: vl_host::OpticsSettings,
     #[command(flatten)]
-    frames: FramesArgs,
+    frames: vl_host::FrameSettings,
     #[command(flatten)]
     scene: SceneArgs,
     #[command(flatten)]
@@ -181,6 +179,8 @@ pub(crate) struct HostArgs {
     access: AccessArgs,
     #[command(flatten)]
     forecast: vl_host::ForecastSettings,
+    #[command(flatten)]
+    recordings: vl_host::RecordSettings,
 }
 
 /// The Host's configuration from its flags, checked before anything starts.
@@ -194,11 +194,12 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         slot: args.slot,
         ping_timeout: args.ping_timeout,
         grace: args.grace,
-        frames: args.frames.policy()?,
+        frames: args.frames.policy(),
         nets: args.nets.clone(),
         reset: !args.no_reset,
         compensate_latency: !args.no_latency_compensation,
         forecast: args.forecast,
+        recordings: (args.recordings.catalogue()).map_err(|e| BadInput(e.to_string()))?,
         ..HostConfig::default()
     };
     args.access.apply(&mut config)?;
@@ -213,6 +214,12 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
     let config = host_config(&args)?;
     if let Some(file) = &args.config {
         eprintln!("vl host: options from {}", file.display());
+    }
+    if let Some(recordings) = &config.recordings {
+        eprintln!(
+            "vl host: recording every run in {}",
+            recordings.dir().display()
+        );
     }
     let robot = match args.robot {
         RobotDriver::Sim => RobotSpec::Sim,
@@ -239,7 +246,10 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             .as_deref()
             .map(load_calibration)
             .transpose()?,
-        optics: args.optics.optics(args.seed)?,
+        optics: args
+            .optics
+            .optics(args.seed)
+            .map_err(|e| BadInput(e.to_string()))?,
         seed: args.seed,
         scene: args.scene.events.clone(),
     };

@@ -14,6 +14,7 @@ mod media;
 mod nets;
 mod petri;
 mod plan;
+mod record;
 mod report;
 mod shipped;
 mod sim;
@@ -76,6 +77,8 @@ enum Command {
     /// Run the lab's experiments headless on the simulator and measure them.
     #[command(subcommand)]
     Experiment(experiment::ExperimentCommand),
+    /// The recorded runs: list, describe, export, repair.
+    Record(record::RecordArgs),
 }
 
 #[global_allocator]
@@ -148,5 +151,6 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Camera(command) => camera::run(command),
         Command::Experiment(command) => experiment::run(&runtime()?, command),
         Command::Users(command) => access::users(command),
+        Command::Record(command) => record::record(command),
     }
 }

@@ -4,17 +4,17 @@
 //! every attempt; tokens come from a file or the environment.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 
 use crate::common::peer::Peer;
-use crate::common::{self, s, scratch, start_host, vl_bin};
+use crate::common::{self, s, scratch, start_host};
 
 /// `vl users ARGS` with `password` in VL_PASSWORD.
 fn users(args: &[&str], password: &str) -> Output {
-    Command::new(vl_bin())
+    common::vl_command()
         .arg("users")
         .args(args)
         .env("VL_PASSWORD", password)
@@ -223,7 +223,7 @@ async fn tokens_come_from_a_file_or_the_environment() {
     let right = json!({"type": "hello", "protocol": 1, "role": "operator", "token": "s3cret"});
     assert_eq!(answer(&url, right).await["type"], "welcome");
     // A headless Guest reads it from VL_TOKEN.
-    let watched = Command::new(vl_bin())
+    let watched = common::vl_command()
         .args(["guest", "--headless", "--connect", &url, "--timeout", "60"])
         .env("VL_TOKEN", "s3cret")
         .output()
@@ -237,7 +237,7 @@ fn a_headless_guest_logs_in_and_runs() {
     let file = accounts(&dir);
     let (_host, url) = start_host(&["--users", &file]);
     let run = |user: &str, password: &str| {
-        Command::new(vl_bin())
+        common::vl_command()
             .args([
                 "guest",
                 "--headless",
@@ -342,7 +342,7 @@ fn a_headless_guest_waits_its_turn_and_runs() {
         ada.expect("welcome").await;
         ada
     });
-    let out = Command::new(vl_bin())
+    let out = common::vl_command()
         .args(["guest", "--headless", "--connect", &url, "--user", "root"])
         .env("VL_PASSWORD", "admin password")
         .output()
@@ -481,7 +481,7 @@ async fn a_lab_file_sets_the_host_up_and_its_administrator_sees_it() {
     assert!(get(&url, "/other", None).0.contains("404"));
     // …and the same through `vl host status`, as a table and as JSON.
     let status_cli = |json: bool| {
-        let mut cmd = Command::new(vl_bin());
+        let mut cmd = common::vl_command();
         cmd.args(["host", "status", &url, "--user", "root"])
             .env("VL_PASSWORD", "admin password");
         if json {

@@ -164,7 +164,7 @@ async fn silent_and_frozen_operators_lose_the_role() {
 /// the stop command at once.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_killed_host_leaves_the_robot_stopped() {
-    let mut emulator = Command::new(vl_bin())
+    let mut emulator = common::vl_command()
         .args(["khepera-emu", "--log-commands"])
         .stdout(Stdio::piped())
         .spawn()
@@ -216,7 +216,7 @@ async fn a_robot_line_that_comes_back_is_driven_again() {
     let link = dir.join("khepera");
     let link = link.to_str().unwrap().to_owned();
     let (emulator, _) = start_emulator(&["--link", &link]);
-    let mut host = Command::new(vl_bin())
+    let mut host = common::vl_command()
         .args([
             "host",
             "--robot",

@@ -175,7 +175,7 @@ fn shipped_examples_are_found_by_name_anywhere() {
     assert_eq!(c["unbounded_places"], serde_json::json!(["buffer"]));
     let dir = scratch("elsewhere");
     let out = dir.join("mount.pnml");
-    let made = std::process::Command::new(common::vl_bin())
+    let made = common::vl_command()
         .current_dir(&dir)
         .args([
             "petri",
@@ -192,7 +192,7 @@ fn shipped_examples_are_found_by_name_anywhere() {
     // By its file name or its stem too, and the large corpus models by
     // their path in the repository; anything else names the examples.
     let run = |args: &[&str]| {
-        std::process::Command::new(common::vl_bin())
+        common::vl_command()
             .current_dir(&dir)
             .args(args)
             .output()

@@ -237,6 +237,7 @@ fn summary() -> BoxedStrategy<Summary> {
                 },
             )),
             proptest::option::of(gap()),
+            proptest::option::of(recording_note()),
         ),
     )
         .prop_map(
@@ -249,7 +250,7 @@ fn summary() -> BoxedStrategy<Summary> {
                 (collisions, max_event_gap, sync_violations),
                 stopped_by,
                 (closest_mm, speed_kept, pose_source, path),
-                (held_back, forecast),
+                (held_back, forecast, recording),
             )| {
                 Summary {
                     reason,
@@ -268,6 +269,7 @@ fn summary() -> BoxedStrategy<Summary> {
                     stopped_by,
                     held_back,
                     forecast,
+                    recording,
                 }
             },
         )
@@ -413,8 +415,22 @@ fn guest_message() -> impl Strategy<Value = GuestMessage> {
         Just(GuestMessage::EmergencyStop),
         (any::<u64>(), proptest::option::of(any::<u64>()), drive())
             .prop_map(|(event, seen, drive)| GuestMessage::Command { event, seen, drive }),
+        Just(GuestMessage::Recordings),
+        (recording_name(), any::<u64>())
+            .prop_map(|(name, offset)| GuestMessage::Download { name, offset }),
         Just(GuestMessage::Bye),
     ]
+}
+
+fn recording_name() -> impl Strategy<Value = vl_core::RecordingName> {
+    (any::<u64>(), any::<u64>()).prop_map(|(ms, run)| vl_core::RecordingName::of_run(ms, run))
+}
+
+fn recording_note() -> impl Strategy<Value = vl_core::RecordingNote> {
+    (recording_name(), any::<u64>()).prop_map(|(name, dropped_frames)| vl_core::RecordingNote {
+        name,
+        dropped_frames,
+    })
 }
 
 fn experiment() -> impl Strategy<Value = Experiment> {

@@ -19,7 +19,7 @@ use std::io::Write;
 use std::path::Path;
 use std::process::{Command, Stdio};
 
-use common::{VlProcess, scratch, start_vl_in, stderr, stdout, vl_bin};
+use common::{VlProcess, scratch, start_vl_in, stderr, stdout};
 
 /// The shell commands of README's ```sh block under `heading`, with
 /// continuation lines joined and comments dropped.
@@ -210,7 +210,7 @@ fn every_command_in_readme_runs_as_written() {
                 ran += 1;
                 continue;
             }
-            let out = Command::new(vl_bin())
+            let out = common::vl_command()
                 .args(&argv)
                 .current_dir(&dir)
                 .env_remove("DISPLAY")

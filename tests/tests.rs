@@ -34,6 +34,7 @@ mod protocol_docs;
 mod protocol_props;
 mod readme;
 mod reconnect;
+mod recordings;
 mod safety;
 mod serial_safety;
 mod sim_cli;

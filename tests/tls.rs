@@ -7,7 +7,7 @@
 use std::process::Command;
 use std::time::Duration;
 
-use crate::common::{self, start_host, vl_bin};
+use crate::common::{self, start_host};
 
 /// A Host speaking only TLS: its wss:// address with `#pin=`.
 fn tls_host() -> (common::VlProcess, String) {
@@ -23,7 +23,7 @@ fn tls_host() -> (common::VlProcess, String) {
 fn a_guest_runs_through_tls_with_the_pinned_certificate_only() {
     let (_host, url) = tls_host();
     let run = |url: &str| {
-        Command::new(vl_bin())
+        common::vl_command()
             .args(["guest", "--headless", "--connect", url, "--timeout", "60"])
             .output()
             .unwrap()

@@ -13,9 +13,20 @@ pub(crate) fn vl_bin() -> &'static str {
     env!("CARGO_BIN_EXE_vl")
 }
 
+/// `vl`, its recordings (a Host records every run in the user's data
+/// directory) kept under the build's scratch space, not the user's.
+pub(crate) fn vl_command() -> Command {
+    let mut command = Command::new(vl_bin());
+    command.env(
+        "XDG_DATA_HOME",
+        Path::new(env!("CARGO_TARGET_TMPDIR")).join("xdg-data"),
+    );
+    command
+}
+
 /// Runs `vl ARGS…` to the end with no display, as on a headless machine.
 pub(crate) fn vl(args: &[&str]) -> Output {
-    Command::new(vl_bin())
+    vl_command()
         .args(args)
         .env_remove("DISPLAY")
         .env_remove("WAYLAND_DISPLAY")
@@ -96,7 +107,7 @@ impl Drop for VlProcess {
 /// Starts `vl ARGS…` (in `dir`, if given) and returns it with the end of
 /// its first line after `prefix`: where it listens, or its device.
 pub(crate) fn start_vl_in(dir: Option<&Path>, args: &[&str], prefix: &str) -> (VlProcess, String) {
-    let mut command = Command::new(vl_bin());
+    let mut command = vl_command();
     command.args(args).stdout(Stdio::piped());
     if let Some(dir) = dir {
         command.current_dir(dir);

@@ -76,6 +76,7 @@ mod lab;
 mod line;
 mod media;
 mod priority;
+mod record;
 mod replay;
 mod server;
 mod setup;
@@ -96,19 +97,25 @@ pub use accounts::gate::{
     Observers, Refusal,
 };
 pub use accounts::users::{AccountRole, Member, Roster, Users, UsersError};
+pub use accounts::{SecretError, secret_from_file};
 pub use characterise::{CharacteriseError, characterise};
 pub use drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness};
 pub use khepera::KheperaSerial;
-pub use lab::{Devices, FramePolicy};
+pub use lab::{Devices, FramePolicy, FrameSettings};
 pub use line::run_guard;
 pub use media::{
     Delays, Media, MediaBench, MediaBenchError, MediaConfig, MediaError, Reproduced, RoundTrip,
     bench as media_bench,
 };
+pub use record::{
+    Catalogue, Exported, Message as RecordedMessage, Owner, RecordError, RecordSettings, Recording,
+    RecordingInfo, Repaired, Replayed, Runs, TopicCount, export, repair,
+};
 pub use replay::ReplayCamera;
 pub use server::bench::{BenchError, Guessing, OperatorLatency, operator_latency};
 pub use server::{ForecastSettings, HostConfig, Io, MOST_FORECAST_SEEDS};
 pub use setup::{LabSpec, RobotSpec, SetupError};
+pub use sim::OpticsSettings;
 pub use source::CameraSource;
 pub use tls::{Tls, TlsError};
 #[cfg(target_os = "linux")]
@@ -181,7 +188,13 @@ impl Host {
         arena: Arena,
         config: HostConfig,
     ) -> Result<Host, HostError> {
-        let lab = lab::Lab::spawn(devices, arena, config.frames, config.compensate_latency);
+        let lab = lab::Lab::spawn(
+            devices,
+            arena,
+            config.frames,
+            config.compensate_latency,
+            config.recordings.clone(),
+        );
         let listener = TcpListener::bind(listen)
             .await
             .map_err(|e| HostError::Bind(listen, e))?;

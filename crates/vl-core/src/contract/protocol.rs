@@ -200,6 +200,17 @@ pub struct Summary {
     /// The run against the forecast of its definition.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub forecast: Option<crate::Gap>,
+    /// Where the Host recorded the run, when it records.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recording: Option<RecordingNote>,
+}
+
+/// The file a run was recorded to, and what the recorder could not keep
+/// up with (camera frames go first, so the control loop never waits).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordingNote {
+    pub name: crate::RecordingName,
+    pub dropped_frames: u64,
 }
 
 impl Summary {
@@ -303,6 +314,8 @@ pub enum ErrorCode {
     /// Every place to watch from is taken; the rest are kept for people
     /// who may drive.
     LabFull,
+    /// No recording of that name that this Guest may see.
+    UnknownRecording,
 }
 
 /// As on the wire: `unknown_experiment`.
@@ -394,6 +407,15 @@ pub enum GuestMessage {
     /// with this `session` (its run stops and it watches) or its place in line.
     Kick {
         session: u64,
+    },
+    /// Lists the recorded runs this Guest may see (`recordings`).
+    Recordings,
+    /// Asks for the part of a recording from `offset` on; the answer is
+    /// a binary part (see `contract::recording`).
+    Download {
+        name: crate::RecordingName,
+        #[serde(default)]
+        offset: u64,
     },
     Bye,
 }
@@ -502,6 +524,10 @@ pub enum HostMessage {
         /// the start pose after the last one.
         #[serde(default)]
         lab: Readiness,
+    },
+    /// The recorded runs this Guest may see, newest first.
+    Recordings {
+        runs: Vec<crate::RecordedRun>,
     },
     Bye,
 }

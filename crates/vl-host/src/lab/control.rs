@@ -21,6 +21,7 @@ use vl_core::{
 use super::camera::Sighting;
 use super::{Finished, LabInfo, LabRequest, LabStatus, Retry, TICK};
 use crate::drivers::{Robot, RobotReading, Witness};
+use crate::record::{Entry, Feed};
 
 /// The shortest time between two control periods: a command acted on at
 /// once still waits this long after the last period.
@@ -128,6 +129,7 @@ impl Run {
             sync_violations: 0,
             stopped_by: None,
             forecast: None,
+            recording: None,
             held_back: self.held_back,
         }
     }
@@ -161,6 +163,8 @@ pub(crate) struct Control {
     status: Arc<watch::Sender<LabStatus>>,
     /// While the robot's link is down: when to try it again.
     retry: Option<Retry>,
+    /// The recorder, handed every feedback while a run is recorded.
+    record: Feed,
 }
 
 /// What the control loop is given to work with.
@@ -172,6 +176,7 @@ pub(crate) struct Wiring {
     pub event: Arc<AtomicU64>,
     pub status: Arc<watch::Sender<LabStatus>>,
     pub since: Instant,
+    pub record: Feed,
 }
 
 impl Control {
@@ -217,6 +222,7 @@ impl Control {
             period: TICK,
             status: wiring.status,
             retry: None,
+            record: wiring.record,
         }
     }
 
@@ -509,6 +515,9 @@ impl Control {
         let Some(run) = self.run.as_mut() else { return };
         let truth = self.witness.as_mut().map(|w| w.true_pose());
         run.record.record(pose, truth);
+        if let Some(truth) = truth {
+            self.record.send(Entry::Truth(truth));
+        }
         if let Some((_, prev_pose)) = previous {
             run.distance_mm += prev_pose.point().distance(pose.point());
         }
@@ -650,6 +659,9 @@ impl Control {
             force: self.run.as_ref().and_then(|r| r.assist).map(|(_, f)| f),
             limited: self.run.as_ref().is_some_and(|r| r.limited),
         };
+        if self.record.active() {
+            self.record.send(Entry::Sent(message.clone()));
+        }
         self.feedback.send_replace(Some(message));
     }
 }

@@ -24,9 +24,10 @@ use vl_core::{
 };
 
 use crate::drivers::{Camera, Robot, Witness};
-pub use camera::FramePolicy;
+use crate::record::{Catalogue, Feed};
 pub(crate) use camera::Watching;
 use camera::{CameraLoop, SIGHTINGS, first_look};
+pub use camera::{FramePolicy, FrameSettings};
 pub(crate) use control::map_field;
 use control::{Control, Wiring};
 
@@ -150,20 +151,24 @@ pub(crate) struct Lab {
     pub status: watch::Receiver<LabStatus>,
     running: Arc<AtomicBool>,
     frame_wanted: Arc<AtomicBool>,
+    /// The recorder (none when the Host records nothing).
+    pub(crate) record: Feed,
 }
 
 impl Lab {
     /// Starts the control and camera loops on their own threads. With a
     /// camera, its first frame maps the floor of `arena` and locates the
     /// robot; without one, the arena model is the map and odometry alone
-    /// says where the robot is.
+    /// says where the robot is. With a `catalogue`, runs are recorded there.
     pub(crate) fn spawn(
         devices: Devices,
         arena: Arena,
         policy: FramePolicy,
         compensate_latency: bool,
+        catalogue: Option<Catalogue>,
     ) -> Lab {
         let since = Instant::now();
+        let record = catalogue.map_or_else(Feed::default, |c| Feed::spawn(c, since));
         let Devices {
             robot,
             mut camera,
@@ -212,6 +217,7 @@ impl Lab {
             event: event.clone(),
             status: status_tx.clone(),
             since,
+            record: record.clone(),
         };
         let control = Control::new(robot, witness, info.clone(), seen, wiring);
         thread::Builder::new()
@@ -232,6 +238,7 @@ impl Lab {
                 watchers: watchers.clone(),
                 floor_mm,
                 compensate_latency,
+                record: record.clone(),
             };
             thread::Builder::new()
                 .name("vl-camera".into())
@@ -248,6 +255,7 @@ impl Lab {
             status,
             running,
             frame_wanted,
+            record,
         }
     }
 

@@ -20,6 +20,8 @@ use vl_core::{
 };
 
 use super::hub::ForecastJob;
+
+mod recording;
 use crate::accounts::users::{AccountRole, Users};
 use crate::{ForecastSettings, Host, HostConfig, SimLab};
 
@@ -57,6 +59,8 @@ pub struct OperatorLatency {
     pub under_guessing: Guessing,
     /// The same commands again while the machine forecasts definitions.
     pub while_forecasting: WhileForecasting,
+    /// A Host that records its runs against one that does not.
+    pub recording: recording::RecordingCost,
 }
 
 /// The operator's round trips while the Host forecasts a minute's
@@ -235,8 +239,49 @@ pub async fn operator_latency(
         let ws = observer(&url).await?;
         watching.spawn(observe(ws, stop.clone()));
     }
-    let mut operator = connect(&url).await?;
-    say(&mut operator, &hello(Role::Operator, Some(ACCOUNT.1))).await?;
+    let mut operator = teleoperating(&url, Some(ACCOUNT.1)).await?;
+    let began = Instant::now();
+    let mut took = time_commands(&mut operator, 1, commands, || false).await?;
+    let seconds = began.elapsed().as_secs_f64();
+    // The next command's event, carried through the rounds.
+    let mut event = took.len() as u64 + 1;
+    let under_guessing = guessing(&mut operator, &url, &mut event, commands).await?;
+    let while_forecasting = forecasting(&mut operator, &mut event, commands).await?;
+    let _ = say(&mut operator, &GuestMessage::Bye).await;
+    let _ = stop_tx.send(true);
+    let mut fed = Vec::new();
+    while let Some(counts) = watching.join_next().await {
+        fed.push(counts.unwrap_or_default());
+    }
+    drop(host);
+    let recording = recording::recording_cost(commands).await?;
+    took.sort_by(f64::total_cmp);
+    let q = |p| nearest_rank(&took, p).unwrap_or(f64::NAN);
+    let slowest = fed
+        .iter()
+        .min_by_key(|(f, _)| *f)
+        .copied()
+        .unwrap_or_default();
+    Ok(OperatorLatency {
+        observers,
+        commands,
+        p50_ms: q(0.5),
+        p90_ms: q(0.9),
+        p99_ms: q(0.99),
+        max_ms: took.last().copied().unwrap_or(f64::NAN),
+        observer_feedback_hz: slowest.0 as f64 / seconds,
+        observer_frames_hz: slowest.1 as f64 / seconds,
+        under_guessing,
+        while_forecasting,
+        recording,
+    })
+}
+
+/// An operator on `url` (logged in with `password` to the bench's
+/// account, if given) with a teleoperation run started.
+async fn teleoperating(url: &str, password: Option<&str>) -> Result<Socket, BenchError> {
+    let mut operator = connect(url).await?;
+    say(&mut operator, &hello(Role::Operator, password)).await?;
     until(&mut operator, "say hello", |m| {
         matches!(m, HostMessage::Welcome { .. }).then_some(())
     })
@@ -259,42 +304,10 @@ pub async fn operator_latency(
         })
         .await?;
         if started {
-            break;
+            return Ok(operator);
         }
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
-    let began = Instant::now();
-    let mut took = time_commands(&mut operator, 1, commands, || false).await?;
-    let seconds = began.elapsed().as_secs_f64();
-    // The next command's event, carried through the rounds.
-    let mut event = took.len() as u64 + 1;
-    let under_guessing = guessing(&mut operator, &url, &mut event, commands).await?;
-    let while_forecasting = forecasting(&mut operator, &mut event, commands).await?;
-    let _ = say(&mut operator, &GuestMessage::Bye).await;
-    let _ = stop_tx.send(true);
-    let mut fed = Vec::new();
-    while let Some(counts) = watching.join_next().await {
-        fed.push(counts.unwrap_or_default());
-    }
-    took.sort_by(f64::total_cmp);
-    let q = |p| nearest_rank(&took, p).unwrap_or(f64::NAN);
-    let slowest = fed
-        .iter()
-        .min_by_key(|(f, _)| *f)
-        .copied()
-        .unwrap_or_default();
-    Ok(OperatorLatency {
-        observers,
-        commands,
-        p50_ms: q(0.5),
-        p90_ms: q(0.9),
-        p99_ms: q(0.99),
-        max_ms: took.last().copied().unwrap_or(f64::NAN),
-        observer_feedback_hz: slowest.0 as f64 / seconds,
-        observer_frames_hz: slowest.1 as f64 / seconds,
-        under_guessing,
-        while_forecasting,
-    })
 }
 
 /// Times commands from event `first` on, each sent when the last one's
@@ -554,5 +567,6 @@ impl Report for OperatorLatency {
             ),
         ])
         .title("an operator's command to the feedback of its event, on loopback:")
+        .note(self.recording.to_string())
     }
 }

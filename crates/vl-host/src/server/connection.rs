@@ -14,14 +14,18 @@ use tokio_tungstenite::WebSocketStream;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::tungstenite::{self, Bytes, Message};
 use tracing::debug;
-use vl_core::{ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES, Wire};
+use vl_core::{
+    ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES, PartHeader, RecordingName, Wire,
+};
 
 use super::admission::Ticket;
 use super::http::{self, Opening};
 use super::hub::{ToConnection, ToHub};
 use super::{HostConfig, Io};
-use crate::accounts::gate::{Credentials, Gate};
+use crate::accounts::gate::{Credentials, Gate, Identity};
+use crate::accounts::users::AccountRole;
 use crate::lab::Watching;
+use crate::record::{Entry, Feed, RecordError};
 
 /// The WebSocket handshake must be done within this.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
@@ -58,6 +62,10 @@ pub(crate) struct Connection {
     pub(crate) gate: Arc<Gate>,
     pub(crate) peer: std::net::SocketAddr,
     pub(crate) ticket: Ticket,
+    /// The recorder, handed each round trip measured.
+    pub(crate) record: Feed,
+    /// Who the gate let in (for the recordings they may see).
+    pub(crate) identity: Option<Identity>,
 }
 
 /// How a connection ends.
@@ -357,9 +365,8 @@ impl Connection {
             // WebSocket pings are answered by tungstenite.
             _ => return Ok(()),
         };
-        let reply = self.route(text.as_str(), r, over_rate).await?;
-        match reply {
-            Some(reply) => put(sink, text_of(&reply)).await,
+        match self.route(text.as_str(), r, over_rate).await? {
+            Some(reply) => put(sink, reply).await,
             None => Ok(()),
         }
     }
@@ -380,12 +387,16 @@ impl Connection {
         text: &str,
         r: &mut Reading,
         over_rate: Duration,
-    ) -> Result<Option<HostMessage>, End> {
-        Ok(match GuestMessage::decode(text) {
+    ) -> Result<Option<Message>, End> {
+        let reply = match GuestMessage::decode(text) {
             Ok(GuestMessage::Ping { t }) => Some(HostMessage::Pong { t }),
             Ok(GuestMessage::Pong { t }) => {
                 let rtt_ms = r.clock.elapsed().as_secs_f64() * 1e3 - t;
                 debug!(connection = self.id, rtt_ms, "round trip");
+                self.record.send(Entry::RoundTrip {
+                    connection: self.id,
+                    ms: rtt_ms,
+                });
                 None
             }
             Ok(GuestMessage::Bye) => return Err(End::Left),
@@ -411,6 +422,7 @@ impl Connection {
                         ));
                     }
                     Ok(admitted) => {
+                        self.identity = Some(admitted.identity.clone());
                         let hello = ToHub::Hello {
                             id: self.id,
                             admitted,
@@ -444,6 +456,10 @@ impl Connection {
                     "send hello first",
                 ))
             }
+            Ok(GuestMessage::Recordings) => Some(self.recordings().await),
+            Ok(GuestMessage::Download { name, offset }) => {
+                return Ok(Some(self.download(name, offset).await));
+            }
             Ok(message @ GuestMessage::Command { .. }) if !over_rate.is_zero() => {
                 // The one it replaces is never forwarded: it costs nothing.
                 let wait = match r.held_command.take() {
@@ -468,6 +484,72 @@ impl Connection {
                 None
             }
             Err(e) => Some(HostMessage::error(e.code(), e.to_string())),
-        })
+        };
+        Ok(reply.map(|reply| text_of(&reply)))
+    }
+
+    /// Who this client is to the recordings, and whether they see all.
+    fn owner(&self) -> Option<(crate::record::Catalogue, crate::record::Owner, bool)> {
+        let catalogue = self.config.recordings.clone()?;
+        let identity = self.identity.as_ref()?;
+        let admin = matches!(
+            identity,
+            Identity::Account {
+                role: AccountRole::Admin,
+                ..
+            }
+        );
+        let owner = catalogue.owner(identity.name(), self.id);
+        Some((catalogue, owner, admin))
+    }
+
+    /// The recorded runs this client may see.
+    async fn recordings(&self) -> HostMessage {
+        let Some((catalogue, owner, admin)) = self.owner() else {
+            return HostMessage::Recordings { runs: Vec::new() };
+        };
+        let runs = tokio::task::spawn_blocking(move || catalogue.visible(&owner, admin)).await;
+        HostMessage::Recordings {
+            runs: runs.unwrap_or_default(),
+        }
+    }
+
+    /// The part of recording `name` from `offset`, or why not.
+    async fn download(&self, name: RecordingName, offset: u64) -> Message {
+        let Some((catalogue, owner, admin)) = self.owner() else {
+            let why = "this Host records nothing";
+            return text_of(&HostMessage::error(ErrorCode::UnknownRecording, why));
+        };
+        let wanted = name.clone();
+        let part =
+            tokio::task::spawn_blocking(move || catalogue.part(&wanted, offset, &owner, admin))
+                .await
+                .unwrap_or_else(|e| {
+                    Err(RecordError::Io(
+                        name.as_str().into(),
+                        std::io::Error::other(e),
+                    ))
+                });
+        match part {
+            Ok((total, bytes)) => {
+                let header = PartHeader {
+                    name,
+                    offset,
+                    total,
+                };
+                Message::Binary(Bytes::from(header.encode(&bytes)))
+            }
+            Err(e @ (RecordError::Unknown(_) | RecordError::PastEnd { .. })) => text_of(
+                &HostMessage::error(ErrorCode::UnknownRecording, e.to_string()),
+            ),
+            Err(e @ RecordError::StillWriting(_)) => {
+                text_of(&HostMessage::error(ErrorCode::NotAllowedNow, e.to_string()))
+            }
+            Err(e) => {
+                tracing::warn!("a recording could not be read: {e}");
+                let why = format!("{name} could not be read at the Host");
+                text_of(&HostMessage::error(ErrorCode::UnknownRecording, why))
+            }
+        }
     }
 }

@@ -81,6 +81,8 @@ pub struct HostConfig {
     pub compensate_latency: bool,
     /// What a navigation definition's forecast must show for a run to start.
     pub forecast: ForecastSettings,
+    /// Where every run is recorded; none: nowhere.
+    pub recordings: Option<crate::record::Catalogue>,
 }
 
 impl HostConfig {
@@ -115,6 +117,7 @@ impl Default for HostConfig {
             reset: true,
             compensate_latency: true,
             forecast: ForecastSettings::default(),
+            recordings: None,
         }
     }
 }
@@ -130,9 +133,12 @@ const HUB_QUEUE: usize = 256;
 /// Accepts connections on `listener` and serves the lab until the task is dropped.
 pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
     let (hub_tx, hub_rx) = mpsc::channel(HUB_QUEUE);
-    let feedback = lab.feedback.clone();
-    let frames = lab.frames.clone();
-    let watchers = lab.watchers.clone();
+    let outlets = Outlets {
+        feedback: lab.feedback.clone(),
+        frames: lab.frames.clone(),
+        watchers: lab.watchers.clone(),
+        record: lab.record.clone(),
+    };
     let config = Arc::new(config);
     let supervisor = match config.supervisor() {
         Ok(supervisor) => supervisor,
@@ -152,18 +158,22 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
     // drops the lab, which stops the robot.
     tokio::select! {
         () = hub.run(hub_rx) => {}
-        () = accept(listener, hub_tx, feedback, (frames, watchers), config, gate) => {}
+        () = accept(listener, hub_tx, outlets, config, gate) => {}
     }
+}
+
+/// What every connection takes from the lab directly, not through the hub.
+struct Outlets {
+    feedback: tokio::sync::watch::Receiver<Option<vl_core::HostMessage>>,
+    frames: tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
+    watchers: Arc<std::sync::atomic::AtomicUsize>,
+    record: crate::record::Feed,
 }
 
 async fn accept(
     listener: TcpListener,
     hub: mpsc::Sender<hub::ToHub>,
-    feedback: tokio::sync::watch::Receiver<Option<vl_core::HostMessage>>,
-    (frames, watchers): (
-        tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
-        Arc<std::sync::atomic::AtomicUsize>,
-    ),
+    outlets: Outlets,
     config: Arc<HostConfig>,
     gate: Arc<Gate>,
 ) {
@@ -188,13 +198,15 @@ async fn accept(
         let connection = Connection {
             id,
             hub: hub.clone(),
-            feedback: feedback.clone(),
-            frames: frames.clone(),
-            watchers: watchers.clone(),
+            feedback: outlets.feedback.clone(),
+            frames: outlets.frames.clone(),
+            watchers: outlets.watchers.clone(),
             config: config.clone(),
             gate: gate.clone(),
             peer,
             ticket,
+            record: outlets.record.clone(),
+            identity: None,
         };
         tokio::spawn(async move {
             if let Err(e) = connection.run(stream).await {

@@ -30,6 +30,7 @@ mod fields;
 mod forecasts;
 mod operate;
 mod queue;
+mod recording;
 mod reset;
 mod status;
 #[cfg(test)]
@@ -160,6 +161,8 @@ pub(crate) struct Hub {
     ),
     /// Who pressed the emergency stop that is ending the run.
     stopper: Option<Stopper>,
+    /// The run being recorded.
+    recording: Option<recording::Recording>,
 }
 
 impl Hub {
@@ -196,6 +199,7 @@ impl Hub {
             reset_run: None,
             reset_routes: mpsc::unbounded_channel(),
             stopper: None,
+            recording: None,
         }
     }
 
@@ -235,12 +239,16 @@ impl Hub {
                     summary.sync_violations = self.sync_violations;
                     summary.stopped_by = self.stopper.take().filter(|_| summary.reason == EndReason::EmergencyStop);
                     self.compare_with_forecast(&mut summary);
+                    self.note_recording(&mut summary);
                     info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
                     self.config.audit.record(
                         Entry::new("run_ended").detail(format!("run {run}: {}", summary.ending())),
                     );
                     let reset = resets_after(summary.reason);
                     self.broadcast(&HostMessage::Done { summary: Box::new(summary) });
+                    // The run's last firings go in its file before it closes.
+                    self.tell_state();
+                    self.end_recording();
                     if reset {
                         self.reset();
                     }
@@ -313,6 +321,8 @@ impl Hub {
     }
 
     fn refuse(&mut self, id: u64, code: ErrorCode, message: impl Into<String>) {
+        let message = message.into();
+        self.record_warning(format!("refused ({code}): {message}"));
         self.send(id, HostMessage::error(code, message));
     }
 
@@ -324,6 +334,7 @@ impl Hub {
 
     /// Sends to every welcomed client, encoded once.
     fn broadcast(&mut self, message: &HostMessage) {
+        self.record_sent(message);
         let encoded = Message::text(message.encode());
         let welcomed: Vec<u64> = self
             .clients

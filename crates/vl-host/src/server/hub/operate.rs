@@ -23,7 +23,10 @@ impl Hub {
             GuestMessage::Start => self.start(id),
             GuestMessage::Stop => self.stop(id),
             GuestMessage::Command { event, seen, drive } => self.command(id, event, seen, drive),
-            GuestMessage::Kick { .. } => {}
+            // Recordings are the connection's to answer.
+            GuestMessage::Kick { .. }
+            | GuestMessage::Recordings
+            | GuestMessage::Download { .. } => {}
             GuestMessage::Queue | GuestMessage::LeaveQueue => {
                 self.refuse(id, ErrorCode::NotAllowedNow, "you have control already");
             }
@@ -148,6 +151,7 @@ impl Hub {
                     .detail(format!("run {}: {experiment}", self.runs)),
             );
             let definition = self.definition.clone().unwrap_or_default();
+            self.begin_recording(id, experiment, &definition);
             self.lab.request(LabRequest::Start {
                 run: self.runs,
                 definition,
@@ -197,6 +201,7 @@ impl Hub {
         }
         self.last_event = event;
         self.last_command = Instant::now();
+        self.record_command(GuestMessage::Command { event, seen, drive });
         self.lab.request(LabRequest::Drive { event, drive });
     }
 

@@ -42,7 +42,7 @@ impl Rig {
             witness: None,
         };
         let arena = Arena::named("open").expect("the open arena ships");
-        let lab = Lab::spawn(devices, arena, FramePolicy::EveryFrame, true);
+        let lab = Lab::spawn(devices, arena, FramePolicy::EveryFrame, true, None);
         let feedback = lab.feedback.clone();
         let supervisor = config.supervisor().expect("the shipped nets load");
         let hub = Hub::new(lab, Arc::new(config), supervisor);

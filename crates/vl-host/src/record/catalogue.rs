@@ -1,0 +1,297 @@
+//! The recordings folder: where each run's file goes, the entry beside it
+//! that says whose run it is and how it ended, who may see which, and what
+//! the retention limits let go.
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, SystemTime};
+
+use serde::{Deserialize, Serialize};
+use tracing::{info, warn};
+use vl_core::table::{Report, Table};
+use vl_core::{PART_BYTES, RecordedRun, RecordingName};
+
+use super::RecordError;
+
+/// The most runs a Guest is sent in one list.
+const MOST_LISTED: usize = 100;
+
+/// Where and how long the Host keeps its runs (`vl host` flags).
+#[derive(Debug, Clone, Default, PartialEq, clap::Args)]
+pub struct RecordSettings {
+    /// Where every run is recorded, as MCAP files Foxglove opens (default:
+    /// vl/recordings in the user's data directory).
+    #[arg(long, value_hint = clap::ValueHint::DirPath)]
+    pub recordings: Option<PathBuf>,
+    /// Record nothing.
+    #[arg(long, conflicts_with = "recordings")]
+    pub no_record: bool,
+    /// Delete recordings older than this many days, oldest first.
+    #[arg(long, value_parser = positive)]
+    pub keep_days: Option<f64>,
+    /// Keep at most this many GB of recordings, deleting the oldest first.
+    #[arg(long, value_parser = positive)]
+    pub keep_gb: Option<f64>,
+}
+
+/// Milliseconds since 1970.
+pub(crate) fn now_ms() -> u64 {
+    SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .unwrap_or(Duration::ZERO)
+        .as_millis() as u64
+}
+
+fn positive(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        _ => Err(format!("\"{text}\" is not a positive number")),
+    }
+}
+
+impl RecordSettings {
+    /// The folder runs go to, made if missing; none with `--no-record`.
+    pub fn catalogue(&self) -> Result<Option<Catalogue>, RecordError> {
+        if self.no_record {
+            return Ok(None);
+        }
+        let mut catalogue = Catalogue::at(self.recordings.as_deref())?;
+        catalogue.keep_days = self.keep_days;
+        catalogue.keep_gb = self.keep_gb;
+        Ok(Some(catalogue))
+    }
+}
+
+/// The runs of a folder, as `vl record ls` lists them.
+#[derive(Debug, Clone, Serialize)]
+pub struct Runs(pub Vec<RecordedRun>);
+
+impl Report for Runs {
+    fn table(&self) -> Table {
+        let mut table = Table::columns(&["file", "run", "experiment", "who", "s", "MB", "ending"]);
+        for r in &self.0 {
+            table.row(vec![
+                r.name.to_string(),
+                r.run.to_string(),
+                r.experiment.to_string(),
+                r.user.clone().unwrap_or_else(|| "-".into()),
+                r.seconds.map_or_else(|| "-".into(), |s| format!("{s:.1}")),
+                format!("{:.1}", r.bytes as f64 / 1e6),
+                r.ending
+                    .map_or_else(|| "unfinished".into(), |e| e.to_string()),
+            ]);
+        }
+        table.note(format!("{} runs", self.0.len()))
+    }
+}
+
+/// Who a run is: the account that drove it, else the one connection
+/// (this Host's start and the connection's number) that did.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Owner {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub user: Option<String>,
+    pub connection: String,
+}
+
+impl Owner {
+    /// Whether someone who is `self` may see a run `of` owns.
+    fn sees(&self, of: &Owner) -> bool {
+        match (&self.user, &of.user) {
+            (Some(me), Some(them)) => me == them,
+            (None, None) => self.connection == of.connection,
+            _ => false,
+        }
+    }
+}
+
+/// The entry kept beside each run's file.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Entry {
+    run: RecordedRun,
+    owner: Owner,
+}
+
+/// A recordings folder.
+#[derive(Debug, Clone)]
+pub struct Catalogue {
+    dir: PathBuf,
+    keep_days: Option<f64>,
+    keep_gb: Option<f64>,
+    /// When this Host opened it, ms since 1970: a connection's number is
+    /// only this Host's.
+    opened_ms: u64,
+    /// The file being written now, which cannot be downloaded yet.
+    writing: Arc<Mutex<Option<RecordingName>>>,
+}
+
+impl Catalogue {
+    /// The folder at `dir`, made if it does not exist.
+    pub fn open(dir: &Path) -> Result<Catalogue, RecordError> {
+        std::fs::create_dir_all(dir).map_err(|e| RecordError::Io(dir.to_owned(), e))?;
+        Ok(Catalogue {
+            dir: dir.to_owned(),
+            keep_days: None,
+            keep_gb: None,
+            opened_ms: now_ms(),
+            writing: Arc::default(),
+        })
+    }
+
+    /// Who someone on connection `connection` is, with the account `user`.
+    pub(crate) fn owner(&self, user: Option<&str>, connection: u64) -> Owner {
+        Owner {
+            user: user.map(str::to_owned),
+            connection: format!("{}-{connection}", self.opened_ms),
+        }
+    }
+
+    /// The folder at `dir`, else the user's (made if missing).
+    pub fn at(dir: Option<&Path>) -> Result<Catalogue, RecordError> {
+        match dir {
+            Some(dir) => Catalogue::open(dir),
+            None => Catalogue::open(&Catalogue::default_dir().ok_or(RecordError::NoDataDir)?),
+        }
+    }
+
+    /// `$XDG_DATA_HOME/vl/recordings`, else `~/.local/share/vl/recordings`.
+    fn default_dir() -> Option<PathBuf> {
+        let data = std::env::var_os("XDG_DATA_HOME")
+            .map(PathBuf::from)
+            .filter(|p| p.is_absolute())
+            .or_else(|| {
+                std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local").join("share"))
+            })?;
+        Some(data.join("vl").join("recordings"))
+    }
+
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Says which file is being written (none: no file).
+    pub(crate) fn writing(&self, name: Option<&RecordingName>) {
+        *self.writing.lock().unwrap_or_else(|e| e.into_inner()) = name.cloned();
+    }
+
+    pub(crate) fn path(&self, name: &RecordingName) -> PathBuf {
+        self.dir.join(name.as_str())
+    }
+
+    fn entry_path(&self, name: &RecordingName) -> PathBuf {
+        self.dir.join(format!("{}.json", name.as_str()))
+    }
+
+    pub(crate) fn write_entry(&self, run: &RecordedRun, owner: &Owner) -> Result<(), RecordError> {
+        let path = self.entry_path(&run.name);
+        let entry = Entry {
+            run: run.clone(),
+            owner: owner.clone(),
+        };
+        let text = serde_json::to_vec_pretty(&entry).expect("entries serialise");
+        std::fs::write(&path, text).map_err(|e| RecordError::Io(path, e))
+    }
+
+    /// Every run with an entry, newest first, with its file's size now.
+    fn entries(&self) -> Vec<Entry> {
+        let Ok(listing) = std::fs::read_dir(&self.dir) else {
+            return Vec::new();
+        };
+        let mut entries: Vec<Entry> = listing
+            .filter_map(Result::ok)
+            .filter(|f| f.file_name().to_string_lossy().ends_with(".mcap.json"))
+            .filter_map(|f| {
+                let text = std::fs::read(f.path()).ok()?;
+                let mut entry: Entry = serde_json::from_slice(&text).ok()?;
+                entry.run.bytes = std::fs::metadata(self.path(&entry.run.name)).ok()?.len();
+                Some(entry)
+            })
+            .collect();
+        entries.sort_by_key(|e| std::cmp::Reverse((e.run.started_ms, e.run.run)));
+        entries
+    }
+
+    /// Every recorded run, newest first.
+    pub fn runs(&self) -> Runs {
+        Runs(self.entries().into_iter().map(|e| e.run).collect())
+    }
+
+    /// The newest runs `who` may see (their own, or every one for an
+    /// administrator), at most `MOST_LISTED`: the list fits one message.
+    pub fn visible(&self, who: &Owner, admin: bool) -> Vec<RecordedRun> {
+        self.entries()
+            .into_iter()
+            .filter(|e| admin || who.sees(&e.owner))
+            .take(MOST_LISTED)
+            .map(|e| e.run)
+            .collect()
+    }
+
+    /// The part of recording `name` from `offset` on, and the file's
+    /// length, if `who` may see it.
+    pub fn part(
+        &self,
+        name: &RecordingName,
+        offset: u64,
+        who: &Owner,
+        admin: bool,
+    ) -> Result<(u64, Vec<u8>), RecordError> {
+        let known = self
+            .entries()
+            .into_iter()
+            .any(|e| &e.run.name == name && (admin || who.sees(&e.owner)));
+        if !known {
+            return Err(RecordError::Unknown(name.clone()));
+        }
+        if self
+            .writing
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .as_ref()
+            == Some(name)
+        {
+            return Err(RecordError::StillWriting(name.clone()));
+        }
+        use std::io::{Read, Seek, SeekFrom};
+        let path = self.path(name);
+        let io = |e| RecordError::Io(path.clone(), e);
+        let mut file = std::fs::File::open(&path).map_err(io)?;
+        let total = file.metadata().map_err(io)?.len();
+        if offset > total {
+            return Err(RecordError::PastEnd { offset, total });
+        }
+        file.seek(SeekFrom::Start(offset)).map_err(io)?;
+        let mut bytes = Vec::with_capacity(PART_BYTES.min((total - offset) as usize));
+        file.take(PART_BYTES as u64)
+            .read_to_end(&mut bytes)
+            .map_err(io)?;
+        Ok((total, bytes))
+    }
+
+    /// Deletes the oldest runs past the retention limits, never `running`.
+    pub(crate) fn retain(&self, running: &RecordingName) {
+        if self.keep_days.is_none() && self.keep_gb.is_none() {
+            return;
+        }
+        let now_ms = now_ms();
+        let max_age_ms = self.keep_days.map(|d| (d * 86_400e3) as u64);
+        let max_bytes = self.keep_gb.map(|gb| (gb * 1e9) as u64);
+        let mut total: u64 = 0;
+        // Newest first: what is kept fills the limit before the old.
+        for entry in self.entries() {
+            let run = &entry.run;
+            let too_old = max_age_ms.is_some_and(|age| now_ms.saturating_sub(run.started_ms) > age);
+            let too_much = max_bytes.is_some_and(|most| total + run.bytes > most);
+            if &run.name == running || !(too_old || too_much) {
+                total += run.bytes;
+                continue;
+            }
+            info!(recording = %run.name, "deleted by the retention limits");
+            for path in [self.path(&run.name), self.entry_path(&run.name)] {
+                if let Err(e) = std::fs::remove_file(&path) {
+                    warn!("could not delete {}: {e}", path.display());
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,421 @@
+//! Reading a run's file back — whole, or as far as a crash let it be
+//! written — and rewriting a damaged one whole (`repair`).
+
+use std::collections::BTreeMap;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use mcap::read::{ChunkReader, LinearReader, Options};
+use mcap::records::{MessageHeader, Record};
+use serde::Serialize;
+use thiserror::Error;
+use vl_core::table::{Report, Table};
+use vl_core::{FrameHeader, HostMessage, ImageFormat, RecordingName, Summary, Wire};
+
+use super::Topic;
+
+/// The largest file read back.
+const MAX_FILE_BYTES: u64 = 8 << 30;
+
+#[derive(Debug, Error)]
+pub enum RecordError {
+    #[error("{0}: {1}")]
+    Io(PathBuf, std::io::Error),
+    #[error("the MCAP library: {0}")]
+    Mcap(#[from] mcap::McapError),
+    #[error("{0} is not an MCAP recording (it does not start with MCAP's magic)")]
+    NotMcap(PathBuf),
+    #[error("{0} is {1} bytes, over the {MAX_FILE_BYTES}-byte limit for reading a run")]
+    TooLarge(PathBuf, u64),
+    #[error("no data directory to keep recordings in: give --recordings DIR")]
+    NoDataDir,
+    #[error("no recording \"{0}\" that you may see")]
+    Unknown(RecordingName),
+    #[error("{0} is still being recorded: ask again once the run has ended")]
+    StillWriting(RecordingName),
+    #[error("offset {offset} is past the recording's end at {total} bytes")]
+    PastEnd { offset: u64, total: u64 },
+    #[error("{0} holds no run (no /lab channel): not a recording of vl's")]
+    NotARun(PathBuf),
+}
+
+/// A channel as the file declares it.
+#[derive(Debug, Clone)]
+struct Channel {
+    topic: String,
+    message_encoding: String,
+    schema: Option<(String, String, Vec<u8>)>,
+}
+
+/// One message read back.
+#[derive(Debug, Clone)]
+pub struct Message {
+    pub topic: String,
+    /// When it was logged, ns since 1970.
+    pub log_ns: u64,
+    pub publish_ns: u64,
+    pub data: Vec<u8>,
+    channel: u16,
+}
+
+/// A recorded run, read as far as it was written.
+#[derive(Debug, Clone)]
+pub struct Recording {
+    pub path: PathBuf,
+    pub messages: Vec<Message>,
+    /// Attachments by name (the definition, the robot, the lab, the Host's settings).
+    pub attachments: BTreeMap<String, Vec<u8>>,
+    pub metadata: BTreeMap<String, String>,
+    /// Whether the file was finished (its footer written); a crashed
+    /// Host's is not.
+    pub complete: bool,
+    /// Whether reading stopped at damage before the file's end.
+    pub damaged: bool,
+    pub bytes: u64,
+    channels: BTreeMap<u16, Channel>,
+}
+
+impl Recording {
+    /// Reads `path` up to its end or its first damage.
+    pub fn open(path: &Path) -> Result<Recording, RecordError> {
+        let io = |e| RecordError::Io(path.to_owned(), e);
+        let bytes = std::fs::metadata(path).map_err(io)?.len();
+        if bytes > MAX_FILE_BYTES {
+            return Err(RecordError::TooLarge(path.to_owned(), bytes));
+        }
+        let buf = std::fs::read(path).map_err(io)?;
+        if !buf.starts_with(mcap::MAGIC) {
+            return Err(RecordError::NotMcap(path.to_owned()));
+        }
+        let mut recording = Recording {
+            path: path.to_owned(),
+            messages: Vec::new(),
+            attachments: BTreeMap::new(),
+            metadata: BTreeMap::new(),
+            complete: false,
+            damaged: false,
+            bytes,
+            channels: BTreeMap::new(),
+        };
+        let mut schemas = BTreeMap::new();
+        for record in LinearReader::new_with_options(&buf, Options::IgnoreEndMagic.into())? {
+            let Ok(record) = record else {
+                recording.damaged = true;
+                break;
+            };
+            match record {
+                Record::Chunk { header, data } => {
+                    for inner in ChunkReader::new(header, &data)? {
+                        let Ok(inner) = inner else {
+                            recording.damaged = true;
+                            break;
+                        };
+                        recording.take(inner, &mut schemas);
+                    }
+                    if recording.damaged {
+                        break;
+                    }
+                }
+                Record::Footer(_) => recording.complete = true,
+                other => recording.take(other, &mut schemas),
+            }
+        }
+        recording.messages.sort_by_key(|m| m.log_ns);
+        Ok(recording)
+    }
+
+    fn take(&mut self, record: Record<'_>, schemas: &mut BTreeMap<u16, (String, String, Vec<u8>)>) {
+        match record {
+            Record::Schema { header, data } => {
+                schemas.insert(header.id, (header.name, header.encoding, data.into_owned()));
+            }
+            Record::Channel(c) => {
+                self.channels.insert(
+                    c.id,
+                    Channel {
+                        topic: c.topic,
+                        message_encoding: c.message_encoding,
+                        schema: schemas.get(&c.schema_id).cloned(),
+                    },
+                );
+            }
+            Record::Message { header, data } => {
+                if let Some(channel) = self.channels.get(&header.channel_id) {
+                    self.messages.push(Message {
+                        topic: channel.topic.clone(),
+                        log_ns: header.log_time,
+                        publish_ns: header.publish_time,
+                        data: data.into_owned(),
+                        channel: header.channel_id,
+                    });
+                }
+            }
+            Record::Attachment { header, data, .. } => {
+                self.attachments.insert(header.name, data.into_owned());
+            }
+            Record::Metadata(m) => self.metadata.extend(m.metadata),
+            _ => {}
+        }
+    }
+
+    /// The messages on `topic`.
+    pub fn on(&self, topic: &str) -> impl Iterator<Item = &Message> {
+        self.messages.iter().filter(move |m| m.topic == topic)
+    }
+
+    /// The run's summary, as its Guests were sent it.
+    pub fn summary(&self) -> Option<Summary> {
+        self.on(Topic::Summary.name()).find_map(|m| {
+            match HostMessage::decode(std::str::from_utf8(&m.data).ok()?).ok()? {
+                HostMessage::Done { summary } => Some(*summary),
+                _ => None,
+            }
+        })
+    }
+
+    /// The run as its Guests got it, in order: each message of the
+    /// protocol, or a camera frame on the wire, with its time (ns since
+    /// 1970). `vl guest --replay` plays this.
+    pub fn replay(&self) -> Result<Vec<(u64, Replayed)>, RecordError> {
+        if self.on(Topic::Lab.name()).next().is_none() {
+            return Err(RecordError::NotARun(self.path.clone()));
+        }
+        let replayed: Vec<&str> = Topic::REPLAYED.iter().map(|t| t.name()).collect();
+        let mut seq = 0;
+        let start = self.messages.first().map_or(0, |m| m.log_ns);
+        Ok(self
+            .messages
+            .iter()
+            .filter_map(|m| {
+                if m.topic == Topic::Camera.name() {
+                    seq += 1;
+                    let frame = camera_frame(&m.data, seq, m.publish_ns.saturating_sub(start))?;
+                    return Some((m.log_ns, Replayed::Frame(frame)));
+                }
+                if !replayed.contains(&m.topic.as_str()) {
+                    return None;
+                }
+                let message = HostMessage::decode(std::str::from_utf8(&m.data).ok()?).ok()?;
+                Some((m.log_ns, Replayed::Message(message)))
+            })
+            .collect())
+    }
+
+    /// What the file holds.
+    pub fn info(&self) -> RecordingInfo {
+        let mut topics: BTreeMap<&str, TopicCount> = BTreeMap::new();
+        for m in &self.messages {
+            let channel = &self.channels[&m.channel];
+            topics
+                .entry(&channel.topic)
+                .or_insert_with(|| TopicCount {
+                    topic: channel.topic.clone(),
+                    schema: channel
+                        .schema
+                        .as_ref()
+                        .map_or(String::new(), |s| s.0.clone()),
+                    messages: 0,
+                })
+                .messages += 1;
+        }
+        let span = match (self.messages.first(), self.messages.last()) {
+            (Some(a), Some(b)) => (b.log_ns - a.log_ns) as f64 * 1e-9,
+            _ => 0.0,
+        };
+        RecordingInfo {
+            file: self.path.display().to_string(),
+            bytes: self.bytes,
+            complete: self.complete,
+            seconds: span,
+            feedback_seconds: span_of(self.on(Topic::Feedback.name())),
+            metadata: self.metadata.clone(),
+            attachments: self.attachments.keys().cloned().collect(),
+            topics: topics.into_values().collect(),
+            summary: self.summary(),
+        }
+    }
+}
+
+fn span_of<'a>(messages: impl Iterator<Item = &'a Message>) -> f64 {
+    let times: Vec<u64> = messages.map(|m| m.log_ns).collect();
+    match (times.first(), times.last()) {
+        (Some(a), Some(b)) => (b - a) as f64 * 1e-9,
+        _ => 0.0,
+    }
+}
+
+/// One thing a replay feeds the Guest.
+#[derive(Debug, Clone)]
+pub enum Replayed {
+    Message(HostMessage),
+    /// A camera frame as the wire carries it.
+    Frame(Vec<u8>),
+}
+
+/// A recorded `foxglove.CompressedImage` back as the wire's frame.
+fn camera_frame(data: &[u8], seq: u64, since_start_ns: u64) -> Option<Vec<u8>> {
+    use base64::Engine;
+    let value: serde_json::Value = serde_json::from_slice(data).ok()?;
+    let jpeg = base64::engine::general_purpose::STANDARD
+        .decode(value["data"].as_str()?)
+        .ok()?;
+    let (width, height) = image::ImageReader::new(std::io::Cursor::new(&jpeg))
+        .with_guessed_format()
+        .ok()?
+        .into_dimensions()
+        .ok()?;
+    let header = FrameHeader {
+        format: ImageFormat::Jpeg,
+        width: u16::try_from(width).ok()?,
+        height: u16::try_from(height).ok()?,
+        seq,
+        event: 0,
+        capture_us: since_start_ns / 1000,
+    };
+    Some(header.encode(&jpeg))
+}
+
+/// Messages on one channel.
+#[derive(Debug, Clone, Serialize)]
+pub struct TopicCount {
+    pub topic: String,
+    pub schema: String,
+    pub messages: usize,
+}
+
+/// What `vl record info` says of a file.
+#[derive(Debug, Clone, Serialize)]
+pub struct RecordingInfo {
+    pub file: String,
+    pub bytes: u64,
+    pub complete: bool,
+    /// From the first message to the last, s.
+    pub seconds: f64,
+    /// From the first feedback to the last, s.
+    pub feedback_seconds: f64,
+    pub metadata: BTreeMap<String, String>,
+    pub attachments: Vec<String>,
+    pub topics: Vec<TopicCount>,
+    pub summary: Option<Summary>,
+}
+
+impl Report for RecordingInfo {
+    fn table(&self) -> Table {
+        let ending = self.summary.as_ref().map_or_else(
+            || "not recorded (the Host stopped first?)".to_owned(),
+            Summary::ending,
+        );
+        let finished = if self.complete {
+            "finished"
+        } else {
+            "unfinished: `vl record repair` rewrites it whole"
+        };
+        let mut table = Table::columns(&["channel", "schema", "messages"])
+            .title(format!(
+                "{}: {:.1} MB, {finished}",
+                self.file,
+                self.bytes as f64 / 1e6
+            ))
+            .title(format!(
+                "{:.1} s recorded, {:.1} s of feedback; the run: {ending}",
+                self.seconds, self.feedback_seconds
+            ));
+        for (key, value) in &self.metadata {
+            table = table.title(format!("{key}: {value}"));
+        }
+        for t in &self.topics {
+            table.row(vec![
+                t.topic.clone(),
+                t.schema.clone(),
+                t.messages.to_string(),
+            ]);
+        }
+        table.note(format!("attached: {}", self.attachments.join(", ")))
+    }
+}
+
+/// What `repair` kept.
+#[derive(Debug, Clone, Serialize)]
+pub struct Repaired {
+    pub from: String,
+    pub to: String,
+    pub messages: usize,
+    pub feedback_seconds: f64,
+    /// Whether the file was damaged or unfinished (else it was copied whole).
+    pub was_complete: bool,
+}
+
+impl Report for Repaired {
+    fn table(&self) -> Table {
+        Table::pairs([
+            ("from", self.from.clone()),
+            ("to", self.to.clone()),
+            ("messages kept", self.messages.to_string()),
+            ("feedback kept", format!("{:.1} s", self.feedback_seconds)),
+            (
+                "was finished",
+                if self.was_complete { "yes" } else { "no" }.to_owned(),
+            ),
+        ])
+    }
+}
+
+/// Rewrites `from` — as far as it can be read — as a finished file at `to`
+/// (by default beside it, as `NAME-repaired.mcap`).
+pub fn repair(from: &Path, to: Option<&Path>) -> Result<Repaired, RecordError> {
+    let recording = Recording::open(from)?;
+    let stem = from.file_stem().unwrap_or_default().to_string_lossy();
+    let beside = from.with_file_name(format!("{stem}-repaired.mcap"));
+    let to = to.unwrap_or(&beside);
+    let file = std::fs::File::create(to).map_err(|e| RecordError::Io(to.to_owned(), e))?;
+    let mut writer = mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .profile("")
+        .create(BufWriter::new(file))?;
+    writer.write_metadata(&mcap::records::Metadata {
+        name: "run".into(),
+        metadata: recording.metadata.clone(),
+    })?;
+    for (name, data) in &recording.attachments {
+        writer.attach(&mcap::Attachment {
+            log_time: 0,
+            create_time: 0,
+            name: name.clone(),
+            media_type: "application/json".into(),
+            data: data.as_slice().into(),
+        })?;
+    }
+    let mut ids = BTreeMap::new();
+    for (&old, channel) in &recording.channels {
+        let schema = match &channel.schema {
+            Some((name, encoding, data)) => writer.add_schema(name, encoding, data)?,
+            None => 0,
+        };
+        let id = writer.add_channel(
+            schema,
+            &channel.topic,
+            &channel.message_encoding,
+            &BTreeMap::new(),
+        )?;
+        ids.insert(old, id);
+    }
+    for (sequence, m) in recording.messages.iter().enumerate() {
+        writer.write_to_known_channel(
+            &MessageHeader {
+                channel_id: ids[&m.channel],
+                sequence: sequence as u32,
+                log_time: m.log_ns,
+                publish_time: m.publish_ns,
+            },
+            &m.data,
+        )?;
+    }
+    writer.finish()?;
+    Ok(Repaired {
+        from: from.display().to_string(),
+        to: to.display().to_string(),
+        messages: recording.messages.len(),
+        feedback_seconds: span_of(recording.on(Topic::Feedback.name())),
+        was_complete: recording.complete && !recording.damaged,
+    })
+}

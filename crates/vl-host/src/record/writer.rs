@@ -1,0 +1,470 @@
+//! The recorder: a thread that writes each run's file from what the lab
+//! and the hub hand it through a bounded queue, and never holds them up.
+
+use std::collections::HashMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::mpsc::{self, RecvTimeoutError, SyncSender, TrySendError};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use mcap::records::{MessageHeader, Metadata};
+use tokio_tungstenite::tungstenite::Bytes;
+use tracing::warn;
+use vl_core::{
+    Definition, FrameHeader, GuestMessage, HostMessage, MountedLab, Named, Pose, RecordedRun,
+    RecordingName, Wire,
+};
+
+use super::Topic;
+use super::catalogue::{Catalogue, Owner};
+use super::foxglove::{self, Level};
+
+/// Entries waiting for the recorder, at most…
+const QUEUE: usize = 4096;
+/// …of which camera frames may take no more than this: past it, frames
+/// are dropped and everything else still goes in.
+const FRAMES_QUEUED: usize = QUEUE / 2;
+/// A chunk is closed (and so readable after a crash) at least this often:
+/// twice a second, so a crash loses less than the second promised even
+/// when the recorder runs late.
+const FLUSH_EVERY: Duration = Duration::from_millis(500);
+
+/// What begins a run's file.
+pub(crate) struct Begin {
+    pub run: RecordedRun,
+    pub owner: Owner,
+    pub lab: MountedLab,
+    pub definition: Definition,
+    /// The Host's settings, kept with the run.
+    pub config: serde_json::Value,
+}
+
+/// What the recorder is handed.
+pub(crate) enum Entry {
+    Begin(Box<Begin>),
+    /// A message the Host sent its clients.
+    Sent(HostMessage),
+    /// A camera frame as sent (header and JPEG).
+    Frame(Bytes),
+    Command(GuestMessage),
+    RoundTrip {
+        connection: u64,
+        ms: f64,
+    },
+    /// In simulation, where the robot truly is.
+    Truth(Pose),
+    Log(Level, String),
+    /// The run's `done` has been recorded: close its file.
+    End,
+}
+
+struct Shared {
+    queue: SyncSender<(u64, Entry)>,
+    queued: AtomicUsize,
+    /// A run is being recorded: only then do the loops hand anything over.
+    active: AtomicBool,
+    dropped_frames: AtomicU64,
+    dropped: AtomicU64,
+    /// Nanoseconds since 1970 at the lab's clock's zero.
+    since_ns: u64,
+}
+
+/// A handle on the recorder; none when the Host records nothing.
+#[derive(Clone, Default)]
+pub(crate) struct Feed(Option<Arc<Shared>>);
+
+fn now_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+impl Feed {
+    /// Starts the recorder, writing into `catalogue`'s folder; `since` is
+    /// the lab's clock's zero, which frames' capture times count from.
+    pub(crate) fn spawn(catalogue: Catalogue, since: Instant) -> Feed {
+        let (queue, entries) = mpsc::sync_channel(QUEUE);
+        let shared = Arc::new(Shared {
+            queue,
+            queued: AtomicUsize::new(0),
+            active: AtomicBool::new(false),
+            dropped_frames: AtomicU64::new(0),
+            dropped: AtomicU64::new(0),
+            since_ns: now_ns().saturating_sub(since.elapsed().as_nanos() as u64),
+        });
+        let recorder = Recorder {
+            catalogue,
+            entries,
+            shared: shared.clone(),
+            file: None,
+        };
+        std::thread::Builder::new()
+            .name("vl-recorder".into())
+            .spawn(move || recorder.run())
+            .expect("the OS starts a thread");
+        Feed(Some(shared))
+    }
+
+    /// Whether a run is being recorded.
+    pub(crate) fn active(&self) -> bool {
+        self.0
+            .as_ref()
+            .is_some_and(|s| s.active.load(Ordering::Relaxed))
+    }
+
+    fn put(shared: &Shared, entry: Entry) {
+        shared.queued.fetch_add(1, Ordering::Relaxed);
+        if let Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) =
+            shared.queue.try_send((now_ns(), entry))
+        {
+            shared.queued.fetch_sub(1, Ordering::Relaxed);
+            shared.dropped.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    /// Hands `entry` over, while a run is recorded.
+    pub(crate) fn send(&self, entry: Entry) {
+        if let Some(shared) = self.0.as_ref().filter(|_| self.active()) {
+            Feed::put(shared, entry);
+        }
+    }
+
+    /// A run begins: its file opens, and from now on the loops hand over.
+    pub(crate) fn begin(&self, begin: Begin) -> Option<RecordingName> {
+        let shared = self.0.as_ref()?;
+        let name = begin.run.name.clone();
+        shared.dropped_frames.store(0, Ordering::Relaxed);
+        shared.dropped.store(0, Ordering::Relaxed);
+        shared.active.store(true, Ordering::Relaxed);
+        Feed::put(shared, Entry::Begin(Box::new(begin)));
+        Some(name)
+    }
+
+    /// The run's `done` was handed over: its file closes.
+    pub(crate) fn end(&self) {
+        if let Some(shared) = &self.0 {
+            Feed::put(shared, Entry::End);
+            shared.active.store(false, Ordering::Relaxed);
+        }
+    }
+
+    /// A camera frame, unless the queue is half full: frames go first.
+    pub(crate) fn frame(&self, wire: &Bytes) {
+        let Some(shared) = self.0.as_ref().filter(|_| self.active()) else {
+            return;
+        };
+        if shared.queued.load(Ordering::Relaxed) >= FRAMES_QUEUED {
+            shared.dropped_frames.fetch_add(1, Ordering::Relaxed);
+        } else {
+            Feed::put(shared, Entry::Frame(wire.clone()));
+        }
+    }
+
+    /// Frames dropped since the run began.
+    pub(crate) fn dropped_frames(&self) -> u64 {
+        self.0
+            .as_ref()
+            .map_or(0, |s| s.dropped_frames.load(Ordering::Relaxed))
+    }
+}
+
+struct Recorder {
+    catalogue: Catalogue,
+    entries: mpsc::Receiver<(u64, Entry)>,
+    shared: Arc<Shared>,
+    file: Option<RunFile>,
+}
+
+impl Recorder {
+    fn run(mut self) {
+        crate::priority::yield_to_control(RECORDER_NICE, "recorder");
+        loop {
+            match self.entries.recv_timeout(FLUSH_EVERY) {
+                Ok((ns, entry)) => {
+                    self.shared.queued.fetch_sub(1, Ordering::Relaxed);
+                    self.take(ns, entry);
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+            if let Some(file) = &mut self.file
+                && file.unflushed.is_some_and(|t| t.elapsed() >= FLUSH_EVERY)
+                && let Err(e) = file.flush()
+            {
+                warn!("the recording {} stops: {e}", file.run.name);
+                self.file = None;
+            }
+        }
+        self.close();
+    }
+
+    fn take(&mut self, ns: u64, entry: Entry) {
+        let result = match entry {
+            Entry::Begin(begin) => {
+                self.close();
+                let name = begin.run.name.clone();
+                self.catalogue.writing(Some(&name));
+                match RunFile::create(&self.catalogue, *begin, ns) {
+                    Ok(file) => {
+                        self.file = Some(file);
+                        self.catalogue.retain(&name);
+                        Ok(())
+                    }
+                    Err(e) => Err(e),
+                }
+            }
+            Entry::End => {
+                self.close();
+                Ok(())
+            }
+            entry => match &mut self.file {
+                Some(file) => file.write(ns, entry, self.shared.since_ns),
+                None => Ok(()),
+            },
+        };
+        if let Err(e) = result {
+            warn!("a run could not be recorded: {e}");
+            self.file = None;
+            self.catalogue.writing(None);
+        }
+    }
+
+    fn close(&mut self) {
+        if let Some(file) = self.file.take() {
+            let name = file.run.name.clone();
+            if let Err(e) = file.finish(&self.catalogue) {
+                warn!("the recording {name} could not be closed: {e}");
+            }
+        }
+        self.catalogue.writing(None);
+    }
+}
+
+/// The recorder gives way to the control loop and the network side as
+/// the camera's encoder does.
+const RECORDER_NICE: i32 = 10;
+
+/// A run's file while it is written.
+struct RunFile {
+    writer: mcap::Writer<BufWriter<File>>,
+    channels: HashMap<Topic, u16>,
+    /// The latest log time written: log times never go back.
+    last_ns: u64,
+    sequence: u32,
+    /// When the oldest message not yet in a closed chunk was written.
+    unflushed: Option<Instant>,
+    run: RecordedRun,
+    owner: Owner,
+    lab: MountedLab,
+    definition: Definition,
+    /// The robot's pose last reported, for the camera's annotations.
+    pose: Option<Pose>,
+}
+
+type Written = Result<(), super::RecordError>;
+
+impl RunFile {
+    fn create(catalogue: &Catalogue, begin: Begin, ns: u64) -> Result<RunFile, super::RecordError> {
+        let path = catalogue.path(&begin.run.name);
+        let file = File::create(&path).map_err(|e| super::RecordError::Io(path.clone(), e))?;
+        let mut writer = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .profile("")
+            .create(BufWriter::new(file))?;
+        let metadata = Metadata {
+            name: "run".into(),
+            metadata: [
+                ("run".to_owned(), begin.run.run.to_string()),
+                (
+                    "experiment".to_owned(),
+                    begin.run.experiment.id().to_owned(),
+                ),
+                ("arena".to_owned(), begin.lab.arena.name.clone()),
+                (
+                    "user".to_owned(),
+                    begin.owner.user.clone().unwrap_or_default(),
+                ),
+                (
+                    "host".to_owned(),
+                    format!("vl {}", env!("CARGO_PKG_VERSION")),
+                ),
+            ]
+            .into(),
+        };
+        writer.write_metadata(&metadata)?;
+        for (name, value) in [
+            (
+                "definition.json",
+                serde_json::to_vec_pretty(&begin.definition),
+            ),
+            ("robot.json", serde_json::to_vec_pretty(&begin.lab.robot)),
+            ("lab.json", serde_json::to_vec_pretty(&begin.lab)),
+            ("config.json", serde_json::to_vec_pretty(&begin.config)),
+        ] {
+            writer.attach(&mcap::Attachment {
+                log_time: ns,
+                create_time: ns,
+                name: name.into(),
+                media_type: "application/json".into(),
+                data: value.expect("the lab's types serialise").into(),
+            })?;
+        }
+        catalogue.write_entry(&begin.run, &begin.owner)?;
+        let mut file = RunFile {
+            writer,
+            channels: HashMap::new(),
+            last_ns: ns,
+            sequence: 0,
+            unflushed: None,
+            run: begin.run,
+            owner: begin.owner,
+            lab: begin.lab,
+            definition: begin.definition,
+            pose: None,
+        };
+        let mounted = HostMessage::Mounted(Box::new(file.lab.clone()));
+        file.put(Topic::Lab, ns, ns, mounted.encode().as_bytes())?;
+        let defined = HostMessage::Defined {
+            definition: file.definition.clone(),
+        };
+        file.put(Topic::Definition, ns, ns, defined.encode().as_bytes())?;
+        file.scene(ns)?;
+        let text = format!("run {} of {} begins", file.run.run, file.run.experiment);
+        file.foxglove(
+            Topic::Log,
+            ns,
+            &foxglove::log_message(ns, Level::Info, &text),
+        )?;
+        Ok(file)
+    }
+
+    /// Writes `data` on `topic`, its channel made on first use.
+    fn put(&mut self, topic: Topic, log_ns: u64, publish_ns: u64, data: &[u8]) -> Written {
+        let channel_id = match self.channels.get(&topic) {
+            Some(&id) => id,
+            None => {
+                let schema = topic.schema();
+                let body = serde_json::to_vec(&schema.body).expect("schemas serialise");
+                let schema_id = self.writer.add_schema(schema.name, "jsonschema", &body)?;
+                let id = self.writer.add_channel(
+                    schema_id,
+                    topic.name(),
+                    "json",
+                    &Default::default(),
+                )?;
+                self.channels.insert(topic, id);
+                id
+            }
+        };
+        self.last_ns = self.last_ns.max(log_ns);
+        self.sequence = self.sequence.wrapping_add(1);
+        self.writer.write_to_known_channel(
+            &MessageHeader {
+                channel_id,
+                sequence: self.sequence,
+                log_time: self.last_ns,
+                publish_time: publish_ns,
+            },
+            data,
+        )?;
+        self.unflushed.get_or_insert_with(Instant::now);
+        Ok(())
+    }
+
+    fn foxglove(&mut self, topic: Topic, ns: u64, value: &serde_json::Value) -> Written {
+        let data = serde_json::to_vec(value).expect("JSON values serialise");
+        self.put(topic, ns, ns, &data)
+    }
+
+    fn scene(&mut self, ns: u64) -> Written {
+        let scene = foxglove::scene(ns, &self.lab.arena, &self.definition, &self.lab.robot);
+        self.foxglove(Topic::Scene, ns, &scene)
+    }
+
+    fn write(&mut self, ns: u64, entry: Entry, since_ns: u64) -> Written {
+        match entry {
+            Entry::Sent(message) => self.sent(ns, message, since_ns),
+            Entry::Frame(wire) => self.frame(ns, &wire, since_ns),
+            Entry::Command(command) => {
+                self.put(Topic::Commands, ns, ns, command.encode().as_bytes())
+            }
+            Entry::RoundTrip { connection, ms } => {
+                let value = serde_json::json!({"connection": connection, "ms": ms});
+                self.foxglove(Topic::RoundTrip, ns, &value)
+            }
+            Entry::Truth(pose) => {
+                self.foxglove(Topic::TruePose, ns, &foxglove::pose_message(ns, pose))
+            }
+            Entry::Log(level, text) => {
+                self.foxglove(Topic::Log, ns, &foxglove::log_message(ns, level, &text))
+            }
+            Entry::Begin(_) | Entry::End => Ok(()),
+        }
+    }
+
+    fn sent(&mut self, ns: u64, message: HostMessage, since_ns: u64) -> Written {
+        let Some(topic) = Topic::of(&message) else {
+            return Ok(());
+        };
+        // Feedback is stamped with when the lab read the robot.
+        let ns = match &message {
+            HostMessage::Feedback { t_ms, .. } => since_ns + (t_ms.max(0.0) * 1e6) as u64,
+            _ => ns,
+        };
+        self.put(topic, ns, ns, message.encode().as_bytes())?;
+        match message {
+            HostMessage::Feedback { pose, .. } => {
+                self.pose = Some(pose);
+                self.foxglove(Topic::Pose, ns, &foxglove::pose_message(ns, pose))?;
+                self.foxglove(Topic::Transform, ns, &foxglove::transform(ns, pose))
+            }
+            HostMessage::Defined { definition } => {
+                self.definition = definition;
+                self.scene(ns)
+            }
+            HostMessage::Done { summary } => {
+                self.run.ending = Some(summary.reason);
+                self.run.seconds = Some(summary.seconds);
+                let text = format!("run {} ended: {}", self.run.run, summary.ending());
+                self.foxglove(
+                    Topic::Log,
+                    ns,
+                    &foxglove::log_message(ns, Level::Info, &text),
+                )
+            }
+            _ => Ok(()),
+        }
+    }
+
+    fn frame(&mut self, ns: u64, wire: &[u8], since_ns: u64) -> Written {
+        let Ok((header, jpeg)) = FrameHeader::decode(wire) else {
+            return Ok(());
+        };
+        let taken = since_ns + header.capture_us * 1000;
+        self.put(
+            Topic::Camera,
+            ns,
+            taken,
+            &serde_json::to_vec(&foxglove::image(taken, jpeg)).expect("JSON values serialise"),
+        )?;
+        let robot = self.pose.map(|p| (p, self.lab.robot.radius_mm));
+        let annotations =
+            foxglove::annotations(taken, &self.lab.camera, &self.definition.path, robot);
+        let data = serde_json::to_vec(&annotations).expect("JSON values serialise");
+        self.put(Topic::Annotations, ns, taken, &data)
+    }
+
+    /// Closes the chunk under way, so everything so far survives a crash.
+    fn flush(&mut self) -> Written {
+        self.writer.flush()?;
+        self.unflushed = None;
+        Ok(())
+    }
+
+    fn finish(mut self, catalogue: &Catalogue) -> Written {
+        self.writer.finish()?;
+        catalogue.write_entry(&self.run, &self.owner)
+    }
+}

@@ -1,0 +1,106 @@
+//! Every run recorded: the hub opens a run's file when it starts, hands the
+//! recorder what it sends everyone, and closes the file after `done`.
+
+use serde_json::json;
+use vl_core::{
+    Definition, Experiment, GuestMessage, HostMessage, RecordedRun, RecordingName, RecordingNote,
+    Summary,
+};
+
+use super::Hub;
+use crate::lab::Watching;
+use crate::record::{Begin, Entry, Level};
+
+/// The run being recorded, and the frames kept encoded for it while it
+/// lasts (as for a watcher: nobody watching, no frame is encoded).
+pub(super) struct Recording {
+    name: RecordingName,
+    _frames: Watching,
+}
+
+impl Hub {
+    /// Opens run `self.runs`'s file, with the lab as mounted, the
+    /// definition, the Host's settings and the forecast it passed.
+    pub(super) fn begin_recording(
+        &mut self,
+        id: u64,
+        experiment: Experiment,
+        definition: &Definition,
+    ) {
+        let Some(catalogue) = &self.config.recordings else {
+            return;
+        };
+        let Some(HostMessage::Mounted(lab)) = self.mounted() else {
+            return;
+        };
+        let started_ms = crate::record::now_ms();
+        let user = self.user_of(id);
+        let config = &self.config;
+        let begin = Begin {
+            run: RecordedRun {
+                name: RecordingName::of_run(started_ms, self.runs),
+                run: self.runs,
+                experiment,
+                started_ms,
+                user: user.clone(),
+                ending: None,
+                seconds: None,
+                bytes: 0,
+            },
+            owner: catalogue.owner(user.as_deref(), id),
+            lab: *lab,
+            definition: definition.clone(),
+            config: json!({
+                "experiments": config.experiments.iter().map(|e| e.to_string()).collect::<Vec<_>>(),
+                "lease_s": config.lease.as_secs_f64(),
+                "slot_s": config.slot.map(|s| s.as_secs_f64()),
+                "frames": format!("{:?}", config.frames),
+                "forecast": format!("{:?}", config.forecast),
+                "reset": config.reset,
+                "compensate_latency": config.compensate_latency,
+            }),
+        };
+        if let Some(name) = self.lab.record.begin(begin) {
+            self.recording = Some(Recording {
+                name,
+                _frames: Watching::new(&self.lab.watchers),
+            });
+            if let Some(verdict) = &self.verdict {
+                let forecast = HostMessage::Forecast(Box::new(verdict.clone()));
+                self.lab.record.send(Entry::Sent(forecast));
+            }
+        }
+    }
+
+    /// Says in the run's summary where it was recorded.
+    pub(super) fn note_recording(&self, summary: &mut Summary) {
+        summary.recording = self.recording.as_ref().map(|r| RecordingNote {
+            name: r.name.clone(),
+            dropped_frames: self.lab.record.dropped_frames(),
+        });
+    }
+
+    /// The run's `done` was sent: its file closes.
+    pub(super) fn end_recording(&mut self) {
+        if self.recording.take().is_some() {
+            self.lab.record.end();
+        }
+    }
+
+    /// Records what the Host sends everyone, while a run is recorded.
+    pub(super) fn record_sent(&self, message: &HostMessage) {
+        if self.lab.record.active() {
+            self.lab.record.send(Entry::Sent(message.clone()));
+        }
+    }
+
+    /// Records a warning in the run's log: a refusal, a fault.
+    pub(super) fn record_warning(&self, text: String) {
+        self.lab.record.send(Entry::Log(Level::Warning, text));
+    }
+
+    /// Records a command the run took.
+    pub(super) fn record_command(&self, command: GuestMessage) {
+        self.lab.record.send(Entry::Command(command));
+    }
+}

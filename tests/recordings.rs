@@ -1,0 +1,283 @@
+//! Every run kept: the Host records each run as an MCAP file in Foxglove's
+//! schemas, which an independent reader (Python's `mcap`, as Foxglove's
+//! own tools read it) opens; a Guest downloads it over the socket and plays
+//! it back to the summary it was sent live; a Host killed mid-run leaves a
+//! file `vl record repair` makes whole up to its last half second; and the
+//! socket gives a run's file to its own Guest only.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+
+use crate::common::peer::Peer;
+use crate::common::{self, s, scratch, start_host, vl_json};
+
+/// Foxglove's views and the schemas its panels know them by.
+const FOXGLOVE: [(&str, &str); 7] = [
+    ("/camera", "foxglove.CompressedImage"),
+    ("/camera/annotations", "foxglove.ImageAnnotations"),
+    ("/robot/pose", "foxglove.PoseInFrame"),
+    ("/robot/true_pose", "foxglove.PoseInFrame"),
+    ("/tf", "foxglove.FrameTransform"),
+    ("/scene", "foxglove.SceneUpdate"),
+    ("/log", "foxglove.Log"),
+];
+
+/// The Python with the `mcap` package: `.ci/run` installs it.
+fn python_with_mcap() -> Option<&'static str> {
+    ["python3", "/usr/bin/python3"].into_iter().find(|python| {
+        Command::new(python)
+            .args(["-c", "import mcap, zstandard"])
+            .output()
+            .is_ok_and(|o| o.status.success())
+    })
+}
+
+/// What Python's `mcap` reads in `file`, if it is here.
+fn read_independently(file: &Path) -> Option<Value> {
+    let Some(python) = python_with_mcap() else {
+        eprintln!("skipped the independent reader: no Python with mcap here (.ci/run installs it)");
+        return None;
+    };
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/recordings/read.py");
+    let out = Command::new(python)
+        .args([script, s(file)])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    Some(serde_json::from_slice(&out.stdout).expect("the reader prints JSON"))
+}
+
+/// `vl record info`'s count of messages on `topic`.
+fn count(info: &Value, topic: &str) -> u64 {
+    info["topics"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["topic"] == topic)
+        .map_or(0, |t| t["messages"].as_u64().unwrap())
+}
+
+#[test]
+fn a_run_is_recorded_for_foxglove_downloaded_and_replayed_to_the_same_summary() {
+    let dir = scratch("recordings-run");
+    let (recordings, downloads) = (dir.join("host"), dir.join("guest"));
+    let (_host, url) = start_host(&["--recordings", s(&recordings)]);
+    let report = common::headless_run(&url, 60, &["--download-to", s(&downloads)]);
+    assert_eq!(report["reached_goal"], true, "{report}");
+    let summary = &report["summary"];
+    let name = summary["recording"]["name"]
+        .as_str()
+        .expect("the summary names its file");
+    assert_eq!(summary["recording"]["dropped_frames"], 0);
+    let file = PathBuf::from(report["downloaded"].as_str().expect("downloaded"));
+    assert_eq!(
+        std::fs::read(&file).unwrap(),
+        std::fs::read(recordings.join(name)).unwrap(),
+        "the download differs from the Host's file"
+    );
+
+    let info = vl_json(&["record", "info", s(&file), "--json"]);
+    assert_eq!(info["complete"], true);
+    assert_eq!(&info["summary"], summary);
+    for (topic, schema) in FOXGLOVE {
+        let found = info["topics"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|t| t["topic"] == topic);
+        assert_eq!(
+            found.map(|t| &t["schema"]),
+            Some(&json!(schema)),
+            "{topic}: {info}"
+        );
+    }
+    // Feedback every 20 ms and every frame of a 15 fps camera, for as
+    // long as the run's feedback spans.
+    let seconds = info["feedback_seconds"].as_f64().unwrap();
+    let feedback = count(&info, "/feedback") as f64;
+    assert!(
+        (feedback - seconds / 0.02).abs() <= 0.1 * seconds / 0.02 + 2.0,
+        "{feedback} feedback in {seconds} s"
+    );
+    let frames = count(&info, "/camera");
+    assert!(
+        frames as f64 >= 0.8 * 15.0 * seconds,
+        "{frames} frames in {seconds} s"
+    );
+    assert_eq!(count(&info, "/camera/annotations"), frames);
+
+    let replayed = vl_json(&["guest", "--replay", s(&file), "--headless", "--json"]);
+    assert_eq!(&replayed["summary"], summary, "the replay ends elsewhere");
+    assert_eq!(replayed["feedback"], count(&info, "/feedback"));
+    assert_eq!(replayed["frames"], frames);
+
+    if let Some(read) = read_independently(&file) {
+        assert_eq!(read["monotonic"], true, "log times go back");
+        assert_eq!(read["jpegs"], frames, "not every image decodes");
+        assert_eq!(&read["summary"], summary);
+        for t in info["topics"].as_array().unwrap() {
+            let topic = t["topic"].as_str().unwrap();
+            assert_eq!(read["topics"][topic]["schema"], t["schema"], "{topic}");
+            assert_eq!(read["topics"][topic]["count"], t["messages"], "{topic}");
+            assert_eq!(read["topics"][topic]["encoding"], "json", "{topic}");
+        }
+    }
+
+    let listed = vl_json(&["record", "ls", s(&recordings), "--json"]);
+    assert_eq!(listed[0]["name"], name);
+    assert_eq!(listed[0]["ending"], "goal_reached");
+
+    let out = dir.join("export");
+    let exported = vl_json(&["record", "export", s(&file), "--out", s(&out), "--json"]);
+    assert_eq!(exported["feedback_rows"], count(&info, "/feedback"));
+    assert_eq!(exported["frames"], frames);
+    let csv = std::fs::read_to_string(out.join("feedback.csv")).unwrap();
+    assert_eq!(csv.lines().count() as u64, count(&info, "/feedback") + 1);
+    let pngs = std::fs::read_dir(out.join("frames")).unwrap().count() as u64;
+    assert_eq!(pngs, frames);
+    let exported_summary: Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(&exported_summary, summary);
+}
+
+/// The run's file, once the Host has begun it.
+fn first_recording(dir: &Path, within: Duration) -> PathBuf {
+    let deadline = Instant::now() + within;
+    loop {
+        let found = std::fs::read_dir(dir).ok().and_then(|entries| {
+            entries
+                .filter_map(Result::ok)
+                .map(|e| e.path())
+                .find(|p| p.extension().is_some_and(|x| x == "mcap"))
+        });
+        if let Some(file) = found {
+            return file;
+        }
+        assert!(Instant::now() < deadline, "no run was recorded in {dir:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn a_host_killed_mid_run_leaves_a_file_repair_makes_whole() {
+    let dir = scratch("recordings-kill");
+    let recordings = dir.join("host");
+    // The maze's goal is further than five seconds away.
+    let (mut host, url) = start_host(&["--arena", "maze", "--recordings", s(&recordings)]);
+    let mut guest = common::vl_command()
+        .args(["guest", "--connect", &url, "--headless", "--timeout", "60"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let file = first_recording(&recordings, Duration::from_secs(30));
+    std::thread::sleep(Duration::from_secs(5));
+    host.0.kill().unwrap(); // SIGKILL
+    host.0.wait().unwrap();
+    let _ = guest.kill();
+    let _ = guest.wait();
+
+    let info = vl_json(&["record", "info", s(&file), "--json"]);
+    assert_eq!(info["complete"], false, "a killed Host finished its file");
+    assert_eq!(info["summary"], Value::Null);
+    let repaired = dir.join("repaired.mcap");
+    let report = vl_json(&[
+        "record",
+        "repair",
+        s(&file),
+        "--out",
+        s(&repaired),
+        "--json",
+    ]);
+    assert_eq!(report["was_complete"], false);
+    let kept = report["feedback_seconds"].as_f64().unwrap();
+    assert!(
+        kept >= 4.0,
+        "only {kept:.2} s of feedback survived the kill"
+    );
+    let info = vl_json(&["record", "info", s(&repaired), "--json"]);
+    assert_eq!(info["complete"], true);
+    if let Some(read) = read_independently(&repaired) {
+        assert!(read["feedback_seconds"].as_f64().unwrap() >= 4.0, "{read}");
+        assert_eq!(read["monotonic"], true);
+    }
+}
+
+/// A run with the operator's commands, ended by the operator: its `done`.
+async fn recorded_run(operator: &mut Peer) -> Value {
+    operator.hello("operator").await;
+    operator.start("teleoperation").await;
+    operator.command(1, json!({"v": 20.0, "w": 0.0})).await;
+    operator.send(json!({"type": "stop"})).await;
+    operator.expect("done").await
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_run_is_its_own_guests_and_bad_requests_are_refused() {
+    let dir = scratch("recordings-socket");
+    let (_host, url) = start_host(&["--recordings", s(&dir)]);
+    let mut early = Peer::connect(&url).await;
+    early.send(json!({"type": "recordings"})).await;
+    early.expect_error("hello_first").await;
+
+    let mut operator = Peer::connect(&url).await;
+    let done = recorded_run(&mut operator).await;
+    let name = done["summary"]["recording"]["name"]
+        .as_str()
+        .expect("recorded")
+        .to_owned();
+    operator.send(json!({"type": "recordings"})).await;
+    let listed = operator.expect("recordings").await;
+    assert_eq!(listed["runs"][0]["name"], name.as_str(), "{listed}");
+    assert_eq!(listed["runs"][0]["experiment"], "teleoperation");
+
+    // Someone else sees nothing of it and gets nothing of it.
+    let mut other = Peer::connect(&url).await;
+    other.hello("observer").await;
+    other.send(json!({"type": "recordings"})).await;
+    assert_eq!(other.expect("recordings").await["runs"], json!([]));
+    other
+        .send(json!({"type": "download", "name": name, "offset": 0}))
+        .await;
+    other.expect_error("unknown_recording").await;
+
+    for bad in ["../../etc/passwd.mcap", "/etc/passwd", "run.txt", ""] {
+        operator
+            .send(json!({"type": "download", "name": bad}))
+            .await;
+        operator.expect_error("bad_message").await;
+    }
+    operator
+        .send(json!({"type": "download", "name": "run-1-1.mcap"}))
+        .await;
+    operator.expect_error("unknown_recording").await;
+    // Its own run comes as binary parts once its file is closed (until
+    // then the Host says to ask again).
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let frames = operator.frames;
+        operator
+            .send(json!({"type": "download", "name": name}))
+            .await;
+        operator.send(json!({"type": "ping", "t": 1.0})).await;
+        let answer = operator
+            .next_of_any(&["pong", "error"], Duration::from_secs(5))
+            .await
+            .expect("an answer");
+        if answer["type"] == "pong" && operator.frames > frames {
+            break;
+        }
+        if answer["type"] == "error" {
+            assert_eq!(answer["code"], "not_allowed_now", "{answer}");
+        }
+        assert!(Instant::now() < deadline, "the run's file never came");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    operator
+        .send(json!({"type": "download", "name": name, "offset": 1u64 << 40}))
+        .await;
+    operator.expect_error("unknown_recording").await;
+}
