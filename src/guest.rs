@@ -40,6 +40,10 @@ pub(crate) struct GuestArgs {
     /// shoulder or trigger) is held.
     #[arg(long)]
     dead_man: bool,
+    /// Play a recorded run (an .mcap file the Host wrote) back instead of
+    /// connecting: in the window, or with --headless to its end.
+    #[arg(long, value_hint = clap::ValueHint::FilePath)]
+    replay: Option<std::path::PathBuf>,
     #[command(flatten)]
     run: RunArgs,
 }
@@ -86,6 +90,9 @@ pub(crate) struct RunArgs {
     /// Where a headless run drives to, x,y mm (default: the arena's goal).
     #[arg(long, allow_hyphen_values = true)]
     goal: Option<vl_core::Point>,
+    /// After a headless run, download its recording into this folder.
+    #[arg(long, value_hint = clap::ValueHint::DirPath)]
+    download_to: Option<std::path::PathBuf>,
 }
 
 /// A Guest error: an address that cannot be a Host's is the user's input.
@@ -106,6 +113,14 @@ pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Resul
     } else {
         Role::Operator
     };
+    if let Some(file) = &args.replay {
+        let bad = |e: vl_host::RecordError| BadInput(format!("--replay: {e}"));
+        match args.headless {
+            true => emit(&vl_guest::replay_headless(file).map_err(bad)?, args.json)?,
+            false => vl_guest::run_replay_window(vl_guest::Replay::open(file).map_err(bad)?)?,
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
     if args.headless {
         let script = script(&args.run, args.login.login()?, !args.json);
         if role == Role::Observer {
@@ -182,6 +197,7 @@ fn script(run: &RunArgs, login: Login, progress: bool) -> Script {
         login,
         timeout: Duration::from_secs_f64(run.timeout.clamp(0.0, 1e6)),
         progress,
+        download_to: run.download_to.clone(),
         ..Script::default()
     }
 }

@@ -1223,3 +1223,108 @@ fn the_forecast_is_previewed_before_start_and_a_refusal_is_shown() {
         "the refusal is shown in red"
     );
 }
+
+/// Where pixels of `colour` are on average in `image`, if any are.
+fn centroid_of(image: &image::RgbaImage, colour: [u8; 3]) -> Option<(f64, f64)> {
+    let (mut n, mut x, mut y) = (0.0, 0.0, 0.0);
+    for (px, py, p) in image.enumerate_pixels() {
+        if p.0[..3]
+            .iter()
+            .zip(colour)
+            .all(|(a, b)| a.abs_diff(b) <= 10)
+        {
+            n += 1.0;
+            x += f64::from(px);
+            y += f64::from(py);
+        }
+    }
+    (n > 0.0).then(|| (x / n, y / n))
+}
+
+/// Drags the replay's time slider to `fraction` of the run, as a hand does.
+fn scrub(harness: &mut Harness<'_, GuestApp>, fraction: f32) {
+    let rail = harness
+        .get_by_role_and_label(egui::accesskit::Role::Slider, "time")
+        .rect();
+    let x = (rail.left() + fraction * rail.width()).min(rail.right() - 2.0);
+    let at = egui::pos2(x, rail.center().y);
+    drag(harness, at, at);
+    for _ in 0..5 {
+        harness.step();
+    }
+}
+
+/// A run the Host recorded, downloaded by its Guest, plays back in the
+/// window: paused and scrubbed, the camera shows the robot where it was.
+#[test]
+fn a_downloaded_run_replays_in_the_window_and_scrubbing_moves_the_robot() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let dir = common::scratch("replay-window");
+    let config = HostConfig {
+        recordings: Some(vl_host::Catalogue::open(&dir.join("host")).unwrap()),
+        ..HostConfig::default()
+    };
+    let listen = "127.0.0.1:0".parse().unwrap();
+    let host = runtime
+        .block_on(Host::start_sim(
+            listen,
+            SimLab::new(Arena::navigation()),
+            config,
+        ))
+        .unwrap();
+    let script = vl_guest::Script {
+        download_to: Some(dir.join("guest")),
+        ..vl_guest::Script::default()
+    };
+    let report = runtime
+        .block_on(vl_guest::run_script(&host.url(), &script))
+        .unwrap();
+    let file = report.downloaded.expect("the run's file was downloaded");
+    let replay = vl_guest::Replay::open(&file).unwrap();
+    let mut harness = Harness::builder()
+        .with_size(Vec2::new(1100.0, 720.0))
+        .wgpu()
+        .build_ui_state(
+            |ui, app: &mut GuestApp| app.show(ui),
+            GuestApp::replaying(replay),
+        );
+    harness.step();
+    harness.get_by_label("Pause").click();
+    harness.step();
+    scrub(&mut harness, 0.02);
+    let early = harness.render().unwrap();
+    let at_start = harness.state_mut().replay().unwrap().at_s;
+    scrub(&mut harness, 0.98);
+    let late = harness.render().unwrap();
+    let at_end = harness.state_mut().replay().unwrap().at_s;
+    late.save(common::scratch("replay-window-shot").join("replay.png"))
+        .unwrap();
+    std::fs::create_dir_all(concat!(env!("CARGO_MANIFEST_DIR"), "/target/tmp")).unwrap();
+    late.save(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/target/tmp/guest-window-replay.png"
+    ))
+    .unwrap();
+    assert!(
+        at_end > at_start + 2.0,
+        "the slider went from {at_start} s to {at_end} s"
+    );
+    let from = centroid_of(&early, BODY).expect("the robot in the early frame");
+    let to = centroid_of(&late, BODY).expect("the robot in the late frame");
+    let moved = ((to.0 - from.0).powi(2) + (to.1 - from.1).powi(2)).sqrt();
+    assert!(
+        moved > 50.0,
+        "the robot moved {moved:.0} px between {at_start:.1} s and {at_end:.1} s"
+    );
+    scrub(&mut harness, 1.0);
+    assert_eq!(
+        harness
+            .state()
+            .session()
+            .done
+            .as_ref()
+            .map(|d| d.reached_goal),
+        Some(true),
+        "scrubbed to the end, the replay shows the run's end"
+    );
+}

@@ -16,7 +16,9 @@ use thiserror::Error;
 use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::tungstenite::{self, Message};
-use vl_core::{FrameHeader, GuestMessage, HostMessage, MAX_FRAME_BYTES, MAX_TEXT_BYTES, Wire};
+use vl_core::{
+    FrameHeader, GuestMessage, HostMessage, MAX_FRAME_BYTES, MAX_TEXT_BYTES, PartHeader, Wire,
+};
 
 /// How often the Guest measures the round trip.
 const PING_EVERY: Duration = Duration::from_millis(200);
@@ -29,6 +31,8 @@ pub enum Incoming {
     Message(Box<HostMessage>),
     /// A camera frame: its header and encoded image bytes.
     Frame(FrameHeader, Vec<u8>),
+    /// A part of a recording asked for with `download`.
+    Part(PartHeader, Vec<u8>),
     /// A round trip (ping → pong) took this many ms.
     RoundTrip(f64),
     /// The Host has not been reached yet: trying again (attempt 1, 2, …)
@@ -181,6 +185,18 @@ impl Waiting {
 }
 
 impl Connection {
+    /// A connection to no Host: nothing comes, what is sent goes nowhere
+    /// (the window playing a recording back).
+    pub fn detached() -> Connection {
+        let (outgoing, _) = mpsc::unbounded_channel();
+        let (_, incoming) = mpsc::unbounded_channel();
+        Connection {
+            outgoing,
+            incoming,
+            waiting: Arc::default(),
+        }
+    }
+
     /// The next thing from the Host; none once the connection's task ended.
     pub async fn recv(&mut self) -> Option<Incoming> {
         let incoming = self.incoming.recv().await?;
@@ -537,6 +553,12 @@ async fn carry(
                         let _ = deliver.send(Incoming::Message(Box::new(message)));
                     }
                     Err(e) => tracing::warn!("ignoring a message from the Host: {e}"),
+                },
+                Some(Ok(Message::Binary(bytes))) if PartHeader::is_part(&bytes) => match PartHeader::decode(&bytes) {
+                    Ok((header, part)) => {
+                        let _ = deliver.send(Incoming::Part(header, part.to_vec()));
+                    }
+                    Err(e) => tracing::warn!("ignoring a recording's part from the Host: {e}"),
                 },
                 Some(Ok(Message::Binary(bytes))) => match FrameHeader::decode(&bytes) {
                     Ok((header, image)) => {

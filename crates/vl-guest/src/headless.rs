@@ -38,6 +38,8 @@ pub struct Script {
     pub pacing: Pacing,
     /// How long an unreachable Host is tried again before giving up.
     pub connect_within: Duration,
+    /// Download the run's recording into this folder once it ends.
+    pub download_to: Option<std::path::PathBuf>,
 }
 
 impl Default for Script {
@@ -50,6 +52,7 @@ impl Default for Script {
             progress: false,
             pacing: Pacing::Event,
             connect_within: Duration::from_secs(10),
+            download_to: None,
         }
     }
 }
@@ -95,6 +98,10 @@ pub struct Report {
     /// run started.
     #[serde(skip)]
     pub gaps: Vec<(f64, u64)>,
+    /// The run's summary as the Host sent it, and its recording downloaded.
+    pub summary: Summary,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub downloaded: Option<std::path::PathBuf>,
 }
 
 #[derive(Debug, Error)]
@@ -117,6 +124,8 @@ pub enum ScriptError {
     NoPath(#[from] ArenaPlanError),
     #[error("the definition, tried on the lab's twin, is {0}")]
     Forecast(String),
+    #[error("the run's recording: {0}")]
+    Download(#[from] crate::recordings::DownloadError),
 }
 
 impl ScriptError {
@@ -220,8 +229,15 @@ impl Scripted {
 
     /// The run's report, once its summary has come; says goodbye, so the
     /// role is free for the next operator at once.
-    async fn report(mut self, route: Route) -> Report {
+    async fn report(mut self, route: Route, script: &Script) -> Result<Report, ScriptError> {
         let summary = self.session.done.clone().expect("done");
+        let downloaded = crate::recordings::download_run(
+            &mut self.connection,
+            script.download_to.as_deref(),
+            &summary,
+            (self.progress, self.deadline),
+        )
+        .await?;
         let report = Report {
             reached_goal: summary.reached_goal,
             reason: summary.reason,
@@ -236,7 +252,7 @@ impl Scripted {
             round_trip_ms: RoundTripMs::from(&self.session.round_trips),
             pose_source: summary.pose_source,
             planned: route.definition.path,
-            path: summary.path,
+            path: summary.path.clone(),
             forecast: summary.forecast,
             commands: self.session.sent_event,
             max_event_gap: summary.max_event_gap,
@@ -244,9 +260,11 @@ impl Scripted {
             prediction_error_mm: self.session.prediction_error,
             stale_error_mm: self.session.stale_error,
             gaps: std::mem::take(&mut self.session.gaps),
+            summary,
+            downloaded,
         };
         self.connection.close().await;
-        report
+        Ok(report)
     }
 }
 
@@ -395,7 +413,7 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
         other => other?,
     }
 
-    Ok(guest.report(route).await)
+    guest.report(route, script).await
 }
 
 /// How close to a waypoint the operator moves on to the next, mm.
@@ -533,7 +551,7 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
             );
         }
     }
-    Ok(guest.report(route).await)
+    guest.report(route, script).await
 }
 
 /// What an observer saw.

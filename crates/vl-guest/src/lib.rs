@@ -47,12 +47,16 @@ mod headless;
 mod login;
 mod netview;
 mod predict;
+mod recordings;
+mod replay;
 mod route;
 mod session;
 mod settings;
 mod status;
 
-pub use app::{CAMERA_VIEW, GuestApp, WindowError, display_available, run_window};
+pub use app::{
+    CAMERA_VIEW, GuestApp, WindowError, display_available, run_replay_window, run_window,
+};
 pub use client::{ClientError, Connection, GOODBYE_WAIT, Incoming, open};
 #[cfg(target_os = "linux")]
 pub use gamepad::Gamepad;
@@ -63,6 +67,8 @@ pub use headless::{
 };
 pub use login::Login;
 pub use predict::Predictor;
+pub use recordings::{DownloadError, download};
+pub use replay::{Replay, ReplayReport, replay_headless};
 pub use route::{EditRefused, Route, check_path, drag_path};
 pub use session::{
     CameraFrame, Devices, InLine, Link, Pacing, RobotState, RoundTrips, Session, Spread,

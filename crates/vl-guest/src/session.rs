@@ -176,6 +176,8 @@ pub struct Session {
     pub round_trips: RoundTrips,
     /// What the Host refused since the last thing that went through.
     pub errors: Vec<(ErrorCode, String)>,
+    /// The recorded runs the Host last listed for this Guest.
+    pub recordings: Option<Vec<vl_core::RecordedRun>>,
     /// The last run's summary.
     pub done: Option<Summary>,
     /// Event number of the last command sent in this run.
@@ -232,6 +234,7 @@ impl Default for Session {
     fn default() -> Self {
         Session {
             link: Link::Connecting,
+            recordings: None,
             role: None,
             user: None,
             session_id: None,
@@ -279,6 +282,8 @@ impl Session {
         match incoming {
             Incoming::Message(message) => self.apply_message(*message),
             Incoming::Frame(header, bytes) => self.apply_frame(header, bytes),
+            // Downloads take their parts from the connection themselves.
+            Incoming::Part(..) => {}
             Incoming::RoundTrip(ms) => {
                 self.round_trips.push(ms);
                 self.predictor.round_trip(ms);
@@ -407,6 +412,7 @@ impl Session {
                     .map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6)));
             }
             // The connection answers pings and bye itself.
+            HostMessage::Recordings { runs } => self.recordings = Some(runs),
             HostMessage::Ping { .. } | HostMessage::Pong { .. } | HostMessage::Bye => {}
         }
     }

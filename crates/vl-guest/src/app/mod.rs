@@ -107,6 +107,8 @@ pub struct GuestApp {
     typed_login: (String, String),
     /// Where the forecast's preview is.
     preview: preview::Preview,
+    /// The recorded run played back instead of a Host's live one.
+    replay: Option<crate::replay::Replay>,
 }
 
 impl GuestApp {
@@ -120,7 +122,12 @@ impl GuestApp {
             login,
         };
         let connection = GuestApp::connect(&address)?;
-        Ok(GuestApp {
+        Ok(GuestApp::on(address, connection))
+    }
+
+    /// The window on `connection`, at `address`.
+    fn on(address: Address, connection: Connection) -> Self {
+        GuestApp {
             address,
             session: Session::default(),
             connection,
@@ -144,7 +151,25 @@ impl GuestApp {
             typed_login: Default::default(),
             preview: Default::default(),
             welcomes: 0,
-        })
+            replay: None,
+        }
+    }
+
+    /// A window playing `replay` back, connected to no Host.
+    pub fn replaying(replay: crate::replay::Replay) -> Self {
+        let address = Address {
+            url: replay.file.clone(),
+            role: Role::Observer,
+            login: Login::default(),
+        };
+        let mut app = GuestApp::on(address, Connection::detached());
+        app.replay = Some(replay);
+        app
+    }
+
+    /// The replay, when the window plays one back.
+    pub fn replay(&mut self) -> Option<&mut crate::replay::Replay> {
+        self.replay.as_mut()
     }
 
     /// The window with the settings kept in `file` (loaded now, saved on
@@ -188,6 +213,9 @@ impl GuestApp {
         self.pump();
         let ctx = ui.ctx().clone();
         self.drive(&ctx);
+        if let Some(replay) = &mut self.replay {
+            egui::Panel::top("replay").show(ui, |ui| replay.controls(ui));
+        }
         egui::Panel::top("status").show(ui, |ui| self.status_bar(ui));
         egui::Panel::left("controls")
             .default_size(270.0)
@@ -196,7 +224,7 @@ impl GuestApp {
             });
         if self.session.is_operator() {
             egui::Panel::bottom("joystick").show(ui, |ui| self.joystick(ui));
-        } else if self.session.role.is_some() {
+        } else if self.session.role.is_some() && self.replay.is_none() {
             egui::Panel::bottom("watching").show(ui, |ui| {
                 ui.label(
                     "You are watching: only the operator drives. STOP (Space) is for everyone.",
@@ -214,7 +242,8 @@ impl GuestApp {
             .robot
             .as_ref()
             .is_some_and(|r| r.wheels.left_mm_s.abs().max(r.wheels.right_mm_s.abs()) > 0.5);
-        let busy = self.session.running
+        let busy = self.replay.as_ref().is_some_and(|r| r.playing)
+            || self.session.running
             || !self.session.ready()
             || moving
             || self.asked != Joystick::default();
@@ -225,6 +254,9 @@ impl GuestApp {
     fn pump(&mut self) {
         let was_mounted = self.session.lab.clone();
         let was_running = self.session.running;
+        if let Some(replay) = &mut self.replay {
+            replay.advance(&mut self.session);
+        }
         while let Some(incoming) = self.connection.try_recv() {
             self.session.apply(incoming);
         }
@@ -249,7 +281,10 @@ impl GuestApp {
         if self.session.running && !was_running && self.session.done.is_none() {
             self.trail.clear();
         }
-        if let Some(robot) = self.session.robot.as_ref().filter(|_| self.session.running) {
+        if let Some(replay) = &self.replay {
+            // Scrubbed anywhere, the trail is where the robot went until then.
+            self.trail = replay.trail(TRAIL_STEP_MM);
+        } else if let Some(robot) = self.session.robot.as_ref().filter(|_| self.session.running) {
             let p = robot.pose.point();
             if self.trail.len() < TRAIL_KEPT
                 && self
@@ -362,7 +397,7 @@ impl GuestApp {
             )
             .fill(STOP_COLOUR);
             stop = ui
-                .add_enabled(s.link == Link::Open, button)
+                .add_enabled(s.link == Link::Open && self.replay.is_none(), button)
                 .on_hover_text("Emergency stop: the robot stops and the run ends (Space or Esc)")
                 .clicked();
             if matches!(s.link, Link::Closed(_)) {
@@ -431,6 +466,7 @@ impl GuestApp {
                 &format!("{reason} — trying again (attempt {attempt})"),
                 Color32::YELLOW,
             ),
+            Link::Open if self.replay.is_some() => add("a recorded run", Color32::LIGHT_BLUE),
             Link::Open => add("connected", Color32::GREEN),
             Link::Reconnecting { attempt, reason } => add(
                 &format!("link lost ({reason}): reconnecting, attempt {attempt}…"),
@@ -438,7 +474,7 @@ impl GuestApp {
             ),
             Link::Closed(why) => add(&format!("not connected: {why}"), Color32::RED),
         }
-        if let (Some(role), Some(id)) = (s.role, s.session_id) {
+        if let (Some(role), Some(id), None) = (s.role, s.session_id, &self.replay) {
             add(&format!("{role}, session {id}"), Color32::GRAY);
         }
         if let (Some(Role::Operator), Some(ends)) = (s.role, s.slot_ends) {
@@ -498,6 +534,15 @@ pub fn run_window(
     if let Some(pad) = pad {
         app = app.with_pad(pad);
     }
+    show_window(app)
+}
+
+/// Opens the Guest window playing the recorded run `replay` back.
+pub fn run_replay_window(replay: crate::replay::Replay) -> Result<(), WindowError> {
+    show_window(GuestApp::replaying(replay))
+}
+
+fn show_window(app: GuestApp) -> Result<(), WindowError> {
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title("vl guest")

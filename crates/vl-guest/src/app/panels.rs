@@ -2,7 +2,9 @@
 //! obstacles, the settings) and execute, and the on-screen joystick.
 
 use egui::{Color32, Sense, Stroke, Vec2};
-use vl_core::{Action, Definition, ErrorCode, Experiment, GuestMessage, LOOKAHEAD_MM, Role};
+use vl_core::{
+    Action, Definition, EndReason, ErrorCode, Experiment, GuestMessage, LOOKAHEAD_MM, Role,
+};
 
 use super::{FORCE_COLOUR, GuestApp, JOYSTICK_PX, ROBOT_COLOUR};
 use crate::login::Login;
@@ -12,8 +14,11 @@ use crate::settings::{MARGIN_MM, MAX_SPEED_MM_S};
 
 impl GuestApp {
     pub(super) fn controls(&mut self, ui: &mut egui::Ui) {
-        self.account_panel(ui);
-        if self.session.role == Some(Role::Observer) {
+        // A recording played back has no Host to log in to or ask.
+        if self.replay.is_none() {
+            self.account_panel(ui);
+        }
+        if self.session.role == Some(Role::Observer) && self.replay.is_none() {
             self.line_panel(ui);
         }
         ui.heading("Mount");
@@ -63,6 +68,7 @@ impl GuestApp {
             }
             if let Some(done) = &self.session.done {
                 let goal = match (lab.experiment, done.reached_goal) {
+                    (_, true) if done.reason == EndReason::GoalReached => "",
                     (_, true) => ", goal reached",
                     (Experiment::Navigation, false) => ", goal not reached",
                     (Experiment::Teleoperation, false) => "",
