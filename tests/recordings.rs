@@ -218,7 +218,10 @@ async fn recorded_run(operator: &mut Peer) -> Value {
 #[tokio::test(flavor = "multi_thread")]
 async fn a_run_is_its_own_guests_and_bad_requests_are_refused() {
     let dir = scratch("recordings-socket");
-    let (_host, url) = start_host(&["--recordings", s(&dir)]);
+    // Where runs go comes from the lab's file, beside it.
+    let lab = dir.join("lab.toml");
+    std::fs::write(&lab, "recordings = \"runs\"\nkeep-gb = 1\n").unwrap();
+    let (_host, url) = start_host(&["--config", s(&lab)]);
     let mut early = Peer::connect(&url).await;
     early.send(json!({"type": "recordings"})).await;
     early.expect_error("hello_first").await;
@@ -229,6 +232,8 @@ async fn a_run_is_its_own_guests_and_bad_requests_are_refused() {
         .as_str()
         .expect("recorded")
         .to_owned();
+    let file = dir.join("runs").join(&name);
+    assert!(file.exists(), "not recorded where lab.toml says");
     operator.send(json!({"type": "recordings"})).await;
     let listed = operator.expect("recordings").await;
     assert_eq!(listed["runs"][0]["name"], name.as_str(), "{listed}");
@@ -280,4 +285,45 @@ async fn a_run_is_its_own_guests_and_bad_requests_are_refused() {
         .send(json!({"type": "download", "name": name, "offset": 1u64 << 40}))
         .await;
     operator.expect_error("unknown_recording").await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn the_time_between_runs_is_recorded_for_administrators_only() {
+    let dir = scratch("recordings-idle");
+    let (_host, url) = start_host(&["--recordings", s(&dir), "--record-idle"]);
+    let mut operator = Peer::connect(&url).await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let done = recorded_run(&mut operator).await;
+    let run = done["summary"]["recording"]["name"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    operator.send(json!({"type": "recordings"})).await;
+    let listed = operator.expect("recordings").await;
+    assert_eq!(listed["runs"].as_array().unwrap().len(), 1, "{listed}");
+    assert_eq!(listed["runs"][0]["name"], run.as_str());
+
+    // Before the run, the run, and after it (still being written).
+    let all = vl_json(&["record", "ls", s(&dir), "--json"]);
+    let names: Vec<&str> = all
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names.len(), 3, "{all}");
+    assert!(
+        names[0].starts_with("idle-") && names[2].starts_with("idle-"),
+        "{names:?}"
+    );
+    assert_eq!(names[1], run);
+    assert_eq!(all[2]["experiment"], Value::Null);
+    let before = dir.join(names[2]);
+    let info = vl_json(&["record", "info", s(&before), "--json"]);
+    assert_eq!(
+        info["complete"], true,
+        "the run's start closes the time before it"
+    );
+    assert!(count(&info, "/feedback") > 0, "{info}");
+    assert_eq!(count(&info, "/summary"), 0);
 }

@@ -29,8 +29,9 @@ pub const PART_BYTES: usize = 256 << 10;
 /// The longest name a recording has.
 const MAX_NAME: usize = 64;
 
-/// A recording's file name: `run-<ms since 1970>-<run>.mcap`, nothing that
-/// could reach outside the recordings folder.
+/// A recording's file name: `run-<ms since 1970>-<run>.mcap` (or
+/// `idle-<ms>.mcap` between runs), nothing that could reach outside the
+/// recordings folder.
 #[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(try_from = "String", into = "String")]
 pub struct RecordingName(String);
@@ -47,6 +48,11 @@ impl RecordingName {
     /// The name of run `run` begun at `started_ms` (ms since 1970).
     pub fn of_run(started_ms: u64, run: u64) -> RecordingName {
         RecordingName(format!("run-{started_ms}-{run}.mcap"))
+    }
+
+    /// The name of the time between runs from `started_ms` on.
+    pub fn between_runs(started_ms: u64) -> RecordingName {
+        RecordingName(format!("idle-{started_ms}.mcap"))
     }
 
     pub fn as_str(&self) -> &str {
@@ -94,9 +100,11 @@ impl std::fmt::Display for RecordingName {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RecordedRun {
     pub name: RecordingName,
-    /// The run's number at its Host.
+    /// The run's number at its Host (0: the time between runs).
     pub run: u64,
-    pub experiment: Experiment,
+    /// The experiment run; none for the time between runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub experiment: Option<Experiment>,
     /// When it began, ms since 1970 (UTC).
     pub started_ms: u64,
     /// Who drove it, when they had an account.

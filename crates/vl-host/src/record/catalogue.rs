@@ -32,6 +32,10 @@ pub struct RecordSettings {
     /// Keep at most this many GB of recordings, deleting the oldest first.
     #[arg(long, value_parser = positive)]
     pub keep_gb: Option<f64>,
+    /// Record the time between runs too (files idle-*.mcap, for
+    /// administrators), not only the runs.
+    #[arg(long)]
+    pub record_idle: bool,
 }
 
 /// Milliseconds since 1970.
@@ -58,6 +62,7 @@ impl RecordSettings {
         let mut catalogue = Catalogue::at(self.recordings.as_deref())?;
         catalogue.keep_days = self.keep_days;
         catalogue.keep_gb = self.keep_gb;
+        catalogue.record_idle = self.record_idle;
         Ok(Some(catalogue))
     }
 }
@@ -73,7 +78,8 @@ impl Report for Runs {
             table.row(vec![
                 r.name.to_string(),
                 r.run.to_string(),
-                r.experiment.to_string(),
+                r.experiment
+                    .map_or_else(|| "between runs".into(), |e| e.to_string()),
                 r.user.clone().unwrap_or_else(|| "-".into()),
                 r.seconds.map_or_else(|| "-".into(), |s| format!("{s:.1}")),
                 format!("{:.1}", r.bytes as f64 / 1e6),
@@ -123,6 +129,8 @@ pub struct Catalogue {
     opened_ms: u64,
     /// The file being written now, which cannot be downloaded yet.
     writing: Arc<Mutex<Option<RecordingName>>>,
+    /// Whether the time between runs is recorded too.
+    pub(crate) record_idle: bool,
 }
 
 impl Catalogue {
@@ -135,6 +143,7 @@ impl Catalogue {
             keep_gb: None,
             opened_ms: now_ms(),
             writing: Arc::default(),
+            record_idle: false,
         })
     }
 
@@ -293,5 +302,110 @@ impl Catalogue {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vl_core::Experiment;
+
+    const DAY_MS: u64 = 86_400_000;
+
+    /// A folder holding a run of 1,000 bytes begun `age_ms` ago for each
+    /// `(age_ms, owner)`, numbered from 1.
+    fn folder(test: &str, runs: &[(u64, &Owner)]) -> (Catalogue, Vec<RecordingName>) {
+        let dir = std::env::temp_dir().join(format!("vl-{test}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let catalogue = Catalogue::open(&dir).unwrap();
+        let names = runs
+            .iter()
+            .zip(1..)
+            .map(|(&(age_ms, owner), run)| {
+                let started_ms = now_ms() - age_ms;
+                let name = RecordingName::of_run(started_ms, run);
+                std::fs::write(catalogue.path(&name), [0u8; 1000]).unwrap();
+                let recorded = RecordedRun {
+                    name: name.clone(),
+                    run,
+                    experiment: Some(Experiment::Navigation),
+                    started_ms,
+                    user: owner.user.clone(),
+                    ending: None,
+                    seconds: None,
+                    bytes: 0,
+                };
+                catalogue.write_entry(&recorded, owner).unwrap();
+                name
+            })
+            .collect();
+        (catalogue, names)
+    }
+
+    fn names(runs: Vec<RecordedRun>) -> Vec<RecordingName> {
+        runs.into_iter().map(|r| r.name).collect()
+    }
+
+    #[test]
+    fn the_oldest_go_first_and_the_one_running_never() {
+        let owner = Owner {
+            user: None,
+            connection: "1-1".into(),
+        };
+        let (mut catalogue, runs) = folder(
+            "retain",
+            &[(10 * DAY_MS, &owner), (5 * DAY_MS, &owner), (0, &owner)],
+        );
+        catalogue.keep_days = Some(7.0);
+        // The ten-day-old run is the one being written: it stays.
+        catalogue.retain(&runs[0]);
+        assert_eq!(names(catalogue.runs().0).len(), 3);
+        catalogue.retain(&runs[2]);
+        assert_eq!(
+            names(catalogue.runs().0),
+            vec![runs[2].clone(), runs[1].clone()]
+        );
+        assert!(!catalogue.path(&runs[0]).exists(), "its file stayed");
+        // 1.5 kB: only the newest run fits.
+        catalogue.keep_days = None;
+        catalogue.keep_gb = Some(1.5e-6);
+        catalogue.retain(&runs[2]);
+        assert_eq!(names(catalogue.runs().0), vec![runs[2].clone()]);
+        let _ = std::fs::remove_dir_all(catalogue.dir());
+    }
+
+    #[test]
+    fn each_sees_their_own_runs_and_an_administrator_all() {
+        let ada = Owner {
+            user: Some("ada".into()),
+            connection: "1-1".into(),
+        };
+        let anonymous = Owner {
+            user: None,
+            connection: "1-2".into(),
+        };
+        let (catalogue, runs) = folder("visible", &[(2, &ada), (1, &anonymous)]);
+        let ada_again = Owner {
+            connection: "2-9".into(),
+            ..ada.clone()
+        };
+        assert_eq!(
+            names(catalogue.visible(&ada_again, false)),
+            vec![runs[0].clone()]
+        );
+        assert_eq!(
+            names(catalogue.visible(&anonymous, false)),
+            vec![runs[1].clone()]
+        );
+        let stranger = Owner {
+            user: None,
+            connection: "1-3".into(),
+        };
+        assert!(catalogue.visible(&stranger, false).is_empty());
+        assert!(catalogue.part(&runs[1], 0, &stranger, false).is_err());
+        assert_eq!(catalogue.visible(&stranger, true).len(), 2);
+        let (total, bytes) = catalogue.part(&runs[1], 200, &anonymous, false).unwrap();
+        assert_eq!((total, bytes.len()), (1000, 800));
+        let _ = std::fs::remove_dir_all(catalogue.dir());
     }
 }

@@ -279,7 +279,11 @@ impl RunFile {
                 ("run".to_owned(), begin.run.run.to_string()),
                 (
                     "experiment".to_owned(),
-                    begin.run.experiment.id().to_owned(),
+                    begin
+                        .run
+                        .experiment
+                        .map_or("between runs", |e| e.id())
+                        .to_owned(),
                 ),
                 ("arena".to_owned(), begin.lab.arena.name.clone()),
                 (
@@ -331,7 +335,10 @@ impl RunFile {
         };
         file.put(Topic::Definition, ns, ns, defined.encode().as_bytes())?;
         file.scene(ns)?;
-        let text = format!("run {} of {} begins", file.run.run, file.run.experiment);
+        let text = match file.run.experiment {
+            Some(experiment) => format!("run {} of {experiment} begins", file.run.run),
+            None => "the time between runs".to_owned(),
+        };
         file.foxglove(
             Topic::Log,
             ns,

@@ -242,13 +242,14 @@ pub async fn operator_latency(
     let mut operator = teleoperating(&url, Some(ACCOUNT.1)).await?;
     let began = Instant::now();
     let mut took = time_commands(&mut operator, 1, commands, || false).await?;
-    let seconds = began.elapsed().as_secs_f64();
     // The next command's event, carried through the rounds.
     let mut event = took.len() as u64 + 1;
     let under_guessing = guessing(&mut operator, &url, &mut event, commands).await?;
     let while_forecasting = forecasting(&mut operator, &mut event, commands).await?;
     let _ = say(&mut operator, &GuestMessage::Bye).await;
     let _ = stop_tx.send(true);
+    // The observers read from the first round to the last.
+    let seconds = began.elapsed().as_secs_f64();
     let mut fed = Vec::new();
     while let Some(counts) = watching.join_next().await {
         fed.push(counts.unwrap_or_default());

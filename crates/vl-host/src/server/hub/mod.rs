@@ -206,6 +206,7 @@ impl Hub {
     pub(crate) async fn run(mut self, mut inbox: mpsc::Receiver<ToHub>) {
         let mut lease = tokio::time::interval(LEASE_CHECK);
         let mut status = self.lab.status.clone();
+        self.begin_idle();
         loop {
             tokio::select! {
                 // The lab sets a device's state before it ends the run that

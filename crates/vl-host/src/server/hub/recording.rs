@@ -3,13 +3,13 @@
 
 use serde_json::json;
 use vl_core::{
-    Definition, Experiment, GuestMessage, HostMessage, RecordedRun, RecordingName, RecordingNote,
-    Summary,
+    Definition, Experiment, GuestMessage, HostMessage, MountedLab, RecordedRun, RecordingName,
+    RecordingNote, Summary,
 };
 
 use super::Hub;
 use crate::lab::Watching;
-use crate::record::{Begin, Entry, Level};
+use crate::record::{Begin, Entry, Level, Owner};
 
 /// The run being recorded, and the frames kept encoded for it while it
 /// lasts (as for a watcher: nobody watching, no frame is encoded).
@@ -30,37 +30,24 @@ impl Hub {
         let Some(catalogue) = &self.config.recordings else {
             return;
         };
-        let Some(HostMessage::Mounted(lab)) = self.mounted() else {
-            return;
-        };
         let started_ms = crate::record::now_ms();
         let user = self.user_of(id);
-        let config = &self.config;
-        let begin = Begin {
-            run: RecordedRun {
-                name: RecordingName::of_run(started_ms, self.runs),
-                run: self.runs,
-                experiment,
-                started_ms,
-                user: user.clone(),
-                ending: None,
-                seconds: None,
-                bytes: 0,
-            },
-            owner: catalogue.owner(user.as_deref(), id),
-            lab: *lab,
-            definition: definition.clone(),
-            config: json!({
-                "experiments": config.experiments.iter().map(|e| e.to_string()).collect::<Vec<_>>(),
-                "lease_s": config.lease.as_secs_f64(),
-                "slot_s": config.slot.map(|s| s.as_secs_f64()),
-                "frames": format!("{:?}", config.frames),
-                "forecast": format!("{:?}", config.forecast),
-                "reset": config.reset,
-                "compensate_latency": config.compensate_latency,
-            }),
+        let run = RecordedRun {
+            name: RecordingName::of_run(started_ms, self.runs),
+            run: self.runs,
+            experiment: Some(experiment),
+            started_ms,
+            user: user.clone(),
+            ending: None,
+            seconds: None,
+            bytes: 0,
         };
-        if let Some(name) = self.lab.record.begin(begin) {
+        let owner = catalogue.owner(user.as_deref(), id);
+        if let Some(name) = self
+            .lab
+            .record
+            .begin(self.beginning(run, owner, definition))
+        {
             self.recording = Some(Recording {
                 name,
                 _frames: Watching::new(&self.lab.watchers),
@@ -72,6 +59,57 @@ impl Hub {
         }
     }
 
+    /// With `--record-idle`, begins the file of the time until the next
+    /// run, which only administrators see.
+    pub(super) fn begin_idle(&mut self) {
+        let Some(catalogue) = self.config.recordings.as_ref().filter(|c| c.record_idle) else {
+            return;
+        };
+        let started_ms = crate::record::now_ms();
+        let run = RecordedRun {
+            name: RecordingName::between_runs(started_ms),
+            run: 0,
+            experiment: None,
+            started_ms,
+            user: None,
+            ending: None,
+            seconds: None,
+            bytes: 0,
+        };
+        let owner = catalogue.owner(None, 0);
+        let definition = self.definition.clone().unwrap_or_default();
+        self.lab
+            .record
+            .begin(self.beginning(run, owner, &definition));
+    }
+
+    /// What a file begins with: the lab as mounted (as it stands, before a
+    /// mount), the definition and the Host's settings.
+    fn beginning(&self, run: RecordedRun, owner: Owner, definition: &Definition) -> Begin {
+        let info = &self.lab.info;
+        let config = &self.config;
+        Begin {
+            run,
+            owner,
+            lab: MountedLab {
+                experiment: self.experiment.unwrap_or(config.experiments[0]),
+                arena: info.arena.clone(),
+                robot: info.robot.clone(),
+                camera: info.camera,
+            },
+            definition: definition.clone(),
+            config: json!({
+                "experiments": config.experiments.iter().map(|e| e.to_string()).collect::<Vec<_>>(),
+                "lease_s": config.lease.as_secs_f64(),
+                "slot_s": config.slot.map(|s| s.as_secs_f64()),
+                "frames": format!("{:?}", config.frames),
+                "forecast": format!("{:?}", config.forecast),
+                "reset": config.reset,
+                "compensate_latency": config.compensate_latency,
+            }),
+        }
+    }
+
     /// Says in the run's summary where it was recorded.
     pub(super) fn note_recording(&self, summary: &mut Summary) {
         summary.recording = self.recording.as_ref().map(|r| RecordingNote {
@@ -80,10 +118,12 @@ impl Hub {
         });
     }
 
-    /// The run's `done` was sent: its file closes.
+    /// The run's `done` was sent: its file closes (and the time until the
+    /// next run's begins, when that is recorded).
     pub(super) fn end_recording(&mut self) {
         if self.recording.take().is_some() {
             self.lab.record.end();
+            self.begin_idle();
         }
     }
 
