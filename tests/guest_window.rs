@@ -1327,4 +1327,27 @@ fn a_downloaded_run_replays_in_the_window_and_scrubbing_moves_the_robot() {
         Some(true),
         "scrubbed to the end, the replay shows the run's end"
     );
+    // The results beside it: paths, tracking error, wheels, round trip.
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Button, "Results")
+        .click();
+    for _ in 0..5 {
+        harness.step();
+    }
+    harness.get_by_label("off the planned path, mm, against s");
+    let results = &harness.state_mut().replay().unwrap().results;
+    assert!(results.followed.len() > 100 && results.planned.len() > 10);
+    assert!(
+        results.tracking_error_mm.iter().all(|[_, e]| *e < 20.0),
+        "a run far off its path"
+    );
+    assert!(!results.forecast.is_empty() && !results.round_trip_ms.is_empty());
+    harness
+        .render()
+        .unwrap()
+        .save(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/target/tmp/guest-window-results.png"
+        ))
+        .unwrap();
 }

@@ -49,6 +49,7 @@ mod netview;
 mod predict;
 mod recordings;
 mod replay;
+mod results;
 mod route;
 mod session;
 mod settings;
@@ -69,6 +70,7 @@ pub use login::Login;
 pub use predict::Predictor;
 pub use recordings::{DownloadError, download};
 pub use replay::{Replay, ReplayReport, replay_headless};
+pub use results::Results;
 pub use route::{EditRefused, Route, check_path, drag_path};
 pub use session::{
     CameraFrame, Devices, InLine, Link, Pacing, RobotState, RoundTrips, Session, Spread,

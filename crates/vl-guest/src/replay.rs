@@ -11,6 +11,7 @@ use vl_core::{FrameHeader, HostMessage, Point, Role, Summary};
 use vl_host::{RecordError, Recording, Replayed};
 
 use crate::client::Incoming;
+use crate::results::Results;
 use crate::session::Session;
 
 /// The speeds a replay plays at.
@@ -28,6 +29,9 @@ pub struct Replay {
     pub playing: bool,
     pub speed: f64,
     last_tick: Option<Instant>,
+    /// The run's results, and whether they are shown.
+    pub results: Results,
+    pub show_results: bool,
 }
 
 impl Replay {
@@ -35,6 +39,12 @@ impl Replay {
         let recording = Recording::open(path)?;
         let replayed = recording.replay()?;
         let start = replayed.first().map_or(0, |(ns, _)| *ns);
+        let since_start = |ns: u64| ns.saturating_sub(start) as f64 * 1e-9;
+        let round_trips = recording
+            .round_trips()
+            .into_iter()
+            .map(|(ns, ms)| [since_start(ns), ms])
+            .collect();
         let items: Vec<(f64, Incoming)> = replayed
             .into_iter()
             .filter_map(|(ns, item)| {
@@ -45,10 +55,12 @@ impl Replay {
                         Incoming::Frame(header, image.to_vec())
                     }
                 };
-                Some((ns.saturating_sub(start) as f64 * 1e-9, incoming))
+                Some((since_start(ns), incoming))
             })
             .collect();
         Ok(Replay {
+            results: Results::of(&items, round_trips),
+            show_results: false,
             file: path.display().to_string(),
             duration_s: items.last().map_or(0.0, |(t, _)| *t),
             items,
@@ -157,7 +169,19 @@ impl Replay {
                         ui.selectable_value(&mut self.speed, speed, format!("{speed}×"));
                     }
                 });
+            ui.toggle_value(&mut self.show_results, "Results");
         });
+        let mut open = self.show_results;
+        let right = ui.ctx().content_rect().right();
+        egui::Window::new("Results")
+            .open(&mut open)
+            .default_pos([right - 400.0, 70.0])
+            .default_width(380.0)
+            .default_height(600.0)
+            .show(ui.ctx(), |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.results.show(ui, self.at_s));
+            });
+        self.show_results = open;
     }
 }
 

@@ -163,6 +163,16 @@ impl Recording {
         self.messages.iter().filter(move |m| m.topic == topic)
     }
 
+    /// Each round trip the Host measured: when (ns since 1970), and ms.
+    pub fn round_trips(&self) -> Vec<(u64, f64)> {
+        self.on(Topic::RoundTrip.name())
+            .filter_map(|m| {
+                let value: serde_json::Value = serde_json::from_slice(&m.data).ok()?;
+                Some((m.log_ns, value["ms"].as_f64()?))
+            })
+            .collect()
+    }
+
     /// The run's summary, as its Guests were sent it.
     pub fn summary(&self) -> Option<Summary> {
         self.on(Topic::Summary.name()).find_map(|m| {

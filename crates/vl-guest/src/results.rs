@@ -1,0 +1,141 @@
+//! A run's results, plotted from its recording: the planned, followed and
+//! forecast paths over the floor, the tracking error, the wheel speeds and
+//! the force over time, and the round trip — what a student hands in and a
+//! teacher grades, beside the replay.
+
+use egui_plot::{Legend, Line, Plot, PlotPoints, VLine};
+use vl_core::{HostMessage, Point, distance_to_polyline};
+
+use crate::client::Incoming;
+
+/// A series of (x, y) points.
+type Series = Vec<[f64; 2]>;
+
+/// What the plots draw, read once from the recording.
+#[derive(Debug, Clone, Default)]
+pub struct Results {
+    pub planned: Series,
+    pub followed: Series,
+    /// Each seed's forecast path.
+    pub forecast: Vec<Series>,
+    /// Against the run's time, s.
+    pub tracking_error_mm: Series,
+    pub left_mm_s: Series,
+    pub right_mm_s: Series,
+    pub force: Series,
+    pub round_trip_ms: Series,
+}
+
+fn xy(p: Point) -> [f64; 2] {
+    [p.x_mm, p.y_mm]
+}
+
+impl Results {
+    /// The results of the run in `items` (what a replay feeds, with its
+    /// time in s) and the round trips measured during it (time, ms).
+    pub(crate) fn of(items: &[(f64, Incoming)], round_trips: Series) -> Results {
+        let mut results = Results {
+            round_trip_ms: round_trips,
+            ..Results::default()
+        };
+        let mut path: Vec<Point> = Vec::new();
+        for (t, incoming) in items {
+            let Incoming::Message(message) = incoming else {
+                continue;
+            };
+            match &**message {
+                HostMessage::Defined { definition } => {
+                    path = definition.path.clone();
+                    results.planned = path.iter().map(|&p| xy(p)).collect();
+                }
+                HostMessage::Forecast(verdict) => {
+                    results.forecast = verdict
+                        .forecast
+                        .runs
+                        .iter()
+                        .map(|run| run.path.iter().map(|&p| xy(p)).collect())
+                        .collect();
+                }
+                HostMessage::Feedback {
+                    pose,
+                    wheels,
+                    force,
+                    ..
+                } => {
+                    results.followed.push(xy(pose.point()));
+                    if path.len() >= 2 {
+                        let error = distance_to_polyline(&path, pose.point());
+                        results.tracking_error_mm.push([*t, error]);
+                    }
+                    results.left_mm_s.push([*t, wheels.left_mm_s]);
+                    results.right_mm_s.push([*t, wheels.right_mm_s]);
+                    if let Some([fx, fy]) = force {
+                        results.force.push([*t, fx.hypot(*fy)]);
+                    }
+                }
+                _ => {}
+            }
+        }
+        results
+    }
+
+    /// The plots, with the replay's time `at_s` marked on those over time.
+    pub fn show(&self, ui: &mut egui::Ui, at_s: f64) {
+        let line = |name: &str, series: &Series| Line::new(name, PlotPoints::from(series.clone()));
+        ui.label("the floor, mm");
+        Plot::new("paths")
+            .height(220.0)
+            .data_aspect(1.0)
+            .legend(Legend::default())
+            .show(ui, |plot| {
+                for (i, run) in self.forecast.iter().enumerate() {
+                    let name = if i == 0 { "forecast" } else { "" };
+                    plot.line(line(name, run).color(egui::Color32::from_rgb(150, 150, 255)));
+                }
+                plot.line(
+                    line("planned", &self.planned).color(egui::Color32::from_rgb(250, 220, 40)),
+                );
+                plot.line(
+                    line("followed", &self.followed).color(egui::Color32::from_rgb(40, 200, 255)),
+                );
+            });
+        let over_time = |ui: &mut egui::Ui, id: &str, title: &str, series: &[(&str, &Series)]| {
+            ui.label(title);
+            Plot::new(id)
+                .height(110.0)
+                .legend(Legend::default())
+                .show(ui, |plot| {
+                    for (name, s) in series {
+                        plot.line(line(name, s));
+                    }
+                    plot.vline(VLine::new("now", at_s));
+                });
+        };
+        over_time(
+            ui,
+            "tracking",
+            "off the planned path, mm, against s",
+            &[("error", &self.tracking_error_mm)],
+        );
+        over_time(
+            ui,
+            "wheels",
+            "wheel speeds, mm/s, against s",
+            &[("left", &self.left_mm_s), ("right", &self.right_mm_s)],
+        );
+        if !self.force.is_empty() {
+            over_time(
+                ui,
+                "force",
+                "force fed back, against s",
+                &[("force", &self.force)],
+            );
+        }
+        over_time(
+            ui,
+            "rtt",
+            "round trip, ms, against s",
+            &[("round trip", &self.round_trip_ms)],
+        );
+    }
+}
