@@ -93,12 +93,14 @@ pub(crate) struct RunArgs {
     /// After a headless run, download its recording into this folder.
     #[arg(long, value_hint = clap::ValueHint::DirPath)]
     download_to: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    task: vl_guest::TaskArgs,
 }
 
 /// A Guest error: an address that cannot be a Host's is the user's input.
 fn guest_error(e: impl Into<anyhow::Error>) -> anyhow::Error {
     let e = e.into();
-    let bad = e.downcast_ref().is_some_and(ScriptError::is_bad_address)
+    let bad = e.downcast_ref().is_some_and(ScriptError::is_bad_input)
         || e.downcast_ref().is_some_and(WindowError::is_bad_address);
     if bad {
         BadInput(e.to_string()).into()
@@ -198,6 +200,7 @@ fn script(run: &RunArgs, login: Login, progress: bool) -> Script {
         timeout: Duration::from_secs_f64(run.timeout.clamp(0.0, 1e6)),
         progress,
         download_to: run.download_to.clone(),
+        task: run.task.clone(),
         ..Script::default()
     }
 }

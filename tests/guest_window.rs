@@ -1351,3 +1351,70 @@ fn a_downloaded_run_replays_in_the_window_and_scrubbing_moves_the_robot() {
         ))
         .unwrap();
 }
+
+/// A definition saved as a task in the window is loaded back and defined
+/// again as it was; a name that could reach outside the folder is refused.
+#[test]
+fn a_task_is_saved_and_loaded_back_in_the_window() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let host = host_without_camera(&runtime, HostConfig::default());
+    let _entered = runtime.enter();
+    let tasks_dir = common::scratch("window-tasks");
+    let app = GuestApp::new(&host.url(), Role::Operator, Login::default())
+        .unwrap()
+        .with_tasks(vl_guest::Tasks::at(&tasks_dir));
+    let mut harness = Harness::builder()
+        .with_size(Vec2::new(1100.0, 720.0))
+        .wgpu()
+        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
+    mount_navigation(&mut harness, |s| s.lab.is_some() && s.robot.is_some());
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
+        .click();
+    step_until(&mut harness, "define", |app| {
+        app.session().definition.is_some()
+    });
+    let defined = harness.state().session().definition.clone().unwrap();
+    harness.get_by_label("Tasks").click();
+    harness.step();
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::TextInput, "Name")
+        .type_text("../escape");
+    harness.get_by_label("Save").click();
+    harness.step();
+    harness.get_by_label_contains("cannot name a task");
+    assert!(std::fs::read_dir(&tasks_dir).map_or(true, |mut d| d.next().is_none()));
+
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::TextInput, "Name")
+        .focus();
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::TextInput, "Name")
+        .type_text("first lap");
+    harness.get_by_label("Save").click();
+    harness.step();
+    harness.get_by_label_contains("Saved the definition as \"first lap\"");
+    let saved: vl_guest::Task =
+        serde_json::from_slice(&std::fs::read(tasks_dir.join("first lap.json")).unwrap()).unwrap();
+    assert_eq!(saved.definition, defined);
+
+    harness.get_by_label("Load \"first lap\"").click();
+    let defines = harness.state().session().forecasts;
+    step_until(&mut harness, "define the task again", |app| {
+        app.session().forecasts > defines
+    });
+    harness.get_by_label_contains("Loaded \"first lap\"");
+    harness
+        .render()
+        .unwrap()
+        .save(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/target/tmp/guest-window-tasks.png"
+        ))
+        .unwrap();
+    assert_eq!(
+        harness.state().session().definition.as_ref(),
+        Some(&defined)
+    );
+}

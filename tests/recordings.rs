@@ -327,3 +327,40 @@ async fn the_time_between_runs_is_recorded_for_administrators_only() {
     assert!(count(&info, "/feedback") > 0, "{info}");
     assert_eq!(count(&info, "/summary"), 0);
 }
+
+#[test]
+fn a_run_saved_as_a_task_runs_again_as_it_was() {
+    let dir = scratch("tasks-cli");
+    let (_host, url) = start_host(&["--no-record"]);
+    let run = |extra: &[&str]| {
+        let args = [&["guest", "--connect", &url, "--headless", "--json"], extra].concat();
+        common::vl_command()
+            .env("XDG_CONFIG_HOME", &dir)
+            .args(&args)
+            .output()
+            .unwrap()
+    };
+    let first = run(&["--save-task", "lap"]);
+    assert!(first.status.success(), "{}", common::stderr(&first));
+    let first: Value = serde_json::from_slice(&first.stdout).unwrap();
+    assert!(dir.join("vl/tasks/lap.json").exists());
+    let again = run(&["--task", "lap"]);
+    assert!(again.status.success(), "{}", common::stderr(&again));
+    let again: Value = serde_json::from_slice(&again.stdout).unwrap();
+    assert_eq!(
+        again["planned"], first["planned"],
+        "the task ran another path"
+    );
+    assert_eq!(again["reached_goal"], true);
+
+    let missing = run(&["--task", "nope"]);
+    assert_eq!(missing.status.code(), Some(2));
+    assert!(
+        common::stderr(&missing).contains("saved: lap"),
+        "{}",
+        common::stderr(&missing)
+    );
+    let outside = run(&["--save-task", "../lap"]);
+    assert_eq!(outside.status.code(), Some(2));
+    assert!(common::stderr(&outside).contains("cannot name a task"));
+}

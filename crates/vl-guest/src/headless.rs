@@ -9,10 +9,10 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use thiserror::Error;
-use vl_core::table::{Report as _, Table, count, yes};
+use vl_core::table::{Report as _, Table, yes};
 use vl_core::{
-    ArenaPlanError, Drive, EndReason, ErrorCode, Experiment, Goal, GuestMessage, HeldBack,
-    HostMessage, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
+    ArenaPlanError, Definition, Drive, EndReason, ErrorCode, Experiment, Goal, GuestMessage,
+    HeldBack, HostMessage, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
 };
 
 use crate::client::{ClientError, Connection, Incoming, open};
@@ -21,6 +21,7 @@ use crate::route::Route;
 pub use crate::session::RoundTripMs;
 use crate::session::{Pacing, Session, Spread};
 use crate::settings::Settings;
+use crate::tasks::TaskArgs;
 
 /// What the scripted session does.
 #[derive(Debug, Clone)]
@@ -40,6 +41,10 @@ pub struct Script {
     pub connect_within: Duration,
     /// Download the run's recording into this folder once it ends.
     pub download_to: Option<std::path::PathBuf>,
+    /// A saved task to run, and a name to save the run's definition as.
+    pub task: TaskArgs,
+    /// The definition to run as it is (a task's), instead of planning one.
+    pub definition: Option<Definition>,
 }
 
 impl Default for Script {
@@ -53,6 +58,8 @@ impl Default for Script {
             pacing: Pacing::Event,
             connect_within: Duration::from_secs(10),
             download_to: None,
+            task: TaskArgs::default(),
+            definition: None,
         }
     }
 }
@@ -126,12 +133,16 @@ pub enum ScriptError {
     Forecast(String),
     #[error("the run's recording: {0}")]
     Download(#[from] crate::recordings::DownloadError),
+    #[error(transparent)]
+    Task(#[from] crate::tasks::TaskError),
 }
 
 impl ScriptError {
-    /// Whether the Host's address itself is wrong: the user's to fix.
-    pub fn is_bad_address(&self) -> bool {
+    /// Whether the user gave something wrong (a Host's address that is
+    /// none, a task that is not kept): theirs to fix.
+    pub fn is_bad_input(&self) -> bool {
         matches!(self, ScriptError::Connect(c) if c.is_bad_address())
+            || matches!(self, ScriptError::Task(_))
     }
 }
 
@@ -140,9 +151,14 @@ impl ScriptError {
 /// teleoperation. The one way `demo`, `guest --headless` and the
 /// experiments run a Guest without a window.
 pub async fn run_script(url: &str, script: &Script) -> Result<Report, ScriptError> {
+    let mut script = script.clone();
+    if let Some(task) = script.task.to_run()? {
+        script.experiment = task.experiment;
+        script.definition = Some(task.definition);
+    }
     match script.experiment {
-        Experiment::Navigation => drive_to_goal(url, script).await,
-        Experiment::Teleoperation => teleoperate(url, script).await,
+        Experiment::Navigation => drive_to_goal(url, &script).await,
+        Experiment::Teleoperation => teleoperate(url, &script).await,
     }
 }
 
@@ -170,9 +186,9 @@ fn tell(progress: bool, incoming: &Incoming) {
 }
 
 /// A Guest that waits for what it asked for.
-struct Scripted {
-    connection: Connection,
-    session: Session,
+pub(crate) struct Scripted {
+    pub(crate) connection: Connection,
+    pub(crate) session: Session,
     progress: bool,
     deadline: Instant,
     timeout: Duration,
@@ -183,7 +199,7 @@ struct Scripted {
 impl Scripted {
     /// Takes in messages until `done` holds; an `error` from the Host, a
     /// closed connection or the deadline end the wait with a reason.
-    async fn until(
+    pub(crate) async fn until(
         &mut self,
         step: &'static str,
         mut on_each: impl FnMut(&mut Session, &Connection),
@@ -229,7 +245,11 @@ impl Scripted {
 
     /// The run's report, once its summary has come; says goodbye, so the
     /// role is free for the next operator at once.
-    async fn report(mut self, route: Route, script: &Script) -> Result<Report, ScriptError> {
+    async fn report(
+        mut self,
+        definition: Definition,
+        script: &Script,
+    ) -> Result<Report, ScriptError> {
         let summary = self.session.done.clone().expect("done");
         let downloaded = crate::recordings::download_run(
             &mut self.connection,
@@ -251,7 +271,7 @@ impl Scripted {
             video_bytes: self.session.video_bytes,
             round_trip_ms: RoundTripMs::from(&self.session.round_trips),
             pose_source: summary.pose_source,
-            planned: route.definition.path,
+            planned: definition.path,
             path: summary.path.clone(),
             forecast: summary.forecast,
             commands: self.session.sent_event,
@@ -276,7 +296,11 @@ impl Report {
 }
 
 /// Connects to `url` and says hello as `role`.
-async fn welcomed(url: &str, role: Role, script: &Script) -> Result<Scripted, ScriptError> {
+pub(crate) async fn welcomed(
+    url: &str,
+    role: Role,
+    script: &Script,
+) -> Result<Scripted, ScriptError> {
     let connection = open(url)?;
     connection.send(script.login.hello(role));
     let mut guest = Scripted {
@@ -328,7 +352,7 @@ async fn welcomed(url: &str, role: Role, script: &Script) -> Result<Scripted, Sc
 /// Connects to `url` as operator and mounts the experiment; plans a path
 /// from where the robot is seen to the goal on the lab's map, as a user does
 /// on the camera view, defines it and starts the run.
-async fn started(url: &str, script: &Script) -> Result<(Scripted, Route, Goal), ScriptError> {
+async fn started(url: &str, script: &Script) -> Result<(Scripted, Definition, Goal), ScriptError> {
     let mut guest = welcomed(url, Role::Operator, script).await?;
     guest.session.pacing = script.pacing;
     let ignore = |_: &mut Session, _: &Connection| {};
@@ -337,7 +361,8 @@ async fn started(url: &str, script: &Script) -> Result<(Scripted, Route, Goal), 
     });
     guest.until("mount", ignore, |s| s.lab.is_some()).await?;
     let lab = guest.session.lab.clone().expect("mounted");
-    let goal = match (script.goal, lab.arena.goal) {
+    let task_goal = script.definition.as_ref().and_then(|d| d.goal);
+    let goal = match (task_goal.or(script.goal), lab.arena.goal) {
         (Some(goal), _) => goal,
         (None, Some(p)) => Goal::at(p),
         (None, None) => return Err(ScriptError::NoGoal(script.experiment)),
@@ -350,9 +375,13 @@ async fn started(url: &str, script: &Script) -> Result<(Scripted, Route, Goal), 
         })
         .await?;
     let start = guest.session.robot.as_ref().expect("seen").pose;
-    let route = Route::plan(&lab, start, goal, Vec::new(), &Settings::default())?;
+    let definition = match &script.definition {
+        Some(definition) => definition.clone(),
+        None => Route::plan(&lab, start, goal, Vec::new(), &Settings::default())?.definition,
+    };
+    script.task.keep(script.experiment, &definition)?;
     guest.connection.send(GuestMessage::Define {
-        definition: route.definition.clone(),
+        definition: definition.clone(),
     });
     guest
         .until("define the goal", ignore, |s| s.definition.is_some())
@@ -371,7 +400,7 @@ async fn started(url: &str, script: &Script) -> Result<(Scripted, Route, Goal), 
     }
     guest.connection.send(GuestMessage::Start);
     guest.until("start", ignore, |s| s.running).await?;
-    Ok((guest, route, goal))
+    Ok((guest, definition, goal))
 }
 
 /// How long a run that ran out of time is given to report its end.
@@ -381,7 +410,7 @@ const STOP_WAIT: Duration = Duration::from_secs(5);
 /// the run, which the Host follows; reports the run's end. A run that
 /// outlasts `script.timeout` is stopped and reported as stopped.
 pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptError> {
-    let (mut guest, route, goal) = started(url, script).await?;
+    let (mut guest, definition, goal) = started(url, script).await?;
     let ignore = |_: &mut Session, _: &Connection| {};
 
     // The Host follows the path; the Guest watches it go.
@@ -413,7 +442,7 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptE
         other => other?,
     }
 
-    guest.report(route, script).await
+    guest.report(definition, script).await
 }
 
 /// How close to a waypoint the operator moves on to the next, mm.
@@ -470,9 +499,9 @@ fn steer(seen: Pose, target: Point, to_goal_mm: f64, lag_s: f64) -> Drive {
 /// the path from the feedback as it arrives, paced by `script.pacing` —
 /// and stops the run when the feedback shows the goal reached.
 pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptError> {
-    let (mut guest, route, goal) = started(url, script).await?;
+    let (mut guest, definition, goal) = started(url, script).await?;
 
-    let targets = waypoints(&route.definition.path);
+    let targets = waypoints(&definition.path);
     let mut next = 0;
     let mut tick = tokio::time::interval(OPERATOR_TICK);
     let mut stopping = false;
@@ -551,85 +580,7 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
             );
         }
     }
-    guest.report(route, script).await
-}
-
-/// What an observer saw.
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct Watched {
-    /// The experiment mounted when it left, if any.
-    pub experiment: Option<Experiment>,
-    /// How the run it saw end ended, if one did.
-    pub run: Option<Summary>,
-    pub feedback: u64,
-    pub frames: u64,
-    pub round_trip_ms: RoundTripMs,
-}
-
-/// Connects to `url` as an observer and watches until a run ends or
-/// `script.timeout` passes, telling what happens on stderr when
-/// `script.progress`.
-pub async fn watch(url: &str, script: &Script) -> Result<Watched, ScriptError> {
-    let mut guest = welcomed(url, Role::Observer, script).await?;
-    let progress = script.progress;
-    let mut feedback = 0u64;
-    let mut last_feedback_ms = None;
-    let mut shown: (Option<Experiment>, bool) = (None, false);
-    let mut last_line = Instant::now();
-    let on_each = |session: &mut Session, _: &Connection| {
-        if let Some(robot) = &session.robot
-            && last_feedback_ms != Some(robot.t_ms)
-        {
-            last_feedback_ms = Some(robot.t_ms);
-            feedback += 1;
-        }
-        let now = (
-            session.lab.as_ref().map(|lab| lab.experiment),
-            session.running,
-        );
-        if progress {
-            if let Some(experiment) = now.0.filter(|_| now.0 != shown.0) {
-                eprintln!("mounted: {}", experiment.title());
-            }
-            if now.1 && !shown.1 {
-                eprintln!("run started");
-            }
-            if let Some(robot) = session.robot.as_ref().filter(|_| now.1)
-                && last_line.elapsed() >= Duration::from_secs(1)
-            {
-                last_line = Instant::now();
-                eprintln!(
-                    "event {:>5}  pose ({:>5.0}, {:>5.0}) mm",
-                    robot.event, robot.pose.x_mm, robot.pose.y_mm
-                );
-            }
-        }
-        shown = now;
-    };
-    match guest.until("watch", on_each, |s| s.done.is_some()).await {
-        Ok(()) | Err(ScriptError::Timeout { .. }) => {}
-        Err(e) => return Err(e),
-    }
-    let run = guest.session.done.clone();
-    if let Some(done) = run.as_ref().filter(|_| progress) {
-        eprintln!(
-            "run ended: {} after {:.1} s, {} events",
-            done.reason, done.seconds, done.events
-        );
-    }
-    let experiment = guest.session.lab.as_ref().map(|lab| lab.experiment);
-    let (frames, round_trip_ms) = (
-        guest.session.frames_received,
-        RoundTripMs::from(&guest.session.round_trips),
-    );
-    guest.connection.close().await;
-    Ok(Watched {
-        experiment,
-        run,
-        feedback,
-        frames,
-        round_trip_ms,
-    })
+    guest.report(definition, script).await
 }
 
 impl vl_core::table::Report for Report {
@@ -669,31 +620,6 @@ impl vl_core::table::Report for Report {
                 "against the forecast",
                 self.forecast.map_or("–".into(), |gap| gap.to_string()),
             ),
-        ])
-    }
-}
-
-impl vl_core::table::Report for Watched {
-    fn table(&self) -> Table {
-        let run = match &self.run {
-            Some(done) => format!(
-                "{} after {:.1} s, {}",
-                done.ending(),
-                done.seconds,
-                count(done.events, "event", "events")
-            ),
-            None => "none ended while watching".into(),
-        };
-        Table::pairs([
-            (
-                "mounted",
-                self.experiment
-                    .map_or("nothing".to_owned(), |e| e.title().to_owned()),
-            ),
-            ("run", run),
-            ("feedback", self.feedback.to_string()),
-            ("frames", self.frames.to_string()),
-            ("round trip", self.round_trip_ms.cell()),
         ])
     }
 }

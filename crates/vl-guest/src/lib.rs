@@ -54,6 +54,8 @@ mod route;
 mod session;
 mod settings;
 mod status;
+mod tasks;
+mod watch;
 
 pub use app::{
     CAMERA_VIEW, GuestApp, WindowError, display_available, run_replay_window, run_window,
@@ -63,8 +65,7 @@ pub use client::{ClientError, Connection, GOODBYE_WAIT, Incoming, open};
 pub use gamepad::Gamepad;
 pub use gamepad::{Effect, GamepadError, Pad, PadChoice, PadInput, effect};
 pub use headless::{
-    Report, RoundTripMs, Script, ScriptError, Watched, drive_to_goal, run_script, teleoperate,
-    watch,
+    Report, RoundTripMs, Script, ScriptError, drive_to_goal, run_script, teleoperate,
 };
 pub use login::Login;
 pub use predict::Predictor;
@@ -78,3 +79,5 @@ pub use session::{
 };
 pub use settings::{Settings, SettingsError};
 pub use status::{StatusError, host_status};
+pub use tasks::{Task, TaskArgs, TaskError, TaskName, Tasks};
+pub use watch::{Watched, watch};

@@ -45,15 +45,20 @@ pub enum SettingsError {
     Encode(#[from] toml::ser::Error),
 }
 
+/// vl's folder in this user's configuration directory (settings, tasks).
+pub(crate) fn config_dir() -> Option<PathBuf> {
+    let config = std::env::var_os("XDG_CONFIG_HOME")
+        .map(PathBuf::from)
+        .filter(|p| p.is_absolute())
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config")))
+        .or_else(|| std::env::var_os("APPDATA").map(PathBuf::from))?;
+    Some(config.join("vl"))
+}
+
 impl Settings {
     /// Where they are kept for this user, if there is a home to keep them in.
     pub fn default_path() -> Option<PathBuf> {
-        let config = std::env::var_os("XDG_CONFIG_HOME")
-            .map(PathBuf::from)
-            .filter(|p| p.is_absolute())
-            .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config")))
-            .or_else(|| std::env::var_os("APPDATA").map(PathBuf::from))?;
-        Some(config.join("vl").join("settings.toml"))
+        Some(config_dir()?.join("settings.toml"))
     }
 
     /// The settings in `path`; the defaults where it is missing, and (said

@@ -25,6 +25,7 @@ use crate::settings::Settings;
 
 mod panels;
 mod preview;
+mod tasks;
 mod view;
 
 const JOYSTICK_PX: f32 = 140.0;
@@ -109,6 +110,11 @@ pub struct GuestApp {
     preview: preview::Preview,
     /// The recorded run played back instead of a Host's live one.
     replay: Option<crate::replay::Replay>,
+    /// Where saved definitions are kept (none: nowhere), the name typed
+    /// for the next, and what the last save or load did.
+    tasks: Option<crate::tasks::Tasks>,
+    task_name: String,
+    task_note: Option<String>,
 }
 
 impl GuestApp {
@@ -152,7 +158,16 @@ impl GuestApp {
             preview: Default::default(),
             welcomes: 0,
             replay: None,
+            tasks: None,
+            task_name: String::new(),
+            task_note: None,
         }
+    }
+
+    /// The window keeping its tasks in `tasks`.
+    pub fn with_tasks(mut self, tasks: crate::tasks::Tasks) -> Self {
+        self.tasks = Some(tasks);
+        self
     }
 
     /// A window playing `replay` back, connected to no Host.
@@ -533,6 +548,9 @@ pub fn run_window(
     }
     if let Some(pad) = pad {
         app = app.with_pad(pad);
+    }
+    if let Ok(tasks) = crate::tasks::Tasks::of_user() {
+        app = app.with_tasks(tasks);
     }
     show_window(app)
 }

@@ -42,6 +42,7 @@ impl GuestApp {
             ui.separator();
             if self.session.is_operator() {
                 self.define_panel(ui, lab.experiment);
+                self.tasks_panel(ui, lab.experiment);
             } else {
                 ui.heading("Definition");
                 ui.label(
