@@ -1418,3 +1418,73 @@ fn a_task_is_saved_and_loaded_back_in_the_window() {
         Some(&defined)
     );
 }
+
+/// After a run, the window lists the runs the Host kept for it, downloads
+/// one with its progress shown, plays it back in place of the live view,
+/// and goes back to the lab.
+#[test]
+fn the_window_lists_downloads_and_replays_its_runs() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let dir = common::scratch("window-recordings");
+    let config = HostConfig {
+        recordings: Some(vl_host::Catalogue::open(&dir.join("host")).unwrap()),
+        ..HostConfig::default()
+    };
+    let host = host_without_camera(&runtime, config);
+    let _entered = runtime.enter();
+    let downloads = dir.join("downloads");
+    let app = GuestApp::new(&host.url(), Role::Operator, Login::default())
+        .unwrap()
+        .with_downloads(downloads.clone());
+    let mut harness = Harness::builder()
+        .with_size(Vec2::new(1100.0, 720.0))
+        .wgpu()
+        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
+    mount_navigation(&mut harness, |s| s.lab.is_some() && s.robot.is_some());
+    define_and_start(&mut harness);
+    step_until(&mut harness, "end the run", |app| {
+        app.session().done.is_some()
+    });
+    harness.get_by_label("Recordings").click();
+    harness.step();
+    harness.get_by_label("List my runs").click();
+    step_until(&mut harness, "list the runs", |app| {
+        app.session()
+            .recordings
+            .as_ref()
+            .is_some_and(|r| !r.is_empty())
+    });
+    harness.get_by_label("Download run 1").click();
+    // A file still being closed when asked for is asked for again.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while harness.query_by_label_contains("Downloaded ").is_none() {
+        assert!(Instant::now() < deadline, "the run never downloaded");
+        harness.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let name = harness.state().session().recordings.as_ref().unwrap()[0]
+        .name
+        .clone();
+    let file = downloads.join(name.as_str());
+    assert_eq!(
+        std::fs::read(&file).unwrap(),
+        std::fs::read(dir.join("host").join(name.as_str())).unwrap()
+    );
+    harness.get_by_label(&format!("Replay {name}")).click();
+    for _ in 0..5 {
+        harness.step();
+    }
+    assert!(harness.state_mut().replay().is_some(), "no replay");
+    harness
+        .render()
+        .unwrap()
+        .save(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/target/tmp/guest-window-recordings.png"
+        ))
+        .unwrap();
+    harness.get_by_label("Back to the lab").click();
+    step_until(&mut harness, "be back at the lab", |app| {
+        app.session().role == Some(Role::Operator)
+    });
+}

@@ -52,16 +52,20 @@ pub(crate) async fn download_run(
 }
 
 /// A download under way: the file so far, and how long the whole is.
-struct Downloading {
-    name: RecordingName,
+pub(crate) struct Downloading {
+    pub(crate) name: RecordingName,
     part: PathBuf,
     file: std::fs::File,
-    have: u64,
+    pub(crate) have: u64,
+    /// The file's length, once a part has said it.
+    pub(crate) total: Option<u64>,
+    /// When to ask again for a file the Host was still writing.
+    pub(crate) retry_at: Option<std::time::Instant>,
 }
 
 impl Downloading {
     /// Starts, or resumes from the part file `dir` already holds.
-    fn open(name: &RecordingName, dir: &Path) -> Result<Downloading, DownloadError> {
+    pub(crate) fn open(name: &RecordingName, dir: &Path) -> Result<Downloading, DownloadError> {
         std::fs::create_dir_all(dir).map_err(|e| DownloadError::Io(dir.to_owned(), e))?;
         let part = dir.join(format!("{name}.part"));
         let io = |e| DownloadError::Io(part.clone(), e);
@@ -76,10 +80,13 @@ impl Downloading {
             part,
             file,
             have,
+            total: None,
+            retry_at: None,
         })
     }
 
-    fn ask(&self) -> GuestMessage {
+    /// The message asking for the next part.
+    pub(crate) fn ask(&self) -> GuestMessage {
         GuestMessage::Download {
             name: self.name.clone(),
             offset: self.have,
@@ -87,7 +94,11 @@ impl Downloading {
     }
 
     /// Takes a part in; true once the file is whole.
-    fn take(&mut self, header: &PartHeader, bytes: &[u8]) -> Result<bool, DownloadError> {
+    pub(crate) fn take(
+        &mut self,
+        header: &PartHeader,
+        bytes: &[u8],
+    ) -> Result<bool, DownloadError> {
         if header.offset != self.have {
             return Err(DownloadError::OutOfPlace {
                 got: header.offset,
@@ -98,8 +109,26 @@ impl Downloading {
             .write_all(bytes)
             .map_err(|e| DownloadError::Io(self.part.clone(), e))?;
         self.have += bytes.len() as u64;
+        self.total = Some(header.total);
         Ok(self.have >= header.total)
     }
+
+    /// The whole file, in `dir` under its name.
+    pub(crate) fn finish(self) -> Result<PathBuf, DownloadError> {
+        let whole = self.part.with_file_name(self.name.as_str());
+        std::fs::rename(&self.part, &whole).map_err(|e| DownloadError::Io(whole.clone(), e))?;
+        Ok(whole)
+    }
+}
+
+/// Where this user's downloaded runs go: vl/downloads in their data
+/// directory.
+pub(crate) fn downloads_dir() -> Option<PathBuf> {
+    let data = std::env::var_os("XDG_DATA_HOME")
+        .map(PathBuf::from)
+        .filter(|p| p.is_absolute())
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local/share")))?;
+    Some(data.join("vl").join("downloads"))
 }
 
 /// Downloads recording `name` into `dir` over `connection`, saying how far
@@ -121,10 +150,7 @@ pub async fn download(
         match incoming {
             Some(Incoming::Part(header, bytes)) if &header.name == name => {
                 if downloading.take(&header, &bytes)? {
-                    let whole = dir.join(name.as_str());
-                    std::fs::rename(&downloading.part, &whole)
-                        .map_err(|e| DownloadError::Io(whole.clone(), e))?;
-                    return Ok(whole);
+                    return downloading.finish();
                 }
                 if progress && told.elapsed().as_secs_f64() >= 1.0 {
                     told = Instant::now();

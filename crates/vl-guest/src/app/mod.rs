@@ -17,7 +17,7 @@ use vl_core::{
 };
 
 use crate::client::GOODBYE_WAIT;
-use crate::client::{ClientError, Connection, open};
+use crate::client::{ClientError, Connection, Incoming, open};
 use crate::gamepad::Pad;
 use crate::login::Login;
 use crate::session::{Link, Session};
@@ -25,6 +25,7 @@ use crate::settings::Settings;
 
 mod panels;
 mod preview;
+mod recordings;
 mod tasks;
 mod view;
 
@@ -115,6 +116,11 @@ pub struct GuestApp {
     tasks: Option<crate::tasks::Tasks>,
     task_name: String,
     task_note: Option<String>,
+    /// Where downloaded runs go (none: no downloads), the one coming, and
+    /// what the last download or replay did.
+    downloads: Option<PathBuf>,
+    download: Option<crate::recordings::Downloading>,
+    recordings_note: Option<String>,
 }
 
 impl GuestApp {
@@ -161,7 +167,24 @@ impl GuestApp {
             tasks: None,
             task_name: String::new(),
             task_note: None,
+            downloads: None,
+            download: None,
+            recordings_note: None,
         }
+    }
+
+    /// The window downloading runs into `dir`.
+    pub fn with_downloads(mut self, dir: PathBuf) -> Self {
+        self.downloads = Some(dir);
+        self
+    }
+
+    /// Plays `replay` in place of the live view; `Back to the lab` ends it.
+    fn play(&mut self, replay: crate::replay::Replay) {
+        self.connection = Connection::detached();
+        self.session = Session::default();
+        self.forget_the_host();
+        self.replay = Some(replay);
     }
 
     /// The window keeping its tasks in `tasks`.
@@ -178,7 +201,7 @@ impl GuestApp {
             login: Login::default(),
         };
         let mut app = GuestApp::on(address, Connection::detached());
-        app.replay = Some(replay);
+        app.play(replay);
         app
     }
 
@@ -229,7 +252,17 @@ impl GuestApp {
         let ctx = ui.ctx().clone();
         self.drive(&ctx);
         if let Some(replay) = &mut self.replay {
-            egui::Panel::top("replay").show(ui, |ui| replay.controls(ui));
+            // A replay chosen in a lab's window goes back to the lab after.
+            let from_lab = self.address.url.starts_with("ws");
+            let mut back = false;
+            egui::Panel::top("replay").show(ui, |ui| {
+                replay.controls(ui);
+                back = from_lab && ui.button("Back to the lab").clicked();
+            });
+            if back {
+                self.replay = None;
+                self.reconnect();
+            }
         }
         egui::Panel::top("status").show(ui, |ui| self.status_bar(ui));
         egui::Panel::left("controls")
@@ -273,8 +306,13 @@ impl GuestApp {
             replay.advance(&mut self.session);
         }
         while let Some(incoming) = self.connection.try_recv() {
-            self.session.apply(incoming);
+            match incoming {
+                Incoming::Part(header, bytes) => self.take_part(&header, &bytes),
+                Incoming::Message(message) if self.still_writing(&message) => {}
+                incoming => self.session.apply(incoming),
+            }
         }
+        self.retry_download();
         self.session.decode_frame();
         if self.session.welcomes != self.welcomes {
             // A new connection, perhaps to a Host started again.
@@ -551,6 +589,9 @@ pub fn run_window(
     }
     if let Ok(tasks) = crate::tasks::Tasks::of_user() {
         app = app.with_tasks(tasks);
+    }
+    if let Some(dir) = crate::recordings::downloads_dir() {
+        app = app.with_downloads(dir);
     }
     show_window(app)
 }

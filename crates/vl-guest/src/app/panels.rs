@@ -21,6 +21,9 @@ impl GuestApp {
         if self.session.role == Some(Role::Observer) && self.replay.is_none() {
             self.line_panel(ui);
         }
+        if self.replay.is_none() {
+            self.recordings_panel(ui);
+        }
         ui.heading("Mount");
         for experiment in self.session.experiments.clone() {
             let mounted = self
