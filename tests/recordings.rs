@@ -108,6 +108,8 @@ fn a_run_is_recorded_for_foxglove_downloaded_and_replayed_to_the_same_summary() 
         "{frames} frames in {seconds} s"
     );
     assert_eq!(count(&info, "/camera/annotations"), frames);
+    // Beyond the run's first and last lines, what the Host logged meanwhile.
+    assert!(count(&info, "/log") > 2, "{info}");
 
     let replayed = vl_json(&["guest", "--replay", s(&file), "--headless", "--json"]);
     assert_eq!(&replayed["summary"], summary, "the replay ends elsewhere");

@@ -232,6 +232,7 @@ pub(crate) fn transform(ns: u64, pose: Pose) -> Value {
 pub(crate) enum Level {
     Info = 2,
     Warning = 3,
+    Error = 4,
 }
 
 pub(crate) fn log_message(ns: u64, level: Level, text: &str) -> Value {

@@ -19,6 +19,7 @@
 mod catalogue;
 mod export;
 mod foxglove;
+mod log;
 mod reader;
 mod writer;
 
@@ -26,6 +27,7 @@ pub(crate) use catalogue::now_ms;
 pub use catalogue::{Catalogue, Owner, RecordSettings, Runs};
 pub use export::{Exported, export};
 pub(crate) use foxglove::Level;
+pub use log::init_logging;
 pub use reader::{
     Message, RecordError, Recording, RecordingInfo, Repaired, Replayed, TopicCount, repair,
 };

@@ -60,7 +60,8 @@ pub(crate) enum Entry {
     End,
 }
 
-struct Shared {
+/// What the recorder and those feeding it share.
+pub(crate) struct Shared {
     queue: SyncSender<(u64, Entry)>,
     queued: AtomicUsize,
     /// A run is being recorded: only then do the loops hand anything over.
@@ -74,6 +75,23 @@ struct Shared {
 /// A handle on the recorder; none when the Host records nothing.
 #[derive(Clone, Default)]
 pub(crate) struct Feed(Option<Arc<Shared>>);
+
+impl Shared {
+    pub(crate) fn active(&self) -> bool {
+        self.active.load(Ordering::Relaxed)
+    }
+
+    /// Hands `entry` over if the queue has room; counts it lost if not.
+    pub(crate) fn put(&self, entry: Entry) {
+        self.queued.fetch_add(1, Ordering::Relaxed);
+        if let Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) =
+            self.queue.try_send((now_ns(), entry))
+        {
+            self.queued.fetch_sub(1, Ordering::Relaxed);
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
 
 fn now_ns() -> u64 {
     SystemTime::now()
@@ -104,30 +122,19 @@ impl Feed {
             .name("vl-recorder".into())
             .spawn(move || recorder.run())
             .expect("the OS starts a thread");
+        super::log::register(&shared);
         Feed(Some(shared))
     }
 
     /// Whether a run is being recorded.
     pub(crate) fn active(&self) -> bool {
-        self.0
-            .as_ref()
-            .is_some_and(|s| s.active.load(Ordering::Relaxed))
-    }
-
-    fn put(shared: &Shared, entry: Entry) {
-        shared.queued.fetch_add(1, Ordering::Relaxed);
-        if let Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) =
-            shared.queue.try_send((now_ns(), entry))
-        {
-            shared.queued.fetch_sub(1, Ordering::Relaxed);
-            shared.dropped.fetch_add(1, Ordering::Relaxed);
-        }
+        self.0.as_ref().is_some_and(|s| s.active())
     }
 
     /// Hands `entry` over, while a run is recorded.
     pub(crate) fn send(&self, entry: Entry) {
         if let Some(shared) = self.0.as_ref().filter(|_| self.active()) {
-            Feed::put(shared, entry);
+            shared.put(entry);
         }
     }
 
@@ -138,14 +145,14 @@ impl Feed {
         shared.dropped_frames.store(0, Ordering::Relaxed);
         shared.dropped.store(0, Ordering::Relaxed);
         shared.active.store(true, Ordering::Relaxed);
-        Feed::put(shared, Entry::Begin(Box::new(begin)));
+        shared.put(Entry::Begin(Box::new(begin)));
         Some(name)
     }
 
     /// The run's `done` was handed over: its file closes.
     pub(crate) fn end(&self) {
         if let Some(shared) = &self.0 {
-            Feed::put(shared, Entry::End);
+            shared.put(Entry::End);
             shared.active.store(false, Ordering::Relaxed);
         }
     }
@@ -158,7 +165,7 @@ impl Feed {
         if shared.queued.load(Ordering::Relaxed) >= FRAMES_QUEUED {
             shared.dropped_frames.fetch_add(1, Ordering::Relaxed);
         } else {
-            Feed::put(shared, Entry::Frame(wire.clone()));
+            shared.put(Entry::Frame(wire.clone()));
         }
     }
 

@@ -107,12 +107,6 @@ impl Hub {
             self.config
                 .audit
                 .record(Entry::new(event).detail(format!("the {device}")));
-            let state = if after == DeviceState::Offline {
-                "does not answer"
-            } else {
-                "answers again"
-            };
-            self.record_warning(format!("the {device} {state}"));
         }
     }
 }
