@@ -65,7 +65,13 @@ pub(crate) fn record(args: RecordArgs) -> Result<ExitCode> {
         }
         RecordCommand::Export { file, out } => {
             let recording = Recording::open(&file).map_err(bad)?;
-            emit(&vl_host::export(&recording, &out).map_err(bad)?, json)?;
+            let mut exported = vl_host::export(&recording, &out).map_err(bad)?;
+            let plots = vl_guest::Replay::open(&file)
+                .map_err(bad)?
+                .results
+                .save(&out)?;
+            exported.plots = plots.iter().map(|p| p.display().to_string()).collect();
+            emit(&exported, json)?;
         }
         RecordCommand::Repair { file, out } => {
             emit(&vl_host::repair(&file, out.as_deref()).map_err(bad)?, json)?;

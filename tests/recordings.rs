@@ -143,6 +143,21 @@ fn a_run_is_recorded_for_foxglove_downloaded_and_replayed_to_the_same_summary() 
     let exported_summary: Value =
         serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(&exported_summary, summary);
+    // The run's pictures, as SVG and PNG.
+    for plot in ["paths", "tracking", "round_trip"] {
+        for kind in ["svg", "png"] {
+            let picture = out.join(format!("{plot}.{kind}"));
+            assert!(
+                std::fs::metadata(&picture).is_ok_and(|m| m.len() > 1000),
+                "{picture:?}"
+            );
+        }
+    }
+    assert_eq!(
+        exported["plots"].as_array().map(Vec::len),
+        Some(3),
+        "{exported}"
+    );
 }
 
 /// The run's file, once the Host has begun it.

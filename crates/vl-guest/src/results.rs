@@ -6,7 +6,11 @@
 use egui_plot::{Legend, Line, Plot, PlotPoints, VLine};
 use vl_core::{HostMessage, Point, distance_to_polyline};
 
+use std::path::PathBuf;
+
 use crate::client::Incoming;
+use crate::experiment::ExperimentError;
+use crate::experiment::plots;
 
 /// A series of (x, y) points.
 type Series = Vec<[f64; 2]>;
@@ -14,6 +18,8 @@ type Series = Vec<[f64; 2]>;
 /// What the plots draw, read once from the recording.
 #[derive(Debug, Clone, Default)]
 pub struct Results {
+    /// The floor's size, mm.
+    pub floor_mm: (f64, f64),
     pub planned: Series,
     pub followed: Series,
     /// Each seed's forecast path.
@@ -44,6 +50,9 @@ impl Results {
                 continue;
             };
             match &**message {
+                HostMessage::Mounted(lab) => {
+                    results.floor_mm = (lab.arena.width_mm, lab.arena.height_mm);
+                }
                 HostMessage::Defined { definition } => {
                     path = definition.path.clone();
                     results.planned = path.iter().map(|&p| xy(p)).collect();
@@ -77,6 +86,54 @@ impl Results {
             }
         }
         results
+    }
+
+    /// The plots as SVG and PNG pictures in `dir`: the paths, the tracking
+    /// error, the force (when there was one) and the round trip. Their
+    /// names (the PNGs').
+    pub fn save(&self, dir: &std::path::Path) -> Result<Vec<PathBuf>, ExperimentError> {
+        let series = |label: &str, colour, s: &Series| {
+            (
+                label.to_owned(),
+                colour,
+                s.iter().map(|&[x, y]| (x, y)).collect::<Vec<_>>(),
+            )
+        };
+        let points = |s: &Series| s.iter().map(|&[x, y]| Point { x_mm: x, y_mm: y }).collect();
+        let planned: Vec<Point> = points(&self.planned);
+        // One seed's forecast under the path followed, drawn last to show.
+        let mut taken: Vec<_> = self
+            .forecast
+            .first()
+            .map(|run| ("forecast".to_owned(), plots::THIRD, points(run)))
+            .into_iter()
+            .collect();
+        taken.push(("followed".to_owned(), plots::EVENT, points(&self.followed)));
+        let mut saved = vec![plots::paths(
+            dir,
+            "paths",
+            "planned, followed and forecast",
+            self.floor_mm,
+            &planned,
+            &taken,
+        )?];
+        let over_time = [
+            (
+                "tracking",
+                "off the planned path",
+                "mm",
+                &self.tracking_error_mm,
+            ),
+            ("force", "force fed back", "force", &self.force),
+            ("round_trip", "round trip", "ms", &self.round_trip_ms),
+        ];
+        for (name, title, unit, s) in over_time {
+            if !s.is_empty() {
+                let lines = [series(title, plots::EVENT, s)];
+                saved.push(plots::lines(dir, name, title, ("s", unit), &lines, false)?);
+            }
+        }
+        Ok(saved)
     }
 
     /// The plots, with the replay's time `at_s` marked on those over time.

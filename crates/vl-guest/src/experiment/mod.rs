@@ -9,7 +9,7 @@
 
 mod markdown;
 mod matrix;
-mod plots;
+pub(crate) mod plots;
 mod runs;
 
 use std::path::{Path, PathBuf};

@@ -18,11 +18,11 @@ const SIZE: (u32, u32) = (800, 480);
 const FONT: &str = "sans-serif";
 
 /// Series colours: the first for event-based runs, the second for time-based.
-pub(super) const EVENT: RGBColor = RGBColor(0x1f, 0x77, 0xb4);
-pub(super) const TIME: RGBColor = RGBColor(0xd6, 0x27, 0x28);
+pub(crate) const EVENT: RGBColor = RGBColor(0x1f, 0x77, 0xb4);
+pub(crate) const TIME: RGBColor = RGBColor(0xd6, 0x27, 0x28);
 const PLANNED: RGBColor = RGBColor(0x99, 0x99, 0x99);
 /// A third series where there is one.
-const THIRD: RGBColor = RGBColor(0x2c, 0xa0, 0x2c);
+pub(crate) const THIRD: RGBColor = RGBColor(0x2c, 0xa0, 0x2c);
 
 fn font() {
     static REGISTER: Once = Once::new();
@@ -207,10 +207,10 @@ pub(super) fn delays(
 }
 
 /// A labelled, coloured series of (x, y) points.
-pub(super) type Series = (String, RGBColor, Vec<(f64, f64)>);
+pub(crate) type Series = (String, RGBColor, Vec<(f64, f64)>);
 
 /// Lines of (x, y) points, one per labelled series.
-pub(super) fn lines(
+pub(crate) fn lines(
     dir: &Path,
     name: &str,
     title: &str,
@@ -278,7 +278,7 @@ pub(super) fn lines(
 }
 
 /// The planned path and the paths the robot truly took, on the arena's floor.
-pub(super) fn paths(
+pub(crate) fn paths(
     dir: &Path,
     name: &str,
     title: &str,

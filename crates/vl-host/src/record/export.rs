@@ -19,6 +19,8 @@ pub struct Exported {
     pub command_rows: usize,
     pub frames: usize,
     pub summary: bool,
+    /// Pictures of the run drawn by the caller (the Guest's plots).
+    pub plots: Vec<String>,
 }
 
 impl Report for Exported {
@@ -37,6 +39,7 @@ impl Report for Exported {
                 }
                 .to_owned(),
             ),
+            ("plots", self.plots.join(", ")),
         ])
     }
 }
@@ -136,5 +139,6 @@ pub fn export(recording: &Recording, dir: &Path) -> Result<Exported, RecordError
         command_rows,
         frames,
         summary: summary.is_some(),
+        plots: Vec::new(),
     })
 }
