@@ -36,7 +36,11 @@
 //!   (`app`); the scripted Guests, an operator on a busy lab waiting its
 //!   turn in line: the Host following a defined path,
 //!   an operator steering along it from the delayed feedback, lag-aware as a
-//!   person is, and the watching observer (`headless`)
+//!   person is (`headless`), and the watching observer (`watch`); a recorded
+//!   run downloaded a part at a time, resumed where it stopped (`recordings`),
+//!   played back through the same session and view with a slider
+//!   (`replay`), and its results plotted (`results`); definitions kept by
+//!   name to be run again (`tasks`)
 
 mod app;
 mod client;
