@@ -35,6 +35,11 @@ fn window(url: &str) -> Harness<'static, GuestApp> {
 /// A Guest window on `url` as `role`, `size` px.
 fn window_as(url: &str, role: Role, size: Vec2) -> Harness<'static, GuestApp> {
     let app = GuestApp::new(url, role, Login::default()).expect("a Host's address");
+    harness_of(app, size)
+}
+
+/// `app` in a window `size` px, rendered by wgpu.
+fn harness_of(app: GuestApp, size: Vec2) -> Harness<'static, GuestApp> {
     Harness::builder()
         .with_size(size)
         .wgpu()
@@ -438,10 +443,7 @@ fn a_gamepad_drives_feels_and_stops() {
     let app = GuestApp::new(&host.url(), Role::Operator, Login::default())
         .unwrap()
         .with_pad(Box::new(pad));
-    let mut harness = Harness::builder()
-        .with_size(Vec2::new(1100.0, 720.0))
-        .wgpu()
-        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
+    let mut harness = harness_of(app, Vec2::new(1100.0, 720.0));
     step_until(&mut harness, "be welcomed", |app| {
         app.session().role.is_some()
     });
@@ -673,10 +675,7 @@ fn settings_are_remembered_between_sessions() {
     let app = GuestApp::new(&host.url(), Role::Operator, Login::default())
         .expect("a Host's address")
         .with_settings_file(file.clone());
-    let mut harness = Harness::builder()
-        .with_size(Vec2::new(1100.0, 720.0))
-        .wgpu()
-        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
+    let mut harness = harness_of(app, Vec2::new(1100.0, 720.0));
     step_until(&mut harness, "be welcomed", |app| {
         app.session().role.is_some()
     });
@@ -1281,13 +1280,7 @@ fn a_downloaded_run_replays_in_the_window_and_scrubbing_moves_the_robot() {
         .unwrap();
     let file = report.downloaded.expect("the run's file was downloaded");
     let replay = vl_guest::Replay::open(&file).unwrap();
-    let mut harness = Harness::builder()
-        .with_size(Vec2::new(1100.0, 720.0))
-        .wgpu()
-        .build_ui_state(
-            |ui, app: &mut GuestApp| app.show(ui),
-            GuestApp::replaying(replay),
-        );
+    let mut harness = harness_of(GuestApp::replaying(replay), Vec2::new(1100.0, 720.0));
     harness.step();
     harness.get_by_label("Pause").click();
     harness.step();
@@ -1363,10 +1356,7 @@ fn a_task_is_saved_and_loaded_back_in_the_window() {
     let app = GuestApp::new(&host.url(), Role::Operator, Login::default())
         .unwrap()
         .with_tasks(vl_guest::Tasks::at(&tasks_dir));
-    let mut harness = Harness::builder()
-        .with_size(Vec2::new(1100.0, 720.0))
-        .wgpu()
-        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
+    let mut harness = harness_of(app, Vec2::new(1100.0, 720.0));
     mount_navigation(&mut harness, |s| s.lab.is_some() && s.robot.is_some());
     harness
         .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
@@ -1436,10 +1426,7 @@ fn the_window_lists_downloads_and_replays_its_runs() {
     let app = GuestApp::new(&host.url(), Role::Operator, Login::default())
         .unwrap()
         .with_downloads(downloads.clone());
-    let mut harness = Harness::builder()
-        .with_size(Vec2::new(1100.0, 720.0))
-        .wgpu()
-        .build_ui_state(|ui, app: &mut GuestApp| app.show(ui), app);
+    let mut harness = harness_of(app, Vec2::new(1100.0, 720.0));
     mount_navigation(&mut harness, |s| s.lab.is_some() && s.robot.is_some());
     define_and_start(&mut harness);
     step_until(&mut harness, "end the run", |app| {

@@ -25,19 +25,10 @@ const FOXGLOVE: [(&str, &str); 7] = [
     ("/log", "foxglove.Log"),
 ];
 
-/// The Python with the `mcap` package: `.ci/run` installs it.
-fn python_with_mcap() -> Option<&'static str> {
-    ["python3", "/usr/bin/python3"].into_iter().find(|python| {
-        Command::new(python)
-            .args(["-c", "import mcap, zstandard"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    })
-}
-
 /// What Python's `mcap` reads in `file`, if it is here.
 fn read_independently(file: &Path) -> Option<Value> {
-    let Some(python) = python_with_mcap() else {
+    // `.ci/run` installs the mcap package.
+    let Some(python) = common::python_with("mcap, zstandard") else {
         eprintln!("skipped the independent reader: no Python with mcap here (.ci/run installs it)");
         return None;
     };

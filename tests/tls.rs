@@ -58,19 +58,10 @@ async fn plain_websocket_is_not_spoken_where_tls_is() {
     assert!(tried.is_err(), "a plain handshake was accepted");
 }
 
-/// The Python that has `websockets`: CI installs Debian's python3-websockets.
-fn python_with_websockets() -> Option<&'static str> {
-    ["python3", "/usr/bin/python3"].into_iter().find(|python| {
-        Command::new(python)
-            .args(["-c", "import websockets"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    })
-}
-
 #[test]
 fn an_outside_client_is_welcomed_over_tls() {
-    let Some(python) = python_with_websockets() else {
+    // CI installs Debian's python3-websockets.
+    let Some(python) = common::python_with("websockets") else {
         eprintln!("skipped: no Python with websockets here (.ci/run installs python3-websockets)");
         return;
     };

@@ -222,6 +222,16 @@ pub(crate) fn s(p: &Path) -> &str {
     p.to_str().expect("scratch paths are UTF-8")
 }
 
+/// A Python that imports `modules` (as `import` lists them), if one is here.
+pub(crate) fn python_with(modules: &str) -> Option<&'static str> {
+    ["python3", "/usr/bin/python3"].into_iter().find(|python| {
+        Command::new(python)
+            .args(["-c", &format!("import {modules}")])
+            .output()
+            .is_ok_and(|o| o.status.success())
+    })
+}
+
 /// A port nothing listens on right now.
 pub(crate) fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
