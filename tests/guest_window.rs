@@ -1253,16 +1253,21 @@ fn scrub(harness: &mut Harness<'_, GuestApp>, fraction: f32) {
     }
 }
 
+/// A Host's configuration that records every run into `dir`.
+fn recording_into(dir: &std::path::Path) -> HostConfig {
+    HostConfig {
+        recordings: Some(vl_host::Catalogue::open(dir).unwrap()),
+        ..HostConfig::default()
+    }
+}
+
 /// A run the Host recorded, downloaded by its Guest, plays back in the
 /// window: paused and scrubbed, the camera shows the robot where it was.
 #[test]
 fn a_downloaded_run_replays_in_the_window_and_scrubbing_moves_the_robot() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
     let dir = common::scratch("replay-window");
-    let config = HostConfig {
-        recordings: Some(vl_host::Catalogue::open(&dir.join("host")).unwrap()),
-        ..HostConfig::default()
-    };
+    let config = recording_into(&dir.join("host"));
     let listen = "127.0.0.1:0".parse().unwrap();
     let host = runtime
         .block_on(Host::start_sim(
@@ -1416,10 +1421,7 @@ fn a_task_is_saved_and_loaded_back_in_the_window() {
 fn the_window_lists_downloads_and_replays_its_runs() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
     let dir = common::scratch("window-recordings");
-    let config = HostConfig {
-        recordings: Some(vl_host::Catalogue::open(&dir.join("host")).unwrap()),
-        ..HostConfig::default()
-    };
+    let config = recording_into(&dir.join("host"));
     let host = host_without_camera(&runtime, config);
     let _entered = runtime.enter();
     let downloads = dir.join("downloads");
