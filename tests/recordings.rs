@@ -311,8 +311,16 @@ async fn the_time_between_runs_is_recorded_for_administrators_only() {
     assert_eq!(listed["runs"].as_array().unwrap().len(), 1, "{listed}");
     assert_eq!(listed["runs"][0]["name"], run.as_str());
 
-    // Before the run, the run, and after it (still being written).
-    let all = vl_json(&["record", "ls", s(&dir), "--json"]);
+    // Before the run, the run, and after it (still being written), once
+    // the recorder has closed the run's file and begun the next.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let all = loop {
+        let all = vl_json(&["record", "ls", s(&dir), "--json"]);
+        if all.as_array().unwrap().len() == 3 || Instant::now() > deadline {
+            break all;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
     let names: Vec<&str> = all
         .as_array()
         .unwrap()
@@ -371,4 +379,22 @@ fn a_run_saved_as_a_task_runs_again_as_it_was() {
     let outside = run(&["--save-task", "../lap"]);
     assert_eq!(outside.status.code(), Some(2));
     assert!(common::stderr(&outside).contains("cannot name a task"));
+}
+
+#[test]
+fn files_that_are_no_recordings_are_named_not_panicked_on() {
+    let dir = scratch("recordings-bad");
+    let text = dir.join("notes.mcap");
+    std::fs::write(&text, "not a recording").unwrap();
+    let missing = dir.join("missing.mcap");
+    common::refused(&["record", "info", s(&text)], "is not an MCAP recording");
+    common::refused(&["record", "info", s(&missing)], "missing.mcap");
+    common::refused(&["record", "repair", s(&text)], "is not an MCAP recording");
+    common::refused(&["guest", "--replay", s(&text), "--headless"], "--replay:");
+    let cut = dir.join("cut.mcap");
+    std::fs::write(&cut, &b"\x89MCAP0\r\n"[..]).unwrap();
+    common::refused(
+        &["guest", "--replay", s(&cut), "--headless"],
+        "holds no run",
+    );
 }

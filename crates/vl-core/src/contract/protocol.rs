@@ -637,14 +637,16 @@ mod tests {
             GuestMessage::Start,
             GuestMessage::Queue,
             GuestMessage::LeaveQueue,
+            GuestMessage::Recordings,
             GuestMessage::Bye,
         ] {
             let wire: serde_json::Value = serde_json::from_str(&message.encode()).unwrap();
             assert_eq!(wire["type"], message.kind());
             assert!(GuestMessage::TYPES.contains(&message.kind()));
         }
-        assert_eq!(GuestMessage::TYPES.len(), 15);
-        assert!(HostMessage::TYPES.contains(&"feedback") && HostMessage::TYPES.len() == 15);
+        assert_eq!(GuestMessage::TYPES.len(), 17);
+        assert!(HostMessage::TYPES.contains(&"feedback") && HostMessage::TYPES.len() == 16);
+        assert!(GuestMessage::TYPES.contains(&"download") && HostMessage::TYPES.contains(&"done"));
         assert!(GuestMessage::TYPES.contains(&"leave_queue"));
         assert!(HostMessage::TYPES.contains(&"forecast"));
     }

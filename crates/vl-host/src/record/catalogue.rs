@@ -198,7 +198,12 @@ impl Catalogue {
             owner: owner.clone(),
         };
         let text = serde_json::to_vec_pretty(&entry).expect("entries serialise");
-        std::fs::write(&path, text).map_err(|e| RecordError::Io(path, e))
+        // Written aside and renamed into place: a Guest listing the runs
+        // meanwhile reads the old entry or the new, never half of one.
+        let aside = path.with_extension("json.new");
+        std::fs::write(&aside, text)
+            .and_then(|()| std::fs::rename(&aside, &path))
+            .map_err(|e| RecordError::Io(path, e))
     }
 
     /// Every run with an entry, newest first, with its file's size now.
@@ -245,10 +250,11 @@ impl Catalogue {
         who: &Owner,
         admin: bool,
     ) -> Result<(u64, Vec<u8>), RecordError> {
-        let known = self
-            .entries()
-            .into_iter()
-            .any(|e| &e.run.name == name && (admin || who.sees(&e.owner)));
+        // The run's own entry: a part is asked for often, the folder not read.
+        let known = std::fs::read(self.entry_path(name))
+            .ok()
+            .and_then(|text| serde_json::from_slice::<Entry>(&text).ok())
+            .is_some_and(|e| admin || who.sees(&e.owner));
         if !known {
             return Err(RecordError::Unknown(name.clone()));
         }

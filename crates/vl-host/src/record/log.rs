@@ -11,13 +11,17 @@ use tracing_subscriber::layer::{Context, Layer};
 use tracing_subscriber::prelude::*;
 
 use super::foxglove::Level;
-use super::writer::{Entry, Shared};
+use super::writer::{Entry, Feed, Shared};
 
 /// The recorders of this process (one a Host), held weakly: a Host that
 /// ends takes its recorder with it.
 static RECORDERS: Mutex<Vec<Weak<Shared>>> = Mutex::new(Vec::new());
 
-pub(crate) fn register(recorder: &Arc<Shared>) {
+/// Hands the Host's log to `feed`'s recorder from now on.
+pub(super) fn register(feed: &Feed) {
+    let Some(recorder) = feed.shared() else {
+        return;
+    };
     let mut recorders = RECORDERS.lock().unwrap_or_else(|e| e.into_inner());
     recorders.retain(|r| r.strong_count() > 0);
     recorders.push(Arc::downgrade(recorder));
@@ -33,9 +37,13 @@ pub fn init_logging() {
             tracing_subscriber::EnvFilter::try_from_default_env()
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
         );
+    // Only the Host's lines of INFO and above are ever made for the
+    // recordings: a debug line elsewhere costs nothing more than before.
+    let host =
+        tracing_subscriber::filter::Targets::new().with_target("vl_host", tracing::Level::INFO);
     tracing_subscriber::registry()
         .with(stderr)
-        .with(IntoRecordings)
+        .with(IntoRecordings.with_filter(host))
         .init();
 }
 
@@ -61,12 +69,8 @@ impl<S: tracing::Subscriber> Layer<S> for IntoRecordings {
         let level = match *meta.level() {
             tracing::Level::ERROR => Level::Error,
             tracing::Level::WARN => Level::Warning,
-            tracing::Level::INFO => Level::Info,
-            _ => return,
+            _ => Level::Info,
         };
-        if !meta.target().starts_with("vl_host") {
-            return;
-        }
         let recorders = RECORDERS.lock().unwrap_or_else(|e| e.into_inner());
         let recording: Vec<Arc<Shared>> = recorders
             .iter()

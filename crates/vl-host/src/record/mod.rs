@@ -35,6 +35,14 @@ pub(crate) use writer::{Begin, Entry, Feed};
 
 use foxglove::Schema;
 
+/// Starts the recorder of a lab whose clock began at `since`, writing
+/// into `catalogue`, with the Host's log lines going into its runs.
+pub(crate) fn start(catalogue: Catalogue, since: std::time::Instant) -> Feed {
+    let feed = Feed::spawn(catalogue, since);
+    log::register(&feed);
+    feed
+}
+
 /// Each channel of a recording: one home for its topic and schema.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub(crate) enum Topic {
