@@ -163,8 +163,10 @@ pub(crate) struct Control {
     status: Arc<watch::Sender<LabStatus>>,
     /// While the robot's link is down: when to try it again.
     retry: Option<Retry>,
-    /// The recorder, handed every feedback while a run is recorded.
+    /// The recorder, handed every feedback while a run is recorded, with
+    /// the simulator's truth at its reading (for the record alone).
     record: Feed,
+    truth: Option<Pose>,
 }
 
 /// What the control loop is given to work with.
@@ -223,6 +225,7 @@ impl Control {
             status: wiring.status,
             retry: None,
             record: wiring.record,
+            truth: None,
         }
     }
 
@@ -515,9 +518,7 @@ impl Control {
         let Some(run) = self.run.as_mut() else { return };
         let truth = self.witness.as_mut().map(|w| w.true_pose());
         run.record.record(pose, truth);
-        if let Some(truth) = truth {
-            self.record.send(Entry::Truth(truth));
-        }
+        self.truth = truth;
         if let Some((_, prev_pose)) = previous {
             run.distance_mm += prev_pose.point().distance(pose.point());
         }
@@ -660,6 +661,9 @@ impl Control {
             limited: self.run.as_ref().is_some_and(|r| r.limited),
         };
         if self.record.active() {
+            if let Some(truth) = self.truth {
+                self.record.send(Entry::Truth(truth));
+            }
             self.record.send(Entry::Sent(message.clone()));
         }
         self.feedback.send_replace(Some(message));

@@ -15,10 +15,12 @@ use super::{BenchError, Socket, say, teleoperating, time_commands, until};
 use crate::record::Catalogue;
 use crate::{Host, HostConfig, SimLab};
 
-/// Rounds of commands on each Host.
-const ROUNDS: usize = 4;
-/// How long both Hosts idle while their feedback's period is read.
-const IDLE: Duration = Duration::from_secs(5);
+/// Rounds of commands on each Host, alternating: finely interleaved, the
+/// two see the same moments of the machine's load.
+const ROUNDS: usize = 10;
+/// How long both Hosts idle while their feedback's period is read: long
+/// enough for a p99 of some 750 gaps each.
+const IDLE: Duration = Duration::from_secs(15);
 
 /// Recording on against off, in one run.
 #[derive(Debug, Clone, Serialize)]
