@@ -14,7 +14,6 @@ use crate::report::emit;
 pub(crate) struct RecordArgs {
     #[command(subcommand)]
     command: RecordCommand,
-    /// Print the result as JSON.
     #[arg(long, global = true)]
     json: bool,
 }

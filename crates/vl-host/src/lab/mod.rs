@@ -168,7 +168,7 @@ impl Lab {
         catalogue: Option<Catalogue>,
     ) -> Lab {
         let since = Instant::now();
-        let record = catalogue.map_or_else(Feed::default, |c| crate::record::start(c, since));
+        let record = catalogue.map_or_else(Feed::default, |c| Feed::spawn(c, since));
         let Devices {
             robot,
             mut camera,

@@ -232,7 +232,6 @@ pub(crate) fn transform(ns: u64, pose: Pose) -> Value {
 pub(crate) enum Level {
     Info = 2,
     Warning = 3,
-    Error = 4,
 }
 
 pub(crate) fn log_message(ns: u64, level: Level, text: &str) -> Value {

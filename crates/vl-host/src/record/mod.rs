@@ -19,7 +19,6 @@
 mod catalogue;
 mod export;
 mod foxglove;
-mod log;
 mod reader;
 mod writer;
 
@@ -27,21 +26,12 @@ pub(crate) use catalogue::now_ms;
 pub use catalogue::{Catalogue, Owner, RecordSettings, Runs};
 pub use export::{Exported, export};
 pub(crate) use foxglove::Level;
-pub use log::init_logging;
 pub use reader::{
     Message, RecordError, Recording, RecordingInfo, Repaired, Replayed, TopicCount, repair,
 };
 pub(crate) use writer::{Begin, Entry, Feed};
 
 use foxglove::Schema;
-
-/// Starts the recorder of a lab whose clock began at `since`, writing
-/// into `catalogue`, with the Host's log lines going into its runs.
-pub(crate) fn start(catalogue: Catalogue, since: std::time::Instant) -> Feed {
-    let feed = Feed::spawn(catalogue, since);
-    log::register(&feed);
-    feed
-}
 
 /// Each channel of a recording: one home for its topic and schema.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -102,8 +102,7 @@ fn now_ns() -> u64 {
 impl Feed {
     /// Starts the recorder, writing into `catalogue`'s folder; `since` is
     /// the lab's clock's zero, which frames' capture times count from.
-    /// (`record::start` also hands it the Host's log.)
-    pub(super) fn spawn(catalogue: Catalogue, since: Instant) -> Feed {
+    pub(crate) fn spawn(catalogue: Catalogue, since: Instant) -> Feed {
         let (queue, entries) = mpsc::sync_channel(QUEUE);
         let shared = Arc::new(Shared {
             queue,
@@ -124,11 +123,6 @@ impl Feed {
             .spawn(move || recorder.run())
             .expect("the OS starts a thread");
         Feed(Some(shared))
-    }
-
-    /// What the recorder shares with those feeding it, if it runs.
-    pub(crate) fn shared(&self) -> Option<&Arc<Shared>> {
-        self.0.as_ref()
     }
 
     /// Whether a run is being recorded.

@@ -20,6 +20,7 @@ use super::HostConfig;
 use crate::accounts::audit::Entry;
 use crate::accounts::gate::Admitted;
 use crate::lab::{Finished, Lab};
+use crate::record::Level;
 use fields::Map;
 pub(crate) use forecasts::ForecastJob;
 pub use forecasts::{ForecastSettings, MOST_SEEDS as MOST_FORECAST_SEEDS};
@@ -323,7 +324,7 @@ impl Hub {
 
     fn refuse(&mut self, id: u64, code: ErrorCode, message: impl Into<String>) {
         let message = message.into();
-        self.record_warning(format!("refused ({code}): {message}"));
+        self.record_log(Level::Warning, format!("refused ({code}): {message}"));
         self.send(id, HostMessage::error(code, message));
     }
 
@@ -356,6 +357,8 @@ impl Hub {
         };
         for fired in &state.fired {
             info!(lab = fired.lab.id(), transition = %fired.transition, "fired");
+            let line = format!("{}: fired {}", fired.lab.id(), fired.transition);
+            self.record_log(Level::Info, line);
         }
         self.broadcast(&HostMessage::State(Box::new(state)));
     }

@@ -134,9 +134,10 @@ impl Hub {
         }
     }
 
-    /// Records a warning in the run's log: a refusal, a fault.
-    pub(super) fn record_warning(&self, text: String) {
-        self.lab.record.send(Entry::Log(Level::Warning, text));
+    /// Writes a line in the run's log (firings, refusals, faults): what
+    /// the Host saw happen during it.
+    pub(super) fn record_log(&self, level: Level, text: String) {
+        self.lab.record.send(Entry::Log(level, text));
     }
 
     /// Records a command the run took.

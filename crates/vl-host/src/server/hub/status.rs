@@ -9,6 +9,7 @@ use vl_core::{DeviceState, EndReason, Experiment, HostStatus, Person, RunRecord}
 
 use super::Hub;
 use crate::accounts::audit::Entry;
+use crate::record::Level;
 
 const DAY_S: u64 = 86_400;
 
@@ -107,6 +108,12 @@ impl Hub {
             self.config
                 .audit
                 .record(Entry::new(event).detail(format!("the {device}")));
+            let state = if after == DeviceState::Offline {
+                "does not answer"
+            } else {
+                "answers again"
+            };
+            self.record_log(Level::Warning, format!("the {device} {state}"));
         }
     }
 }
