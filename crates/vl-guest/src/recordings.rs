@@ -124,11 +124,7 @@ impl Downloading {
 /// Where this user's downloaded runs go: vl/downloads in their data
 /// directory.
 pub(crate) fn downloads_dir() -> Option<PathBuf> {
-    let data = std::env::var_os("XDG_DATA_HOME")
-        .map(PathBuf::from)
-        .filter(|p| p.is_absolute())
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local/share")))?;
-    Some(data.join("vl").join("downloads"))
+    Some(vl_host::data_dir()?.join("downloads"))
 }
 
 /// Downloads recording `name` into `dir` over `connection`, saying how far

@@ -111,7 +111,7 @@ pub use media::{
 };
 pub use record::{
     Catalogue, Exported, Message as RecordedMessage, Owner, RecordError, RecordSettings, Recording,
-    RecordingInfo, Repaired, Replayed, Runs, TopicCount, export, repair,
+    RecordingInfo, Repaired, Replayed, Runs, TopicCount, data_dir, export, repair,
 };
 pub use replay::ReplayCamera;
 pub use server::bench::{BenchError, Guessing, OperatorLatency, operator_latency};

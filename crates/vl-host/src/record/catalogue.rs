@@ -38,6 +38,16 @@ pub struct RecordSettings {
     pub record_idle: bool,
 }
 
+/// vl's folder in this user's data directory (`$XDG_DATA_HOME/vl`, else
+/// `~/.local/share/vl`): the Host's recordings, the Guest's downloads.
+pub fn data_dir() -> Option<PathBuf> {
+    let data = std::env::var_os("XDG_DATA_HOME")
+        .map(PathBuf::from)
+        .filter(|p| p.is_absolute())
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local/share")))?;
+    Some(data.join("vl"))
+}
+
 /// Milliseconds since 1970.
 pub(crate) fn now_ms() -> u64 {
     SystemTime::now()
@@ -159,19 +169,11 @@ impl Catalogue {
     pub fn at(dir: Option<&Path>) -> Result<Catalogue, RecordError> {
         match dir {
             Some(dir) => Catalogue::open(dir),
-            None => Catalogue::open(&Catalogue::default_dir().ok_or(RecordError::NoDataDir)?),
+            None => {
+                let dir = data_dir().ok_or(RecordError::NoDataDir)?;
+                Catalogue::open(&dir.join("recordings"))
+            }
         }
-    }
-
-    /// `$XDG_DATA_HOME/vl/recordings`, else `~/.local/share/vl/recordings`.
-    fn default_dir() -> Option<PathBuf> {
-        let data = std::env::var_os("XDG_DATA_HOME")
-            .map(PathBuf::from)
-            .filter(|p| p.is_absolute())
-            .or_else(|| {
-                std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local").join("share"))
-            })?;
-        Some(data.join("vl").join("recordings"))
     }
 
     pub fn dir(&self) -> &Path {

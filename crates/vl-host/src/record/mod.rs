@@ -23,7 +23,7 @@ mod reader;
 mod writer;
 
 pub(crate) use catalogue::now_ms;
-pub use catalogue::{Catalogue, Owner, RecordSettings, Runs};
+pub use catalogue::{Catalogue, Owner, RecordSettings, Runs, data_dir};
 pub use export::{Exported, export};
 pub(crate) use foxglove::Level;
 pub use reader::{

@@ -67,7 +67,6 @@ pub(crate) struct Shared {
     /// A run is being recorded: only then do the loops hand anything over.
     active: AtomicBool,
     dropped_frames: AtomicU64,
-    dropped: AtomicU64,
     /// Nanoseconds since 1970 at the lab's clock's zero.
     since_ns: u64,
 }
@@ -81,14 +80,13 @@ impl Shared {
         self.active.load(Ordering::Relaxed)
     }
 
-    /// Hands `entry` over if the queue has room; counts it lost if not.
+    /// Hands `entry` over if the queue has room.
     pub(crate) fn put(&self, entry: Entry) {
         self.queued.fetch_add(1, Ordering::Relaxed);
         if let Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) =
             self.queue.try_send((now_ns(), entry))
         {
             self.queued.fetch_sub(1, Ordering::Relaxed);
-            self.dropped.fetch_add(1, Ordering::Relaxed);
         }
     }
 }
@@ -109,7 +107,6 @@ impl Feed {
             queued: AtomicUsize::new(0),
             active: AtomicBool::new(false),
             dropped_frames: AtomicU64::new(0),
-            dropped: AtomicU64::new(0),
             since_ns: now_ns().saturating_sub(since.elapsed().as_nanos() as u64),
         });
         let recorder = Recorder {
@@ -142,7 +139,6 @@ impl Feed {
         let shared = self.0.as_ref()?;
         let name = begin.run.name.clone();
         shared.dropped_frames.store(0, Ordering::Relaxed);
-        shared.dropped.store(0, Ordering::Relaxed);
         shared.active.store(true, Ordering::Relaxed);
         shared.put(Entry::Begin(Box::new(begin)));
         Some(name)
