@@ -145,8 +145,14 @@ impl Replay {
 
     /// The replay's controls: play or pause, the time slider, the speed.
     pub fn controls(&mut self, ui: &mut egui::Ui) {
-        ui.horizontal(|ui| {
-            ui.label(format!("Replay of {}", self.file));
+        // Wrapped, so a narrow window keeps every control in view; the
+        // file's name here, its whole path on hover.
+        ui.horizontal_wrapped(|ui| {
+            let name = Path::new(&self.file)
+                .file_name()
+                .map_or_else(|| self.file.clone(), |n| n.to_string_lossy().into_owned());
+            ui.label(format!("Replay of {name}"))
+                .on_hover_text(&self.file);
             let play = if self.playing { "Pause" } else { "Play" };
             if ui.button(play).clicked() {
                 if !self.playing && self.at_s >= self.duration_s {
