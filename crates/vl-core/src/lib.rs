@@ -121,13 +121,13 @@ pub use contract::forecast::{
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::host_status::{HostStatus, Person, RunRecord};
 pub use contract::protocol::{
-    DecodeError, DeviceState, Drive, EndReason, ErrorCode, GuestMessage, HeldBack, HostMessage,
-    MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Readiness, RecordingNote, Role, Secret, Stopper,
-    Summary, WATCHDOG, Wire, ending,
+    DecodeError, DeviceState, Drive, ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES,
+    MountedLab, PROTOCOL_VERSION, Readiness, Role, Secret, WATCHDOG, Wire,
 };
 pub use contract::recording::{
     PART_BYTES, PartError, PartHeader, RecordedRun, RecordingName, RecordingNameError,
 };
+pub use contract::summary::{EndReason, HeldBack, RecordingNote, Stopper, Summary, ending};
 pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use design::{
     DesignError, Designed, Interleaving, LabDesign, LabRow, NetsReport, Rule, Verdict, design,

@@ -318,15 +318,7 @@ impl Session {
                 experiments,
                 user,
                 ..
-            } => {
-                self.forget_the_host();
-                self.welcomes += 1;
-                self.link = Link::Open;
-                self.session_id = Some(session);
-                self.role = Some(role);
-                self.user = user;
-                self.experiments = experiments;
-            }
+            } => self.welcomed(session, role, experiments, user),
             HostMessage::Error { code, message } => {
                 if self.errors.len() == ERRORS_KEPT {
                     self.errors.remove(0);
@@ -411,10 +403,30 @@ impl Session {
                     .filter(|_| role == Role::Operator)
                     .map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6)));
             }
-            // The connection answers pings and bye itself.
             HostMessage::Recordings { runs } => self.recordings = Some(runs),
-            HostMessage::Ping { .. } | HostMessage::Pong { .. } | HostMessage::Bye => {}
+            // Pings and bye are the connection's; `vl guest` plans itself.
+            HostMessage::Planned { .. }
+            | HostMessage::Ping { .. }
+            | HostMessage::Pong { .. }
+            | HostMessage::Bye => {}
         }
+    }
+
+    /// The Host let this Guest in: what an earlier Host said is forgotten.
+    fn welcomed(
+        &mut self,
+        session: u64,
+        role: Role,
+        experiments: Vec<vl_core::ExperimentInfo>,
+        user: Option<String>,
+    ) {
+        self.forget_the_host();
+        self.welcomes += 1;
+        self.link = Link::Open;
+        self.session_id = Some(session);
+        self.role = Some(role);
+        self.user = user;
+        self.experiments = experiments;
     }
 
     /// The Host tried the definition on the lab's twin.

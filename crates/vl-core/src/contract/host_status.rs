@@ -4,7 +4,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::protocol::{DeviceState, EndReason, Readiness};
+use super::protocol::{DeviceState, Readiness};
+use super::summary::EndReason;
 use crate::table::{Report, Table};
 use crate::{Experiment, Named};
 

@@ -1,5 +1,5 @@
 //! What Guest and Host agree on: the messages of protocol v1 and the
-//! camera frames between them, the experiments and their definitions, and
+//! camera frames between them, a run's summary, the experiments and their definitions, and
 //! recorded runs and their parts on the wire, the session supervisor that says which action may happen when (with the
 //! access net that says who may drive), and the fingerprint a Guest pins a
 //! Host's certificate by.
@@ -12,4 +12,5 @@ pub(crate) mod frame;
 pub(crate) mod host_status;
 pub(crate) mod protocol;
 pub(crate) mod recording;
+pub(crate) mod summary;
 pub(crate) mod supervisor;

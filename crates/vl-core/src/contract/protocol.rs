@@ -11,8 +11,8 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::{
-    Arena, CameraModel, Definition, Experiment, ExperimentInfo, NetState, PathAnalysis, Pose,
-    PoseSource, RobotModel, WheelSpeeds,
+    Arena, CameraModel, Definition, Experiment, ExperimentInfo, NetState, Pose, PoseSource,
+    RobotModel, Summary, WheelSpeeds,
 };
 
 /// The protocol version a `hello` must name.
@@ -93,49 +93,6 @@ impl Drive {
     }
 }
 
-/// Why a run ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, strum::VariantArray)]
-#[serde(rename_all = "snake_case")]
-pub enum EndReason {
-    GoalReached,
-    Stopped,
-    TimeLimit,
-    OperatorLeft,
-    Fault,
-    /// Someone pressed the emergency stop.
-    EmergencyStop,
-    /// The operator sent no command for the lease time.
-    OperatorSilent,
-    /// The camera lost sight of the robot for longer than odometry alone
-    /// may carry a run.
-    RobotLost,
-    /// The safety layer held the robot back for so long that the run
-    /// cannot go on: `Summary::held_back` says why.
-    HeldBack,
-    /// The operator's slot ended and the next in line took control.
-    SlotEnded,
-    /// One of the lab's administrators ended the operator's turn.
-    Kicked,
-}
-
-impl std::fmt::Display for EndReason {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            EndReason::GoalReached => "goal reached",
-            EndReason::Stopped => "stopped",
-            EndReason::TimeLimit => "time limit",
-            EndReason::OperatorLeft => "operator left",
-            EndReason::Fault => "fault",
-            EndReason::EmergencyStop => "emergency stop",
-            EndReason::OperatorSilent => "operator silent",
-            EndReason::RobotLost => "the camera lost the robot",
-            EndReason::HeldBack => "held back by the safety layer",
-            EndReason::SlotEnded => "the operator's slot ended",
-            EndReason::Kicked => "ended by the lab's administrator",
-        })
-    }
-}
-
 /// Whether the lab is ready for a run, as remote labs reset their
 /// equipment between users.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -153,131 +110,6 @@ impl std::fmt::Display for Readiness {
             Readiness::Ready => "ready",
             Readiness::GettingReady => "getting ready: the robot drives back to its start pose",
         })
-    }
-}
-
-/// What a finished run achieved.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Summary {
-    pub reason: EndReason,
-    pub reached_goal: bool,
-    /// Commands executed in the run (the last event number).
-    pub events: u64,
-    pub final_pose: Pose,
-    /// Duration of the run on the lab's clock (simulated seconds on the simulator).
-    pub seconds: f64,
-    /// Sum of distances driven, mm.
-    pub distance_mm: f64,
-    pub collisions: u64,
-    /// The least room the body had to anything the Host knows of, mm.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub closest_mm: Option<f64>,
-    /// Of the forward speed commands asked for, the share the safety layer
-    /// let through (1: it never had to slow the robot).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub speed_kept: Option<f64>,
-    /// Where the pose the Host steered and judged by came from.
-    #[serde(default)]
-    pub pose_source: PoseSource,
-    /// The followed path against the planned one, for runs that had a plan
-    /// or a witness of the truth.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub path: Option<PathAnalysis>,
-    /// The largest gap between a command's event and the feedback event
-    /// its Guest had seen (commands that say what they had seen only).
-    #[serde(default)]
-    pub max_event_gap: u64,
-    /// Commands sent more than one event ahead of the feedback their
-    /// Guest had seen: losses of synchronisation.
-    #[serde(default)]
-    pub sync_violations: u64,
-    /// Who pressed the emergency stop that ended the run.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub stopped_by: Option<Stopper>,
-    /// Why the safety layer would not let the run go on.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub held_back: Option<HeldBack>,
-    /// The run against the forecast of its definition.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub forecast: Option<crate::Gap>,
-    /// Where the Host recorded the run, when it records.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub recording: Option<RecordingNote>,
-}
-
-/// The file a run was recorded to, and what the recorder could not keep
-/// up with (camera frames go first, so the control loop never waits).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct RecordingNote {
-    pub name: crate::RecordingName,
-    pub dropped_frames: u64,
-}
-
-impl Summary {
-    /// How the run ended, in words.
-    pub fn ending(&self) -> String {
-        ending(self.reason, self.held_back.as_ref())
-    }
-}
-
-/// How a run ended, in words: the reason, and why the safety layer held
-/// it back when it did.
-pub fn ending(reason: EndReason, held_back: Option<&HeldBack>) -> String {
-    match held_back {
-        Some(why) if reason == EndReason::HeldBack => format!("{reason}: {why}"),
-        _ => reason.to_string(),
-    }
-}
-
-/// Where a run was held back, and how unsure the estimate was there.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct HeldBack {
-    /// How far the robot may be from its estimate (two standard
-    /// deviations), mm.
-    pub uncertain_mm: f64,
-    /// The least room the path ahead leaves between the body and what is
-    /// mapped, mm.
-    pub passes_mm: f64,
-    /// Whether that is a wall of the arena (else an obstacle).
-    pub wall: bool,
-    /// The room the safety layer keeps besides the uncertainty, mm.
-    pub margin_mm: f64,
-}
-
-impl std::fmt::Display for HeldBack {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let what = if self.wall { "the wall" } else { "an obstacle" };
-        if self.uncertain_mm + self.margin_mm >= self.passes_mm {
-            write!(
-                f,
-                "position uncertain by {:.0} mm where the path passes {:.0} mm from {what}: \
-                 add a camera or widen the margin",
-                self.uncertain_mm, self.passes_mm
-            )
-        } else {
-            write!(
-                f,
-                "the robot could not move on where the path passes {:.0} mm from {what}: \
-                 something the map does not show may be in the way",
-                self.passes_mm
-            )
-        }
-    }
-}
-
-/// Who pressed an emergency stop: their role and session.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Stopper {
-    pub role: Role,
-    pub session: u64,
-}
-
-impl std::fmt::Display for Stopper {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self.role {
-            Role::Operator => write!(f, "the operator (session {})", self.session),
-            Role::Observer => write!(f, "an observer (session {})", self.session),
-        }
     }
 }
 
@@ -417,6 +249,12 @@ pub enum GuestMessage {
         #[serde(default)]
         offset: u64,
     },
+    /// Plans a path to `goal` on the Host's map of the mounted lab, from
+    /// where the robot stands, for a Guest that does not plan itself (the
+    /// web page): answered `planned` to it alone, defining nothing.
+    Plan {
+        goal: crate::Point,
+    },
     Bye,
 }
 
@@ -528,6 +366,12 @@ pub enum HostMessage {
     /// The recorded runs this Guest may see, newest first.
     Recordings {
         runs: Vec<crate::RecordedRun>,
+    },
+    /// A path to `goal` from where the robot stood, planned on the lab's
+    /// map for the Guest that asked (`plan`).
+    Planned {
+        goal: crate::Point,
+        path: Vec<crate::Point>,
     },
     Bye,
 }
