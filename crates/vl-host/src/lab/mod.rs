@@ -134,6 +134,9 @@ pub(crate) enum LabRequest {
 #[derive(Debug, Clone)]
 pub(crate) struct Finished(pub u64, pub Summary);
 
+/// Lines of the Host's log a live watcher may fall behind by.
+const LOG_LINES: usize = 64;
+
 /// The session's handle on the running lab.
 pub(crate) struct Lab {
     pub info: LabInfo,
@@ -153,6 +156,12 @@ pub(crate) struct Lab {
     frame_wanted: Arc<AtomicBool>,
     /// The recorder (none when the Host records nothing).
     pub(crate) record: Feed,
+    /// ns since 1970 at the lab's clock's zero (feedback's `t_ms`, frames'
+    /// capture times).
+    pub(crate) since_ns: u64,
+    /// The Host's log as it is written (firings, refusals, faults), for
+    /// those watching it live; a watcher that falls behind skips lines.
+    pub(crate) log: tokio::sync::broadcast::Sender<(crate::record::Level, String)>,
 }
 
 impl Lab {
@@ -256,6 +265,8 @@ impl Lab {
             running,
             frame_wanted,
             record,
+            since_ns: crate::record::unix_ns_at(since),
+            log: tokio::sync::broadcast::channel(LOG_LINES).0,
         }
     }
 

@@ -20,6 +20,7 @@ mod catalogue;
 mod export;
 mod foxglove;
 mod reader;
+mod views;
 mod writer;
 
 pub(crate) use catalogue::now_ms;
@@ -29,9 +30,10 @@ pub(crate) use foxglove::Level;
 pub use reader::{
     Message, RecordError, Recording, RecordingInfo, Repaired, Replayed, TopicCount, repair,
 };
-pub(crate) use writer::{Begin, Entry, Feed};
+pub(crate) use views::{View, Views};
+pub(crate) use writer::{Begin, Entry, Feed, now_ns, unix_ns_at};
 
-use foxglove::Schema;
+pub(crate) use foxglove::Schema;
 
 /// Each channel of a recording: one home for its topic and schema.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

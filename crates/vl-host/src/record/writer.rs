@@ -13,13 +13,14 @@ use mcap::records::{MessageHeader, Metadata};
 use tokio_tungstenite::tungstenite::Bytes;
 use tracing::warn;
 use vl_core::{
-    Definition, FrameHeader, GuestMessage, HostMessage, MountedLab, Named, Pose, RecordedRun,
-    RecordingName, Wire,
+    Definition, GuestMessage, HostMessage, MountedLab, Named, Pose, RecordedRun, RecordingName,
+    Wire,
 };
 
 use super::Topic;
 use super::catalogue::{Catalogue, Owner};
 use super::foxglove::{self, Level};
+use super::views::{View, Views};
 
 /// Entries waiting for the recorder, at most…
 const QUEUE: usize = 4096;
@@ -91,7 +92,12 @@ impl Shared {
     }
 }
 
-fn now_ns() -> u64 {
+/// ns since 1970 at `instant` (in the past).
+pub(crate) fn unix_ns_at(instant: Instant) -> u64 {
+    now_ns().saturating_sub(instant.elapsed().as_nanos() as u64)
+}
+
+pub(crate) fn now_ns() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos() as u64)
@@ -107,7 +113,7 @@ impl Feed {
             queued: AtomicUsize::new(0),
             active: AtomicBool::new(false),
             dropped_frames: AtomicU64::new(0),
-            since_ns: now_ns().saturating_sub(since.elapsed().as_nanos() as u64),
+            since_ns: unix_ns_at(since),
         });
         let recorder = Recorder {
             catalogue,
@@ -208,7 +214,7 @@ impl Recorder {
                 self.close();
                 let name = begin.run.name.clone();
                 self.catalogue.writing(Some(&name));
-                match RunFile::create(&self.catalogue, *begin, ns) {
+                match RunFile::create(&self.catalogue, *begin, ns, self.shared.since_ns) {
                     Ok(file) => {
                         self.file = Some(file);
                         self.catalogue.retain(&name);
@@ -222,7 +228,7 @@ impl Recorder {
                 Ok(())
             }
             entry => match &mut self.file {
-                Some(file) => file.write(ns, entry, self.shared.since_ns),
+                Some(file) => file.write(ns, entry),
                 None => Ok(()),
             },
         };
@@ -259,16 +265,18 @@ struct RunFile {
     unflushed: Option<Instant>,
     run: RecordedRun,
     owner: Owner,
-    lab: MountedLab,
-    definition: Definition,
-    /// The robot's pose last reported, for the camera's annotations.
-    pose: Option<Pose>,
+    views: Views,
 }
 
 type Written = Result<(), super::RecordError>;
 
 impl RunFile {
-    fn create(catalogue: &Catalogue, begin: Begin, ns: u64) -> Result<RunFile, super::RecordError> {
+    fn create(
+        catalogue: &Catalogue,
+        begin: Begin,
+        ns: u64,
+        since_ns: u64,
+    ) -> Result<RunFile, super::RecordError> {
         let path = catalogue.path(&begin.run.name);
         let file = File::create(&path).map_err(|e| super::RecordError::Io(path.clone(), e))?;
         let mut writer = mcap::WriteOptions::new()
@@ -318,6 +326,10 @@ impl RunFile {
             })?;
         }
         catalogue.write_entry(&begin.run, &begin.owner)?;
+        let mounted = HostMessage::Mounted(Box::new(begin.lab));
+        let defined = HostMessage::Defined {
+            definition: begin.definition,
+        };
         let mut file = RunFile {
             writer,
             channels: HashMap::new(),
@@ -326,26 +338,17 @@ impl RunFile {
             unflushed: None,
             run: begin.run,
             owner: begin.owner,
-            lab: begin.lab,
-            definition: begin.definition,
-            pose: None,
+            views: Views::new(since_ns, None, Definition::default()),
         };
-        let mounted = HostMessage::Mounted(Box::new(file.lab.clone()));
-        file.put(Topic::Lab, ns, ns, mounted.encode().as_bytes())?;
-        let defined = HostMessage::Defined {
-            definition: file.definition.clone(),
-        };
-        file.put(Topic::Definition, ns, ns, defined.encode().as_bytes())?;
-        file.scene(ns)?;
+        for message in [mounted, defined] {
+            let views = file.views.sent(ns, &message);
+            file.put_all(views)?;
+        }
         let text = match file.run.experiment {
             Some(experiment) => format!("run {} of {experiment} begins", file.run.run),
             None => "the time between runs".to_owned(),
         };
-        file.foxglove(
-            Topic::Log,
-            ns,
-            &foxglove::log_message(ns, Level::Info, &text),
-        )?;
+        file.put_all(vec![View::log(ns, Level::Info, &text)])?;
         Ok(file)
     }
 
@@ -387,15 +390,25 @@ impl RunFile {
         self.put(topic, ns, ns, &data)
     }
 
-    fn scene(&mut self, ns: u64) -> Written {
-        let scene = foxglove::scene(ns, &self.lab.arena, &self.definition, &self.lab.robot);
-        self.foxglove(Topic::Scene, ns, &scene)
+    /// Writes `views`, logged when they happened (never before what is
+    /// already written).
+    fn put_all(&mut self, views: Vec<View>) -> Written {
+        for view in views {
+            self.put(view.topic, view.ns, view.ns, &view.data)?;
+        }
+        Ok(())
     }
 
-    fn write(&mut self, ns: u64, entry: Entry, since_ns: u64) -> Written {
+    fn write(&mut self, ns: u64, entry: Entry) -> Written {
         match entry {
-            Entry::Sent(message) => self.sent(ns, message, since_ns),
-            Entry::Frame(wire) => self.frame(ns, &wire, since_ns),
+            Entry::Sent(message) => self.sent(ns, message),
+            Entry::Frame(wire) => {
+                // Logged as it reached the recorder; published when taken.
+                for view in self.views.frame(&wire) {
+                    self.put(view.topic, ns, view.ns, &view.data)?;
+                }
+                Ok(())
+            }
             Entry::Command(command) => {
                 self.put(Topic::Commands, ns, ns, command.encode().as_bytes())
             }
@@ -406,63 +419,21 @@ impl RunFile {
             Entry::Truth(pose) => {
                 self.foxglove(Topic::TruePose, ns, &foxglove::pose_message(ns, pose))
             }
-            Entry::Log(level, text) => {
-                self.foxglove(Topic::Log, ns, &foxglove::log_message(ns, level, &text))
-            }
+            Entry::Log(level, text) => self.put_all(vec![View::log(ns, level, &text)]),
             Entry::Begin(_) | Entry::End => Ok(()),
         }
     }
 
-    fn sent(&mut self, ns: u64, message: HostMessage, since_ns: u64) -> Written {
-        let Some(topic) = Topic::of(&message) else {
-            return Ok(());
-        };
-        // Feedback is stamped with when the lab read the robot.
-        let ns = match &message {
-            HostMessage::Feedback { t_ms, .. } => since_ns + (t_ms.max(0.0) * 1e6) as u64,
-            _ => ns,
-        };
-        self.put(topic, ns, ns, message.encode().as_bytes())?;
-        match message {
-            HostMessage::Feedback { pose, .. } => {
-                self.pose = Some(pose);
-                self.foxglove(Topic::Pose, ns, &foxglove::pose_message(ns, pose))?;
-                self.foxglove(Topic::Transform, ns, &foxglove::transform(ns, pose))
-            }
-            HostMessage::Defined { definition } => {
-                self.definition = definition;
-                self.scene(ns)
-            }
-            HostMessage::Done { summary } => {
-                self.run.ending = Some(summary.reason);
-                self.run.seconds = Some(summary.seconds);
-                let text = format!("run {} ended: {}", self.run.run, summary.ending());
-                self.foxglove(
-                    Topic::Log,
-                    ns,
-                    &foxglove::log_message(ns, Level::Info, &text),
-                )
-            }
-            _ => Ok(()),
+    fn sent(&mut self, ns: u64, message: HostMessage) -> Written {
+        let views = self.views.sent(ns, &message);
+        self.put_all(views)?;
+        if let HostMessage::Done { summary } = message {
+            self.run.ending = Some(summary.reason);
+            self.run.seconds = Some(summary.seconds);
+            let text = format!("run {} ended: {}", self.run.run, summary.ending());
+            self.put_all(vec![View::log(ns, Level::Info, &text)])?;
         }
-    }
-
-    fn frame(&mut self, ns: u64, wire: &[u8], since_ns: u64) -> Written {
-        let Ok((header, jpeg)) = FrameHeader::decode(wire) else {
-            return Ok(());
-        };
-        let taken = since_ns + header.capture_us * 1000;
-        self.put(
-            Topic::Camera,
-            ns,
-            taken,
-            &serde_json::to_vec(&foxglove::image(taken, jpeg)).expect("JSON values serialise"),
-        )?;
-        let robot = self.pose.map(|p| (p, self.lab.robot.radius_mm));
-        let annotations =
-            foxglove::annotations(taken, &self.lab.camera, &self.definition.path, robot);
-        let data = serde_json::to_vec(&annotations).expect("JSON values serialise");
-        self.put(Topic::Annotations, ns, taken, &data)
+        Ok(())
     }
 
     /// Closes the chunk under way, so everything so far survives a crash.

@@ -129,6 +129,9 @@ pub(crate) struct Hub {
     sync_violations: u64,
     /// When the operator last started or commanded the run under way.
     last_command: Instant,
+    /// When the operator last had a path planned (`plan`): plans are
+    /// the Host's work, so they are spaced.
+    last_plan: Option<Instant>,
     /// The number of the run under way (kept until the lab reports its end).
     run: Option<u64>,
     /// How many runs have started.
@@ -186,6 +189,7 @@ impl Hub {
             max_event_gap: 0,
             sync_violations: 0,
             last_command: Instant::now(),
+            last_plan: None,
             run: None,
             runs: 0,
             operator_user: None,

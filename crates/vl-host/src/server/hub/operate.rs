@@ -6,7 +6,7 @@ use std::time::Instant;
 use tracing::warn;
 use vl_core::{
     Action, Definition, DeviceState, Drive, EndReason, ErrorCode, Experiment, GuestMessage,
-    HostMessage, Named, Readiness, Shape, Stopper,
+    HostMessage, Named, Point, Readiness, Shape, Stopper, plan_route,
 };
 
 use super::Hub;
@@ -14,11 +14,15 @@ use super::fields::field_job;
 use crate::accounts::audit::Entry;
 use crate::lab::LabRequest;
 
+/// The least time between two plans for the operator.
+const PLAN_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
+
 impl Hub {
     pub(super) fn operate(&mut self, id: u64, message: GuestMessage) {
         match message {
             GuestMessage::Mount { experiment } => self.mount(id, experiment),
             GuestMessage::Define { definition } => self.define(id, definition),
+            GuestMessage::Plan { goal } => self.plan(id, goal),
             GuestMessage::Reset => self.ask_reset(id),
             GuestMessage::Start => self.start(id),
             GuestMessage::Stop => self.stop(id),
@@ -103,6 +107,49 @@ impl Hub {
             self.ask_forecast(&definition);
         }
         self.build_field(&definition.virtual_obstacles);
+    }
+
+    /// Plans a path to `goal` from where the robot stands, for the
+    /// operator to define: when a definition may be made, at most one
+    /// plan every [`PLAN_EVERY`].
+    fn plan(&mut self, id: u64, goal: Point) {
+        if self.experiment != Some(Experiment::Navigation) {
+            let why = "paths are planned for the navigation experiment: mount it first";
+            return self.refuse(id, ErrorCode::NotAllowedNow, why);
+        }
+        if !self.permitted(id, Action::Define) {
+            return;
+        }
+        if let Some(last) = self.last_plan
+            && last.elapsed() < PLAN_EVERY
+        {
+            let why = format!(
+                "one plan every {} ms: ask again in a moment",
+                PLAN_EVERY.as_millis()
+            );
+            return self.refuse(id, ErrorCode::NotAllowedNow, why);
+        }
+        let arena = &self.lab.info.arena;
+        let inside = |v: f64, high: f64| v.is_finite() && (0.0..=high).contains(&v);
+        if !inside(goal.x_mm, arena.width_mm) || !inside(goal.y_mm, arena.height_mm) {
+            let why = format!(
+                "the goal ({}, {}) mm is outside the arena, {} by {} mm",
+                goal.x_mm, goal.y_mm, arena.width_mm, arena.height_mm
+            );
+            return self.refuse(id, ErrorCode::InvalidDefinition, why);
+        }
+        self.last_plan = Some(Instant::now());
+        let start = match &*self.lab.feedback.borrow() {
+            Some(HostMessage::Feedback { pose, .. }) => *pose,
+            _ => arena.start,
+        };
+        match plan_route(arena, &[], &self.lab.info.robot, start, goal) {
+            Ok(plan) => {
+                let path = plan.points();
+                self.send(id, HostMessage::Planned { goal, path });
+            }
+            Err(e) => self.refuse(id, ErrorCode::InvalidDefinition, format!("no path: {e}")),
+        }
     }
 
     /// Drives the robot back to its start pose, unless a run is under way.

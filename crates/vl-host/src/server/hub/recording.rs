@@ -135,8 +135,10 @@ impl Hub {
     }
 
     /// Writes a line in the run's log (firings, refusals, faults): what
-    /// the Host saw happen during it.
+    /// the Host saw happen during it; live, for Foxglove's watchers.
     pub(super) fn record_log(&self, level: Level, text: String) {
+        // Nobody watching the log live is no error.
+        let _ = self.lab.log.send((level, text.clone()));
         self.lab.record.send(Entry::Log(level, text));
     }
 
