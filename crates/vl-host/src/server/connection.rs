@@ -6,11 +6,9 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use futures_util::stream::SplitSink;
-use futures_util::{SinkExt, StreamExt};
+use futures_util::StreamExt;
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, watch};
-use tokio_tungstenite::WebSocketStream;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::tungstenite::{self, Bytes, Message};
 use tracing::debug;
@@ -19,18 +17,19 @@ use vl_core::{
 };
 
 use super::admission::Ticket;
+use super::foxglove;
 use super::http::{self, Opening};
 use super::hub::{ToConnection, ToHub};
+use super::socket::{self, Sink, Socket, Unwritten};
 use super::{HostConfig, Io};
 use crate::accounts::gate::{Credentials, Gate, Identity};
 use crate::accounts::users::AccountRole;
 use crate::lab::Watching;
 use crate::record::{Entry, Feed, RecordError};
+use tokio_tungstenite::tungstenite::handshake::server::{Request, Response};
 
 /// The WebSocket handshake must be done within this.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
-/// A client must take each message within this, or it is too slow to serve.
-const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
 /// How often the Host pings: to measure the round trip and hear the client.
 const PING_EVERY: Duration = Duration::from_secs(1);
 /// Bytes of messages waiting to be written to one client, at most.
@@ -66,6 +65,16 @@ pub(crate) struct Connection {
     pub(crate) record: Feed,
     /// Who the gate let in (for the recordings they may see).
     pub(crate) identity: Option<Identity>,
+    /// The Host's log, live (for Foxglove's watchers).
+    pub(crate) log: tokio::sync::broadcast::Sender<(crate::record::Level, String)>,
+    /// ns since 1970 at the lab's clock's zero.
+    pub(crate) since_ns: u64,
+}
+
+/// Who a connection's WebSocket is for.
+enum Client {
+    Guest(Socket),
+    Foxglove(Socket),
 }
 
 /// How a connection ends.
@@ -116,17 +125,13 @@ impl Bucket {
     }
 }
 
-type Socket = WebSocketStream<Box<dyn Io>>;
-type Sink = SplitSink<Socket, Message>;
-
 /// Writes `message`, within the write timeout.
 async fn put(sink: &mut Sink, message: Message) -> Result<(), End> {
-    match tokio::time::timeout(WRITE_TIMEOUT, sink.send(message)).await {
-        Ok(Ok(())) => Ok(()),
-        Ok(Err(e)) => Err(End::Failed(e)),
+    socket::write(sink, message).await.map_err(|e| match e {
         // It cannot be told why: it is not reading.
-        Err(_) => Err(End::Closed),
-    }
+        Unwritten::TimedOut => End::Closed,
+        Unwritten::Failed(e) => End::Failed(e),
+    })
 }
 
 fn text_of(message: &HostMessage) -> Message {
@@ -152,7 +157,67 @@ struct Reading {
     before_hello: u32,
 }
 
+/// Takes the connection's TLS handshake, if any, and its opening: a
+/// WebSocket handshake (a Guest's or a Foxglove client's), or a page
+/// request answered here (none).
+async fn handshake(
+    stream: TcpStream,
+    tls: Option<Arc<rustls::ServerConfig>>,
+    ws_config: WebSocketConfig,
+    asking: http::Asking,
+) -> Result<Option<Client>, tungstenite::Error> {
+    let stream: Box<dyn Io> = match tls {
+        Some(tls) => Box::new(tokio_rustls::TlsAcceptor::from(tls).accept(stream).await?),
+        None => Box::new(stream),
+    };
+    match http::opening(stream).await? {
+        Opening::Guest(stream) => {
+            tokio_tungstenite::accept_async_with_config(stream, Some(ws_config))
+                .await
+                .map(|socket| Some(Client::Guest(socket)))
+        }
+        Opening::Foxglove(stream, subprotocol) => {
+            // tungstenite's callback type fixes the error's size.
+            #[allow(clippy::result_large_err)]
+            let answer = |_: &Request, mut response: Response| {
+                response.headers_mut().insert(
+                    "sec-websocket-protocol",
+                    tungstenite::http::HeaderValue::from_static(subprotocol.name()),
+                );
+                Ok(response)
+            };
+            let config = ws_config
+                .max_message_size(Some(foxglove::MAX_MESSAGE))
+                .max_frame_size(Some(foxglove::MAX_MESSAGE));
+            tokio_tungstenite::accept_hdr_async_with_config(stream, answer, Some(config))
+                .await
+                .map(|socket| Some(Client::Foxglove(socket)))
+        }
+        Opening::Page(stream) => {
+            http::answer(stream, asking).await?;
+            Ok(None)
+        }
+    }
+}
+
 impl Connection {
+    /// This connection as a Foxglove client's: what it takes from the lab.
+    fn foxglove(self) -> foxglove::Watcher {
+        foxglove::Watcher {
+            id: self.id,
+            hub: self.hub,
+            feedback: self.feedback,
+            frames: self.frames,
+            watchers: self.watchers,
+            gate: self.gate,
+            peer: self.peer,
+            ticket: self.ticket,
+            ping_timeout: self.config.ping_timeout,
+            log: self.log,
+            since_ns: self.since_ns,
+        }
+    }
+
     pub(crate) async fn run(mut self, stream: TcpStream) -> Result<(), tungstenite::Error> {
         let _ = stream.set_nodelay(true);
         // Guests send only text: nothing larger than a text message may come.
@@ -161,29 +226,17 @@ impl Connection {
             .max_frame_size(Some(MAX_TEXT_BYTES))
             .max_write_buffer_size(WRITE_BUFFER);
         let tls = self.config.tls.as_ref().map(|tls| tls.config.clone());
-        let (gate, hub) = (self.gate.clone(), self.hub.clone());
-        let who = (self.id, self.peer.ip());
-        let handshake = async move {
-            let stream: Box<dyn Io> = match tls {
-                Some(tls) => Box::new(tokio_rustls::TlsAcceptor::from(tls).accept(stream).await?),
-                None => Box::new(stream),
-            };
-            match http::opening(stream).await? {
-                Opening::WebSocket(stream) => {
-                    tokio_tungstenite::accept_async_with_config(stream, Some(ws_config))
-                        .await
-                        .map(Some)
-                }
-                Opening::Page(stream, page) => {
-                    http::answer(stream, page, who, &gate, &hub).await?;
-                    Ok(None)
-                }
-            }
+        let asking = http::Asking {
+            connection: self.id,
+            address: self.peer.ip(),
+            gate: self.gate.clone(),
+            hub: self.hub.clone(),
         };
+        let handshake = handshake(stream, tls, ws_config, asking);
         let mut evicted = self.ticket.evicted.clone();
         let ws = tokio::select! {
             ws = tokio::time::timeout(HANDSHAKE_TIMEOUT, handshake) => match ws {
-                Ok(Ok(Some(ws))) => ws,
+                Ok(Ok(Some(client))) => client,
                 // A page was asked for, and answered.
                 Ok(Ok(None)) => return Ok(()),
                 Ok(Err(e)) => return Err(e),
@@ -196,6 +249,13 @@ impl Connection {
             _ = evicted.wait_for(|out| *out) => return Ok(()),
         };
         self.ticket.upgraded();
+        let ws = match ws {
+            Client::Guest(ws) => ws,
+            Client::Foxglove(ws) => {
+                self.foxglove().serve(ws).await;
+                return Ok(());
+            }
+        };
         let (mut sink, mut source) = ws.split();
         let (to_me, mut inbox) = mpsc::channel(super::hub::OUTBOX);
         if self.hub.send(ToHub::Join(self.id, to_me)).await.is_err() {

@@ -1,24 +1,35 @@
-//! The Host's one web page, on its WebSocket port: `GET /status`, the
-//! administrator's view as JSON (for `vl host status`, `curl`, a
-//! monitoring probe). Each connection's first bytes are read as an HTTP
-//! request head; a WebSocket upgrade goes on to the handshake with those
-//! bytes given back, anything else is answered here and closed. At a lab
-//! with accounts only an administrator's (HTTP Basic) credentials open
-//! the page, checked by the same gate as a hello: slowly when wrong, and
-//! limited per address and account.
+//! What a connection to the Host's port opens with, and the pages served
+//! there. Each connection's first bytes are read as an HTTP request head:
+//! a WebSocket upgrade goes on to its handshake with those bytes given
+//! back — a Foxglove client's (by its subprotocol) to the Foxglove server,
+//! anyone else's to the Guests' protocol — and any other request is
+//! answered by axum's router over hyper: the web Guest's files (`web`) and
+//! `GET /status`, the administrator's view as JSON (for `vl host status`,
+//! `curl`, a monitoring probe). At a lab with accounts only an
+//! administrator's (HTTP Basic) credentials open the status, checked by
+//! the same gate as a hello: slowly when wrong, and limited per address
+//! and account.
 
 use std::io;
 use std::net::IpAddr;
 use std::pin::Pin;
+use std::sync::Arc;
 use std::task::{Context, Poll};
 
+use axum::Router;
+use axum::extract::State;
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
 use base64::Engine;
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, ReadBuf};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, ReadBuf};
 use tokio::sync::{mpsc, oneshot};
 use vl_core::{ErrorCode, Role};
 
 use super::Io;
+use super::foxglove::Subprotocol;
 use super::hub::ToHub;
+use super::web;
 use crate::accounts::gate::{Credentials, Gate, Identity};
 use crate::accounts::users::AccountRole;
 
@@ -26,19 +37,14 @@ use crate::accounts::users::AccountRole;
 const MAX_HEAD: usize = 8 << 10;
 const MAX_HEADERS: usize = 32;
 
-/// What a connection opened with.
+/// What a connection opened with; each stream reads its head again.
 pub(super) enum Opening {
-    /// A WebSocket upgrade: the stream, its head read back first.
-    WebSocket(Box<dyn Io>),
-    /// A plain request, answered here.
-    Page(Box<dyn Io>, Page),
-}
-
-/// A plain request.
-pub(super) struct Page {
-    path: String,
-    /// HTTP Basic credentials: user and password.
-    basic: Option<(String, String)>,
+    /// A Guest's WebSocket upgrade: the protocol of `docs/protocol.md`.
+    Guest(Box<dyn Io>),
+    /// A Foxglove client's upgrade, answered with the subprotocol it asked for.
+    Foxglove(Box<dyn Io>, Subprotocol),
+    /// A plain request, for a page.
+    Page(Box<dyn Io>),
 }
 
 /// Reads the request head from `stream` and says what it asks for.
@@ -62,18 +68,19 @@ pub(super) async fn opening(mut stream: Box<dyn Io>) -> io::Result<Opening> {
                         .find(|h| h.name.eq_ignore_ascii_case(name))
                         .and_then(|h| std::str::from_utf8(h.value).ok())
                 };
-                if header("upgrade").is_some_and(|v| v.eq_ignore_ascii_case("websocket")) {
-                    return Ok(Opening::WebSocket(Box::new(Rewind {
-                        head,
-                        read: 0,
-                        stream,
-                    })));
-                }
-                let page = Page {
-                    path: request.path.unwrap_or("/").to_owned(),
-                    basic: header("authorization").and_then(basic),
-                };
-                return Ok(Opening::Page(stream, page));
+                let upgrade =
+                    header("upgrade").is_some_and(|v| v.eq_ignore_ascii_case("websocket"));
+                let foxglove = header("sec-websocket-protocol").and_then(Subprotocol::chosen);
+                let stream = Box::new(Rewind {
+                    head,
+                    read: 0,
+                    stream,
+                });
+                return Ok(match (upgrade, foxglove) {
+                    (true, Some(subprotocol)) => Opening::Foxglove(stream, subprotocol),
+                    (true, None) => Opening::Guest(stream),
+                    (false, _) => Opening::Page(stream),
+                });
             }
             Ok(httparse::Status::Partial) if head.len() < MAX_HEAD => {}
             Ok(httparse::Status::Partial) => {
@@ -84,6 +91,72 @@ pub(super) async fn opening(mut stream: Box<dyn Io>) -> io::Result<Opening> {
             }
             Err(e) => return Err(io::Error::new(io::ErrorKind::InvalidData, e)),
         }
+    }
+}
+
+/// Who asks for a page, and what answering may need.
+#[derive(Clone)]
+pub(super) struct Asking {
+    pub connection: u64,
+    pub address: IpAddr,
+    pub gate: Arc<Gate>,
+    pub hub: mpsc::Sender<ToHub>,
+}
+
+/// Answers the one request on `stream` (its head read again), then closes:
+/// a page connection holds its place among the Host's connections only
+/// as long as one answer takes.
+pub(super) async fn answer(stream: Box<dyn Io>, asking: Asking) -> io::Result<()> {
+    let router = web::routes()
+        .merge(Router::new().route("/status", get(status)))
+        .fallback(not_found)
+        .with_state(asking);
+    hyper::server::conn::http1::Builder::new()
+        .keep_alive(false)
+        .max_buf_size(MAX_HEAD)
+        .serve_connection(
+            hyper_util::rt::TokioIo::new(stream),
+            hyper_util::service::TowerToHyperService::new(router),
+        )
+        .await
+        .map_err(io::Error::other)
+}
+
+async fn not_found() -> Response {
+    (
+        StatusCode::NOT_FOUND,
+        "this is a vl Host: open / in a browser to watch the lab; Guests connect here by WebSocket; GET /status shows its state\n",
+    )
+        .into_response()
+}
+
+/// The Host's state, to whom may see it, else why not.
+async fn status(State(asking): State<Asking>, headers: HeaderMap) -> Response {
+    let basic = headers
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(basic);
+    let no_store = [(header::CACHE_CONTROL, "no-store")];
+    if let Err((code, why)) = admitted(basic, &asking).await {
+        let status = if code == ErrorCode::TooManyAttempts {
+            StatusCode::TOO_MANY_REQUESTS
+        } else {
+            StatusCode::UNAUTHORIZED
+        };
+        let challenge = [(
+            header::WWW_AUTHENTICATE,
+            "Basic realm=\"vl host\", charset=\"UTF-8\"",
+        )];
+        return (status, no_store, challenge, format!("{why}\n")).into_response();
+    }
+    let (tx, rx) = oneshot::channel();
+    let state = match asking.hub.send(ToHub::Status(tx)).await {
+        Ok(()) => rx.await.ok(),
+        Err(_) => None,
+    };
+    match state {
+        Some(state) => (no_store, axum::Json(state)).into_response(),
+        None => (StatusCode::SERVICE_UNAVAILABLE, "the Host is stopping\n").into_response(),
     }
 }
 
@@ -101,68 +174,16 @@ fn basic(value: &str) -> Option<(String, String)> {
     Some((user.to_owned(), password.to_owned()))
 }
 
-/// Answers `page`: the status to whom may see it, else why not.
-pub(super) async fn answer(
-    mut stream: Box<dyn Io>,
-    page: Page,
-    (connection, address): (u64, IpAddr),
-    gate: &Gate,
-    hub: &mpsc::Sender<ToHub>,
-) -> io::Result<()> {
-    let (status, extra, body) = if page.path.split('?').next() != Some("/status") {
-        (
-            "404 Not Found",
-            "",
-            "this is a vl Host: Guests connect here by WebSocket; GET /status shows its state\n"
-                .to_owned(),
-        )
-    } else {
-        match admitted(&page, (connection, address), gate).await {
-            Err((code, why)) => (
-                if code == ErrorCode::TooManyAttempts {
-                    "429 Too Many Requests"
-                } else {
-                    "401 Unauthorized"
-                },
-                "WWW-Authenticate: Basic realm=\"vl host\", charset=\"UTF-8\"\r\n",
-                format!("{why}\n"),
-            ),
-            Ok(()) => {
-                let (tx, rx) = oneshot::channel();
-                let status = match hub.send(ToHub::Status(tx)).await {
-                    Ok(()) => rx.await.ok(),
-                    Err(_) => None,
-                };
-                match status.and_then(|s| serde_json::to_string(&s).ok()) {
-                    Some(json) => ("200 OK", "Content-Type: application/json\r\n", json),
-                    None => (
-                        "503 Service Unavailable",
-                        "",
-                        "the Host is stopping\n".into(),
-                    ),
-                }
-            }
-        }
-    };
-    let reply = format!(
-        "HTTP/1.1 {status}\r\n{extra}Content-Length: {}\r\nCache-Control: no-store\r\nConnection: close\r\n\r\n{body}",
-        body.len()
-    );
-    stream.write_all(reply.as_bytes()).await?;
-    stream.shutdown().await
-}
-
-/// Whether `page`'s credentials open the status: anyone's at a lab
+/// Whether `basic`'s credentials open the status: anyone's at a lab
 /// without accounts, an administrator's at one with them.
 async fn admitted(
-    page: &Page,
-    (connection, address): (u64, IpAddr),
-    gate: &Gate,
+    basic: Option<(String, String)>,
+    asking: &Asking,
 ) -> Result<(), (ErrorCode, String)> {
-    if !gate.has_accounts() {
+    if !asking.gate.has_accounts() {
         return Ok(());
     }
-    let Some((user, password)) = &page.basic else {
+    let Some((user, password)) = &basic else {
         return Err((
             ErrorCode::Unauthorized,
             "the status is the lab administrator's: log in (HTTP Basic)".into(),
@@ -174,8 +195,9 @@ async fn admitted(
         password: Some(password),
         token: None,
     };
-    let admitted = gate
-        .check(connection, address, credentials)
+    let admitted = asking
+        .gate
+        .check(asking.connection, asking.address, credentials)
         .await
         .map_err(|refused| (refused.code, refused.why))?;
     match admitted.identity {

@@ -15,8 +15,11 @@
 pub(crate) mod admission;
 pub(crate) mod bench;
 mod connection;
+mod foxglove;
 mod http;
 mod hub;
+mod socket;
+mod web;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -138,6 +141,8 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         frames: lab.frames.clone(),
         watchers: lab.watchers.clone(),
         record: lab.record.clone(),
+        log: lab.log.clone(),
+        since_ns: lab.since_ns,
     };
     let config = Arc::new(config);
     let supervisor = match config.supervisor() {
@@ -168,6 +173,8 @@ struct Outlets {
     frames: tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
     watchers: Arc<std::sync::atomic::AtomicUsize>,
     record: crate::record::Feed,
+    log: tokio::sync::broadcast::Sender<(crate::record::Level, String)>,
+    since_ns: u64,
 }
 
 async fn accept(
@@ -207,6 +214,8 @@ async fn accept(
             ticket,
             record: outlets.record.clone(),
             identity: None,
+            log: outlets.log.clone(),
+            since_ns: outlets.since_ns,
         };
         tokio::spawn(async move {
             if let Err(e) = connection.run(stream).await {

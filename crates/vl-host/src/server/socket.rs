@@ -1,0 +1,33 @@
+//! A client's WebSocket as the Host holds it, and writing to it within a
+//! time: a client that does not take a message in time is not reading.
+
+use std::time::Duration;
+
+use futures_util::SinkExt;
+use futures_util::stream::SplitSink;
+use tokio_tungstenite::WebSocketStream;
+use tokio_tungstenite::tungstenite::{self, Message};
+
+use super::Io;
+
+/// A client must take each message within this, or it is too slow to serve.
+const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
+
+pub(super) type Socket = WebSocketStream<Box<dyn Io>>;
+pub(super) type Sink = SplitSink<Socket, Message>;
+
+/// Why a message was not written.
+pub(super) enum Unwritten {
+    /// The client took nothing for the write timeout.
+    TimedOut,
+    Failed(tungstenite::Error),
+}
+
+/// Writes `message`, within the write timeout.
+pub(super) async fn write(sink: &mut Sink, message: Message) -> Result<(), Unwritten> {
+    match tokio::time::timeout(WRITE_TIMEOUT, sink.send(message)).await {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(Unwritten::Failed(e)),
+        Err(_) => Err(Unwritten::TimedOut),
+    }
+}

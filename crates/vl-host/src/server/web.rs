@@ -1,0 +1,54 @@
+//! The web Guest: a page, its script and its style, built into `vl` and
+//! served on the Host's own port, so watching or driving the lab needs
+//! nothing installed but a browser. The page speaks the same protocol as
+//! `vl guest` over a WebSocket to the same port: the same limits and the
+//! same supervisor judge what it sends.
+
+use axum::Router;
+use axum::http::header;
+use axum::routing::get;
+
+/// Each file: where it is served, its media type, its bytes.
+const FILES: [(&str, &str, &str); 4] = [
+    (
+        "/",
+        "text/html; charset=utf-8",
+        include_str!("../../web/index.html"),
+    ),
+    (
+        "/app.js",
+        "text/javascript; charset=utf-8",
+        include_str!("../../web/app.js"),
+    ),
+    (
+        "/protocol.js",
+        "text/javascript; charset=utf-8",
+        include_str!("../../web/protocol.js"),
+    ),
+    (
+        "/style.css",
+        "text/css; charset=utf-8",
+        include_str!("../../web/style.css"),
+    ),
+];
+
+/// The web Guest's routes.
+pub(super) fn routes<S: Clone + Send + Sync + 'static>() -> Router<S> {
+    FILES
+        .iter()
+        .fold(Router::new(), |router, &(path, media_type, body)| {
+            router.route(
+                path,
+                get(move || async move {
+                    // Asked again each load: a Host updated serves its new page.
+                    (
+                        [
+                            (header::CONTENT_TYPE, media_type),
+                            (header::CACHE_CONTROL, "no-cache"),
+                        ],
+                        body,
+                    )
+                }),
+            )
+        })
+}

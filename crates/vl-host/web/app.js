@@ -1,0 +1,448 @@
+// The web Guest: watches the lab, and drives it once admitted. What it
+// sends is built in protocol.js; the Host judges all of it as it judges
+// `vl guest`'s.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+
+// Words for what the Host says, as `vl guest` puts them: the operator's
+// actions among the events the lab's net enables (the rest are the Host's).
+const ACTIONS = {
+  mount: "mount an experiment", define: "define the run", start: "start a run",
+  command: "drive", stop: "stop the run",
+};
+const ENDINGS = {
+  goal_reached: "goal reached", stopped: "stopped by the operator",
+  time_limit: "time limit passed", operator_left: "the operator left",
+  fault: "the robot faulted", emergency_stop: "emergency stop",
+  operator_silent: "the operator went silent", robot_lost: "the camera lost the robot",
+  held_back: "held back by the safety layer", slot_ended: "the operator's slot ended",
+  kicked: "ended by an administrator",
+};
+const DEVICES = { online: "online", offline: "not answering", absent: "none" };
+const ROLES = { operator: "driving", observer: "watching" };
+
+// Everything the page knows, one place (read by the tests as window.vl).
+const vl = {
+  socket: null, link: "connecting", role: null, session: null, resume: null,
+  wanted: "observer", token: "", experiments: [], lab: null, state: null,
+  status: null, definition: null, forecast: null, planned: null, goal: null,
+  feedback: null, trail: [], running: false, lastEvent: 0, sentEvent: 0,
+  lastCommandAt: 0, summary: null, error: null, rttMs: null, hostOffsetMs: null,
+  frame: null, frames: 0, image: null, keys: new Set(), stick: { v: 0, w: 0 },
+  gamepad: null, queue: null, sent: [],
+};
+window.vl = vl;
+
+// ---- the link ---------------------------------------------------------
+
+function url() {
+  const scheme = location.protocol === "https:" ? "wss:" : "ws:";
+  return `${scheme}//${location.host}/`;
+}
+
+let retry = 250;
+function connect() {
+  const socket = new WebSocket(url());
+  socket.binaryType = "arraybuffer";
+  vl.socket = socket;
+  vl.link = "connecting";
+  socket.onopen = () => {
+    retry = 250;
+    send(VL.guest.hello(vl.wanted, vl.wanted === "operator" ? vl.token : "", vl.resume));
+  };
+  socket.onmessage = (event) => {
+    if (typeof event.data === "string") {
+      let message;
+      try { message = JSON.parse(event.data); } catch { return; }
+      take(message);
+    } else {
+      takeFrame(event.data);
+    }
+    render();
+  };
+  socket.onclose = () => {
+    if (vl.socket !== socket) return;
+    vl.link = "closed";
+    vl.running = false;
+    render();
+    setTimeout(connect, retry);
+    retry = Math.min(retry * 2, 4000);
+  };
+}
+
+function send(message) {
+  if (!vl.socket || vl.socket.readyState !== WebSocket.OPEN) return false;
+  vl.socket.send(JSON.stringify(message));
+  if (message.type !== "ping" && message.type !== "pong" && message.type !== "command") {
+    vl.sent.push(message.type);
+  }
+  return true;
+}
+
+// Says hello again as `role`: a new connection, so the old role is let go.
+function rejoin(role) {
+  vl.wanted = role;
+  if (role === "observer") vl.resume = null;
+  const old = vl.socket;
+  vl.socket = null;
+  if (old) {
+    if (old.readyState === WebSocket.OPEN) old.send(JSON.stringify(VL.guest.bye()));
+    old.onclose = null;
+    old.close();
+  }
+  connect();
+}
+
+function hostNow() {
+  return vl.hostOffsetMs === null ? null : performance.now() + vl.hostOffsetMs;
+}
+
+// ---- what the Host says -----------------------------------------------
+
+function take(m) {
+  switch (m.type) {
+    case "welcome":
+      vl.link = "open"; vl.role = m.role; vl.session = m.session;
+      vl.experiments = m.experiments || []; vl.resume = m.resume || null;
+      // A Host started again counts anew: forget what it said.
+      vl.feedback = null; vl.frame = null; vl.hostOffsetMs = null;
+      clearError();
+      break;
+    case "role":
+      vl.role = m.role; if (m.resume) vl.resume = m.resume;
+      if (m.role === "operator") vl.queue = null;
+      break;
+    case "queue": vl.queue = m.position ? m : null; break;
+    case "mounted":
+      vl.lab = m; vl.definition = null; vl.planned = null; vl.goal = null;
+      vl.forecast = null; vl.trail = []; vl.summary = null;
+      break;
+    case "state": {
+      vl.state = m;
+      // Who joins during a run hears no `started`: the net says it runs.
+      const running = (m.marking || []).includes("execute.running");
+      if (running && !vl.running) { vl.running = true; vl.trail = []; vl.summary = null; }
+      break;
+    }
+    case "status": vl.status = m; break;
+    case "planned": vl.planned = m.path; vl.goal = m.goal; clearError(); break;
+    case "defined": vl.definition = m; vl.planned = null; clearError(); break;
+    case "forecast": vl.forecast = m; break;
+    case "started":
+      vl.running = true; vl.lastEvent = m.event; vl.sentEvent = m.event;
+      vl.trail = []; vl.summary = null; clearError();
+      break;
+    case "feedback": takeFeedback(m); break;
+    case "done": vl.running = false; vl.summary = m.summary; break;
+    case "error":
+      vl.error = { code: m.code, message: m.message, at: performance.now() };
+      if (m.code === "operator_taken" || m.code === "unauthorized") {
+        if (vl.wanted === "operator") { vl.wanted = "observer"; vl.resume = null; }
+      }
+      break;
+    case "ping":
+      send(VL.guest.pong(m.t));
+      // The Host's clock, a half round trip ago.
+      if (vl.rttMs !== null) vl.hostOffsetMs = m.t + vl.rttMs / 2 - performance.now();
+      break;
+    case "pong": vl.rttMs = performance.now() - m.t; break;
+    case "bye": break;
+  }
+}
+
+function takeFeedback(m) {
+  if (vl.feedback && m.event < vl.feedback.event && vl.running) return;
+  vl.feedback = m;
+  if (vl.running) {
+    vl.lastEvent = Math.max(vl.lastEvent, m.event);
+    const last = vl.trail[vl.trail.length - 1];
+    if (!last || Math.hypot(last.x_mm - m.pose.x_mm, last.y_mm - m.pose.y_mm) > 2) {
+      vl.trail.push({ x_mm: m.pose.x_mm, y_mm: m.pose.y_mm });
+      if (vl.trail.length > 5000) vl.trail.shift();
+    }
+    drive();
+  }
+}
+
+function takeFrame(buffer) {
+  const f = VL.frame(buffer);
+  if (!f || (vl.frame && f.seq <= vl.frame.seq)) return;
+  vl.frame = f;
+  vl.frames += 1;
+  createImageBitmap(f.image).then((bitmap) => {
+    if (vl.image) vl.image.close();
+    vl.image = bitmap;
+    draw();
+  }, () => {});
+}
+
+function clearError() { vl.error = null; }
+
+// ---- driving ----------------------------------------------------------
+
+const KEYS = {
+  ArrowUp: [1, 0], KeyW: [1, 0], ArrowDown: [-1, 0], KeyS: [-1, 0],
+  ArrowLeft: [0, 1], KeyA: [0, 1], ArrowRight: [0, -1], KeyD: [0, -1],
+};
+// The stick's full throw: forward mm/s and turn rad/s.
+const FULL_V = 200, FULL_W = 2.0;
+// Commands go at most this often (event-based: and only after the
+// feedback of the one before).
+const COMMAND_EVERY_MS = 40;
+
+function stick() {
+  let v = 0, w = 0;
+  for (const key of vl.keys) {
+    const [dv, dw] = KEYS[key] || [0, 0];
+    v += dv; w += dw;
+  }
+  const pad = vl.gamepad;
+  if (pad && (Math.abs(pad.axes[1]) > 0.1 || Math.abs(pad.axes[0]) > 0.1)) {
+    v = -pad.axes[1]; w = -pad.axes[0];
+  }
+  v = Math.max(-1, Math.min(1, v)); w = Math.max(-1, Math.min(1, w));
+  vl.stick = { v, w };
+  return { v: v * FULL_V, w: w * FULL_W };
+}
+
+// Sends the next command once the feedback of the last has come.
+function drive() {
+  if (!vl.running || vl.role !== "operator") return;
+  const following = vl.definition && vl.definition.path && vl.definition.path.length > 1;
+  const s = stick();
+  // A followed path needs no commands; a command takes over while they come.
+  if (following && s.v === 0 && s.w === 0) return;
+  if (vl.sentEvent > vl.lastEvent) return;
+  const now = performance.now();
+  if (now - vl.lastCommandAt < COMMAND_EVERY_MS) return;
+  vl.lastCommandAt = now;
+  vl.sentEvent = vl.lastEvent + 1;
+  send(VL.guest.command(vl.sentEvent, vl.lastEvent, s.v, s.w));
+}
+
+document.addEventListener("keydown", (e) => {
+  if (KEYS[e.code] && e.target.tagName !== "INPUT") {
+    vl.keys.add(e.code); e.preventDefault(); drive(); render();
+  }
+});
+document.addEventListener("keyup", (e) => {
+  if (KEYS[e.code]) { vl.keys.delete(e.code); render(); }
+});
+window.addEventListener("blur", () => vl.keys.clear());
+window.addEventListener("gamepadconnected", (e) => { vl.gamepad = e.gamepad; render(); });
+window.addEventListener("gamepaddisconnected", () => { vl.gamepad = null; render(); });
+
+// ---- the camera view --------------------------------------------------
+
+const canvas = $("camera");
+const ctx = canvas.getContext("2d");
+
+function camera() { return vl.lab && vl.lab.camera; }
+
+function polyline(points, style, width, dash) {
+  const cam = camera();
+  if (!cam || points.length < 2) return;
+  ctx.save();
+  ctx.strokeStyle = style; ctx.lineWidth = width; ctx.setLineDash(dash || []);
+  ctx.beginPath();
+  points.forEach((p, i) => {
+    const [x, y] = VL.toPixel(cam, p);
+    if (i === 0) ctx.moveTo(x, y); else ctx.lineTo(x, y);
+  });
+  ctx.stroke();
+  ctx.restore();
+}
+
+function draw() {
+  const cam = camera();
+  const width = cam ? cam.width_px : (vl.image ? vl.image.width : 640);
+  const height = cam ? cam.height_px : (vl.image ? vl.image.height : 480);
+  if (canvas.width !== width) canvas.width = width;
+  if (canvas.height !== height) canvas.height = height;
+  ctx.fillStyle = "#20242a";
+  ctx.fillRect(0, 0, width, height);
+  if (vl.image) ctx.drawImage(vl.image, 0, 0, width, height);
+  if (!cam) return;
+  if (vl.definition && vl.definition.path) polyline(vl.definition.path, "#1e7fff", 3);
+  if (vl.planned) polyline(vl.planned, "#1e7fff", 2, [6, 4]);
+  polyline(vl.trail, "#ff9a1e", 2);
+  const goal = (vl.definition && vl.definition.goal) || vl.goal;
+  if (goal) {
+    const [x, y] = VL.toPixel(cam, goal);
+    ctx.strokeStyle = "#2fbf4f"; ctx.lineWidth = 3;
+    ctx.beginPath(); ctx.arc(x, y, 8, 0, 2 * Math.PI); ctx.stroke();
+  }
+  if (vl.feedback) {
+    const pose = vl.feedback.pose;
+    const [x, y] = VL.toPixel(cam, pose);
+    const r = vl.lab.robot.radius_mm;
+    const [hx, hy] = VL.toPixel(cam, {
+      x_mm: pose.x_mm + r * Math.cos(pose.theta_rad),
+      y_mm: pose.y_mm + r * Math.sin(pose.theta_rad),
+    });
+    const [ex] = VL.toPixel(cam, { x_mm: pose.x_mm + r, y_mm: pose.y_mm });
+    ctx.strokeStyle = vl.feedback.limited ? "#ff3b3b" : "#ffcc00"; ctx.lineWidth = 2;
+    ctx.beginPath(); ctx.arc(x, y, Math.abs(ex - x), 0, 2 * Math.PI); ctx.stroke();
+    ctx.beginPath(); ctx.moveTo(x, y); ctx.lineTo(hx, hy); ctx.stroke();
+  }
+}
+
+// A click on the floor is a goal: the Host plans a path to it.
+canvas.addEventListener("click", (e) => {
+  const cam = camera();
+  if (!cam || vl.role !== "operator" || !enabled("define")) return;
+  if (!vl.lab || vl.lab.experiment !== "navigation") return;
+  const box = canvas.getBoundingClientRect();
+  const c = (e.clientX - box.left) * (canvas.width / box.width);
+  const r = (e.clientY - box.top) * (canvas.height / box.height);
+  const goal = VL.toArena(cam, c, r);
+  vl.goal = goal;
+  send(VL.guest.plan(goal));
+  render();
+});
+
+// The force the obstacles push back with, over the stick.
+function drawStick() {
+  const c = $("stick"), g = c.getContext("2d");
+  const m = c.width / 2;
+  g.clearRect(0, 0, c.width, c.height);
+  g.strokeStyle = "#888"; g.lineWidth = 1;
+  g.beginPath(); g.arc(m, m, m - 4, 0, 2 * Math.PI); g.stroke();
+  g.fillStyle = "#1e7fff";
+  g.beginPath(); g.arc(m - vl.stick.w * (m - 10), m - vl.stick.v * (m - 10), 6, 0, 2 * Math.PI); g.fill();
+  const force = vl.feedback && vl.feedback.force;
+  if (force && Math.hypot(force[0], force[1]) > 0.01) {
+    const tx = m + force[0] * (m - 8), ty = m - force[1] * (m - 8);
+    g.strokeStyle = "#ff3b3b"; g.fillStyle = "#ff3b3b"; g.lineWidth = 3;
+    g.beginPath(); g.moveTo(m, m); g.lineTo(tx, ty); g.stroke();
+    const a = Math.atan2(ty - m, tx - m);
+    g.beginPath(); g.moveTo(tx, ty);
+    g.lineTo(tx - 10 * Math.cos(a - 0.4), ty - 10 * Math.sin(a - 0.4));
+    g.lineTo(tx - 10 * Math.cos(a + 0.4), ty - 10 * Math.sin(a + 0.4));
+    g.fill();
+  }
+}
+
+// ---- the panel --------------------------------------------------------
+
+function enabled(event) {
+  return !!(vl.state && vl.state.enabled && vl.state.enabled.includes(event));
+}
+
+function text(id, value) {
+  const el = $(id);
+  if (el.textContent !== value) el.textContent = value;
+}
+
+function show(id, visible) { $(id).hidden = !visible; }
+
+function labWords() {
+  if (!vl.status) return "…";
+  const s = vl.status;
+  const lab = s.lab === "getting_ready" ? "getting ready: the robot drives back to its start" : "ready";
+  return `robot ${DEVICES[s.robot] || s.robot}, camera ${DEVICES[s.camera] || s.camera}; lab ${lab}`;
+}
+
+function runWords() {
+  if (vl.running) {
+    const f = vl.feedback;
+    const held = f && f.limited ? " — the safety layer is holding the robot back" : "";
+    return `a run is under way${held}`;
+  }
+  if (vl.summary) {
+    const s = vl.summary;
+    return `last run: ${ENDINGS[s.reason] || s.reason} after ${s.seconds.toFixed(1)} s, ` +
+      `${(s.distance_mm / 1000).toFixed(2)} m, ${s.collisions} contacts`;
+  }
+  return "no run yet";
+}
+
+function netWords() {
+  if (!vl.state) return "…";
+  const can = (vl.state.enabled || []).filter((e) => ACTIONS[e]).map((e) => ACTIONS[e]);
+  const lab = vl.lab ? `${vl.lab.experiment} mounted` : "nothing mounted";
+  return `${lab}; the lab's net lets the operator ${can.length ? can.join(", ") : "do nothing now"}`;
+}
+
+function forecastWords() {
+  const f = vl.forecast;
+  if (!f) return "";
+  if (f.refusals && f.refusals.length) return "the twin refused this definition: define another";
+  const runs = f.forecast.runs;
+  const reached = runs.filter((r) => r.reached_goal).length;
+  const mean = runs.reduce((s, r) => s + r.seconds, 0) / Math.max(runs.length, 1);
+  return `tried on the lab's twin: ${reached} of ${runs.length} runs reach the goal, in ${mean.toFixed(1)} s`;
+}
+
+function render() {
+  const operator = vl.role === "operator";
+  text("link", vl.link === "open" ? `connected · ${ROLES[vl.role] || "…"}` :
+    vl.link === "closed" ? "disconnected: connecting again…" : "connecting…");
+  $("link").className = vl.link === "open" ? "ok" : "bad";
+  text("rtt", vl.rttMs === null ? "round trip …" : `round trip ${vl.rttMs.toFixed(0)} ms`);
+  const now = hostNow();
+  const age = (t) => (now === null || t === undefined ? "…" : `${Math.max(0, now - t).toFixed(0)} ms`);
+  text("age", `image ${age(vl.frame && vl.frame.captureMs)} old · pose ${age(vl.feedback && vl.feedback.t_ms)} old`);
+  text("lab", labWords());
+  text("net", netWords());
+  text("run", runWords());
+  text("forecast", forecastWords());
+  const f = vl.feedback;
+  text("pose", f ? `x ${f.pose.x_mm.toFixed(0)} mm, y ${f.pose.y_mm.toFixed(0)} mm, ` +
+    `heading ${(f.pose.theta_rad * 180 / Math.PI).toFixed(0)}° (${f.source === "camera" ? "camera and wheels" : "wheels alone"})` : "…");
+  text("held", f && f.limited ? "held back by the safety layer" : "");
+  text("error", vl.error ? vl.error.message : "");
+  show("error", !!vl.error);
+  text("queue", vl.queue ? `you are number ${vl.queue.position} in line` +
+    (vl.queue.wait_s ? `, at most ${Math.ceil(vl.queue.wait_s / 60)} min to wait` : "") : "");
+
+  show("drive", !operator);
+  show("operate", operator);
+  $("mounts").replaceChildren(...vl.experiments.map((e) => {
+    const b = document.createElement("button");
+    b.textContent = e.title;
+    b.dataset.experiment = e.id;
+    b.disabled = !enabled("mount") || (vl.lab && vl.lab.experiment === e.id);
+    b.onclick = () => send(VL.guest.mount(e.id));
+    return b;
+  }));
+  const navigation = vl.lab && vl.lab.experiment === "navigation";
+  show("goal-hint", operator && navigation && !vl.running);
+  $("define").disabled = !(vl.planned && vl.goal && enabled("define"));
+  $("start").disabled = !enabled("start") || (vl.status && vl.status.lab === "getting_ready");
+  $("stop").disabled = !enabled("stop");
+  show("keys", operator && vl.lab && vl.lab.experiment === "teleoperation");
+  text("gamepad", vl.gamepad ? `gamepad: ${vl.gamepad.id}` : "no gamepad (press a button on one to use it)");
+  draw();
+  drawStick();
+}
+
+// ---- controls ---------------------------------------------------------
+
+$("ask").onclick = () => {
+  vl.token = $("token").value;
+  rejoin("operator");
+};
+$("watch").onclick = () => rejoin("observer");
+$("define").onclick = () => {
+  if (vl.planned && vl.goal) send(VL.guest.define(vl.goal, vl.planned));
+};
+$("start").onclick = () => send(VL.guest.start());
+$("stop").onclick = () => send(VL.guest.stop());
+$("estop").onclick = () => send(VL.guest.emergency_stop());
+
+// The Host's clock and the round trip, every 200 ms as `vl guest` does;
+// the gamepad and the stick at the screen's pace.
+setInterval(() => send(VL.guest.ping(performance.now())), 200);
+setInterval(render, 250);
+function tick() {
+  const pads = navigator.getGamepads ? navigator.getGamepads() : [];
+  vl.gamepad = Array.from(pads).find((p) => p) || null;
+  if (vl.running) drive();
+  requestAnimationFrame(tick);
+}
+requestAnimationFrame(tick);
+window.addEventListener("beforeunload", () => send(VL.guest.bye()));
+connect();
+render();

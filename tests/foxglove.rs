@@ -1,0 +1,201 @@
+//! Live in Foxglove: the Host's port speaks the Foxglove WebSocket
+//! protocol to a client that offers its subprotocol, by either name.
+//! An outside client (Python's websockets, nothing of vl's) subscribes to
+//! the camera and the pose during a run and decodes what comes; a careless
+//! or hostile one cannot publish, subscribe without bound, or send more
+//! than a subscription's worth, and a lab that admits only accounts to
+//! watch refuses it.
+
+use std::process::Command;
+use std::time::Duration;
+
+use futures_util::{SinkExt, StreamExt};
+use serde_json::{Value, json};
+use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+use tokio_tungstenite::tungstenite::{Bytes, Message};
+
+use crate::common::{self, s, scratch, start_host};
+
+/// What the outside client saw in `seconds` on `url`, offering `subprotocol`.
+fn watch_from_python(url: &str, subprotocol: &str, seconds: f64) -> Option<Value> {
+    // `.ci/run` installs Debian's python3-websockets.
+    let Some(python) = common::python_with("websockets") else {
+        eprintln!("skipped the outside Foxglove client: no Python with websockets here");
+        return None;
+    };
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/foxglove/client.py");
+    let out = Command::new(python)
+        .args([script, url, subprotocol, &seconds.to_string()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    Some(serde_json::from_slice(&out.stdout).expect("the client prints JSON"))
+}
+
+#[test]
+fn an_outside_foxglove_client_watches_a_run_by_either_subprotocol() {
+    let (_host, url) = start_host(&["--no-record"]);
+    let run_url = url.clone();
+    let run = std::thread::spawn(move || common::headless_run(&run_url, 60, &[]));
+    for subprotocol in ["foxglove.sdk.v1", "foxglove.websocket.v1"] {
+        let Some(seen) = watch_from_python(&url, subprotocol, 4.0) else {
+            break;
+        };
+        assert_eq!(seen["subprotocol"], subprotocol, "{seen}");
+        for (topic, schema) in [
+            ("/camera", "foxglove.CompressedImage"),
+            ("/camera/annotations", "foxglove.ImageAnnotations"),
+            ("/robot/pose", "foxglove.PoseInFrame"),
+            ("/tf", "foxglove.FrameTransform"),
+            ("/scene", "foxglove.SceneUpdate"),
+            ("/log", "foxglove.Log"),
+            ("/feedback", "vl.Feedback"),
+        ] {
+            assert_eq!(seen["channels"][topic], schema, "{topic}: {seen}");
+        }
+        let counts = &seen["counts"];
+        let count = |topic: &str| counts[topic].as_u64().unwrap_or(0);
+        // 15 frames and 50 poses a second sent; a third of that is
+        // taken as enough on a machine busy with other tests.
+        assert!(count("/camera") >= 20, "{seen}");
+        assert_eq!(seen["jpegs"].as_u64().unwrap(), count("/camera"), "{seen}");
+        assert!(count("/robot/pose") >= 60, "{seen}");
+        assert_eq!(count("/tf"), count("/robot/pose"), "{seen}");
+        assert!(count("/scene") >= 1 && count("/state") >= 1, "{seen}");
+        assert_eq!(seen["bad"], json!([]), "{seen}");
+        assert_eq!(seen["times_rise"], true, "{seen}");
+        let pose = seen["pose"].as_array().unwrap();
+        let x_m = pose[0].as_f64().unwrap();
+        assert!((0.0..0.8).contains(&x_m), "a pose in metres: {seen}");
+    }
+    let report = run.join().unwrap();
+    assert_eq!(report["reached_goal"], true, "{report}");
+}
+
+type Socket =
+    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
+/// A Foxglove client of the Host at `url`, offering `subprotocol`.
+async fn foxglove(url: &str, subprotocol: &str) -> Socket {
+    let mut request = url.into_client_request().unwrap();
+    request
+        .headers_mut()
+        .insert("sec-websocket-protocol", subprotocol.parse().unwrap());
+    let (ws, response) = tokio_tungstenite::connect_async(request)
+        .await
+        .expect("the Foxglove handshake");
+    assert_eq!(
+        response.headers()["sec-websocket-protocol"],
+        subprotocol,
+        "answered with the subprotocol offered"
+    );
+    ws
+}
+
+/// The next text message's JSON, within 5 s; none if the socket ends.
+async fn next_op(ws: &mut Socket) -> Option<Value> {
+    tokio::time::timeout(Duration::from_secs(5), async {
+        loop {
+            match ws.next().await? {
+                Ok(Message::Text(t)) => return serde_json::from_str(t.as_str()).ok(),
+                Ok(Message::Close(_)) | Err(_) => return None,
+                Ok(_) => {}
+            }
+        }
+    })
+    .await
+    .ok()
+    .flatten()
+}
+
+/// The next `status` message, skipping others.
+async fn next_status(ws: &mut Socket) -> Option<Value> {
+    loop {
+        let op = next_op(ws).await?;
+        if op["op"] == "status" {
+            return Some(op);
+        }
+    }
+}
+
+#[tokio::test]
+async fn a_foxglove_client_is_read_only_and_bounded() {
+    let (_host, url) = start_host(&["--no-record"]);
+    let mut ws = foxglove(&url, "foxglove.sdk.v1").await;
+    assert_eq!(next_op(&mut ws).await.unwrap()["op"], "serverInfo");
+    let advertise = next_op(&mut ws).await.unwrap();
+    let channels = advertise["channels"].as_array().unwrap().len();
+    // Publishing, the Guests' protocol and unknown ops: warned, not done.
+    ws.send(Message::Binary(Bytes::from_static(&[1, 0, 0, 0, 0, 42])))
+        .await
+        .unwrap();
+    let status = next_status(&mut ws).await.unwrap();
+    assert!(
+        status["message"].as_str().unwrap().contains("read-only"),
+        "{status}"
+    );
+    for text in [
+        json!({"type": "emergency_stop"}).to_string(),
+        json!({"op": "advertise", "channels": []}).to_string(),
+        "{not json".to_owned(),
+    ] {
+        ws.send(Message::text(text)).await.unwrap();
+        let status = next_status(&mut ws).await.unwrap();
+        assert_eq!(status["level"], 1, "{status}");
+    }
+    // A channel that is not there, and subscriptions without end.
+    let subscribe = |subscriptions: Vec<Value>| {
+        Message::text(json!({"op": "subscribe", "subscriptions": subscriptions}).to_string())
+    };
+    ws.send(subscribe(vec![json!({"id": 1, "channelId": channels + 5})]))
+        .await
+        .unwrap();
+    let status = next_status(&mut ws).await.unwrap();
+    assert!(
+        status["message"].as_str().unwrap().contains("no channel"),
+        "{status}"
+    );
+    let many: Vec<Value> = (0..200).map(|i| json!({"id": i, "channelId": 2})).collect();
+    ws.send(subscribe(many)).await.unwrap();
+    let status = next_status(&mut ws).await.unwrap();
+    assert!(
+        status["message"].as_str().unwrap().contains("at most 64"),
+        "{status}"
+    );
+    // More than a subscription's worth in one message: closed.
+    let _ = ws.send(Message::text("x".repeat(1 << 20))).await;
+    assert!(
+        next_status(&mut ws).await.is_none(),
+        "an oversized message did not close the connection"
+    );
+    // Through all of it the lab is as it was: no run was stopped, and a
+    // Guest is served.
+    let report = common::headless_run(&url, 60, &[]);
+    assert_eq!(report["reached_goal"], true, "{report}");
+}
+
+#[tokio::test]
+async fn a_lab_that_admits_only_accounts_to_watch_refuses_foxglove() {
+    let dir = scratch("foxglove-accounts");
+    let users = dir.join("users.toml");
+    let out = common::vl_command()
+        .args(["users", "add", s(&users), "ada", "--role", "operator"])
+        .env("VL_PASSWORD", "correct horse")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let (_host, url) = start_host(&[
+        "--no-record",
+        "--users",
+        s(&users),
+        "--observers",
+        "accounts",
+    ]);
+    let mut ws = foxglove(&url, "foxglove.websocket.v1").await;
+    let status = next_status(&mut ws).await.expect("told why");
+    assert_eq!(status["level"], 2, "{status}");
+    assert!(
+        next_op(&mut ws).await.is_none(),
+        "still open after the refusal"
+    );
+}
