@@ -13,7 +13,7 @@ use vl_guest::Login;
 use vl_host::{AccountRole, Audit, HostConfig, Observers, Tls, Users};
 
 use crate::report::emit;
-use crate::{BadInput, named};
+use crate::{BadInput, bad_input, named};
 
 /// The Host's door.
 #[derive(clap::Args)]
@@ -81,7 +81,7 @@ impl AccessArgs {
             _ => None,
         }
         .transpose()
-        .map_err(|e| BadInput(e.to_string()))?;
+        .map_err(bad_input)?;
         let audit = self
             .audit
             .clone()
@@ -182,7 +182,7 @@ pub(crate) fn users(command: UsersCommand) -> Result<ExitCode> {
         }
     }
     .and_then(|()| users.save(file))
-    .map_err(|e| BadInput(e.to_string()))?;
+    .map_err(bad_input)?;
     eprintln!("{}: {} accounts", file.display(), users.accounts().len());
     Ok(ExitCode::SUCCESS)
 }

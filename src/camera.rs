@@ -10,9 +10,9 @@ use serde::Serialize;
 use vl_core::{Calibration, CameraModel, ImageSize, Point, PointPair};
 use vl_sim::SimCalibration;
 
-use crate::BadInput;
 use crate::input::{load_arena, load_rgb, load_target, positive, read_json, real_camera};
 use crate::report::{Report, Table, emit};
+use crate::{BadInput, bad_input};
 use vl_host::CameraSource;
 
 #[derive(Subcommand)]
@@ -150,10 +150,7 @@ fn calibrate(args: CalibrateArgs) -> Result<ExitCode> {
         (target.calibrate(&frame.image, args.fps).map_err(bad)?, None)
     } else if args.sim {
         let arena = load_arena(&args.arena)?;
-        let optics = args
-            .optics
-            .optics(args.seed)
-            .map_err(|e| BadInput(e.to_string()))?;
+        let optics = args.optics.optics(args.seed).map_err(bad_input)?;
         let nominal =
             CameraModel::overhead(arena.width_mm, arena.height_mm, args.width.max(1), args.fps);
         let SimCalibration {

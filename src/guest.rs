@@ -13,7 +13,7 @@ use vl_host::{Host, HostConfig, Media, SimLab};
 use crate::access::LoginArgs;
 use crate::media::LinkArgs;
 use crate::report::emit;
-use crate::{BadInput, named};
+use crate::{BadInput, bad_input, named};
 
 #[derive(clap::Args)]
 pub(crate) struct GuestArgs {
@@ -50,7 +50,7 @@ pub(crate) struct GuestArgs {
 
 /// The gamepad asked for, said on the console when one is found.
 fn gamepad(choice: &PadChoice, dead_man: bool) -> Result<Option<Box<dyn vl_guest::Pad>>> {
-    let pad = choice.open(dead_man).map_err(|e| BadInput(e.to_string()))?;
+    let pad = choice.open(dead_man).map_err(bad_input)?;
     if let Some(pad) = &pad {
         let feel = if pad.has_force_feedback() {
             "with force feedback"

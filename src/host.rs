@@ -14,7 +14,7 @@ use crate::access::AccessArgs;
 use crate::input::{SceneArgs, arena_from, load_calibration, load_robot_model};
 use crate::media::LinkArgs;
 use crate::report::emit;
-use crate::{BadInput, named};
+use crate::{BadInput, bad_input, named};
 
 #[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
 enum RobotDriver {
@@ -48,6 +48,9 @@ enum HostTool {
         #[arg(long)]
         json: bool,
     },
+    /// What a class watching costs the Host: its operator's command →
+    /// feedback and its processor, with and without watchers.
+    BenchWatchers(vl_host::WatchersBench),
     /// Ask a running Host how it is: devices, operator, line, runs today
     /// (an administrator's login at a lab with accounts).
     Status {
@@ -72,6 +75,11 @@ pub(crate) async fn host_command(command: HostCommand) -> Result<()> {
                 .await
                 .context("the operator bench failed")?;
             emit(&latency, json)
+        }
+        Some(HostTool::BenchWatchers(bench)) => {
+            let vl = std::env::current_exe().context("cannot find the vl binary")?;
+            let cost = bench.run(&vl).await.context("the watchers bench failed")?;
+            emit(&cost, bench.json)
         }
         Some(HostTool::Status { url, login, json }) => {
             emit(&vl_guest::host_status(&url, &login.login()?).await?, json)
@@ -199,7 +207,7 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         reset: !args.no_reset,
         compensate_latency: !args.no_latency_compensation,
         forecast: args.forecast,
-        recordings: (args.recordings.catalogue()).map_err(|e| BadInput(e.to_string()))?,
+        recordings: (args.recordings.catalogue()).map_err(bad_input)?,
         ..HostConfig::default()
     };
     args.access.apply(&mut config)?;
@@ -215,11 +223,8 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
     if let Some(file) = &args.config {
         eprintln!("vl host: options from {}", file.display());
     }
-    if let Some(recordings) = &config.recordings {
-        eprintln!(
-            "vl host: recording every run in {}",
-            recordings.dir().display()
-        );
+    if let Some(kept) = &config.recordings {
+        eprintln!("vl host: recording every run in {}", kept.dir().display());
     }
     let robot = match args.robot {
         RobotDriver::Sim => RobotSpec::Sim,
@@ -246,10 +251,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             .as_deref()
             .map(load_calibration)
             .transpose()?,
-        optics: args
-            .optics
-            .optics(args.seed)
-            .map_err(|e| BadInput(e.to_string()))?,
+        optics: args.optics.optics(args.seed).map_err(bad_input)?,
         seed: args.seed,
         scene: args.scene.events.clone(),
     };

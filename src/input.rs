@@ -11,7 +11,7 @@ use vl_host::CameraSource;
 use vl_sim::Scheduled;
 
 use crate::shipped::read_input;
-use crate::{BadInput, named};
+use crate::{BadInput, bad_input, named};
 
 /// Which robot to simulate, and its size if not the stock one.
 #[derive(clap::Args)]
@@ -36,9 +36,7 @@ impl RobotArgs {
         }
         let model = self.robot.model();
         Ok(match (self.radius_mm, self.wheel_base_mm) {
-            (Some(radius), Some(base)) => model
-                .resized(radius, base)
-                .map_err(|e| BadInput(e.to_string()))?,
+            (Some(radius), Some(base)) => model.resized(radius, base).map_err(bad_input)?,
             _ => model,
         })
     }
@@ -61,7 +59,7 @@ pub(crate) fn load_rgb(path: &Path, what: &str) -> Result<image::RgbImage> {
 
 /// A shipped arena or an arena file; any problem with it is the user's input.
 pub(crate) fn load_arena(name_or_path: &str) -> Result<Arena> {
-    Ok(Arena::load(name_or_path).map_err(|e| BadInput(e.to_string()))?)
+    Ok(Arena::load(name_or_path).map_err(bad_input)?)
 }
 
 /// Reads `path` as JSON of a `kind` of file, naming the kind and what

@@ -10,7 +10,7 @@ use vl_host::KheperaSerial;
 
 use crate::input::{RobotArgs, arena_from};
 use crate::report::{Report, Table, emit};
-use crate::{BadInput, named};
+use crate::{bad_input, named};
 
 #[derive(clap::Args)]
 pub(crate) struct KheperaArgs {
@@ -142,7 +142,7 @@ pub(crate) fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
     let model = args.robot.model()?;
     let name = model.name.clone();
     let arena = arena_from(&args.arena, args.start)?;
-    let world = vl_sim::World::new(arena, model, args.seed).map_err(|e| BadInput(e.to_string()))?;
+    let world = vl_sim::World::new(arena, model, args.seed).map_err(bad_input)?;
     let line = vl_sim::Line {
         baud: args.baud,
         timing: !args.instant_line,

@@ -89,6 +89,11 @@ static ALLOCATOR: vl_petri::Counting = vl_petri::Counting;
 #[error("{0}")]
 pub struct BadInput(pub String);
 
+/// `e` as the user's to fix, for `map_err`.
+pub(crate) fn bad_input(e: impl std::fmt::Display) -> BadInput {
+    BadInput(e.to_string())
+}
+
 pub(crate) use vl_core::named_parser as named;
 
 fn main() -> ExitCode {

@@ -9,7 +9,7 @@ use anyhow::Result;
 use clap::Subcommand;
 use vl_core::{LabDesign, NetsReport};
 
-use crate::BadInput;
+use crate::bad_input;
 use crate::report::emit;
 
 #[derive(Subcommand)]
@@ -43,11 +43,11 @@ pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
         Some(dir) => LabDesign::load(dir),
         None => LabDesign::shipped(),
     }
-    .map_err(|e| BadInput(e.to_string()))?;
+    .map_err(bad_input)?;
     let pictures = !check && vl_petri::graphviz_available();
     let mut labs = Vec::new();
     for lab in &designs {
-        let designed = vl_core::design(lab).map_err(|e| BadInput(e.to_string()))?;
+        let designed = vl_core::design(lab).map_err(bad_input)?;
         let dir = out.join(lab.lab);
         let files = if check {
             designed.differing(&dir)

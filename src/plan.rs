@@ -16,7 +16,7 @@ use vl_core::{
 
 use crate::input::load_rgb;
 use crate::report::emit;
-use crate::{BadInput, named};
+use crate::{BadInput, bad_input, named};
 
 #[derive(Args)]
 #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
@@ -114,8 +114,7 @@ pub(crate) fn run(args: PlanArgs) -> Result<ExitCode> {
     for shape in &args.virtual_obstacles {
         workspace.block(shape);
     }
-    let cspace = CSpace::build(&workspace, footprint, args.theta_slices)
-        .map_err(|e| BadInput(e.to_string()))?;
+    let cspace = CSpace::build(&workspace, footprint, args.theta_slices).map_err(bad_input)?;
     let result = plan(&cspace, start, goal, args.connectivity);
     let seconds = started.elapsed().as_secs_f64();
     let plan = match result {

@@ -11,7 +11,7 @@ use vl_sim::{Driver, LinkReport, Optics, Profile, Script, World};
 use crate::input::{RobotArgs, load_arena, load_target, positive};
 use crate::report::emit;
 use crate::shipped::read_input;
-use crate::{BadInput, named};
+use crate::{BadInput, bad_input, named};
 
 #[derive(Subcommand)]
 pub(crate) enum SimCommand {
@@ -107,8 +107,7 @@ pub(crate) fn run(command: SimCommand) -> Result<ExitCode> {
             robot,
             json,
         } => {
-            let world = World::new(load_arena(&arena)?, robot.model()?, seed)
-                .map_err(|e| BadInput(e.to_string()))?;
+            let world = World::new(load_arena(&arena)?, robot.model()?, seed).map_err(bad_input)?;
             sim_run(world, duration, script.as_deref(), goal, json)
         }
         SimCommand::Render {
@@ -120,9 +119,8 @@ pub(crate) fn run(command: SimCommand) -> Result<ExitCode> {
             target,
             output,
         } => {
-            let optics = optics.optics(seed).map_err(|e| BadInput(e.to_string()))?;
-            let world = World::new(load_arena(&arena)?, robot.model()?, seed)
-                .map_err(|e| BadInput(e.to_string()))?;
+            let optics = optics.optics(seed).map_err(bad_input)?;
+            let world = World::new(load_arena(&arena)?, robot.model()?, seed).map_err(bad_input)?;
             let target = target.as_deref().map(load_target).transpose()?;
             render(&world, width, &optics, target.as_ref(), &output)
         }

@@ -475,3 +475,35 @@ async fn the_pages_messages_out_of_order_or_oversized_are_refused() {
         .unwrap();
     assert!(body.contains("<canvas id=\"camera\""), "{body}");
 }
+
+#[test]
+fn the_watchers_bench_runs_a_class_against_no_one() {
+    // A short class: the bench itself (`vl host bench-watchers`) is the
+    // measurement; here it must run and every watcher be fed.
+    let cost = crate::common::vl_json(&[
+        "host",
+        "bench-watchers",
+        "--watchers",
+        "5",
+        "--commands",
+        "50",
+        "--rounds",
+        "1",
+        "--json",
+    ]);
+    assert_eq!(cost["watchers"], 5, "{cost}");
+    for field in [
+        "idle_p99_ms",
+        "watched_p99_ms",
+        "host_cores_idle",
+        "host_cores_watched",
+    ] {
+        let value = cost[field].as_f64().unwrap_or(f64::NAN);
+        assert!(value.is_finite() && value > 0.0, "{field}: {cost}");
+    }
+    assert!(
+        cost["frames_hz_min"].as_f64().unwrap() > 0.0,
+        "a watcher got no frame: {cost}"
+    );
+    assert!(cost["feedback_hz_min"].as_f64().unwrap() > 0.0, "{cost}");
+}

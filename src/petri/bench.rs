@@ -8,9 +8,9 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use vl_petri::{BenchLine, BenchReport, Manifest, bench_model};
 
-use crate::BadInput;
 use crate::report::emit;
 use crate::shipped::{CORPUS_MANIFEST, corpus_model, read_input};
+use crate::{BadInput, bad_input};
 use vl_petri::Counting;
 
 use super::io::load;
@@ -25,7 +25,7 @@ pub(super) fn bench_command(
         Some(dir) => read_input(&dir.join("manifest.csv"))?,
         None => CORPUS_MANIFEST.to_owned(),
     };
-    let manifest = Manifest::parse(&manifest_text).map_err(|e| BadInput(e.to_string()))?;
+    let manifest = Manifest::parse(&manifest_text).map_err(bad_input)?;
     let models: Vec<_> = manifest
         .tier(tier)
         .filter(|m| only.is_empty() || only.iter().any(|name| name == m.name()))

@@ -114,7 +114,9 @@ pub use record::{
     RecordingInfo, Repaired, Replayed, Runs, TopicCount, data_dir, export, repair,
 };
 pub use replay::ReplayCamera;
-pub use server::bench::{BenchError, Guessing, OperatorLatency, operator_latency};
+pub use server::bench::{
+    BenchError, Guessing, OperatorLatency, WatchersBench, WatchersCost, operator_latency,
+};
 pub use server::{ForecastSettings, HostConfig, Io, MOST_FORECAST_SEEDS};
 pub use setup::{LabSpec, RobotSpec, SetupError};
 pub use sim::OpticsSettings;

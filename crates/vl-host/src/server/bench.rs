@@ -22,8 +22,10 @@ use vl_core::{
 use super::hub::ForecastJob;
 
 mod recording;
+mod watchers;
 use crate::accounts::users::{AccountRole, Users};
 use crate::{ForecastSettings, Host, HostConfig, SimLab};
+pub use watchers::{WatchersBench, WatchersCost};
 
 /// Why the bench could not run.
 #[derive(Debug, thiserror::Error)]
