@@ -25,7 +25,7 @@ const ROLES = { operator: "driving", observer: "watching" };
 // Everything the page knows, one place (read by the tests as window.vl).
 const vl = {
   socket: null, link: "connecting", role: null, session: null, resume: null,
-  wanted: "observer", token: "", experiments: [], lab: null, state: null,
+  wanted: "observer", login: {}, user: null, lineAfterWelcome: false, experiments: [], lab: null, state: null,
   status: null, definition: null, forecast: null, planned: null, goal: null,
   feedback: null, trail: [], running: false, lastEvent: 0, sentEvent: 0,
   lastCommandAt: 0, summary: null, error: null, rttMs: null, hostOffsetMs: null,
@@ -49,7 +49,7 @@ function connect() {
   vl.link = "connecting";
   socket.onopen = () => {
     retry = 250;
-    send(VL.guest.hello(vl.wanted, vl.wanted === "operator" ? vl.token : "", vl.resume));
+    send(VL.guest.hello(vl.wanted, vl.login, vl.resume));
   };
   socket.onmessage = (event) => {
     if (typeof event.data === "string") {
@@ -63,6 +63,8 @@ function connect() {
   };
   socket.onclose = () => {
     if (vl.socket !== socket) return;
+    // Refused at the door: knocking again would be refused again.
+    if (vl.link === "refused") return;
     vl.link = "closed";
     vl.running = false;
     render();
@@ -103,17 +105,22 @@ function hostNow() {
 function take(m) {
   switch (m.type) {
     case "welcome":
-      vl.link = "open"; vl.role = m.role; vl.session = m.session;
+      vl.link = "open"; vl.role = m.role; vl.session = m.session; vl.user = m.user || null;
+      vl.slotEnds = m.slot_s ? performance.now() + m.slot_s * 1000 : null;
       vl.experiments = m.experiments || []; vl.resume = m.resume || null;
+      // Told someone drives: wait in line for control, as `vl guest` does.
+      if (vl.lineAfterWelcome && m.role === "observer") send(VL.guest.queue());
+      vl.lineAfterWelcome = false;
       // A Host started again counts anew: forget what it said.
       vl.feedback = null; vl.frame = null; vl.hostOffsetMs = null;
       clearError();
       break;
     case "role":
       vl.role = m.role; if (m.resume) vl.resume = m.resume;
+      vl.slotEnds = m.role === "operator" && m.slot_s ? performance.now() + m.slot_s * 1000 : null;
       if (m.role === "operator") vl.queue = null;
       break;
-    case "queue": vl.queue = m.position ? m : null; break;
+    case "queue": vl.queue = m.position ? m : null; clearError(); break;
     case "mounted":
       vl.lab = m; vl.definition = null; vl.planned = null; vl.goal = null;
       vl.forecast = null; vl.trail = []; vl.summary = null;
@@ -137,8 +144,12 @@ function take(m) {
     case "done": vl.running = false; vl.summary = m.summary; break;
     case "error":
       vl.error = { code: m.code, message: m.message, at: performance.now() };
-      if (m.code === "operator_taken" || m.code === "unauthorized") {
-        if (vl.wanted === "operator") { vl.wanted = "observer"; vl.resume = null; }
+      if (m.code === "operator_taken" && vl.wanted === "operator" && vl.link !== "open") {
+        // Watch meanwhile, and take a place in line.
+        vl.lineAfterWelcome = true;
+        rejoin("observer");
+      } else if (m.code === "unauthorized" || m.code === "too_many_attempts") {
+        if (vl.link !== "open") vl.link = "refused";
       }
       break;
     case "ping":
@@ -377,8 +388,10 @@ function forecastWords() {
 
 function render() {
   const operator = vl.role === "operator";
-  text("link", vl.link === "open" ? `connected · ${ROLES[vl.role] || "…"}` :
-    vl.link === "closed" ? "disconnected: connecting again…" : "connecting…");
+  const who = vl.user ? ` as ${vl.user}` : "";
+  text("link", vl.link === "open" ? `connected${who} · ${ROLES[vl.role] || "…"}` :
+    vl.link === "closed" ? "disconnected: connecting again…" :
+    vl.link === "refused" ? "not let in: log in below" : "connecting…");
   $("link").className = vl.link === "open" ? "ok" : "bad";
   text("rtt", vl.rttMs === null ? "round trip …" : `round trip ${vl.rttMs.toFixed(0)} ms`);
   const now = hostNow();
@@ -394,10 +407,15 @@ function render() {
   text("held", f && f.limited ? "held back by the safety layer" : "");
   text("error", vl.error ? vl.error.message : "");
   show("error", !!vl.error);
+  const left = vl.slotEnds && operator ? Math.max(0, (vl.slotEnds - performance.now()) / 1000) : null;
+  text("slot", left === null ? "" :
+    `your turn ends in ${Math.floor(left / 60)}:${String(Math.floor(left % 60)).padStart(2, "0")}`);
   text("queue", vl.queue ? `you are number ${vl.queue.position} in line` +
     (vl.queue.wait_s ? `, at most ${Math.ceil(vl.queue.wait_s / 60)} min to wait` : "") : "");
 
   show("drive", !operator);
+  show("line", vl.link === "open" && vl.role === "observer");
+  text("line", vl.queue ? "Leave the line" : "Ask for control");
   show("operate", operator);
   $("mounts").replaceChildren(...vl.experiments.map((e) => {
     const b = document.createElement("button");
@@ -420,10 +438,14 @@ function render() {
 
 // ---- controls ---------------------------------------------------------
 
-$("ask").onclick = () => {
-  vl.token = $("token").value;
-  rejoin("operator");
-};
+// The form's login: an account, else the lab's token.
+function login() {
+  const user = $("user").value.trim();
+  return user ? { user, password: $("password").value } : { token: $("token").value };
+}
+$("ask").onclick = () => { vl.login = login(); rejoin("operator"); };
+$("look").onclick = () => { vl.login = login(); rejoin("observer"); };
+$("line").onclick = () => send(vl.queue ? VL.guest.leave_queue() : VL.guest.queue());
 $("watch").onclick = () => rejoin("observer");
 $("define").onclick = () => {
   if (vl.planned && vl.goal) send(VL.guest.define(vl.goal, vl.planned));

@@ -10,9 +10,11 @@ const VL = (() => {
 
   // What the page sends, by kind.
   const guest = {
-    hello: (role, token, resume) => {
+    // `login`: the lab's token, or an account's user and password.
+    hello: (role, login, resume) => {
       const m = { type: "hello", protocol: PROTOCOL, role };
-      if (token) m.token = token;
+      if (login.token) m.token = login.token;
+      if (login.user) { m.user = login.user; m.password = login.password || ""; }
       if (resume) m.resume = resume;
       return m;
     },
@@ -30,6 +32,7 @@ const VL = (() => {
     emergency_stop: () => ({ type: "emergency_stop" }),
     command: (event, seen, v, w) => ({ type: "command", event, seen, v, w }),
     queue: () => ({ type: "queue" }),
+    leave_queue: () => ({ type: "leave_queue" }),
     reset: () => ({ type: "reset" }),
     bye: () => ({ type: "bye" }),
   };
@@ -42,7 +45,8 @@ const VL = (() => {
   function examples() {
     const goal = { x_mm: 680.0, y_mm: 470.0 };
     return [
-      guest.hello("operator", "lab-secret", null),
+      guest.hello("operator", { token: "lab-secret" }, null),
+      guest.hello("observer", { user: "ada", password: "correct horse" }, null),
       guest.ping(1.5),
       guest.pong(2.5),
       guest.mount("navigation"),
@@ -53,6 +57,7 @@ const VL = (() => {
       guest.emergency_stop(),
       guest.command(1, 0, 120.0, -0.5),
       guest.queue(),
+      guest.leave_queue(),
       guest.reset(),
       guest.bye(),
     ];
