@@ -136,6 +136,9 @@ fn for_test(args: &mut Vec<String>, ports: &[(String, String)], link: &str) {
         Some("host") if args.get(1).map(String::as_str) == Some("bench") => {
             args.extend(["--commands", "200"].map(String::from));
         }
+        Some("host") if args.get(1).map(String::as_str) == Some("bench-watchers") => {
+            args.extend(["--commands", "100", "--rounds", "1"].map(String::from));
+        }
         // The whole matrix runs in tests/experiment_media.rs.
         Some("experiment") if args.get(1).map(String::as_str) == Some("report") => {
             args.extend(["--profiles", "lan,intercontinental"].map(String::from));
@@ -178,7 +181,8 @@ fn every_command_in_readme_runs_as_written() {
             let kind = argv[0];
             let serves = match kind {
                 "khepera-emu" => true,
-                "host" | "media" => argv.get(1) != Some(&"bench"),
+                "host" => !matches!(argv.get(1), Some(&"bench" | &"bench-watchers")),
+                "media" => argv.get(1) != Some(&"bench"),
                 _ => false,
             };
             if serves {
