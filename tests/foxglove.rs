@@ -37,8 +37,17 @@ fn an_outside_foxglove_client_watches_a_run_by_either_subprotocol() {
     let (_host, url) = start_host(&["--no-record"]);
     let run_url = url.clone();
     let run = std::thread::spawn(move || common::headless_run(&run_url, 60, &[]));
-    for subprotocol in ["foxglove.sdk.v1", "foxglove.websocket.v1"] {
-        let Some(seen) = watch_from_python(&url, subprotocol, 4.0) else {
+    // Both clients at once, while the run is mounted and under way.
+    let watching: Vec<_> = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
+        .into_iter()
+        .map(|subprotocol| {
+            let url = url.clone();
+            std::thread::spawn(move || (subprotocol, watch_from_python(&url, subprotocol, 4.0)))
+        })
+        .collect();
+    for client in watching {
+        let (subprotocol, seen) = client.join().unwrap();
+        let Some(seen) = seen else {
             break;
         };
         assert_eq!(seen["subprotocol"], subprotocol, "{seen}");
@@ -178,12 +187,7 @@ async fn a_foxglove_client_is_read_only_and_bounded() {
 async fn a_lab_that_admits_only_accounts_to_watch_refuses_foxglove() {
     let dir = scratch("foxglove-accounts");
     let users = dir.join("users.toml");
-    let out = common::vl_command()
-        .args(["users", "add", s(&users), "ada", "--role", "operator"])
-        .env("VL_PASSWORD", "correct horse")
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", common::stderr(&out));
+    common::account(&users, "ada", "operator", "correct horse");
     let (_host, url) = start_host(&[
         "--no-record",
         "--users",

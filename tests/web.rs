@@ -83,6 +83,26 @@ fn drive_from(browser: &mut Browser, token: &str) {
     browser.expect("vl.role === 'operator'", Duration::from_secs(10));
 }
 
+/// A page on the Host at `url` driving with the token `lab-secret`, which
+/// has mounted `experiment` by its button and waits until the lab's net
+/// enables `next`.
+fn operating(url: &str, experiment: &str, next: &str) -> Browser {
+    let mut browser = Browser::open(&page(url), (1280, 900));
+    drive_from(&mut browser, "lab-secret");
+    browser.expect(
+        "vl.state && vl.state.enabled.includes('mount')",
+        Duration::from_secs(10),
+    );
+    browser.click(&format!("#mounts button[data-experiment={experiment}]"));
+    browser.expect(
+        &format!(
+            "vl.lab && vl.lab.experiment === '{experiment}' && vl.state.enabled.includes('{next}')"
+        ),
+        Duration::from_secs(20),
+    );
+    browser
+}
+
 #[test]
 fn the_page_shows_a_run_live_and_its_console_stays_clean() {
     if !chromium::available() {
@@ -145,17 +165,7 @@ fn a_whole_navigation_run_is_driven_from_the_page() {
         return;
     }
     let (_host, url) = start_host(&["--no-record", "--token", "lab-secret"]);
-    let mut browser = Browser::open(&page(&url), (1280, 900));
-    drive_from(&mut browser, "lab-secret");
-    browser.expect(
-        "vl.state && vl.state.enabled.includes('mount')",
-        Duration::from_secs(10),
-    );
-    browser.click("#mounts button[data-experiment=navigation]");
-    browser.expect(
-        "vl.lab && vl.lab.experiment === 'navigation' && vl.state.enabled.includes('define')",
-        Duration::from_secs(20),
-    );
+    let mut browser = operating(&url, "navigation", "define");
     let goal = browser.eval("vl.lab.arena.goal");
     let goal = Point {
         x_mm: goal["x_mm"].as_f64().unwrap(),
@@ -208,17 +218,7 @@ fn teleoperation_from_the_keyboard_is_held_back_by_the_safety_layer() {
         return;
     }
     let (_host, url) = start_host(&["--no-record", "--token", "lab-secret"]);
-    let mut browser = Browser::open(&page(&url), (1280, 900));
-    drive_from(&mut browser, "lab-secret");
-    browser.expect(
-        "vl.state && vl.state.enabled.includes('mount')",
-        Duration::from_secs(10),
-    );
-    browser.click("#mounts button[data-experiment=teleoperation]");
-    browser.expect(
-        "vl.lab && vl.lab.experiment === 'teleoperation' && vl.state.enabled.includes('start')",
-        Duration::from_secs(20),
-    );
+    let mut browser = operating(&url, "teleoperation", "start");
     browser.click("#start");
     browser.expect("vl.running", Duration::from_secs(10));
     // Watch every feedback the page gets from here on.
@@ -512,16 +512,6 @@ fn the_watchers_bench_runs_a_class_against_no_one() {
     assert!(cost["feedback_hz_min"].as_f64().unwrap() > 0.0, "{cost}");
 }
 
-/// Makes `users` hold `name` with the operator's role.
-fn account(users: &std::path::Path, name: &str, password: &str) {
-    let out = crate::common::vl_command()
-        .args(["users", "add", s(users), name, "--role", "operator"])
-        .env("VL_PASSWORD", password)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", crate::common::stderr(&out));
-}
-
 /// Logs in on the page with an account, to drive or (`drive` false) watch.
 fn log_in(browser: &mut Browser, user: &str, password: &str, drive: bool) {
     browser.click("#user");
@@ -538,8 +528,8 @@ fn at_a_lab_with_accounts_the_page_logs_in_and_waits_in_line() {
     }
     let dir = scratch("web-accounts");
     let users = dir.join("users.toml");
-    account(&users, "ada", "correct horse");
-    account(&users, "bob", "battery staple");
+    crate::common::account(&users, "ada", "operator", "correct horse");
+    crate::common::account(&users, "bob", "operator", "battery staple");
     let (_host, url) = start_host(&[
         "--no-record",
         "--users",

@@ -233,6 +233,16 @@ pub(crate) fn python_with(modules: &str) -> Option<&'static str> {
     })
 }
 
+/// Adds account `name` with `role` and `password` to the accounts file `users`.
+pub(crate) fn account(users: &Path, name: &str, role: &str, password: &str) {
+    let out = vl_command()
+        .args(["users", "add", s(users), name, "--role", role])
+        .env("VL_PASSWORD", password)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+}
+
 /// A port nothing listens on right now.
 pub(crate) fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")

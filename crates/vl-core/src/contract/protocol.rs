@@ -488,8 +488,9 @@ mod tests {
             assert_eq!(wire["type"], message.kind());
             assert!(GuestMessage::TYPES.contains(&message.kind()));
         }
-        assert_eq!(GuestMessage::TYPES.len(), 17);
-        assert!(HostMessage::TYPES.contains(&"feedback") && HostMessage::TYPES.len() == 16);
+        assert_eq!(GuestMessage::TYPES.len(), 18);
+        assert!(HostMessage::TYPES.contains(&"feedback") && HostMessage::TYPES.len() == 17);
+        assert!(GuestMessage::TYPES.contains(&"plan") && HostMessage::TYPES.contains(&"planned"));
         assert!(GuestMessage::TYPES.contains(&"download") && HostMessage::TYPES.contains(&"done"));
         assert!(GuestMessage::TYPES.contains(&"leave_queue"));
         assert!(HostMessage::TYPES.contains(&"forecast"));

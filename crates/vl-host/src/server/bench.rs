@@ -196,12 +196,14 @@ async fn observer(url: &str) -> Result<Socket, BenchError> {
     Ok(ws)
 }
 
-/// Reads everything until told to stop; returns the feedback and frames read.
-async fn observe(mut ws: Socket, mut stop: tokio::sync::watch::Receiver<bool>) -> (u64, u64) {
+/// Reads everything until told to stop, then says goodbye; returns the
+/// feedback and frames read, and over how many seconds.
+async fn observe(mut ws: Socket, mut stop: tokio::sync::watch::Receiver<bool>) -> (u64, u64, f64) {
+    let began = Instant::now();
     let (mut feedback, mut frames) = (0, 0);
     loop {
         tokio::select! {
-            _ = stop.changed() => return (feedback, frames),
+            _ = stop.changed() => break,
             next = ws.next() => match next {
                 Some(Ok(Message::Text(text))) => match HostMessage::decode(text.as_str()) {
                     Ok(HostMessage::Feedback { .. }) => feedback += 1,
@@ -212,10 +214,12 @@ async fn observe(mut ws: Socket, mut stop: tokio::sync::watch::Receiver<bool>) -
                 },
                 Some(Ok(Message::Binary(_))) => frames += 1,
                 Some(Ok(_)) => {}
-                _ => return (feedback, frames),
+                _ => break,
             },
         }
     }
+    let _ = say(&mut ws, &GuestMessage::Bye).await;
+    (feedback, frames, began.elapsed().as_secs_f64())
 }
 
 /// Runs the bench: `observers` reading, `commands` timed.
@@ -262,8 +266,8 @@ pub async fn operator_latency(
     let q = |p| nearest_rank(&took, p).unwrap_or(f64::NAN);
     let slowest = fed
         .iter()
+        .map(|&(feedback, frames, _)| (feedback, frames))
         .min_by_key(|(f, _)| *f)
-        .copied()
         .unwrap_or_default();
     Ok(OperatorLatency {
         observers,

@@ -10,14 +10,12 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use futures_util::StreamExt;
 use serde::Serialize;
 use tokio::task::JoinSet;
-use tokio_tungstenite::tungstenite::Message;
 use vl_core::table::{Report, Table};
-use vl_core::{GuestMessage, HostMessage, Wire, nearest_rank};
+use vl_core::{GuestMessage, nearest_rank};
 
-use super::{BenchError, Socket, observer, say, teleoperating, time_commands};
+use super::{BenchError, Socket, observe, observer, say, teleoperating, time_commands};
 
 /// `vl host bench-watchers`: a Host of its own (this `vl`, simulated,
 /// camera at 15 fps) and its operator's command → feedback with no one
@@ -180,31 +178,6 @@ fn clock_ticks() -> f64 {
     ticks
 }
 
-/// A watcher's reading: feedback and frames, and over how long.
-async fn watch(mut ws: Socket, mut stop: tokio::sync::watch::Receiver<bool>) -> (u64, u64, f64) {
-    let began = Instant::now();
-    let (mut feedback, mut frames) = (0, 0);
-    loop {
-        tokio::select! {
-            _ = stop.changed() => break,
-            next = ws.next() => match next {
-                Some(Ok(Message::Text(text))) => match HostMessage::decode(text.as_str()) {
-                    Ok(HostMessage::Feedback { .. }) => feedback += 1,
-                    Ok(HostMessage::Ping { t }) => {
-                        let _ = say(&mut ws, &GuestMessage::Pong { t }).await;
-                    }
-                    _ => {}
-                },
-                Some(Ok(Message::Binary(_))) => frames += 1,
-                Some(Ok(_)) => {}
-                _ => break,
-            },
-        }
-    }
-    let _ = say(&mut ws, &GuestMessage::Bye).await;
-    (feedback, frames, began.elapsed().as_secs_f64())
-}
-
 /// Times `commands` from `event` on; the times, and the Host's cores busy.
 async fn round(
     operator: &mut Socket,
@@ -246,7 +219,7 @@ async fn watchers_cost(
         let mut reading = JoinSet::new();
         for _ in 0..watchers {
             let ws = observer(&url).await?;
-            reading.spawn(watch(ws, stop.clone()));
+            reading.spawn(observe(ws, stop.clone()));
         }
         // The class is in, the first frames sent: now time.
         tokio::time::sleep(Duration::from_secs(1)).await;
