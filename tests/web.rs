@@ -221,6 +221,21 @@ fn teleoperation_from_the_keyboard_is_held_back_by_the_safety_layer() {
     let mut browser = operating(&url, "teleoperation", "start");
     browser.click("#start");
     browser.expect("vl.running", Duration::from_secs(10));
+    // A gamepad's stick pushed forward drives the robot as the keys do
+    // (the page reads the browser's Gamepad API each frame).
+    let from = pose(&mut browser);
+    browser.eval(
+        "navigator.getGamepads = () => [{id: 'a test pad', axes: [0, -1], buttons: []}]; true",
+    );
+    browser.expect("vl.stick.v === 1", Duration::from_secs(5));
+    std::thread::sleep(Duration::from_millis(500));
+    browser.eval("navigator.getGamepads = () => []; true");
+    browser.expect("vl.stick.v === 0", Duration::from_secs(5));
+    let to = pose(&mut browser);
+    assert!(
+        to.x_mm - from.x_mm > 20.0,
+        "the pad drove {from:?} → {to:?}"
+    );
     // Watch every feedback the page gets from here on.
     browser.eval(
         "window.seen = {limited: 0, contact: 0, force: 0, n: 0}; const take0 = takeFeedback; takeFeedback = (m) => { seen.n++; if (m.limited) seen.limited++; if (m.contact) seen.contact++; if (m.force && Math.hypot(m.force[0], m.force[1]) > 0.1) seen.force++; take0(m); }; true",
@@ -267,6 +282,28 @@ fn page_kinds() -> Vec<String> {
         .skip(1)
         .map(|rest| rest.split('"').next().unwrap().to_owned())
         .collect()
+}
+
+#[test]
+fn the_page_is_served_over_https_and_speaks_wss_where_tls_is_on() {
+    if !chromium::available() {
+        return;
+    }
+    let (_host, url) = start_host(&["--no-record", "--tls-self-signed"]);
+    // wss://127.0.0.1:PORT/#pin=… → https://127.0.0.1:PORT/
+    let address = url.trim_start_matches("wss://").split('/').next().unwrap();
+    let mut browser = Browser::open_with(
+        &format!("https://{address}/"),
+        (1024, 768),
+        // The Host's certificate is its own, as a self-signed one is.
+        &["--ignore-certificate-errors"],
+    );
+    browser.expect(
+        "vl.link === 'open' && vl.socket.url.startsWith('wss://') && vl.frames > 2",
+        Duration::from_secs(15),
+    );
+    let errors = browser.errors();
+    assert!(errors.is_empty(), "the console had errors: {errors:#?}");
 }
 
 #[test]

@@ -36,7 +36,12 @@ pub(crate) fn available() -> bool {
 
 impl Browser {
     /// Opens `url` in a new headless Chromium of `width` × `height` px.
-    pub(crate) fn open(url: &str, (width, height): (u32, u32)) -> Browser {
+    pub(crate) fn open(url: &str, size: (u32, u32)) -> Browser {
+        Browser::open_with(url, size, &[])
+    }
+
+    /// [`Browser::open`], with Chromium's `flags` besides.
+    pub(crate) fn open_with(url: &str, (width, height): (u32, u32), flags: &[&str]) -> Browser {
         // Each Chromium its own profile: two may not share one.
         static OPENED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
         let n = OPENED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -59,8 +64,9 @@ impl Browser {
                 "--remote-debugging-port=0",
                 &format!("--window-size={width},{height}"),
                 &format!("--user-data-dir={}", profile.display()),
-                "about:blank",
             ])
+            .args(flags)
+            .arg("about:blank")
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
             .spawn()
