@@ -128,7 +128,7 @@ pub(crate) struct HostArgs {
         default_value = "navigation,teleoperation"
     )]
     experiments: Vec<Experiment>,
-    /// Address to listen on; port 0 picks a free one.
+    /// Address for Guests, browsers (the web page) and Foxglove alike; port 0 picks a free one.
     #[arg(long, default_value = "127.0.0.1:7400", value_parser = vl_core::listen_address)]
     listen: SocketAddr,
     /// An operator who sends no command this long (seconds, or 90s, 10m)
@@ -276,7 +276,10 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             media.url(),
             host.url()
         ),
-        None => println!("vl host listening on {}", host.url()),
+        None => {
+            println!("vl host listening on {}", host.url());
+            eprintln!("vl host: a browser opens the lab at {}", host.page_url());
+        }
     }
     let relaying = async {
         match media {

@@ -250,7 +250,6 @@ impl Host {
         Host::start(listen, devices, lab.arena, config).await
     }
 
-    /// The WebSocket URL Guests connect to.
     /// Where Guests connect: `ws://`, or with TLS `wss://` with the
     /// certificate's fingerprint for the Guest to pin.
     pub fn url(&self) -> String {
@@ -258,6 +257,12 @@ impl Host {
             Some(pin) => format!("wss://{}/#pin={pin}", self.addr),
             None => format!("ws://{}", self.addr),
         }
+    }
+
+    /// Where a browser opens the web Guest (the same port).
+    pub fn page_url(&self) -> String {
+        let scheme = if self.pin.is_some() { "https" } else { "http" };
+        format!("{scheme}://{}/", self.addr)
     }
 
     /// Serves until the process ends.
