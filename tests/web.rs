@@ -240,9 +240,17 @@ fn teleoperation_from_the_keyboard_is_held_back_by_the_safety_layer() {
     browser.eval(
         "window.seen = {limited: 0, contact: 0, force: 0, n: 0}; const take0 = takeFeedback; takeFeedback = (m) => { seen.n++; if (m.limited) seen.limited++; if (m.contact) seen.contact++; if (m.force && Math.hypot(m.force[0], m.force[1]) > 0.1) seen.force++; take0(m); }; true",
     );
+    // A pad at rest (the keys drive) that records the rumble it is asked for.
+    browser.eval(
+        "window.rumbles = []; const pad = {id: 'a rumble pad', axes: [0, 0], buttons: [], vibrationActuator: {playEffect: (kind, effect) => { rumbles.push(effect.strongMagnitude); return Promise.resolve('complete'); }}}; navigator.getGamepads = () => [pad]; true",
+    );
     // Straight ahead from the start is an obstacle: hold the up arrow.
     browser.key("ArrowUp", 38, true);
     browser.expect("seen.limited > 10", Duration::from_secs(20));
+    browser.expect(
+        "rumbles.length > 0 && Math.max(...rumbles) > 0.1",
+        Duration::from_secs(5),
+    );
     // The page says so while it lasts (the field may then turn the robot
     // along the obstacle, out of the hold).
     browser.expect(

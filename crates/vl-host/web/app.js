@@ -173,7 +173,23 @@ function takeFeedback(m) {
       if (vl.trail.length > 5000) vl.trail.shift();
     }
     drive();
+    rumble(m.force);
   }
+}
+
+// The force the obstacles push back with, felt in a gamepad that rumbles
+// (the browser's Gamepad API has no force-feedback stick).
+let rumbledAt = 0;
+function rumble(force) {
+  const pad = vl.gamepad;
+  if (!force || vl.role !== "operator" || !pad || !pad.vibrationActuator) return;
+  const strength = Math.min(1, Math.hypot(force[0], force[1]));
+  const now = performance.now();
+  if (strength < 0.05 || now - rumbledAt < 100) return;
+  rumbledAt = now;
+  pad.vibrationActuator.playEffect("dual-rumble", {
+    duration: 120, strongMagnitude: strength, weakMagnitude: strength / 2,
+  }).catch(() => {});
 }
 
 function takeFrame(buffer) {
