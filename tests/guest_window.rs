@@ -1247,7 +1247,14 @@ fn scrub(harness: &mut Harness<'_, GuestApp>, fraction: f32) {
         .rect();
     let x = (rail.left() + fraction * rail.width()).min(rail.right() - 2.0);
     let at = egui::pos2(x, rail.center().y);
-    drag(harness, at, at);
+    // To the end, a hand drags past the rail: the last pixels fall short of
+    // the run's last moment, where its `done` is.
+    let to = if fraction >= 1.0 {
+        egui::pos2(rail.right() + 40.0, rail.center().y)
+    } else {
+        at
+    };
+    drag(harness, at, to);
     for _ in 0..5 {
         harness.step();
     }

@@ -372,11 +372,9 @@ function labWords() {
 }
 
 function runWords() {
-  if (vl.running) {
-    const f = vl.feedback;
-    const held = f && f.limited ? " — the safety layer is holding the robot back" : "";
-    return `a run is under way${held}`;
-  }
+  // Held back or not is its own line (#held): text that changed length
+  // here would move the buttons below it under the user's pointer.
+  if (vl.running) return "a run is under way";
   if (vl.summary) {
     const s = vl.summary;
     return `last run: ${ENDINGS[s.reason] || s.reason} after ${s.seconds.toFixed(1)} s, ` +
