@@ -69,7 +69,8 @@ fn an_outside_foxglove_client_watches_a_run_by_either_subprotocol() {
         assert!(count("/camera") >= 20, "{seen}");
         assert_eq!(seen["jpegs"].as_u64().unwrap(), count("/camera"), "{seen}");
         assert!(count("/robot/pose") >= 60, "{seen}");
-        assert_eq!(count("/tf"), count("/robot/pose"), "{seen}");
+        // One of each a feedback; the window may close between the two.
+        assert!(count("/tf").abs_diff(count("/robot/pose")) <= 1, "{seen}");
         assert!(count("/scene") >= 1 && count("/state") >= 1, "{seen}");
         assert_eq!(seen["bad"], json!([]), "{seen}");
         assert_eq!(seen["times_rise"], true, "{seen}");
