@@ -237,8 +237,6 @@ async fn watchers_cost(
     }
     let _ = say(&mut operator, &GuestMessage::Bye).await;
     drop(host);
-    idle.sort_by(f64::total_cmp);
-    watched.sort_by(f64::total_cmp);
     let mut frames_hz: Vec<f64> = fed.iter().map(|(_, f, s)| *f as f64 / s).collect();
     frames_hz.sort_by(f64::total_cmp);
     let feedback_hz_min = fed
