@@ -161,11 +161,10 @@ impl Replay {
                 self.playing = !self.playing;
             }
             let mut at = self.at_s;
-            let slider = egui::Slider::new(&mut at, 0.0..=self.duration_s.max(0.001))
-                .suffix(" s")
-                .fixed_decimals(1)
-                .text("time");
-            if ui.add(slider).changed() {
+            if ui
+                .add(time_slider(&mut at, self.duration_s, "time"))
+                .changed()
+            {
                 self.seek(at);
             }
             egui::ComboBox::from_label("speed")
@@ -189,6 +188,16 @@ impl Replay {
             });
         self.show_results = open;
     }
+}
+
+/// A slider over a span of time from 0 to `end_s`, shown to a tenth of a
+/// second but not rounded to one (as `fixed_decimals` would): a run of
+/// 4.73 s must reach its last moment, where its end is.
+pub(crate) fn time_slider<'a>(t_s: &'a mut f64, end_s: f64, text: &str) -> egui::Slider<'a> {
+    egui::Slider::new(t_s, 0.0..=end_s.max(0.001))
+        .custom_formatter(|t, _| format!("{t:.1}"))
+        .suffix(" s")
+        .text(text)
 }
 
 /// What a replay to the end showed.
@@ -247,5 +256,40 @@ impl Report for ReplayReport {
             ));
         }
         Table::pairs(rows).title("replayed")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use egui_kittest::Harness;
+    use egui_kittest::kittest::Queryable;
+
+    use super::time_slider;
+
+    /// Dragged to its end, the slider gives the span's very end, not the
+    /// tenth below it.
+    #[test]
+    fn the_time_slider_reaches_a_span_end_between_tenths() {
+        for end_s in [4.73, 4.71, 0.04, 12.349] {
+            let mut harness = Harness::new_ui_state(
+                |ui, t_s: &mut f64| {
+                    ui.add(time_slider(t_s, end_s, "time"));
+                },
+                0.0,
+            );
+            let rail = harness
+                .get_by_role_and_label(egui::accesskit::Role::Slider, "time")
+                .rect();
+            let from = rail.center();
+            harness.hover_at(from);
+            harness.step();
+            harness.drag_at(from);
+            harness.step();
+            harness.hover_at(egui::pos2(rail.right() + 20.0, from.y));
+            harness.step();
+            harness.drop_at(egui::pos2(rail.right() + 20.0, from.y));
+            harness.step();
+            assert_eq!(*harness.state(), end_s, "dragged to the end of {end_s} s");
+        }
     }
 }

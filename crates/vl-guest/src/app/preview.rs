@@ -10,6 +10,7 @@ use vl_core::{ForecastVerdict, MountedLab, Point, SeedRun};
 
 use super::view::View;
 use super::{FORECAST_COLOUR, GuestApp};
+use crate::replay::time_slider;
 
 /// Where a refused forecast fails.
 const REFUSED_COLOUR: Color32 = Color32::from_rgb(230, 40, 40);
@@ -100,12 +101,7 @@ impl GuestApp {
                     false => Some((Instant::now(), self.preview.t_s)),
                 };
             }
-            ui.add(
-                egui::Slider::new(&mut self.preview.t_s, 0.0..=longest.max(0.1))
-                    .suffix(" s")
-                    .fixed_decimals(1)
-                    .text("forecast time"),
-            );
+            ui.add(time_slider(&mut self.preview.t_s, longest, "forecast time"));
         });
         if self.preview.playing.is_some() {
             ui.ctx().request_repaint();
