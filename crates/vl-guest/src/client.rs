@@ -238,6 +238,10 @@ pub const GOODBYE_WAIT: Duration = Duration::from_millis(300);
 /// How long a goodbye may take.
 const GOODBYE: Duration = Duration::from_secs(1);
 
+/// How long a Guest that closes waits for the Host's close, within
+/// `GOODBYE`.
+const CLOSING: Duration = Duration::from_millis(800);
+
 /// The first wait before reconnecting; it doubles up to `RECONNECT_MAX`.
 const RECONNECT_FIRST: Duration = Duration::from_millis(250);
 const RECONNECT_MAX: Duration = Duration::from_secs(4);
@@ -522,12 +526,12 @@ async fn carry(
                         return Ended::Lost(format!("send failed: {e}"));
                     }
                     if bye {
-                        let _ = sink.send(Message::Close(None)).await;
+                        close(&mut sink, &mut source).await;
                         return Ended::Deliberately("said bye".to_owned());
                     }
                 }
                 None => {
-                    let _ = sink.send(Message::Close(None)).await;
+                    close(&mut sink, &mut source).await;
                     return Ended::Deliberately("closed by the Guest".to_owned());
                 }
             },
@@ -583,6 +587,23 @@ async fn carry(
     }
 }
 
+/// Closes `ws` as WebSocket means it to be: the Guest's close, then
+/// reading on (a while at most) until the Host answers with its own. The
+/// Host answers once it has taken in all the Guest sent, a `bye` included;
+/// a socket dropped sooner, with frames still unread, is reset, and the
+/// Host may see a link that dropped instead of a goodbye and hold the
+/// operator's role for them.
+async fn close(
+    sink: &mut futures_util::stream::SplitSink<Socket, Message>,
+    source: &mut futures_util::stream::SplitStream<Socket>,
+) {
+    let _ = sink.send(Message::Close(None)).await;
+    let _ = tokio::time::timeout(CLOSING, async {
+        while let Some(Ok(_)) = source.next().await {}
+    })
+    .await;
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -609,6 +630,49 @@ mod tests {
         // Everything else always waits: a run's end is never passed over.
         let done = Incoming::Closed("bye".into());
         assert!((0..1000).all(|_| waiting.admit(&done)));
+    }
+
+    /// A Guest that closes waits for the Host's close, reading the frames
+    /// it had not read: a socket dropped with them unread is reset, which
+    /// can lose the bye it sent and fails the Host's close.
+    #[tokio::test]
+    async fn closing_waits_for_the_hosts_close() {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let url = format!("ws://{}", listener.local_addr().unwrap());
+        let host = tokio::spawn(async move {
+            let (tcp, _) = listener.accept().await.unwrap();
+            let ws = tokio_tungstenite::accept_async(tcp).await.unwrap();
+            let (mut sink, mut source) = ws.split();
+            // Frames all the while, as the camera's.
+            let mut frame = tokio::time::interval(Duration::from_millis(1));
+            let mut heard = Vec::new();
+            loop {
+                tokio::select! {
+                    _ = frame.tick() => {
+                        if let Err(e) = sink.send(Message::binary(vec![0u8; 16384])).await {
+                            return Err(format!("a frame: {e} after {heard:?}"));
+                        }
+                    }
+                    message = source.next() => match message {
+                        Some(Ok(Message::Text(t))) => heard.push(t.to_string()),
+                        Some(Ok(Message::Close(_))) => break,
+                        Some(Ok(_)) => {}
+                        other => return Err(format!("{other:?} after {heard:?}")),
+                    },
+                }
+            }
+            // The Host tells its hub before it answers the close.
+            tokio::time::sleep(Duration::from_millis(100)).await;
+            sink.flush()
+                .await
+                .map_err(|e| format!("answering the close: {e}"))?;
+            Ok(heard)
+        });
+        let connection = open(&url).unwrap();
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        connection.close().await;
+        let heard = host.await.unwrap().unwrap();
+        assert_eq!(heard.last(), Some(&GuestMessage::Bye.encode()), "{heard:?}");
     }
 
     #[test]
