@@ -95,7 +95,13 @@ async fn operator_drives_observer_watches_garbage_is_refused() {
         .send(json!({"type": "command", "event": 99, "left": 100, "right": 100}))
         .await;
     second.expect_error("not_operator").await;
-    assert!(second.frames > 0 || op.frames > 0, "camera frames arrive");
+    // Camera frames reach the observer too (on a loaded machine the first
+    // may come after this much of the run).
+    let by = Instant::now() + Duration::from_secs(5);
+    while second.frames == 0 && Instant::now() < by {
+        second.next_any().await;
+    }
+    assert!(second.frames > 0, "camera frames arrive");
 
     // Garbage on the operator's own connection is answered, not fatal.
     op.send_text("this is not json").await;

@@ -117,10 +117,19 @@ impl Peer {
         }
     }
 
+    /// Says hello as `role`; the welcome, or a panic saying what came
+    /// instead.
     pub(crate) async fn hello(&mut self, role: &str) -> Value {
         self.send(json!({"type": "hello", "protocol": 1, "role": role}))
             .await;
-        self.expect("welcome").await
+        let answer = self
+            .next_of_any(&["welcome", "error"], Duration::from_secs(5))
+            .await
+            .unwrap_or_else(|| {
+                panic!("no answer to hello as {role} within 5 s, or the socket ended")
+            });
+        assert_eq!(answer["type"], "welcome", "hello as {role}: {answer}");
+        answer
     }
 
     /// Mounts `experiment`, defines nothing but the defaults and starts a
