@@ -5,7 +5,10 @@
 //! address has used its budget, and otherwise the oldest silent one of the
 //! address holding the most: however many idle sockets one machine opens,
 //! they only ever push out each other, never a person connecting from
-//! elsewhere over a slow link. Of the welcomed places, the last
+//! elsewhere over a slow link. Of one address's, the one least far on
+//! goes first: a bare socket before one that finished its handshake, and
+//! that before one that said hello and waits for its welcome. Of the
+//! welcomed places, the last
 //! [`KEPT_FOR_DRIVERS`] are kept for people who may drive: however many
 //! come to watch, an operator still gets in.
 
@@ -25,12 +28,24 @@ pub(crate) const MAX_UNWELCOMED_PER_ADDRESS: usize = 8;
 /// Welcomed places only people who may drive take.
 pub(crate) const KEPT_FOR_DRIVERS: usize = 16;
 
+/// How far a connection not yet welcomed has come: the least far on is
+/// pushed out first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Stage {
+    /// A socket, without its WebSocket handshake yet.
+    Bare,
+    /// A WebSocket that has said nothing yet.
+    Upgraded,
+    /// It said hello, and waits for its credentials to be checked and for
+    /// its welcome: a person's client, where a flood's never gets.
+    Greeted,
+}
+
 /// A connection not yet welcomed, with its eviction signal.
 struct Silent {
     id: u64,
     address: IpAddr,
-    /// Whether it finished the WebSocket handshake: a bare socket goes first.
-    upgraded: bool,
+    stage: Stage,
     evict: watch::Sender<bool>,
 }
 
@@ -51,12 +66,20 @@ impl Counts {
             .count()
     }
 
-    /// Pushes out the oldest silent connection from `address`, one that
-    /// has not even finished its handshake if there is one.
+    /// Pushes out the oldest of the silent connections from `address` that
+    /// have come least far.
     fn evict_oldest_of(&mut self, address: IpAddr) -> bool {
-        let from = |s: &&Silent| s.address == address;
-        let bare = self.unwelcomed.iter().position(|s| from(&s) && !s.upgraded);
-        let Some(at) = bare.or_else(|| self.unwelcomed.iter().position(|s| from(&s))) else {
+        let least = self
+            .unwelcomed
+            .iter()
+            .filter(|s| s.address == address)
+            .map(|s| s.stage)
+            .min();
+        let Some(at) = least.and_then(|least| {
+            self.unwelcomed
+                .iter()
+                .position(|s| s.address == address && s.stage == least)
+        }) else {
             return false;
         };
         if let Some(silent) = self.unwelcomed.remove(at) {
@@ -126,7 +149,7 @@ impl Admission {
         counts.unwelcomed.push_back(Silent {
             id,
             address,
-            upgraded: false,
+            stage: Stage::Bare,
             evict,
         });
         Some(Ticket {
@@ -141,12 +164,22 @@ impl Ticket {
     /// The connection finished its WebSocket handshake: it is further on
     /// than a bare socket, which is pushed out before it.
     pub(crate) fn upgraded(&self) {
+        self.came_to(Stage::Upgraded);
+    }
+
+    /// The connection said hello: it is pushed out only after those from
+    /// its address that have not.
+    pub(crate) fn greeted(&self) {
+        self.came_to(Stage::Greeted);
+    }
+
+    fn came_to(&self, stage: Stage) {
         if let Some(silent) = lock(&self.counts)
             .unwelcomed
             .iter_mut()
             .find(|s| s.id == self.id)
         {
-            silent.upgraded = true;
+            silent.stage = silent.stage.max(stage);
         }
     }
 
@@ -255,6 +288,38 @@ mod tests {
         let next = admission.admit(8000, HERE).unwrap();
         assert!(next.seat(false));
         drop(drivers);
+    }
+
+    /// A person on the same machine as a flood (a lab's own desktop, a
+    /// class behind one router) keeps their connection once it said hello,
+    /// however many bare and silent sockets come after it.
+    #[test]
+    fn a_connection_that_said_hello_goes_after_those_that_did_not() {
+        let admission = Admission::new();
+        let person = admission.admit(1, HERE).unwrap();
+        person.upgraded();
+        person.greeted();
+        let mut flood = Vec::new();
+        for id in 2..1000 {
+            let t = admission.admit(id, HERE).unwrap();
+            if id % 2 == 0 {
+                t.upgraded();
+            }
+            flood.push(t);
+            flood.retain(|t: &Ticket| !*t.evicted.borrow());
+            assert!(flood.len() < MAX_UNWELCOMED_PER_ADDRESS);
+        }
+        assert!(!*person.evicted.borrow(), "the person was pushed out");
+        // Bare sockets go before upgraded ones.
+        let upgraded = flood.iter().filter(|t| t.id % 2 == 0).count();
+        assert!(upgraded >= MAX_UNWELCOMED_PER_ADDRESS - 2, "{upgraded}");
+        // Only when every one from the address said hello is the oldest
+        // of those pushed out.
+        for t in &flood {
+            t.greeted();
+        }
+        admission.admit(5000, HERE).unwrap();
+        assert!(*person.evicted.borrow());
     }
 
     #[test]

@@ -468,6 +468,7 @@ impl Connection {
                 user,
                 password,
             }) => {
+                self.ticket.greeted();
                 let hello = Credentials {
                     role,
                     user: user.as_deref(),
