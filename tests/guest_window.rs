@@ -1247,8 +1247,8 @@ fn scrub(harness: &mut Harness<'_, GuestApp>, fraction: f32) {
         .rect();
     let x = (rail.left() + fraction * rail.width()).min(rail.right() - 2.0);
     let at = egui::pos2(x, rail.center().y);
-    // To the end, a hand drags past the rail: the last pixels fall short of
-    // the run's last moment, where its `done` is.
+    // To the end, a hand drags past the rail: a pixel inside it is still a
+    // little short of the run's last moment, where its `done` is.
     let to = if fraction >= 1.0 {
         egui::pos2(rail.right() + 40.0, rail.center().y)
     } else {

@@ -69,17 +69,15 @@ impl Counts {
     /// Pushes out the oldest of the silent connections from `address` that
     /// have come least far.
     fn evict_oldest_of(&mut self, address: IpAddr) -> bool {
-        let least = self
+        // The first of equal minima: the oldest of those least far on.
+        let Some(at) = self
             .unwelcomed
             .iter()
-            .filter(|s| s.address == address)
-            .map(|s| s.stage)
-            .min();
-        let Some(at) = least.and_then(|least| {
-            self.unwelcomed
-                .iter()
-                .position(|s| s.address == address && s.stage == least)
-        }) else {
+            .enumerate()
+            .filter(|(_, s)| s.address == address)
+            .min_by_key(|(_, s)| s.stage)
+            .map(|(at, _)| at)
+        else {
             return false;
         };
         if let Some(silent) = self.unwelcomed.remove(at) {
