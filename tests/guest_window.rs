@@ -1373,8 +1373,10 @@ fn a_task_is_saved_and_loaded_back_in_the_window() {
     harness
         .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
         .click();
-    step_until(&mut harness, "define", |app| {
-        app.session().definition.is_some()
+    // The forecast's verdict, when it comes, grows the panel above the
+    // tasks: a click aimed before it lands where the button was.
+    step_until(&mut harness, "define and forecast", |app| {
+        app.session().definition.is_some() && app.session().forecast.is_some()
     });
     let defined = harness.state().session().definition.clone().unwrap();
     harness.get_by_label("Tasks").click();
