@@ -281,6 +281,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             eprintln!("vl host: a browser opens the lab at {}", host.page_url());
         }
     }
+    eprintln!("vl host: {}", host.priority);
     let relaying = async {
         match media {
             Some(media) => media.wait().await,

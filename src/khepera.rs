@@ -33,8 +33,9 @@ pub(crate) struct KheperaArgs {
     #[arg(long)]
     log_commands: bool,
     /// Print the robot's true pose and its contacts so far 20 times a
-    /// second (`truth T X Y θ CONTACTS`): what tests judge a run by, and
-    /// render a camera's frames from.
+    /// second (`truth T X Y θ CONTACTS LEASH TARGETS`: how far the wheels
+    /// may still go to their position targets, mm, and the targets, or `-`):
+    /// what tests judge a run by, and render a camera's frames from.
     #[arg(long)]
     truth: bool,
     /// Where the robot is put, x,y[,θ] mm and rad (default: the arena's
@@ -155,6 +156,10 @@ pub(crate) fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
     println!("vl khepera-emu: {name} on {}", emulator.device());
     use std::io::Write as _;
     std::io::stdout().flush()?;
+    // A real robot has a processor of its own: the emulated one asks not to
+    // wait behind whatever else this machine runs.
+    let priority = vl_host::raise_priority("emulated robot");
+    eprintln!("vl khepera-emu: the emulated robot runs at {priority}");
     emulator.run()?;
     Ok(ExitCode::SUCCESS)
 }

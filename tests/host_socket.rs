@@ -255,7 +255,7 @@ async fn the_watchdog_stops_a_silent_operator() {
     let mut op = Peer::connect(&url).await;
     op.hello("operator").await;
     start_teleoperation(&mut op).await;
-    let moving = drive(&mut op, 1, 5, 300.0, 300.0).await;
+    let moving = drive(&mut op, 1, 15, 300.0, 300.0).await;
     assert!(moving["wheels"]["left_mm_s"].as_f64().unwrap() > 100.0);
     // No further command: within the watchdog's 0.5 s the wheels stop.
     let f = op.feedback_after(&moving, 800.0).await;
@@ -289,6 +289,9 @@ async fn a_khepera_on_a_serial_line_drives_and_its_loss_is_a_fault() {
     drop(emulator);
     let done = op.expect("done").await;
     assert_eq!(done["summary"]["reason"], "fault", "{done}");
+    // It says what failed: the robot's line.
+    let fault = done["summary"]["fault"].as_str().unwrap_or_default();
+    assert!(fault.contains("robot"), "{done}");
 }
 
 #[test]

@@ -6,7 +6,8 @@
 
 use proptest::prelude::*;
 use vl_core::{
-    Arena, Drive, Pose, RobotModel, Safety, Situation, Surroundings, Teleop, Vector, WheelSpeeds,
+    Arena, Drive, Leash, Pose, RobotModel, Safety, Situation, Surroundings, Teleop, Told, Vector,
+    WheelSpeeds,
 };
 use vl_sim::World;
 
@@ -59,7 +60,10 @@ proptest! {
         let situation = Situation {
             pose: Pose { x_mm: 300.0, y_mm: 300.0, theta_rad: b },
             wheels: WheelSpeeds { left_mm_s: field_x, right_mm_s: field_y },
-            told: WheelSpeeds { left_mm_s: a, right_mm_s: field_x },
+            told: Told::Leash {
+                leash: Leash::new(&robot, WheelSpeeds { left_mm_s: a, right_mm_s: field_x }, b, WheelSpeeds { left_mm_s: field_y, right_mm_s: a }, field_x),
+                from_mm: [field_y, b],
+            },
             proximity: &[1023, 0, 5, 900, 0, 0, 0, 0],
         };
         let raw = WheelSpeeds { left_mm_s: a, right_mm_s: b };

@@ -268,6 +268,7 @@ fn summary() -> BoxedStrategy<Summary> {
                     sync_violations,
                     stopped_by,
                     held_back,
+                    fault: None,
                     forecast,
                     recording,
                 }

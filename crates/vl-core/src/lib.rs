@@ -119,7 +119,7 @@ pub use contract::forecast::{
     Spread,
 };
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
-pub use contract::host_status::{HostStatus, Person, RunRecord};
+pub use contract::host_status::{HostStatus, Person, Priorities, Priority, RunRecord};
 pub use contract::protocol::{
     DecodeError, DeviceState, Drive, ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES,
     MountedLab, PROTOCOL_VERSION, Readiness, Role, Secret, WATCHDOG, Wire,
@@ -127,7 +127,7 @@ pub use contract::protocol::{
 pub use contract::recording::{
     PART_BYTES, PartError, PartHeader, RecordedRun, RecordingName, RecordingNameError,
 };
-pub use contract::summary::{EndReason, HeldBack, RecordingNote, Stopper, Summary, ending};
+pub use contract::summary::{EndReason, HeldBack, RecordingNote, Stopper, Summary};
 pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use design::{
     DesignError, Designed, Interleaving, LabDesign, LabRow, NetsReport, Rule, Verdict, design,
@@ -143,12 +143,13 @@ pub use model::homography::{CalibrationError, Homography};
 pub use model::khepera::{
     CommandError, KheperaCommand, KheperaReply, LedAction, MalformedReply, MotorMode, MotorStatus,
 };
+pub use model::leash::{Leash, PositionControl, WheelMove};
 pub use model::lens::{Distortion, LensError};
 pub use model::proximity::{MAX_READING, ir_distance, ir_reading, mapped_reading};
 pub use model::response_fit::{Fit, FitError, Step as ResponseStep, fit_response};
 pub use model::robot::{
-    KHEPERA_WHEEL_SLIP, MAX_PULSES_PER_PERIOD, Point, Pose, RobotKind, RobotModel, RobotModelError,
-    SensorMount, SpeedResponse, WheelSpeeds, wrap_angle,
+    KHEPERA_WHEEL_SLIP, MAX_PROFILE_ACCEL, MAX_PULSES_PER_PERIOD, Point, Pose, RobotKind,
+    RobotModel, RobotModelError, SensorMount, SpeedResponse, WheelSpeeds, wrap_angle,
 };
 pub use named::{Named, UnknownName};
 #[cfg(feature = "clap")]
@@ -169,7 +170,7 @@ pub use navigation::plan::{
 };
 pub use navigation::report::{GridInfo, PlanReport};
 pub use navigation::svg::{plan_svg, run_svg};
-pub use safety::{Guarded, Safety, Situation, Surroundings};
+pub use safety::{Guarded, Safety, Situation, Surroundings, Told};
 pub use syntax::{ImageSize, SyntaxError, listen_address, span, span_or_none};
 pub use teleop::{Assisted, Joystick, MapField, Teleop, Vector, predict};
 pub use vision::{

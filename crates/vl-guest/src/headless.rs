@@ -291,7 +291,7 @@ impl Scripted {
 impl Report {
     /// How the run ended, in words.
     pub fn ending(&self) -> String {
-        vl_core::ending(self.reason, self.held_back.as_ref())
+        self.summary.ending()
     }
 }
 

@@ -65,7 +65,7 @@ pub fn characterise(
         Ok::<(), RobotError>(())
     })();
     // Whatever happened, the wheels are told to stop.
-    let stopped = robot.set_wheels(WheelSpeeds::default());
+    let stopped = robot.set_speed(WheelSpeeds::default());
     result?;
     stopped?;
     progress("fitting");
@@ -80,7 +80,7 @@ fn record(
     hold: Duration,
 ) -> Result<ResponseStep, RobotError> {
     let started = Instant::now();
-    robot.set_wheels(WheelSpeeds {
+    robot.set_speed(WheelSpeeds {
         left_mm_s: to_mm_s,
         right_mm_s: to_mm_s,
     })?;

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use image::RgbImage;
 use thiserror::Error;
-use vl_core::{CameraModel, Pose, RobotModel, WheelSpeeds};
+use vl_core::{CameraModel, Leash, Pose, Priority, RobotModel, WheelSpeeds};
 
 /// A robot that cannot be reached, stopped answering or answered nonsense.
 #[derive(Debug, Error)]
@@ -61,6 +61,9 @@ pub struct RobotReading {
     pub proximity: Vec<u16>,
     /// Pressing against something.
     pub contact: bool,
+    /// How far each wheel has turned, mm (its encoder count): what a
+    /// leash's reach counts from.
+    pub travel_mm: [f64; 2],
     /// When the odometry was sampled (at the latest): what the safety layer
     /// reckons the pose's age from.
     pub taken: Instant,
@@ -69,14 +72,21 @@ pub struct RobotReading {
 /// A differential-drive robot with proximity sensors.
 pub trait Robot: Send {
     fn model(&self) -> &RobotModel;
-    /// Sets wheel speeds; they hold until the next call.
-    fn set_wheels(&mut self, wheels: WheelSpeeds) -> Result<(), RobotError>;
+    /// Drives by `leash`, its reach counted from the wheels' travel at the
+    /// last `read`: the robot stops at its end by itself, whatever becomes
+    /// of the Host. A stop leash stops the wheels at once.
+    fn drive(&mut self, leash: &Leash) -> Result<(), RobotError>;
     fn read(&mut self) -> Result<RobotReading, RobotError>;
     /// Tries to reach the robot again after its link failed.
     fn reconnect(&mut self) -> Result<(), RobotError> {
         Ok(())
     }
-    /// How long the last `set_wheels` took to reach the wheels: on a serial
+    /// The priority of the process that holds the robot's line for the
+    /// Host, if one does (the serial guard).
+    fn guard_priority(&self) -> Option<Priority> {
+        None
+    }
+    /// How long the last `drive` took to reach the wheels: on a serial
     /// line, its exchange at the line's baud.
     fn command_latency(&self) -> Duration {
         Duration::ZERO

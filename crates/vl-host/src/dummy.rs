@@ -6,7 +6,7 @@
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Instant;
 
-use vl_core::{Pose, RobotModel, WheelSpeeds};
+use vl_core::{Leash, Pose, RobotModel, WheelSpeeds};
 
 use crate::drivers::{Robot, RobotError, RobotReading};
 
@@ -90,8 +90,9 @@ impl Robot for DummyRobot {
         &self.model
     }
 
-    fn set_wheels(&mut self, wheels: WheelSpeeds) -> Result<(), RobotError> {
-        self.answer("D")?.wheels = wheels;
+    fn drive(&mut self, leash: &Leash) -> Result<(), RobotError> {
+        let wheels = leash.wheels(&self.model);
+        self.answer("C")?.wheels = wheels;
         Ok(())
     }
 
@@ -102,6 +103,7 @@ impl Robot for DummyRobot {
             wheels: state.wheels,
             proximity: vec![0; self.model.sensors.len()],
             contact: false,
+            travel_mm: [0.0; 2],
             taken: Instant::now(),
         })
     }

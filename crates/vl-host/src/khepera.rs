@@ -10,7 +10,10 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use vl_core::{KheperaCommand, KheperaReply, MAX_PULSES_PER_PERIOD, Pose, RobotModel, WheelSpeeds};
+use vl_core::{
+    KheperaCommand, KheperaReply, Leash, MAX_PULSES_PER_PERIOD, Pose, Priority, RobotModel,
+    WheelSpeeds,
+};
 
 use crate::drivers::{Robot, RobotError, RobotReading};
 use crate::line::{GuardedLine, Line, SerialLine};
@@ -60,8 +63,10 @@ pub struct KheperaSerial {
     pose: Pose,
     /// Encoder counts at the last read.
     counts: [i64; 2],
-    /// How long the last speed command's exchange took.
+    /// How long the last drive's exchanges took.
     command_latency: Duration,
+    /// The top speeds the profile was last set to (`J`), if it is known.
+    profile: Option<[i64; 2]>,
 }
 
 impl KheperaSerial {
@@ -117,6 +122,7 @@ impl KheperaSerial {
             pose: start,
             counts: [0; 2],
             command_latency: Duration::ZERO,
+            profile: None,
         };
         robot.greet()?;
         Ok(robot)
@@ -138,6 +144,7 @@ impl KheperaSerial {
             tracing::info!("Khepera BIOS {bios} on {}", self.opening.device());
         }
         self.exchange(KheperaCommand::SetSpeed { left: 0, right: 0 })?;
+        self.profile = None;
         self.counts = self.counters()?;
         Ok(())
     }
@@ -197,6 +204,46 @@ impl KheperaSerial {
             .pulses_per_period(mm_s)
             .clamp(-MAX_PULSES_PER_PERIOD, MAX_PULSES_PER_PERIOD)
     }
+
+    /// Wheel speeds by the speed controller (`D`): they hold until the next
+    /// command, whatever becomes of the Host. Only for characterising the
+    /// speed controller, with someone watching; a lab drives by leashes.
+    pub fn set_speed(&mut self, wheels: WheelSpeeds) -> Result<(), RobotError> {
+        let wheels = self.model.clamp(wheels);
+        self.profile = None;
+        let command = KheperaCommand::SetSpeed {
+            left: self.pulses(wheels.left_mm_s),
+            right: self.pulses(wheels.right_mm_s),
+        };
+        self.exchange(command).map(drop)
+    }
+
+    fn leash(&mut self, leash: &Leash) -> Result<(), RobotError> {
+        if leash.is_stop() {
+            self.profile = None;
+            return self
+                .exchange(KheperaCommand::SetSpeed { left: 0, right: 0 })
+                .map(drop);
+        }
+        let top = leash.top.map(|t| t.abs().min(MAX_PULSES_PER_PERIOD));
+        if self.profile != Some(top) {
+            let accel = self.model.profile_accel();
+            // Until it is answered the profile is not known.
+            self.profile = None;
+            self.exchange(KheperaCommand::SpeedProfile {
+                top,
+                accel: [accel; 2],
+            })?;
+            self.profile = Some(top);
+        }
+        let limit = i64::from(i32::MAX);
+        let target = |i: usize| (self.counts[i] + leash.reach[i]).clamp(-limit, limit);
+        self.exchange(KheperaCommand::MoveTo {
+            left: target(0),
+            right: target(1),
+        })
+        .map(drop)
+    }
 }
 
 impl Robot for KheperaSerial {
@@ -204,20 +251,22 @@ impl Robot for KheperaSerial {
         &self.model
     }
 
-    fn set_wheels(&mut self, wheels: WheelSpeeds) -> Result<(), RobotError> {
-        let wheels = self.model.clamp(wheels);
-        let command = KheperaCommand::SetSpeed {
-            left: self.pulses(wheels.left_mm_s),
-            right: self.pulses(wheels.right_mm_s),
-        };
+    /// A leash is the profile's top speeds (`J`, sent only when they
+    /// change, before the targets, so a Host stopped between the two
+    /// leaves the old targets) and the targets (`C`); a stop is `D,0,0`.
+    fn drive(&mut self, leash: &Leash) -> Result<(), RobotError> {
         let sent = Instant::now();
-        let result = self.exchange(command).map(drop);
+        let result = self.leash(leash);
         self.command_latency = sent.elapsed();
         result
     }
 
     fn command_latency(&self) -> Duration {
         self.command_latency
+    }
+
+    fn guard_priority(&self) -> Option<Priority> {
+        self.line.guard_priority()
     }
 
     /// Opens the line afresh; dead reckoning carries on from the last pose.
@@ -244,6 +293,7 @@ impl Robot for KheperaSerial {
         let speed = self.pair(KheperaCommand::ReadSpeed)?;
         let proximity = self.proximity()?;
         Ok(RobotReading {
+            travel_mm: counts.map(|c| c as f64 * per),
             odometry: self.pose,
             wheels: WheelSpeeds {
                 left_mm_s: self.model.speed_mm_s(speed[0]),

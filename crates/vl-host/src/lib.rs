@@ -28,8 +28,8 @@
 //!   Host dies or freezes (`line`; hidden `vl serial-guard`), its speed
 //!   controller's characterisation (`characterise`; `vl khepera
 //!   characterise`), the real-time loops (`lab/`): the camera loop maps the
-//!   floor from the first frame and locates the robot in every frame at the
-//!   control loop's priority, while a niced thread picks (by its
+//!   floor from the first frame and locates the robot in every frame at an
+//!   ordinary priority, while a niced thread picks (by its
 //!   `FramePolicy`), encodes and sends frames to Guests, newest only, and
 //!   nothing while no welcomed client watches (`camera`); the control loop
 //!   fuses sightings and odometry, acts on a command as it arrives (at most
@@ -109,6 +109,7 @@ pub use media::{
     Delays, Media, MediaBench, MediaBenchError, MediaConfig, MediaError, Reproduced, RoundTrip,
     bench as media_bench,
 };
+pub use priority::raise_for_control as raise_priority;
 pub use record::{
     Catalogue, Exported, Message as RecordedMessage, Owner, RecordError, RecordSettings, Recording,
     RecordingInfo, Repaired, Replayed, Runs, TopicCount, data_dir, export, repair,
@@ -181,6 +182,8 @@ pub struct Host {
     pub addr: SocketAddr,
     /// The certificate's fingerprint, when the Host speaks TLS.
     pin: Option<vl_core::Fingerprint>,
+    /// What the processor gives the control loop and the serial guard.
+    pub priority: vl_core::Priorities,
     task: tokio::task::JoinHandle<()>,
 }
 
@@ -206,8 +209,14 @@ impl Host {
             .local_addr()
             .map_err(|e| HostError::Bind(listen, e))?;
         let pin = config.tls.as_ref().map(|tls| tls.fingerprint);
+        let priority = lab.priorities();
         let task = tokio::spawn(server::serve(listener, lab, config));
-        Ok(Host { addr, pin, task })
+        Ok(Host {
+            addr,
+            pin,
+            priority,
+            task,
+        })
     }
 
     /// Binds `listen` and serves the simulated `lab`.

@@ -13,6 +13,8 @@ use std::time::Duration;
 
 use serialport::{ClearBuffer, DataBits, FlowControl, Parity, SerialPort, StopBits};
 
+use vl_core::Priority;
+
 use crate::drivers::RobotError;
 
 /// How long the robot has to answer one command.
@@ -36,6 +38,10 @@ const GUARD_EXIT: Duration = Duration::from_secs(1);
 pub(crate) trait Line: Send {
     /// Sends `command` (without a line ending) and returns the reply line.
     fn exchange(&mut self, command: &str) -> Result<String, RobotError>;
+    /// The priority of the guard process holding the port, if one does.
+    fn guard_priority(&self) -> Option<Priority> {
+        None
+    }
 }
 
 /// A robot's serial port, opened directly.
@@ -104,8 +110,12 @@ pub(crate) struct GuardedLine {
     guard: Child,
     to_guard: Option<ChildStdin>,
     replies: mpsc::Receiver<String>,
+    /// What the guard got of the processor, as it said when ready.
+    priority: Priority,
 }
 
+/// What the guard says when it holds the port, followed by its priority.
+const GUARD_READY: &str = "ready";
 /// What the guard says instead of a reply when the robot gave none.
 const GUARD_TIMEOUT: &str = "!timeout";
 const GUARD_ERROR: &str = "!error ";
@@ -138,6 +148,8 @@ impl GuardedLine {
         std::thread::Builder::new()
             .name("vl-guard-replies".into())
             .spawn(move || {
+                // The control loop waits on it for every reply.
+                crate::priority::raise_for_control("guard's reply reader");
                 for line in BufReader::new(stdout).lines() {
                     let Ok(line) = line else { break };
                     if tx.send(line).is_err() {
@@ -150,9 +162,14 @@ impl GuardedLine {
             to_guard: guard.stdin.take(),
             guard,
             replies,
+            priority: Priority::Normal,
         };
         match line.replies.recv_timeout(GUARD_START) {
-            Ok(ready) if ready == "ready" => Ok(line),
+            Ok(ready) if ready.split(' ').next() == Some(GUARD_READY) => {
+                let said = ready[GUARD_READY.len()..].trim();
+                line.priority = serde_json::from_str(said).unwrap_or_default();
+                Ok(line)
+            }
             Ok(said) => Err(RobotError::Open {
                 device: device.to_owned(),
                 reason: said.strip_prefix(GUARD_ERROR).unwrap_or(&said).to_owned(),
@@ -169,6 +186,10 @@ impl GuardedLine {
 }
 
 impl Line for GuardedLine {
+    fn guard_priority(&self) -> Option<Priority> {
+        Some(self.priority)
+    }
+
     fn exchange(&mut self, command: &str) -> Result<String, RobotError> {
         // A reply that came after its exchange gave up is not this one's.
         while self.replies.try_recv().is_ok() {}
@@ -253,7 +274,10 @@ pub fn run_guard(device: &str, baud: u32) -> Result<(), RobotError> {
             return Err(e);
         }
     };
-    say("ready")?;
+    // Its one job is to stop the robot in time: it asks to run first.
+    let priority = crate::priority::raise_for_control("serial guard");
+    let priority = serde_json::to_string(&priority).unwrap_or_default();
+    say(&format!("{GUARD_READY} {priority}"))?;
     let (tx, commands) = mpsc::channel::<String>();
     std::thread::spawn(move || {
         let mut input = BufReader::new(std::io::stdin().lock());

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
-use vl_core::{Arena, CameraModel, Pose, RobotModel, WheelSpeeds};
+use vl_core::{Arena, CameraModel, Leash, Pose, RobotModel, WheelSpeeds};
 use vl_sim::{Optics, OpticsPreset, Renderer, Scheduled, SimError, World};
 
 use crate::drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness};
@@ -227,8 +227,8 @@ impl Robot for SimRobot {
         &self.model
     }
 
-    fn set_wheels(&mut self, wheels: WheelSpeeds) -> Result<(), RobotError> {
-        lock(&self.world).set_wheels(wheels);
+    fn drive(&mut self, leash: &Leash) -> Result<(), RobotError> {
+        lock(&self.world).drive(leash, self.travel_mm);
         Ok(())
     }
 
@@ -254,6 +254,7 @@ impl Robot for SimRobot {
             wheels: world.wheels(),
             proximity: world.proximity(),
             contact: world.contact(),
+            travel_mm: travel,
             taken: Instant::now(),
         })
     }

@@ -41,7 +41,10 @@ pub struct Line {
     /// Print each command line received, with the ms since the start.
     pub log_commands: bool,
     /// Print the robot's true pose and its contacts so far every 50 ms of
-    /// the robot's clock (a camera's rate), as `truth T_S X_MM Y_MM THETA_RAD CONTACTS`:
+    /// the robot's clock (a camera's rate), as `truth T_S X_MM Y_MM
+    /// THETA_RAD CONTACTS LEASH_MM TARGETS`: how far the wheels may still go
+    /// to their position targets (the larger), and the targets as each
+    /// wheel's travel, mm (`L,R`; both `-` under speed control):
     /// what a test or bench judges a run by (a real robot has no such line).
     pub truth: bool,
 }
@@ -100,11 +103,16 @@ impl Emulator {
                 let world = self.khepera.world();
                 told = world.time_s();
                 let pose = world.pose();
+                let travel = world.wheel_travel_mm();
+                let leash = world.targets_mm().map_or("- -".to_owned(), |t| {
+                    let ahead = (t[0] - travel[0]).abs().max((t[1] - travel[1]).abs());
+                    format!("{ahead:.1} {:.1},{:.1}", t[0], t[1])
+                });
                 // Nobody reading is no reason to stop answering the robot's line.
                 let mut out = std::io::stdout().lock();
                 let _ = writeln!(
                     out,
-                    "truth {:.2} {:.1} {:.1} {:.3} {}",
+                    "truth {:.2} {:.1} {:.1} {:.3} {} {leash}",
                     told,
                     pose.x_mm,
                     pose.y_mm,

@@ -12,8 +12,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use thiserror::Error;
 use vl_core::{
-    Arena, Closest, Definition, Follower, Forecast, Point, Pose, RobotModel, Safety, SeedRun,
-    Situation, Steer, Surroundings, WheelSpeeds,
+    Arena, Closest, Definition, Follower, Forecast, Leash, Point, Pose, RobotModel, Safety,
+    SeedRun, Situation, Steer, Surroundings, Told,
 };
 
 use crate::world::{STEP_S, SimError, World};
@@ -106,7 +106,8 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
         at: p,
         to: surroundings.nearest(p),
     };
-    let mut told = WheelSpeeds::default();
+    // The last leash, and the wheels' travel its reach counts from.
+    let mut told: Option<(Leash, [f64; 2])> = None;
     let mut proximity = world.proximity();
     let start = what.start.point();
     let mut out = SeedRun {
@@ -145,18 +146,19 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
         if wanted != asked {
             out.saturated_s += STEP_S;
         }
+        let travel = world.wheel_travel_mm();
         let situation = Situation {
             pose,
             wheels: world.wheels(),
-            told,
+            told: Told::seen_from(told, travel),
             proximity: &proximity,
         };
         let guarded = safety.guard(robot, &surroundings, situation, wanted);
         if guarded.limited {
             out.held_back_s += STEP_S;
         }
-        told = guarded.wheels;
-        world.set_wheels(told);
+        told = Some((guarded.leash, travel));
+        world.drive(&guarded.leash, travel);
         world.step();
         steps += 1;
         let here = world.pose().point();

@@ -8,8 +8,8 @@
 
 use crate::world::World;
 use vl_core::{
-    CommandError, KheperaCommand, KheperaReply, LedAction, MAX_PULSES_PER_PERIOD as MAX_SPEED,
-    MotorMode, MotorStatus, WheelSpeeds,
+    CommandError, KheperaCommand, KheperaReply, LedAction, MAX_PROFILE_ACCEL,
+    MAX_PULSES_PER_PERIOD as MAX_SPEED, MotorMode, MotorStatus, WheelMove, WheelSpeeds,
 };
 
 /// What `B` answers: BIOS 5.02, protocol 5.01.
@@ -23,28 +23,24 @@ const AMBIENT: u16 = 480;
 /// top speed is 20 pulses per 10 ms and its acceleration 64, in units of
 /// 1/256 pulse per 10 ms per 10 ms.
 const DEFAULT_PROFILE: [i64; 2] = [20, 64];
+
 /// A wheel within this many pulses of its position target is on target.
-const ON_TARGET_PULSES: i64 = 2;
+const ON_TARGET_PULSES: i64 = 1;
 
-/// What each motor's controller holds: a speed (`D`) or a position (`C`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Mode {
-    Speed,
-    Position(i64),
-}
-
-/// A Khepera answering its serial protocol.
+/// A Khepera answering its serial protocol. Its motors are the simulated
+/// robot's: a speed controller (`D`), or position controllers (`C`) that
+/// move each wheel along a trapezoid (`J`) to its target and stop there,
+/// whatever happens to the line.
 pub struct Khepera {
     world: World,
     /// Encoder counts set by `G`, subtracted from the wheels' travel.
     counter_origin: [i64; 2],
-    /// Commanded speeds, pulses per 10 ms.
+    /// Commanded speeds, pulses per 10 ms (speed mode).
     speed: [i64; 2],
-    mode: [Mode; 2],
+    /// Position targets, pulses, while the position controllers have the wheels.
+    targets: Option<[i64; 2]>,
     /// Per motor: top speed and acceleration of position moves (`J`).
     profile: [[i64; 2]; 2],
-    /// Speed of each position move along its profile, pulses per 10 ms.
-    ramp: [f64; 2],
     leds: [bool; 2],
 }
 
@@ -54,37 +50,14 @@ impl Khepera {
             world,
             counter_origin: [0; 2],
             speed: [0; 2],
-            mode: [Mode::Speed; 2],
+            targets: None,
             profile: [DEFAULT_PROFILE; 2],
-            ramp: [0.0; 2],
             leds: [false; 2],
         }
     }
 
-    /// Advances the robot one control period: motors in position mode first
-    /// choose their speed along a trapezoidal profile towards their target.
+    /// Advances the robot one control period.
     pub fn step(&mut self) {
-        if self.mode.iter().any(|m| matches!(m, Mode::Position(_))) {
-            let counts = self.counters();
-            for (wheel, count) in counts.into_iter().enumerate() {
-                if let Mode::Position(target) = self.mode[wheel] {
-                    let [top, accel] = self.profile[wheel];
-                    let accel = accel as f64 / 256.0;
-                    let error = (target - count) as f64;
-                    // Speed up by the profile's acceleration, never beyond
-                    // the fastest speed that can still stop at the target.
-                    let braking = (2.0 * accel * error.abs()).sqrt();
-                    let ramp = (self.ramp[wheel] + accel)
-                        .min(braking)
-                        .min(top as f64)
-                        .min(error.abs());
-                    self.ramp[wheel] = ramp;
-                    self.speed[wheel] =
-                        (ramp.round().copysign(error) as i64).clamp(-MAX_SPEED, MAX_SPEED);
-                }
-            }
-            self.command_speeds();
-        }
         self.world.step();
     }
 
@@ -96,6 +69,19 @@ impl Khepera {
             right_mm_s: robot.speed_mm_s(self.speed[1]),
         };
         self.world.set_wheels(wheels);
+    }
+
+    /// Hands the position controllers the targets and the profile.
+    fn command_moves(&mut self, targets: [i64; 2]) {
+        let robot = self.world.robot();
+        let per = robot.mm_per_pulse;
+        let moves = [0, 1].map(|i| WheelMove {
+            target_mm: (targets[i] + self.counter_origin[i]) as f64 * per,
+            top_mm_s: robot.speed_mm_s(self.profile[i][0]),
+            accel_mm_s2: self.profile[i][1] as f64 * robot.profile_accel_unit(),
+        });
+        self.targets = Some(targets);
+        self.world.move_wheels(moves);
     }
 
     pub fn world(&self) -> &World {
@@ -135,16 +121,25 @@ impl Khepera {
     pub fn execute(&mut self, command: KheperaCommand) -> KheperaReply {
         use KheperaCommand as K;
         match command {
+            // The controllers' gains (`A`, `F`) are answered; the simulated
+            // controllers are tuned to the motors' response instead.
             K::SpeedGains { .. } | K::PositionGains { .. } => {}
             K::SpeedProfile { top, accel } => {
                 for wheel in 0..2 {
-                    self.profile[wheel] =
-                        [top[wheel].clamp(0, MAX_SPEED), accel[wheel].clamp(1, 255)];
+                    self.profile[wheel] = [
+                        top[wheel].clamp(0, MAX_SPEED),
+                        accel[wheel].clamp(1, MAX_PROFILE_ACCEL),
+                    ];
+                }
+                // A move under way goes on with the new profile.
+                if let Some(targets) = self.targets {
+                    self.command_moves(targets);
                 }
             }
             K::MoveTo { left, right } => {
-                self.mode = [Mode::Position(left), Mode::Position(right)];
-                self.ramp = [self.speed[0].abs() as f64, self.speed[1].abs() as f64];
+                // Targets a 32-bit counter can hold.
+                let limit = i64::from(i32::MAX);
+                self.command_moves([left.clamp(-limit, limit), right.clamp(-limit, limit)]);
             }
             K::Version => {
                 return KheperaReply::Version {
@@ -157,7 +152,7 @@ impl Khepera {
                     left.clamp(-MAX_SPEED, MAX_SPEED),
                     right.clamp(-MAX_SPEED, MAX_SPEED),
                 ];
-                self.mode = [Mode::Speed; 2];
+                self.targets = None;
                 self.command_speeds();
             }
             K::ReadSpeed => return KheperaReply::Speed(self.wheel_pulses()),
@@ -165,13 +160,17 @@ impl Khepera {
                 let now = self.counters();
                 self.counter_origin[0] += now[0] - left;
                 self.counter_origin[1] += now[1] - right;
+                // Targets are counts: the same counts now lie elsewhere.
+                if let Some(targets) = self.targets {
+                    self.command_moves(targets);
+                }
             }
             K::ReadCounters => return KheperaReply::Counters(self.counters()),
             K::ReadStatus => {
                 let actual = self.wheel_pulses();
                 let counts = self.counters();
-                let motor = |i: usize| match self.mode[i] {
-                    Mode::Speed => {
+                let motor = |i: usize| match self.targets {
+                    None => {
                         let error = self.speed[i] - actual[i];
                         MotorStatus {
                             on_target: error == 0,
@@ -179,10 +178,10 @@ impl Khepera {
                             error,
                         }
                     }
-                    Mode::Position(target) => {
-                        let error = target - counts[i];
+                    Some(targets) => {
+                        let error = targets[i] - counts[i];
                         MotorStatus {
-                            on_target: error.abs() <= ON_TARGET_PULSES,
+                            on_target: error.abs() <= ON_TARGET_PULSES && actual[i] == 0,
                             mode: MotorMode::Position,
                             error,
                         }

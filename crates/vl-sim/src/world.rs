@@ -3,7 +3,10 @@
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use thiserror::Error;
-use vl_core::{Arena, Material, Obstacle, Pose, RobotModel, WheelSpeeds, mapped_reading};
+use vl_core::{
+    Arena, Leash, Material, Obstacle, Pose, PositionControl, RobotModel, WheelMove, WheelSpeeds,
+    mapped_reading,
+};
 
 use crate::noise::gaussian;
 use crate::scene::{SceneEvent, Scheduled};
@@ -31,6 +34,22 @@ pub enum SimError {
     BadArena(String),
 }
 
+/// What the wheels' controllers are told: a speed (`D`), or a move to a
+/// target that ends by itself (`C`, and a leash).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Drive {
+    Speed(WheelSpeeds),
+    Move([WheelMove; 2]),
+}
+
+/// The controller that has the wheels: the speed controller, or the
+/// position controllers with their moves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Controller {
+    Speed(WheelSpeeds),
+    Position([WheelMove; 2], [PositionControl; 2]),
+}
+
 /// The robot, its arena and the virtual clock.
 #[derive(Debug, Clone)]
 pub struct World {
@@ -38,10 +57,11 @@ pub struct World {
     robot: RobotModel,
     pose: Pose,
     wheels: WheelSpeeds,
-    target: WheelSpeeds,
+    /// Which controller has the wheels, and what it was told.
+    controller: Controller,
     /// Commands still within the controller's dead time: when each takes
     /// effect, in order.
-    pending: std::collections::VecDeque<(f64, WheelSpeeds)>,
+    pending: std::collections::VecDeque<(f64, Drive)>,
     steps: u64,
     contact: bool,
     collisions: u64,
@@ -76,7 +96,7 @@ impl World {
             robot,
             pose: start,
             wheels: WheelSpeeds::default(),
-            target: WheelSpeeds::default(),
+            controller: Controller::Speed(WheelSpeeds::default()),
             pending: std::collections::VecDeque::new(),
             steps: 0,
             contact: false,
@@ -136,17 +156,82 @@ impl World {
     /// It takes over after the response's dead time.
     pub fn set_wheels(&mut self, target: WheelSpeeds) {
         let target = self.robot.clamp(target);
+        self.tell(Drive::Speed(target));
+    }
+
+    /// Asks the position controllers for `moves`, the wheels' travel
+    /// measured as [`World::wheel_travel_mm`] does: each wheel goes to its
+    /// target and stops there by itself.
+    pub fn move_wheels(&mut self, moves: [WheelMove; 2]) {
+        let top = self.robot.max_wheel_speed_mm_s;
+        let moves = moves.map(|m| WheelMove {
+            top_mm_s: if m.top_mm_s.is_finite() {
+                m.top_mm_s.abs().min(top)
+            } else {
+                0.0
+            },
+            target_mm: if m.target_mm.is_finite() {
+                m.target_mm
+            } else {
+                0.0
+            },
+            accel_mm_s2: if m.accel_mm_s2.is_finite() {
+                m.accel_mm_s2.max(0.0)
+            } else {
+                0.0
+            },
+        });
+        self.tell(Drive::Move(moves));
+    }
+
+    /// Drives by `leash`, its reach counted from the wheels' travel
+    /// `from_mm` (when the robot was read); a stop is the speed controller's.
+    pub fn drive(&mut self, leash: &Leash, from_mm: [f64; 2]) {
+        if leash.is_stop() {
+            self.set_wheels(WheelSpeeds::default());
+        } else {
+            let moves = leash.moves(&self.robot, from_mm);
+            self.move_wheels(moves);
+        }
+    }
+
+    /// The position controllers' targets, while they have the wheels.
+    pub fn targets_mm(&self) -> Option<[f64; 2]> {
+        match self.controller {
+            Controller::Position(moves, _) => Some(moves.map(|m| m.target_mm)),
+            Controller::Speed(_) => None,
+        }
+    }
+
+    fn tell(&mut self, drive: Drive) {
         let dead = self.robot.response.dead_time_s;
         if dead <= 0.0 {
-            self.target = target;
+            self.take(drive);
         } else {
             // Commands come a control period apart at most; a flood only
             // ever needs the latest within the dead time.
             if self.pending.len() >= MAX_PENDING {
                 self.pending.pop_front();
             }
-            self.pending.push_back((self.time_s() + dead, target));
+            self.pending.push_back((self.time_s() + dead, drive));
         }
+    }
+
+    /// The controllers take `drive` on: position controllers taking over
+    /// from the speed controller start where the wheels are, as fast.
+    fn take(&mut self, drive: Drive) {
+        self.controller = match (drive, self.controller) {
+            (Drive::Speed(target), _) => Controller::Speed(target),
+            (Drive::Move(moves), Controller::Position(_, controls)) => {
+                Controller::Position(moves, controls)
+            }
+            (Drive::Move(moves), Controller::Speed(_)) => {
+                let w = [self.wheels.left_mm_s, self.wheels.right_mm_s];
+                let travel = self.wheel_travel_mm;
+                let controls = [0, 1].map(|i| PositionControl::taking_over(travel[i], w[i]));
+                Controller::Position(moves, controls)
+            }
+        };
     }
 
     /// Has `event` happen when the clock reaches its time.
@@ -174,18 +259,30 @@ impl World {
                 SceneEvent::Cover(seconds) => self.covered_until_s = at_s + seconds,
             }
         }
-        while let Some(&(due, target)) = self.pending.front() {
+        while let Some(&(due, drive)) = self.pending.front() {
             if due > self.time_s() + 1e-9 {
                 break;
             }
-            self.target = target;
+            self.take(drive);
             self.pending.pop_front();
         }
         let response = self.robot.response;
+        let target = match &mut self.controller {
+            Controller::Speed(target) => *target,
+            Controller::Position(moves, controls) => {
+                let travel = self.wheel_travel_mm;
+                let asked: [f64; 2] =
+                    [0, 1].map(|i| controls[i].step(&moves[i], travel[i], &response, STEP_S));
+                self.robot.clamp(WheelSpeeds {
+                    left_mm_s: asked[0],
+                    right_mm_s: asked[1],
+                })
+            }
+        };
         let respond = |now: f64, want: f64| response.step(now, want, STEP_S);
         self.wheels = WheelSpeeds {
-            left_mm_s: respond(self.wheels.left_mm_s, self.target.left_mm_s),
-            right_mm_s: respond(self.wheels.right_mm_s, self.target.right_mm_s),
+            left_mm_s: respond(self.wheels.left_mm_s, target.left_mm_s),
+            right_mm_s: respond(self.wheels.right_mm_s, target.right_mm_s),
         };
         self.wheel_travel_mm[0] += self.wheels.left_mm_s * STEP_S;
         self.wheel_travel_mm[1] += self.wheels.right_mm_s * STEP_S;

@@ -30,6 +30,51 @@ pub struct HostStatus {
     pub runs_today: u32,
     /// The latest runs, newest last: at most [`HostStatus::RUNS_KEPT`].
     pub runs: Vec<RunRecord>,
+    /// What the processor gives the control loop and the serial guard.
+    #[serde(default)]
+    pub priority: Priorities,
+}
+
+/// How soon the system runs a thread that wakes: what stands between a
+/// busy machine and a robot told too late.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum Priority {
+    /// Real-time (`SCHED_FIFO` at this level): before every ordinary thread.
+    RealTime { level: i32 },
+    /// An ordinary thread with this (negative) nice value: ahead of others.
+    Raised { nice: i32 },
+    /// As every other thread: the system allowed no more.
+    #[default]
+    Normal,
+}
+
+impl std::fmt::Display for Priority {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Priority::RealTime { level } => write!(f, "real-time priority (SCHED_FIFO {level})"),
+            Priority::Raised { nice } => write!(f, "raised priority (nice {nice})"),
+            Priority::Normal => write!(f, "normal priority (the system allowed no more)"),
+        }
+    }
+}
+
+/// The priorities of the Host's real-time parts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub struct Priorities {
+    pub control: Priority,
+    /// The serial guard's; none without one (a simulated robot).
+    pub guard: Option<Priority>,
+}
+
+impl std::fmt::Display for Priorities {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "the control loop runs at {}", self.control)?;
+        match self.guard {
+            Some(guard) => write!(f, ", the serial guard at {guard}"),
+            None => Ok(()),
+        }
+    }
 }
 
 impl HostStatus {
@@ -110,6 +155,11 @@ impl Report for HostStatus {
             ("in line", self.queue.len().to_string()),
             ("connected", self.connected.to_string()),
             ("runs today", self.runs_today.to_string()),
+            ("control loop", self.priority.control.to_string()),
+            (
+                "serial guard",
+                self.priority.guard.map_or("none".into(), |g| g.to_string()),
+            ),
         ])
         .title("the Host now:");
         for (i, person) in self.queue.iter().enumerate() {

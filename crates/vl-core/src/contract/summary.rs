@@ -89,6 +89,10 @@ pub struct Summary {
     /// Why the safety layer would not let the run go on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub held_back: Option<HeldBack>,
+    /// For a run ended by a fault: what failed, in words (the robot's line
+    /// silent or garbled, which command, for how long).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fault: Option<String>,
     /// The run against the forecast of its definition.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub forecast: Option<crate::Gap>,
@@ -108,16 +112,15 @@ pub struct RecordingNote {
 impl Summary {
     /// How the run ended, in words.
     pub fn ending(&self) -> String {
-        ending(self.reason, self.held_back.as_ref())
-    }
-}
-
-/// How a run ended, in words: the reason, and why the safety layer held
-/// it back when it did.
-pub fn ending(reason: EndReason, held_back: Option<&HeldBack>) -> String {
-    match held_back {
-        Some(why) if reason == EndReason::HeldBack => format!("{reason}: {why}"),
-        _ => reason.to_string(),
+        match (&self.held_back, &self.fault) {
+            (Some(why), _) if self.reason == EndReason::HeldBack => {
+                format!("{}: {why}", self.reason)
+            }
+            (_, Some(what)) if self.reason == EndReason::Fault => {
+                format!("{}: {what}", self.reason)
+            }
+            _ => self.reason.to_string(),
+        }
     }
 }
 

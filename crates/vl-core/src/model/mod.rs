@@ -6,6 +6,7 @@ pub(crate) mod arena;
 pub(crate) mod camera;
 pub(crate) mod homography;
 pub(crate) mod khepera;
+pub(crate) mod leash;
 pub(crate) mod lens;
 pub(crate) mod proximity;
 pub(crate) mod response_fit;

@@ -213,6 +213,9 @@ impl RobotKind {
 pub(crate) const SPEED_PERIOD_S: f64 = 0.01;
 /// The firmware's speed limit, pulses per speed period.
 pub const MAX_PULSES_PER_PERIOD: i64 = 127;
+/// The position controller's largest acceleration (`J`), in its unit:
+/// 1/256 pulse per speed period, per speed period.
+pub const MAX_PROFILE_ACCEL: i64 = 255;
 
 impl RobotModel {
     /// A wheel speed in the firmware's unit, pulses per 10 ms (rounded).
@@ -223,6 +226,23 @@ impl RobotModel {
     /// A speed in pulses per 10 ms, in mm/s.
     pub fn speed_mm_s(&self, pulses: i64) -> f64 {
         pulses as f64 * self.mm_per_pulse / SPEED_PERIOD_S
+    }
+
+    /// The acceleration position moves are given (`J`), in the firmware's
+    /// unit: its largest, or less if the motors manage less.
+    pub fn profile_accel(&self) -> i64 {
+        let most = (self.response.max_accel_mm_s2 / self.profile_accel_unit()).floor();
+        (most.clamp(1.0, MAX_PROFILE_ACCEL as f64)) as i64
+    }
+
+    /// The same, mm/s²: how hard a leashed wheel brakes by itself.
+    pub fn profile_accel_mm_s2(&self) -> f64 {
+        self.profile_accel() as f64 * self.profile_accel_unit()
+    }
+
+    /// One unit of the profile's acceleration, mm/s².
+    pub fn profile_accel_unit(&self) -> f64 {
+        self.mm_per_pulse / 256.0 / (SPEED_PERIOD_S * SPEED_PERIOD_S)
     }
 
     /// K-Team Khepera II: 70 mm body, 8 IR sensors reaching ≈100 mm.

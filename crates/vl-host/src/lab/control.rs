@@ -13,14 +13,14 @@ use std::time::{Duration, Instant};
 use tokio::sync::{mpsc as async_mpsc, watch};
 use tracing::{debug, info, warn};
 use vl_core::{
-    CSpace, Definition, DeviceState, EndReason, Experiment, Follower, HeldBack, HostMessage,
-    Localiser, MapField, PathRecorder, Pose, PoseSource, RobotModel, Safety, Situation, Summary,
-    Surroundings, Teleop, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
+    CSpace, Definition, DeviceState, EndReason, Experiment, Follower, HeldBack, HostMessage, Leash,
+    Localiser, MapField, PathRecorder, Pose, PoseSource, Priorities, RobotModel, Safety, Situation,
+    Summary, Surroundings, Teleop, Told, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
 };
 
 use super::camera::Sighting;
 use super::{Finished, LabInfo, LabRequest, LabStatus, Retry, TICK};
-use crate::drivers::{Robot, RobotReading, Witness};
+use crate::drivers::{Robot, RobotError, RobotReading, Witness};
 use crate::record::{Entry, Feed};
 
 /// The shortest time between two control periods: a command acted on at
@@ -28,12 +28,9 @@ use crate::record::{Entry, Feed};
 const TICK_GAP: Duration = Duration::from_millis(2);
 /// Feedback is published at least this often while nothing else changes.
 const FEEDBACK_EVERY: Duration = Duration::from_millis(20);
-/// The safety layer assumes a command lasts at least this long before the
-/// next can brake it: three control periods.
-const REACTION: Duration = Duration::from_millis(30);
-/// A control period longer than this means the Host was stopped (frozen,
-/// swapped out): the serial guard may have stopped the robot meanwhile.
-const FROZEN: Duration = Duration::from_millis(400);
+/// Each leash lasts at least this long before the next extends it: three
+/// control periods (more on a slow line: half as long again as a period).
+const HOLD: Duration = Duration::from_millis(30);
 /// A command asks the robot to move when its mean wheel speed is above this, mm/s.
 const MOVING_MM_S: f64 = 1.0;
 /// Distance from the body within which the map's potential field pushes.
@@ -108,6 +105,8 @@ struct Run {
     /// The furthest the follower had come along the path, mm, and when.
     progress: (f64, Instant),
     held_back: Option<HeldBack>,
+    /// What failed, when a fault ends the run.
+    fault: Option<String>,
 }
 
 impl Run {
@@ -131,6 +130,7 @@ impl Run {
             forecast: None,
             recording: None,
             held_back: self.held_back,
+            fault: self.fault,
         }
     }
 }
@@ -152,8 +152,9 @@ pub(crate) struct Control {
     run: Option<Run>,
     /// The last reading, and the pose estimated after it.
     last: Option<(RobotReading, Pose)>,
-    /// What the wheels were last told, so an unchanged command is not resent.
-    sent: Option<WheelSpeeds>,
+    /// The last leash the robot took, and the wheels' travel its reach
+    /// counts from; none when it is not known (a stop is not resent).
+    sent: Option<(Leash, [f64; 2])>,
     teleop: Teleop,
     /// The arena's walls and obstacles, to which each run adds its virtual ones.
     surroundings: Surroundings,
@@ -243,6 +244,15 @@ impl Control {
         }
     }
 
+    /// Raises this thread (the control loop's) as far as the system
+    /// allows; says what it and the robot's serial guard got.
+    pub(crate) fn raise(&self) -> Priorities {
+        Priorities {
+            control: crate::priority::raise_for_control("control loop"),
+            guard: self.robot.guard_priority(),
+        }
+    }
+
     pub(crate) fn run(mut self) {
         let mut next_tick = Instant::now();
         let mut last_feedback = Instant::now();
@@ -272,11 +282,6 @@ impl Control {
             next_tick = Instant::now() + TICK;
             self.period = last_read.elapsed();
             last_read = Instant::now();
-            if self.period > FROZEN {
-                // The guard stops a robot whose Host went quiet: what the
-                // wheels were last told is no longer known.
-                self.sent = None;
-            }
             if let Some(retry) = &mut self.retry {
                 if !retry.due() {
                     continue;
@@ -285,7 +290,11 @@ impl Control {
                     Ok(()) => {
                         info!("the robot answers again");
                         self.retry = None;
-                        self.status.send_modify(|s| s.robot = DeviceState::Online);
+                        let guard = self.robot.guard_priority();
+                        self.status.send_modify(|s| {
+                            s.robot = DeviceState::Online;
+                            s.priority.guard = guard;
+                        });
                     }
                     Err(e) => {
                         debug!("the robot still does not answer: {e}");
@@ -300,7 +309,7 @@ impl Control {
                     warn!("{e}; the robot is offline until it answers again");
                     self.retry = Some(Retry::new());
                     self.status.send_modify(|s| s.robot = DeviceState::Offline);
-                    self.finish(EndReason::Fault);
+                    self.fail(&e);
                     continue;
                 }
             }
@@ -357,6 +366,7 @@ impl Control {
                     turning: false,
                     progress: (0.0, now),
                     held_back: None,
+                    fault: None,
                 });
                 false
             }
@@ -446,14 +456,14 @@ impl Control {
         // period or more; it reaches them only after the reads since the
         // odometry was sampled and its own exchange on the line.
         let safety = Safety {
-            reaction_s: REACTION.max(self.period.mul_f64(1.5)).as_secs_f64(),
+            hold_s: HOLD.max(self.period.mul_f64(1.5)).as_secs_f64(),
             delay_s: (reading.taken.elapsed() + self.robot.command_latency()).as_secs_f64(),
             margin_mm,
         };
         let situation = Situation {
             pose,
             wheels: reading.wheels,
-            told: self.sent.unwrap_or(reading.wheels),
+            told: Told::seen_from(self.sent, reading.travel_mm),
             proximity: &reading.proximity,
         };
         let guarded = safety.guard(&self.info.robot, &run.surroundings, situation, wanted);
@@ -477,15 +487,17 @@ impl Control {
             run.kept.0 += (let_through / asked).clamp(0.0, 1.0);
             run.kept.1 += 1;
         }
-        let wheels = guarded.wheels;
-        if self.sent == Some(wheels) {
+        // A leash is extended every period; a stop is said once.
+        let leash = guarded.leash;
+        if leash.is_stop() && self.sent.is_some_and(|(sent, _)| sent.is_stop()) {
             return;
         }
-        match self.robot.set_wheels(wheels) {
-            Ok(()) => self.sent = Some(wheels),
+        let from = reading.travel_mm;
+        match self.robot.drive(&leash) {
+            Ok(()) => self.sent = Some((leash, from)),
             Err(e) => {
                 warn!("{e}; stopping the run");
-                self.finish(EndReason::Fault);
+                self.fail(&e);
             }
         }
     }
@@ -613,6 +625,14 @@ impl Control {
         })
     }
 
+    /// Ends the run (if any) for a device fault, saying what failed.
+    fn fail(&mut self, fault: &RobotError) {
+        if let Some(run) = self.run.as_mut() {
+            run.fault = Some(fault.to_string());
+        }
+        self.finish(EndReason::Fault);
+    }
+
     /// Ends the run (if any): stops the robot and reports the summary.
     fn finish(&mut self, reason: EndReason) {
         self.halt();
@@ -638,8 +658,8 @@ impl Control {
     /// but say so (once: an offline robot is retried, not shouted at).
     fn halt(&mut self) {
         self.sent = None;
-        match self.robot.set_wheels(WheelSpeeds::default()) {
-            Ok(()) => self.sent = Some(WheelSpeeds::default()),
+        match self.robot.drive(&Leash::STOP) {
+            Ok(()) => self.sent = Some((Leash::STOP, [0.0; 2])),
             Err(e) if self.retry.is_none() => warn!("{e}: could not stop the robot"),
             Err(_) => {}
         }

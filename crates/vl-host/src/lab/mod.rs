@@ -20,7 +20,7 @@ use tokio::sync::{mpsc as async_mpsc, watch};
 use tokio_tungstenite::tungstenite::Bytes;
 use vl_core::{
     Arena, CameraModel, Definition, DeviceState, Drive, EndReason, Experiment, HostMessage,
-    MapField, Readiness, RobotModel, Summary,
+    MapField, Priorities, Readiness, RobotModel, Summary,
 };
 
 use crate::drivers::{Camera, Robot, Witness};
@@ -47,6 +47,8 @@ const RETRY_MAX: Duration = Duration::from_secs(1);
 pub(crate) struct LabStatus {
     pub robot: DeviceState,
     pub camera: DeviceState,
+    /// What the processor gives the control loop and the serial guard.
+    pub priority: Priorities,
 }
 
 impl LabStatus {
@@ -212,6 +214,7 @@ impl Lab {
             } else {
                 DeviceState::Absent
             },
+            priority: Priorities::default(),
         });
         let status_tx = Arc::new(status_tx);
         let running = Arc::new(AtomicBool::new(true));
@@ -229,10 +232,18 @@ impl Lab {
             record: record.clone(),
         };
         let control = Control::new(robot, witness, info.clone(), seen, wiring);
+        let (raised, priority) = mpsc::channel();
         thread::Builder::new()
             .name("vl-control".into())
-            .spawn(move || control.run())
+            .spawn(move || {
+                let priority = control.raise();
+                let _ = raised.send(priority);
+                control.run();
+            })
             .expect("the OS starts a thread");
+        // The thread asks first thing: its answer is here at once.
+        let priority = priority.recv().unwrap_or_default();
+        status_tx.send_modify(|s| s.priority = priority);
         if let Some(camera) = camera {
             let camera_loop = CameraLoop {
                 camera,
@@ -268,6 +279,11 @@ impl Lab {
             since_ns: crate::record::unix_ns_at(since),
             log: tokio::sync::broadcast::channel(LOG_LINES).0,
         }
+    }
+
+    /// What the processor gives the control loop and the serial guard.
+    pub(crate) fn priorities(&self) -> Priorities {
+        self.status.borrow().priority
     }
 
     /// Has the camera loop send its next frame, whatever the policy.

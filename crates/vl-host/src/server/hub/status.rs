@@ -88,6 +88,7 @@ impl Hub {
             connected: self.clients.values().filter(|c| c.role.is_some()).count() as u32,
             runs_today: self.run_log.today(),
             runs: self.run_log.runs.iter().cloned().collect(),
+            priority: devices.priority,
         }
     }
 

@@ -445,7 +445,14 @@ async fn a_robot_that_falls_silent_mid_run_ends_it_as_a_fault() {
     op.command(1, 80.0).await;
     rig.robot_moves().await;
     rig.robot.set_silent(true);
-    assert_eq!(op.done().await.reason, EndReason::Fault);
+    let done = op.done().await;
+    assert_eq!(done.reason, EndReason::Fault);
+    // The summary says what failed.
+    assert!(
+        done.ending().starts_with("fault: the robot did not answer"),
+        "{}",
+        done.ending()
+    );
 }
 
 // The emergency stop.
