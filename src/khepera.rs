@@ -33,9 +33,9 @@ pub(crate) struct KheperaArgs {
     #[arg(long)]
     log_commands: bool,
     /// Print the robot's true pose and its contacts so far 20 times a
-    /// second (`truth T X Y θ CONTACTS LEASH TARGETS`: how far the wheels
-    /// may still go to their position targets, mm, and the targets, or `-`):
-    /// what tests judge a run by, and render a camera's frames from.
+    /// second (`truth T X Y θ CONTACTS`, then `leash T REMAINING TARGET_L
+    /// TARGET_R` mm, or `leash T none`): what tests judge a run by, and
+    /// render a camera's frames from.
     #[arg(long)]
     truth: bool,
     /// Where the robot is put, x,y[,θ] mm and rad (default: the arena's
@@ -129,13 +129,8 @@ pub(crate) fn khepera(tool: KheperaTool) -> Result<ExitCode> {
     let text = serde_json::to_string_pretty(&model)?;
     std::fs::write(&args.output, text + "\n")
         .with_context(|| format!("cannot write {}", args.output.display()))?;
-    emit(
-        &Characterised {
-            fit,
-            model_file: args.output,
-        },
-        args.json,
-    )?;
+    let model_file = args.output;
+    emit(&Characterised { fit, model_file }, args.json)?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -154,10 +149,8 @@ pub(crate) fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
         vl_sim::Emulator::open(vl_sim::Khepera::new(world), line, args.link.as_deref())?;
     // Scripts and tests read the device from this first line.
     println!("vl khepera-emu: {name} on {}", emulator.device());
-    use std::io::Write as _;
-    std::io::stdout().flush()?;
-    // A real robot has a processor of its own: the emulated one asks not to
-    // wait behind whatever else this machine runs.
+    std::io::Write::flush(&mut std::io::stdout())?;
+    // A real robot has a processor of its own: the emulated one asks to run first.
     let priority = vl_host::raise_priority("emulated robot");
     eprintln!("vl khepera-emu: the emulated robot runs at {priority}");
     emulator.run()?;

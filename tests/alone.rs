@@ -8,6 +8,7 @@ mod common;
 
 mod floods;
 mod hiccups;
+mod stalls;
 
 use tokio::sync::{Mutex, MutexGuard};
 

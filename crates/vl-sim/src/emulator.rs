@@ -41,11 +41,12 @@ pub struct Line {
     /// Print each command line received, with the ms since the start.
     pub log_commands: bool,
     /// Print the robot's true pose and its contacts so far every 50 ms of
-    /// the robot's clock (a camera's rate), as `truth T_S X_MM Y_MM
-    /// THETA_RAD CONTACTS LEASH_MM TARGETS`: how far the wheels may still go
-    /// to their position targets (the larger), and the targets as each
-    /// wheel's travel, mm (`L,R`; both `-` under speed control):
-    /// what a test or bench judges a run by (a real robot has no such line).
+    /// the robot's clock (a camera's rate), as `truth T_S X_MM Y_MM THETA_RAD
+    /// CONTACTS`, and after it `leash T_S REMAINING_MM TARGET_L_MM
+    /// TARGET_R_MM` (how far the wheels may still go to their position
+    /// targets, the larger, and the targets as each wheel's travel) or
+    /// `leash T_S none` under speed control: what a test or bench judges a
+    /// run by (a real robot has no such line).
     pub truth: bool,
 }
 
@@ -104,15 +105,15 @@ impl Emulator {
                 told = world.time_s();
                 let pose = world.pose();
                 let travel = world.wheel_travel_mm();
-                let leash = world.targets_mm().map_or("- -".to_owned(), |t| {
+                let leash = world.targets_mm().map_or("none".to_owned(), |t| {
                     let ahead = (t[0] - travel[0]).abs().max((t[1] - travel[1]).abs());
-                    format!("{ahead:.1} {:.1},{:.1}", t[0], t[1])
+                    format!("{ahead:.1} {:.1} {:.1}", t[0], t[1])
                 });
                 // Nobody reading is no reason to stop answering the robot's line.
                 let mut out = std::io::stdout().lock();
                 let _ = writeln!(
                     out,
-                    "truth {:.2} {:.1} {:.1} {:.3} {} {leash}",
+                    "truth {:.2} {:.1} {:.1} {:.3} {}\nleash {told:.2} {leash}",
                     told,
                     pose.x_mm,
                     pose.y_mm,

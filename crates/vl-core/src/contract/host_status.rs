@@ -155,11 +155,7 @@ impl Report for HostStatus {
             ("in line", self.queue.len().to_string()),
             ("connected", self.connected.to_string()),
             ("runs today", self.runs_today.to_string()),
-            ("control loop", self.priority.control.to_string()),
-            (
-                "serial guard",
-                self.priority.guard.map_or("none".into(), |g| g.to_string()),
-            ),
+            ("priority", self.priority.to_string()),
         ])
         .title("the Host now:");
         for (i, person) in self.queue.iter().enumerate() {

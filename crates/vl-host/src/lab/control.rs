@@ -13,12 +13,13 @@ use std::time::{Duration, Instant};
 use tokio::sync::{mpsc as async_mpsc, watch};
 use tracing::{debug, info, warn};
 use vl_core::{
-    CSpace, Definition, DeviceState, EndReason, Experiment, Follower, HeldBack, HostMessage, Leash,
-    Localiser, MapField, PathRecorder, Pose, PoseSource, Priorities, RobotModel, Safety, Situation,
-    Summary, Surroundings, Teleop, Told, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
+    CSpace, DeviceState, EndReason, Experiment, HeldBack, HostMessage, Leash, Localiser, MapField,
+    Pose, PoseSource, Priorities, RobotModel, Safety, Situation, Surroundings, Teleop, Told,
+    Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
 };
 
 use super::camera::Sighting;
+use super::run::Run;
 use super::{Finished, LabInfo, LabRequest, LabStatus, Retry, TICK};
 use crate::drivers::{Robot, RobotError, RobotReading, Witness};
 use crate::record::{Entry, Feed};
@@ -60,80 +61,6 @@ const HELD_BACK_S: f64 = 5.0;
 const PROGRESS_MM: f64 = 5.0;
 /// How far ahead along the path the room it leaves is looked for, mm.
 const ROOM_AHEAD_MM: f64 = 60.0;
-
-/// One run of an experiment, from `start` to its end.
-struct Run {
-    number: u64,
-    definition: Definition,
-    experiment: Experiment,
-    /// The arena and the definition's virtual obstacles, for the safety layer.
-    surroundings: Surroundings,
-    started: Instant,
-    last_command: Instant,
-    /// Whether the operator has commanded this run: a command that is
-    /// still fresh overrides the path being followed.
-    commanded: bool,
-    /// The Host follows the definition's path in a navigation run.
-    follower: Option<Follower>,
-    /// The estimated (and, in simulation, true) path against the plan.
-    record: PathRecorder,
-    distance_mm: f64,
-    /// Contacts seen: by the robot's sensors, or by the estimate reaching
-    /// something (counted once per touch, not per period).
-    collisions: u64,
-    touching: bool,
-    /// The wheel speeds the last command asks for.
-    wheels: WheelSpeeds,
-    /// The operator's link is down: the robot stays still until they are back.
-    held: bool,
-    /// For an assisted run: the velocity the operator asks for, and the
-    /// force last fed back.
-    assist: Option<(Vector, [f64; 2])>,
-    /// The map's potential field the Host built for this run's definition.
-    field: Option<Arc<MapField>>,
-    /// Whether the safety layer changed the last command it saw.
-    limited: bool,
-    /// The body's least clearance seen, mm.
-    closest_mm: f64,
-    /// Sum and count, over periods in which a command asked to move, of the
-    /// forward speed the layer let through over the speed asked.
-    kept: (f64, u64),
-    /// The heading to turn to in place once at the goal, and whether the
-    /// robot is there and turning.
-    face: Option<f64>,
-    turning: bool,
-    /// The furthest the follower had come along the path, mm, and when.
-    progress: (f64, Instant),
-    held_back: Option<HeldBack>,
-    /// What failed, when a fault ends the run.
-    fault: Option<String>,
-}
-
-impl Run {
-    fn summary(self, reason: EndReason, events: u64, pose: Pose, source: PoseSource) -> Summary {
-        Summary {
-            reason,
-            reached_goal: self.definition.at_goal(pose.point()),
-            events,
-            final_pose: pose,
-            seconds: self.started.elapsed().as_secs_f64(),
-            distance_mm: self.distance_mm,
-            collisions: self.collisions,
-            closest_mm: self.closest_mm.is_finite().then_some(self.closest_mm),
-            speed_kept: (self.kept.1 > 0).then(|| self.kept.0 / self.kept.1 as f64),
-            pose_source: source,
-            path: Some(self.record.finish()),
-            // The hub, which sees the commands' events, fills these in.
-            max_event_gap: 0,
-            sync_violations: 0,
-            stopped_by: None,
-            forecast: None,
-            recording: None,
-            held_back: self.held_back,
-            fault: self.fault,
-        }
-    }
-}
 
 pub(crate) struct Control {
     robot: Box<dyn Robot>,
@@ -332,42 +259,12 @@ impl Control {
                 face,
             } => {
                 self.event.store(0, Ordering::Relaxed);
-                let now = Instant::now();
-                let follower = definition
-                    .host_follows(experiment)
-                    .then(|| Follower::for_definition(&definition))
-                    .flatten();
-                if follower.is_some() {
+                let surroundings = self.surroundings.with(&definition.virtual_obstacles);
+                let started = Run::new(run, definition, experiment, surroundings, field, face);
+                if started.follower.is_some() {
                     info!(run, "following the defined path from the camera's estimate");
                 }
-                self.run = Some(Run {
-                    number: run,
-                    surroundings: self.surroundings.with(&definition.virtual_obstacles),
-                    record: PathRecorder::new(definition.path.clone()),
-                    follower,
-                    commanded: false,
-                    definition,
-                    experiment,
-                    started: now,
-                    last_command: now,
-                    distance_mm: 0.0,
-                    collisions: 0,
-                    touching: false,
-                    wheels: WheelSpeeds::default(),
-                    held: false,
-                    assist: experiment
-                        .assists_the_operator()
-                        .then_some((Vector::default(), [0.0; 2])),
-                    field,
-                    limited: false,
-                    closest_mm: f64::INFINITY,
-                    kept: (0.0, 0),
-                    face,
-                    turning: false,
-                    progress: (0.0, now),
-                    held_back: None,
-                    fault: None,
-                });
+                self.run = Some(started);
                 false
             }
             LabRequest::Drive { event, drive } => {

@@ -9,6 +9,7 @@
 
 mod camera;
 mod control;
+mod run;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
