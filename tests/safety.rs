@@ -284,3 +284,36 @@ async fn a_faster_robot_and_a_follower_into_a_wall_stop_short() {
     all.extend(batch(&runs, Driving::StraightAhead, None, 10.0).await);
     report(&all);
 }
+
+/// Pushed straight at a wall with no turn asked, the robot is not turned:
+/// neither the safety layer nor the assistance's potential fields (whose
+/// sideways part, where they hold the robot still, would spin it in place)
+/// turn a robot nobody asked to turn. With and without a camera.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stick_pushed_straight_at_a_wall_never_turns_the_robot() {
+    for camera in ["sim", "none"] {
+        let (_host, url) = start_host(&["--camera", camera, "--no-reset"]);
+        let mut op = common::peer::Peer::connect(&url).await;
+        op.hello("operator").await;
+        op.start("teleoperation").await;
+        let began = std::time::Instant::now();
+        let (mut turned, mut last) = (0.0f64, Value::Null);
+        let mut event = 1u64;
+        // 150 mm/s straight ahead, into the navigation arena's first box,
+        // and on pushing for seconds after the robot stopped.
+        while began.elapsed() < Duration::from_secs(5) {
+            last = op.command(event, json!({"v": 150.0, "w": 0.0})).await;
+            turned = turned.max(last["pose"]["theta_rad"].as_f64().unwrap().abs());
+            event += 1;
+        }
+        let x = last["pose"]["x_mm"].as_f64().unwrap();
+        assert!(
+            x > 200.0,
+            "camera {camera}: the robot reached the box: {last}"
+        );
+        assert!(
+            turned < 0.05,
+            "camera {camera}: turned by {turned:.3} rad with no turn asked: {last}"
+        );
+    }
+}

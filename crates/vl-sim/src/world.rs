@@ -456,3 +456,58 @@ mod tests {
         let _ = Point::default();
     }
 }
+#[cfg(test)]
+mod turn_probe {
+    use super::*;
+    use vl_core::{Safety, Situation, Surroundings, Teleop, Told};
+    #[test]
+    fn probe() {
+        for assist in [false, true] {
+            for seed in 1..5 {
+                let mut arena = Arena::load("open").unwrap();
+                arena.start = Pose {
+                    x_mm: 300.0,
+                    y_mm: 300.0,
+                    theta_rad: 0.0,
+                };
+                let robot = RobotModel::khepera_ii();
+                let mut w = World::new(arena.clone(), robot.clone(), seed).unwrap();
+                let s = Surroundings::new(&arena);
+                let teleop = Teleop::default();
+                let mut told = None;
+                let mut max_turn = 0.0f64;
+                for _ in 0..400 {
+                    let prox = w.proximity();
+                    let wanted = if assist {
+                        let desired = teleop.velocity_for(&robot, 150.0, 0.0);
+                        teleop
+                            .assist(&robot, desired, teleop.sensor_field(&robot, &prox))
+                            .wheels
+                    } else {
+                        WheelSpeeds {
+                            left_mm_s: 150.0,
+                            right_mm_s: 150.0,
+                        }
+                    };
+                    let travel = w.wheel_travel_mm();
+                    let sit = Situation {
+                        pose: w.pose(),
+                        wheels: w.wheels(),
+                        told: Told::seen_from(told, travel),
+                        proximity: &prox,
+                    };
+                    let g = Safety::default().guard(&robot, &s, sit, wanted);
+                    told = Some((g.leash, travel));
+                    w.drive(&g.leash, travel);
+                    w.step();
+                    max_turn = max_turn.max(w.pose().theta_rad.abs());
+                }
+                eprintln!(
+                    "assist {assist} seed {seed}: final {:?} max turn {max_turn:.3} contacts {}",
+                    w.pose(),
+                    w.collisions()
+                );
+            }
+        }
+    }
+}

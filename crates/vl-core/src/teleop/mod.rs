@@ -131,7 +131,10 @@ impl Teleop {
     /// the joystick, is the force fed back. The field acts only while the
     /// stick asks for motion (at rest the robot stops), may slow the robot
     /// down to a stop but never drives it against the stick or faster than
-    /// asked, and turns it by a share of its sideways push.
+    /// asked, and deflects it by a share of its sideways push — in
+    /// proportion to the forward speed it leaves: a robot the field holds
+    /// still against a wall is not turned in place by the sideways part of
+    /// the push (which grows as it turns), since nobody asked for a turn.
     pub fn assist(&self, robot: &RobotModel, desired: Vector, field: Vector) -> Assisted {
         let finite = |v: Vector| {
             if v.x.is_finite() && v.y.is_finite() {
@@ -150,7 +153,12 @@ impl Teleop {
             };
         }
         let forward = (desired.x + field.x).clamp(desired.x.min(0.0), desired.x.max(0.0));
-        let sideways = desired.y + self.turn_guidance * field.y;
+        let moving = if desired.x == 0.0 {
+            0.0
+        } else {
+            forward / desired.x
+        };
+        let sideways = desired.y + self.turn_guidance * field.y * moving;
         Assisted {
             wheels: self.wheels(
                 robot,
@@ -349,6 +357,19 @@ mod tests {
             let forward = (a.wheels.left_mm_s + a.wheels.right_mm_s) / 2.0;
             prop_assert!(forward * desired.x >= -1e-9, "{:?} for {:?}", a, desired);
             prop_assert!(forward.abs() <= desired.x.abs() + 1e-9);
+        }
+
+        /// Pushed straight on, the fields never turn a robot they have
+        /// stopped, whatever their sideways part.
+        #[test]
+        fn a_robot_held_still_is_not_turned(stick_x in -1.0f64..1.0, field in vector()) {
+            let t = Teleop::default();
+            let robot = RobotModel::khepera_ii();
+            let desired = t.desired(Joystick { x: 0.0, y: stick_x });
+            prop_assume!(desired.x != 0.0);
+            let held = Vector { x: -desired.x - desired.x.signum() * field.x.abs(), y: field.y };
+            let a = t.assist(&robot, desired, held);
+            prop_assert_eq!(a.wheels, WheelSpeeds::default(), "{:?}", held);
         }
 
         /// Each reading sensor pushes away from where it looks.
