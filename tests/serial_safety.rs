@@ -18,7 +18,7 @@ use serde_json::{Value, json};
 use tokio_tungstenite::tungstenite::Message;
 
 use common::peer::Peer;
-use common::{VlProcess, start_khepera_host_with, start_vl};
+use common::{VlProcess, big_polygon, start_khepera_host_with, start_vl};
 
 /// Characters on the wire in one control period: the counters, speeds and
 /// proximity read back, and one speed command, with their replies.
@@ -47,17 +47,6 @@ struct Scene {
 
 /// The virtual polygon's centre and radius, mm.
 const POLYGON: (f64, f64, f64) = (380.0, 300.0, 80.0);
-
-/// A 256-vertex polygon: a disc of `r` mm about (x, y).
-fn big_polygon(x: f64, y: f64, r: f64) -> Value {
-    let points: Vec<Value> = (0..256)
-        .map(|i| {
-            let a = i as f64 / 256.0 * std::f64::consts::TAU;
-            json!({"x_mm": x + r * a.cos(), "y_mm": y + r * a.sin()})
-        })
-        .collect();
-    json!([{"shape": "polygon", "points": points}])
-}
 
 fn scenes() -> Vec<Scene> {
     vec![

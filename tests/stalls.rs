@@ -20,10 +20,10 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use serde_json::{Value, json};
+use serde_json::json;
 
 use common::peer::Peer;
-use common::{VlProcess, start_khepera_host_with, vl_command};
+use common::{VlProcess, big_polygon, start_khepera_host_with, vl_command};
 
 /// The virtual polygon's centre and radius, mm, and the robot's radius.
 const POLYGON: (f64, f64, f64) = (380.0, 300.0, 80.0);
@@ -69,18 +69,6 @@ const SCENES: [Scene; 3] = [
         polygon: true,
     },
 ];
-
-/// A 256-vertex polygon: a disc of `r` mm about (x, y).
-fn big_polygon() -> Value {
-    let (x, y, r) = POLYGON;
-    let points: Vec<Value> = (0..256)
-        .map(|i| {
-            let a = f64::from(i) / 256.0 * std::f64::consts::TAU;
-            json!({"x_mm": x + r * a.cos(), "y_mm": y + r * a.sin()})
-        })
-        .collect();
-    json!([{"shape": "polygon", "points": points}])
-}
 
 /// The emulator's truth as it last said it: time, pose, contacts so far,
 /// and how far the wheels may still go to their position targets (the
@@ -285,7 +273,7 @@ async fn stalled_run(baud: u32, scene: &Scene, freeze_after: Duration) -> Stall 
         .await;
     op.expect("mounted").await;
     let virtual_obstacles = if scene.polygon {
-        big_polygon()
+        big_polygon(POLYGON.0, POLYGON.1, POLYGON.2)
     } else {
         json!([])
     };

@@ -250,3 +250,15 @@ pub(crate) fn free_port() -> u16 {
         .expect("a free port")
         .port()
 }
+
+/// A definition's virtual obstacles: one 256-vertex polygon, a disc of `r`
+/// mm about (x, y) (its edges within r·(1 − cos(π/256)) of the circle).
+pub(crate) fn big_polygon(x: f64, y: f64, r: f64) -> serde_json::Value {
+    let points: Vec<serde_json::Value> = (0..256)
+        .map(|i| {
+            let a = f64::from(i) / 256.0 * std::f64::consts::TAU;
+            serde_json::json!({"x_mm": x + r * a.cos(), "y_mm": y + r * a.sin()})
+        })
+        .collect();
+    serde_json::json!([{"shape": "polygon", "points": points}])
+}

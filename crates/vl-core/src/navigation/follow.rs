@@ -40,7 +40,7 @@ impl Default for Following {
         Following {
             cruise_mm_s: 200.0,
             lookahead_mm: 30.0,
-            turn_gain: 10.0,
+            turn_gain: 6.0,
             slow_radius_mm: 80.0,
             tolerance_mm: 10.0,
             unmapped_above: 600,

@@ -320,6 +320,10 @@ impl Control {
         let stale = run.held || run.last_command.elapsed() > WATCHDOG;
         let mut wanted = match &mut run.follower {
             _ if run.held => WheelSpeeds::default(),
+            // At the goal the robot first stops where it is — at once, by the
+            // speed controller: a leashed turn would brake its way forward
+            // only as fast as the profile — then turns in place.
+            _ if run.turning && still_rolling(reading.wheels) => WheelSpeeds::default(),
             _ if run.turning => {
                 let face = run.face.unwrap_or(pose.theta_rad);
                 turn_towards(&self.info.robot, pose.theta_rad, face)
@@ -585,6 +589,11 @@ impl Control {
         }
         self.feedback.send_replace(Some(message));
     }
+}
+
+/// Whether `wheels` still carry the robot forward or back, not just round.
+fn still_rolling(wheels: WheelSpeeds) -> bool {
+    (wheels.left_mm_s + wheels.right_mm_s).abs() / 2.0 > FACE_MIN_WHEEL_MM_S
 }
 
 /// Wheel speeds that turn `robot` in place from heading `theta` towards `face`.
