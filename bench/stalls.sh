@@ -6,7 +6,7 @@
 # priority). Per baud: runs, contacts, how far the robot went after the
 # Host's last word against the leash it had (what the safety layer
 # budgeted: the hold and the braking at the profile's acceleration), and
-# the speed it had. CI runs 2 runs per baud and scene (tests/stalls.rs).
+# the speed it had. CI runs 4 per baud and scene (tests/stalls.rs).
 #   bench/stalls.sh [RUNS_PER_BAUD_AND_SCENE]   (default 10: 180 stalls)
 set -euo pipefail
 cd "$(dirname "$0")/.."

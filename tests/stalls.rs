@@ -383,12 +383,13 @@ async fn stall_everywhere(busy: usize, runs: usize, seed: u64) {
     assert!(failures.is_empty(), "seed {seed}: {failures:#?}");
 }
 
-/// Runs per baud and scene: STALL_RUNS (the bench sets more), else 2.
+/// Runs per baud and scene: STALL_RUNS (the bench sets more), else 4:
+/// 36 stalls a machine.
 fn runs() -> usize {
     std::env::var("STALL_RUNS")
         .ok()
         .and_then(|r| r.parse().ok())
-        .unwrap_or(2)
+        .unwrap_or(4)
 }
 
 /// The freeze moments' seed: STALL_SEED, else the clock (printed).
