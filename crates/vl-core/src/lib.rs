@@ -77,10 +77,12 @@
 //! - `safety`: the safety layer every wheel command passes on the Host:
 //!   `Surroundings` (exact signed clearance to walls, obstacles, virtual
 //!   obstacles, whose boxes are worked out once per run), `Safety::guard`
-//!   (brake the command out through the speed response after the pose's age —
-//!   what the wheels were told goes on until the command reaches them — and
-//!   the control period; keep the turn, give up forward speed until the robot
-//!   can stop clear; past a face only moving out passes)
+//!   (the command as a `Leash`, run out — the last leash (`Told`) goes on
+//!   until it reaches the wheels, then each wheel's trapezoid to the end of
+//!   its reach; keep the turn, give up forward speed until the robot, left
+//!   to itself, stops clear; else stop at once; past a face only moving out
+//!   passes); `model/leash`: the leash and the position controller that
+//!   ends it
 //!
 //! - `images`: `load_image`/`decode_image`, the one way an image from
 //!   outside (arena maps, `vl vision`/`vl plan` inputs, camera frames at the

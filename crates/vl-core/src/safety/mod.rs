@@ -140,14 +140,6 @@ impl Told {
             _ => Told::Stop,
         }
     }
-
-    /// Its top speeds, mm/s.
-    pub fn wheels(&self, robot: &RobotModel) -> WheelSpeeds {
-        match self {
-            Told::Stop => WheelSpeeds::default(),
-            Told::Leash { leash, .. } => leash.wheels(robot),
-        }
-    }
 }
 
 /// What the layer lets through.
@@ -266,10 +258,16 @@ impl Safety {
         guarded(scaled(clear))
     }
 
+    /// How long after the reading a command reaches the wheels, s: the
+    /// pose's age and the response's dead time.
+    fn arrives_s(&self, robot: &RobotModel) -> f64 {
+        robot.response.dead_time_s + self.delay_s.max(0.0)
+    }
+
     /// The leash for `wheels` from `situation`, reaching the robot after
     /// the pose's age and the response's dead time.
     fn leash(&self, robot: &RobotModel, situation: Situation<'_>, wheels: WheelSpeeds) -> Leash {
-        let arrives_s = robot.response.dead_time_s + self.delay_s.max(0.0);
+        let arrives_s = self.arrives_s(robot);
         Leash::new(robot, wheels, self.hold_s, situation.wheels, arrives_s)
     }
 
@@ -289,7 +287,7 @@ impl Safety {
         body: impl Fn(Pose) -> f64,
         floor: f64,
     ) -> bool {
-        let arrives_s = robot.response.dead_time_s + self.delay_s.max(0.0);
+        let arrives_s = self.arrives_s(robot);
         let response = &robot.response;
         let moves = leash.moves(robot, [0.0; 2]);
         let (mut pose, mut wheels, mut t) = (situation.pose, situation.wheels, 0.0);
