@@ -82,8 +82,10 @@ enum Command {
     Record(record::RecordArgs),
 }
 
+/// Installed for every subcommand but counting only for the Petri commands,
+/// which report their peak heap: the Host and the Guest pay nothing for it.
 #[global_allocator]
-static ALLOCATOR: vl_petri::Counting = vl_petri::Counting;
+static ALLOCATOR: vl_report::Counting = vl_report::Counting;
 
 /// A problem with what the user gave (a file, an argument): exit code 2.
 #[derive(Debug, thiserror::Error)]
@@ -112,6 +114,9 @@ fn main() -> ExitCode {
     ) {
         // SAFETY: restoring the default action of one signal before any thread starts.
         unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
+    }
+    if matches!(cli.command, Command::Petri(_)) {
+        vl_report::Counting::switch_on();
     }
     tracing_subscriber::fmt()
         .with_env_filter(EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()))

@@ -2,7 +2,7 @@
 //! `--json` the same report as JSON for programs.
 
 use anyhow::Result;
-pub(crate) use vl_core::table::{Report, Table, count};
+pub(crate) use vl_report::table::{Report, Table, count};
 
 /// Prints `report` as JSON when `json`, else as its table.
 pub(crate) fn emit(report: &impl Report, json: bool) -> Result<()> {

@@ -11,7 +11,7 @@ use vl_petri::{BenchLine, BenchReport, Manifest, bench_model};
 use crate::report::emit;
 use crate::shipped::{CORPUS_MANIFEST, corpus_model, read_input};
 use crate::{BadInput, bad_input};
-use vl_petri::Counting;
+use vl_report::Counting;
 
 use super::io::load;
 

@@ -10,7 +10,7 @@ use vl_petri::{Cost, ExploreError, Net, Options, Progress, from_pnml};
 
 use crate::BadInput;
 use crate::shipped::read_input;
-use vl_petri::{peak_bytes, peak_resident_bytes};
+use vl_report::{peak_bytes, peak_resident_bytes};
 
 /// Reads a PNML file (or a shipped example net); any problem with it is
 /// the user's input, exit code 2.

@@ -109,8 +109,6 @@ mod teleop;
 mod vision;
 
 /// Results printed for people (vl-petri's, the crate every other builds on).
-pub use vl_petri::table;
-
 pub use contract::access::{AccessEvent, AccessNet, AccessNetError, AccessRefused, Seat};
 pub use contract::experiment::{
     Definition, DefinitionError, Experiment, ExperimentInfo, Goal, LOOKAHEAD_MM,

@@ -9,11 +9,11 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use thiserror::Error;
-use vl_core::table::{Report as _, Table, yes};
 use vl_core::{
     ArenaPlanError, Definition, Drive, EndReason, ErrorCode, Experiment, Goal, GuestMessage,
     HeldBack, HostMessage, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
 };
+use vl_report::table::{Report as _, Table, yes};
 
 use crate::client::{ClientError, Connection, Incoming, open};
 use crate::login::Login;
@@ -583,7 +583,7 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
     guest.report(definition, script).await
 }
 
-impl vl_core::table::Report for Report {
+impl vl_report::table::Report for Report {
     fn table(&self) -> Table {
         let pose = self.final_pose;
         Table::pairs([

@@ -6,9 +6,9 @@ use std::path::Path;
 use std::time::Instant;
 
 use serde::Serialize;
-use vl_core::table::{Report, Table};
 use vl_core::{FrameHeader, HostMessage, Point, Role, Summary};
 use vl_host::{RecordError, Recording, Replayed};
+use vl_report::table::{Report, Table};
 
 use crate::client::Incoming;
 use crate::results::Results;

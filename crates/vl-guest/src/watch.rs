@@ -4,8 +4,8 @@
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
-use vl_core::table::{Table, count};
 use vl_core::{Experiment, Role, Summary};
+use vl_report::table::{Table, count};
 
 use crate::client::Connection;
 use crate::headless::{RoundTripMs, Script, ScriptError, welcomed};
@@ -89,7 +89,7 @@ pub async fn watch(url: &str, script: &Script) -> Result<Watched, ScriptError> {
     })
 }
 
-impl vl_core::table::Report for Watched {
+impl vl_report::table::Report for Watched {
     fn table(&self) -> Table {
         let run = match &self.run {
             Some(done) => format!(

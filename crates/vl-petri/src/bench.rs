@@ -8,8 +8,8 @@ use std::time::Instant;
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::table::{Report, Table};
 use crate::{ExploreError, Net, Options, analyze_net, count_states};
+use vl_report::{PeakMemory, Report, Table};
 
 /// The corpus's `manifest.csv`: one row per model.
 #[derive(Debug, Clone)]
@@ -109,15 +109,6 @@ impl CorpusModel {
     pub fn pnml(&self) -> &str {
         self.get("pnml").expect("checked on parsing")
     }
-}
-
-/// Where the peak heap use of a benchmark comes from: the binary's
-/// allocator, which a library cannot own.
-pub trait PeakMemory {
-    /// Starts a new peak measurement from what is live now.
-    fn reset_peak(&self);
-    /// The most bytes live at once since the last reset.
-    fn peak_bytes(&self) -> usize;
 }
 
 /// One model's benchmark figures: the two jobs `vl petri` offers, each

@@ -16,7 +16,7 @@ use crate::explore::{Bounds, ExploreError, Options, Progress, StateCount};
 use crate::layout::{
     Candidates, Compiled, Fired, Layout, PAD, compile, fire, initial_layout, repack,
 };
-use crate::markings::{EMPTY, Table, copy_marking, hash};
+use crate::markings::{EMPTY, MarkingTable, copy_marking, hash};
 use crate::net::Net;
 
 /// Shards of the table: enough that two threads seldom want the same one,
@@ -46,7 +46,7 @@ pub fn count_states(
         compiled: &compiled,
         candidates: &candidates,
         shards: (0..SHARDS)
-            .map(|_| Mutex::new(Table::new(layout.stride.max(1), 1)))
+            .map(|_| Mutex::new(MarkingTable::new(layout.stride.max(1), 1)))
             .collect(),
         workers: (0..threads.max(1))
             .map(|_| Worker::new(&layout, compiled.len()))
@@ -78,7 +78,7 @@ struct Count<'a> {
     compiled: &'a [Compiled],
     candidates: &'a Candidates,
     layout: Layout,
-    shards: Vec<Mutex<Table>>,
+    shards: Vec<Mutex<MarkingTable>>,
     workers: Vec<Worker>,
 }
 
@@ -238,7 +238,7 @@ impl Count<'_> {
                 for m in table.markings() {
                     markings.extend_from_slice(m);
                 }
-                *table = Table::with_room(stride, 1, table.len());
+                *table = MarkingTable::with_room(stride, 1, table.len());
                 markings
             })
             .collect();
@@ -265,7 +265,7 @@ struct Shared<'a> {
     compiled: &'a [Compiled],
     candidates: &'a Candidates,
     layout: &'a Layout,
-    shards: &'a [Mutex<Table>],
+    shards: &'a [Mutex<MarkingTable>],
     level: &'a [u8],
     /// Markings of the level handed out so far.
     taken: &'a AtomicUsize,
@@ -334,7 +334,12 @@ impl Shared<'_> {
 
 /// Puts the gathered successors in their shard, and those it did not hold
 /// yet in `new`.
-fn put(shard: &Mutex<Table>, stride: usize, gathered: &mut (Vec<u8>, Vec<u64>), new: &mut Vec<u8>) {
+fn put(
+    shard: &Mutex<MarkingTable>,
+    stride: usize,
+    gathered: &mut (Vec<u8>, Vec<u64>),
+    new: &mut Vec<u8>,
+) {
     let (markings, hashes) = gathered;
     if hashes.is_empty() {
         return;
@@ -368,7 +373,7 @@ fn shard(h: u64) -> usize {
 /// A shard's table. A thread that panicked holding it left no marking half
 /// written (a marking is written after every check), and its panic ends
 /// the count anyway.
-fn lock(shard: &Mutex<Table>) -> MutexGuard<'_, Table> {
+fn lock(shard: &Mutex<MarkingTable>) -> MutexGuard<'_, MarkingTable> {
     shard.lock().unwrap_or_else(PoisonError::into_inner)
 }
 

@@ -9,10 +9,9 @@
 //! coverability (`coverability`), P- and T-invariants (`invariants`),
 //! composition (`compose`), controller synthesis (`control`), pictures
 //! (`dot`), and benchmarks on the Model Checking Contest's models (`bench`,
-//! with the counting allocator of `memory`). What each analysis found, in
-//! the net's own names, is a report (`report`) people read as a table and
-//! programs as JSON; the table (`table`, public) is every crate's, since
-//! every crate builds on this one. Modules are private; what other crates
+//! measuring the heap through `vl-report`'s counting allocator). What each
+//! analysis found, in the net's own names, is a report (`report`) people
+//! read as a `vl-report` table and programs as JSON. Modules are private; what other crates
 //! use is re-exported here.
 //!
 //! In detail:
@@ -43,18 +42,16 @@ mod linalg;
 mod lines;
 mod liveness;
 mod markings;
-mod memory;
 mod net;
 mod onthefly;
 mod pnml;
 mod report;
 mod scxml;
-pub mod table;
 mod verdict;
 
 pub use analysis::{Analysis, analyze, analyze_net, firing_sequence, incidence_rank};
 pub use bench::{
-    BenchLine, BenchReport, BenchRow, CorpusModel, Manifest, ManifestError, PeakMemory, bench_model,
+    BenchLine, BenchReport, BenchRow, CorpusModel, Manifest, ManifestError, bench_model,
 };
 pub use compose::{ComposeError, compose, fuse_parallel_places};
 pub use control::{Added, Constraint, ControlError, Limits, synthesize};
@@ -66,7 +63,6 @@ pub use invariants::{
     Invariant, TooManyInvariants, is_conservative, p_invariants, p_rows_within, t_invariants,
 };
 pub use liveness::Liveness;
-pub use memory::{Counting, peak_bytes, peak_resident_bytes};
 pub use net::{
     Arc, ArcKind, Marking, MarkingDisplay, Net, NetError, Place, PlaceId, Transition, TransitionId,
 };

@@ -3,8 +3,8 @@
 use std::time::Instant;
 
 use serde::Serialize;
-use vl_core::table::{Report, Table};
 use vl_core::{Arena, ArenaPlanError, Definition, Goal, RobotModel, WheelSpeeds, plan_route};
+use vl_report::table::{Report, Table};
 
 use crate::world::{STEP_S, SimError, World};
 use crate::{Optics, Renderer, camera_for};

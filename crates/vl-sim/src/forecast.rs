@@ -189,8 +189,8 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
 mod tests {
     use super::*;
     use proptest::prelude::*;
-    use vl_core::table::Report;
     use vl_core::{ForecastLimits, ForecastVerdict, Goal, Shape, plan_route};
+    use vl_report::table::Report;
 
     /// The navigation arena's own goal, planned from its start.
     fn planned() -> (Arena, RobotModel, Definition) {

@@ -14,7 +14,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
 use vl_core::Named;
-use vl_core::table::{Report, Table};
+use vl_report::table::{Report, Table};
 
 use crate::noise::gaussian;
 

@@ -6,8 +6,8 @@
 //! (`RobotModel::wheel_slip`) while no camera watches.
 
 use serde::Serialize;
-use vl_core::table::{Report, Table};
 use vl_core::{Arena, Pose, RobotModel, WheelSpeeds, wrap_angle};
+use vl_report::table::{Report, Table};
 
 use crate::world::{STEP_S, SimError, World};
 

@@ -4,10 +4,10 @@
 
 use serde::Serialize;
 use thiserror::Error;
-use vl_core::table::{Report, Table};
 use vl_core::{
     ArenaPlanError, Definition, Follower, Goal, Point, Pose, Steer, WheelSpeeds, plan_route,
 };
+use vl_report::table::{Report, Table};
 
 use crate::world::{STEP_S, World};
 

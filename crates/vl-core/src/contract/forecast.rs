@@ -7,8 +7,8 @@
 use serde::{Deserialize, Serialize};
 
 use crate::navigation::analysis::distance_to_polyline;
-use crate::table::{Report, Table};
 use crate::{Point, Summary};
+use vl_report::table::{Report, Table};
 
 /// What a closest approach was to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -6,8 +6,8 @@ use serde::{Deserialize, Serialize};
 
 use super::protocol::{DeviceState, Readiness};
 use super::summary::EndReason;
-use crate::table::{Report, Table};
 use crate::{Experiment, Named};
+use vl_report::table::{Report, Table};
 
 /// The Host's state for its administrator.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

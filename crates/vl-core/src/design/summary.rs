@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::Rule;
 use super::pipeline::{Designed, Interleaving};
-use crate::table::{Report, Table};
+use vl_report::table::{Report, Table};
 
 /// One lab's outcome, as the table and `--json` show it.
 #[derive(Debug, Serialize)]

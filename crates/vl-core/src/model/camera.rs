@@ -14,7 +14,7 @@ use nalgebra::{DMatrix, DVector};
 use crate::Point;
 use crate::model::homography::{CalibrationError, Homography};
 use crate::model::lens::{Distortion, LensError};
-use crate::table::{Report, Table};
+use vl_report::table::{Report, Table};
 
 /// A camera: its image size and frame rate, and where each floor point
 /// appears in its images.

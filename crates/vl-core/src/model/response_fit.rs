@@ -4,9 +4,9 @@
 //! (which the acceleration limit does not touch), the acceleration limit
 //! from a large one.
 
-use crate::table::{Report, Table, count};
 use serde::Serialize;
 use thiserror::Error;
+use vl_report::table::{Report, Table, count};
 
 use crate::SpeedResponse;
 

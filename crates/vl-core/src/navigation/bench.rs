@@ -3,9 +3,9 @@
 
 use std::time::Instant;
 
-use crate::table::{Report, Table, count};
 use serde::Serialize;
 use thiserror::Error;
+use vl_report::table::{Report, Table, count};
 
 use super::plan::{locate, plan, smooth};
 use crate::{

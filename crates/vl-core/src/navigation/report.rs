@@ -4,7 +4,7 @@ use serde::Serialize;
 
 use super::cspace::CSpace;
 use super::plan::{NoPath, Plan, Smoothing};
-use crate::table::{Report, Table, count};
+use vl_report::table::{Report, Table, count};
 
 /// A plan as `vl plan` prints it: the grid, the paths on it and in mm,
 /// their length and clearance; or why there is none.

@@ -16,9 +16,9 @@ mod threshold;
 
 use std::time::Instant;
 
-use crate::table::{Report, Table};
 use image::RgbImage;
 use serde::Serialize;
+use vl_report::table::{Report, Table};
 
 use crate::{CameraModel, Named};
 

@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use vl_core::table::{Report, Table, yes};
+use vl_report::table::{Report, Table, yes};
 
 use vl_core::{Arena, Experiment};
 

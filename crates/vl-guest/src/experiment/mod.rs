@@ -16,9 +16,9 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use serde::Serialize;
-use vl_core::table::count;
 use vl_core::{ARENA_CELL_MM, Arena, ErrorMm, Experiment, PoseSource, run_svg};
 use vl_host::{Delays, FramePolicy, Host, HostConfig, Media, MediaConfig, SimCamera, SimLab};
+use vl_report::table::count;
 use vl_sim::{LinkModel, Optics, Scheduled};
 
 use crate::headless::{Report, RoundTripMs, Script, ScriptError, run_script};

@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 use vl_core::ErrorMm;
-use vl_core::table::{Report, Table, count, yes};
+use vl_report::table::{Report, Table, count, yes};
 
 use std::path::Path;
 

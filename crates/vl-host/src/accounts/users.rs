@@ -12,7 +12,7 @@ use argon2::password_hash::rand_core::OsRng;
 use argon2::password_hash::{PasswordHash, PasswordHasher, PasswordVerifier, SaltString};
 use serde::{Deserialize, Serialize};
 use vl_core::Named;
-use vl_core::table::{Report, Table};
+use vl_report::table::{Report, Table};
 
 /// What an account may do at the lab.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -12,7 +12,7 @@ use futures_util::{SinkExt, StreamExt};
 use serde::Serialize;
 use tokio::net::TcpListener;
 use tokio_tungstenite::tungstenite::Message;
-use vl_core::table::{Report, Table};
+use vl_report::table::{Report, Table};
 use vl_sim::{Delivery, LinkModel, MessageLink};
 
 use super::{Media, MediaConfig};

@@ -8,8 +8,8 @@ use std::time::{Duration, SystemTime};
 
 use serde::{Deserialize, Serialize};
 use tracing::{info, warn};
-use vl_core::table::{Report, Table};
 use vl_core::{PART_BYTES, RecordedRun, RecordingName};
+use vl_report::table::{Report, Table};
 
 use super::RecordError;
 

@@ -5,8 +5,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use serde::Serialize;
-use vl_core::table::{Report, Table};
 use vl_core::{Drive, FrameHeader, GuestMessage, HostMessage, Wire};
+use vl_report::table::{Report, Table};
 
 use super::reader::{Recording, Replayed};
 use super::{RecordError, Topic};

@@ -9,8 +9,8 @@ use mcap::read::{ChunkReader, LinearReader, Options};
 use mcap::records::{MessageHeader, Record};
 use serde::Serialize;
 use thiserror::Error;
-use vl_core::table::{Report, Table};
 use vl_core::{FrameHeader, HostMessage, ImageFormat, RecordingName, Summary, Wire};
+use vl_report::table::{Report, Table};
 
 use super::Topic;
 

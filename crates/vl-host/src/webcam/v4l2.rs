@@ -12,8 +12,8 @@ use linuxvideo::format::{FrameSizes, PixFormat, PixelFormat as Fourcc};
 use linuxvideo::stream::ReadStream;
 use linuxvideo::{BufType, Device, Fract};
 use serde::Serialize;
-use vl_core::table::{Report, Table};
 use vl_core::{CameraModel, ImageSize, MAX_IMAGE_SIDE};
+use vl_report::table::{Report, Table};
 
 use super::pixels::{PixelFormat, decode};
 use crate::drivers::{Camera, CameraError, Captured, believed};

@@ -6,4 +6,4 @@ mod pages;
 mod table;
 
 pub(crate) use pages::Stack;
-pub(crate) use table::{EMPTY, Table, copy_marking, hash};
+pub(crate) use table::{EMPTY, MarkingTable, copy_marking, hash};

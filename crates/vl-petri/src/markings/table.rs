@@ -25,7 +25,7 @@ const DOUBLE_BELOW: usize = 1 << 16;
 /// home slot is its hash scaled to the capacity (the high bits, so the
 /// capacity need not be a power of two, and homes keep their order as the
 /// table grows).
-pub(crate) struct Table {
+pub(crate) struct MarkingTable {
     /// Bytes of a marking.
     stride: usize,
     /// Bytes of a number: 1 to 4.
@@ -39,17 +39,17 @@ pub(crate) struct Table {
     slots: Pages,
 }
 
-impl Table {
-    pub(crate) fn new(stride: usize, number_bytes: usize) -> Table {
+impl MarkingTable {
+    pub(crate) fn new(stride: usize, number_bytes: usize) -> MarkingTable {
         // Small, so even a small net takes the table through its growth.
-        Table::with_room(stride, number_bytes, 0)
+        MarkingTable::with_room(stride, number_bytes, 0)
     }
 
     /// A table that takes `markings` before it first grows.
-    pub(crate) fn with_room(stride: usize, number_bytes: usize, markings: usize) -> Table {
+    pub(crate) fn with_room(stride: usize, number_bytes: usize, markings: usize) -> MarkingTable {
         let capacity = (markings * 20 / 17 + 1).max(1 << 6);
         let slot = stride + number_bytes;
-        Table {
+        MarkingTable {
             stride,
             number_bytes,
             slot,
@@ -222,7 +222,7 @@ impl Table {
 }
 
 /// The hash of the marking of `stride` bytes `m` (which has PAD spare
-/// bytes); its high bits choose its home in a [`Table`].
+/// bytes); its high bits choose its home in a [`MarkingTable`].
 pub(crate) fn hash(m: &[u8], stride: usize) -> u64 {
     let h = if stride <= 16 {
         let [low, high] = words(m, stride);
@@ -290,7 +290,7 @@ mod tests {
     #[test]
     fn the_table_keeps_every_marking_and_its_number_through_growth() {
         for (stride, number_bytes) in [(1, 3), (3, 4), (8, 3), (13, 4), (20, 3)] {
-            let mut table = Table::new(stride, number_bytes);
+            let mut table = MarkingTable::new(stride, number_bytes);
             let mut numbers = Vec::new();
             let count = if stride == 1 { 256 } else { 150_000 };
             let mut distinct = std::collections::HashSet::new();

@@ -27,7 +27,7 @@ use crate::net::Net;
 
 mod pending;
 
-use crate::markings::{EMPTY, Stack, Table, copy_marking};
+use crate::markings::{EMPTY, MarkingTable, Stack, copy_marking};
 use pending::Pending;
 
 /// What one search found.
@@ -137,7 +137,7 @@ struct Search<'a> {
     compiled: &'a [Compiled],
     at_limit: &'a mut [bool],
     stride: usize,
-    table: Table,
+    table: MarkingTable,
     candidates: Candidates,
     /// The path, a [`Frame`] each.
     frames: Stack,
@@ -188,7 +188,7 @@ impl<'a> Search<'a> {
             compiled,
             at_limit,
             stride,
-            table: Table::new(stride, number_bytes),
+            table: MarkingTable::new(stride, number_bytes),
             candidates: Candidates::new(compiled, places),
             frames: Stack::new(4),
             pending: Pending::new(transitions),

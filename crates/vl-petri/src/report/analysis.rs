@@ -4,8 +4,8 @@
 use serde::Serialize;
 
 use super::{Cost, net_line, place_ids};
-use crate::table::{Report, Table, count, yes};
 use crate::{Liveness, Net, Verdict};
+use vl_report::table::{Report, Table, count, yes};
 
 /// Transitions named in the table before "… and N more".
 const NOT_LIVE_SHOWN: usize = 12;

@@ -7,8 +7,8 @@ use std::fmt;
 use serde::{Serialize, Serializer};
 
 use super::place_ids;
-use crate::table::{Report, Table, yes};
 use crate::{Coverability, Net, OMEGA};
+use vl_report::table::{Report, Table, yes};
 
 /// Tokens in a place of an ω-marking: a count, or ω (as many as wanted).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

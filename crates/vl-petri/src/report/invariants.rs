@@ -5,8 +5,8 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use crate::table::{Report, Table, count, yes};
 use crate::{Invariant, Net, incidence_rank, is_conservative};
+use vl_report::table::{Report, Table, count, yes};
 
 /// The invariants in the net's names.
 #[derive(Debug, Serialize)]

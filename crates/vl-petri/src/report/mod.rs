@@ -11,7 +11,7 @@ mod states;
 use serde::Serialize;
 
 use crate::Net;
-use crate::table::count;
+use vl_report::table::count;
 
 pub use analysis::AnalysisReport;
 pub use coverability::{CoverabilityReport, Tokens};

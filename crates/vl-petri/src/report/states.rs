@@ -5,8 +5,8 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use super::{Cost, net_line};
-use crate::table::{Report, Table, count};
 use crate::{Net, StateCount};
+use vl_report::table::{Report, Table, count};
 
 /// The state space counted: its size and each place's bound.
 #[derive(Debug, Serialize)]

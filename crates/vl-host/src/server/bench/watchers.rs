@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use tokio::task::JoinSet;
-use vl_core::table::{Report, Table};
 use vl_core::{GuestMessage, nearest_rank};
+use vl_report::table::{Report, Table};
 
 use super::{BenchError, Socket, observe, observer, say, teleoperating, time_commands};
 

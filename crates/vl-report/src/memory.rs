@@ -1,22 +1,51 @@
-//! What an analysis costs in memory: a global allocator that counts live
-//! and peak heap bytes (a program installs it with `#[global_allocator]`),
-//! and the process's peak resident memory as the kernel counts it.
+//! What a job costs in memory: a global allocator that counts live and
+//! peak heap bytes once switched on (a program installs it with
+//! `#[global_allocator]` and calls [`Counting::switch_on`] only where it
+//! measures memory, so a server's hot loops pay one plain load per
+//! allocation, not two atomic updates), and the process's peak resident
+//! memory as the kernel counts it.
 
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicIsize, Ordering};
 
-use crate::PeakMemory;
+/// Where the peak heap use of a benchmark comes from: the binary's
+/// allocator, which a library cannot own.
+pub trait PeakMemory {
+    /// Starts a new peak measurement from what is live now.
+    fn reset_peak(&self);
+    /// The most bytes live at once since the last reset.
+    fn peak_bytes(&self) -> usize;
+}
 
-/// The system allocator, counting: install it as the program's global
-/// allocator for [`peak_bytes`] and [`PeakMemory`] to see the heap.
+/// The system allocator, counting once switched on: install it as the
+/// program's global allocator for [`peak_bytes`] and [`PeakMemory`] to
+/// see the heap.
 pub struct Counting;
 
-static LIVE: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
+static ON: AtomicBool = AtomicBool::new(false);
+/// Signed: blocks allocated before the switch may be freed after it.
+static LIVE: AtomicIsize = AtomicIsize::new(0);
+static PEAK: AtomicIsize = AtomicIsize::new(0);
+
+impl Counting {
+    /// Counts from now on, for the rest of the process.
+    pub fn switch_on() {
+        ON.store(true, Ordering::Relaxed);
+    }
+}
 
 fn grew(bytes: usize) {
-    let live = LIVE.fetch_add(bytes, Ordering::Relaxed) + bytes;
-    PEAK.fetch_max(live, Ordering::Relaxed);
+    if ON.load(Ordering::Relaxed) {
+        let bytes = bytes as isize;
+        let live = LIVE.fetch_add(bytes, Ordering::Relaxed) + bytes;
+        PEAK.fetch_max(live, Ordering::Relaxed);
+    }
+}
+
+fn shrank(bytes: usize) {
+    if ON.load(Ordering::Relaxed) {
+        LIVE.fetch_sub(bytes as isize, Ordering::Relaxed);
+    }
 }
 
 // SAFETY: every call is passed straight to the system allocator; the
@@ -40,22 +69,22 @@ unsafe impl GlobalAlloc for Counting {
 
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         unsafe { System.dealloc(ptr, layout) };
-        LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+        shrank(layout.size());
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
         let p = unsafe { System.realloc(ptr, layout, new_size) };
         if !p.is_null() {
-            LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+            shrank(layout.size());
             grew(new_size);
         }
         p
     }
 }
 
-/// The most heap bytes live at once since the program started.
+/// The most heap bytes live at once since counting was switched on.
 pub fn peak_bytes() -> usize {
-    PEAK.load(Ordering::Relaxed)
+    PEAK.load(Ordering::Relaxed).max(0) as usize
 }
 
 /// The most memory the process has held resident, bytes (what `time -v`
