@@ -116,7 +116,7 @@ pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Resul
         Role::Operator
     };
     if let Some(file) = &args.replay {
-        let bad = |e: vl_host::RecordError| BadInput(format!("--replay: {e}"));
+        let bad = |e: vl_record::RecordError| BadInput(format!("--replay: {e}"));
         match args.headless {
             true => emit(&vl_guest::replay_headless(file).map_err(bad)?, args.json)?,
             false => vl_guest::run_replay_window(vl_guest::Replay::open(file).map_err(bad)?)?,

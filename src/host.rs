@@ -188,7 +188,7 @@ pub(crate) struct HostArgs {
     #[command(flatten)]
     forecast: vl_host::ForecastSettings,
     #[command(flatten)]
-    recordings: vl_host::RecordSettings,
+    recordings: crate::record::KeepArgs,
 }
 
 /// The Host's configuration from its flags, checked before anything starts.
@@ -207,7 +207,7 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         reset: !args.no_reset,
         compensate_latency: !args.no_latency_compensation,
         forecast: args.forecast,
-        recordings: (args.recordings.catalogue()).map_err(bad_input)?,
+        recordings: (args.recordings.settings().catalogue()).map_err(bad_input)?,
         ..HostConfig::default()
     };
     args.access.apply(&mut config)?;

@@ -5,10 +5,51 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::ValueHint::{DirPath, FilePath};
-use vl_host::{Catalogue, RecordError, Recording};
+use vl_record::{Catalogue, RecordError, RecordSettings, Recording};
 
 use crate::BadInput;
 use crate::report::emit;
+
+/// Where and how long `vl host` keeps its runs.
+#[derive(Debug, Clone, Default, PartialEq, clap::Args)]
+pub(crate) struct KeepArgs {
+    /// Where every run is recorded, as MCAP files Foxglove opens (default:
+    /// vl/recordings in the user's data directory).
+    #[arg(long, value_hint = DirPath)]
+    recordings: Option<PathBuf>,
+    /// Record nothing.
+    #[arg(long, conflicts_with = "recordings")]
+    no_record: bool,
+    /// Delete recordings older than this many days, oldest first.
+    #[arg(long, value_parser = positive)]
+    keep_days: Option<f64>,
+    /// Keep at most this many GB of recordings, deleting the oldest first.
+    #[arg(long, value_parser = positive)]
+    keep_gb: Option<f64>,
+    /// Record the time between runs too (files idle-*.mcap, for
+    /// administrators), not only the runs.
+    #[arg(long)]
+    record_idle: bool,
+}
+
+impl KeepArgs {
+    pub(crate) fn settings(&self) -> RecordSettings {
+        RecordSettings {
+            recordings: self.recordings.clone(),
+            no_record: self.no_record,
+            keep_days: self.keep_days,
+            keep_gb: self.keep_gb,
+            record_idle: self.record_idle,
+        }
+    }
+}
+
+fn positive(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        _ => Err(format!("\"{text}\" is not a positive number")),
+    }
+}
 
 #[derive(clap::Args)]
 pub(crate) struct RecordArgs {
@@ -64,7 +105,7 @@ pub(crate) fn record(args: RecordArgs) -> Result<ExitCode> {
         }
         RecordCommand::Export { file, out } => {
             let recording = Recording::open(&file).map_err(bad)?;
-            let mut exported = vl_host::export(&recording, &out).map_err(bad)?;
+            let mut exported = vl_record::export(&recording, &out).map_err(bad)?;
             let plots = vl_guest::Replay::open(&file)
                 .map_err(bad)?
                 .results
@@ -73,7 +114,10 @@ pub(crate) fn record(args: RecordArgs) -> Result<ExitCode> {
             emit(&exported, json)?;
         }
         RecordCommand::Repair { file, out } => {
-            emit(&vl_host::repair(&file, out.as_deref()).map_err(bad)?, json)?;
+            emit(
+                &vl_record::repair(&file, out.as_deref()).map_err(bad)?,
+                json,
+            )?;
         }
     }
     Ok(ExitCode::SUCCESS)

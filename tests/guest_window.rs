@@ -1263,7 +1263,7 @@ fn scrub(harness: &mut Harness<'_, GuestApp>, fraction: f32) {
 /// A Host's configuration that records every run into `dir`.
 fn recording_into(dir: &std::path::Path) -> HostConfig {
     HostConfig {
-        recordings: Some(vl_host::Catalogue::open(dir).unwrap()),
+        recordings: Some(vl_record::Catalogue::open(dir).unwrap()),
         ..HostConfig::default()
     }
 }

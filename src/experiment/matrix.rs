@@ -8,8 +8,8 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use vl_campaign::{Matrix, cells_of, line, run_all, write_report};
 use vl_core::Named;
-use vl_guest::experiment::{Matrix, cells_of, line, run_all, write_report};
 use vl_sim::{LinkModel, Profile};
 
 use crate::input::{load_arena, seconds};

@@ -9,9 +9,9 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
+use vl_campaign::{RunSpec, Runs};
 use vl_core::{Arena, Experiment};
 use vl_guest::Pacing;
-use vl_guest::experiment::{RunSpec, Runs};
 
 use crate::input::{SceneArgs, load_arena, seconds};
 use crate::named;

@@ -129,6 +129,7 @@ pub use contract::recording::{
 };
 pub use contract::summary::{EndReason, HeldBack, RecordingNote, Stopper, Summary};
 pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
+pub use contract::transport::Io;
 pub use design::{
     DesignError, Designed, Interleaving, LabDesign, LabRow, NetsReport, Rule, Verdict, design,
 };

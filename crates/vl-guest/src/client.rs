@@ -246,7 +246,7 @@ const CLOSING: Duration = Duration::from_millis(800);
 const RECONNECT_FIRST: Duration = Duration::from_millis(250);
 const RECONNECT_MAX: Duration = Duration::from_secs(4);
 
-type Socket = tokio_tungstenite::WebSocketStream<Box<dyn vl_host::Io>>;
+type Socket = tokio_tungstenite::WebSocketStream<Box<dyn vl_core::Io>>;
 
 /// Why serving a connection stopped.
 enum Ended {

@@ -11,7 +11,7 @@ use rustls::pki_types::{CertificateDer, ServerName, UnixTime};
 use rustls::{ClientConfig, DigitallySignedStruct, SignatureScheme};
 use tokio::net::TcpStream;
 use vl_core::Fingerprint;
-use vl_host::Io;
+use vl_core::Io;
 
 /// Where a Host is and how to reach it.
 #[derive(Debug, Clone)]

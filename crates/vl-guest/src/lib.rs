@@ -45,11 +45,11 @@
 mod app;
 mod client;
 mod dial;
-pub mod experiment;
 mod gamepad;
 mod headless;
 mod login;
 mod netview;
+pub mod plots;
 mod predict;
 mod recordings;
 mod replay;

@@ -124,7 +124,7 @@ impl Downloading {
 /// Where this user's downloaded runs go: vl/downloads in their data
 /// directory.
 pub(crate) fn downloads_dir() -> Option<PathBuf> {
-    Some(vl_host::data_dir()?.join("downloads"))
+    Some(vl_record::data_dir()?.join("downloads"))
 }
 
 /// Downloads recording `name` into `dir` over `connection`, saying how far

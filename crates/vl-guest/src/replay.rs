@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 use vl_core::{FrameHeader, HostMessage, Point, Role, Summary};
-use vl_host::{RecordError, Recording, Replayed};
+use vl_record::{RecordError, Recording, Replayed};
 use vl_report::table::{Report, Table};
 
 use crate::client::Incoming;

@@ -9,8 +9,7 @@ use vl_core::{HostMessage, Point, distance_to_polyline};
 use std::path::PathBuf;
 
 use crate::client::Incoming;
-use crate::experiment::ExperimentError;
-use crate::experiment::plots;
+use crate::plots::{self, PlotError};
 
 /// A series of (x, y) points.
 type Series = Vec<[f64; 2]>;
@@ -91,7 +90,7 @@ impl Results {
     /// The plots as SVG and PNG pictures in `dir`: the paths, the tracking
     /// error, the force (when there was one) and the round trip. Their
     /// names (the PNGs').
-    pub fn save(&self, dir: &std::path::Path) -> Result<Vec<PathBuf>, ExperimentError> {
+    pub fn save(&self, dir: &std::path::Path) -> Result<Vec<PathBuf>, PlotError> {
         let series = |label: &str, colour, s: &Series| {
             (
                 label.to_owned(),

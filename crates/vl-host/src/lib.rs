@@ -78,7 +78,6 @@ mod lab;
 mod line;
 mod media;
 mod priority;
-mod record;
 mod replay;
 mod server;
 mod setup;
@@ -110,15 +109,11 @@ pub use media::{
     bench as media_bench,
 };
 pub use priority::raise_for_control as raise_priority;
-pub use record::{
-    Catalogue, Exported, Message as RecordedMessage, Owner, RecordError, RecordSettings, Recording,
-    RecordingInfo, Repaired, Replayed, Runs, TopicCount, data_dir, export, repair,
-};
 pub use replay::ReplayCamera;
 pub use server::bench::{
     BenchError, Guessing, OperatorLatency, WatchersBench, WatchersCost, operator_latency,
 };
-pub use server::{ForecastSettings, HostConfig, Io, MOST_FORECAST_SEEDS};
+pub use server::{ForecastSettings, HostConfig, MOST_FORECAST_SEEDS};
 pub use setup::{LabSpec, RobotSpec, SetupError};
 pub use sim::OpticsSettings;
 pub use source::CameraSource;

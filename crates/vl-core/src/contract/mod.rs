@@ -14,3 +14,4 @@ pub(crate) mod protocol;
 pub(crate) mod recording;
 pub(crate) mod summary;
 pub(crate) mod supervisor;
+pub(crate) mod transport;

@@ -2,13 +2,13 @@
 //! the floor, every frame locates the robot for the control loop, and the
 //! frames the policy picks (appendix G) go to the Guests as JPEG.
 
-use crate::record::Feed;
 use std::io::Cursor;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::SyncSender;
 use std::thread;
 use std::time::{Duration, Instant};
+use vl_record::Feed;
 
 use image::RgbImage;
 use image::codecs::jpeg::JpegEncoder;

@@ -22,7 +22,7 @@ use super::camera::Sighting;
 use super::run::Run;
 use super::{Finished, LabInfo, LabRequest, LabStatus, Retry, TICK};
 use crate::drivers::{Robot, RobotError, RobotReading, Witness};
-use crate::record::{Entry, Feed};
+use vl_record::{Entry, Feed};
 
 /// The shortest time between two control periods: a command acted on at
 /// once still waits this long after the last period.

@@ -25,12 +25,12 @@ use vl_core::{
 };
 
 use crate::drivers::{Camera, Robot, Witness};
-use crate::record::{Catalogue, Feed};
 pub(crate) use camera::Watching;
 use camera::{CameraLoop, SIGHTINGS, first_look};
 pub use camera::{FramePolicy, FrameSettings};
 pub(crate) use control::map_field;
 use control::{Control, Wiring};
+use vl_record::{Catalogue, Feed};
 
 /// The control period: the Khepera's speed-controller period.
 const TICK: Duration = Duration::from_millis(10);
@@ -139,6 +139,9 @@ pub(crate) struct Finished(pub u64, pub Summary);
 
 /// Lines of the Host's log a live watcher may fall behind by.
 const LOG_LINES: usize = 64;
+/// The recorder gives way to the control loop and the network side as
+/// the camera's encoder does.
+const RECORDER_NICE: i32 = 10;
 
 /// The session's handle on the running lab.
 pub(crate) struct Lab {
@@ -164,7 +167,33 @@ pub(crate) struct Lab {
     pub(crate) since_ns: u64,
     /// The Host's log as it is written (firings, refusals, faults), for
     /// those watching it live; a watcher that falls behind skips lines.
-    pub(crate) log: tokio::sync::broadcast::Sender<(crate::record::Level, String)>,
+    pub(crate) log: tokio::sync::broadcast::Sender<(vl_record::Level, String)>,
+}
+
+/// What the lab is, from the camera's first frame (the floor's map and
+/// where the robot stands), or with no camera from the arena model.
+fn look(
+    arena: Arena,
+    robot: &dyn Robot,
+    camera: Option<&mut Box<dyn Camera>>,
+) -> (LabInfo, Option<(Instant, vl_core::Pose)>) {
+    let (map, seen, model) = match camera {
+        Some(camera) => {
+            let first = first_look(camera.as_mut(), &arena);
+            (first.map, first.robot, camera.model())
+        }
+        None => {
+            let model =
+                CameraModel::overhead(arena.width_mm, arena.height_mm, NO_CAMERA_WIDTH_PX, 0.0);
+            (arena, None, model)
+        }
+    };
+    let info = LabInfo {
+        arena: map,
+        robot: robot.model().clone(),
+        camera: model,
+    };
+    (info, seen)
 }
 
 impl Lab {
@@ -180,29 +209,18 @@ impl Lab {
         catalogue: Option<Catalogue>,
     ) -> Lab {
         let since = Instant::now();
-        let record = catalogue.map_or_else(Feed::default, |c| Feed::spawn(c, since));
+        let record = catalogue.map_or_else(Feed::default, |c| {
+            Feed::spawn(c, since, || {
+                crate::priority::yield_to_control(RECORDER_NICE, "recorder");
+            })
+        });
         let Devices {
             robot,
             mut camera,
             witness,
         } = devices;
         let floor_mm = (arena.width_mm, arena.height_mm);
-        let (map, seen, model) = match camera.as_mut() {
-            Some(camera) => {
-                let first = first_look(camera.as_mut(), &arena);
-                (first.map, first.robot, camera.model())
-            }
-            None => {
-                let model =
-                    CameraModel::overhead(arena.width_mm, arena.height_mm, NO_CAMERA_WIDTH_PX, 0.0);
-                (arena, None, model)
-            }
-        };
-        let info = LabInfo {
-            arena: map,
-            robot: robot.model().clone(),
-            camera: model,
-        };
+        let (info, seen) = look(arena, robot.as_ref(), camera.as_mut());
         let (requests, request_rx) = mpsc::channel();
         let (sightings_tx, sightings) = mpsc::sync_channel(SIGHTINGS);
         let (feedback_tx, feedback) = watch::channel(None);
@@ -277,7 +295,7 @@ impl Lab {
             running,
             frame_wanted,
             record,
-            since_ns: crate::record::unix_ns_at(since),
+            since_ns: vl_record::unix_ns_at(since),
             log: tokio::sync::broadcast::channel(LOG_LINES).0,
         }
     }

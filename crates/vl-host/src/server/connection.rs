@@ -16,17 +16,18 @@ use vl_core::{
     ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES, PartHeader, RecordingName, Wire,
 };
 
+use super::HostConfig;
 use super::admission::Ticket;
 use super::foxglove;
 use super::http::{self, Opening};
 use super::hub::{ToConnection, ToHub};
 use super::socket::{self, Sink, Socket, Unwritten};
-use super::{HostConfig, Io};
 use crate::accounts::gate::{Credentials, Gate, Identity};
 use crate::accounts::users::AccountRole;
 use crate::lab::Watching;
-use crate::record::{Entry, Feed, RecordError};
 use tokio_tungstenite::tungstenite::handshake::server::{Request, Response};
+use vl_core::Io;
+use vl_record::{Entry, Feed, RecordError};
 
 /// The WebSocket handshake must be done within this.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
@@ -66,7 +67,7 @@ pub(crate) struct Connection {
     /// Who the gate let in (for the recordings they may see).
     pub(crate) identity: Option<Identity>,
     /// The Host's log, live (for Foxglove's watchers).
-    pub(crate) log: tokio::sync::broadcast::Sender<(crate::record::Level, String)>,
+    pub(crate) log: tokio::sync::broadcast::Sender<(vl_record::Level, String)>,
     /// ns since 1970 at the lab's clock's zero.
     pub(crate) since_ns: u64,
 }
@@ -550,7 +551,7 @@ impl Connection {
     }
 
     /// Who this client is to the recordings, and whether they see all.
-    fn owner(&self) -> Option<(crate::record::Catalogue, crate::record::Owner, bool)> {
+    fn owner(&self) -> Option<(vl_record::Catalogue, vl_record::Owner, bool)> {
         let catalogue = self.config.recordings.clone()?;
         let identity = self.identity.as_ref()?;
         let admin = matches!(

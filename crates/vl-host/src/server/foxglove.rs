@@ -25,7 +25,7 @@ use super::hub::{ToConnection, ToHub};
 use super::socket::{self, Sink, Socket};
 use crate::accounts::gate::{Credentials, Gate};
 use crate::lab::Watching;
-use crate::record::{Level, Topic, View, Views, now_ns};
+use vl_record::{Level, Topic, View, Views, now_ns};
 
 /// The protocol's two names: Foxglove's SDK and foxglove_bridge 3.x ask
 /// for the first only, older clients and Lichtblick before 2026 for the

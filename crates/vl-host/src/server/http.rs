@@ -26,12 +26,12 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, ReadBuf};
 use tokio::sync::{mpsc, oneshot};
 use vl_core::{ErrorCode, Role};
 
-use super::Io;
 use super::foxglove::Subprotocol;
 use super::hub::ToHub;
 use super::web;
 use crate::accounts::gate::{Credentials, Gate, Identity};
 use crate::accounts::users::AccountRole;
+use vl_core::Io;
 
 /// The most a request head may be: a WebSocket upgrade is a few hundred bytes.
 const MAX_HEAD: usize = 8 << 10;

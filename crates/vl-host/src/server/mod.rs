@@ -85,7 +85,7 @@ pub struct HostConfig {
     /// What a navigation definition's forecast must show for a run to start.
     pub forecast: ForecastSettings,
     /// Where every run is recorded; none: nowhere.
-    pub recordings: Option<crate::record::Catalogue>,
+    pub recordings: Option<vl_record::Catalogue>,
 }
 
 impl HostConfig {
@@ -124,11 +124,6 @@ impl Default for HostConfig {
         }
     }
 }
-
-/// A connection's byte stream: plain TCP, or TLS over it.
-pub trait Io: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send {}
-
-impl<T: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send> Io for T {}
 
 /// Messages waiting for the hub, from every connection together.
 const HUB_QUEUE: usize = 256;
@@ -172,8 +167,8 @@ struct Outlets {
     feedback: tokio::sync::watch::Receiver<Option<vl_core::HostMessage>>,
     frames: tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
     watchers: Arc<std::sync::atomic::AtomicUsize>,
-    record: crate::record::Feed,
-    log: tokio::sync::broadcast::Sender<(crate::record::Level, String)>,
+    record: vl_record::Feed,
+    log: tokio::sync::broadcast::Sender<(vl_record::Level, String)>,
     since_ns: u64,
 }
 

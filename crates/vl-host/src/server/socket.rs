@@ -8,7 +8,7 @@ use futures_util::stream::SplitSink;
 use tokio_tungstenite::WebSocketStream;
 use tokio_tungstenite::tungstenite::{self, Message};
 
-use super::Io;
+use vl_core::Io;
 
 /// A client must take each message within this, or it is too slow to serve.
 const WRITE_TIMEOUT: Duration = Duration::from_secs(5);

@@ -12,8 +12,8 @@ use serde::Serialize;
 use vl_core::{Arena, GuestMessage, HostMessage, nearest_rank};
 
 use super::{BenchError, Socket, say, teleoperating, time_commands, until};
-use crate::record::Catalogue;
 use crate::{Host, HostConfig, SimLab};
+use vl_record::Catalogue;
 
 /// Rounds of commands on each Host, alternating: finely interleaved, the
 /// two see the same moments of the machine's load.

@@ -20,10 +20,10 @@ use super::HostConfig;
 use crate::accounts::audit::Entry;
 use crate::accounts::gate::Admitted;
 use crate::lab::{Finished, Lab};
-use crate::record::Level;
 use fields::Map;
 pub(crate) use forecasts::ForecastJob;
 pub use forecasts::{ForecastSettings, MOST_SEEDS as MOST_FORECAST_SEEDS};
+use vl_record::Level;
 use worker::Worker;
 
 mod access;

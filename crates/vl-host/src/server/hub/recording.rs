@@ -9,7 +9,7 @@ use vl_core::{
 
 use super::Hub;
 use crate::lab::Watching;
-use crate::record::{Begin, Entry, Level, Owner};
+use vl_record::{Begin, Entry, Level, Owner};
 
 /// The run being recorded, and the frames kept encoded for it while it
 /// lasts (as for a watcher: nobody watching, no frame is encoded).
@@ -30,7 +30,7 @@ impl Hub {
         let Some(catalogue) = &self.config.recordings else {
             return;
         };
-        let started_ms = crate::record::now_ms();
+        let started_ms = vl_record::now_ms();
         let user = self.user_of(id);
         let run = RecordedRun {
             name: RecordingName::of_run(started_ms, self.runs),
@@ -65,7 +65,7 @@ impl Hub {
         let Some(catalogue) = self.config.recordings.as_ref().filter(|c| c.record_idle) else {
             return;
         };
-        let started_ms = crate::record::now_ms();
+        let started_ms = vl_record::now_ms();
         let run = RecordedRun {
             name: RecordingName::between_runs(started_ms),
             run: 0,

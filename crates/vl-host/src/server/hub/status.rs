@@ -9,7 +9,7 @@ use vl_core::{DeviceState, EndReason, Experiment, HostStatus, Person, RunRecord}
 
 use super::Hub;
 use crate::accounts::audit::Entry;
-use crate::record::Level;
+use vl_record::Level;
 
 const DAY_S: u64 = 86_400;
 

@@ -23,21 +23,21 @@ mod reader;
 mod views;
 mod writer;
 
-pub(crate) use catalogue::now_ms;
+pub use catalogue::now_ms;
 pub use catalogue::{Catalogue, Owner, RecordSettings, Runs, data_dir};
 pub use export::{Exported, export};
-pub(crate) use foxglove::Level;
+pub use foxglove::Level;
 pub use reader::{
     Message, RecordError, Recording, RecordingInfo, Repaired, Replayed, TopicCount, repair,
 };
-pub(crate) use views::{View, Views};
-pub(crate) use writer::{Begin, Entry, Feed, now_ns, unix_ns_at};
+pub use views::{View, Views};
+pub use writer::{Begin, Entry, Feed, now_ns, unix_ns_at};
 
-pub(crate) use foxglove::Schema;
+pub use foxglove::Schema;
 
 /// Each channel of a recording: one home for its topic and schema.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub(crate) enum Topic {
+pub enum Topic {
     /// The protocol's messages, by kind.
     Lab,
     Definition,
@@ -63,7 +63,7 @@ pub(crate) enum Topic {
 }
 
 impl Topic {
-    pub(crate) fn name(self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
             Topic::Lab => "/lab",
             Topic::Definition => "/definition",
@@ -87,7 +87,7 @@ impl Topic {
 
     /// The protocol's message kinds a replay feeds back, in the order a
     /// run's messages come.
-    pub(crate) const REPLAYED: [Topic; 7] = [
+    pub const REPLAYED: [Topic; 7] = [
         Topic::Lab,
         Topic::Definition,
         Topic::Forecast,
@@ -97,7 +97,7 @@ impl Topic {
         Topic::Summary,
     ];
 
-    pub(crate) fn schema(self) -> Schema {
+    pub fn schema(self) -> Schema {
         let plain = |name: &'static str, what: &str| Schema {
             name,
             body: serde_json::json!({
@@ -130,7 +130,7 @@ impl Topic {
     }
 
     /// The topic a message of the protocol is kept on, if it is kept.
-    pub(crate) fn of(message: &vl_core::HostMessage) -> Option<Topic> {
+    pub fn of(message: &vl_core::HostMessage) -> Option<Topic> {
         use vl_core::HostMessage as M;
         Some(match message {
             M::Mounted(_) => Topic::Lab,

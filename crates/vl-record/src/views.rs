@@ -10,7 +10,7 @@ use super::Topic;
 use super::foxglove::{self, Level};
 
 /// One message on one channel.
-pub(crate) struct View {
+pub struct View {
     pub topic: Topic,
     /// When it happened, ns since 1970 (a feedback's reading, a frame's
     /// capture), else when it was sent.
@@ -28,7 +28,7 @@ impl View {
     }
 
     /// A line of the Host's log.
-    pub(crate) fn log(ns: u64, level: Level, text: &str) -> View {
+    pub fn log(ns: u64, level: Level, text: &str) -> View {
         View::json(Topic::Log, ns, &foxglove::log_message(ns, level, text))
     }
 }
@@ -36,7 +36,7 @@ impl View {
 /// What the views need to remember between messages: the lab (for the
 /// camera's pixels and the scene), the definition (its path) and the
 /// robot's last pose (drawn over the next frame).
-pub(crate) struct Views {
+pub struct Views {
     lab: Option<MountedLab>,
     definition: Definition,
     pose: Option<Pose>,
@@ -46,7 +46,7 @@ pub(crate) struct Views {
 }
 
 impl Views {
-    pub(crate) fn new(since_ns: u64, lab: Option<MountedLab>, definition: Definition) -> Views {
+    pub fn new(since_ns: u64, lab: Option<MountedLab>, definition: Definition) -> Views {
         Views {
             lab,
             definition,
@@ -56,7 +56,7 @@ impl Views {
     }
 
     /// The arena, its obstacles, the path and the robot's body as a scene.
-    pub(crate) fn scene(&self, ns: u64) -> Option<View> {
+    pub fn scene(&self, ns: u64) -> Option<View> {
         let lab = self.lab.as_ref()?;
         let scene = foxglove::scene(ns, &lab.arena, &self.definition, &lab.robot);
         Some(View::json(Topic::Scene, ns, &scene))
@@ -64,7 +64,7 @@ impl Views {
 
     /// `message`, sent at `ns`, on its topic, and Foxglove's views of it;
     /// nothing for a message no channel keeps.
-    pub(crate) fn sent(&mut self, ns: u64, message: &HostMessage) -> Vec<View> {
+    pub fn sent(&mut self, ns: u64, message: &HostMessage) -> Vec<View> {
         let Some(topic) = Topic::of(message) else {
             return Vec::new();
         };
@@ -107,7 +107,7 @@ impl Views {
 
     /// A camera frame as sent (header and JPEG): the image, and the path
     /// and the robot drawn over it.
-    pub(crate) fn frame(&self, wire: &[u8]) -> Vec<View> {
+    pub fn frame(&self, wire: &[u8]) -> Vec<View> {
         let Ok((header, jpeg)) = FrameHeader::decode(wire) else {
             return Vec::new();
         };

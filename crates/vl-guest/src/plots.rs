@@ -10,19 +10,25 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use vl_core::Point;
 
-use super::ExperimentError;
+/// Why a picture could not be drawn (or written).
+#[derive(Debug, thiserror::Error)]
+#[error("cannot draw {what}: {why}")]
+pub struct PlotError {
+    pub what: String,
+    pub why: String,
+}
 
-type Result<T> = std::result::Result<T, ExperimentError>;
+type Result<T> = std::result::Result<T, PlotError>;
 
 const SIZE: (u32, u32) = (800, 480);
 const FONT: &str = "sans-serif";
 
 /// Series colours: the first for event-based runs, the second for time-based.
-pub(crate) const EVENT: RGBColor = RGBColor(0x1f, 0x77, 0xb4);
-pub(crate) const TIME: RGBColor = RGBColor(0xd6, 0x27, 0x28);
+pub const EVENT: RGBColor = RGBColor(0x1f, 0x77, 0xb4);
+pub const TIME: RGBColor = RGBColor(0xd6, 0x27, 0x28);
 const PLANNED: RGBColor = RGBColor(0x99, 0x99, 0x99);
 /// A third series where there is one.
-pub(crate) const THIRD: RGBColor = RGBColor(0x2c, 0xa0, 0x2c);
+pub const THIRD: RGBColor = RGBColor(0x2c, 0xa0, 0x2c);
 
 fn font() {
     static REGISTER: Once = Once::new();
@@ -60,15 +66,15 @@ fn both(dir: &Path, name: &str, picture: &impl Picture) -> Result<PathBuf> {
     Ok(PathBuf::from(format!("{name}.png")))
 }
 
-fn err(e: impl std::fmt::Display) -> ExperimentError {
-    ExperimentError::Draw {
+fn err(e: impl std::fmt::Display) -> PlotError {
+    PlotError {
         what: "a plot".into(),
         why: e.to_string(),
     }
 }
 
-fn draw_error(file: &Path, e: impl std::fmt::Display) -> ExperimentError {
-    ExperimentError::Draw {
+fn draw_error(file: &Path, e: impl std::fmt::Display) -> PlotError {
+    PlotError {
         what: file.display().to_string(),
         why: e.to_string(),
     }
@@ -117,12 +123,7 @@ fn legend<'a, DB: DrawingBackend + 'a>(
 }
 
 /// A histogram of each leg's one-way delays, ms.
-pub(super) fn delays(
-    dir: &Path,
-    name: &str,
-    title: &str,
-    legs: &[(&str, &[f64])],
-) -> Result<PathBuf> {
+pub fn delays(dir: &Path, name: &str, title: &str, legs: &[(&str, &[f64])]) -> Result<PathBuf> {
     let all: Vec<f64> = legs.iter().flat_map(|(_, v)| v.iter().copied()).collect();
     let mut sorted = all.clone();
     sorted.sort_by(f64::total_cmp);
@@ -207,10 +208,10 @@ pub(super) fn delays(
 }
 
 /// A labelled, coloured series of (x, y) points.
-pub(crate) type Series = (String, RGBColor, Vec<(f64, f64)>);
+pub type Series = (String, RGBColor, Vec<(f64, f64)>);
 
 /// Lines of (x, y) points, one per labelled series.
-pub(crate) fn lines(
+pub fn lines(
     dir: &Path,
     name: &str,
     title: &str,
@@ -278,7 +279,7 @@ pub(crate) fn lines(
 }
 
 /// The planned path and the paths the robot truly took, on the arena's floor.
-pub(crate) fn paths(
+pub fn paths(
     dir: &Path,
     name: &str,
     title: &str,

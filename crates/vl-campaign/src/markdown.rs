@@ -10,7 +10,7 @@ use vl_core::{Arena, Experiment};
 
 use super::Pacing;
 use super::matrix::{Cell, Matrix, draw};
-use super::{ExperimentError, Leg, Run};
+use super::{CampaignError, Leg, Run};
 
 fn ms(v: Option<Leg>) -> [String; 4] {
     match v {
@@ -21,12 +21,14 @@ fn ms(v: Option<Leg>) -> [String; 4] {
 
 /// Writes report.md, report.json and the pictures into `dir`, drawing
 /// the paths over `arena`.
-pub fn write_report(dir: &Path, m: &Matrix, arena: &Arena) -> Result<(), ExperimentError> {
+pub fn write_report(dir: &Path, m: &Matrix, arena: &Arena) -> Result<(), CampaignError> {
     let pictures = draw(dir, m, arena)?;
     write(dir, m, &pictures)?;
-    let json = serde_json::to_string_pretty(m).map_err(|e| ExperimentError::Draw {
-        what: "report.json".into(),
-        why: e.to_string(),
+    let json = serde_json::to_string_pretty(m).map_err(|e| {
+        CampaignError::Draw(vl_guest::plots::PlotError {
+            what: "report.json".into(),
+            why: e.to_string(),
+        })
     })?;
     super::write(&dir.join("report.json"), json)
 }
@@ -84,7 +86,7 @@ pub fn headline(cells: &[Cell]) -> Table {
 }
 
 /// Writes report.md into `dir`, with the pictures named.
-fn write(dir: &Path, m: &Matrix, pictures: &[(String, PathBuf)]) -> Result<(), ExperimentError> {
+fn write(dir: &Path, m: &Matrix, pictures: &[(String, PathBuf)]) -> Result<(), CampaignError> {
     let mut md = String::new();
     let _ = writeln!(
         md,

@@ -12,9 +12,9 @@ use vl_core::{Arena, Experiment};
 use vl_host::{Delays, FramePolicy};
 use vl_sim::{LinkModel, Optics};
 
-use super::plots::{self, EVENT, TIME};
-use super::{ExperimentError, Leg, Pacing, Run, RunSpec, overall, run_one};
-use crate::session::Spread;
+use super::{CampaignError, Leg, Pacing, Run, RunSpec, overall, run_one};
+use vl_guest::Spread;
+use vl_guest::plots::{self, EVENT, TIME};
 
 /// One cell of the matrix, over its seeds.
 #[derive(Serialize, Clone)]
@@ -247,7 +247,7 @@ pub async fn run_all(
     specs: Vec<RunSpec>,
     jobs: usize,
     mut finished: impl FnMut(usize, &Run),
-) -> Result<Vec<Run>, ExperimentError> {
+) -> Result<Vec<Run>, CampaignError> {
     let total = specs.len();
     let slots = Arc::new(tokio::sync::Semaphore::new(jobs.max(1)));
     let mut tasks = tokio::task::JoinSet::new();
@@ -261,7 +261,7 @@ pub async fn run_all(
     let mut runs: Vec<Option<Run>> = vec![None; total];
     let mut done = 0;
     while let Some(joined) = tasks.join_next().await {
-        let (i, run) = joined.map_err(ExperimentError::Panicked)?;
+        let (i, run) = joined.map_err(CampaignError::Panicked)?;
         let run = run?;
         done += 1;
         finished(done, &run);
@@ -275,7 +275,7 @@ pub(super) fn draw(
     dir: &Path,
     m: &Matrix,
     arena: &Arena,
-) -> Result<Vec<(String, PathBuf)>, ExperimentError> {
+) -> Result<Vec<(String, PathBuf)>, CampaignError> {
     let mut out = Vec::new();
     // Tracking and prediction against the round trip, event against time.
     let by_delay = |pacing: Pacing, pick: fn(&Cell) -> Option<f64>| -> Vec<(f64, f64)> {
@@ -340,7 +340,7 @@ fn profile_pictures(
     m: &Matrix,
     t: &Timing,
     arena: &Arena,
-) -> Result<Vec<(String, PathBuf)>, ExperimentError> {
+) -> Result<Vec<(String, PathBuf)>, CampaignError> {
     let mut out = Vec::new();
     let teleop = |pacing: Pacing| m.teleop(&t.profile, pacing);
     let runs: Vec<&Run> = m
@@ -433,8 +433,8 @@ fn profile_pictures(
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
-    use crate::headless::RoundTripMs;
     use vl_core::{ErrorMm, PoseSource};
+    use vl_guest::RoundTripMs;
 
     /// A run on `profile` that reached its goal or not, with a tracking
     /// error of mean `track` (max twice that) and a round trip of `rtt` ms.

@@ -9,8 +9,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError, SyncSender, TrySendError};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use bytes::Bytes;
 use mcap::records::{MessageHeader, Metadata};
-use tokio_tungstenite::tungstenite::Bytes;
 use tracing::warn;
 use vl_core::{
     Definition, GuestMessage, HostMessage, MountedLab, Named, Pose, RecordedRun, RecordingName,
@@ -33,7 +33,7 @@ const FRAMES_QUEUED: usize = QUEUE / 2;
 const FLUSH_EVERY: Duration = Duration::from_millis(500);
 
 /// What begins a run's file.
-pub(crate) struct Begin {
+pub struct Begin {
     pub run: RecordedRun,
     pub owner: Owner,
     pub lab: MountedLab,
@@ -43,7 +43,7 @@ pub(crate) struct Begin {
 }
 
 /// What the recorder is handed.
-pub(crate) enum Entry {
+pub enum Entry {
     Begin(Box<Begin>),
     /// A message the Host sent its clients.
     Sent(HostMessage),
@@ -74,7 +74,7 @@ pub(crate) struct Shared {
 
 /// A handle on the recorder; none when the Host records nothing.
 #[derive(Clone, Default)]
-pub(crate) struct Feed(Option<Arc<Shared>>);
+pub struct Feed(Option<Arc<Shared>>);
 
 impl Shared {
     pub(crate) fn active(&self) -> bool {
@@ -93,11 +93,11 @@ impl Shared {
 }
 
 /// ns since 1970 at `instant` (in the past).
-pub(crate) fn unix_ns_at(instant: Instant) -> u64 {
+pub fn unix_ns_at(instant: Instant) -> u64 {
     now_ns().saturating_sub(instant.elapsed().as_nanos() as u64)
 }
 
-pub(crate) fn now_ns() -> u64 {
+pub fn now_ns() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos() as u64)
@@ -106,7 +106,13 @@ pub(crate) fn now_ns() -> u64 {
 impl Feed {
     /// Starts the recorder, writing into `catalogue`'s folder; `since` is
     /// the lab's clock's zero, which frames' capture times count from.
-    pub(crate) fn spawn(catalogue: Catalogue, since: Instant) -> Feed {
+    /// `first` runs on the recorder's thread before anything else (the Host
+    /// lowers the thread's priority there: it gives way to the control loop).
+    pub fn spawn(
+        catalogue: Catalogue,
+        since: Instant,
+        first: impl FnOnce() + Send + 'static,
+    ) -> Feed {
         let (queue, entries) = mpsc::sync_channel(QUEUE);
         let shared = Arc::new(Shared {
             queue,
@@ -123,25 +129,28 @@ impl Feed {
         };
         std::thread::Builder::new()
             .name("vl-recorder".into())
-            .spawn(move || recorder.run())
+            .spawn(move || {
+                first();
+                recorder.run();
+            })
             .expect("the OS starts a thread");
         Feed(Some(shared))
     }
 
     /// Whether a run is being recorded.
-    pub(crate) fn active(&self) -> bool {
+    pub fn active(&self) -> bool {
         self.0.as_ref().is_some_and(|s| s.active())
     }
 
     /// Hands `entry` over, while a run is recorded.
-    pub(crate) fn send(&self, entry: Entry) {
+    pub fn send(&self, entry: Entry) {
         if let Some(shared) = self.0.as_ref().filter(|_| self.active()) {
             shared.put(entry);
         }
     }
 
     /// A run begins: its file opens, and from now on the loops hand over.
-    pub(crate) fn begin(&self, begin: Begin) -> Option<RecordingName> {
+    pub fn begin(&self, begin: Begin) -> Option<RecordingName> {
         let shared = self.0.as_ref()?;
         let name = begin.run.name.clone();
         shared.dropped_frames.store(0, Ordering::Relaxed);
@@ -151,7 +160,7 @@ impl Feed {
     }
 
     /// The run's `done` was handed over: its file closes.
-    pub(crate) fn end(&self) {
+    pub fn end(&self) {
         if let Some(shared) = &self.0 {
             shared.put(Entry::End);
             shared.active.store(false, Ordering::Relaxed);
@@ -159,7 +168,7 @@ impl Feed {
     }
 
     /// A camera frame, unless the queue is half full: frames go first.
-    pub(crate) fn frame(&self, wire: &Bytes) {
+    pub fn frame(&self, wire: &Bytes) {
         let Some(shared) = self.0.as_ref().filter(|_| self.active()) else {
             return;
         };
@@ -171,7 +180,7 @@ impl Feed {
     }
 
     /// Frames dropped since the run began.
-    pub(crate) fn dropped_frames(&self) -> u64 {
+    pub fn dropped_frames(&self) -> u64 {
         self.0
             .as_ref()
             .map_or(0, |s| s.dropped_frames.load(Ordering::Relaxed))
@@ -187,7 +196,6 @@ struct Recorder {
 
 impl Recorder {
     fn run(mut self) {
-        crate::priority::yield_to_control(RECORDER_NICE, "recorder");
         loop {
             match self.entries.recv_timeout(FLUSH_EVERY) {
                 Ok((ns, entry)) => {
@@ -249,10 +257,6 @@ impl Recorder {
         self.catalogue.writing(None);
     }
 }
-
-/// The recorder gives way to the control loop and the network side as
-/// the camera's encoder does.
-const RECORDER_NICE: i32 = 10;
 
 /// A run's file while it is written.
 struct RunFile {

@@ -17,7 +17,7 @@ pub(crate) const CAMERA_FRAME: &str = "camera";
 const MM: f64 = 1e-3;
 
 /// A Foxglove schema: its name, which the panels recognise, and its JSON Schema.
-pub(crate) struct Schema {
+pub struct Schema {
     pub name: &'static str,
     pub body: Value,
 }
@@ -229,7 +229,7 @@ pub(crate) fn transform(ns: u64, pose: Pose) -> Value {
 
 /// Foxglove's log levels: 1 debug … 5 fatal.
 #[derive(Debug, Clone, Copy)]
-pub(crate) enum Level {
+pub enum Level {
     Info = 2,
     Warning = 3,
 }

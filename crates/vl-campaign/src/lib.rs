@@ -1,15 +1,16 @@
-//! The lab's experiments run headless and measured (thesis ch. 7). Each run
+//! Campaigns: the lab's experiments run headless and measured, many runs
+//! at a time (thesis ch. 7; `vl experiment run` and `matrix`). Each run
 //! is a simulated Host on loopback, optionally behind the Media (a relay
 //! with a modelled Internet link), and the scripted Guest against it over
 //! real sockets: mount, map from the camera, plan, define, then the Host
 //! follows the path (navigation) or a scripted operator steers along it
 //! from the delayed feedback (teleoperation). The matrix (`matrix`) runs
 //! every link profile × pacing × seeds and writes the report (`markdown`,
-//! `plots`).
+//! drawn by `vl_guest::plots`). It needs both ends of the lab, so it is a
+//! crate above the Guest and the Host, which know nothing of each other.
 
 mod markdown;
 mod matrix;
-pub(crate) mod plots;
 mod runs;
 
 use std::path::{Path, PathBuf};
@@ -21,15 +22,15 @@ use vl_host::{Delays, FramePolicy, Host, HostConfig, Media, MediaConfig, SimCame
 use vl_report::table::count;
 use vl_sim::{LinkModel, Optics, Scheduled};
 
-use crate::headless::{Report, RoundTripMs, Script, ScriptError, run_script};
-use crate::session::{Pacing, Spread};
 pub use markdown::{headline, write_report};
 pub use matrix::{Cell, Matrix, Timing, cells_of, run_all};
 pub use runs::Runs;
+use vl_guest::plots;
+use vl_guest::{Pacing, Report, RoundTripMs, Script, ScriptError, Spread, run_script};
 
 /// Why an experiment could not be run or reported.
 #[derive(Debug, thiserror::Error)]
-pub enum ExperimentError {
+pub enum CampaignError {
     #[error("cannot start the simulated Host")]
     Host(#[source] vl_host::HostError),
     #[error("cannot start the Media")]
@@ -49,13 +50,13 @@ pub enum ExperimentError {
         #[source]
         source: std::io::Error,
     },
-    #[error("cannot draw {what}: {why}")]
-    Draw { what: String, why: String },
+    #[error(transparent)]
+    Draw(#[from] vl_guest::plots::PlotError),
 }
 
 /// Writes `contents` to `path`, saying which file could not be written.
-fn write(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), ExperimentError> {
-    std::fs::write(path, contents).map_err(|source| ExperimentError::Write {
+fn write(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), CampaignError> {
+    std::fs::write(path, contents).map_err(|source| CampaignError::Write {
         path: path.to_owned(),
         source,
     })
@@ -176,7 +177,7 @@ pub struct RunSpec {
 
 /// Runs one experiment: a simulated Host, the Media in front of it when a
 /// link is given, and the scripted Guest through it.
-pub async fn run_one(spec: &RunSpec) -> Result<Run, ExperimentError> {
+pub async fn run_one(spec: &RunSpec) -> Result<Run, CampaignError> {
     let lab = SimLab {
         seed: spec.seed,
         camera: Some(SimCamera {
@@ -193,7 +194,7 @@ pub async fn run_one(spec: &RunSpec) -> Result<Run, ExperimentError> {
     };
     let host = Host::start_sim(([127, 0, 0, 1], 0).into(), lab, config)
         .await
-        .map_err(ExperimentError::Host)?;
+        .map_err(CampaignError::Host)?;
     let media = match &spec.link {
         Some((_, model)) => Some(
             Media::start(
@@ -205,7 +206,7 @@ pub async fn run_one(spec: &RunSpec) -> Result<Run, ExperimentError> {
                 },
             )
             .await
-            .map_err(ExperimentError::Media)?,
+            .map_err(CampaignError::Media)?,
         ),
         None => None,
     };
@@ -219,7 +220,7 @@ pub async fn run_one(spec: &RunSpec) -> Result<Run, ExperimentError> {
     };
     let report = run_script(&url, &script)
         .await
-        .map_err(|source| ExperimentError::Run {
+        .map_err(|source| CampaignError::Run {
             arena: spec.arena.name.clone(),
             seed: spec.seed,
             source,
@@ -301,16 +302,16 @@ pub fn picture(
     arena: &Arena,
     seed: u64,
     report: Option<&Report>,
-) -> Result<PathBuf, ExperimentError> {
+) -> Result<PathBuf, CampaignError> {
     let file = dir.join(format!("{}-seed{seed}.svg", arena.name));
     let Some((report, path)) = report.and_then(|r| r.path.as_ref().map(|p| (r, p))) else {
         return Ok(file);
     };
     let svg = run_svg(arena, ARENA_CELL_MM, &report.planned, path).map_err(|e| {
-        ExperimentError::Draw {
+        CampaignError::Draw(plots::PlotError {
             what: format!("arena {}", arena.name),
             why: e.to_string(),
-        }
+        })
     })?;
     write(&file, svg)?;
     Ok(file)

@@ -10,7 +10,7 @@ use std::path::Path;
 use vl_core::Arena;
 use vl_sim::Optics;
 
-use super::{ExperimentError, Run, RunSpec, line, overall, picture, run_one, spread};
+use super::{CampaignError, Run, RunSpec, line, overall, picture, run_one, spread};
 
 /// A series of runs of one experiment and what they add up to.
 #[derive(Serialize)]
@@ -114,7 +114,7 @@ impl Runs {
         runs: u64,
         svg: Option<&Path>,
         progress: bool,
-    ) -> Result<Runs, ExperimentError> {
+    ) -> Result<Runs, CampaignError> {
         let total = arenas.len() as u64 * runs;
         let mut done = Vec::new();
         for arena in arenas {
@@ -156,9 +156,9 @@ impl Runs {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::experiment::matrix::tests::run;
-    use crate::session::Pacing;
+    use crate::matrix::tests::run;
     use vl_core::Experiment;
+    use vl_guest::Pacing;
 
     #[test]
     fn one_failed_run_fails_the_series_and_its_errors_count() {

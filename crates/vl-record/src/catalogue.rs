@@ -16,25 +16,19 @@ use super::RecordError;
 /// The most runs a Guest is sent in one list.
 const MOST_LISTED: usize = 100;
 
-/// Where and how long the Host keeps its runs (`vl host` flags).
-#[derive(Debug, Clone, Default, PartialEq, clap::Args)]
+/// Where and how long the Host keeps its runs.
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct RecordSettings {
-    /// Where every run is recorded, as MCAP files Foxglove opens (default:
-    /// vl/recordings in the user's data directory).
-    #[arg(long, value_hint = clap::ValueHint::DirPath)]
+    /// Where every run is recorded (default: vl/recordings in the user's
+    /// data directory).
     pub recordings: Option<PathBuf>,
     /// Record nothing.
-    #[arg(long, conflicts_with = "recordings")]
     pub no_record: bool,
     /// Delete recordings older than this many days, oldest first.
-    #[arg(long, value_parser = positive)]
     pub keep_days: Option<f64>,
     /// Keep at most this many GB of recordings, deleting the oldest first.
-    #[arg(long, value_parser = positive)]
     pub keep_gb: Option<f64>,
-    /// Record the time between runs too (files idle-*.mcap, for
-    /// administrators), not only the runs.
-    #[arg(long)]
+    /// Record the time between runs too, not only the runs.
     pub record_idle: bool,
 }
 
@@ -49,18 +43,11 @@ pub fn data_dir() -> Option<PathBuf> {
 }
 
 /// Milliseconds since 1970.
-pub(crate) fn now_ms() -> u64 {
+pub fn now_ms() -> u64 {
     SystemTime::now()
         .duration_since(SystemTime::UNIX_EPOCH)
         .unwrap_or(Duration::ZERO)
         .as_millis() as u64
-}
-
-fn positive(text: &str) -> Result<f64, String> {
-    match text.parse::<f64>() {
-        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
-        _ => Err(format!("\"{text}\" is not a positive number")),
-    }
 }
 
 impl RecordSettings {
@@ -140,7 +127,7 @@ pub struct Catalogue {
     /// The file being written now, which cannot be downloaded yet.
     writing: Arc<Mutex<Option<RecordingName>>>,
     /// Whether the time between runs is recorded too.
-    pub(crate) record_idle: bool,
+    pub record_idle: bool,
 }
 
 impl Catalogue {
@@ -158,7 +145,7 @@ impl Catalogue {
     }
 
     /// Who someone on connection `connection` is, with the account `user`.
-    pub(crate) fn owner(&self, user: Option<&str>, connection: u64) -> Owner {
+    pub fn owner(&self, user: Option<&str>, connection: u64) -> Owner {
         Owner {
             user: user.map(str::to_owned),
             connection: format!("{}-{connection}", self.opened_ms),
@@ -181,11 +168,11 @@ impl Catalogue {
     }
 
     /// Says which file is being written (none: no file).
-    pub(crate) fn writing(&self, name: Option<&RecordingName>) {
+    pub fn writing(&self, name: Option<&RecordingName>) {
         *self.writing.lock().unwrap_or_else(|e| e.into_inner()) = name.cloned();
     }
 
-    pub(crate) fn path(&self, name: &RecordingName) -> PathBuf {
+    pub fn path(&self, name: &RecordingName) -> PathBuf {
         self.dir.join(name.as_str())
     }
 
@@ -193,7 +180,7 @@ impl Catalogue {
         self.dir.join(format!("{}.json", name.as_str()))
     }
 
-    pub(crate) fn write_entry(&self, run: &RecordedRun, owner: &Owner) -> Result<(), RecordError> {
+    pub fn write_entry(&self, run: &RecordedRun, owner: &Owner) -> Result<(), RecordError> {
         let path = self.entry_path(&run.name);
         let entry = Entry {
             run: run.clone(),
@@ -286,7 +273,7 @@ impl Catalogue {
     }
 
     /// Deletes the oldest runs past the retention limits, never `running`.
-    pub(crate) fn retain(&self, running: &RecordingName) {
+    pub fn retain(&self, running: &RecordingName) {
         if self.keep_days.is_none() && self.keep_gb.is_none() {
             return;
         }
