@@ -63,7 +63,7 @@ pub(crate) struct CalibrateArgs {
     #[arg(long, default_value_t = 640)]
     width: u32,
     #[command(flatten)]
-    optics: vl_host::OpticsSettings,
+    optics: crate::options::OpticsArgs,
     /// Seed of the simulated camera's noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,

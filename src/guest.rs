@@ -93,8 +93,13 @@ pub(crate) struct RunArgs {
     /// After a headless run, download its recording into this folder.
     #[arg(long, value_hint = clap::ValueHint::DirPath)]
     download_to: Option<std::path::PathBuf>,
-    #[command(flatten)]
-    task: vl_guest::TaskArgs,
+    /// Run the task saved under this name (its experiment and definition)
+    /// instead of planning one.
+    #[arg(long)]
+    task: Option<vl_guest::TaskName>,
+    /// Save this run's definition as a task of this name.
+    #[arg(long)]
+    save_task: Option<vl_guest::TaskName>,
 }
 
 /// A Guest error: an address that cannot be a Host's is the user's input.
@@ -200,7 +205,10 @@ fn script(run: &RunArgs, login: Login, progress: bool) -> Script {
         timeout: Duration::from_secs_f64(run.timeout.clamp(0.0, 1e6)),
         progress,
         download_to: run.download_to.clone(),
-        task: run.task.clone(),
+        task: vl_guest::TaskChoice {
+            task: run.task.clone(),
+            save_task: run.save_task.clone(),
+        },
         ..Script::default()
     }
 }

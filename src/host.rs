@@ -25,6 +25,32 @@ enum RobotDriver {
 }
 
 /// `vl host`: serve the lab, or measure how it answers.
+/// `vl host bench-watchers`'s flags.
+#[derive(clap::Args)]
+pub(crate) struct WatchersArgs {
+    /// Clients watching in the watched rounds.
+    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(1..=240))]
+    watchers: u64,
+    /// Commands timed in each round.
+    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    commands: u64,
+    /// Rounds of each kind, alternating.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=100))]
+    rounds: u64,
+    #[arg(long)]
+    json: bool,
+}
+
+impl WatchersArgs {
+    fn bench(&self) -> vl_host::WatchersBench {
+        vl_host::WatchersBench {
+            watchers: self.watchers,
+            commands: self.commands,
+            rounds: self.rounds,
+        }
+    }
+}
+
 #[derive(clap::Args)]
 #[command(args_conflicts_with_subcommands = true, args_override_self = true)]
 pub(crate) struct HostCommand {
@@ -50,7 +76,7 @@ enum HostTool {
     },
     /// What a class watching costs the Host: its operator's command →
     /// feedback and its processor, with and without watchers.
-    BenchWatchers(vl_host::WatchersBench),
+    BenchWatchers(WatchersArgs),
     /// Ask a running Host how it is: devices, operator, line, runs today
     /// (an administrator's login at a lab with accounts).
     Status {
@@ -78,7 +104,7 @@ pub(crate) async fn host_command(command: HostCommand) -> Result<()> {
         }
         Some(HostTool::BenchWatchers(bench)) => {
             let vl = std::env::current_exe().context("cannot find the vl binary")?;
-            let cost = bench.run(&vl).await.context("the watchers bench failed")?;
+            let cost = (bench.bench().run(&vl).await).context("the watchers bench failed")?;
             emit(&cost, bench.json)
         }
         Some(HostTool::Status { url, login, json }) => {
@@ -133,18 +159,18 @@ pub(crate) struct HostArgs {
     listen: SocketAddr,
     /// An operator who sends no command this long (seconds, or 90s, 10m)
     /// during a run loses the run and the role.
-    #[arg(long, default_value = "30", value_parser = vl_core::span)]
+    #[arg(long, default_value = "30", value_parser = crate::duration)]
     lease: Duration,
     /// How long an operator drives while others wait in line (90s, 10m, 1h).
-    #[arg(long, value_parser = vl_core::span)]
+    #[arg(long, value_parser = crate::duration)]
     slot: Option<Duration>,
     /// A client the Host hears nothing from this long (no answer to its
     /// pings) is disconnected.
-    #[arg(long, default_value = "10", value_parser = vl_core::span)]
+    #[arg(long, default_value = "10", value_parser = crate::duration)]
     ping_timeout: Duration,
     /// An operator whose link drops keeps the role and the run this long
     /// (the robot held still) to reconnect; 0 frees them at once.
-    #[arg(long, default_value = "10", value_parser = vl_core::span_or_none)]
+    #[arg(long, default_value = "10", value_parser = crate::duration_or_none)]
     grace: Duration,
     /// Leave the robot where a run ends, instead of driving it back to the
     /// lab's start pose (where nothing may move unattended).
@@ -176,9 +202,9 @@ pub(crate) struct HostArgs {
     #[arg(long, value_hint = ValueHint::FilePath)]
     camera_calibration: Option<std::path::PathBuf>,
     #[command(flatten)]
-    optics: vl_host::OpticsSettings,
+    optics: crate::options::OpticsArgs,
     #[command(flatten)]
-    frames: vl_host::FrameSettings,
+    frames: crate::options::FrameArgs,
     #[command(flatten)]
     scene: SceneArgs,
     #[command(flatten)]
@@ -186,7 +212,7 @@ pub(crate) struct HostArgs {
     #[command(flatten)]
     access: AccessArgs,
     #[command(flatten)]
-    forecast: vl_host::ForecastSettings,
+    forecast: crate::options::ForecastArgs,
     #[command(flatten)]
     recordings: crate::record::KeepArgs,
 }
@@ -206,7 +232,7 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         nets: args.nets.clone(),
         reset: !args.no_reset,
         compensate_latency: !args.no_latency_compensation,
-        forecast: args.forecast,
+        forecast: args.forecast.settings(),
         recordings: (args.recordings.settings().catalogue()).map_err(bad_input)?,
         ..HostConfig::default()
     };

@@ -6,12 +6,15 @@
 mod access;
 mod camera;
 mod experiment;
+mod flag_file;
 mod guest;
 mod host;
 mod input;
 mod khepera;
 mod media;
+mod named;
 mod nets;
+mod options;
 mod petri;
 mod plan;
 mod record;
@@ -97,15 +100,16 @@ pub(crate) fn bad_input(e: impl std::fmt::Display) -> BadInput {
     BadInput(e.to_string())
 }
 
-pub(crate) use vl_core::named_parser as named;
+pub(crate) use named::named_parser as named;
+pub(crate) use vl_core::{duration, duration_or_none};
 
 fn main() -> ExitCode {
     // `vl host --config lab.toml`: the file's flags, then the command line's.
-    let cli = match vl_core::with_flag_file(std::env::args_os().collect(), &Cli::command(), "host")
-    {
-        Ok(args) => Cli::parse_from(args),
-        Err(e) => return report(&BadInput(e.to_string()).into()),
-    };
+    let cli =
+        match flag_file::with_flag_file(std::env::args_os().collect(), &Cli::command(), "host") {
+            Ok(args) => Cli::parse_from(args),
+            Err(e) => return report(&BadInput(e.to_string()).into()),
+        };
     // Tools end quietly, as Unix filters, when a reader such as `head` closes the pipe;
     // servers outlive clients whose sockets close (TLS writes with writev).
     if !matches!(

@@ -50,7 +50,7 @@ pub(crate) enum SimCommand {
         #[command(flatten)]
         robot: RobotArgs,
         #[command(flatten)]
-        optics: vl_host::OpticsSettings,
+        optics: crate::options::OpticsArgs,
         /// Seed of the camera noise.
         #[arg(long, default_value_t = 1)]
         seed: u64,

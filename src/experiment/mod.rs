@@ -54,13 +54,13 @@ pub(crate) struct RunArgs {
     #[arg(long, visible_alias = "control", value_parser = named::<Pacing>(), default_value = "event")]
     pacing: Pacing,
     #[command(flatten)]
-    optics: vl_host::OpticsSettings,
+    optics: crate::options::OpticsArgs,
     /// Fold camera sightings in when they arrive, not when their frames
     /// were taken: to measure what latency compensation is worth.
     #[arg(long)]
     no_latency_compensation: bool,
     #[command(flatten)]
-    frames: vl_host::FrameSettings,
+    frames: crate::options::FrameArgs,
     #[command(flatten)]
     scene: SceneArgs,
     /// Write a picture of each run (planned, estimated and true paths) here.

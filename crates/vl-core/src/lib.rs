@@ -95,13 +95,9 @@
 
 mod contract;
 mod design;
-#[cfg(feature = "clap")]
-mod flag_file;
 mod images;
 mod model;
 mod named;
-#[cfg(feature = "clap")]
-mod named_cli;
 mod navigation;
 mod safety;
 mod syntax;
@@ -133,8 +129,6 @@ pub use contract::transport::Io;
 pub use design::{
     DesignError, Designed, Interleaving, LabDesign, LabRow, NetsReport, Rule, Verdict, design,
 };
-#[cfg(feature = "clap")]
-pub use flag_file::{FlagFileError, with_flag_file};
 pub use images::{ImageError, MAX_IMAGE_SIDE, decode_image, load_image};
 pub use model::arena::{
     Arena, ArenaError, Hit, MapImageError, Material, Obstacle, Shape, ShapeError,
@@ -153,8 +147,6 @@ pub use model::robot::{
     RobotModel, RobotModelError, SensorMount, SpeedResponse, WheelSpeeds, wrap_angle,
 };
 pub use named::{Named, UnknownName};
-#[cfg(feature = "clap")]
-pub use named_cli::{NamedParser, named_parser};
 pub use navigation::analysis::{
     ErrorMm, PathAnalysis, PathRecorder, PoseSource, distance_to_polyline, nearest_rank,
 };
@@ -172,7 +164,7 @@ pub use navigation::plan::{
 pub use navigation::report::{GridInfo, PlanReport};
 pub use navigation::svg::{plan_svg, run_svg};
 pub use safety::{Guarded, Safety, Situation, Surroundings, Told};
-pub use syntax::{ImageSize, SyntaxError, listen_address, span, span_or_none};
+pub use syntax::{ImageSize, SyntaxError, duration, duration_or_none, listen_address};
 pub use teleop::{Assisted, Joystick, MapField, Teleop, Vector, predict};
 pub use vision::{
     Centroid, Component, Connectivity, DotTarget, Look, Mask, RobotPose, Scene, TargetError,

@@ -64,7 +64,7 @@ pub fn listen_address(text: &str) -> Result<SocketAddr, SyntaxError> {
 
 /// A length of time as people write it: seconds (`90`, `90s`, `1.5`),
 /// minutes (`10m`) or hours (`1h`); more than nothing and at most a day.
-pub fn span(text: &str) -> Result<Duration, SyntaxError> {
+pub fn duration(text: &str) -> Result<Duration, SyntaxError> {
     let refused = || SyntaxError::Range {
         got: text.to_owned(),
         what: "a time from 0 to a day, as 90, 90s, 10m or 1h".into(),
@@ -83,11 +83,11 @@ pub fn span(text: &str) -> Result<Duration, SyntaxError> {
     Ok(Duration::from_secs_f64(seconds))
 }
 
-/// A [`span`], or `0` for none at all.
-pub fn span_or_none(text: &str) -> Result<Duration, SyntaxError> {
+/// A [`duration`], or `0` for none at all.
+pub fn duration_or_none(text: &str) -> Result<Duration, SyntaxError> {
     match text.trim().parse::<f64>() {
         Ok(0.0) => Ok(Duration::ZERO),
-        _ => span(text),
+        _ => duration(text),
     }
 }
 
@@ -131,13 +131,13 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_span_is_seconds_minutes_or_hours_up_to_a_day() {
-        assert_eq!(span("90"), Ok(Duration::from_secs(90)));
-        assert_eq!(span("1.5s"), Ok(Duration::from_millis(1500)));
-        assert_eq!(span("10m"), Ok(Duration::from_secs(600)));
-        assert_eq!(span(" 1h "), Ok(Duration::from_secs(3600)));
+    fn a_duration_is_seconds_minutes_or_hours_up_to_a_day() {
+        assert_eq!(duration("90"), Ok(Duration::from_secs(90)));
+        assert_eq!(duration("1.5s"), Ok(Duration::from_millis(1500)));
+        assert_eq!(duration("10m"), Ok(Duration::from_secs(600)));
+        assert_eq!(duration(" 1h "), Ok(Duration::from_secs(3600)));
         for bad in ["0", "-5m", "25h", "NaNs", "m", "ten minutes", "1e400"] {
-            let e = span(bad).unwrap_err().to_string();
+            let e = duration(bad).unwrap_err().to_string();
             assert!(e.contains("a time from 0 to a day"), "{bad}: {e}");
         }
     }

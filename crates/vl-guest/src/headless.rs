@@ -21,7 +21,7 @@ use crate::route::Route;
 pub use crate::session::RoundTripMs;
 use crate::session::{Pacing, Session, Spread};
 use crate::settings::Settings;
-use crate::tasks::TaskArgs;
+use crate::tasks::TaskChoice;
 
 /// What the scripted session does.
 #[derive(Debug, Clone)]
@@ -42,7 +42,7 @@ pub struct Script {
     /// Download the run's recording into this folder once it ends.
     pub download_to: Option<std::path::PathBuf>,
     /// A saved task to run, and a name to save the run's definition as.
-    pub task: TaskArgs,
+    pub task: TaskChoice,
     /// The definition to run as it is (a task's), instead of planning one.
     pub definition: Option<Definition>,
 }
@@ -58,7 +58,7 @@ impl Default for Script {
             pacing: Pacing::Event,
             connect_within: Duration::from_secs(10),
             download_to: None,
-            task: TaskArgs::default(),
+            task: TaskChoice::default(),
             definition: None,
         }
     }

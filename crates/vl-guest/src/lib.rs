@@ -83,5 +83,5 @@ pub use session::{
 };
 pub use settings::{Settings, SettingsError};
 pub use status::{StatusError, host_status};
-pub use tasks::{Task, TaskArgs, TaskError, TaskName, Tasks};
+pub use tasks::{Task, TaskChoice, TaskError, TaskName, Tasks};
 pub use watch::{Watched, watch};

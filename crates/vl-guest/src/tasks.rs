@@ -126,20 +126,17 @@ impl Tasks {
     }
 }
 
-/// A task to run and a name to keep the run's definition under, as
-/// `vl guest` takes them.
-#[derive(Debug, Clone, Default, clap::Args)]
-pub struct TaskArgs {
+/// A task to run and a name to keep the run's definition under.
+#[derive(Debug, Clone, Default)]
+pub struct TaskChoice {
     /// Run the task saved under this name (its experiment and definition)
     /// instead of planning one.
-    #[arg(long)]
     pub task: Option<TaskName>,
     /// Save this run's definition as a task of this name.
-    #[arg(long)]
     pub save_task: Option<TaskName>,
 }
 
-impl TaskArgs {
+impl TaskChoice {
     /// The task to run, if one is named.
     pub(crate) fn to_run(&self) -> Result<Option<Task>, TaskError> {
         self.task

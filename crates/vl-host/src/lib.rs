@@ -102,7 +102,7 @@ pub use accounts::{SecretError, secret_from_file};
 pub use characterise::{CharacteriseError, characterise};
 pub use drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness};
 pub use khepera::KheperaSerial;
-pub use lab::{Devices, FramePolicy, FrameSettings};
+pub use lab::{Devices, FramePolicy};
 pub use line::run_guard;
 pub use media::{
     Delays, Media, MediaBench, MediaBenchError, MediaConfig, MediaError, Reproduced, RoundTrip,
@@ -115,7 +115,6 @@ pub use server::bench::{
 };
 pub use server::{ForecastSettings, HostConfig, MOST_FORECAST_SEEDS};
 pub use setup::{LabSpec, RobotSpec, SetupError};
-pub use sim::OpticsSettings;
 pub use source::CameraSource;
 pub use tls::{Tls, TlsError};
 #[cfg(target_os = "linux")]

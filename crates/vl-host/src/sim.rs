@@ -17,79 +17,9 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
 use vl_core::{Arena, CameraModel, Leash, Pose, RobotModel, WheelSpeeds};
-use vl_sim::{Optics, OpticsPreset, Renderer, Scheduled, SimError, World};
+use vl_sim::{Optics, Renderer, Scheduled, SimError, World};
 
 use crate::drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness};
-
-/// The simulated camera's optics, as `vl host`, `vl sim` and `vl camera`
-/// take them from flags.
-#[derive(Debug, Clone, clap::Args)]
-pub struct OpticsSettings {
-    /// Optics to start from: none (an ideal camera looking straight
-    /// down), noisy (a cheap webcam: offset, blur, noise, uneven light) or
-    /// realistic (noisy, a wide lens, 80 ms late, motion blur, 5 % lost).
-    #[arg(long, value_parser = vl_core::named_parser::<OpticsPreset>(), default_value = "none")]
-    optics: OpticsPreset,
-    /// Image shift in px, as DX,DY (lens off the sensor's axis).
-    #[arg(long, allow_hyphen_values = true)]
-    lens_offset: Option<vl_core::Point>,
-    /// Gaussian blur, standard deviation in px.
-    #[arg(long)]
-    blur: Option<f64>,
-    /// Per-pixel noise, standard deviation in grey levels.
-    #[arg(long)]
-    noise: Option<f64>,
-    /// How much darker the bottom-right corner is (0–1).
-    #[arg(long)]
-    lighting: Option<f64>,
-    /// How far the camera leans from looking straight down, degrees.
-    #[arg(long, allow_hyphen_values = true)]
-    tilt_deg: Option<f64>,
-    /// The lens's radial distortion, as K1,K2 (radii in image widths;
-    /// barrel distortion has K1 < 0).
-    #[arg(long, allow_hyphen_values = true)]
-    lens: Option<vl_core::Point>,
-    /// From a frame's exposure to its arrival, ms.
-    #[arg(long)]
-    delay_ms: Option<f64>,
-    /// How long the shutter is open, ms (a moving robot smears).
-    #[arg(long)]
-    exposure_ms: Option<f64>,
-    /// The share of frames lost (0–0.5).
-    #[arg(long)]
-    drop_rate: Option<f64>,
-    /// The share of frames with the robot's marker partly hidden (0–0.5).
-    #[arg(long)]
-    occlusion_rate: Option<f64>,
-}
-
-impl OpticsSettings {
-    /// The simulator's optics these flags ask for, checked.
-    pub fn optics(&self, seed: u64) -> Result<Optics, vl_sim::OpticsError> {
-        let mut optics = self.optics.optics(seed);
-        if let Some(k) = self.lens {
-            optics.distortion = vl_core::Distortion {
-                k1: k.x_mm,
-                k2: k.y_mm,
-            };
-        }
-        optics.delay_s = self.delay_ms.map_or(optics.delay_s, |ms| ms / 1e3);
-        optics.exposure_s = self.exposure_ms.map_or(optics.exposure_s, |ms| ms / 1e3);
-        optics.drop_rate = self.drop_rate.unwrap_or(optics.drop_rate);
-        optics.occlusion_rate = self.occlusion_rate.unwrap_or(optics.occlusion_rate);
-        if let Some(p) = self.lens_offset {
-            optics.lens_offset_px = [p.x_mm, p.y_mm];
-        }
-        optics.blur_px = self.blur.unwrap_or(optics.blur_px);
-        optics.noise = self.noise.unwrap_or(optics.noise);
-        optics.lighting_gradient = self.lighting.unwrap_or(optics.lighting_gradient);
-        if let Some(deg) = self.tilt_deg {
-            optics.tilt_rad = deg.to_radians();
-        }
-        optics.check()?;
-        Ok(optics)
-    }
-}
 
 /// The longest stretch of simulated time one read catches up, s: three
 /// control periods.

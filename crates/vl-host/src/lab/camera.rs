@@ -122,37 +122,6 @@ fn map_from(
     })
 }
 
-/// Which camera frames the Host sends (thesis appendix G), as `vl host`
-/// and `vl experiment` take it from flags.
-#[derive(Debug, Clone, clap::Args)]
-pub struct FrameSettings {
-    #[arg(long, value_enum, default_value = "every-frame")]
-    frames: Frames,
-    /// With --frames on-change: the longest time between two frames (5, 5s, 1m).
-    #[arg(long, default_value = "5", value_parser = vl_core::span)]
-    frame_interval: Duration,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum Frames {
-    /// Every frame the camera takes: live video.
-    EveryFrame,
-    /// Only when the scene changes beyond the robot, when a Guest asks, and
-    /// at least every --frame-interval; Guests draw the robot from its pose.
-    OnChange,
-}
-
-impl FrameSettings {
-    pub fn policy(&self) -> FramePolicy {
-        match self.frames {
-            Frames::EveryFrame => FramePolicy::EveryFrame,
-            Frames::OnChange => FramePolicy::OnChange {
-                max_interval: self.frame_interval,
-            },
-        }
-    }
-}
-
 pub(crate) struct CameraLoop {
     pub camera: Box<dyn Camera>,
     pub frames: watch::Sender<Option<Bytes>>,

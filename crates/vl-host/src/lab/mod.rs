@@ -25,9 +25,9 @@ use vl_core::{
 };
 
 use crate::drivers::{Camera, Robot, Witness};
+pub use camera::FramePolicy;
 pub(crate) use camera::Watching;
 use camera::{CameraLoop, SIGHTINGS, first_look};
-pub use camera::{FramePolicy, FrameSettings};
 pub(crate) use control::map_field;
 use control::{Control, Wiring};
 use vl_record::{Catalogue, Feed};

@@ -22,19 +22,15 @@ use super::{BenchError, Socket, observe, observer, say, teleoperating, time_comm
 /// watching against `--watchers` clients reading everything as the web
 /// page does, in alternating rounds; the Host's processor time; the
 /// frames each watcher got.
-#[derive(Debug, Clone, clap::Args)]
+#[derive(Debug, Clone)]
 pub struct WatchersBench {
-    /// Clients watching in the watched rounds.
-    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(1..=240))]
+    /// Clients watching in the watched rounds (at most 240, what a Host
+    /// accepts beside its operator).
     pub watchers: u64,
     /// Commands timed in each round.
-    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     pub commands: u64,
     /// Rounds of each kind, alternating.
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=100))]
     pub rounds: u64,
-    #[arg(long)]
-    pub json: bool,
 }
 
 impl WatchersBench {

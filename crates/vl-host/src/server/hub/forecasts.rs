@@ -27,27 +27,16 @@ const FORECAST_NICE: i32 = 10;
 pub const MOST_SEEDS: u32 = 8;
 
 /// What a lab asks of a navigation definition's forecast before a run
-/// may start, besides reaching the goal without contact (`vl host` flags,
-/// or keys of its lab file).
-#[derive(Debug, Clone, Copy, PartialEq, clap::Args)]
+/// may start, besides reaching the goal without contact.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ForecastSettings {
     /// The least room, mm, the forecast robot may come to anything.
-    #[arg(long = "min-clearance", value_name = "MM", default_value_t = 0.0, value_parser = clearance, allow_hyphen_values = true)]
     pub min_clearance_mm: f64,
-    /// The longest a run may be forecast to take (90s, 10m).
-    #[arg(long, value_parser = vl_core::span)]
+    /// The longest a run may be forecast to take.
     pub max_run: Option<Duration>,
-    /// How many seeds of sensor and wheel noise each forecast tries.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=i64::from(MOST_SEEDS)))]
+    /// How many seeds of sensor and wheel noise each forecast tries
+    /// (at most [`MOST_SEEDS`]).
     pub forecast_seeds: u32,
-}
-
-/// A clearance in mm: a finite number from 0 to a metre.
-fn clearance(text: &str) -> Result<f64, String> {
-    text.parse::<f64>()
-        .ok()
-        .filter(|mm| (0.0..=1000.0).contains(mm))
-        .ok_or_else(|| format!("{text:?} is not a clearance from 0 to 1000 mm"))
 }
 
 impl ForecastSettings {

@@ -1,19 +1,19 @@
 //! `Named` values on a command line: clap's parser for them, which lists
 //! the ids in `--help` and, for an id that names nothing, the ids that do
-//! and what an old id is called now. Built with the `clap` feature.
+//! and what an old id is called now.
 
 use std::marker::PhantomData;
 
 use clap::builder::{PossibleValue, TypedValueParser};
 
-use crate::Named;
+use vl_core::Named;
 
 /// Parses a [`Named`] value by its id, listing the ids in `--help` and in
 /// the error for one that names nothing.
 #[derive(Clone)]
-pub struct NamedParser<T>(PhantomData<T>);
+pub(crate) struct NamedParser<T>(PhantomData<T>);
 
-pub fn named_parser<T: Named + Send + Sync + Clone>() -> NamedParser<T> {
+pub(crate) fn named_parser<T: Named + Send + Sync + Clone>() -> NamedParser<T> {
     NamedParser(PhantomData)
 }
 

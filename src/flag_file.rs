@@ -3,8 +3,7 @@
 //! the command line are one set of options, with one home for each
 //! option's meaning, default and check (the command's clap definition).
 //! The file's flags go in first; flags given on the command line come
-//! after them and win. Paths are read from the file's folder. Built with
-//! the `clap` feature.
+//! after them and win. Paths are read from the file's folder.
 
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
@@ -17,7 +16,7 @@ const FLAG: &str = "--config";
 
 /// A flag file that cannot be used, and why.
 #[derive(Debug, Error, PartialEq, Eq)]
-pub enum FlagFileError {
+pub(crate) enum FlagFileError {
     #[error("--config needs a file")]
     Missing,
     #[error("cannot read {path}: {why}")]
@@ -41,7 +40,7 @@ pub enum FlagFileError {
 /// `args` (a whole command line) with the flags of the file given to
 /// `subcommand` by `--config FILE` put in right after it; `args` as they
 /// are without one.
-pub fn with_flag_file(
+pub(crate) fn with_flag_file(
     args: Vec<OsString>,
     cli: &clap::Command,
     subcommand: &str,

@@ -1,0 +1,143 @@
+//! The libraries' typed options as the flags several commands share: the
+//! simulated camera's optics, which frames the Host sends, what a forecast
+//! must show. Each turns into the library's own type here, and only here.
+
+use std::time::Duration;
+
+use vl_host::{ForecastSettings, FramePolicy, MOST_FORECAST_SEEDS};
+use vl_sim::{Optics, OpticsPreset};
+
+/// The simulated camera's optics, as `vl host`, `vl sim`, `vl camera`
+/// and `vl experiment` take them.
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct OpticsArgs {
+    /// Optics to start from: none (an ideal camera looking straight
+    /// down), noisy (a cheap webcam: offset, blur, noise, uneven light) or
+    /// realistic (noisy, a wide lens, 80 ms late, motion blur, 5 % lost).
+    #[arg(long, value_parser = crate::named::<OpticsPreset>(), default_value = "none")]
+    optics: OpticsPreset,
+    /// Image shift in px, as DX,DY (lens off the sensor's axis).
+    #[arg(long, allow_hyphen_values = true)]
+    lens_offset: Option<vl_core::Point>,
+    /// Gaussian blur, standard deviation in px.
+    #[arg(long)]
+    blur: Option<f64>,
+    /// Per-pixel noise, standard deviation in grey levels.
+    #[arg(long)]
+    noise: Option<f64>,
+    /// How much darker the bottom-right corner is (0–1).
+    #[arg(long)]
+    lighting: Option<f64>,
+    /// How far the camera leans from looking straight down, degrees.
+    #[arg(long, allow_hyphen_values = true)]
+    tilt_deg: Option<f64>,
+    /// The lens's radial distortion, as K1,K2 (radii in image widths;
+    /// barrel distortion has K1 < 0).
+    #[arg(long, allow_hyphen_values = true)]
+    lens: Option<vl_core::Point>,
+    /// From a frame's exposure to its arrival, ms.
+    #[arg(long)]
+    delay_ms: Option<f64>,
+    /// How long the shutter is open, ms (a moving robot smears).
+    #[arg(long)]
+    exposure_ms: Option<f64>,
+    /// The share of frames lost (0–0.5).
+    #[arg(long)]
+    drop_rate: Option<f64>,
+    /// The share of frames with the robot's marker partly hidden (0–0.5).
+    #[arg(long)]
+    occlusion_rate: Option<f64>,
+}
+
+impl OpticsArgs {
+    /// The simulator's optics these flags ask for, checked.
+    pub(crate) fn optics(&self, seed: u64) -> Result<Optics, vl_sim::OpticsError> {
+        let mut optics = self.optics.optics(seed);
+        if let Some(k) = self.lens {
+            optics.distortion = vl_core::Distortion {
+                k1: k.x_mm,
+                k2: k.y_mm,
+            };
+        }
+        optics.delay_s = self.delay_ms.map_or(optics.delay_s, |ms| ms / 1e3);
+        optics.exposure_s = self.exposure_ms.map_or(optics.exposure_s, |ms| ms / 1e3);
+        optics.drop_rate = self.drop_rate.unwrap_or(optics.drop_rate);
+        optics.occlusion_rate = self.occlusion_rate.unwrap_or(optics.occlusion_rate);
+        if let Some(p) = self.lens_offset {
+            optics.lens_offset_px = [p.x_mm, p.y_mm];
+        }
+        optics.blur_px = self.blur.unwrap_or(optics.blur_px);
+        optics.noise = self.noise.unwrap_or(optics.noise);
+        optics.lighting_gradient = self.lighting.unwrap_or(optics.lighting_gradient);
+        if let Some(deg) = self.tilt_deg {
+            optics.tilt_rad = deg.to_radians();
+        }
+        optics.check()?;
+        Ok(optics)
+    }
+}
+
+/// Which camera frames the Host sends (thesis appendix G), as `vl host`
+/// and `vl experiment` take it from flags.
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct FrameArgs {
+    #[arg(long, value_enum, default_value = "every-frame")]
+    frames: Frames,
+    /// With --frames on-change: the longest time between two frames (5, 5s, 1m).
+    #[arg(long, default_value = "5", value_parser = crate::duration)]
+    frame_interval: Duration,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Frames {
+    /// Every frame the camera takes: live video.
+    EveryFrame,
+    /// Only when the scene changes beyond the robot, when a Guest asks, and
+    /// at least every --frame-interval; Guests draw the robot from its pose.
+    OnChange,
+}
+
+impl FrameArgs {
+    pub(crate) fn policy(&self) -> FramePolicy {
+        match self.frames {
+            Frames::EveryFrame => FramePolicy::EveryFrame,
+            Frames::OnChange => FramePolicy::OnChange {
+                max_interval: self.frame_interval,
+            },
+        }
+    }
+}
+
+/// What a lab asks of a navigation definition's forecast before a run
+/// may start, besides reaching the goal without contact (`vl host` flags,
+/// or keys of its lab file).
+#[derive(Debug, Clone, Copy, PartialEq, clap::Args)]
+pub(crate) struct ForecastArgs {
+    /// The least room, mm, the forecast robot may come to anything.
+    #[arg(long = "min-clearance", value_name = "MM", default_value_t = 0.0, value_parser = clearance, allow_hyphen_values = true)]
+    min_clearance_mm: f64,
+    /// The longest a run may be forecast to take (90s, 10m).
+    #[arg(long, value_parser = crate::duration)]
+    max_run: Option<Duration>,
+    /// How many seeds of sensor and wheel noise each forecast tries.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=i64::from(MOST_FORECAST_SEEDS)))]
+    forecast_seeds: u32,
+}
+
+/// A clearance in mm: a finite number from 0 to a metre.
+fn clearance(text: &str) -> Result<f64, String> {
+    text.parse::<f64>()
+        .ok()
+        .filter(|mm| (0.0..=1000.0).contains(mm))
+        .ok_or_else(|| format!("{text:?} is not a clearance from 0 to 1000 mm"))
+}
+
+impl ForecastArgs {
+    pub(crate) fn settings(&self) -> ForecastSettings {
+        ForecastSettings {
+            min_clearance_mm: self.min_clearance_mm,
+            max_run: self.max_run,
+            forecast_seeds: self.forecast_seeds,
+        }
+    }
+}
