@@ -5,7 +5,7 @@
 #
 #   VERIFYPN=/path/to/verifypn-linux64 bench/petri_vs_verifypn.sh [MODEL ...]
 #
-# MODEL is a large model of tests/petri-corpus (default: all six). verifypn
+# MODEL is a large model of assets/petri-corpus (default: all six). verifypn
 # is not part of vl: build 3.1.1 outside the repository (see its README) and
 # put it on PATH or in $VERIFYPN. `verifypn -e` explores the state space only;
 # `vl petri states` does the same (and checks its count against verifypn's);
@@ -14,7 +14,7 @@
 set -euo pipefail
 
 here=$(cd "$(dirname "$0")/.." && pwd)
-corpus="$here/tests/petri-corpus"
+corpus="$here/assets/petri-corpus"
 runs=${RUNS:-3}
 verifypn=${VERIFYPN:-$(command -v verifypn-linux64 || command -v verifypn || true)}
 if [[ -z "$verifypn" || ! -x "$verifypn" ]]; then

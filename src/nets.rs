@@ -1,6 +1,6 @@
 //! `vl lab nets`: the labs' statecharts through the thesis's pipeline to
-//! the controlled nets the Host runs, written (or checked) under
-//! `docs/nets/<lab>/`.
+//! the controlled nets the Host runs, written (or checked) beside each
+//! lab's charts, `crates/vl-core/nets/<lab>/`, where the Host builds them in.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -17,8 +17,9 @@ pub(crate) enum LabCommand {
     /// Statecharts → nets → composition → controllers → analysis, per lab:
     /// PNML, DOT (SVG when Graphviz is installed) and a report.
     Nets {
-        /// Where each lab's folder is written.
-        #[arg(long, default_value = "docs/nets")]
+        /// Where each lab's folder is written (in a clone of vl: beside the
+        /// charts, which is where the Host's built-in nets come from).
+        #[arg(long, default_value = "crates/vl-core/nets")]
         out: PathBuf,
         /// The charts' folder (laid out as crates/vl-core/nets/); the
         /// shipped charts when not given.

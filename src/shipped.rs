@@ -1,6 +1,7 @@
 //! Inputs that ship inside the binary, so that README's commands run from
-//! any directory: the example statecharts and nets, and the Model Checking
-//! Contest manifest with the large models `vl petri bench` times.
+//! any directory: the example statecharts and nets (`examples/`), and the
+//! Model Checking Contest manifest with the large models `vl petri bench`
+//! times (`assets/petri-corpus/`, which the tests read too).
 
 use std::path::Path;
 
@@ -38,21 +39,21 @@ const EXAMPLES: &[Shipped] = shipped![
 ];
 
 /// The corpus's manifest: every model with its certified answers.
-pub(crate) const CORPUS_MANIFEST: &str = include_str!("../tests/petri-corpus/manifest.csv");
+pub(crate) const CORPUS_MANIFEST: &str = include_str!("../assets/petri-corpus/manifest.csv");
 
 /// The large models, by their path in the corpus.
 const LARGE_MODELS: &[Shipped] = shipped![
-    "tests/petri-corpus/core/Railroad-PT-010/model.pnml",
-    "tests/petri-corpus/core/Kanban-PT-00005/model.pnml",
-    "tests/petri-corpus/core/FMS-PT-00005/model.pnml",
-    "tests/petri-corpus/core/Peterson-PT-3/model.pnml",
-    "tests/petri-corpus/core/SwimmingPool-PT-02/model.pnml",
-    "tests/petri-corpus/extra/DoubleExponent-PT-003/model.pnml",
+    "assets/petri-corpus/core/Railroad-PT-010/model.pnml",
+    "assets/petri-corpus/core/Kanban-PT-00005/model.pnml",
+    "assets/petri-corpus/core/FMS-PT-00005/model.pnml",
+    "assets/petri-corpus/core/Peterson-PT-3/model.pnml",
+    "assets/petri-corpus/core/SwimmingPool-PT-02/model.pnml",
+    "assets/petri-corpus/extra/DoubleExponent-PT-003/model.pnml",
 ];
 
 /// A built-in corpus model by its path relative to the corpus directory.
 pub(crate) fn corpus_model(pnml: &str) -> Option<&'static str> {
-    let path = format!("tests/petri-corpus/{pnml}");
+    let path = format!("assets/petri-corpus/{pnml}");
     LARGE_MODELS.iter().find(|m| m.path == path).map(|m| m.text)
 }
 

@@ -24,18 +24,24 @@ fn repo() -> &'static Path {
 }
 
 fn controlled(lab: &str) -> Net {
-    let path = repo().join("docs/nets").join(lab).join("controlled.pnml");
+    let path = repo()
+        .join("crates/vl-core/nets")
+        .join(lab)
+        .join("controlled.pnml");
     from_pnml(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
 fn uncontrolled(lab: &str) -> Net {
-    let path = repo().join("docs/nets").join(lab).join("uncontrolled.pnml");
+    let path = repo()
+        .join("crates/vl-core/nets")
+        .join(lab)
+        .join("uncontrolled.pnml");
     from_pnml(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
 #[test]
 fn the_checked_in_nets_are_what_the_pipeline_makes() {
-    let out = repo().join("docs/nets");
+    let out = repo().join("crates/vl-core/nets");
     let run = common::vl(&["lab", "nets", "--check", "--out", common::s(&out)]);
     let text = common::stdout(&run);
     assert!(run.status.success(), "{text}{}", common::stderr(&run));
@@ -117,7 +123,10 @@ fn reaching(edges: &[Vec<(usize, usize)>], goal: &dyn Fn(usize) -> bool) -> Hash
 fn the_controlled_nets_are_bounded_safe_live_reversible_and_deadlock_free() {
     for lab in LABS {
         // By `vl petri analyze` on the checked-in file…
-        let file = repo().join("docs/nets").join(lab).join("controlled.pnml");
+        let file = repo()
+            .join("crates/vl-core/nets")
+            .join(lab)
+            .join("controlled.pnml");
         let a = common::vl_json(&["petri", "analyze", common::s(&file), "--json"]);
         for property in ["bounded", "safe", "live", "reversible"] {
             assert_eq!(a[property], true, "{lab}: {property}: {a}");
@@ -169,8 +178,13 @@ fn without_controllers_runs_start_too_early_and_definitions_change_mid_run() {
             assert!(reaches(&free, place, event), "{lab}: {event} at {place}");
             assert!(!reaches(&held, place, event), "{lab}: {event} at {place}");
         }
-        let report =
-            std::fs::read_to_string(repo().join("docs/nets").join(lab).join("report.md")).unwrap();
+        let report = std::fs::read_to_string(
+            repo()
+                .join("crates/vl-core/nets")
+                .join(lab)
+                .join("report.md"),
+        )
+        .unwrap();
         assert!(report.contains("`start` → `define`"), "{lab}: {report}");
         assert!(!report.contains("still broken"), "{lab}: {report}");
     }

@@ -204,7 +204,7 @@ fn shipped_examples_are_found_by_name_anywhere() {
         assert!(made.status.success(), "{name}: {}", common::stderr(&made));
         assert_eq!(std::fs::read_to_string(&again).unwrap(), pnml, "{name}");
     }
-    let kanban = "tests/petri-corpus/core/Kanban-PT-00005/model.pnml";
+    let kanban = "assets/petri-corpus/core/Kanban-PT-00005/model.pnml";
     let states = run(&["petri", "dot", kanban]);
     assert!(states.status.success(), "{}", common::stderr(&states));
     let missing = run(&["petri", "analyze", "model.pnml"]);

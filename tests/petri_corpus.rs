@@ -1,5 +1,5 @@
 //! `vl petri analyze --json` and `vl petri states --json` against the Model Checking Contest's certified
-//! answers for every small and medium model in tests/petri-corpus.
+//! answers for every small and medium model in assets/petri-corpus.
 
 use std::path::Path;
 use std::process::Command;
@@ -8,7 +8,7 @@ use serde_json::Value;
 use vl_petri::{CorpusModel, Manifest};
 
 fn corpus() -> &'static Path {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/petri-corpus"))
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/petri-corpus"))
 }
 
 fn manifest() -> Manifest {

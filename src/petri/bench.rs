@@ -45,14 +45,14 @@ pub(super) fn bench_command(
     for model in models {
         if corpus.is_none() && corpus_model(model.pnml()).is_none() {
             return Err(BadInput(format!(
-                "{} is not built in (only the large tier is): give --corpus tests/petri-corpus",
+                "{} is not built in (only the large tier is): give --corpus assets/petri-corpus",
                 model.name()
             ))
             .into());
         }
         // A built-in model is read by its path in the repository.
         let path = corpus
-            .unwrap_or(Path::new("tests/petri-corpus"))
+            .unwrap_or(Path::new("assets/petri-corpus"))
             .join(model.pnml());
         let net = load(&path)?;
         if !json {

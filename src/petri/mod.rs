@@ -112,7 +112,7 @@ pub(crate) enum PetriCommand {
     /// recorded for TAPAAL's verifypn 3.1.1 (recorded, not measured here).
     Bench {
         /// A corpus directory (with manifest.csv); the large models are
-        /// built in, the small and medium ones are in tests/petri-corpus.
+        /// built in, the small and medium ones are in assets/petri-corpus.
         #[arg(long)]
         corpus: Option<PathBuf>,
         /// Which tier of models: small, medium or large.

@@ -19,7 +19,7 @@
 //!   messages and codec; camera frames on the wire (36-byte header); the
 //!   `Experiment`s a lab offers and the `Definition` a user gives, with its
 //!   validation; the session supervisor: the labs' controlled nets as `vl lab
-//!   nets` wrote them (`docs/nets/<lab>/controlled.pnml`, built in), whose
+//!   nets` wrote them (`crates/vl-core/nets/<lab>/controlled.pnml`, built in), whose
 //!   enabled transitions decide what may happen (mount, define, start, stop,
 //!   command, finish, release, and the lab's own cspace_built, path_planned,
 //!   field_built), telling a `NetState` (marking, enabled events, transitions

@@ -1,5 +1,5 @@
 //! Who drives, run as a net: the access design's controlled net (`vl lab
-//! nets` writes it to `docs/nets/access/`, built in), live beside the
+//! nets` writes it to `crates/vl-core/nets/access/`, built in), live beside the
 //! mounted lab's. Each person is a token in the access chart's places; the
 //! Host fires the chart's events as people ask, wait, drive and go, and an
 //! event the net does not enable does not happen — so a second operator,
@@ -14,11 +14,11 @@ use std::path::Path;
 use thiserror::Error;
 use vl_petri::{Marking, Net, TransitionId, from_pnml};
 
-/// The access design's folder, in `docs/nets/` and `vl lab nets --out`.
+/// The access design's folder, in `crates/vl-core/nets/` and `vl lab nets --out`.
 const FOLDER: &str = "access";
 
 /// The access design's controlled net, as `vl lab nets` wrote it.
-const SHIPPED: &str = include_str!("../../../../docs/nets/access/controlled.pnml");
+const SHIPPED: &str = include_str!("../../nets/access/controlled.pnml");
 
 /// People the live net has room for: the design is checked with a few,
 /// and its rules hold for any number; the Host lets in far fewer.

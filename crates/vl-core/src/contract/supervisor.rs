@@ -1,5 +1,5 @@
 //! The session supervisor: each lab's controlled net, as `vl lab nets`
-//! designs it from the lab's statecharts (`docs/nets/<lab>/controlled.pnml`,
+//! designs it from the lab's statecharts (`crates/vl-core/nets/<lab>/controlled.pnml`,
 //! built in), run live. An action is allowed exactly when a transition
 //! carrying its event is enabled in the mounted lab's net, so the Host and
 //! the Guest never reason about "which messages are valid now" in ad-hoc
@@ -149,11 +149,11 @@ struct LabNet {
 const SHIPPED: [(Experiment, &str); 2] = [
     (
         Experiment::Navigation,
-        include_str!("../../../../docs/nets/navigation/controlled.pnml"),
+        include_str!("../../nets/navigation/controlled.pnml"),
     ),
     (
         Experiment::Teleoperation,
-        include_str!("../../../../docs/nets/teleoperation/controlled.pnml"),
+        include_str!("../../nets/teleoperation/controlled.pnml"),
     ),
 ];
 
