@@ -260,7 +260,7 @@ fn check_pipe(dir: &Path, pipe: &str, output: &str) {
         .stderr(Stdio::piped())
         .spawn()
     else {
-        println!("  (no Graphviz here: checking the DOT text instead)");
+        common::missing("Graphviz's dot", ".ci/run installs Debian's graphviz");
         assert!(output.starts_with("digraph"), "not DOT: {output}");
         return;
     };

@@ -62,7 +62,6 @@ async fn plain_websocket_is_not_spoken_where_tls_is() {
 fn an_outside_client_is_welcomed_over_tls() {
     // CI installs Debian's python3-websockets.
     let Some(python) = common::python_with("websockets") else {
-        eprintln!("skipped: no Python with websockets here (.ci/run installs python3-websockets)");
         return;
     };
     let (_host, url) = tls_host();

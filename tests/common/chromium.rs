@@ -1,7 +1,8 @@
 //! Headless Chromium (Debian's `chromium`, which `.ci/run` installs),
 //! driven over the DevTools protocol as a person would use the page: real
 //! mouse clicks and key presses, screenshots, and every console error
-//! kept. Without Chromium the tests that need it say so and skip.
+//! kept. Without Chromium the tests that need it fail in CI
+//! (`VL_REQUIRE_EXTERNAL=1`) and elsewhere say so and skip.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -29,7 +30,7 @@ pub(crate) struct Browser {
 pub(crate) fn available() -> bool {
     let here = std::path::Path::new(CHROMIUM).exists();
     if !here {
-        eprintln!("skipped: no {CHROMIUM} here (.ci/run installs Debian's chromium)");
+        super::missing(CHROMIUM, ".ci/run installs Debian's chromium");
     }
     here
 }
