@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use vl_core::{Arena, Experiment, Role};
-use vl_guest::{Login, PadChoice, Report as RunReport, Script, ScriptError, WindowError};
+use vl_guest::{Login, PadChoice, Script, ScriptError, ScriptReport as RunReport, WindowError};
 use vl_host::{Host, HostConfig, Media, SimLab};
 
 use crate::access::LoginArgs;

@@ -139,7 +139,7 @@ pub(crate) fn khepera_emu(args: KheperaArgs) -> Result<ExitCode> {
     let name = model.name.clone();
     let arena = arena_from(&args.arena, args.start)?;
     let world = vl_sim::World::new(arena, model, args.seed).map_err(bad_input)?;
-    let line = vl_sim::Line {
+    let line = vl_sim::PortSettings {
         baud: args.baud,
         timing: !args.instant_line,
         log_commands: args.log_commands,

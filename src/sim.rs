@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Subcommand;
 use vl_core::Point;
-use vl_sim::{Driver, LinkReport, Optics, Profile, Script, World};
+use vl_sim::{Driver, LinkReport, Optics, Profile, WheelSchedule, World};
 
 use crate::input::{RobotArgs, load_arena, load_target, positive};
 use crate::report::emit;
@@ -167,8 +167,9 @@ fn sim_run(
     let mut driver = match script {
         Some(path) => {
             let text = read_input(path)?;
-            Driver::Script(
-                Script::parse(&text).map_err(|e| BadInput(format!("{}: {e}", path.display())))?,
+            Driver::WheelSchedule(
+                WheelSchedule::parse(&text)
+                    .map_err(|e| BadInput(format!("{}: {e}", path.display())))?,
             )
         }
         None => Driver::to_goal(&world, goal)

@@ -11,7 +11,7 @@ use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 
 use vl_core::{Arena, Point, Role};
-use vl_guest::{GuestApp, Link, Login, check_path, drag_path};
+use vl_guest::{GuestApp, LinkState, Login, check_path, drag_path};
 use vl_host::{Host, HostConfig, SimCamera, SimLab};
 
 /// The simulated camera paints the robot's body this colour.
@@ -226,7 +226,10 @@ fn an_unreachable_host_is_shown_and_tried_until_it_is_up() {
     let _entered = runtime.enter();
     let mut harness = window(&url);
     step_until(&mut harness, "try connecting again", |app| {
-        matches!(app.session().link, Link::Unreachable { attempt: 2.., .. })
+        matches!(
+            app.session().link,
+            LinkState::Unreachable { attempt: 2.., .. }
+        )
     });
     harness.get_by_label_contains(&format!("cannot connect to {url}: connection refused"));
     harness.get_by_label_contains("trying again (attempt");
@@ -276,7 +279,7 @@ fn a_host_started_again_is_seen_live_with_nothing_from_before() {
 
     drop(host);
     step_until(&mut harness, "notice the Host is gone", |app| {
-        matches!(app.session().link, Link::Reconnecting { .. })
+        matches!(app.session().link, LinkState::Reconnecting { .. })
     });
     let _host = start();
     step_until(&mut harness, "be welcomed by the new Host", |app| {

@@ -9,7 +9,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use vl_campaign::{RunSpec, Runs};
+use vl_campaign::{RunSeries, RunSpec};
 use vl_core::{Arena, Experiment};
 use vl_guest::Pacing;
 
@@ -115,7 +115,9 @@ pub(crate) fn run(
         progress: false,
     };
     let svg = args.svg.as_deref();
-    let report = runtime.block_on(Runs::run(&template, &arenas, args.runs, svg, !args.json))?;
+    let report = runtime.block_on(RunSeries::run(
+        &template, &arenas, args.runs, svg, !args.json,
+    ))?;
     emit(&report, args.json)?;
     Ok(if report.all_succeeded {
         ExitCode::SUCCESS

@@ -23,10 +23,10 @@ use vl_report::table::count;
 use vl_sim::{LinkModel, Optics, Scheduled};
 
 pub use markdown::{headline, write_report};
-pub use matrix::{Cell, Matrix, Timing, cells_of, run_all};
-pub use runs::Runs;
+pub use matrix::{Matrix, MatrixCell, Timing, cells_of, run_all};
+pub use runs::RunSeries;
 use vl_guest::plots;
-use vl_guest::{Pacing, Report, RoundTripMs, Script, ScriptError, Spread, run_script};
+use vl_guest::{MeanMax, Pacing, RoundTripMs, Script, ScriptError, ScriptReport, run_script};
 
 /// Why an experiment could not be run or reported.
 #[derive(Debug, thiserror::Error)]
@@ -104,7 +104,7 @@ pub struct Legs {
 
 /// One run, as `--json` gives it.
 #[derive(Serialize, Clone, Debug)]
-pub struct Run {
+pub struct MeasuredRun {
     pub experiment: Experiment,
     pub arena: String,
     pub seed: u64,
@@ -131,8 +131,8 @@ pub struct Run {
     pub forecast: Option<vl_core::Gap>,
     /// The predicted pose against the feedback that later arrived, and the
     /// last reported pose against it.
-    pub prediction_error_mm: Spread,
-    pub stale_error_mm: Spread,
+    pub prediction_error_mm: MeanMax,
+    pub stale_error_mm: MeanMax,
     pub round_trip_ms: RoundTripMs,
     pub delays: Option<Legs>,
     pub video_bytes: u64,
@@ -141,16 +141,16 @@ pub struct Run {
     pub svg: Option<PathBuf>,
     /// The planned and the true path, for the report's pictures.
     #[serde(skip)]
-    pub report: Option<Report>,
+    pub report: Option<ScriptReport>,
 }
 
-impl Run {
+impl MeasuredRun {
     pub fn succeeded(&self) -> bool {
         self.reached_goal && self.collisions == 0
     }
 }
 
-pub fn spread(s: Spread) -> String {
+pub fn spread(s: MeanMax) -> String {
     if s.count == 0 {
         "–".into()
     } else {
@@ -177,7 +177,7 @@ pub struct RunSpec {
 
 /// Runs one experiment: a simulated Host, the Media in front of it when a
 /// link is given, and the scripted Guest through it.
-pub async fn run_one(spec: &RunSpec) -> Result<Run, CampaignError> {
+pub async fn run_one(spec: &RunSpec) -> Result<MeasuredRun, CampaignError> {
     let lab = SimLab {
         seed: spec.seed,
         camera: Some(SimCamera {
@@ -235,7 +235,7 @@ pub async fn run_one(spec: &RunSpec) -> Result<Run, CampaignError> {
         }
     });
     let path = report.path.as_ref();
-    Ok(Run {
+    Ok(MeasuredRun {
         experiment: spec.experiment,
         arena: spec.arena.name.clone(),
         seed: spec.seed,
@@ -264,7 +264,7 @@ pub async fn run_one(spec: &RunSpec) -> Result<Run, CampaignError> {
 }
 
 /// A run's outcome in a line of progress.
-pub fn line(run: &Run) -> String {
+pub fn line(run: &MeasuredRun) -> String {
     let strayed = run.tracking_error_mm.map_or(String::new(), |e| {
         format!(
             ", {:.1} mm from the planned path on average, {:.1} at most",
@@ -286,7 +286,7 @@ pub fn line(run: &Run) -> String {
 }
 
 /// Over `runs`: the mean of their means, the largest max, the rms of rms.
-pub fn overall(runs: &[Run], pick: fn(&Run) -> Option<ErrorMm>) -> Option<ErrorMm> {
+pub fn overall(runs: &[MeasuredRun], pick: fn(&MeasuredRun) -> Option<ErrorMm>) -> Option<ErrorMm> {
     let all: Vec<ErrorMm> = runs.iter().filter_map(pick).collect();
     (!all.is_empty()).then(|| ErrorMm {
         mean: all.iter().map(|e| e.mean).sum::<f64>() / all.len() as f64,
@@ -301,7 +301,7 @@ pub fn picture(
     dir: &Path,
     arena: &Arena,
     seed: u64,
-    report: Option<&Report>,
+    report: Option<&ScriptReport>,
 ) -> Result<PathBuf, CampaignError> {
     let file = dir.join(format!("{}-seed{seed}.svg", arena.name));
     let Some((report, path)) = report.and_then(|r| r.path.as_ref().map(|p| (r, p))) else {

@@ -9,8 +9,8 @@ use vl_report::table::{Report, Table, yes};
 use vl_core::{Arena, Experiment};
 
 use super::Pacing;
-use super::matrix::{Cell, Matrix, draw};
-use super::{CampaignError, Leg, Run};
+use super::matrix::{Matrix, MatrixCell, draw};
+use super::{CampaignError, Leg, MeasuredRun};
 
 fn ms(v: Option<Leg>) -> [String; 4] {
     match v {
@@ -34,7 +34,7 @@ pub fn write_report(dir: &Path, m: &Matrix, arena: &Arena) -> Result<(), Campaig
 }
 
 /// The matrix's figures, a row per cell.
-pub fn headline(cells: &[Cell]) -> Table {
+pub fn headline(cells: &[MatrixCell]) -> Table {
     let mut table = Table::columns(&[
         "experiment",
         "profile",
@@ -180,11 +180,11 @@ fn timing(m: &Matrix) -> Table {
 
 /// The runs that failed, with why, if any did.
 fn failed_runs(md: &mut String, m: &Matrix) {
-    let failed: Vec<&Run> = m.runs.iter().filter(|r| !r.succeeded()).collect();
+    let failed: Vec<&MeasuredRun> = m.runs.iter().filter(|r| !r.succeeded()).collect();
     if !failed.is_empty() {
         let _ = writeln!(
             md,
-            "### Runs that failed\n\nCounted in *goal* above, left out of every other figure and \
+            "### RunSeries that failed\n\nCounted in *goal* above, left out of every other figure and \
              picture:\n"
         );
         let mut t = Table::columns(&[

@@ -12,13 +12,13 @@ use vl_core::{Arena, Experiment};
 use vl_host::{Delays, FramePolicy};
 use vl_sim::{LinkModel, Optics};
 
-use super::{CampaignError, Leg, Pacing, Run, RunSpec, overall, run_one};
-use vl_guest::Spread;
+use super::{CampaignError, Leg, MeasuredRun, Pacing, RunSpec, overall, run_one};
+use vl_guest::MeanMax;
 use vl_guest::plots::{self, EVENT, TIME};
 
 /// One cell of the matrix, over its seeds.
 #[derive(Serialize, Clone)]
-pub struct Cell {
+pub struct MatrixCell {
     pub experiment: Experiment,
     pub profile: String,
     pub pacing: Pacing,
@@ -59,9 +59,9 @@ pub struct Matrix {
     pub seeds: u64,
     pub arena: String,
     pub wall_s: f64,
-    pub cells: Vec<Cell>,
+    pub cells: Vec<MatrixCell>,
     pub timing: Vec<Timing>,
-    pub runs: Vec<Run>,
+    pub runs: Vec<MeasuredRun>,
     /// Event-based runs: every one within one event, none touching anything.
     pub event_based_synchronised: bool,
     pub collisions: u64,
@@ -70,12 +70,18 @@ pub struct Matrix {
 impl Matrix {
     /// The matrix of `runs` over the `links` (profile names) they were run
     /// on, `seeds` per cell on `arena`, which took `wall_s`.
-    pub fn of(links: &[String], seeds: u64, arena: &str, wall_s: f64, runs: Vec<Run>) -> Matrix {
+    pub fn of(
+        links: &[String],
+        seeds: u64,
+        arena: &str,
+        wall_s: f64,
+        runs: Vec<MeasuredRun>,
+    ) -> Matrix {
         let mut summary = Vec::new();
         let mut timing = Vec::new();
         for name in links {
             for &(experiment, pacing) in CELLS {
-                let these: Vec<&Run> = runs
+                let these: Vec<&MeasuredRun> = runs
                     .iter()
                     .filter(|r| {
                         r.profile.as_deref() == Some(name)
@@ -87,7 +93,7 @@ impl Matrix {
                     summary.push(cell(&these));
                 }
             }
-            let of = |r: &&Run| r.profile.as_deref() == Some(name.as_str());
+            let of = |r: &&MeasuredRun| r.profile.as_deref() == Some(name.as_str());
             let pooled = |pick: fn(&Delays) -> &Vec<f64>| -> Vec<f64> {
                 runs.iter()
                     .filter(of)
@@ -133,7 +139,7 @@ impl Matrix {
     }
 
     /// The first teleoperation run on `profile` paced so that succeeded.
-    fn teleop(&self, profile: &str, pacing: Pacing) -> Option<&Run> {
+    fn teleop(&self, profile: &str, pacing: Pacing) -> Option<&MeasuredRun> {
         self.runs.iter().find(|r| {
             r.experiment == Experiment::Teleoperation
                 && r.profile.as_deref() == Some(profile)
@@ -146,12 +152,12 @@ impl Matrix {
 /// A cell of the matrix: how many of its runs reached the goal, and the
 /// figures of those that succeeded (a failed run's would mislead; the
 /// report lists it with why it ended).
-fn cell(all: &[&Run]) -> Cell {
+fn cell(all: &[&MeasuredRun]) -> MatrixCell {
     let first = all[0];
-    let runs: Vec<&Run> = all.iter().copied().filter(|r| r.succeeded()).collect();
-    let owned: Vec<Run> = runs.iter().map(|r| (*r).clone()).collect();
-    let spreads = |pick: fn(&Run) -> Spread| {
-        let s: Vec<Spread> = runs
+    let runs: Vec<&MeasuredRun> = all.iter().copied().filter(|r| r.succeeded()).collect();
+    let owned: Vec<MeasuredRun> = runs.iter().map(|r| (*r).clone()).collect();
+    let spreads = |pick: fn(&MeasuredRun) -> MeanMax| {
+        let s: Vec<MeanMax> = runs
             .iter()
             .map(|r| pick(r))
             .filter(|s| s.count > 0)
@@ -166,7 +172,7 @@ fn cell(all: &[&Run]) -> Cell {
     // The link's round trip is the link's, whatever became of the run.
     let mut rtts: Vec<f64> = all.iter().map(|r| r.round_trip_ms.p50).collect();
     rtts.sort_by(f64::total_cmp);
-    Cell {
+    MatrixCell {
         experiment: first.experiment,
         profile: first.profile.clone().unwrap_or_default(),
         pacing: first.pacing,
@@ -246,8 +252,8 @@ pub fn cells_of(
 pub async fn run_all(
     specs: Vec<RunSpec>,
     jobs: usize,
-    mut finished: impl FnMut(usize, &Run),
-) -> Result<Vec<Run>, CampaignError> {
+    mut finished: impl FnMut(usize, &MeasuredRun),
+) -> Result<Vec<MeasuredRun>, CampaignError> {
     let total = specs.len();
     let slots = Arc::new(tokio::sync::Semaphore::new(jobs.max(1)));
     let mut tasks = tokio::task::JoinSet::new();
@@ -258,7 +264,7 @@ pub async fn run_all(
             (i, run_one(&spec).await)
         });
     }
-    let mut runs: Vec<Option<Run>> = vec![None; total];
+    let mut runs: Vec<Option<MeasuredRun>> = vec![None; total];
     let mut done = 0;
     while let Some(joined) = tasks.join_next().await {
         let (i, run) = joined.map_err(CampaignError::Panicked)?;
@@ -278,7 +284,7 @@ pub(super) fn draw(
 ) -> Result<Vec<(String, PathBuf)>, CampaignError> {
     let mut out = Vec::new();
     // Tracking and prediction against the round trip, event against time.
-    let by_delay = |pacing: Pacing, pick: fn(&Cell) -> Option<f64>| -> Vec<(f64, f64)> {
+    let by_delay = |pacing: Pacing, pick: fn(&MatrixCell) -> Option<f64>| -> Vec<(f64, f64)> {
         let mut v: Vec<(f64, f64)> = m
             .cells
             .iter()
@@ -288,7 +294,7 @@ pub(super) fn draw(
         v.sort_by(|a, b| a.0.total_cmp(&b.0));
         v
     };
-    let tracking = |c: &Cell| c.tracking_error_mm.map(|e| e.mean);
+    let tracking = |c: &MatrixCell| c.tracking_error_mm.map(|e| e.mean);
     out.push((
         "Tracking error against the round trip: teleoperation, event-based against time-based"
             .to_owned(),
@@ -311,8 +317,8 @@ pub(super) fn draw(
             true,
         )?,
     ));
-    let predicted = |c: &Cell| c.prediction_error_mm.map(|e| e[0]);
-    let stale = |c: &Cell| c.stale_error_mm.map(|e| e[0]);
+    let predicted = |c: &MatrixCell| c.prediction_error_mm.map(|e| e[0]);
+    let stale = |c: &MatrixCell| c.stale_error_mm.map(|e| e[0]);
     out.push((
         "The predictive display's error against the round trip, beside showing the last feedback alone".to_owned(),
         plots::lines(
@@ -343,7 +349,7 @@ fn profile_pictures(
 ) -> Result<Vec<(String, PathBuf)>, CampaignError> {
     let mut out = Vec::new();
     let teleop = |pacing: Pacing| m.teleop(&t.profile, pacing);
-    let runs: Vec<&Run> = m
+    let runs: Vec<&MeasuredRun> = m
         .runs
         .iter()
         .filter(|r| r.profile.as_deref() == Some(t.profile.as_str()))
@@ -445,8 +451,8 @@ pub(super) mod tests {
         reached: bool,
         track: f64,
         rtt: f64,
-    ) -> Run {
-        Run {
+    ) -> MeasuredRun {
+        MeasuredRun {
             experiment,
             arena: "open".into(),
             seed: 0,
@@ -472,8 +478,8 @@ pub(super) mod tests {
             estimate_error_mm: None,
             completion_s: 10.0,
             forecast: None,
-            prediction_error_mm: Spread::default(),
-            stale_error_mm: Spread::default(),
+            prediction_error_mm: MeanMax::default(),
+            stale_error_mm: MeanMax::default(),
             round_trip_ms: RoundTripMs {
                 p50: rtt,
                 p99: 2.0 * rtt,

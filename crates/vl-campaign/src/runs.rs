@@ -10,12 +10,12 @@ use std::path::Path;
 use vl_core::Arena;
 use vl_sim::Optics;
 
-use super::{CampaignError, Run, RunSpec, line, overall, picture, run_one, spread};
+use super::{CampaignError, MeasuredRun, RunSpec, line, overall, picture, run_one, spread};
 
 /// A series of runs of one experiment and what they add up to.
 #[derive(Serialize)]
-pub struct Runs {
-    pub runs: Vec<Run>,
+pub struct RunSeries {
+    pub runs: Vec<MeasuredRun>,
     /// Every run reached its goal without touching anything.
     pub all_succeeded: bool,
     /// Over all runs: the mean of their mean tracking errors, and the largest.
@@ -27,7 +27,7 @@ fn mm(e: Option<ErrorMm>, pick: fn(&ErrorMm) -> f64) -> String {
     e.map_or("–".into(), |e| format!("{:.1}", pick(&e)))
 }
 
-impl Report for Runs {
+impl Report for RunSeries {
     fn table(&self) -> Table {
         let mut table = Table::columns(&[
             "arena",
@@ -87,7 +87,7 @@ impl Report for Runs {
 }
 
 /// How far the runs were from their forecasts, at most, in words.
-fn twin_words(runs: &[Run]) -> String {
+fn twin_words(runs: &[MeasuredRun]) -> String {
     let gaps: Vec<vl_core::Gap> = runs.iter().filter_map(|r| r.forecast).collect();
     if gaps.is_empty() {
         return String::new();
@@ -103,7 +103,7 @@ fn twin_words(runs: &[Run]) -> String {
     )
 }
 
-impl Runs {
+impl RunSeries {
     /// Runs `template` `runs` times on each of `arenas`, run k with seed
     /// `template.seed + k` (the lab's, the camera's and the link's); a
     /// picture of each into `svg` when given; a line on stderr after each
@@ -114,7 +114,7 @@ impl Runs {
         runs: u64,
         svg: Option<&Path>,
         progress: bool,
-    ) -> Result<Runs, CampaignError> {
+    ) -> Result<RunSeries, CampaignError> {
         let total = arenas.len() as u64 * runs;
         let mut done = Vec::new();
         for arena in arenas {
@@ -139,15 +139,15 @@ impl Runs {
                 done.push(run);
             }
         }
-        Ok(Runs::of(done))
+        Ok(RunSeries::of(done))
     }
 
     /// The runs and their totals.
-    pub fn of(runs: Vec<Run>) -> Runs {
-        Runs {
+    pub fn of(runs: Vec<MeasuredRun>) -> RunSeries {
+        RunSeries {
             tracking_error_mm: overall(&runs, |r| r.tracking_error_mm),
             estimate_error_mm: overall(&runs, |r| r.estimate_error_mm),
-            all_succeeded: runs.iter().all(Run::succeeded),
+            all_succeeded: runs.iter().all(MeasuredRun::succeeded),
             runs,
         }
     }
@@ -171,9 +171,9 @@ mod tests {
             4.0,
             1.0,
         );
-        let runs = Runs::of(vec![ok.clone()]);
+        let runs = RunSeries::of(vec![ok.clone()]);
         assert!(runs.all_succeeded);
-        let both = Runs::of(vec![ok, failed]);
+        let both = RunSeries::of(vec![ok, failed]);
         assert!(!both.all_succeeded);
         let e = both.tracking_error_mm.expect("two runs were tracked");
         assert_eq!((e.mean, e.max), (3.0, 8.0));
@@ -183,7 +183,7 @@ mod tests {
 
     #[test]
     fn no_runs_succeed_vacuously_with_no_errors() {
-        let none = Runs::of(Vec::new());
+        let none = RunSeries::of(Vec::new());
         assert!(none.all_succeeded && none.tracking_error_mm.is_none());
     }
 }

@@ -246,7 +246,7 @@ const CLOSING: Duration = Duration::from_millis(800);
 const RECONNECT_FIRST: Duration = Duration::from_millis(250);
 const RECONNECT_MAX: Duration = Duration::from_secs(4);
 
-type Socket = tokio_tungstenite::WebSocketStream<Box<dyn vl_core::Io>>;
+type HostSocket = tokio_tungstenite::WebSocketStream<Box<dyn vl_core::Io>>;
 
 /// Why serving a connection stopped.
 enum Ended {
@@ -344,11 +344,11 @@ pub fn open(url: &str) -> Result<Connection, ClientError> {
             let why = match connect(&target).await {
                 // Something answered that is no vl Host: trying again
                 // will not change that.
-                Err(Refusal::NotAHost(cause)) => {
+                Err(NotConnected::NotAHost(cause)) => {
                     let _ = deliver.send(Incoming::Closed(format!("{url}: {cause}")));
                     return;
                 }
-                Err(Refusal::Unreachable(cause)) => cause,
+                Err(NotConnected::Unreachable(cause)) => cause,
                 Ok(ws) => {
                     let again = remembered.hello_again();
                     let served = serve(ws, again, &mut remembered, &mut to_send, &deliver).await;
@@ -405,7 +405,7 @@ pub fn open(url: &str) -> Result<Connection, ClientError> {
 }
 
 /// Why a connection was not made.
-enum Refusal {
+enum NotConnected {
     /// Nothing answered (yet): worth trying again.
     Unreachable(String),
     /// Something answered, not as a vl Host does.
@@ -430,27 +430,27 @@ impl Deliver {
 }
 
 /// Connects to `target`, within the connect timeout.
-async fn connect(target: &Target) -> Result<Socket, Refusal> {
+async fn connect(target: &Target) -> Result<HostSocket, NotConnected> {
     let config = WebSocketConfig::default()
         .max_message_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)))
         .max_frame_size(Some(MAX_TEXT_BYTES.max(MAX_FRAME_BYTES)));
     let connecting = async {
         let stream = target.dial().await.map_err(|e| match e.get_ref() {
             // A certificate that is not the pinned one will not become it.
-            Some(inner) if inner.is::<rustls::Error>() => Refusal::NotAHost(e.to_string()),
-            _ => Refusal::Unreachable(cause(&tungstenite::Error::Io(e))),
+            Some(inner) if inner.is::<rustls::Error>() => NotConnected::NotAHost(e.to_string()),
+            _ => NotConnected::Unreachable(cause(&tungstenite::Error::Io(e))),
         })?;
         tokio_tungstenite::client_async_with_config(target.url.as_str(), stream, Some(config))
             .await
             .map_err(|e| match answered_not_as_a_host(&e) {
-                true => Refusal::NotAHost(cause(&e)),
-                false => Refusal::Unreachable(cause(&e)),
+                true => NotConnected::NotAHost(cause(&e)),
+                false => NotConnected::Unreachable(cause(&e)),
             })
     };
     match tokio::time::timeout(CONNECT_TIMEOUT, connecting).await {
         Ok(Ok((ws, _))) => Ok(ws),
         Ok(Err(refused)) => Err(refused),
-        Err(_) => Err(Refusal::Unreachable(format!(
+        Err(_) => Err(NotConnected::Unreachable(format!(
             "no answer within {} s",
             CONNECT_TIMEOUT.as_secs()
         ))),
@@ -484,7 +484,7 @@ async fn wait_while_down(
 /// Serves one connection: says `first` (a hello again) if given, then
 /// carries messages both ways until it ends.
 async fn serve(
-    ws: Socket,
+    ws: HostSocket,
     first: Option<GuestMessage>,
     remembered: &mut Remembered,
     to_send: &mut mpsc::UnboundedReceiver<GuestMessage>,
@@ -498,7 +498,7 @@ async fn serve(
 /// Carries messages both ways on `ws` until it ends; `welcomed` is set
 /// when the Host welcomes the Guest.
 async fn carry(
-    ws: Socket,
+    ws: HostSocket,
     first: Option<GuestMessage>,
     remembered: &mut Remembered,
     to_send: &mut mpsc::UnboundedReceiver<GuestMessage>,
@@ -594,8 +594,8 @@ async fn carry(
 /// Host may see a link that dropped instead of a goodbye and hold the
 /// operator's role for them.
 async fn close(
-    sink: &mut futures_util::stream::SplitSink<Socket, Message>,
-    source: &mut futures_util::stream::SplitStream<Socket>,
+    sink: &mut futures_util::stream::SplitSink<HostSocket, Message>,
+    source: &mut futures_util::stream::SplitStream<HostSocket>,
 ) {
     let _ = sink.send(Message::Close(None)).await;
     let _ = tokio::time::timeout(CLOSING, async {

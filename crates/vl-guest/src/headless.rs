@@ -19,7 +19,7 @@ use crate::client::{ClientError, Connection, Incoming, open};
 use crate::login::Login;
 use crate::route::Route;
 pub use crate::session::RoundTripMs;
-use crate::session::{Pacing, Session, Spread};
+use crate::session::{MeanMax, Pacing, Session};
 use crate::settings::Settings;
 use crate::tasks::TaskChoice;
 
@@ -66,7 +66,7 @@ impl Default for Script {
 
 /// What the scripted session achieved.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct Report {
+pub struct ScriptReport {
     pub reached_goal: bool,
     pub reason: EndReason,
     /// Why the safety layer would not let the run go on, when it would not.
@@ -99,8 +99,8 @@ pub struct Report {
     pub sync_violations: u64,
     /// The predicted pose against the feedback that later arrived, and the
     /// last reported pose against it (what showing feedback alone is off by).
-    pub prediction_error_mm: Spread,
-    pub stale_error_mm: Spread,
+    pub prediction_error_mm: MeanMax,
+    pub stale_error_mm: MeanMax,
     /// Each command's gap as the Guest saw it, with the seconds since the
     /// run started.
     #[serde(skip)]
@@ -150,7 +150,7 @@ impl ScriptError {
 /// path in navigation; a scripted operator steers along it in
 /// teleoperation. The one way `demo`, `guest --headless` and the
 /// experiments run a Guest without a window.
-pub async fn run_script(url: &str, script: &Script) -> Result<Report, ScriptError> {
+pub async fn run_script(url: &str, script: &Script) -> Result<ScriptReport, ScriptError> {
     let mut script = script.clone();
     if let Some(task) = script.task.to_run()? {
         script.experiment = task.experiment;
@@ -249,7 +249,7 @@ impl Scripted {
         mut self,
         definition: Definition,
         script: &Script,
-    ) -> Result<Report, ScriptError> {
+    ) -> Result<ScriptReport, ScriptError> {
         let summary = self.session.done.clone().expect("done");
         let downloaded = crate::recordings::download_run(
             &mut self.connection,
@@ -258,7 +258,7 @@ impl Scripted {
             (self.progress, self.deadline),
         )
         .await?;
-        let report = Report {
+        let report = ScriptReport {
             reached_goal: summary.reached_goal,
             reason: summary.reason,
             held_back: summary.held_back,
@@ -288,7 +288,7 @@ impl Scripted {
     }
 }
 
-impl Report {
+impl ScriptReport {
     /// How the run ended, in words.
     pub fn ending(&self) -> String {
         self.summary.ending()
@@ -409,7 +409,7 @@ const STOP_WAIT: Duration = Duration::from_secs(5);
 /// Connects to `url` as operator, defines a path to the goal and starts
 /// the run, which the Host follows; reports the run's end. A run that
 /// outlasts `script.timeout` is stopped and reported as stopped.
-pub async fn drive_to_goal(url: &str, script: &Script) -> Result<Report, ScriptError> {
+pub async fn drive_to_goal(url: &str, script: &Script) -> Result<ScriptReport, ScriptError> {
     let (mut guest, definition, goal) = started(url, script).await?;
     let ignore = |_: &mut Session, _: &Connection| {};
 
@@ -498,7 +498,7 @@ fn steer(seen: Pose, target: Point, to_goal_mm: f64, lag_s: f64) -> Drive {
 /// drives the robot along it by commands — steering toward waypoints on
 /// the path from the feedback as it arrives, paced by `script.pacing` —
 /// and stops the run when the feedback shows the goal reached.
-pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptError> {
+pub async fn teleoperate(url: &str, script: &Script) -> Result<ScriptReport, ScriptError> {
     let (mut guest, definition, goal) = started(url, script).await?;
 
     let targets = waypoints(&definition.path);
@@ -583,7 +583,7 @@ pub async fn teleoperate(url: &str, script: &Script) -> Result<Report, ScriptErr
     guest.report(definition, script).await
 }
 
-impl vl_report::table::Report for Report {
+impl vl_report::table::Report for ScriptReport {
     fn table(&self) -> Table {
         let pose = self.final_pose;
         Table::pairs([

@@ -69,7 +69,7 @@ pub use client::{ClientError, Connection, GOODBYE_WAIT, Incoming, open};
 pub use gamepad::Gamepad;
 pub use gamepad::{Effect, GamepadError, Pad, PadChoice, PadInput, effect};
 pub use headless::{
-    Report, RoundTripMs, Script, ScriptError, drive_to_goal, run_script, teleoperate,
+    RoundTripMs, Script, ScriptError, ScriptReport, drive_to_goal, run_script, teleoperate,
 };
 pub use login::Login;
 pub use predict::Predictor;
@@ -78,7 +78,7 @@ pub use replay::{Replay, ReplayReport, replay_headless};
 pub use results::Results;
 pub use route::{EditRefused, Route, check_path, drag_path};
 pub use session::{
-    CameraFrame, Devices, InLine, Link, Pacing, RobotState, RoundTrips, Session, Spread,
+    CameraFrame, DeviceStates, InLine, LinkState, MeanMax, Pacing, RobotState, RoundTrips, Session,
     TIME_PERIOD,
 };
 pub use settings::{Settings, SettingsError};

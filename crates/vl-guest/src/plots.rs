@@ -223,7 +223,7 @@ pub fn lines(
     let ys = series.iter().flat_map(|(_, _, v)| v.iter().map(|p| p.1));
     let x_max = xs.fold(0.0f64, f64::max).max(1e-3) * 1.05;
     let y_max = ys.fold(0.0f64, f64::max).max(1e-3) * 1.1;
-    struct Lines<'a> {
+    struct LineChart<'a> {
         title: &'a str,
         axes: (&'a str, &'a str),
         series: &'a [Series],
@@ -231,9 +231,9 @@ pub fn lines(
         x_max: f64,
         y_max: f64,
     }
-    impl Picture for Lines<'_> {
+    impl Picture for LineChart<'_> {
         fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
-            let Lines {
+            let LineChart {
                 title,
                 axes,
                 series,
@@ -267,7 +267,7 @@ pub fn lines(
     both(
         dir,
         name,
-        &Lines {
+        &LineChart {
             title,
             axes,
             series,

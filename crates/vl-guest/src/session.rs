@@ -42,7 +42,7 @@ pub struct RobotState {
 
 /// Whether the lab's devices answer, as the Host last said.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Devices {
+pub struct DeviceStates {
     pub robot: DeviceState,
     pub camera: DeviceState,
     /// Whether a run may start, or the robot is driving back to its start.
@@ -116,13 +116,13 @@ pub const TIME_PERIOD: Duration = Duration::from_millis(20);
 
 /// A running mean and maximum, mm.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
-pub struct Spread {
+pub struct MeanMax {
     pub count: u64,
     pub mean: f64,
     pub max: f64,
 }
 
-impl Spread {
+impl MeanMax {
     pub fn add(&mut self, v: f64) {
         self.count += 1;
         self.mean += (v - self.mean) / self.count as f64;
@@ -132,7 +132,7 @@ impl Spread {
 
 /// Where the session stands.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Link {
+pub enum LinkState {
     Connecting,
     /// The Host has not answered yet: trying again.
     Unreachable {
@@ -151,7 +151,7 @@ pub enum Link {
 /// Everything the Guest knows of its session.
 #[derive(Debug, Clone)]
 pub struct Session {
-    pub link: Link,
+    pub link: LinkState,
     /// The account the Host welcomed this Guest as, if it logged in.
     pub user: Option<String>,
     pub role: Option<Role>,
@@ -184,7 +184,7 @@ pub struct Session {
     pub sent_event: u64,
     /// A run was under way when the link dropped: the Host may give it back.
     interrupted: bool,
-    pub devices: Option<Devices>,
+    pub devices: Option<DeviceStates>,
     /// How commands are paced.
     pub pacing: Pacing,
     /// When the last command left.
@@ -201,8 +201,8 @@ pub struct Session {
     /// This run's prediction error (the ghost shown at a moment against the
     /// feedback that later told where the robot was at that moment) and,
     /// beside it, the error of the last reported pose shown then.
-    pub prediction_error: Spread,
-    pub stale_error: Spread,
+    pub prediction_error: MeanMax,
+    pub stale_error: MeanMax,
     /// When the newest feedback and frame arrived.
     pub feedback_at: Option<Instant>,
     pub frame_at: Option<Instant>,
@@ -233,7 +233,7 @@ pub struct InLine {
 impl Default for Session {
     fn default() -> Self {
         Session {
-            link: Link::Connecting,
+            link: LinkState::Connecting,
             recordings: None,
             role: None,
             user: None,
@@ -262,8 +262,8 @@ impl Default for Session {
             gaps: Vec::new(),
             run_started: None,
             predictor: Predictor::default(),
-            prediction_error: Spread::default(),
-            stale_error: Spread::default(),
+            prediction_error: MeanMax::default(),
+            stale_error: MeanMax::default(),
             feedback_at: None,
             frame_at: None,
             nets: Supervisor::new(Experiment::ALL)
@@ -289,7 +289,7 @@ impl Session {
                 self.predictor.round_trip(ms);
             }
             Incoming::Unreachable { error, attempt, .. } => {
-                self.link = Link::Unreachable {
+                self.link = LinkState::Unreachable {
                     attempt,
                     reason: error.to_string(),
                 };
@@ -299,12 +299,12 @@ impl Session {
                 attempt, reason, ..
             } => {
                 // Nothing goes out until the Host says the run is ours again.
-                self.link = Link::Reconnecting { attempt, reason };
+                self.link = LinkState::Reconnecting { attempt, reason };
                 self.interrupted |= self.running;
                 self.running = false;
             }
             Incoming::Closed(reason) => {
-                self.link = Link::Closed(reason);
+                self.link = LinkState::Closed(reason);
                 self.running = false;
             }
         }
@@ -383,7 +383,7 @@ impl Session {
                 self.done = Some(*summary);
             }
             HostMessage::Status { robot, camera, lab } => {
-                self.devices = Some(Devices { robot, camera, lab });
+                self.devices = Some(DeviceStates { robot, camera, lab });
             }
             HostMessage::Queue {
                 position,
@@ -422,7 +422,7 @@ impl Session {
     ) {
         self.forget_the_host();
         self.welcomes += 1;
-        self.link = Link::Open;
+        self.link = LinkState::Open;
         self.session_id = Some(session);
         self.role = Some(role);
         self.user = user;
@@ -446,8 +446,8 @@ impl Session {
         self.sync_violations = 0;
         self.gaps.clear();
         self.run_started = Some(Instant::now());
-        self.prediction_error = Spread::default();
-        self.stale_error = Spread::default();
+        self.prediction_error = MeanMax::default();
+        self.stale_error = MeanMax::default();
         self.predictor.start();
     }
 

@@ -11,14 +11,14 @@ use vl_core::{Leash, Pose, RobotModel, WheelSpeeds};
 use crate::drivers::{Robot, RobotError, RobotReading};
 
 /// What the dummy robot was told, and where its wheels took it.
-struct State {
+struct DummyState {
     wheels: WheelSpeeds,
     odometry: Pose,
     moved_at: Instant,
     silent: bool,
 }
 
-impl State {
+impl DummyState {
     /// Rolls the wheels on from the last time they were looked at.
     fn roll(&mut self, wheel_base_mm: f64) {
         let dt = self.moved_at.elapsed().as_secs_f64();
@@ -30,21 +30,21 @@ impl State {
 /// A robot the lab drives; its [`DummyHandle`] stays with the test.
 pub(crate) struct DummyRobot {
     model: RobotModel,
-    state: Arc<Mutex<State>>,
+    state: Arc<Mutex<DummyState>>,
 }
 
 /// A test's hold on a dummy robot it handed to the lab.
 #[derive(Clone)]
-pub(crate) struct DummyHandle(Arc<Mutex<State>>);
+pub(crate) struct DummyHandle(Arc<Mutex<DummyState>>);
 
-fn lock(state: &Mutex<State>) -> MutexGuard<'_, State> {
+fn lock(state: &Mutex<DummyState>) -> MutexGuard<'_, DummyState> {
     state.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 impl DummyRobot {
     /// A `model` robot at rest, and the test's handle on it.
     pub(crate) fn new(model: RobotModel) -> (DummyRobot, DummyHandle) {
-        let state = Arc::new(Mutex::new(State {
+        let state = Arc::new(Mutex::new(DummyState {
             wheels: WheelSpeeds::default(),
             odometry: Pose::default(),
             moved_at: Instant::now(),
@@ -55,7 +55,7 @@ impl DummyRobot {
     }
 
     /// The robot as it answers now: silent, or rolled on to the present.
-    fn answer(&self, sent: &str) -> Result<MutexGuard<'_, State>, RobotError> {
+    fn answer(&self, sent: &str) -> Result<MutexGuard<'_, DummyState>, RobotError> {
         let mut state = lock(&self.state);
         if state.silent {
             return Err(RobotError::Timeout {

@@ -92,7 +92,7 @@ use tokio::net::TcpListener;
 use vl_core::{Arena, CalibrationError, CameraModel, RobotModel};
 use vl_sim::{Optics, Scheduled};
 
-pub use accounts::audit::{Audit, Entry as AuditEntry};
+pub use accounts::audit::{Audit, AuditEntry};
 pub use accounts::gate::{
     Admitted, Credentials, FAILURE_DELAY, FAILURE_REFILL, FAILURES_BURST, Gate, Identity,
     Observers, Refusal,

@@ -19,7 +19,7 @@ use rustc_hash::FxHasher;
 use thiserror::Error;
 
 use crate::layout::{
-    Candidates, Compiled, Fired, Layout, PAD, compile, fire, initial_layout, repack,
+    Candidates, Compiled, Firing, Layout, PAD, compile, fire, initial_layout, repack,
 };
 use crate::net::{Marking, Net};
 
@@ -371,10 +371,10 @@ fn run(
                 &mut next,
                 &mut at_limit,
             ) {
-                Fired::Next => {}
-                Fired::Blocked => continue,
-                Fired::Overflow => return Err(Stop::Overflow),
-                Fired::Outgrown { p, v } => {
+                Firing::Next => {}
+                Firing::Blocked => continue,
+                Firing::Overflow => return Err(Stop::Overflow),
+                Firing::Outgrown { p, v } => {
                     // Widen p, repack what is stored, and expand this state again.
                     let wider = layout.widened(p, v, &at_limit);
                     at_limit.iter_mut().for_each(|a| *a = false);

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use crate::explore::{Bounds, ExploreError, Options, Progress, StateCount};
 use crate::layout::{
-    Candidates, Compiled, Fired, Layout, PAD, compile, fire, initial_layout, repack,
+    Candidates, Compiled, Firing, Layout, PAD, compile, fire, initial_layout, repack,
 };
 use crate::markings::{EMPTY, MarkingTable, copy_marking, hash};
 use crate::net::Net;
@@ -201,7 +201,7 @@ impl Count<'_> {
         let stride = self.layout.stride.max(1);
         let taken = AtomicUsize::new(0);
         let stopped = AtomicBool::new(false);
-        let shared = Shared {
+        let shared = LevelWork {
             compiled: self.compiled,
             candidates: self.candidates,
             layout: &self.layout,
@@ -261,7 +261,7 @@ impl Count<'_> {
 }
 
 /// What the threads of one level share.
-struct Shared<'a> {
+struct LevelWork<'a> {
     compiled: &'a [Compiled],
     candidates: &'a Candidates,
     layout: &'a Layout,
@@ -273,7 +273,7 @@ struct Shared<'a> {
     stopped: &'a AtomicBool,
 }
 
-impl Shared<'_> {
+impl LevelWork<'_> {
     /// One worker's part of the level: chunks taken in turn, each
     /// marking's successors gathered and put in their shards.
     fn expand(&self, w: &mut Worker) {
@@ -303,10 +303,10 @@ impl Shared<'_> {
                         &mut w.next,
                         &mut w.at_limit,
                     ) {
-                        Fired::Next => None,
-                        Fired::Blocked => continue,
-                        Fired::Overflow => Some(Err(Stop::Overflow)),
-                        Fired::Outgrown { p, v } => Some(Ok(Outgrown { p, v })),
+                        Firing::Next => None,
+                        Firing::Blocked => continue,
+                        Firing::Overflow => Some(Err(Stop::Overflow)),
+                        Firing::Outgrown { p, v } => Some(Ok(Outgrown { p, v })),
                     };
                     if stop.is_some() {
                         w.stop = stop;

@@ -100,19 +100,19 @@ impl Layout {
     /// The runs that repack a marking from this layout into `wider`, the
     /// same one with some fields widened: a few runs instead of a field
     /// at a time.
-    fn runs_to(&self, wider: &Layout) -> Vec<Run> {
+    fn runs_to(&self, wider: &Layout) -> Vec<FieldRun> {
         let mut fields: Vec<usize> = self.own.clone();
         fields.extend(self.groups.iter().map(|places| places[0]));
         fields.retain(|&p| self.width[p] > 0);
         fields.sort_by_key(|&p| self.offset[p]);
-        let mut runs: Vec<Run> = Vec::new();
+        let mut runs: Vec<FieldRun> = Vec::new();
         for p in fields {
             let (from, to, bits) = (self.offset[p], wider.offset[p], u32::from(self.width[p]));
             match runs.last_mut() {
                 Some(run) if run.from + run.bits == from && run.to + run.bits == to => {
                     run.bits += bits;
                 }
-                _ => runs.push(Run { from, to, bits }),
+                _ => runs.push(FieldRun { from, to, bits }),
             }
         }
         runs
@@ -302,7 +302,7 @@ impl Candidates {
 }
 
 /// What firing an enabled transition gave.
-pub(crate) enum Fired {
+pub(crate) enum Firing {
     /// The successor is written.
     Next,
     /// A capacity forbids it: no edge.
@@ -323,12 +323,12 @@ pub(crate) fn fire(
     count: impl Fn(usize) -> u32,
     next: &mut [u8],
     at_limit: &mut [bool],
-) -> Fired {
+) -> Firing {
     for &(p, change, capacity) in &tr.delta {
         let p = p as usize;
         let v = i64::from(count(p)) + change;
         if capacity.is_some_and(|cap| v > i64::from(cap)) {
-            return Fired::Blocked;
+            return Firing::Blocked;
         }
         if layout.derived[p] {
             continue;
@@ -339,13 +339,13 @@ pub(crate) fn fire(
         }
         if v > max {
             return match u32::try_from(v) {
-                Ok(v) if layout.width[p] < 32 => Fired::Outgrown { p, v },
-                _ => Fired::Overflow,
+                Ok(v) if layout.width[p] < 32 => Firing::Outgrown { p, v },
+                _ => Firing::Overflow,
             };
         }
         layout.set(next, p, v as u32);
     }
-    Fired::Next
+    Firing::Next
 }
 
 /// Rows the invariant computation may use while looking for place bounds,
@@ -492,13 +492,13 @@ pub(crate) fn repack(from: &Layout, to: &Layout, store: &mut Vec<u8>) {
 /// Bits a marking keeps in one piece when its layout widens: fields that
 /// lie side by side, at the same widths, in both layouts. A widened field
 /// ends a run, and its count is copied into the low bits of its wider field.
-struct Run {
+struct FieldRun {
     from: u32,
     to: u32,
     bits: u32,
 }
 
-impl Run {
+impl FieldRun {
     /// Copies the run from `old` into the zeroed `new`, both padded with
     /// PAD spare bytes, at most 56 bits at a time so that a shifted piece
     /// fits one 8-byte word.

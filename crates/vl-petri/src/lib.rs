@@ -71,4 +71,4 @@ pub use report::{
     AnalysisReport, Cost, CoverabilityReport, InvariantsReport, StatesReport, Tokens,
 };
 pub use scxml::{ScxmlError, from_scxml};
-pub use verdict::{Verdict, verdict};
+pub use verdict::{NetVerdict, verdict};

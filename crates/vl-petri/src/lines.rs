@@ -3,14 +3,14 @@
 //! scans the text from its start, which made reading a wide net quadratic.
 
 /// Where each line of a text starts.
-pub(crate) struct Lines(Vec<usize>);
+pub(crate) struct LineStarts(Vec<usize>);
 
-impl Lines {
-    pub(crate) fn new(text: &str) -> Lines {
+impl LineStarts {
+    pub(crate) fn new(text: &str) -> LineStarts {
         let starts = std::iter::once(0)
             .chain(text.match_indices('\n').map(|(i, _)| i + 1))
             .collect();
-        Lines(starts)
+        LineStarts(starts)
     }
 
     /// The 1-based line that byte `offset` is on.
@@ -26,7 +26,7 @@ mod tests {
     #[test]
     fn offsets_fall_on_their_lines() {
         let text = "a\nbc\n\nd";
-        let lines = Lines::new(text);
+        let lines = LineStarts::new(text);
         let naive = |offset: usize| text[..offset].matches('\n').count() as u32 + 1;
         for offset in 0..text.len() {
             assert_eq!(lines.of(offset), naive(offset), "at {offset}");

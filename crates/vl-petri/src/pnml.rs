@@ -15,7 +15,7 @@ use std::fmt::Write;
 use roxmltree::{Document, Node};
 use thiserror::Error;
 
-use crate::lines::Lines;
+use crate::lines::LineStarts;
 use crate::net::{ArcKind, Net, NetError, TransitionId};
 
 /// What is wrong with a PNML document, and where (line numbers are 1-based).
@@ -71,7 +71,7 @@ pub fn from_pnml(text: &str) -> Result<Net, PnmlError> {
         .find(|n| n.has_tag_name_local("net"))
         .ok_or(PnmlError::NoNet)?;
     let mut reader = Reader {
-        lines: Lines::new(text),
+        lines: LineStarts::new(text),
         net: Net::new(net_node.attribute("id").unwrap_or("net")),
         kinds: HashMap::new(),
         alias: HashMap::new(),
@@ -114,7 +114,7 @@ pub fn from_pnml(text: &str) -> Result<Net, PnmlError> {
 /// A net as it is read: its nodes' kinds by id, and what each reference
 /// node stands for.
 struct Reader {
-    lines: Lines,
+    lines: LineStarts,
     net: Net,
     kinds: HashMap<String, NodeKind>,
     alias: HashMap<String, String>,

@@ -15,7 +15,7 @@ use std::collections::BTreeSet;
 use roxmltree::{Document, Node};
 use thiserror::Error;
 
-use crate::lines::Lines;
+use crate::lines::LineStarts;
 use crate::net::{ArcKind, Net};
 
 #[derive(Debug, Error, PartialEq, Eq)]
@@ -83,7 +83,7 @@ pub fn from_scxml(text: &str) -> Result<Net, ScxmlError> {
     if root.tag_name().name() != "scxml" {
         return Err(ScxmlError::NotScxml(root.tag_name().name().to_owned()));
     }
-    let lines = Lines::new(text);
+    let lines = LineStarts::new(text);
     let line = |n: Node| lines.of(n.range().start);
     let mut states: Vec<State> = Vec::new();
     let mut pending: Vec<(usize, Node)> = Vec::new(); // (source state, <transition>)

@@ -24,7 +24,7 @@ const QUICK_COVERABILITY_NODES: usize = 10_000;
 
 /// What the analysis found.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Verdict {
+pub struct NetVerdict {
     /// Whether a positive weighting of all places is invariant, if the
     /// minimal P-invariants could be listed within their limits.
     pub conservative: Option<bool>,
@@ -44,20 +44,20 @@ fn conservative(net: &Net) -> Option<bool> {
 
 /// Analyses `net`: boundedness settled first when it is cheap, then the
 /// reachability graph explored within `options`.
-pub fn verdict(net: &Net, options: Options) -> Result<Verdict, ExploreError> {
+pub fn verdict(net: &Net, options: Options) -> Result<NetVerdict, ExploreError> {
     let conservative = conservative(net);
     let quick = match conservative {
         Some(true) => None,
         _ => coverability(net, QUICK_COVERABILITY_NODES).ok(),
     };
     if let Some(c) = quick.filter(|c| !c.bounded()) {
-        return Ok(Verdict {
+        return Ok(NetVerdict {
             conservative,
             analysis: None,
             unbounded: c.unbounded,
         });
     }
-    Ok(Verdict {
+    Ok(NetVerdict {
         conservative,
         analysis: Some(analyze_net(net, options)?),
         unbounded: Vec::new(),

@@ -110,7 +110,7 @@ impl Owner {
 
 /// The entry kept beside each run's file.
 #[derive(Debug, Clone, Serialize, Deserialize)]
-struct Entry {
+struct CatalogueEntry {
     run: RecordedRun,
     owner: Owner,
 }
@@ -182,7 +182,7 @@ impl Catalogue {
 
     pub fn write_entry(&self, run: &RecordedRun, owner: &Owner) -> Result<(), RecordError> {
         let path = self.entry_path(&run.name);
-        let entry = Entry {
+        let entry = CatalogueEntry {
             run: run.clone(),
             owner: owner.clone(),
         };
@@ -196,16 +196,16 @@ impl Catalogue {
     }
 
     /// Every run with an entry, newest first, with its file's size now.
-    fn entries(&self) -> Vec<Entry> {
+    fn entries(&self) -> Vec<CatalogueEntry> {
         let Ok(listing) = std::fs::read_dir(&self.dir) else {
             return Vec::new();
         };
-        let mut entries: Vec<Entry> = listing
+        let mut entries: Vec<CatalogueEntry> = listing
             .filter_map(Result::ok)
             .filter(|f| f.file_name().to_string_lossy().ends_with(".mcap.json"))
             .filter_map(|f| {
                 let text = std::fs::read(f.path()).ok()?;
-                let mut entry: Entry = serde_json::from_slice(&text).ok()?;
+                let mut entry: CatalogueEntry = serde_json::from_slice(&text).ok()?;
                 entry.run.bytes = std::fs::metadata(self.path(&entry.run.name)).ok()?.len();
                 Some(entry)
             })
@@ -242,7 +242,7 @@ impl Catalogue {
         // The run's own entry: a part is asked for often, the folder not read.
         let known = std::fs::read(self.entry_path(name))
             .ok()
-            .and_then(|text| serde_json::from_slice::<Entry>(&text).ok())
+            .and_then(|text| serde_json::from_slice::<CatalogueEntry>(&text).ok())
             .is_some_and(|e| admin || who.sees(&e.owner));
         if !known {
             return Err(RecordError::Unknown(name.clone()));

@@ -31,7 +31,7 @@ pub use reader::{
     Message, RecordError, Recording, RecordingInfo, Repaired, Replayed, TopicCount, repair,
 };
 pub use views::{View, Views};
-pub use writer::{Begin, Entry, Feed, now_ns, unix_ns_at};
+pub use writer::{Begin, Feed, Recordable, now_ns, unix_ns_at};
 
 pub use foxglove::Schema;
 

@@ -43,7 +43,7 @@ pub struct Begin {
 }
 
 /// What the recorder is handed.
-pub enum Entry {
+pub enum Recordable {
     Begin(Box<Begin>),
     /// A message the Host sent its clients.
     Sent(HostMessage),
@@ -63,7 +63,7 @@ pub enum Entry {
 
 /// What the recorder and those feeding it share.
 pub(crate) struct Shared {
-    queue: SyncSender<(u64, Entry)>,
+    queue: SyncSender<(u64, Recordable)>,
     queued: AtomicUsize,
     /// A run is being recorded: only then do the loops hand anything over.
     active: AtomicBool,
@@ -82,7 +82,7 @@ impl Shared {
     }
 
     /// Hands `entry` over if the queue has room.
-    pub(crate) fn put(&self, entry: Entry) {
+    pub(crate) fn put(&self, entry: Recordable) {
         self.queued.fetch_add(1, Ordering::Relaxed);
         if let Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) =
             self.queue.try_send((now_ns(), entry))
@@ -143,7 +143,7 @@ impl Feed {
     }
 
     /// Hands `entry` over, while a run is recorded.
-    pub fn send(&self, entry: Entry) {
+    pub fn send(&self, entry: Recordable) {
         if let Some(shared) = self.0.as_ref().filter(|_| self.active()) {
             shared.put(entry);
         }
@@ -155,14 +155,14 @@ impl Feed {
         let name = begin.run.name.clone();
         shared.dropped_frames.store(0, Ordering::Relaxed);
         shared.active.store(true, Ordering::Relaxed);
-        shared.put(Entry::Begin(Box::new(begin)));
+        shared.put(Recordable::Begin(Box::new(begin)));
         Some(name)
     }
 
     /// The run's `done` was handed over: its file closes.
     pub fn end(&self) {
         if let Some(shared) = &self.0 {
-            shared.put(Entry::End);
+            shared.put(Recordable::End);
             shared.active.store(false, Ordering::Relaxed);
         }
     }
@@ -175,7 +175,7 @@ impl Feed {
         if shared.queued.load(Ordering::Relaxed) >= FRAMES_QUEUED {
             shared.dropped_frames.fetch_add(1, Ordering::Relaxed);
         } else {
-            shared.put(Entry::Frame(wire.clone()));
+            shared.put(Recordable::Frame(wire.clone()));
         }
     }
 
@@ -189,7 +189,7 @@ impl Feed {
 
 struct Recorder {
     catalogue: Catalogue,
-    entries: mpsc::Receiver<(u64, Entry)>,
+    entries: mpsc::Receiver<(u64, Recordable)>,
     shared: Arc<Shared>,
     file: Option<RunFile>,
 }
@@ -216,9 +216,9 @@ impl Recorder {
         self.close();
     }
 
-    fn take(&mut self, ns: u64, entry: Entry) {
+    fn take(&mut self, ns: u64, entry: Recordable) {
         let result = match entry {
-            Entry::Begin(begin) => {
+            Recordable::Begin(begin) => {
                 self.close();
                 let name = begin.run.name.clone();
                 self.catalogue.writing(Some(&name));
@@ -231,7 +231,7 @@ impl Recorder {
                     Err(e) => Err(e),
                 }
             }
-            Entry::End => {
+            Recordable::End => {
                 self.close();
                 Ok(())
             }
@@ -403,28 +403,28 @@ impl RunFile {
         Ok(())
     }
 
-    fn write(&mut self, ns: u64, entry: Entry) -> Written {
+    fn write(&mut self, ns: u64, entry: Recordable) -> Written {
         match entry {
-            Entry::Sent(message) => self.sent(ns, message),
-            Entry::Frame(wire) => {
+            Recordable::Sent(message) => self.sent(ns, message),
+            Recordable::Frame(wire) => {
                 // Logged as it reached the recorder; published when taken.
                 for view in self.views.frame(&wire) {
                     self.put(view.topic, ns, view.ns, &view.data)?;
                 }
                 Ok(())
             }
-            Entry::Command(command) => {
+            Recordable::Command(command) => {
                 self.put(Topic::Commands, ns, ns, command.encode().as_bytes())
             }
-            Entry::RoundTrip { connection, ms } => {
+            Recordable::RoundTrip { connection, ms } => {
                 let value = serde_json::json!({"connection": connection, "ms": ms});
                 self.foxglove(Topic::RoundTrip, ns, &value)
             }
-            Entry::Truth(pose) => {
+            Recordable::Truth(pose) => {
                 self.foxglove(Topic::TruePose, ns, &foxglove::pose_message(ns, pose))
             }
-            Entry::Log(level, text) => self.put_all(vec![View::log(ns, level, &text)]),
-            Entry::Begin(_) | Entry::End => Ok(()),
+            Recordable::Log(level, text) => self.put_all(vec![View::log(ns, level, &text)]),
+            Recordable::Begin(_) | Recordable::End => Ok(()),
         }
     }
 

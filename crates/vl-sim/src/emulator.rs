@@ -31,9 +31,9 @@ pub enum EmulatorError {
     Io(#[from] std::io::Error),
 }
 
-/// Line settings of the emulated port.
+/// The emulated port's line settings.
 #[derive(Debug, Clone, Copy)]
-pub struct Line {
+pub struct PortSettings {
     pub baud: u32,
     /// Take as long over each command and reply as its characters take at
     /// `baud`: a command is acted on only once its last character is in.
@@ -57,14 +57,14 @@ pub struct Emulator {
     /// Kept open so the master side survives clients closing and reopening the device.
     _slave: TTYPort,
     device: String,
-    line: Line,
+    line: PortSettings,
 }
 
 impl Emulator {
     /// Opens a pty for `khepera`; `link`, if given, becomes a symlink to its device.
     pub fn open(
         khepera: Khepera,
-        line: Line,
+        line: PortSettings,
         link: Option<&Path>,
     ) -> Result<Emulator, EmulatorError> {
         // The slave end stays open but unlocked, so a client can open (and lock) the device.

@@ -45,7 +45,7 @@ mod world;
 
 pub use bench::{FORECAST_SEEDS, SimBench, SimBenchError, bench};
 pub use camera::{Renderer, SimCalibration, calibrate, camera_for, render_target};
-pub use emulator::{Emulator, EmulatorError, Line};
+pub use emulator::{Emulator, EmulatorError, PortSettings};
 pub use forecast::{ForecastError, Forecasting, LONGEST_S, forecast};
 pub use khepera::Khepera;
 pub use link::{
@@ -54,6 +54,6 @@ pub use link::{
 pub use odometry::{OdometryFit, measure_odometry};
 pub use optics::{Optics, OpticsError, OpticsPreset};
 pub use scene::{SceneEvent, Scheduled};
-pub use script::{Driver, RunReport, Script, ScriptError, Tracking, run};
+pub use script::{Driver, RunReport, Tracking, WheelSchedule, WheelScheduleError, run};
 pub use tcp::{Delivery, LinkSpecError, MessageLink, RTO_MS};
 pub use world::{STEP_S, SimError, World};

@@ -16,19 +16,19 @@ const SENSE_EVERY_STEPS: u64 = 2;
 
 /// Wheel speeds from given times on: `(t_s, speeds)`, in time order.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Script(pub Vec<(f64, WheelSpeeds)>);
+pub struct WheelSchedule(pub Vec<(f64, WheelSpeeds)>);
 
 #[derive(Debug, Error, PartialEq, Eq)]
-pub enum ScriptError {
+pub enum WheelScheduleError {
     #[error("script line {line}: expected 't_s left_mm_s right_mm_s', got '{text}'")]
     Syntax { line: usize, text: String },
     #[error("script line {line}: time {t} s comes before the previous line's")]
     OutOfOrder { line: usize, t: String },
 }
 
-impl Script {
+impl WheelSchedule {
     /// Parses lines of `t_s left_mm_s right_mm_s`; `#` starts a comment.
-    pub fn parse(text: &str) -> Result<Script, ScriptError> {
+    pub fn parse(text: &str) -> Result<WheelSchedule, WheelScheduleError> {
         let mut steps: Vec<(f64, WheelSpeeds)> = Vec::new();
         for (i, raw) in text.lines().enumerate() {
             let line = raw.split('#').next().unwrap_or("").trim();
@@ -41,13 +41,13 @@ impl Script {
                 .map(|w| w.parse().ok().filter(|v: &f64| v.is_finite()))
                 .collect();
             let Some(&[t, left, right]) = numbers.as_deref() else {
-                return Err(ScriptError::Syntax {
+                return Err(WheelScheduleError::Syntax {
                     line: i + 1,
                     text: raw.to_owned(),
                 });
             };
             if steps.last().is_some_and(|(prev, _)| t < *prev) {
-                return Err(ScriptError::OutOfOrder {
+                return Err(WheelScheduleError::OutOfOrder {
                     line: i + 1,
                     t: t.to_string(),
                 });
@@ -60,7 +60,7 @@ impl Script {
                 },
             ));
         }
-        Ok(Script(steps))
+        Ok(WheelSchedule(steps))
     }
 
     /// The speeds in force at `t_s`.
@@ -78,7 +78,7 @@ impl Script {
 #[derive(Debug, Clone)]
 pub enum Driver {
     /// Wheel speeds at given times.
-    Script(Script),
+    WheelSchedule(WheelSchedule),
     /// A path to follow; the run ends when the robot arrives.
     Path(Follower),
     /// Nothing: the robot stays put.
@@ -111,7 +111,7 @@ impl Driver {
     pub fn duration_s(&self) -> f64 {
         match self {
             Driver::Path(follower) => 2.0 * follower.expected_seconds(None) + 5.0,
-            Driver::Script(script) => {
+            Driver::WheelSchedule(script) => {
                 script.0.last().map_or(0.0, |&(t, _)| t.max(0.0)) + SCRIPT_TAIL_S
             }
             Driver::Idle => SCRIPT_TAIL_S,
@@ -168,7 +168,7 @@ pub fn run(world: &mut World, driver: &mut Driver, seconds: f64) -> RunReport {
             }
         }
         let wheels = match driver {
-            Driver::Script(script) => script.at(world.time_s()),
+            Driver::WheelSchedule(script) => script.at(world.time_s()),
             Driver::Path(follower) => {
                 let steer = follower.step(world.robot(), world.pose(), &proximity);
                 arrived = steer == Steer::Arrived;
@@ -274,7 +274,7 @@ mod tests {
             "{}",
             follow.duration_s()
         );
-        let script = Driver::Script(Script::parse("0 10 10\n12 0 0").unwrap());
+        let script = Driver::WheelSchedule(WheelSchedule::parse("0 10 10\n12 0 0").unwrap());
         assert_eq!(script.duration_s(), 22.0);
         assert!(matches!(
             Driver::to_goal(
@@ -290,25 +290,29 @@ mod tests {
 
     #[test]
     fn scripts_parse_and_drive() {
-        let script = Script::parse("# a turn\n0 100 100\n1.0, 50, 150\n").unwrap();
+        let script = WheelSchedule::parse("# a turn\n0 100 100\n1.0, 50, 150\n").unwrap();
         assert_eq!(script.at(0.5).left_mm_s, 100.0);
         assert_eq!(script.at(1.5).right_mm_s, 150.0);
-        let report = run(&mut world(1), &mut Driver::Script(script.clone()), 2.0);
+        let report = run(
+            &mut world(1),
+            &mut Driver::WheelSchedule(script.clone()),
+            2.0,
+        );
         assert!(report.distance_mm > 100.0, "{report:?}");
         assert!(
             report.final_pose.theta_rad > 0.5,
             "the second line turns it left: {report:?}"
         );
         assert_eq!(
-            Script::parse("0 1\n"),
-            Err(ScriptError::Syntax {
+            WheelSchedule::parse("0 1\n"),
+            Err(WheelScheduleError::Syntax {
                 line: 1,
                 text: "0 1".into()
             })
         );
         assert!(matches!(
-            Script::parse("2 0 0\n1 0 0"),
-            Err(ScriptError::OutOfOrder { line: 2, .. })
+            WheelSchedule::parse("2 0 0\n1 0 0"),
+            Err(WheelScheduleError::OutOfOrder { line: 2, .. })
         ));
     }
 }

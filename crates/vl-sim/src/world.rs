@@ -37,7 +37,7 @@ pub enum SimError {
 /// What the wheels' controllers are told: a speed (`D`), or a move to a
 /// target that ends by itself (`C`, and a leash).
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Drive {
+enum Motion {
     Speed(WheelSpeeds),
     Move([WheelMove; 2]),
 }
@@ -61,7 +61,7 @@ pub struct World {
     controller: Controller,
     /// Commands still within the controller's dead time: when each takes
     /// effect, in order.
-    pending: std::collections::VecDeque<(f64, Drive)>,
+    pending: std::collections::VecDeque<(f64, Motion)>,
     steps: u64,
     contact: bool,
     collisions: u64,
@@ -156,7 +156,7 @@ impl World {
     /// It takes over after the response's dead time.
     pub fn set_wheels(&mut self, target: WheelSpeeds) {
         let target = self.robot.clamp(target);
-        self.tell(Drive::Speed(target));
+        self.tell(Motion::Speed(target));
     }
 
     /// Asks the position controllers for `moves`, the wheels' travel
@@ -181,7 +181,7 @@ impl World {
                 0.0
             },
         });
-        self.tell(Drive::Move(moves));
+        self.tell(Motion::Move(moves));
     }
 
     /// Drives by `leash`, its reach counted from the wheels' travel
@@ -203,7 +203,7 @@ impl World {
         }
     }
 
-    fn tell(&mut self, drive: Drive) {
+    fn tell(&mut self, drive: Motion) {
         let dead = self.robot.response.dead_time_s;
         if dead <= 0.0 {
             self.take(drive);
@@ -219,13 +219,13 @@ impl World {
 
     /// The controllers take `drive` on: position controllers taking over
     /// from the speed controller start where the wheels are, as fast.
-    fn take(&mut self, drive: Drive) {
+    fn take(&mut self, drive: Motion) {
         self.controller = match (drive, self.controller) {
-            (Drive::Speed(target), _) => Controller::Speed(target),
-            (Drive::Move(moves), Controller::Position(_, controls)) => {
+            (Motion::Speed(target), _) => Controller::Speed(target),
+            (Motion::Move(moves), Controller::Position(_, controls)) => {
                 Controller::Position(moves, controls)
             }
-            (Drive::Move(moves), Controller::Speed(_)) => {
+            (Motion::Move(moves), Controller::Speed(_)) => {
                 let w = [self.wheels.left_mm_s, self.wheels.right_mm_s];
                 let travel = self.wheel_travel_mm;
                 let controls = [0, 1].map(|i| PositionControl::taking_over(travel[i], w[i]));

@@ -30,7 +30,7 @@ use thiserror::Error;
 use crate::{Experiment, Named};
 
 pub use pipeline::{Designed, Interleaving, design};
-pub use summary::{LabRow, NetsReport, Verdict};
+pub use summary::{LabRow, NetsReport, RuleVerdict};
 
 /// The access design's folder, beside the labs'.
 pub(crate) const ACCESS: &str = "access";

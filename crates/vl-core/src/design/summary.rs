@@ -34,12 +34,12 @@ pub struct LabRow {
     pub files: Vec<String>,
     /// Each rule: why, how the uncontrolled net breaks it, whether the
     /// controlled one still can.
-    pub verdicts: Vec<Verdict>,
+    pub verdicts: Vec<RuleVerdict>,
 }
 
 /// One rule of a lab, without and with its controllers.
 #[derive(Debug, Serialize)]
-pub struct Verdict {
+pub struct RuleVerdict {
     pub why: String,
     /// The events of the shortest sequence breaking it without the
     /// controllers; none if it cannot be broken even then.
@@ -157,7 +157,7 @@ impl Designed {
                 .bad
                 .iter()
                 .zip(&self.still_bad)
-                .map(|((rule, bad), (_, still))| Verdict {
+                .map(|((rule, bad), (_, still))| RuleVerdict {
                     why: rule.why.clone(),
                     broken_by: bad.as_ref().map(|b| b.events.clone()),
                     holds: still.is_none(),

@@ -194,9 +194,9 @@ proptest! {
         let (arena, robot, p) = standing.unwrap();
         let s = Surroundings::new(&arena);
         let safety = Safety::default();
-        let mut rig = Rig::at(at(p.x_mm, p.y_mm, theta));
+        let mut rig = BrakingRig::at(at(p.x_mm, p.y_mm, theta));
         let top = robot.max_wheel_speed_mm_s;
-        let clear = |rig: &Rig| arena.clearance(rig.pose.point()) - robot.radius_mm;
+        let clear = |rig: &BrakingRig| arena.clearance(rig.pose.point()) - robot.radius_mm;
         for tick in 0..400 {
             let (l, r) = commands[tick / 20];
             let wanted = WheelSpeeds { left_mm_s: l * top, right_mm_s: r * top };
@@ -238,11 +238,11 @@ proptest! {
             delay_s: delay_steps as f64 * 0.002,
             ..Safety::default()
         };
-        let mut rig = Rig::at(at(p.x_mm, p.y_mm, theta));
+        let mut rig = BrakingRig::at(at(p.x_mm, p.y_mm, theta));
         let top = robot.max_wheel_speed_mm_s;
         let periods = 4000 / period_steps;
         let freeze = (freeze_share * periods as f64) as usize;
-        let clear = |rig: &Rig| arena.clearance(rig.pose.point()) - robot.radius_mm;
+        let clear = |rig: &BrakingRig| arena.clearance(rig.pose.point()) - robot.radius_mm;
         for tick in 0..periods {
             let (l, r) = commands[tick * commands.len() / periods];
             let wanted = WheelSpeeds { left_mm_s: l * top, right_mm_s: r * top };
@@ -315,7 +315,7 @@ fn a_late_command_brakes_earlier() {
 /// The robot as its firmware moves it: each wheel's controller on its
 /// leash's trapezoid (from where the wheel was when the robot was
 /// read), or braked by the speed controller.
-struct Rig {
+struct BrakingRig {
     pose: Pose,
     wheels: WheelSpeeds,
     travel: [f64; 2],
@@ -325,9 +325,9 @@ struct Rig {
     leash: Option<(Leash, [f64; 2])>,
 }
 
-impl Rig {
-    fn at(pose: Pose) -> Rig {
-        Rig {
+impl BrakingRig {
+    fn at(pose: Pose) -> BrakingRig {
+        BrakingRig {
             pose,
             wheels: WheelSpeeds::default(),
             travel: [0.0; 2],

@@ -34,18 +34,18 @@ pub struct Centroid {
 /// work on, so a long stretch of floor or wall costs one step, not one per
 /// pixel.
 #[derive(Debug, Clone, Default)]
-struct Runs {
+struct RowRuns {
     /// (first column, end column, row), in raster order.
     spans: Vec<(u32, u32, u32)>,
     /// Index in `spans` of each row's first run, and one past the last row.
     rows: Vec<usize>,
 }
 
-impl Runs {
+impl RowRuns {
     /// The runs of foreground pixels.
-    fn of(mask: &Mask) -> Runs {
+    fn of(mask: &Mask) -> RowRuns {
         let w = mask.width as usize;
-        let mut runs = Runs::default();
+        let mut runs = RowRuns::default();
         for (r, row) in mask.pixels.chunks_exact(w.max(1)).enumerate() {
             runs.rows.push(runs.spans.len());
             let mut c = 0;
@@ -67,8 +67,8 @@ impl Runs {
 
     /// The runs of everything else in rows `width` wide: the gaps between
     /// these runs and the rows' ends.
-    fn gaps(&self, width: u32) -> Runs {
-        let mut gaps = Runs::default();
+    fn gaps(&self, width: u32) -> RowRuns {
+        let mut gaps = RowRuns::default();
         for r in 0..self.rows.len().saturating_sub(1) {
             gaps.rows.push(gaps.spans.len());
             let mut from = 0;
@@ -157,7 +157,7 @@ impl Runs {
 /// Labels of each pixel (0 background, components 1.. in raster order of
 /// their first pixel) and the number of components.
 pub fn label(mask: &Mask, connectivity: Connectivity) -> (Vec<u32>, u32) {
-    let runs = Runs::of(mask);
+    let runs = RowRuns::of(mask);
     let (number, count) = runs.label(connectivity);
     (runs.paint(&number, mask.width, mask.height), count)
 }
@@ -307,7 +307,7 @@ impl Sums {
 /// label image. Holes are background regions (of the complementary
 /// connectivity) that do not reach the image's border.
 pub fn components(mask: &Mask, connectivity: Connectivity) -> (Vec<Component>, Vec<u32>) {
-    let runs = Runs::of(mask);
+    let runs = RowRuns::of(mask);
     let (number, count) = runs.label(connectivity);
     let labels = runs.paint(&number, mask.width, mask.height);
     let mut sums = vec![Sums::default(); count as usize + 1];
@@ -339,7 +339,7 @@ pub fn components(mask: &Mask, connectivity: Connectivity) -> (Vec<Component>, V
 /// background it encloses: background regions, of the complementary
 /// connectivity, that do not reach the image's border.
 fn holes(
-    foreground: &Runs,
+    foreground: &RowRuns,
     mask: &Mask,
     labels: &[u32],
     components: u32,

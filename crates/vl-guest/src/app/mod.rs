@@ -20,7 +20,7 @@ use crate::client::GOODBYE_WAIT;
 use crate::client::{ClientError, Connection, Incoming, open};
 use crate::gamepad::Pad;
 use crate::login::Login;
-use crate::session::{Link, Session};
+use crate::session::{LinkState, Session};
 use crate::settings::Settings;
 
 mod panels;
@@ -237,7 +237,7 @@ impl GuestApp {
         self.forget_the_host();
         match GuestApp::connect(&self.address) {
             Ok(connection) => self.connection = connection,
-            Err(e) => self.session.link = Link::Closed(e.to_string()),
+            Err(e) => self.session.link = LinkState::Closed(e.to_string()),
         }
     }
 
@@ -450,10 +450,10 @@ impl GuestApp {
             )
             .fill(STOP_COLOUR);
             stop = ui
-                .add_enabled(s.link == Link::Open && self.replay.is_none(), button)
+                .add_enabled(s.link == LinkState::Open && self.replay.is_none(), button)
                 .on_hover_text("Emergency stop: the robot stops and the run ends (Space or Esc)")
                 .clicked();
-            if matches!(s.link, Link::Closed(_)) {
+            if matches!(s.link, LinkState::Closed(_)) {
                 reconnect = ui.button("Reconnect").clicked();
             }
             ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
@@ -507,25 +507,25 @@ impl GuestApp {
             matches!(code, ErrorCode::Unauthorized | ErrorCode::TooManyAttempts)
         });
         match &s.link {
-            Link::Connecting if s.role.is_none() && refused.is_some() => add(
+            LinkState::Connecting if s.role.is_none() && refused.is_some() => add(
                 "connected, not let in: log in with an account, or watch",
                 Color32::YELLOW,
             ),
-            Link::Connecting => add(
+            LinkState::Connecting => add(
                 &format!("connecting to {}…", self.address.url),
                 Color32::YELLOW,
             ),
-            Link::Unreachable { attempt, reason } => add(
+            LinkState::Unreachable { attempt, reason } => add(
                 &format!("{reason} — trying again (attempt {attempt})"),
                 Color32::YELLOW,
             ),
-            Link::Open if self.replay.is_some() => add("a recorded run", Color32::LIGHT_BLUE),
-            Link::Open => add("connected", Color32::GREEN),
-            Link::Reconnecting { attempt, reason } => add(
+            LinkState::Open if self.replay.is_some() => add("a recorded run", Color32::LIGHT_BLUE),
+            LinkState::Open => add("connected", Color32::GREEN),
+            LinkState::Reconnecting { attempt, reason } => add(
                 &format!("link lost ({reason}): reconnecting, attempt {attempt}…"),
                 Color32::YELLOW,
             ),
-            Link::Closed(why) => add(&format!("not connected: {why}"), Color32::RED),
+            LinkState::Closed(why) => add(&format!("not connected: {why}"), Color32::RED),
         }
         if let (Some(role), Some(id), None) = (s.role, s.session_id, &self.replay) {
             add(&format!("{role}, session {id}"), Color32::GRAY);

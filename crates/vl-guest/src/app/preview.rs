@@ -8,7 +8,7 @@ use std::time::Instant;
 use egui::{Color32, Pos2, Stroke, Vec2};
 use vl_core::{ForecastVerdict, MountedLab, Point, SeedRun};
 
-use super::view::View;
+use super::view::OnScreen;
 use super::{FORECAST_COLOUR, GuestApp};
 use crate::replay::time_slider;
 
@@ -111,7 +111,12 @@ impl GuestApp {
     /// The forecast over the view: each seed's path and its ghost at the
     /// preview's time, and where a refused forecast fails. Shown until the
     /// run starts.
-    pub(super) fn forecast_overlay(&self, painter: &egui::Painter, view: &View, lab: &MountedLab) {
+    pub(super) fn forecast_overlay(
+        &self,
+        painter: &egui::Painter,
+        view: &OnScreen,
+        lab: &MountedLab,
+    ) {
         let Some(verdict) = &self.session.forecast else {
             return;
         };

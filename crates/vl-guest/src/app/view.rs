@@ -13,7 +13,7 @@ use super::{
     ROBOT_COLOUR, TRAIL_COLOUR, VIRTUAL_COLOUR,
 };
 use crate::route::{check_path, drag_path};
-use crate::session::Link;
+use crate::session::LinkState;
 
 /// How near the pointer must be to a path sample to grab it, px.
 const GRAB_PX: f32 = 10.0;
@@ -32,14 +32,14 @@ impl GuestApp {
             (None, Some(lab)) => Vec2::new(lab.camera.width_px as f32, lab.camera.height_px as f32),
             (None, None) => {
                 let waiting = match &self.session.link {
-                    Link::Connecting if !self.session.errors.is_empty() => {
+                    LinkState::Connecting if !self.session.errors.is_empty() => {
                         "the Host has not let you in: see what it said, on the left"
                     }
-                    Link::Connecting => "connecting to the Host…",
-                    Link::Unreachable { .. } => "no Host answers yet: trying again…",
-                    Link::Reconnecting { .. } => "reconnecting to the Host…",
-                    Link::Open => "mount an experiment to see the lab",
-                    Link::Closed(_) => "not connected to a Host",
+                    LinkState::Connecting => "connecting to the Host…",
+                    LinkState::Unreachable { .. } => "no Host answers yet: trying again…",
+                    LinkState::Reconnecting { .. } => "reconnecting to the Host…",
+                    LinkState::Open => "mount an experiment to see the lab",
+                    LinkState::Closed(_) => "not connected to a Host",
                 };
                 ui.centered_and_justified(|ui| ui.label(waiting));
                 return;
@@ -65,7 +65,7 @@ impl GuestApp {
             }
             (None, Some(lab)) => {
                 painter.rect_filled(rect, 0.0, FLOOR_COLOUR);
-                let view = View::new(rect, lab);
+                let view = OnScreen::new(rect, lab);
                 for obstacle in &lab.arena.obstacles {
                     view.fill(&painter, &obstacle.shape, OBSTACLE_COLOUR);
                 }
@@ -73,7 +73,7 @@ impl GuestApp {
             (None, None) => {}
         }
         if let Some(lab) = self.session.lab.clone() {
-            let view = View::new(rect, &lab);
+            let view = OnScreen::new(rect, &lab);
             if self.show_cspace {
                 painter.add(self.cspace_mesh(&view, &lab));
             }
@@ -151,7 +151,7 @@ impl GuestApp {
             } else if !self.session.running && self.session.is_operator() {
                 if response.drag_started() {
                     // A drag that starts on the defined path bends it.
-                    self.dragging_sample = self.sample_near(origin, &View::new(rect, lab));
+                    self.dragging_sample = self.sample_near(origin, &OnScreen::new(rect, lab));
                 }
                 if response.drag_stopped()
                     && let Some(index) = self.dragging_sample.take()
@@ -167,7 +167,7 @@ impl GuestApp {
 
     /// The C-space's cells as one mesh of quads, edge to edge: no seams
     /// where outlines or anti-aliased edges would overlap.
-    fn cspace_mesh(&mut self, view: &View, lab: &MountedLab) -> egui::Mesh {
+    fn cspace_mesh(&mut self, view: &OnScreen, lab: &MountedLab) -> egui::Mesh {
         let mut mesh = egui::Mesh::default();
         for cell in self.cspace_boxes(lab) {
             let corners = view.outline_of(cell);
@@ -217,7 +217,7 @@ impl GuestApp {
 
     /// The defined path's sample nearest `pos` on screen, if within reach
     /// of the pointer.
-    fn sample_near(&self, pos: Pos2, view: &View) -> Option<usize> {
+    fn sample_near(&self, pos: Pos2, view: &OnScreen) -> Option<usize> {
         let path = &self.session.definition.as_ref()?.path;
         path.iter()
             .enumerate()
@@ -318,7 +318,7 @@ impl GuestApp {
         text
     }
 
-    fn overlay(&self, painter: &egui::Painter, view: &View, lab: &MountedLab) {
+    fn overlay(&self, painter: &egui::Painter, view: &OnScreen, lab: &MountedLab) {
         let to_screen = |p: Point| view.to_screen(p);
         let px_per_mm = view.px_per_mm;
         // The goal being chosen, before it is defined (the operator's only).
@@ -407,18 +407,18 @@ fn force_tip(pose: Pose, [right, ahead]: [f64; 2]) -> Option<Point> {
 
 /// Where the arena lands on screen: the camera model's pixels scaled into
 /// the view's rectangle.
-pub(super) struct View<'a> {
+pub(super) struct OnScreen<'a> {
     rect: Rect,
     lab: &'a MountedLab,
     pub(super) px_per_mm: f32,
 }
 
-impl<'a> View<'a> {
-    fn new(rect: Rect, lab: &'a MountedLab) -> View<'a> {
+impl<'a> OnScreen<'a> {
+    fn new(rect: Rect, lab: &'a MountedLab) -> OnScreen<'a> {
         // Lengths drawn as circles (the robot, the goal) take the scale at
         // the image's centre.
         let px_per_mm = rect.width() / (lab.camera.width_px as f32 * lab.camera.mm_per_px() as f32);
-        View {
+        OnScreen {
             rect,
             lab,
             px_per_mm,

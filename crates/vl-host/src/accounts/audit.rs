@@ -19,7 +19,7 @@ const QUEUE: usize = 1024;
 
 /// One thing that happened, as the log's line says it.
 #[derive(Debug, Clone, Serialize)]
-pub struct Entry {
+pub struct AuditEntry {
     /// Milliseconds since 1970 (UTC).
     pub at_ms: u64,
     /// What happened: `login`, `login_failed`, `rate_limited`, `welcome`,
@@ -35,9 +35,9 @@ pub struct Entry {
     pub detail: Option<String>,
 }
 
-impl Entry {
-    pub fn new(event: &'static str) -> Entry {
-        Entry {
+impl AuditEntry {
+    pub fn new(event: &'static str) -> AuditEntry {
+        AuditEntry {
             at_ms: SystemTime::now()
                 .duration_since(UNIX_EPOCH)
                 .map_or(0, |d| d.as_millis() as u64),
@@ -49,22 +49,22 @@ impl Entry {
         }
     }
 
-    pub fn connection(mut self, id: u64) -> Entry {
+    pub fn connection(mut self, id: u64) -> AuditEntry {
         self.connection = Some(id);
         self
     }
 
-    pub fn user(mut self, user: Option<&str>) -> Entry {
+    pub fn user(mut self, user: Option<&str>) -> AuditEntry {
         self.user = user.map(str::to_owned);
         self
     }
 
-    pub fn address(mut self, address: impl ToString) -> Entry {
+    pub fn address(mut self, address: impl ToString) -> AuditEntry {
         self.address = Some(address.to_string());
         self
     }
 
-    pub fn detail(mut self, detail: impl Into<String>) -> Entry {
+    pub fn detail(mut self, detail: impl Into<String>) -> AuditEntry {
         self.detail = Some(detail.into());
         self
     }
@@ -74,7 +74,7 @@ impl Entry {
 /// keeps nothing (a lab run without `--audit`).
 #[derive(Debug, Clone, Default)]
 pub struct Audit {
-    queue: Option<mpsc::Sender<Entry>>,
+    queue: Option<mpsc::Sender<AuditEntry>>,
     dropped: Arc<AtomicU64>,
 }
 
@@ -100,7 +100,7 @@ impl Audit {
     }
 
     /// Logs `entry`, without waiting: a full queue counts it as dropped.
-    pub fn record(&self, entry: Entry) {
+    pub fn record(&self, entry: AuditEntry) {
         if let Some(queue) = &self.queue
             && queue.try_send(entry).is_err()
         {
@@ -116,11 +116,11 @@ struct Writer {
 }
 
 impl Writer {
-    fn run(mut self, mut entries: mpsc::Receiver<Entry>) {
+    fn run(mut self, mut entries: mpsc::Receiver<AuditEntry>) {
         while let Some(entry) = entries.blocking_recv() {
             let dropped = self.dropped.swap(0, Ordering::Relaxed);
             if dropped > 0 {
-                self.line(&Entry::new("dropped").detail(format!("{dropped} entries")));
+                self.line(&AuditEntry::new("dropped").detail(format!("{dropped} entries")));
             }
             self.line(&entry);
             // Each line on disk as it happens: the log outlives a crash.
@@ -131,7 +131,7 @@ impl Writer {
         let _ = self.file.flush();
     }
 
-    fn line(&mut self, entry: &Entry) {
+    fn line(&mut self, entry: &AuditEntry) {
         if let Ok(text) = serde_json::to_string(entry)
             && writeln!(self.file, "{text}").is_err()
         {

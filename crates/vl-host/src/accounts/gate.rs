@@ -21,7 +21,7 @@ use tokio::time::Instant;
 use tracing::{info, warn};
 use vl_core::{ErrorCode, Named, Role};
 
-use super::audit::{Audit, Entry};
+use super::audit::{Audit, AuditEntry};
 use super::users::{AccountRole, Users};
 
 /// How long a wrong password, name or token waits for its answer.
@@ -276,7 +276,7 @@ impl Gate {
                     "the accounts file changed: read again"
                 );
                 self.audit.record(
-                    Entry::new("accounts_read")
+                    AuditEntry::new("accounts_read")
                         .detail(format!("{} accounts", users.accounts().len())),
                 );
                 *current = Arc::new(users);
@@ -310,7 +310,7 @@ impl Gate {
         hello: Credentials<'_>,
     ) -> Result<Admitted, Refusal> {
         let log = |event: &'static str| {
-            Entry::new(event)
+            AuditEntry::new(event)
                 .connection(connection)
                 .address(address)
                 .user(hello.user)

@@ -22,7 +22,7 @@ use super::camera::Sighting;
 use super::run::Run;
 use super::{Finished, LabInfo, LabRequest, LabStatus, Retry, TICK};
 use crate::drivers::{Robot, RobotError, RobotReading, Witness};
-use vl_record::{Entry, Feed};
+use vl_record::{Feed, Recordable};
 
 /// The shortest time between two control periods: a command acted on at
 /// once still waits this long after the last period.
@@ -583,9 +583,9 @@ impl Control {
         };
         if self.record.active() {
             if let Some(truth) = self.truth {
-                self.record.send(Entry::Truth(truth));
+                self.record.send(Recordable::Truth(truth));
             }
-            self.record.send(Entry::Sent(message.clone()));
+            self.record.send(Recordable::Sent(message.clone()));
         }
         self.feedback.send_replace(Some(message));
     }

@@ -282,13 +282,13 @@ type Sink<S> = SplitSink<WebSocketStream<S>, Message>;
 /// Camera frames on their way in one direction, newest kept: the queue
 /// carries their numbers, this holds their bytes within a budget.
 #[derive(Default)]
-struct Frames {
+struct FrameBudget {
     held: std::collections::VecDeque<(u64, Message)>,
     bytes: usize,
     next: u64,
 }
 
-impl Frames {
+impl FrameBudget {
     /// Holds `frame`, letting the oldest go past the budget; its number.
     fn hold(&mut self, frame: Message) -> u64 {
         let number = self.next;
@@ -340,7 +340,7 @@ where
 {
     let (queue, mut due) = mpsc::unbounded_channel::<(Instant, Instant, Carried)>();
     let in_flight = AtomicUsize::new(0);
-    let frames = Mutex::new(Frames::default());
+    let frames = Mutex::new(FrameBudget::default());
     let read = async {
         while let Some(message) = from.next().await {
             let message = message.map_err(|e| format!("read failed: {e}"))?;

@@ -27,7 +27,7 @@ use crate::accounts::users::AccountRole;
 use crate::lab::Watching;
 use tokio_tungstenite::tungstenite::handshake::server::{Request, Response};
 use vl_core::Io;
-use vl_record::{Entry, Feed, RecordError};
+use vl_record::{Feed, RecordError, Recordable};
 
 /// The WebSocket handshake must be done within this.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
@@ -50,7 +50,7 @@ const REFUSED_HOLD: Duration = Duration::from_secs(1);
 const MAX_BEFORE_HELLO_BYTES: usize = 4096;
 
 /// A connection's task and what it shares.
-pub(crate) struct Connection {
+pub(crate) struct ConnectionTask {
     pub(crate) id: u64,
     pub(crate) hub: mpsc::Sender<ToHub>,
     pub(crate) feedback: watch::Receiver<Option<HostMessage>>,
@@ -201,7 +201,7 @@ async fn handshake(
     }
 }
 
-impl Connection {
+impl ConnectionTask {
     /// This connection as a Foxglove client's: what it takes from the lab.
     fn foxglove(self) -> foxglove::Watcher {
         foxglove::Watcher {
@@ -454,7 +454,7 @@ impl Connection {
             Ok(GuestMessage::Pong { t }) => {
                 let rtt_ms = r.clock.elapsed().as_secs_f64() * 1e3 - t;
                 debug!(connection = self.id, rtt_ms, "round trip");
-                self.record.send(Entry::RoundTrip {
+                self.record.send(Recordable::RoundTrip {
                     connection: self.id,
                     ms: rtt_ms,
                 });

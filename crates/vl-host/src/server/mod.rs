@@ -36,7 +36,7 @@ use crate::accounts::users::Users;
 use crate::lab::{FramePolicy, Lab};
 use crate::tls::Tls;
 use admission::Admission;
-use connection::Connection;
+use connection::ConnectionTask;
 use hub::Hub;
 pub use hub::{ForecastSettings, MOST_FORECAST_SEEDS};
 
@@ -197,7 +197,7 @@ async fn accept(
             debug!(%peer, "refused: the Host holds as many connections as it serves");
             continue;
         };
-        let connection = Connection {
+        let connection = ConnectionTask {
             id,
             hub: hub.clone(),
             feedback: outlets.feedback.clone(),

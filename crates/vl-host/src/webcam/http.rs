@@ -96,12 +96,12 @@ struct Newest {
     error: Option<String>,
 }
 
-struct Shared {
+struct StreamShared {
     newest: Mutex<Newest>,
     arrived: Condvar,
 }
 
-impl Shared {
+impl StreamShared {
     fn lock(&self) -> MutexGuard<'_, Newest> {
         self.newest.lock().unwrap_or_else(|p| p.into_inner())
     }
@@ -111,7 +111,7 @@ impl Shared {
 pub struct HttpCamera {
     url: String,
     model: CameraModel,
-    shared: Arc<Shared>,
+    shared: Arc<StreamShared>,
     seen: u64,
 }
 
@@ -126,7 +126,7 @@ impl HttpCamera {
         fps: f64,
     ) -> Result<HttpCamera, CameraError> {
         let address = Address::parse(url)?;
-        let shared = Arc::new(Shared {
+        let shared = Arc::new(StreamShared {
             newest: Mutex::default(),
             arrived: Condvar::new(),
         });
@@ -207,7 +207,7 @@ impl Camera for HttpCamera {
 }
 
 /// Reads the stream, again and again, until the camera is dropped.
-fn read_forever(address: &Address, shared: &Arc<Shared>) {
+fn read_forever(address: &Address, shared: &Arc<StreamShared>) {
     let mut wait = RETRY.0;
     // Ends when the camera (the other holder of `shared`) is gone.
     while Arc::strong_count(shared) > 1 {
@@ -234,7 +234,7 @@ fn read_forever(address: &Address, shared: &Arc<Shared>) {
 
 /// One connection: the request, the answer's headers, then parts until
 /// the stream breaks.
-fn stream(address: &Address, shared: &Arc<Shared>) -> Result<(), String> {
+fn stream(address: &Address, shared: &Arc<StreamShared>) -> Result<(), String> {
     let socket = (address.host.as_str(), address.port)
         .to_socket_addrs()
         .map_err(|e| format!("cannot find {}: {e}", address.host))?

@@ -21,7 +21,7 @@
 use std::time::Instant;
 
 use crate::explore::{Bounds, Options, PROGRESS_EVERY, Progress};
-use crate::layout::{Candidates, Compiled, Fired, Layout, PAD, compile, fire, search_layout};
+use crate::layout::{Candidates, Compiled, Firing, Layout, PAD, compile, fire, search_layout};
 use crate::liveness::Liveness;
 use crate::net::Net;
 
@@ -31,7 +31,7 @@ use crate::markings::{EMPTY, MarkingTable, Stack, copy_marking};
 use pending::Pending;
 
 /// What one search found.
-pub(crate) struct Reading {
+pub(crate) struct Found {
     pub(crate) states: usize,
     pub(crate) edges: usize,
     pub(crate) bounds: Bounds,
@@ -63,7 +63,7 @@ pub(crate) const MOST_STATES: usize = 1 << 29;
 /// as they close. A place that outgrows its field starts the search again
 /// with a wider layout (places no invariant bounds are found full early),
 /// and numbers past what 3 bytes hold start it again with 4-byte numbers.
-pub(crate) fn read(net: &Net, options: &mut Options) -> Result<Reading, Stop> {
+pub(crate) fn read(net: &Net, options: &mut Options) -> Result<Found, Stop> {
     let compiled = compile(net);
     let initial = net.initial_marking();
     let mut layout = search_layout(net);
@@ -246,7 +246,7 @@ impl<'a> Search<'a> {
         }
     }
 
-    fn run(mut self, initial: &[u32], options: &mut Options) -> Result<Reading, Stop> {
+    fn run(mut self, initial: &[u32], options: &mut Options) -> Result<Found, Stop> {
         let started = Instant::now();
         let stride = self.stride;
         let most_states = options.max_states.min(MOST_STATES);
@@ -281,10 +281,10 @@ impl<'a> Search<'a> {
                     next,
                     self.at_limit,
                 ) {
-                    Fired::Next => true,
-                    Fired::Blocked => false,
-                    Fired::Overflow => return Err(Stop::Overflow),
-                    Fired::Outgrown { p, v } => return Err(Stop::Widen { p, v }),
+                    Firing::Next => true,
+                    Firing::Blocked => false,
+                    Firing::Overflow => return Err(Stop::Overflow),
+                    Firing::Outgrown { p, v } => return Err(Stop::Widen { p, v }),
                 };
                 if edge[j] {
                     hashes[j] = self.table.hash(next);
@@ -350,7 +350,7 @@ impl<'a> Search<'a> {
 
     /// What the search found, each transition's liveness read off the
     /// terminal components and the cycles it closed.
-    fn reading(self) -> Reading {
+    fn reading(self) -> Found {
         let transitions = self.compiled.len();
         let mut l4 = vec![false; transitions];
         for &t in self.in_every_terminal.iter().flatten() {
@@ -359,7 +359,7 @@ impl<'a> Search<'a> {
         let liveness = (0..transitions)
             .map(|t| Liveness::of(l4[t], self.cycles[t], self.fires[t]))
             .collect();
-        Reading {
+        Found {
             states: self.states,
             edges: self.edges,
             bounds: self.bounds,

@@ -4,7 +4,7 @@
 use serde::Serialize;
 
 use super::{Cost, net_line, place_ids};
-use crate::{Liveness, Net, Verdict};
+use crate::{Liveness, Net, NetVerdict};
 use vl_report::table::{Report, Table, count, yes};
 
 /// Transitions named in the table before "… and N more".
@@ -44,7 +44,7 @@ pub struct AnalysisReport {
 
 impl AnalysisReport {
     /// `found` in `net`'s names, at the `cost` it took.
-    pub fn of(net: &Net, found: Verdict, cost: Cost) -> AnalysisReport {
+    pub fn of(net: &Net, found: NetVerdict, cost: Cost) -> AnalysisReport {
         let rank = crate::incidence_rank(net);
         let a = found.analysis;
         AnalysisReport {

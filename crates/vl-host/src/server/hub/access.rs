@@ -9,7 +9,7 @@ use vl_core::{
 };
 
 use super::{Away, Hub, ToConnection};
-use crate::accounts::audit::Entry;
+use crate::accounts::audit::AuditEntry;
 use crate::accounts::gate::Admitted;
 use crate::lab::LabRequest;
 
@@ -83,7 +83,7 @@ impl Hub {
         }
         info!(connection = id, ?role, "welcomed");
         self.config.audit.record(
-            Entry::new("welcome")
+            AuditEntry::new("welcome")
                 .connection(id)
                 .user(user.as_deref())
                 .detail(role.to_string()),
@@ -189,7 +189,7 @@ impl Hub {
             info!(connection = id, "the operator is back");
         } else {
             self.slot_until = self.config.slot.map(|slot| Instant::now() + slot);
-            let entry = Entry::new("granted").connection(id);
+            let entry = AuditEntry::new("granted").connection(id);
             self.config
                 .audit
                 .record(entry.user(self.operator_user.as_deref()));
@@ -256,7 +256,7 @@ impl Hub {
     /// left, or were kicked) and the lab back to idle, its run ended first;
     /// the next in line, if any, has it.
     pub(super) fn release_operator(&mut self, how: AccessEvent) {
-        let entry = Entry::new("released").user(self.operator_user.take().as_deref());
+        let entry = AuditEntry::new("released").user(self.operator_user.take().as_deref());
         self.config.audit.record(
             match self.operator {
                 Some(id) => entry.connection(id),

@@ -29,7 +29,7 @@ impl Map {
 }
 
 /// The field of `virtual_obstacles` on `lab`'s map, made off the hub
-/// (by a [`Worker`](super::worker::Worker)); none if the C-space cannot be made.
+/// (by a [`JobThread`](super::worker::JobThread)); none if the C-space cannot be made.
 pub(super) fn field_job(
     lab: &Lab,
     virtual_obstacles: Vec<Shape>,

@@ -17,14 +17,14 @@ use vl_core::{
 };
 
 use super::HostConfig;
-use crate::accounts::audit::Entry;
+use crate::accounts::audit::AuditEntry;
 use crate::accounts::gate::Admitted;
 use crate::lab::{Finished, Lab};
 use fields::Map;
 pub(crate) use forecasts::ForecastJob;
 pub use forecasts::{ForecastSettings, MOST_SEEDS as MOST_FORECAST_SEEDS};
 use vl_record::Level;
-use worker::Worker;
+use worker::JobThread;
 
 mod access;
 mod fields;
@@ -115,7 +115,7 @@ pub(crate) struct Hub {
     /// An operator whose link dropped, while their grace lasts.
     away: Option<Away>,
     /// Who waits for control, first first.
-    queue: std::collections::VecDeque<queue::Place>,
+    queue: std::collections::VecDeque<queue::Spot>,
     /// When the operator's slot ends, when slots have a length.
     slot_until: Option<Instant>,
     /// The mounted experiment.
@@ -149,10 +149,10 @@ pub(crate) struct Hub {
     /// same for every mount, so made once, when the Host starts.
     map: Map,
     /// Fields for definitions with virtual obstacles, made off the hub.
-    fields: Worker<Option<MapField>>,
+    fields: JobThread<Option<MapField>>,
     /// Forecasts of navigation definitions, made off the hub, and the
     /// verdict on the definition in force.
-    forecasts: Worker<forecasts::Forecasted>,
+    forecasts: JobThread<forecasts::Forecasted>,
     verdict: Option<vl_core::ForecastVerdict>,
     /// Whether a run may start, and the run that drives the robot back
     /// to the start pose while it may not.
@@ -166,7 +166,7 @@ pub(crate) struct Hub {
     /// Who pressed the emergency stop that is ending the run.
     stopper: Option<Stopper>,
     /// The run being recorded.
-    recording: Option<recording::Recording>,
+    recording: Option<recording::RunRecording>,
 }
 
 impl Hub {
@@ -197,8 +197,8 @@ impl Hub {
             devices,
             cspace: None,
             field: None,
-            fields: Worker::new("vl field"),
-            forecasts: Worker::new("vl forecast"),
+            fields: JobThread::new("vl field"),
+            forecasts: JobThread::new("vl forecast"),
             verdict: None,
             readiness: Readiness::Ready,
             reset_run: None,
@@ -248,7 +248,7 @@ impl Hub {
                     self.note_recording(&mut summary);
                     info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
                     self.config.audit.record(
-                        Entry::new("run_ended").detail(format!("run {run}: {}", summary.ending())),
+                        AuditEntry::new("run_ended").detail(format!("run {run}: {}", summary.ending())),
                     );
                     let reset = resets_after(summary.reason);
                     self.broadcast(&HostMessage::Done { summary: Box::new(summary) });

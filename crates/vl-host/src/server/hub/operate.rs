@@ -11,7 +11,7 @@ use vl_core::{
 
 use super::Hub;
 use super::fields::field_job;
-use crate::accounts::audit::Entry;
+use crate::accounts::audit::AuditEntry;
 use crate::lab::LabRequest;
 
 /// The least time between two plans for the operator.
@@ -192,7 +192,7 @@ impl Hub {
             let user = self.user_of(id);
             self.run_log.started(self.runs, experiment, user.clone());
             self.config.audit.record(
-                Entry::new("run_started")
+                AuditEntry::new("run_started")
                     .connection(id)
                     .user(user.as_deref())
                     .detail(format!("run {}: {experiment}", self.runs)),

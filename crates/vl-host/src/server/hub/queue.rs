@@ -17,13 +17,13 @@ use vl_core::{AccessEvent, Action, EndReason, ErrorCode, HostMessage, Role, Seat
 
 use super::access::secret;
 use super::{Hub, ToConnection};
-use crate::accounts::audit::Entry;
+use crate::accounts::audit::AuditEntry;
 use crate::accounts::gate::Identity;
 use crate::accounts::users::AccountRole;
 use crate::lab::LabRequest;
 
 /// Someone's place in the line.
-pub(super) struct Place {
+pub(super) struct Spot {
     /// Their connection; none while their link is down.
     pub(super) id: Option<u64>,
     /// The account that holds the place across reconnects.
@@ -56,14 +56,16 @@ impl Hub {
             return self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
         }
         let account = self.user_of(id);
-        self.queue.push_back(Place {
+        self.queue.push_back(Spot {
             id: Some(id),
             account: account.clone(),
             away_until: None,
         });
-        self.config
-            .audit
-            .record(Entry::new("queued").connection(id).user(account.as_deref()));
+        self.config.audit.record(
+            AuditEntry::new("queued")
+                .connection(id)
+                .user(account.as_deref()),
+        );
         self.fill_head();
         self.grant_next();
         self.tell_queue();
@@ -187,9 +189,11 @@ impl Hub {
             let _ = client.out.try_send(ToConnection::Subscribe);
         }
         info!(connection = id, "control granted");
-        self.config
-            .audit
-            .record(Entry::new("granted").connection(id).user(user.as_deref()));
+        self.config.audit.record(
+            AuditEntry::new("granted")
+                .connection(id)
+                .user(user.as_deref()),
+        );
         self.send(
             id,
             HostMessage::Role {
@@ -239,7 +243,7 @@ impl Hub {
         info!(connection = id, "the operator's slot ended");
         self.config
             .audit
-            .record(Entry::new("slot_ended").connection(id));
+            .record(AuditEntry::new("slot_ended").connection(id));
         if self.supervisor.allows(Action::Stop) {
             self.lab.request(LabRequest::Finish(EndReason::SlotEnded));
         }
@@ -278,7 +282,7 @@ impl Hub {
         }
         let by = self.user_of(id);
         let entry = |what: &str| {
-            Entry::new("kicked")
+            AuditEntry::new("kicked")
                 .connection(session)
                 .user(by.as_deref())
                 .detail(what.to_owned())

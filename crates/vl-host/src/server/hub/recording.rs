@@ -9,11 +9,11 @@ use vl_core::{
 
 use super::Hub;
 use crate::lab::Watching;
-use vl_record::{Begin, Entry, Level, Owner};
+use vl_record::{Begin, Level, Owner, Recordable};
 
 /// The run being recorded, and the frames kept encoded for it while it
 /// lasts (as for a watcher: nobody watching, no frame is encoded).
-pub(super) struct Recording {
+pub(super) struct RunRecording {
     name: RecordingName,
     _frames: Watching,
 }
@@ -48,13 +48,13 @@ impl Hub {
             .record
             .begin(self.beginning(run, owner, definition))
         {
-            self.recording = Some(Recording {
+            self.recording = Some(RunRecording {
                 name,
                 _frames: Watching::new(&self.lab.watchers),
             });
             if let Some(verdict) = &self.verdict {
                 let forecast = HostMessage::Forecast(Box::new(verdict.clone()));
-                self.lab.record.send(Entry::Sent(forecast));
+                self.lab.record.send(Recordable::Sent(forecast));
             }
         }
     }
@@ -130,7 +130,7 @@ impl Hub {
     /// Records what the Host sends everyone, while a run is recorded.
     pub(super) fn record_sent(&self, message: &HostMessage) {
         if self.lab.record.active() {
-            self.lab.record.send(Entry::Sent(message.clone()));
+            self.lab.record.send(Recordable::Sent(message.clone()));
         }
     }
 
@@ -139,11 +139,11 @@ impl Hub {
     pub(super) fn record_log(&self, level: Level, text: String) {
         // Nobody watching the log live is no error.
         let _ = self.lab.log.send((level, text.clone()));
-        self.lab.record.send(Entry::Log(level, text));
+        self.lab.record.send(Recordable::Log(level, text));
     }
 
     /// Records a command the run took.
     pub(super) fn record_command(&self, command: GuestMessage) {
-        self.lab.record.send(Entry::Command(command));
+        self.lab.record.send(Recordable::Command(command));
     }
 }

@@ -8,7 +8,7 @@ use std::time::{Instant, SystemTime};
 use vl_core::{DeviceState, EndReason, Experiment, HostStatus, Person, RunRecord};
 
 use super::Hub;
-use crate::accounts::audit::Entry;
+use crate::accounts::audit::AuditEntry;
 use vl_record::Level;
 
 const DAY_S: u64 = 86_400;
@@ -108,7 +108,7 @@ impl Hub {
             };
             self.config
                 .audit
-                .record(Entry::new(event).detail(format!("the {device}")));
+                .record(AuditEntry::new(event).detail(format!("the {device}")));
             let state = if after == DeviceState::Offline {
                 "does not answer"
             } else {

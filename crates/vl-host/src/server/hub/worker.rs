@@ -15,7 +15,7 @@ use tracing::warn;
 /// A job: given the flag that says it is no longer wanted.
 type Job<T> = Box<dyn FnOnce(&AtomicBool) -> T + Send>;
 
-pub(super) struct Worker<T> {
+pub(super) struct JobThread<T> {
     /// What the job's threads are named.
     name: &'static str,
     /// The number of the newest job asked for.
@@ -27,10 +27,10 @@ pub(super) struct Worker<T> {
     pub(super) done: mpsc::UnboundedReceiver<(u64, T)>,
 }
 
-impl<T: Send + 'static> Worker<T> {
-    pub(super) fn new(name: &'static str) -> Worker<T> {
+impl<T: Send + 'static> JobThread<T> {
+    pub(super) fn new(name: &'static str) -> JobThread<T> {
         let (done_tx, done) = mpsc::unbounded_channel();
-        Worker {
+        JobThread {
             name,
             asked: 0,
             running: None,

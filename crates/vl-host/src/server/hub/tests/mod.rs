@@ -25,16 +25,16 @@ use crate::server::HostConfig;
 const PATIENCE: Duration = Duration::from_secs(2);
 
 /// A hub serving a dummy robot in the open arena.
-struct Rig {
+struct HubRig {
     hub: mpsc::Sender<ToHub>,
     robot: DummyHandle,
     feedback: watch::Receiver<Option<HostMessage>>,
     next_id: u64,
 }
 
-impl Rig {
+impl HubRig {
     /// With no drive back to the start pose between runs, unless `config` asks.
-    fn new(config: HostConfig) -> Rig {
+    fn new(config: HostConfig) -> HubRig {
         let (robot, handle) = DummyRobot::new(RobotModel::khepera_ii());
         let devices = Devices {
             robot: Box::new(robot),
@@ -48,7 +48,7 @@ impl Rig {
         let hub = Hub::new(lab, Arc::new(config), supervisor);
         let (tx, rx) = mpsc::channel(super::super::HUB_QUEUE);
         tokio::spawn(hub.run(rx));
-        Rig {
+        HubRig {
             hub: tx,
             robot: handle,
             feedback,
@@ -56,8 +56,8 @@ impl Rig {
         }
     }
 
-    fn plain() -> Rig {
-        Rig::new(HostConfig {
+    fn plain() -> HubRig {
+        HubRig::new(HostConfig {
             reset: false,
             ..HostConfig::default()
         })
@@ -290,7 +290,7 @@ impl Client {
 
 #[tokio::test]
 async fn nothing_but_hello_comes_first() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let mut client = rig.join().await;
     client.say(GuestMessage::Start).await;
     assert_eq!(client.refused().await.0, ErrorCode::HelloFirst);
@@ -298,7 +298,7 @@ async fn nothing_but_hello_comes_first() {
 
 #[tokio::test]
 async fn another_protocol_is_refused_with_the_hosts() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let mut client = rig.join().await;
     client
         .greet(PROTOCOL_VERSION + 1, Role::Observer, None)
@@ -310,7 +310,7 @@ async fn another_protocol_is_refused_with_the_hosts() {
 
 #[tokio::test]
 async fn a_second_hello_is_refused() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let mut client = rig.welcomed(Role::Observer).await;
     client.hello(Role::Observer, None).await;
     assert_eq!(client.refused().await.0, ErrorCode::NotAllowedNow);
@@ -318,7 +318,7 @@ async fn a_second_hello_is_refused() {
 
 #[tokio::test]
 async fn observers_watch_and_may_not_drive() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let mut observer = rig.welcomed(Role::Observer).await;
     for message in [
         GuestMessage::Mount {
@@ -336,7 +336,7 @@ async fn observers_watch_and_may_not_drive() {
 
 #[tokio::test]
 async fn one_operator_at_a_time() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let _op = rig.welcomed(Role::Operator).await;
     let mut second = rig.join().await;
     second.hello(Role::Operator, None).await;
@@ -347,7 +347,7 @@ async fn one_operator_at_a_time() {
 
 #[tokio::test]
 async fn only_offered_experiments_mount() {
-    let mut rig = Rig::new(HostConfig {
+    let mut rig = HubRig::new(HostConfig {
         experiments: vec![vl_core::Experiment::Navigation],
         reset: false,
         ..HostConfig::default()
@@ -364,7 +364,7 @@ async fn only_offered_experiments_mount() {
 
 #[tokio::test]
 async fn nothing_starts_before_a_mount() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let mut op = rig.welcomed(Role::Operator).await;
     op.say(GuestMessage::Start).await;
     assert_eq!(op.refused().await.0, ErrorCode::NotAllowedNow);
@@ -372,7 +372,7 @@ async fn nothing_starts_before_a_mount() {
 
 #[tokio::test]
 async fn a_goal_off_the_arena_is_refused_with_where_it_is() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let mut op = rig.welcomed(Role::Operator).await;
     op.mount("navigation").await;
     op.define_goal(900.0, 100.0).await;
@@ -383,7 +383,7 @@ async fn a_goal_off_the_arena_is_refused_with_where_it_is() {
 
 #[tokio::test]
 async fn a_late_observer_catches_up_on_the_mount_and_definition() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let mut op = rig.welcomed(Role::Operator).await;
     op.mount("navigation").await;
     op.define_goal(500.0, 120.0).await;
@@ -395,7 +395,7 @@ async fn a_late_observer_catches_up_on_the_mount_and_definition() {
 
 #[tokio::test]
 async fn stale_and_non_finite_commands_are_refused() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let mut op = rig.running("teleoperation").await;
     op.command(2, 50.0).await;
     op.command(2, 50.0).await;
@@ -408,7 +408,7 @@ async fn stale_and_non_finite_commands_are_refused() {
 
 #[tokio::test]
 async fn a_robot_that_does_not_answer_starts_no_run() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     rig.robot.set_silent(true);
     let mut op = rig.welcomed(Role::Operator).await;
     op.mount("teleoperation").await;
@@ -440,7 +440,7 @@ async fn a_robot_that_does_not_answer_starts_no_run() {
 
 #[tokio::test]
 async fn a_robot_that_falls_silent_mid_run_ends_it_as_a_fault() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let mut op = rig.running("teleoperation").await;
     op.command(1, 80.0).await;
     rig.robot_moves().await;
@@ -459,7 +459,7 @@ async fn a_robot_that_falls_silent_mid_run_ends_it_as_a_fault() {
 
 #[tokio::test]
 async fn an_observer_s_emergency_stop_ends_the_run_and_says_who() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let mut op = rig.running("teleoperation").await;
     let observer = rig.welcomed(Role::Observer).await;
     op.command(1, 80.0).await;
@@ -477,7 +477,7 @@ async fn an_observer_s_emergency_stop_ends_the_run_and_says_who() {
 
 #[tokio::test]
 async fn after_an_emergency_stop_the_robot_is_not_driven_back() {
-    let mut rig = Rig::new(HostConfig::default());
+    let mut rig = HubRig::new(HostConfig::default());
     let mut op = rig.running("teleoperation").await;
     op.command(1, 100.0).await;
     rig.robot_moves().await;
@@ -492,7 +492,7 @@ async fn after_an_emergency_stop_the_robot_is_not_driven_back() {
 
 #[tokio::test]
 async fn a_stopped_run_that_moved_the_robot_drives_it_back_first() {
-    let mut rig = Rig::new(HostConfig::default());
+    let mut rig = HubRig::new(HostConfig::default());
     let mut op = rig.running("teleoperation").await;
     op.command(1, 100.0).await;
     rig.robot_moves().await;
@@ -517,7 +517,7 @@ async fn a_stopped_run_that_moved_the_robot_drives_it_back_first() {
 
 #[tokio::test]
 async fn the_watchdog_stops_a_robot_whose_commands_stop() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let op = rig.running("teleoperation").await;
     op.command(1, 80.0).await;
     rig.robot_moves().await;
@@ -532,7 +532,7 @@ async fn the_watchdog_stops_a_robot_whose_commands_stop() {
 
 #[tokio::test]
 async fn the_control_loop_answers_each_command_with_its_event() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let op = rig.running("teleoperation").await;
     for event in 1..=5 {
         op.command(event, 40.0).await;
@@ -546,7 +546,7 @@ async fn the_control_loop_answers_each_command_with_its_event() {
 
 #[tokio::test]
 async fn a_silent_operator_loses_the_run_and_the_role() {
-    let mut rig = Rig::new(HostConfig {
+    let mut rig = HubRig::new(HostConfig {
         lease: Duration::from_millis(100),
         reset: false,
         ..HostConfig::default()
@@ -566,7 +566,7 @@ async fn a_silent_operator_loses_the_run_and_the_role() {
 
 #[tokio::test]
 async fn an_operator_who_says_bye_frees_the_role_at_once() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let op = rig.running("teleoperation").await;
     let mut observer = rig.welcomed(Role::Observer).await;
     op.leave(true).await;
@@ -579,7 +579,7 @@ async fn an_operator_who_says_bye_frees_the_role_at_once() {
 
 #[tokio::test]
 async fn a_dropped_operator_is_held_for_and_comes_back_to_the_run() {
-    let mut rig = Rig::new(HostConfig {
+    let mut rig = HubRig::new(HostConfig {
         grace: Duration::from_secs(5),
         reset: false,
         ..HostConfig::default()
@@ -615,7 +615,7 @@ async fn a_dropped_operator_is_held_for_and_comes_back_to_the_run() {
 
 #[tokio::test]
 async fn a_dropped_operator_who_does_not_come_back_loses_the_run() {
-    let mut rig = Rig::new(HostConfig {
+    let mut rig = HubRig::new(HostConfig {
         grace: Duration::from_millis(100),
         reset: false,
         ..HostConfig::default()
@@ -630,7 +630,7 @@ async fn a_dropped_operator_who_does_not_come_back_loses_the_run() {
 
 #[tokio::test]
 async fn a_client_that_does_not_read_is_let_go() {
-    let mut rig = Rig::plain();
+    let mut rig = HubRig::plain();
     let mut deaf = rig.welcomed(Role::Observer).await;
     let op = rig.welcomed(Role::Operator).await;
     // Every refusal goes to the deaf observer's outbox, which is never read.

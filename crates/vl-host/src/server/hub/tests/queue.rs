@@ -6,13 +6,13 @@ use std::time::Duration;
 
 use vl_core::{EndReason, ErrorCode, GuestMessage, HostMessage, Role};
 
-use super::{Client, Rig};
+use super::{Client, HubRig};
 use crate::accounts::users::AccountRole;
 use crate::server::HostConfig;
 
 /// A lab whose operator drives `slot` while others wait.
-fn slotted(slot: Duration) -> Rig {
-    Rig::new(HostConfig {
+fn slotted(slot: Duration) -> HubRig {
+    HubRig::new(HostConfig {
         slot: Some(slot),
         reset: false,
         ..HostConfig::default()
