@@ -16,12 +16,25 @@ use crate::media::LinkArgs;
 use crate::report::emit;
 use crate::{BadInput, bad_input, named};
 
-#[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
+/// Which robot `vl host` drives.
+#[derive(Clone, Copy, PartialEq)]
 enum RobotDriver {
     /// The simulated Khepera II.
     Sim,
     /// A Khepera I/II on the serial line --port.
     Khepera,
+}
+
+impl vl_core::Named for RobotDriver {
+    const KIND: &'static str = "robot";
+    const ALL: &'static [RobotDriver] = &[RobotDriver::Sim, RobotDriver::Khepera];
+
+    fn id(self) -> &'static str {
+        match self {
+            RobotDriver::Sim => "sim",
+            RobotDriver::Khepera => "khepera",
+        }
+    }
 }
 
 /// `vl host`: serve the lab, or measure how it answers.
@@ -121,8 +134,9 @@ pub(crate) struct HostArgs {
     /// given here as well win.
     #[arg(long, value_hint = ValueHint::FilePath)]
     config: Option<PathBuf>,
-    /// Which robot to drive.
-    #[arg(long, value_enum, default_value = "sim")]
+    /// Which robot to drive: sim (the simulated Khepera II) or khepera
+    /// (a Khepera I/II on the serial line --port).
+    #[arg(long, value_parser = named::<RobotDriver>(), default_value = "sim")]
     robot: RobotDriver,
     /// The serial device of a Khepera (with --robot khepera).
     #[arg(long, required_if_eq("robot", "khepera"))]

@@ -81,27 +81,40 @@ impl OpticsArgs {
 /// and `vl experiment` take it from flags.
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct FrameArgs {
-    #[arg(long, value_enum, default_value = "every-frame")]
-    frames: Frames,
+    /// Which frames: every-frame (every frame the camera takes: live
+    /// video) or on-change (only when the scene changes beyond the robot,
+    /// when a Guest asks, and at least every --frame-interval; Guests draw
+    /// the robot from its pose).
+    #[arg(long, value_parser = crate::named::<FrameChoice>(), default_value = "every-frame")]
+    frames: FrameChoice,
     /// With --frames on-change: the longest time between two frames (5, 5s, 1m).
     #[arg(long, default_value = "5", value_parser = crate::duration)]
     frame_interval: Duration,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum Frames {
-    /// Every frame the camera takes: live video.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FrameChoice {
     EveryFrame,
-    /// Only when the scene changes beyond the robot, when a Guest asks, and
-    /// at least every --frame-interval; Guests draw the robot from its pose.
     OnChange,
+}
+
+impl vl_core::Named for FrameChoice {
+    const KIND: &'static str = "frames";
+    const ALL: &'static [FrameChoice] = &[FrameChoice::EveryFrame, FrameChoice::OnChange];
+
+    fn id(self) -> &'static str {
+        match self {
+            FrameChoice::EveryFrame => "every-frame",
+            FrameChoice::OnChange => "on-change",
+        }
+    }
 }
 
 impl FrameArgs {
     pub(crate) fn policy(&self) -> FramePolicy {
         match self.frames {
-            Frames::EveryFrame => FramePolicy::EveryFrame,
-            Frames::OnChange => FramePolicy::OnChange {
+            FrameChoice::EveryFrame => FramePolicy::EveryFrame,
+            FrameChoice::OnChange => FramePolicy::OnChange {
                 max_interval: self.frame_interval,
             },
         }

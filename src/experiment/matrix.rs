@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use vl_campaign::{Matrix, cells_of, line, run_all, write_report};
+use vl_campaign::{Matrix, cells_of, progress_line, run_all, write_report};
 use vl_core::Named;
 use vl_sim::{LinkModel, Profile};
 
@@ -73,7 +73,7 @@ pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Res
             run.experiment,
             run.profile.as_deref().unwrap_or("loopback"),
             run.pacing,
-            line(run)
+            progress_line(run)
         );
     }))?;
     let matrix = Matrix::of(

@@ -264,7 +264,7 @@ pub async fn run_one(spec: &RunSpec) -> Result<MeasuredRun, CampaignError> {
 }
 
 /// A run's outcome in a line of progress.
-pub fn line(run: &MeasuredRun) -> String {
+pub fn progress_line(run: &MeasuredRun) -> String {
     let strayed = run.tracking_error_mm.map_or(String::new(), |e| {
         format!(
             ", {:.1} mm from the planned path on average, {:.1} at most",

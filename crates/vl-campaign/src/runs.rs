@@ -10,7 +10,9 @@ use std::path::Path;
 use vl_core::Arena;
 use vl_sim::Optics;
 
-use super::{CampaignError, MeasuredRun, RunSpec, line, overall, picture, run_one, spread};
+use super::{
+    CampaignError, MeasuredRun, RunSpec, overall, picture, progress_line, run_one, spread,
+};
 
 /// A series of runs of one experiment and what they add up to.
 #[derive(Serialize)]
@@ -134,7 +136,7 @@ impl RunSeries {
                     run.svg = Some(picture(dir, arena, seed, run.report.as_ref())?);
                 }
                 if progress {
-                    eprintln!("[{}/{total}] {}", done.len() + 1, line(&run));
+                    eprintln!("[{}/{total}] {}", done.len() + 1, progress_line(&run));
                 }
                 done.push(run);
             }

@@ -1,6 +1,6 @@
 //! The vl Host: the lab machine's side. It drives the robot and camera
 //! (behind the traits in `drivers`: simulated in `sim`, a real Khepera on
-//! a serial line in `khepera`, recorded footage played back in `replay`,
+//! a serial line in `khepera`, recorded footage played back in `footage`,
 //! real cameras over HTTP or V4L2 in `webcam`; the Khepera's speed
 //! controller `characterise` measures), which camera `--camera` names
 //! (`source`) and which robot and camera go together (`setup`), runs the
@@ -73,12 +73,12 @@ mod characterise;
 mod drivers;
 #[cfg(test)]
 mod dummy;
+mod footage;
 mod khepera;
 mod lab;
 mod line;
 mod media;
 mod priority;
-mod replay;
 mod server;
 mod setup;
 mod sim;
@@ -101,6 +101,7 @@ pub use accounts::users::{AccountRole, Member, Roster, Users, UsersError};
 pub use accounts::{SecretError, secret_from_file};
 pub use characterise::{CharacteriseError, characterise};
 pub use drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness};
+pub use footage::FootageCamera;
 pub use khepera::KheperaSerial;
 pub use lab::{Devices, FramePolicy};
 pub use line::run_guard;
@@ -109,7 +110,6 @@ pub use media::{
     bench as media_bench,
 };
 pub use priority::raise_for_control as raise_priority;
-pub use replay::ReplayCamera;
 pub use server::bench::{
     BenchError, Guessing, OperatorLatency, WatchersBench, WatchersCost, operator_latency,
 };

@@ -6,7 +6,7 @@ use std::str::FromStr;
 use vl_core::{Arena, CameraModel};
 
 use crate::drivers::{Camera, CameraError};
-use crate::replay::ReplayCamera;
+use crate::footage::FootageCamera;
 use crate::webcam::HttpCamera;
 
 /// Frames per second footage and network cameras are taken at when no
@@ -63,7 +63,7 @@ impl CameraSource {
         Ok(Some(match self {
             CameraSource::Sim | CameraSource::None => return Ok(None),
             CameraSource::Replay(dir) => {
-                Box::new(ReplayCamera::open(&dir, calibration, floor, ASSUMED_FPS)?)
+                Box::new(FootageCamera::open(&dir, calibration, floor, ASSUMED_FPS)?)
             }
             CameraSource::Http(url) => {
                 Box::new(HttpCamera::open(&url, calibration, floor, ASSUMED_FPS)?)

@@ -16,14 +16,14 @@ use crate::drivers::{Camera, CameraError, Captured, believed};
 /// Image files a footage directory may hold.
 const EXTENSIONS: [&str; 3] = ["png", "jpg", "jpeg"];
 
-pub struct ReplayCamera {
+pub struct FootageCamera {
     dir: PathBuf,
     frames: Vec<PathBuf>,
     next: usize,
     model: CameraModel,
 }
 
-impl ReplayCamera {
+impl FootageCamera {
     /// Footage from `dir`, seen through `model`, or (without one) as by a
     /// camera looking straight down on a `floor_mm` floor at `fps`.
     pub fn open(
@@ -31,7 +31,7 @@ impl ReplayCamera {
         model: Option<CameraModel>,
         floor_mm: (f64, f64),
         fps: f64,
-    ) -> Result<ReplayCamera, CameraError> {
+    ) -> Result<FootageCamera, CameraError> {
         let frames = list(dir)?;
         let first = frames.first().ok_or_else(|| {
             CameraError::Setup(format!(
@@ -41,7 +41,7 @@ impl ReplayCamera {
         })?;
         let image = read(first)?;
         let model = believed(model, floor_mm, image.width(), fps);
-        Ok(ReplayCamera {
+        Ok(FootageCamera {
             dir: dir.to_owned(),
             frames,
             next: 0,
@@ -73,7 +73,7 @@ fn read(path: &Path) -> Result<RgbImage, CameraError> {
         .map_err(|e| CameraError::Frame(format!("cannot read the frame {}: {e}", path.display())))
 }
 
-impl Camera for ReplayCamera {
+impl Camera for FootageCamera {
     fn model(&self) -> CameraModel {
         self.model
     }
