@@ -4,6 +4,7 @@
 
 use proptest::prelude::*;
 use serde_json::{Value, json};
+use vl_core::Feedback;
 use vl_core::{
     Arena, CameraModel, Definition, Drive, EndReason, ErrorCode, ErrorMm, Experiment,
     ExperimentInfo, Goal, GuestMessage, HostMessage, Material, MountedLab, Named, Obstacle,
@@ -484,7 +485,7 @@ fn host_message() -> impl Strategy<Value = HostMessage> {
         )
             .prop_map(
                 |(event, t_ms, pose, wheels, proximity, contact, force, (limited, source))| {
-                    HostMessage::Feedback {
+                    HostMessage::Feedback(Feedback {
                         event,
                         t_ms,
                         pose,
@@ -494,7 +495,7 @@ fn host_message() -> impl Strategy<Value = HostMessage> {
                         force: force.map(|(x, y)| [x, y]),
                         limited,
                         source,
-                    }
+                    })
                 },
             ),
         summary().prop_map(|summary| HostMessage::Done {

@@ -117,8 +117,8 @@ pub use contract::forecast::{
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::host_status::{HostStatus, Person, Priorities, Priority, RunRecord};
 pub use contract::protocol::{
-    DecodeError, DeviceState, Drive, ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES,
-    MountedLab, PROTOCOL_VERSION, Readiness, Role, Secret, WATCHDOG, Wire,
+    DecodeError, DeviceState, Drive, ErrorCode, Feedback, GuestMessage, HostMessage,
+    MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Readiness, Role, Secret, WATCHDOG, Wire,
 };
 pub use contract::recording::{
     PART_BYTES, PartError, PartHeader, RecordedRun, RecordingName, RecordingNameError,

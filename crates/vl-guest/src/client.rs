@@ -157,7 +157,7 @@ impl Waiting {
     fn counter(&self, incoming: &Incoming) -> Option<(&AtomicUsize, usize)> {
         match incoming {
             Incoming::Frame(..) => Some((&self.frames, FRAMES_WAITING)),
-            Incoming::Message(m) if matches!(**m, HostMessage::Feedback { .. }) => {
+            Incoming::Message(m) if matches!(**m, HostMessage::Feedback(_)) => {
                 Some((&self.feedback, FEEDBACK_WAITING))
             }
             _ => None,

@@ -78,8 +78,7 @@ pub use replay::{Replay, ReplayReport, replay_headless};
 pub use results::Results;
 pub use route::{EditRefused, Route, check_path, drag_path};
 pub use session::{
-    CameraFrame, DeviceStates, InLine, LinkState, MeanMax, Pacing, RobotState, RoundTrips, Session,
-    TIME_PERIOD,
+    CameraFrame, DeviceStates, InLine, LinkState, MeanMax, Pacing, RoundTrips, Session, TIME_PERIOD,
 };
 pub use settings::{Settings, SettingsError};
 pub use status::{StatusError, host_status};

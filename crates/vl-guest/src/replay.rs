@@ -6,6 +6,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use serde::Serialize;
+use vl_core::Feedback;
 use vl_core::{FrameHeader, HostMessage, Point, Role, Summary};
 use vl_record::{RecordError, Recording, Replayed};
 use vl_report::table::{Report, Table};
@@ -100,7 +101,7 @@ impl Replay {
             };
             match **message {
                 HostMessage::Started { .. } => trail.clear(),
-                HostMessage::Feedback { pose, .. } => {
+                HostMessage::Feedback(Feedback { pose, .. }) => {
                     let p = pose.point();
                     if trail.last().is_none_or(|q| q.distance(p) >= step_mm) {
                         trail.push(p);
@@ -217,7 +218,9 @@ pub fn replay_headless(path: &Path) -> Result<ReplayReport, RecordError> {
     let feedback = replay
         .items
         .iter()
-        .filter(|(_, i)| matches!(i, Incoming::Message(m) if matches!(**m, HostMessage::Feedback { .. })))
+        .filter(
+            |(_, i)| matches!(i, Incoming::Message(m) if matches!(**m, HostMessage::Feedback(_))),
+        )
         .count();
     let mut session = Session::default();
     replay.seek(replay.duration_s);

@@ -4,6 +4,7 @@
 //! teacher grades, beside the replay.
 
 use egui_plot::{Legend, Line, Plot, PlotPoints, VLine};
+use vl_core::Feedback;
 use vl_core::{HostMessage, Point, distance_to_polyline};
 
 use std::path::PathBuf;
@@ -64,12 +65,12 @@ impl Results {
                         .map(|run| run.path.iter().map(|&p| xy(p)).collect())
                         .collect();
                 }
-                HostMessage::Feedback {
+                HostMessage::Feedback(Feedback {
                     pose,
                     wheels,
                     force,
                     ..
-                } => {
+                }) => {
                     results.followed.push(xy(pose.point()));
                     if path.len() >= 2 {
                         let error = distance_to_polyline(&path, pose.point());

@@ -6,10 +6,11 @@ use std::time::{Duration, Instant};
 
 use image::RgbaImage;
 use serde::Serialize;
+use vl_core::Feedback;
 use vl_core::{
     Action, Definition, DeviceState, Drive, ErrorCode, Experiment, ExperimentInfo, FrameHeader,
-    GuestMessage, HostMessage, ImageFormat, MountedLab, Named, Pose, PoseSource, Readiness, Role,
-    Summary, Supervisor, WheelSpeeds,
+    GuestMessage, HostMessage, ImageFormat, MountedLab, Named, Pose, Readiness, Role, Summary,
+    Supervisor,
 };
 
 use crate::client::Incoming;
@@ -21,24 +22,6 @@ const ERRORS_KEPT: usize = 8;
 const RTT_KEPT: usize = 10_000;
 /// Commands' gaps kept per run, for a plot of synchronisation over time.
 const GAPS_KEPT: usize = 100_000;
-
-/// The robot's latest reported state.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RobotState {
-    pub event: u64,
-    pub t_ms: f64,
-    pub pose: Pose,
-    pub wheels: WheelSpeeds,
-    pub proximity: Vec<u16>,
-    pub contact: bool,
-    /// The obstacles' push, in joystick axes (x right, y forward, −1 to
-    /// 1), when the experiment feeds it back.
-    pub force: Option<[f64; 2]>,
-    /// The Host's safety layer is holding the robot back.
-    pub limited: bool,
-    /// Whether `pose` rests on the camera or on odometry alone.
-    pub source: PoseSource,
-}
 
 /// Whether the lab's devices answer, as the Host last said.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -164,7 +147,7 @@ pub struct Session {
     /// How many forecasts the Host has told: a new one is told by the count.
     pub forecasts: u64,
     pub running: bool,
-    pub robot: Option<RobotState>,
+    pub robot: Option<Feedback>,
     /// The newest camera image shown, decoded (see [`Session::decode_frame`]).
     pub frame: Option<CameraFrame>,
     /// The newest image received, still encoded: only the one shown is
@@ -356,27 +339,7 @@ impl Session {
                 self.predictor.start();
             }
             HostMessage::Started { event } => self.started(event),
-            HostMessage::Feedback {
-                event,
-                t_ms,
-                pose,
-                wheels,
-                proximity,
-                contact,
-                force,
-                limited,
-                source,
-            } => self.feedback(RobotState {
-                event,
-                t_ms,
-                pose,
-                wheels,
-                proximity,
-                contact,
-                force,
-                limited,
-                source,
-            }),
+            HostMessage::Feedback(feedback) => self.feedback(feedback),
             HostMessage::Done { summary } => {
                 self.interrupted = false;
                 self.running = false;
@@ -453,7 +416,7 @@ impl Session {
 
     /// The robot as the newest feedback reports it; the prediction is
     /// judged against it.
-    fn feedback(&mut self, robot: RobotState) {
+    fn feedback(&mut self, robot: Feedback) {
         // Feedback can only move forward in time; an older one is stale.
         if self.robot.as_ref().is_some_and(|r| r.t_ms > robot.t_ms) {
             return;
@@ -636,9 +599,10 @@ impl From<&RoundTrips> for RoundTripMs {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use vl_core::{PoseSource, WheelSpeeds};
 
     fn feedback(event: u64, t_ms: f64) -> Incoming {
-        Incoming::Message(Box::new(HostMessage::Feedback {
+        Incoming::Message(Box::new(HostMessage::Feedback(Feedback {
             event,
             t_ms,
             pose: Pose::default(),
@@ -648,7 +612,7 @@ mod tests {
             force: None,
             limited: false,
             source: PoseSource::Camera,
-        }))
+        })))
     }
 
     #[test]

@@ -5,6 +5,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use serde::Serialize;
+use vl_core::Feedback;
 use vl_core::{Drive, FrameHeader, GuestMessage, HostMessage, Wire};
 use vl_report::table::{Report, Table};
 
@@ -62,7 +63,7 @@ pub fn export(recording: &Recording, dir: &Path) -> Result<Exported, RecordError
     let mut frames = 0;
     for (ns, replayed) in recording.replay()? {
         match replayed {
-            Replayed::Message(HostMessage::Feedback {
+            Replayed::Message(HostMessage::Feedback(Feedback {
                 event,
                 pose,
                 wheels,
@@ -72,7 +73,7 @@ pub fn export(recording: &Recording, dir: &Path) -> Result<Exported, RecordError
                 limited,
                 source,
                 ..
-            }) => {
+            })) => {
                 let [fx, fy] =
                     force.map_or([String::new(), String::new()], |f| f.map(|x| x.to_string()));
                 let proximity: Vec<String> = proximity.iter().map(u16::to_string).collect();

@@ -137,7 +137,7 @@ impl Topic {
             M::Defined { .. } => Topic::Definition,
             M::Forecast(_) => Topic::Forecast,
             M::Started { .. } => Topic::Started,
-            M::Feedback { .. } => Topic::Feedback,
+            M::Feedback(_) => Topic::Feedback,
             M::State(_) => Topic::State,
             M::Status { .. } => Topic::Status,
             M::Done { .. } => Topic::Summary,

@@ -4,6 +4,7 @@
 //! recorder (into a run's file) and the live Foxglove server (onto its
 //! watchers' sockets), so a live view and a recorded one are the same.
 
+use vl_core::Feedback;
 use vl_core::{Definition, FrameHeader, HostMessage, MountedLab, Pose, Wire};
 
 use super::Topic;
@@ -70,7 +71,9 @@ impl Views {
         };
         // Feedback is stamped with when the lab read the robot.
         let ns = match message {
-            HostMessage::Feedback { t_ms, .. } => self.since_ns + (t_ms.max(0.0) * 1e6) as u64,
+            HostMessage::Feedback(Feedback { t_ms, .. }) => {
+                self.since_ns + (t_ms.max(0.0) * 1e6) as u64
+            }
             _ => ns,
         };
         let mut views = vec![View {
@@ -79,7 +82,7 @@ impl Views {
             data: message.encode().into_bytes(),
         }];
         match message {
-            HostMessage::Feedback { pose, .. } => {
+            HostMessage::Feedback(Feedback { pose, .. }) => {
                 self.pose = Some(*pose);
                 views.push(View::json(
                     Topic::Pose,

@@ -113,6 +113,28 @@ impl std::fmt::Display for Readiness {
     }
 }
 
+/// The robot's state after executing command `event`, at Host time `t_ms`
+/// since the session began: what the Host sends every control period and
+/// what the Guest shows.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Feedback {
+    pub event: u64,
+    pub t_ms: f64,
+    pub pose: Pose,
+    pub wheels: WheelSpeeds,
+    pub proximity: Vec<u16>,
+    pub contact: bool,
+    /// Force to render on a haptic joystick, when the experiment has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force: Option<[f64; 2]>,
+    /// The safety layer is holding the robot back from what was asked.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub limited: bool,
+    /// Whether `pose` rests on a recent camera sighting or on odometry alone.
+    #[serde(default)]
+    pub source: PoseSource,
+}
+
 /// Machine-readable reason in an `error` message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, strum::VariantArray)]
 #[serde(rename_all = "snake_case")]
@@ -329,25 +351,8 @@ pub enum HostMessage {
     Started {
         event: u64,
     },
-    /// The robot's state after executing command `event`, at Host time `t_ms`
-    /// since the session began.
-    Feedback {
-        event: u64,
-        t_ms: f64,
-        pose: Pose,
-        wheels: WheelSpeeds,
-        proximity: Vec<u16>,
-        contact: bool,
-        /// Force to render on a haptic joystick, when the experiment has one.
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        force: Option<[f64; 2]>,
-        /// The safety layer is holding the robot back from what was asked.
-        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-        limited: bool,
-        /// Whether `pose` rests on a recent camera sighting or on odometry alone.
-        #[serde(default)]
-        source: PoseSource,
-    },
+    /// The robot's state after executing command `event`.
+    Feedback(Feedback),
     Done {
         summary: Box<Summary>,
     },

@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 
 use tokio::sync::{mpsc as async_mpsc, watch};
 use tracing::{debug, info, warn};
+use vl_core::Feedback;
 use vl_core::{
     CSpace, DeviceState, EndReason, Experiment, HeldBack, HostMessage, Leash, Localiser, MapField,
     Pose, PoseSource, Priorities, RobotModel, Safety, Situation, Surroundings, Teleop, Told,
@@ -570,7 +571,7 @@ impl Control {
         let Some((reading, pose)) = &self.last else {
             return;
         };
-        let message = HostMessage::Feedback {
+        let message = HostMessage::Feedback(Feedback {
             event: self.event.load(Ordering::Relaxed),
             t_ms: self.since.elapsed().as_secs_f64() * 1e3,
             pose: *pose,
@@ -580,7 +581,7 @@ impl Control {
             contact: reading.contact,
             force: self.run.as_ref().and_then(|r| r.assist).map(|(_, f)| f),
             limited: self.run.as_ref().is_some_and(|r| r.limited),
-        };
+        });
         if self.record.active() {
             if let Some(truth) = self.truth {
                 self.record.send(Recordable::Truth(truth));

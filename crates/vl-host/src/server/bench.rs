@@ -13,6 +13,7 @@ use futures_util::{SinkExt, StreamExt};
 use serde::Serialize;
 use tokio::task::JoinSet;
 use tokio_tungstenite::tungstenite::Message;
+use vl_core::Feedback;
 use vl_core::{
     Arena, Drive, ErrorCode, Experiment, GuestMessage, HostMessage, Named, PROTOCOL_VERSION, Role,
     Secret, Wire, nearest_rank,
@@ -206,7 +207,7 @@ async fn observe(mut ws: Socket, mut stop: tokio::sync::watch::Receiver<bool>) -
             _ = stop.changed() => break,
             next = ws.next() => match next {
                 Some(Ok(Message::Text(text))) => match HostMessage::decode(text.as_str()) {
-                    Ok(HostMessage::Feedback { .. }) => feedback += 1,
+                    Ok(HostMessage::Feedback(_)) => feedback += 1,
                     Ok(HostMessage::Ping { t }) => {
                         let _ = say(&mut ws, &GuestMessage::Pong { t }).await;
                     }
@@ -341,7 +342,7 @@ async fn time_commands(
         };
         say(operator, &command).await?;
         until(operator, "see a command's feedback", |m| match m {
-            HostMessage::Feedback { event: e, .. } if *e >= event => Some(()),
+            HostMessage::Feedback(Feedback { event: e, .. }) if *e >= event => Some(()),
             _ => None,
         })
         .await?;

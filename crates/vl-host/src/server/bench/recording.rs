@@ -9,6 +9,7 @@ use std::net::SocketAddr;
 use std::time::Duration;
 
 use serde::Serialize;
+use vl_core::Feedback;
 use vl_core::{Arena, GuestMessage, HostMessage, nearest_rank};
 
 use super::{BenchError, Socket, say, teleoperating, time_commands, until};
@@ -73,7 +74,7 @@ async fn periods(operator: &mut Socket) -> Result<Vec<f64>, BenchError> {
     let (mut gaps, mut last) = (Vec::new(), None);
     while std::time::Instant::now() < deadline {
         let t = until(operator, "read feedback", |m| match m {
-            HostMessage::Feedback { t_ms, .. } => Some(*t_ms),
+            HostMessage::Feedback(Feedback { t_ms, .. }) => Some(*t_ms),
             _ => None,
         })
         .await?;

@@ -4,6 +4,7 @@
 use std::time::Instant;
 
 use tracing::warn;
+use vl_core::Feedback;
 use vl_core::{
     Action, Definition, DeviceState, Drive, EndReason, ErrorCode, Experiment, GuestMessage,
     HostMessage, Named, Point, Readiness, Shape, Stopper, plan_route,
@@ -140,7 +141,7 @@ impl Hub {
         }
         self.last_plan = Some(Instant::now());
         let start = match &*self.lab.feedback.borrow() {
-            Some(HostMessage::Feedback { pose, .. }) => *pose,
+            Some(HostMessage::Feedback(Feedback { pose, .. })) => *pose,
             _ => arena.start,
         };
         match plan_route(arena, &[], &self.lab.info.robot, start, goal) {

@@ -3,6 +3,7 @@
 //! equipment between users.
 
 use tracing::{info, warn};
+use vl_core::Feedback;
 use vl_core::{
     Definition, EndReason, Experiment, Goal, HostMessage, Pose, Readiness, plan_route, wrap_angle,
 };
@@ -71,7 +72,7 @@ impl Hub {
     /// Where the lab's newest feedback puts the robot.
     pub(super) fn robot_pose(&self) -> Option<Pose> {
         match &*self.lab.feedback.borrow() {
-            Some(HostMessage::Feedback { pose, .. }) => Some(*pose),
+            Some(HostMessage::Feedback(Feedback { pose, .. })) => Some(*pose),
             _ => None,
         }
     }

@@ -9,6 +9,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use tokio::sync::{mpsc, watch};
+use vl_core::Feedback;
 use vl_core::{
     Arena, Definition, DeviceState, Drive, EndReason, ErrorCode, Goal, GuestMessage, HostMessage,
     PROTOCOL_VERSION, Point, Readiness, RobotModel, Role, Summary, WATCHDOG, Wire,
@@ -116,7 +117,7 @@ impl HubRig {
     /// The event of the newest feedback the lab published.
     fn feedback_event(&self) -> Option<u64> {
         match &*self.feedback.borrow() {
-            Some(HostMessage::Feedback { event, .. }) => Some(*event),
+            Some(HostMessage::Feedback(Feedback { event, .. })) => Some(*event),
             _ => None,
         }
     }
