@@ -4,11 +4,10 @@
 
 use proptest::prelude::*;
 use serde_json::{Value, json};
-use vl_core::Feedback;
 use vl_core::{
     Arena, CameraModel, Definition, Drive, EndReason, ErrorCode, ErrorMm, Experiment,
-    ExperimentInfo, Goal, GuestMessage, HostMessage, Material, MountedLab, Named, Obstacle,
-    PathAnalysis, Point, Pose, PoseSource, RobotModel, Role, Secret, SensorMount, Shape,
+    ExperimentInfo, Feedback, Goal, GuestMessage, HostMessage, Material, MountedLab, Named,
+    Obstacle, PathAnalysis, Point, Pose, PoseSource, RobotModel, Role, Secret, SensorMount, Shape,
     SpeedResponse, Stopper, Summary, WheelSpeeds, Wire,
 };
 

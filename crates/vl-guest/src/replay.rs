@@ -6,8 +6,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use serde::Serialize;
-use vl_core::Feedback;
-use vl_core::{FrameHeader, HostMessage, Point, Role, Summary};
+use vl_core::{Feedback, FrameHeader, HostMessage, Point, Role, Summary};
 use vl_record::{RecordError, Recording, Replayed};
 use vl_report::table::{Report, Table};
 

@@ -4,8 +4,7 @@
 //! teacher grades, beside the replay.
 
 use egui_plot::{Legend, Line, Plot, PlotPoints, VLine};
-use vl_core::Feedback;
-use vl_core::{HostMessage, Point, distance_to_polyline};
+use vl_core::{Feedback, HostMessage, Point, distance_to_polyline};
 
 use std::path::PathBuf;
 

@@ -2,15 +2,16 @@
 //! draws and the headless client scripts against, updated only by what
 //! arrives from the Host.
 
+use std::collections::VecDeque;
+
 use std::time::{Duration, Instant};
 
 use image::RgbaImage;
 use serde::Serialize;
-use vl_core::Feedback;
 use vl_core::{
-    Action, Definition, DeviceState, Drive, ErrorCode, Experiment, ExperimentInfo, FrameHeader,
-    GuestMessage, HostMessage, ImageFormat, MountedLab, Named, Pose, Readiness, Role, Summary,
-    Supervisor,
+    Action, Definition, DeviceState, Drive, ErrorCode, Experiment, ExperimentInfo, Feedback,
+    FrameHeader, GuestMessage, HostMessage, ImageFormat, MountedLab, Named, Pose, Readiness, Role,
+    Summary, Supervisor,
 };
 
 use crate::client::Incoming;
@@ -42,19 +43,20 @@ pub struct CameraFrame {
 /// Round-trip times measured on this connection, ms.
 #[derive(Debug, Clone, Default)]
 pub struct RoundTrips {
-    samples: Vec<f64>,
+    /// The newest [`RTT_KEPT`], oldest first.
+    samples: VecDeque<f64>,
 }
 
 impl RoundTrips {
     pub fn push(&mut self, ms: f64) {
         if self.samples.len() == RTT_KEPT {
-            self.samples.remove(0);
+            self.samples.pop_front();
         }
-        self.samples.push(ms);
+        self.samples.push_back(ms);
     }
 
     pub fn last(&self) -> Option<f64> {
-        self.samples.last().copied()
+        self.samples.back().copied()
     }
 
     pub fn count(&self) -> usize {
@@ -63,7 +65,7 @@ impl RoundTrips {
 
     /// The `q`-quantile (0..=1), nearest rank.
     pub fn quantile(&self, q: f64) -> Option<f64> {
-        let mut sorted = self.samples.clone();
+        let mut sorted = Vec::from(self.samples.clone());
         sorted.sort_by(f64::total_cmp);
         vl_core::nearest_rank(&sorted, q)
     }
@@ -158,7 +160,7 @@ pub struct Session {
     pub video_bytes: u64,
     pub round_trips: RoundTrips,
     /// What the Host refused since the last thing that went through.
-    pub errors: Vec<(ErrorCode, String)>,
+    pub errors: VecDeque<(ErrorCode, String)>,
     /// The recorded runs the Host last listed for this Guest.
     pub recordings: Option<Vec<vl_core::RecordedRun>>,
     /// The last run's summary.
@@ -233,7 +235,7 @@ impl Default for Session {
             frames_received: 0,
             video_bytes: 0,
             round_trips: RoundTrips::default(),
-            errors: Vec::new(),
+            errors: VecDeque::new(),
             done: None,
             sent_event: 0,
             interrupted: false,
@@ -304,9 +306,9 @@ impl Session {
             } => self.welcomed(session, role, experiments, user),
             HostMessage::Error { code, message } => {
                 if self.errors.len() == ERRORS_KEPT {
-                    self.errors.remove(0);
+                    self.errors.pop_front();
                 }
-                self.errors.push((code, message));
+                self.errors.push_back((code, message));
             }
             HostMessage::Mounted(lab) => {
                 self.lab = Some(*lab);

@@ -5,8 +5,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use serde::Serialize;
-use vl_core::Feedback;
-use vl_core::{Drive, FrameHeader, GuestMessage, HostMessage, Wire};
+use vl_core::{Drive, Feedback, FrameHeader, GuestMessage, HostMessage, Wire};
 use vl_report::table::{Report, Table};
 
 use super::reader::{Recording, Replayed};

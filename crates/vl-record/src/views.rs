@@ -4,8 +4,7 @@
 //! recorder (into a run's file) and the live Foxglove server (onto its
 //! watchers' sockets), so a live view and a recorded one are the same.
 
-use vl_core::Feedback;
-use vl_core::{Definition, FrameHeader, HostMessage, MountedLab, Pose, Wire};
+use vl_core::{Definition, Feedback, FrameHeader, HostMessage, MountedLab, Pose, Wire};
 
 use super::Topic;
 use super::foxglove::{self, Level};

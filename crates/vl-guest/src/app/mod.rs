@@ -503,7 +503,7 @@ impl GuestApp {
                 },
             );
         };
-        let refused = s.errors.last().filter(|(code, _)| {
+        let refused = s.errors.back().filter(|(code, _)| {
             matches!(code, ErrorCode::Unauthorized | ErrorCode::TooManyAttempts)
         });
         match &s.link {

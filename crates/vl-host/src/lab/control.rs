@@ -12,11 +12,10 @@ use std::time::{Duration, Instant};
 
 use tokio::sync::{mpsc as async_mpsc, watch};
 use tracing::{debug, info, warn};
-use vl_core::Feedback;
 use vl_core::{
-    CSpace, DeviceState, EndReason, Experiment, HeldBack, HostMessage, Leash, Localiser, MapField,
-    Pose, PoseSource, Priorities, RobotModel, Safety, Situation, Surroundings, Teleop, Told,
-    Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
+    CSpace, DeviceState, EndReason, Experiment, Feedback, HeldBack, HostMessage, Leash, Localiser,
+    MapField, Pose, PoseSource, Priorities, RobotModel, Safety, Situation, Surroundings, Teleop,
+    Told, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
 };
 
 use super::camera::Sighting;

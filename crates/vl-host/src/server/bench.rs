@@ -13,10 +13,9 @@ use futures_util::{SinkExt, StreamExt};
 use serde::Serialize;
 use tokio::task::JoinSet;
 use tokio_tungstenite::tungstenite::Message;
-use vl_core::Feedback;
 use vl_core::{
-    Arena, Drive, ErrorCode, Experiment, GuestMessage, HostMessage, Named, PROTOCOL_VERSION, Role,
-    Secret, Wire, nearest_rank,
+    Arena, Drive, ErrorCode, Experiment, Feedback, GuestMessage, HostMessage, Named,
+    PROTOCOL_VERSION, Role, Secret, Wire, nearest_rank,
 };
 use vl_report::table::{Report, Table};
 

@@ -9,8 +9,7 @@ use std::net::SocketAddr;
 use std::time::Duration;
 
 use serde::Serialize;
-use vl_core::Feedback;
-use vl_core::{Arena, GuestMessage, HostMessage, nearest_rank};
+use vl_core::{Arena, Feedback, GuestMessage, HostMessage, nearest_rank};
 
 use super::{BenchError, Socket, say, teleoperating, time_commands, until};
 use crate::{Host, HostConfig, SimLab};

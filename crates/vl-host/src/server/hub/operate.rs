@@ -4,10 +4,9 @@
 use std::time::Instant;
 
 use tracing::warn;
-use vl_core::Feedback;
 use vl_core::{
-    Action, Definition, DeviceState, Drive, EndReason, ErrorCode, Experiment, GuestMessage,
-    HostMessage, Named, Point, Readiness, Shape, Stopper, plan_route,
+    Action, Definition, DeviceState, Drive, EndReason, ErrorCode, Experiment, Feedback,
+    GuestMessage, HostMessage, Named, Point, Readiness, Shape, Stopper, plan_route,
 };
 
 use super::Hub;

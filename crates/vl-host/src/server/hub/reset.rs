@@ -3,9 +3,9 @@
 //! equipment between users.
 
 use tracing::{info, warn};
-use vl_core::Feedback;
 use vl_core::{
-    Definition, EndReason, Experiment, Goal, HostMessage, Pose, Readiness, plan_route, wrap_angle,
+    Definition, EndReason, Experiment, Feedback, Goal, HostMessage, Pose, Readiness, plan_route,
+    wrap_angle,
 };
 
 use super::{Hub, ResetRoute};

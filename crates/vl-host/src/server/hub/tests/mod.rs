@@ -9,10 +9,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use tokio::sync::{mpsc, watch};
-use vl_core::Feedback;
 use vl_core::{
-    Arena, Definition, DeviceState, Drive, EndReason, ErrorCode, Goal, GuestMessage, HostMessage,
-    PROTOCOL_VERSION, Point, Readiness, RobotModel, Role, Summary, WATCHDOG, Wire,
+    Arena, Definition, DeviceState, Drive, EndReason, ErrorCode, Feedback, Goal, GuestMessage,
+    HostMessage, PROTOCOL_VERSION, Point, Readiness, RobotModel, Role, Summary, WATCHDOG, Wire,
 };
 
 use super::{Hub, OUTBOX, ToConnection, ToHub};
