@@ -57,7 +57,7 @@ const FACE_MIN_WHEEL_MM_S: f64 = 8.0;
 const ROBOT_LOST_S: f64 = 2.0;
 /// A followed run that comes no further than `PROGRESS_MM` along its path
 /// in this long, s, is held back for good: it ends, saying why.
-const HELD_BACK_S: f64 = 5.0;
+const HELD_BACK: Duration = Duration::from_secs(5);
 const PROGRESS_MM: f64 = 5.0;
 /// How far ahead along the path the room it leaves is looked for, mm.
 const ROOM_AHEAD_MM: f64 = 60.0;
@@ -77,8 +77,7 @@ pub(crate) struct Control {
     event: Arc<AtomicU64>,
     since: Instant,
     run: Option<Run>,
-    /// The last reading, and the pose estimated after it.
-    last: Option<(RobotReading, Pose)>,
+    last: Option<Observed>,
     /// The last leash the robot took, and the wheels' travel its reach
     /// counts from; none when it is not known (a stop is not resent).
     sent: Option<(Leash, [f64; 2])>,
@@ -95,6 +94,12 @@ pub(crate) struct Control {
     /// the simulator's truth at its reading (for the record alone).
     record: Feed,
     truth: Option<Pose>,
+}
+
+/// The robot's last reading, and the pose estimated after it.
+struct Observed {
+    reading: RobotReading,
+    pose: Pose,
 }
 
 /// What the control loop is given to work with.
@@ -275,11 +280,11 @@ impl Control {
                     (run.definition).capped(&self.info.robot, drive.wheels(&self.info.robot));
                 run.wheels = wheels;
                 run.commanded = true;
-                if let Some((desired, _)) = &mut run.assist {
+                if let Some(assist) = &mut run.assist {
                     let robot = &self.info.robot;
                     let v = (wheels.left_mm_s + wheels.right_mm_s) / 2.0;
                     let w = (wheels.right_mm_s - wheels.left_mm_s) / robot.wheel_base_mm;
-                    *desired = self.teleop.velocity_for(robot, v, w);
+                    assist.desired = self.teleop.velocity_for(robot, v, w);
                 }
                 run.last_command = Instant::now();
                 self.event.store(event, Ordering::Relaxed);
@@ -311,7 +316,7 @@ impl Control {
     fn drive(&mut self) {
         let margin_mm = self.margin_mm();
         let Some(run) = &mut self.run else { return };
-        let Some((reading, pose)) = &self.last else {
+        let Some(Observed { reading, pose }) = &self.last else {
             // Nothing is known of where the robot is yet: it stays put.
             return;
         };
@@ -336,7 +341,7 @@ impl Control {
             _ if stale => WheelSpeeds::default(),
             _ => run.wheels,
         };
-        if let Some((desired, force)) = &mut run.assist {
+        if let Some(assist) = &mut run.assist {
             let robot = &self.info.robot;
             let ahead = run.field.as_ref().map_or(Vector::default(), |f| {
                 f.guidance(pose.point()).rotated(pose.theta_rad)
@@ -346,9 +351,13 @@ impl Control {
                 x: sensed.x + ahead.x,
                 y: sensed.y + ahead.y,
             };
-            let asked = if stale { Vector::default() } else { *desired };
+            let asked = if stale {
+                Vector::default()
+            } else {
+                assist.desired
+            };
             let assisted = self.teleop.assist(robot, asked, field);
-            *force = assisted.force;
+            assist.force = assisted.force;
             wanted = assisted.wheels;
         }
         // Whatever asked for `wanted`, the robot must be able to stop in
@@ -385,8 +394,7 @@ impl Control {
         let asked = (wanted.left_mm_s + wanted.right_mm_s) / 2.0;
         if asked.abs() > MOVING_MM_S {
             let let_through = (guarded.wheels.left_mm_s + guarded.wheels.right_mm_s) / 2.0;
-            run.kept.0 += (let_through / asked).clamp(0.0, 1.0);
-            run.kept.1 += 1;
+            run.kept.add(asked, let_through);
         }
         // A leash is extended every period; a stop is said once.
         let leash = guarded.leash;
@@ -427,13 +435,16 @@ impl Control {
                 .ranges(&self.info.robot, &self.info.arena, &reading.proximity);
         }
         let pose = self.localiser.pose();
-        let previous = self.last.replace((reading.clone(), pose));
+        let previous = self.last.replace(Observed {
+            reading: reading.clone(),
+            pose,
+        });
         let Some(run) = self.run.as_mut() else { return };
         let truth = self.witness.as_mut().map(|w| w.true_pose());
         run.record.record(pose, truth);
         self.truth = truth;
-        if let Some((_, prev_pose)) = previous {
-            run.distance_mm += prev_pose.point().distance(pose.point());
+        if let Some(previous) = previous {
+            run.distance_mm += previous.pose.point().distance(pose.point());
         }
         // A navigation run ends at its goal; in teleoperation a goal is a
         // target the summary reports on, and the operator ends the run.
@@ -490,23 +501,20 @@ impl Control {
     }
 
     /// Whether a followed run has come no further along its path for
-    /// `HELD_BACK_S` (the safety layer holding it back, or something in
+    /// `HELD_BACK` (the safety layer holding it back, or something in
     /// the way), and if so where and why.
     fn held_back(&mut self, pose: Pose) -> Option<HeldBack> {
         let robot_radius = self.info.robot.radius_mm;
         let uncertain_mm = self.uncertain_mm();
         let run = self.run.as_mut()?;
+        let now = Instant::now();
         if run.held || run.turning || (run.commanded && run.last_command.elapsed() <= WATCHDOG) {
-            run.progress.1 = Instant::now();
+            run.progress.excuse(now);
             return None;
         }
         let follower = run.follower.as_ref()?;
         let along = follower.progress_mm();
-        if along >= run.progress.0 + PROGRESS_MM {
-            run.progress = (along, Instant::now());
-            return None;
-        }
-        if run.progress.1.elapsed().as_secs_f64() < HELD_BACK_S {
+        if !(run.progress).stalled(along, PROGRESS_MM, HELD_BACK, now) {
             return None;
         }
         let arena = &self.info.arena;
@@ -567,7 +575,7 @@ impl Control {
     }
 
     fn publish(&self) {
-        let Some((reading, pose)) = &self.last else {
+        let Some(Observed { reading, pose }) = &self.last else {
             return;
         };
         let message = HostMessage::Feedback(Feedback {
@@ -578,7 +586,7 @@ impl Control {
             wheels: reading.wheels,
             proximity: reading.proximity.clone(),
             contact: reading.contact,
-            force: self.run.as_ref().and_then(|r| r.assist).map(|(_, f)| f),
+            force: self.run.as_ref().and_then(|r| r.assist).map(|a| a.force),
             limited: self.run.as_ref().is_some_and(|r| r.limited),
         });
         if self.record.active() {

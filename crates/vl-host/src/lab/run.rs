@@ -2,12 +2,85 @@
 //! follows, what it has seen so far, and its summary when it ends.
 
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use vl_core::{
     Definition, EndReason, Experiment, Follower, HeldBack, MapField, PathRecorder, Pose,
     PoseSource, Summary, Surroundings, Vector, WheelSpeeds,
 };
+
+/// An assisted run's two sides: the velocity the operator asks for (robot
+/// frame), and the force last fed back to the stick.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Assist {
+    pub(super) desired: Vector,
+    pub(super) force: [f64; 2],
+}
+
+/// The share of the forward speed asked that the safety layer let
+/// through, averaged over the periods in which a command asked to move.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct SpeedKept {
+    sum: f64,
+    periods: u64,
+}
+
+impl SpeedKept {
+    /// One period that asked for `asked` mm/s forward and got `let_through`.
+    pub(super) fn add(&mut self, asked: f64, let_through: f64) {
+        if asked != 0.0 && asked.is_finite() && let_through.is_finite() {
+            self.sum += (let_through / asked).clamp(0.0, 1.0);
+            self.periods += 1;
+        }
+    }
+
+    /// The mean share, 0 to 1; none when nothing asked to move.
+    pub(super) fn share(&self) -> Option<f64> {
+        (self.periods > 0).then(|| self.sum / self.periods as f64)
+    }
+}
+
+/// How far a followed run has come along its path, and since when it has
+/// come no further.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Progress {
+    /// The furthest along the path, mm.
+    along_mm: f64,
+    /// When it last came `step_mm` further (or was excused: held, turning,
+    /// steered by the operator).
+    since: Instant,
+}
+
+impl Progress {
+    pub(super) fn new(now: Instant) -> Progress {
+        Progress {
+            along_mm: 0.0,
+            since: now,
+        }
+    }
+
+    /// The run is not expected to make progress now: the clock restarts.
+    pub(super) fn excuse(&mut self, now: Instant) {
+        self.since = now;
+    }
+
+    /// The follower is `along_mm` along the path at `now`: whether it has
+    /// come no `step_mm` further for `patience`.
+    pub(super) fn stalled(
+        &mut self,
+        along_mm: f64,
+        step_mm: f64,
+        patience: Duration,
+        now: Instant,
+    ) -> bool {
+        if along_mm >= self.along_mm + step_mm {
+            self.along_mm = along_mm;
+            self.since = now;
+            return false;
+        }
+        now.saturating_duration_since(self.since) >= patience
+    }
+}
 
 /// One run of an experiment, from `start` to its end.
 pub(super) struct Run {
@@ -34,24 +107,22 @@ pub(super) struct Run {
     pub(super) wheels: WheelSpeeds,
     /// The operator's link is down: the robot stays still until they are back.
     pub(super) held: bool,
-    /// For an assisted run: the velocity the operator asks for, and the
-    /// force last fed back.
-    pub(super) assist: Option<(Vector, [f64; 2])>,
+    /// For an assisted run: what the operator asks, what is fed back.
+    pub(super) assist: Option<Assist>,
     /// The map's potential field the Host built for this run's definition.
     pub(super) field: Option<Arc<MapField>>,
     /// Whether the safety layer changed the last command it saw.
     pub(super) limited: bool,
     /// The body's least clearance seen, mm.
     pub(super) closest_mm: f64,
-    /// Sum and count, over periods in which a command asked to move, of the
-    /// forward speed the layer let through over the speed asked.
-    pub(super) kept: (f64, u64),
+    /// How much of the forward speed asked the safety layer let through.
+    pub(super) kept: SpeedKept,
     /// The heading to turn to in place once at the goal, and whether the
     /// robot is there and turning.
     pub(super) face: Option<f64>,
     pub(super) turning: bool,
-    /// The furthest the follower had come along the path, mm, and when.
-    pub(super) progress: (f64, Instant),
+    /// How far the follower has come along the path, and since when not.
+    pub(super) progress: Progress,
     pub(super) held_back: Option<HeldBack>,
     /// What failed, when a fault ends the run.
     pub(super) fault: Option<String>,
@@ -90,14 +161,14 @@ impl Run {
             held: false,
             assist: experiment
                 .assists_the_operator()
-                .then_some((Vector::default(), [0.0; 2])),
+                .then_some(Assist::default()),
             field,
             limited: false,
             closest_mm: f64::INFINITY,
-            kept: (0.0, 0),
+            kept: SpeedKept::default(),
             face,
             turning: false,
-            progress: (0.0, now),
+            progress: Progress::new(now),
             held_back: None,
             fault: None,
         }
@@ -119,7 +190,7 @@ impl Run {
             distance_mm: self.distance_mm,
             collisions: self.collisions,
             closest_mm: self.closest_mm.is_finite().then_some(self.closest_mm),
-            speed_kept: (self.kept.1 > 0).then(|| self.kept.0 / self.kept.1 as f64),
+            speed_kept: self.kept.share(),
             pose_source: source,
             path: Some(self.record.finish()),
             // The hub, which sees the commands' events, fills these in.
@@ -131,5 +202,92 @@ impl Run {
             held_back: self.held_back,
             fault: self.fault,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn speed_kept_averages_the_moving_periods_only() {
+        let mut kept = SpeedKept::default();
+        assert_eq!(kept.share(), None);
+        kept.add(100.0, 100.0);
+        kept.add(100.0, 50.0);
+        // Backwards counts alike; more than asked is all of it, not more.
+        kept.add(-80.0, -20.0);
+        kept.add(50.0, 80.0);
+        // Nothing asked, or a number that is not one, is no period.
+        kept.add(0.0, 10.0);
+        kept.add(f64::NAN, 10.0);
+        let share = kept.share().unwrap();
+        assert!(
+            (share - (1.0 + 0.5 + 0.25 + 1.0) / 4.0).abs() < 1e-12,
+            "{share}"
+        );
+    }
+
+    #[test]
+    fn progress_stalls_only_after_the_patience_without_a_step() {
+        let t0 = Instant::now();
+        let s = |secs: f64| t0 + Duration::from_secs_f64(secs);
+        let patience = Duration::from_secs(5);
+        let mut progress = Progress::new(t0);
+        // Creeping less than a step at a time is no progress…
+        assert!(!progress.stalled(3.0, 5.0, patience, s(2.0)));
+        assert!(!progress.stalled(4.9, 5.0, patience, s(4.9)));
+        assert!(progress.stalled(4.9, 5.0, patience, s(5.0)));
+        // …a whole step restarts the clock…
+        assert!(!progress.stalled(5.0, 5.0, patience, s(6.0)));
+        assert!(!progress.stalled(9.0, 5.0, patience, s(10.9)));
+        assert!(progress.stalled(9.0, 5.0, patience, s(11.0)));
+        // …and so does an excuse (held, turning, steered).
+        progress.excuse(s(12.0));
+        assert!(!progress.stalled(9.0, 5.0, patience, s(16.9)));
+        assert!(progress.stalled(9.0, 5.0, patience, s(17.0)));
+    }
+
+    #[test]
+    fn a_run_follows_its_path_only_in_navigation_and_assists_only_teleoperation() {
+        let definition = Definition {
+            path: vec![
+                vl_core::Point {
+                    x_mm: 100.0,
+                    y_mm: 100.0,
+                },
+                vl_core::Point {
+                    x_mm: 300.0,
+                    y_mm: 100.0,
+                },
+            ],
+            ..Definition::default()
+        };
+        let arena = vl_core::Arena::load("open").unwrap();
+        let surroundings = Surroundings::new(&arena);
+        let nav = Run::new(
+            1,
+            definition.clone(),
+            Experiment::Navigation,
+            surroundings.clone(),
+            None,
+            None,
+        );
+        assert!(nav.follower.is_some());
+        assert!(nav.assist.is_none());
+        let tele = Run::new(
+            2,
+            definition,
+            Experiment::Teleoperation,
+            surroundings,
+            None,
+            None,
+        );
+        assert!(tele.follower.is_none());
+        assert!(tele.assist.is_some());
+        let summary = tele.summary(EndReason::Stopped, 7, Pose::default(), PoseSource::Odometry);
+        assert_eq!((summary.events, summary.collisions), (7, 0));
+        assert_eq!(summary.speed_kept, None);
+        assert_eq!(summary.closest_mm, None);
     }
 }
