@@ -549,7 +549,7 @@ impl Control {
         let pose = self
             .last
             .as_ref()
-            .map(|(_, pose)| *pose)
+            .map(|observed| observed.pose)
             .unwrap_or_default();
         let number = run.number;
         let summary = run.summary(
