@@ -176,4 +176,3 @@ fn the_cli_reports_json_and_refuses_bad_input() {
         "invalid value '300' for '--threshold <THRESHOLD>': a threshold is 'otsu' or a grey level 0–255, not '300'",
     );
 }
-

@@ -50,7 +50,6 @@ pub fn decode_image(bytes: &[u8], format: Option<ImageFormat>) -> Result<Dynamic
 mod tests {
     use super::*;
 
-
     #[test]
     fn a_small_file_declaring_a_huge_picture_is_refused() {
         // A PNG header for 20000 × 20000 pixels, and nothing behind it.

@@ -28,20 +28,26 @@ impl Target {
     /// `url` as ws://host[:port][/…] or wss://host[:port][/…][#pin=HEX];
     /// why not, in words.
     pub(crate) fn of(url: &str) -> Result<Target, String> {
-        let (scheme, rest) = url
-            .split_once("://")
-            .ok_or_else(|| format!("it has no scheme: try ws://{url}"))?;
-        let (tls, default_port) = match scheme {
-            "ws" => (false, 80),
-            "wss" => (true, 443),
+        // "host:7400" would parse as a URL of scheme "host".
+        let Some((_, rest)) = url.split_once("://") else {
+            return Err(format!("it has no scheme: try ws://{url}"));
+        };
+        let mut parsed = url::Url::parse(url).map_err(|e| match e {
+            url::ParseError::EmptyHost => "it names no host".to_owned(),
+            url::ParseError::InvalidPort => "its port is not a port number".to_owned(),
+            e => e.to_string(),
+        })?;
+        let tls = match parsed.scheme() {
+            "ws" => false,
+            "wss" => true,
             other => {
                 return Err(format!(
                     "a Host speaks WebSocket, not {other}://: try ws://{rest}"
                 ));
             }
         };
-        let (rest, pin) = match rest.split_once('#') {
-            Some((rest, fragment)) => {
+        let pin = match parsed.fragment() {
+            Some(fragment) => {
                 let pin = fragment.strip_prefix("pin=").ok_or_else(|| {
                     format!(
                         "'#{fragment}': the only fragment a Host's address has is #pin=FINGERPRINT"
@@ -51,34 +57,21 @@ impl Target {
                 if !tls {
                     return Err("a pin is for wss:// (WebSocket over TLS)".into());
                 }
-                (rest, Some(pin))
+                Some(pin)
             }
-            None => (rest, None),
+            None => None,
         };
-        let authority = rest.split('/').next().unwrap_or("");
-        if authority.is_empty() {
-            return Err("it names no host".into());
-        }
-        // An IPv6 address is bracketed: its colons are not the port's.
-        let (host, port) = match authority.strip_prefix('[') {
-            Some(bracketed) => bracketed
-                .split_once(']')
-                .map(|(host, after)| (host, after.strip_prefix(':')))
-                .ok_or_else(|| format!("'{authority}' opens a bracket it does not close"))?,
-            None => match authority.rsplit_once(':') {
-                Some((host, port)) => (host, Some(port)),
-                None => (authority, None),
-            },
+        let host = match parsed.host() {
+            Some(url::Host::Domain(name)) => name.to_owned(),
+            Some(url::Host::Ipv4(ip)) => ip.to_string(),
+            Some(url::Host::Ipv6(ip)) => ip.to_string(),
+            None => return Err("it names no host".into()),
         };
-        let port = match port {
-            Some(port) => port
-                .parse()
-                .map_err(|_| format!("'{port}' is not a port"))?,
-            None => default_port,
-        };
+        let port = parsed.port_or_known_default().ok_or("it names no port")?;
+        parsed.set_fragment(None);
         Ok(Target {
-            url: format!("{scheme}://{rest}"),
-            host: host.to_owned(),
+            url: parsed.into(),
+            host,
             port,
             tls: tls.then_some(pin),
         })

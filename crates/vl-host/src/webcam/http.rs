@@ -42,47 +42,32 @@ struct Address {
 
 impl Address {
     fn parse(url: &str) -> Result<Address, CameraError> {
-        let rest = url.strip_prefix("http://").ok_or_else(|| {
-            CameraError::Address(format!(
-                "'{url}' is no HTTP camera: it must start with http:// (https is not read)"
-            ))
+        let refused = |why: &str| CameraError::Address(format!("'{url}': {why}"));
+        let parsed = url::Url::parse(url).map_err(|e| match e {
+            url::ParseError::EmptyHost => refused("it names no host"),
+            url::ParseError::InvalidPort => refused("its port is no port number"),
+            e => refused(&e.to_string()),
         })?;
-        let (authority, path) = match rest.find('/') {
-            Some(i) => (&rest[..i], &rest[i..]),
-            None => (rest, "/"),
-        };
-        if authority.contains('@') {
+        if parsed.scheme() != "http" {
             return Err(CameraError::Address(format!(
-                "'{url}': a user and password in the address are not supported"
+                "'{url}' is no HTTP camera: it must start with http:// (https is not read)"
             )));
         }
-        let port_of = |port: &str| {
-            port.parse::<u16>()
-                .map_err(|_| CameraError::Address(format!("'{url}': '{port}' is no port")))
-        };
-        let (host, port) = match authority.strip_prefix('[') {
-            // An IPv6 address, in brackets.
-            Some(bracketed) => {
-                let (host, after) = bracketed
-                    .split_once(']')
-                    .ok_or_else(|| CameraError::Address(format!("'{url}': an unclosed '['")))?;
-                match after.strip_prefix(':') {
-                    Some(port) => (host, port_of(port)?),
-                    None => (host, 80),
-                }
-            }
-            None => match authority.rsplit_once(':') {
-                Some((host, port)) => (host, port_of(port)?),
-                None => (authority, 80),
-            },
-        };
-        if host.is_empty() {
-            return Err(CameraError::Address(format!("'{url}' names no host")));
+        if !parsed.username().is_empty() || parsed.password().is_some() {
+            return Err(refused(
+                "a user and password in the address are not supported",
+            ));
         }
+        let host = match parsed.host() {
+            Some(url::Host::Domain(name)) => name.to_owned(),
+            Some(url::Host::Ipv4(ip)) => ip.to_string(),
+            Some(url::Host::Ipv6(ip)) => ip.to_string(),
+            None => return Err(refused("it names no host")),
+        };
         Ok(Address {
-            host: host.to_owned(),
-            port,
-            path: path.to_owned(),
+            host,
+            port: parsed.port_or_known_default().unwrap_or(80),
+            path: parsed[url::Position::BeforePath..url::Position::AfterQuery].to_owned(),
         })
     }
 }
@@ -253,12 +238,7 @@ fn stream(address: &Address, shared: &Arc<StreamShared>) -> Result<(), String> {
     )
     .map_err(|e| format!("cannot ask for the stream: {e}"))?;
     let mut reader = BufReader::new(tcp);
-    let status = line(&mut reader)?;
-    let code = status.split_whitespace().nth(1).unwrap_or("");
-    if !status.starts_with("HTTP/1.") || code != "200" {
-        return Err(format!("the camera answered '{status}'"));
-    }
-    let answer = headers(&mut reader)?;
+    let answer = answer(&mut reader)?;
     let content_type = header(&answer, "content-type").unwrap_or_default();
     let boundary = content_type
         .split(';')
@@ -366,20 +346,61 @@ fn line(reader: &mut impl BufRead) -> Result<String, String> {
     Ok(String::from_utf8_lossy(&bytes).trim_end().to_owned())
 }
 
-/// Header lines up to the blank one, as (lower-case name, value).
-fn headers(reader: &mut impl BufRead) -> Result<Vec<(String, String)>, String> {
-    let mut headers = Vec::new();
-    loop {
+/// A head's lines up to the blank one, each within `MAX_LINE`, at most
+/// `MAX_HEADERS` of them (and a status line), as HTTP writes them.
+fn head(reader: &mut impl BufRead) -> Result<Vec<u8>, String> {
+    let mut bytes = Vec::new();
+    for _ in 0..MAX_HEADERS + 2 {
         let text = line(reader)?;
+        bytes.extend_from_slice(text.as_bytes());
+        bytes.extend_from_slice(b"\r\n");
         if text.is_empty() {
-            return Ok(headers);
+            return Ok(bytes);
         }
-        if headers.len() >= MAX_HEADERS {
-            return Err(format!("over {MAX_HEADERS} header lines"));
+    }
+    Err(format!("over {MAX_HEADERS} header lines"))
+}
+
+/// httparse's headers as (lower-case name, value).
+fn owned(headers: &[httparse::Header<'_>]) -> Vec<(String, String)> {
+    headers
+        .iter()
+        .map(|h| {
+            let value = String::from_utf8_lossy(h.value).trim().to_owned();
+            (h.name.to_ascii_lowercase(), value)
+        })
+        .collect()
+}
+
+/// The answer's status and headers, read by httparse: a 200, or why not.
+fn answer(reader: &mut impl BufRead) -> Result<Vec<(String, String)>, String> {
+    let bytes = head(reader)?;
+    let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
+    let mut response = httparse::Response::new(&mut headers);
+    match response.parse(&bytes) {
+        Ok(httparse::Status::Complete(_)) if response.code == Some(200) => {
+            Ok(owned(response.headers))
         }
-        if let Some((name, value)) = text.split_once(':') {
-            headers.push((name.trim().to_ascii_lowercase(), value.trim().to_owned()));
+        Ok(httparse::Status::Complete(_)) => Err(format!(
+            "the camera answered {} {}",
+            response.code.unwrap_or_default(),
+            response.reason.unwrap_or_default()
+        )),
+        Ok(httparse::Status::Partial) | Err(_) => {
+            let first = String::from_utf8_lossy(&bytes);
+            let first = first.lines().next().unwrap_or_default();
+            Err(format!("the camera answered '{first}', which is no HTTP"))
         }
+    }
+}
+
+/// A part's headers, read by httparse.
+fn headers(reader: &mut impl BufRead) -> Result<Vec<(String, String)>, String> {
+    let bytes = head(reader)?;
+    let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
+    match httparse::parse_headers(&bytes, &mut headers) {
+        Ok(httparse::Status::Complete((_, parsed))) => Ok(owned(parsed)),
+        _ => Err("a part's headers are no HTTP headers".into()),
     }
 }
 
@@ -411,7 +432,7 @@ mod tests {
         for (url, says) in [
             ("https://cam/", "must start with http://"),
             ("http://:80/", "names no host"),
-            ("http://cam:http/", "'http' is no port"),
+            ("http://cam:http/", "no port number"),
             ("http://me:pw@cam/", "user and password"),
         ] {
             let e = Address::parse(url).unwrap_err().to_string();
