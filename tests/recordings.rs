@@ -179,7 +179,28 @@ fn a_host_killed_mid_run_leaves_a_file_repair_makes_whole() {
         .spawn()
         .unwrap();
     let file = first_recording(&recordings, Duration::from_secs(30));
-    std::thread::sleep(Duration::from_secs(5));
+    // Until the file holds five seconds of the run (the recorder flushes
+    // every second), with the run still going: then the Host is killed.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        let info = common::vl(&["record", "info", s(&file), "--json"]);
+        let seconds = serde_json::from_slice::<Value>(&info.stdout)
+            .ok()
+            .and_then(|i| i["feedback_seconds"].as_f64())
+            .unwrap_or(0.0);
+        if seconds >= 5.0 {
+            break;
+        }
+        assert!(
+            guest.try_wait().unwrap().is_none(),
+            "the run ended before five seconds were recorded"
+        );
+        assert!(
+            Instant::now() < deadline,
+            "the file never held 5 s of the run"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
     host.0.kill().unwrap(); // SIGKILL
     host.0.wait().unwrap();
     let _ = guest.kill();

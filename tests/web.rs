@@ -6,7 +6,7 @@
 //! are the protocol's (checked against `docs/protocol.md` and the Host's
 //! types), and the Host judges them as any Guest's.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use futures_util::{SinkExt, StreamExt};
 use serde_json::{Value, json};
@@ -121,14 +121,20 @@ fn the_page_shows_a_run_live_and_its_console_stays_clean() {
     let before = pose(&mut browser);
     let at_before = on_screen(&mut browser, before);
     let first = browser.screenshot(&dir.join("first.png"));
-    std::thread::sleep(Duration::from_secs(1));
-    let after = pose(&mut browser);
+    // However fast this machine lets it go: until the page shows the robot
+    // 20 mm on (a run that stalls fails here).
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let mut after = pose(&mut browser);
+    while before.distance(after) <= 20.0 {
+        assert!(
+            Instant::now() < deadline,
+            "the robot hardly moved in 20 s: {before:?} → {after:?}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+        after = pose(&mut browser);
+    }
     let at_after = on_screen(&mut browser, after);
     let second = browser.screenshot(&dir.join("second.png"));
-    assert!(
-        before.distance(after) > 20.0,
-        "the robot hardly moved in 1 s: {before:?} → {after:?}"
-    );
     let radius = 25.0;
     let (old, new) = (
         changed_near(&first, &second, at_before, radius),
@@ -138,6 +144,11 @@ fn the_page_shows_a_run_live_and_its_console_stays_clean() {
         old > 100 && new > 100,
         "the robot's pixels did not move on screen: {old} changed where it was, {new} where it went (screenshots in {})",
         s(&dir)
+    );
+    // The header tells the ages once it has timed a frame and a pose.
+    browser.expect(
+        "document.querySelector('header').innerText.includes('ms old')",
+        Duration::from_secs(10),
     );
     let shown = browser.eval("document.querySelector('header').innerText");
     let shown = shown.as_str().unwrap();
