@@ -2,8 +2,10 @@
 //! (reached over TCP or TLS by `dial`, saying who it is as `login` makes it),
 //! `session` holds what the Guest knows, `route` plans paths for the Host to follow,
 //! `gamepad` reads a real stick and renders the force on it,
-//! `app` draws it all in a window and `headless` scripts it without one;
-//! `experiment` runs the lab's experiments on a simulated Host, measured.
+//! `app` draws it all in a window and `headless` scripts it without one
+//! (`vl-campaign` runs those scripts against a simulated Host, measured).
+//! The Guest knows nothing of the Host's code: only the protocol
+//! (`vl-core`) and the recordings (`vl-record`).
 //!
 //! In detail:
 //!
@@ -39,7 +41,8 @@
 //!   person is (`headless`), and the watching observer (`watch`); a recorded
 //!   run downloaded a part at a time, resumed where it stopped (`recordings`),
 //!   played back through the same session and view with a slider
-//!   (`replay`), and its results plotted (`results`); definitions kept by
+//!   (`replay`), and its results plotted (`results`, drawn as SVG and PNG
+//!   by `plots`); definitions kept by
 //!   name to be run again (`tasks`)
 
 mod app;

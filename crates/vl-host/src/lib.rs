@@ -9,8 +9,7 @@
 //! Argon2id accounts, the gate every hello passes with its delays and
 //! limits on failures, the audit log); and the Media, a relay that puts a
 //! modelled Internet link between Guests and a Host (`media`). Every run
-//! is recorded as an MCAP file Foxglove opens, read back, repaired and
-//! exported (`record`).
+//! is recorded as an MCAP file Foxglove opens, through `vl-record`.
 //!
 //! In detail:
 //!

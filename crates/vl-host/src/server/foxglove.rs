@@ -3,7 +3,7 @@
 //! client is an observer like any other (the same gate, the same places to
 //! watch from, the same newest-only feedback and frames) that never
 //! speaks: it is advertised the channels a run's recording has, in the
-//! same schemas (`record::Views` makes both), and gets those it subscribes
+//! same schemas (`vl_record::Views` makes both), and gets those it subscribes
 //! to. Read-only: it cannot publish, call services or set parameters.
 //!
 //! Written here rather than with Foxglove's SDK (crate `foxglove`): the
