@@ -184,7 +184,7 @@ fn failed_runs(md: &mut String, m: &Matrix) {
     if !failed.is_empty() {
         let _ = writeln!(
             md,
-            "### RunSeries that failed\n\nCounted in *goal* above, left out of every other figure and \
+            "### Runs that failed\n\nCounted in *goal* above, left out of every other figure and \
              picture:\n"
         );
         let mut t = Table::columns(&[
