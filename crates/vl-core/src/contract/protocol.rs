@@ -127,7 +127,8 @@ pub struct Feedback {
     /// Force to render on a haptic joystick, when the experiment has one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub force: Option<[f64; 2]>,
-    /// The safety layer is holding the robot back from what was asked.
+    /// The Host is holding the robot back from what was asked: the safety
+    /// layer, or in an assisted run the obstacles' push.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub limited: bool,
     /// Whether `pose` rests on a recent camera sighting or on odometry alone.

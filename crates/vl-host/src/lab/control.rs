@@ -34,6 +34,9 @@ const FEEDBACK_EVERY: Duration = Duration::from_millis(20);
 const HOLD: Duration = Duration::from_millis(30);
 /// A command asks the robot to move when its mean wheel speed is above this, mm/s.
 const MOVING_MM_S: f64 = 1.0;
+/// An assisted run let through less than this share of the forward speed
+/// asked is held back from it.
+const HELD_SHARE: f64 = 0.5;
 /// Distance from the body within which the map's potential field pushes.
 const MAP_FIELD_INFLUENCE_MM: f64 = 40.0;
 /// Its strength: about 100 mm/s of push with the body 10 mm from a wall.
@@ -341,6 +344,8 @@ impl Control {
             _ if stale => WheelSpeeds::default(),
             _ => run.wheels,
         };
+        // What was asked, before the assistance eases it.
+        let asked_wheels = wanted;
         if let Some(assist) = &mut run.assist {
             let robot = &self.info.robot;
             let ahead = run.field.as_ref().map_or(Vector::default(), |f| {
@@ -389,7 +394,14 @@ impl Control {
             );
         }
         run.touching = touching;
-        run.limited = guarded.limited;
+        // In an assisted run the obstacles' push may stop the robot short of
+        // them before the layer has to: an operator pushing on is held back
+        // from what they ask all the same, and is told so.
+        let forward = |w: WheelSpeeds| (w.left_mm_s + w.right_mm_s) / 2.0;
+        let pushed_back = run.assist.is_some()
+            && forward(asked_wheels).abs() > MOVING_MM_S
+            && forward(guarded.wheels) / forward(asked_wheels) < HELD_SHARE;
+        run.limited = guarded.limited || pushed_back;
         run.closest_mm = run.closest_mm.min(guarded.clearance_mm);
         let asked = (wanted.left_mm_s + wanted.right_mm_s) / 2.0;
         if asked.abs() > MOVING_MM_S {

@@ -111,7 +111,8 @@ pub(super) struct Run {
     pub(super) assist: Option<Assist>,
     /// The map's potential field the Host built for this run's definition.
     pub(super) field: Option<Arc<MapField>>,
-    /// Whether the safety layer changed the last command it saw.
+    /// Whether the robot is held back from what was asked: the safety layer
+    /// changed the last command, or (assisted) the obstacles' push did.
     pub(super) limited: bool,
     /// The body's least clearance seen, mm.
     pub(super) closest_mm: f64,
