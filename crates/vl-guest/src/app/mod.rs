@@ -60,7 +60,7 @@ const BUSY_REPAINT: Duration = Duration::from_millis(30);
 
 /// Who the window connects to, and as whom.
 #[derive(Debug, Clone)]
-struct Address {
+struct Destination {
     url: String,
     role: Role,
     login: Login,
@@ -68,7 +68,7 @@ struct Address {
 
 /// The Guest's window.
 pub struct GuestApp {
-    address: Address,
+    address: Destination,
     session: Session,
     connection: Connection,
     texture: Option<(u64, TextureHandle)>,
@@ -128,7 +128,7 @@ impl GuestApp {
     /// (on the current tokio runtime). Only an address that cannot be a
     /// Host's is refused; an unreachable Host is shown in the window.
     pub fn new(url: &str, role: Role, login: Login) -> Result<Self, ClientError> {
-        let address = Address {
+        let address = Destination {
             url: url.to_owned(),
             role,
             login,
@@ -138,7 +138,7 @@ impl GuestApp {
     }
 
     /// The window on `connection`, at `address`.
-    fn on(address: Address, connection: Connection) -> Self {
+    fn on(address: Destination, connection: Connection) -> Self {
         GuestApp {
             address,
             session: Session::default(),
@@ -195,7 +195,7 @@ impl GuestApp {
 
     /// A window playing `replay` back, connected to no Host.
     pub fn replaying(replay: crate::replay::Replay) -> Self {
-        let address = Address {
+        let address = Destination {
             url: replay.file.clone(),
             role: Role::Observer,
             login: Login::default(),
@@ -225,7 +225,7 @@ impl GuestApp {
     }
 
     /// Opens a connection that says hello as soon as it is up.
-    fn connect(address: &Address) -> Result<Connection, ClientError> {
+    fn connect(address: &Destination) -> Result<Connection, ClientError> {
         let connection = open(&address.url)?;
         connection.send(address.login.hello(address.role));
         Ok(connection)
@@ -625,7 +625,7 @@ pub fn display_available() -> bool {
 #[derive(Debug, thiserror::Error)]
 pub enum WindowError {
     #[error(transparent)]
-    Address(#[from] ClientError),
+    Destination(#[from] ClientError),
     #[error("the Guest window failed: {0}")]
     Window(String),
 }
@@ -633,6 +633,6 @@ pub enum WindowError {
 impl WindowError {
     /// Whether the Host's address itself is wrong: the user's to fix.
     pub fn is_bad_address(&self) -> bool {
-        matches!(self, WindowError::Address(c) if c.is_bad_address())
+        matches!(self, WindowError::Destination(c) if c.is_bad_address())
     }
 }

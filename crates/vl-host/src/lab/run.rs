@@ -43,7 +43,7 @@ impl SpeedKept {
 /// How far a followed run has come along its path, and since when it has
 /// come no further.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct Progress {
+pub(super) struct PathProgress {
     /// The furthest along the path, mm.
     along_mm: f64,
     /// When it last came `step_mm` further (or was excused: held, turning,
@@ -51,9 +51,9 @@ pub(super) struct Progress {
     since: Instant,
 }
 
-impl Progress {
-    pub(super) fn new(now: Instant) -> Progress {
-        Progress {
+impl PathProgress {
+    pub(super) fn new(now: Instant) -> PathProgress {
+        PathProgress {
             along_mm: 0.0,
             since: now,
         }
@@ -123,7 +123,7 @@ pub(super) struct Run {
     pub(super) face: Option<f64>,
     pub(super) turning: bool,
     /// How far the follower has come along the path, and since when not.
-    pub(super) progress: Progress,
+    pub(super) progress: PathProgress,
     pub(super) held_back: Option<HeldBack>,
     /// What failed, when a fault ends the run.
     pub(super) fault: Option<String>,
@@ -169,7 +169,7 @@ impl Run {
             kept: SpeedKept::default(),
             face,
             turning: false,
-            progress: Progress::new(now),
+            progress: PathProgress::new(now),
             held_back: None,
             fault: None,
         }
@@ -234,7 +234,7 @@ mod tests {
         let t0 = Instant::now();
         let s = |secs: f64| t0 + Duration::from_secs_f64(secs);
         let patience = Duration::from_secs(5);
-        let mut progress = Progress::new(t0);
+        let mut progress = PathProgress::new(t0);
         // Creeping less than a step at a time is no progress…
         assert!(!progress.stalled(3.0, 5.0, patience, s(2.0)));
         assert!(!progress.stalled(4.9, 5.0, patience, s(4.9)));
