@@ -41,10 +41,16 @@ pub(crate) struct AccessArgs {
     /// …and its PEM private key.
     #[arg(long, requires = "tls_cert", value_hint = ValueHint::FilePath)]
     tls_key: Option<PathBuf>,
-    /// Or with a certificate made now and signed by itself; Guests pin it
-    /// by the fingerprint in the address the Host prints (#pin=…).
+    /// Or with a certificate signed by itself, made once and kept in vl's
+    /// data directory (tls/self-signed.pem): Guests pin it by the
+    /// fingerprint in the address the Host prints (#pin=…), the same at
+    /// every start.
     #[arg(long, conflicts_with = "tls_cert")]
     tls_self_signed: bool,
+    /// With --tls-self-signed: make a new certificate in place of the kept
+    /// one (every Guest must then pin the new fingerprint).
+    #[arg(long, requires = "tls_self_signed")]
+    tls_renew: bool,
 }
 
 /// The first line of `path`: a secret kept in a file.
@@ -77,7 +83,16 @@ impl AccessArgs {
         }
         config.tls = match (&self.tls_cert, &self.tls_key) {
             (Some(cert), Some(key)) => Some(Tls::from_files(cert, key)),
-            _ if self.tls_self_signed => Some(Tls::self_signed(vec!["localhost".into()])),
+            _ if self.tls_self_signed => {
+                let dir = vl_record::data_dir()
+                    .context("no data directory to keep the certificate in: set HOME")?
+                    .join("tls");
+                Some(Tls::self_signed_kept(
+                    &dir,
+                    vec!["localhost".into()],
+                    self.tls_renew,
+                ))
+            }
             _ => None,
         }
         .transpose()

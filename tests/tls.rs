@@ -79,3 +79,72 @@ fn an_outside_client_is_welcomed_over_tls() {
         common::stdout(&out)
     );
 }
+
+/// `vl host --tls-self-signed` on `port`, keeping its certificate under
+/// `data` (as vl's data directory): its wss:// address.
+fn kept_tls_host(data: &std::path::Path, port: u16, extra: &[&str]) -> (common::VlProcess, String) {
+    use std::io::BufRead;
+    let mut command = common::vl_command();
+    command
+        .env("XDG_DATA_HOME", data)
+        .args(["host", "--robot", "sim", "--no-record", "--tls-self-signed"])
+        .args(["--listen", &format!("127.0.0.1:{port}")])
+        .args(extra)
+        .stdout(std::process::Stdio::piped());
+    let mut child = command.spawn().unwrap();
+    let stdout = child.stdout.take().unwrap();
+    let host = common::VlProcess(child);
+    let mut line = String::new();
+    std::io::BufReader::new(stdout)
+        .read_line(&mut line)
+        .unwrap();
+    let url = line
+        .trim()
+        .strip_prefix("vl host listening on ")
+        .unwrap_or_else(|| panic!("{line:?}"))
+        .to_owned();
+    (host, url)
+}
+
+/// The next welcome `connection` gets, within `wait`.
+async fn welcomed(connection: &mut vl_guest::Connection, wait: Duration) -> bool {
+    let deadline = tokio::time::Instant::now() + wait;
+    while let Ok(Some(incoming)) = tokio::time::timeout_at(deadline, connection.recv()).await {
+        if let vl_guest::Incoming::Message(m) = incoming
+            && matches!(*m, vl_core::HostMessage::Welcome { .. })
+        {
+            return true;
+        }
+    }
+    false
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_restarted_self_signed_host_keeps_its_pin_and_a_pinned_guest_comes_back() {
+    let data = common::scratch("tls-kept");
+    let port = common::free_port();
+    let (host, url) = kept_tls_host(&data, port, &[]);
+    assert!(url.contains("#pin="), "{url}");
+    let mut guest = vl_guest::open(&url).unwrap();
+    guest
+        .outgoing
+        .send(vl_guest::Login::default().hello(vl_core::Role::Observer))
+        .unwrap();
+    assert!(
+        welcomed(&mut guest, Duration::from_secs(20)).await,
+        "no welcome"
+    );
+    // The Host stops (as a machine restarting would) and starts again.
+    drop(host);
+    let (host, again) = kept_tls_host(&data, port, &[]);
+    assert_eq!(again, url, "a restart changed the address Guests pin");
+    assert!(
+        welcomed(&mut guest, Duration::from_secs(30)).await,
+        "the pinned Guest did not come back"
+    );
+    drop(host);
+    // Renewed on request: a new certificate, a new pin.
+    let (_host, renewed) = kept_tls_host(&data, port, &["--tls-renew"]);
+    assert_ne!(renewed, url);
+    assert!(data.join("vl/tls/self-signed.pem").exists());
+}
