@@ -2,7 +2,8 @@
 //! address with the fingerprint to pin; the Guest runs a whole experiment
 //! through it, refuses a certificate that is not the pinned one, and an
 //! outside client (Python's websockets and ssl) is welcomed; plain ws:// is
-//! not spoken on that port.
+//! not spoken on that port, and plain http:// is sent on to https://; a
+//! restarted Host keeps its self-signed certificate, so its pin.
 
 use std::process::Command;
 use std::time::Duration;
@@ -56,6 +57,41 @@ async fn plain_websocket_is_not_spoken_where_tls_is() {
     .await
     .expect("an answer within the handshake timeout");
     assert!(tried.is_err(), "a plain handshake was accepted");
+}
+
+#[test]
+fn plain_http_on_the_tls_port_is_sent_to_https() {
+    use std::io::{Read, Write};
+    let (_host, url) = tls_host();
+    let authority = url
+        .trim_start_matches("wss://")
+        .split('/')
+        .next()
+        .unwrap()
+        .to_owned();
+    let ask = |request: String| {
+        let mut socket = std::net::TcpStream::connect(&authority).unwrap();
+        socket
+            .set_read_timeout(Some(Duration::from_secs(10)))
+            .unwrap();
+        socket.write_all(request.as_bytes()).unwrap();
+        let mut answer = String::new();
+        socket.read_to_string(&mut answer).unwrap();
+        answer
+    };
+    // A browser given http://…/status is sent to the same place over TLS.
+    let answer = ask(format!(
+        "GET /status?x=1 HTTP/1.1\r\nHost: {authority}\r\nUser-Agent: test\r\n\r\n"
+    ));
+    assert!(answer.starts_with("HTTP/1.1 301"), "{answer}");
+    assert!(
+        answer.contains(&format!("Location: https://{authority}/status?x=1\r\n")),
+        "{answer}"
+    );
+    // A host that is no host name is not echoed into the answer.
+    let answer = ask("GET / HTTP/1.1\r\nHost: evil\"<x>\r\n\r\n".into());
+    assert!(answer.starts_with("HTTP/1.1 400"), "{answer}");
+    assert!(!answer.contains("evil"), "{answer}");
 }
 
 #[test]

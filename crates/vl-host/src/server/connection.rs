@@ -168,7 +168,16 @@ async fn handshake(
     asking: http::Asking,
 ) -> Result<Option<Client>, tungstenite::Error> {
     let stream: Box<dyn Io> = match tls {
-        Some(tls) => Box::new(tokio_rustls::TlsAcceptor::from(tls).accept(stream).await?),
+        Some(tls) => {
+            // A TLS handshake opens with a record of type 22; a letter is
+            // plain HTTP (a browser given http://), sent on to https://.
+            let mut first = [0u8; 1];
+            if stream.peek(&mut first).await? == 1 && first[0].is_ascii_alphabetic() {
+                http::to_https(Box::new(stream)).await?;
+                return Ok(None);
+            }
+            Box::new(tokio_rustls::TlsAcceptor::from(tls).accept(stream).await?)
+        }
         None => Box::new(stream),
     };
     match http::opening(stream).await? {

@@ -22,7 +22,7 @@ use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use base64::Engine;
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, ReadBuf};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, ReadBuf};
 use tokio::sync::{mpsc, oneshot};
 use vl_core::{ErrorCode, Role};
 
@@ -47,8 +47,9 @@ pub(super) enum Opening {
     Page(Box<dyn Io>),
 }
 
-/// Reads the request head from `stream` and says what it asks for.
-pub(super) async fn opening(mut stream: Box<dyn Io>) -> io::Result<Opening> {
+/// Reads a request head (at most `MAX_HEAD` bytes) from `stream`: every
+/// byte read, which may run past the head.
+async fn read_head(stream: &mut Box<dyn Io>) -> io::Result<Vec<u8>> {
     let mut head = Vec::with_capacity(1024);
     let mut chunk = [0u8; 1024];
     loop {
@@ -58,30 +59,8 @@ pub(super) async fn opening(mut stream: Box<dyn Io>) -> io::Result<Opening> {
         }
         head.extend_from_slice(&chunk[..n]);
         let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
-        let mut request = httparse::Request::new(&mut headers);
-        match request.parse(&head) {
-            Ok(httparse::Status::Complete(_)) => {
-                let header = |name: &str| {
-                    request
-                        .headers
-                        .iter()
-                        .find(|h| h.name.eq_ignore_ascii_case(name))
-                        .and_then(|h| std::str::from_utf8(h.value).ok())
-                };
-                let upgrade =
-                    header("upgrade").is_some_and(|v| v.eq_ignore_ascii_case("websocket"));
-                let foxglove = header("sec-websocket-protocol").and_then(Subprotocol::chosen);
-                let stream = Box::new(Rewind {
-                    head,
-                    read: 0,
-                    stream,
-                });
-                return Ok(match (upgrade, foxglove) {
-                    (true, Some(subprotocol)) => Opening::Foxglove(stream, subprotocol),
-                    (true, None) => Opening::Guest(stream),
-                    (false, _) => Opening::Page(stream),
-                });
-            }
+        match httparse::Request::new(&mut headers).parse(&head) {
+            Ok(httparse::Status::Complete(_)) => return Ok(head),
             Ok(httparse::Status::Partial) if head.len() < MAX_HEAD => {}
             Ok(httparse::Status::Partial) => {
                 return Err(io::Error::new(
@@ -92,6 +71,60 @@ pub(super) async fn opening(mut stream: Box<dyn Io>) -> io::Result<Opening> {
             Err(e) => return Err(io::Error::new(io::ErrorKind::InvalidData, e)),
         }
     }
+}
+
+/// The value of header `name` in `request`, as text.
+fn header<'a>(request: &httparse::Request<'_, 'a>, name: &str) -> Option<&'a str> {
+    request
+        .headers
+        .iter()
+        .find(|h| h.name.eq_ignore_ascii_case(name))
+        .and_then(|h| std::str::from_utf8(h.value).ok())
+}
+
+/// Reads the request head from `stream` and says what it asks for.
+pub(super) async fn opening(mut stream: Box<dyn Io>) -> io::Result<Opening> {
+    let head = read_head(&mut stream).await?;
+    let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
+    let mut request = httparse::Request::new(&mut headers);
+    request
+        .parse(&head)
+        .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e))?;
+    let upgrade = header(&request, "upgrade").is_some_and(|v| v.eq_ignore_ascii_case("websocket"));
+    let foxglove = header(&request, "sec-websocket-protocol").and_then(Subprotocol::chosen);
+    let stream = Box::new(Rewind {
+        head,
+        read: 0,
+        stream,
+    });
+    Ok(match (upgrade, foxglove) {
+        (true, Some(subprotocol)) => Opening::Foxglove(stream, subprotocol),
+        (true, None) => Opening::Guest(stream),
+        (false, _) => Opening::Page(stream),
+    })
+}
+
+/// A plain HTTP request on a port that speaks TLS (a browser given
+/// http://): answered with where it should have gone, https://, then closed.
+pub(super) async fn to_https(mut stream: Box<dyn Io>) -> io::Result<()> {
+    let head = read_head(&mut stream).await?;
+    let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
+    let mut request = httparse::Request::new(&mut headers);
+    request
+        .parse(&head)
+        .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e))?;
+    // The host as the browser named it, if it is one (no header tricks).
+    let authority = |c: char| c.is_ascii_alphanumeric() || ".-:[]".contains(c);
+    let host = header(&request, "host").filter(|h| !h.is_empty() && h.chars().all(authority));
+    let answer = match (host, request.path) {
+        (Some(host), Some(path)) if path.starts_with('/') => format!(
+            "HTTP/1.1 301 Moved Permanently\r\nLocation: https://{host}{path}\r\n\
+             Content-Length: 0\r\nConnection: close\r\n\r\n"
+        ),
+        _ => "HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\nConnection: close\r\n\r\n".into(),
+    };
+    stream.write_all(answer.as_bytes()).await?;
+    stream.shutdown().await
 }
 
 /// Who asks for a page, and what answering may need.
