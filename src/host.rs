@@ -318,7 +318,21 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
         ),
         None => {
             println!("vl host listening on {}", host.url());
-            eprintln!("vl host: a browser opens the lab at {}", host.page_url());
+            let reachable = host.reachable_at();
+            if reachable.len() == 1 || host.addr.ip().is_loopback() {
+                eprintln!("vl host: a browser opens the lab at {}", host.page_url());
+            } else {
+                // Every interface: each address of this machine, as a
+                // teacher hands one out.
+                eprintln!(
+                    "vl host: Guests on other machines connect to any of these \
+                     (a firewall must let TCP port {} in):",
+                    host.addr.port()
+                );
+                for (url, page) in reachable {
+                    eprintln!("vl host:   {url}   (browser: {page})");
+                }
+            }
         }
     }
     eprintln!("vl host: {}", host.priority);

@@ -163,3 +163,44 @@ fn a_closed_pipe_ends_output_quietly() {
     child.wait().unwrap();
     assert!(!err.contains("panicked"), "{err}");
 }
+
+#[test]
+fn a_host_on_every_interface_prints_each_address_students_can_use() {
+    use std::io::BufRead;
+    let port = common::free_port();
+    let mut child = common::vl_command()
+        .args(["host", "--robot", "sim", "--no-record"])
+        .args(["--listen", &format!("0.0.0.0:{port}")])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let lines: Vec<String> = std::io::BufReader::new(child.stderr.take().unwrap())
+        .lines()
+        .map_while(Result::ok)
+        .take_while(|l| !l.contains("priority"))
+        .collect();
+    let _ = child.kill();
+    let _ = child.wait();
+    let text = lines.join("\n");
+    assert!(
+        text.contains(&format!("a firewall must let TCP port {port} in")),
+        "{text}"
+    );
+    // Each address a Guest can dial (loopback last), never 0.0.0.0.
+    let listed: Vec<&String> = lines.iter().filter(|l| l.contains("ws://")).collect();
+    assert!(!listed.is_empty(), "{text}");
+    assert!(
+        listed
+            .last()
+            .unwrap()
+            .contains(&format!("ws://127.0.0.1:{port}")),
+        "{text}"
+    );
+    assert!(
+        listed
+            .iter()
+            .all(|l| !l.contains("0.0.0.0") && l.contains("(browser: http://")),
+        "{text}"
+    );
+}

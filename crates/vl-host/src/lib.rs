@@ -78,6 +78,7 @@ mod lab;
 mod line;
 mod media;
 mod priority;
+mod reach;
 mod server;
 mod setup;
 mod sim;
@@ -255,16 +256,34 @@ impl Host {
     /// Where Guests connect: `ws://`, or with TLS `wss://` with the
     /// certificate's fingerprint for the Guest to pin.
     pub fn url(&self) -> String {
-        match self.pin {
-            Some(pin) => format!("wss://{}/#pin={pin}", self.addr),
-            None => format!("ws://{}", self.addr),
-        }
+        self.url_at(self.addr)
     }
 
     /// Where a browser opens the web Guest (the same port).
     pub fn page_url(&self) -> String {
+        self.page_url_at(self.addr)
+    }
+
+    /// Where Guests on other machines connect, and where their browsers
+    /// open the page: one pair per address of this machine when the Host
+    /// listens on every interface.
+    pub fn reachable_at(&self) -> Vec<(String, String)> {
+        reach::reachable(self.addr)
+            .into_iter()
+            .map(|at| (self.url_at(at), self.page_url_at(at)))
+            .collect()
+    }
+
+    fn url_at(&self, at: SocketAddr) -> String {
+        match self.pin {
+            Some(pin) => format!("wss://{at}/#pin={pin}"),
+            None => format!("ws://{at}"),
+        }
+    }
+
+    fn page_url_at(&self, at: SocketAddr) -> String {
         let scheme = if self.pin.is_some() { "https" } else { "http" };
-        format!("{scheme}://{}/", self.addr)
+        format!("{scheme}://{at}/")
     }
 
     /// Serves until the process ends.
