@@ -277,7 +277,8 @@ pub fn progress_line(run: &MeasuredRun) -> String {
         "did not reach the goal"
     };
     format!(
-        "{} seed {}: {outcome} in {:.1} s, {}{strayed}",
+        "{} on {}, seed {}: {outcome} in {:.1} s, {}{strayed}",
+        run.experiment,
         run.arena,
         run.seed,
         run.completion_s,
