@@ -61,12 +61,10 @@ impl Target {
             }
             None => None,
         };
-        let host = match parsed.host() {
-            Some(url::Host::Domain(name)) => name.to_owned(),
-            Some(url::Host::Ipv4(ip)) => ip.to_string(),
-            Some(url::Host::Ipv6(ip)) => ip.to_string(),
-            None => return Err("it names no host".into()),
-        };
+        // An IPv6 address unbracketed, as a socket address takes it.
+        let host = (parsed.host_str())
+            .map(|h| h.trim_start_matches('[').trim_end_matches(']').to_owned())
+            .ok_or("it names no host")?;
         let port = parsed.port_or_known_default().ok_or("it names no port")?;
         parsed.set_fragment(None);
         Ok(Target {

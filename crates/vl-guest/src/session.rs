@@ -65,7 +65,7 @@ impl RoundTrips {
 
     /// The `q`-quantile (0..=1), nearest rank.
     pub fn quantile(&self, q: f64) -> Option<f64> {
-        let mut sorted = Vec::from(self.samples.clone());
+        let mut sorted: Vec<f64> = self.samples.iter().copied().collect();
         sorted.sort_by(f64::total_cmp);
         vl_core::nearest_rank(&sorted, q)
     }

@@ -32,6 +32,13 @@ pub struct WheelSpeeds {
     pub right_mm_s: f64,
 }
 
+impl WheelSpeeds {
+    /// The body's speed along its heading, mm/s: the wheels' mean.
+    pub fn forward_mm_s(self) -> f64 {
+        (self.left_mm_s + self.right_mm_s) / 2.0
+    }
+}
+
 /// Where a proximity sensor sits on the body (x forward, y left) and where it looks.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SensorMount {

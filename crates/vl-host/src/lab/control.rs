@@ -285,9 +285,8 @@ impl Control {
                 run.commanded = true;
                 if let Some(assist) = &mut run.assist {
                     let robot = &self.info.robot;
-                    let v = (wheels.left_mm_s + wheels.right_mm_s) / 2.0;
                     let w = (wheels.right_mm_s - wheels.left_mm_s) / robot.wheel_base_mm;
-                    assist.desired = self.teleop.velocity_for(robot, v, w);
+                    assist.desired = self.teleop.velocity_for(robot, wheels.forward_mm_s(), w);
                 }
                 run.last_command = Instant::now();
                 self.event.store(event, Ordering::Relaxed);
@@ -397,16 +396,14 @@ impl Control {
         // In an assisted run the obstacles' push may stop the robot short of
         // them before the layer has to: an operator pushing on is held back
         // from what they ask all the same, and is told so.
-        let forward = |w: WheelSpeeds| (w.left_mm_s + w.right_mm_s) / 2.0;
         let pushed_back = run.assist.is_some()
-            && forward(asked_wheels).abs() > MOVING_MM_S
-            && forward(guarded.wheels) / forward(asked_wheels) < HELD_SHARE;
+            && asked_wheels.forward_mm_s().abs() > MOVING_MM_S
+            && guarded.wheels.forward_mm_s() / asked_wheels.forward_mm_s() < HELD_SHARE;
         run.limited = guarded.limited || pushed_back;
         run.closest_mm = run.closest_mm.min(guarded.clearance_mm);
-        let asked = (wanted.left_mm_s + wanted.right_mm_s) / 2.0;
+        let asked = wanted.forward_mm_s();
         if asked.abs() > MOVING_MM_S {
-            let let_through = (guarded.wheels.left_mm_s + guarded.wheels.right_mm_s) / 2.0;
-            run.kept.add(asked, let_through);
+            run.kept.add(asked, guarded.wheels.forward_mm_s());
         }
         // A leash is extended every period; a stop is said once.
         let leash = guarded.leash;
@@ -613,7 +610,7 @@ impl Control {
 
 /// Whether `wheels` still carry the robot forward or back, not just round.
 fn still_rolling(wheels: WheelSpeeds) -> bool {
-    (wheels.left_mm_s + wheels.right_mm_s).abs() / 2.0 > FACE_MIN_WHEEL_MM_S
+    wheels.forward_mm_s().abs() > FACE_MIN_WHEEL_MM_S
 }
 
 /// Wheel speeds that turn `robot` in place from heading `theta` towards `face`.

@@ -73,6 +73,18 @@ async fn read_head(stream: &mut Box<dyn Io>) -> io::Result<Vec<u8>> {
     }
 }
 
+/// `head` (as `read_head` gave it) parsed into `headers`.
+fn parse<'h>(
+    head: &'h [u8],
+    headers: &'h mut [httparse::Header<'h>],
+) -> io::Result<httparse::Request<'h, 'h>> {
+    let mut request = httparse::Request::new(headers);
+    request
+        .parse(head)
+        .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e))?;
+    Ok(request)
+}
+
 /// The value of header `name` in `request`, as text.
 fn header<'a>(request: &httparse::Request<'_, 'a>, name: &str) -> Option<&'a str> {
     request
@@ -86,10 +98,7 @@ fn header<'a>(request: &httparse::Request<'_, 'a>, name: &str) -> Option<&'a str
 pub(super) async fn opening(mut stream: Box<dyn Io>) -> io::Result<Opening> {
     let head = read_head(&mut stream).await?;
     let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
-    let mut request = httparse::Request::new(&mut headers);
-    request
-        .parse(&head)
-        .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e))?;
+    let request = parse(&head, &mut headers)?;
     let upgrade = header(&request, "upgrade").is_some_and(|v| v.eq_ignore_ascii_case("websocket"));
     let foxglove = header(&request, "sec-websocket-protocol").and_then(Subprotocol::chosen);
     let stream = Box::new(Rewind {
@@ -109,10 +118,7 @@ pub(super) async fn opening(mut stream: Box<dyn Io>) -> io::Result<Opening> {
 pub(super) async fn to_https(mut stream: Box<dyn Io>) -> io::Result<()> {
     let head = read_head(&mut stream).await?;
     let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
-    let mut request = httparse::Request::new(&mut headers);
-    request
-        .parse(&head)
-        .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e))?;
+    let request = parse(&head, &mut headers)?;
     // The host as the browser named it, if it is one (no header tricks).
     let authority = |c: char| c.is_ascii_alphanumeric() || ".-:[]".contains(c);
     let host = header(&request, "host").filter(|h| !h.is_empty() && h.chars().all(authority));

@@ -58,12 +58,10 @@ impl Address {
                 "a user and password in the address are not supported",
             ));
         }
-        let host = match parsed.host() {
-            Some(url::Host::Domain(name)) => name.to_owned(),
-            Some(url::Host::Ipv4(ip)) => ip.to_string(),
-            Some(url::Host::Ipv6(ip)) => ip.to_string(),
-            None => return Err(refused("it names no host")),
-        };
+        // An IPv6 address unbracketed, as a socket address takes it.
+        let host = (parsed.host_str())
+            .map(|h| h.trim_start_matches('[').trim_end_matches(']').to_owned())
+            .ok_or_else(|| refused("it names no host"))?;
         Ok(Address {
             host,
             port: parsed.port_or_known_default().unwrap_or(80),
