@@ -139,10 +139,24 @@ pub struct HeldBack {
     pub margin_mm: f64,
 }
 
+impl HeldBack {
+    /// A run counts as held back once it comes less than this far along
+    /// its path in the hold's time, mm. A held robot may so stand this much
+    /// short of where the margin begins: the uncertainty explains the hold
+    /// while it and the margin reach within this of the path's room.
+    pub const CREEP_MM: f64 = 5.0;
+
+    /// Whether the estimate's uncertainty, with the margin, is what keeps
+    /// the robot from the room the path leaves (else something unmapped).
+    pub fn by_uncertainty(&self) -> bool {
+        self.uncertain_mm + self.margin_mm + Self::CREEP_MM >= self.passes_mm
+    }
+}
+
 impl std::fmt::Display for HeldBack {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let what = if self.wall { "the wall" } else { "an obstacle" };
-        if self.uncertain_mm + self.margin_mm >= self.passes_mm {
+        if self.by_uncertainty() {
             write!(
                 f,
                 "position uncertain by {:.0} mm where the path passes {:.0} mm from {what}: \
@@ -173,5 +187,28 @@ impl std::fmt::Display for Stopper {
             Role::Operator => write!(f, "the operator (session {})", self.session),
             Role::Observer => write!(f, "an observer (session {})", self.session),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::HeldBack;
+
+    fn held(uncertain_mm: f64, passes_mm: f64) -> String {
+        HeldBack {
+            uncertain_mm,
+            passes_mm,
+            wall: false,
+            margin_mm: 5.0,
+        }
+        .to_string()
+    }
+
+    #[test]
+    fn a_robot_held_short_of_the_margin_is_held_by_its_uncertainty() {
+        // A run on slipping odometry stalls a step before its margin
+        // (5 mm and 19.6 mm of uncertainty) meets the 25.3 mm the path leaves.
+        assert!(held(19.6, 25.3).starts_with("position uncertain by 20 mm"));
+        assert!(held(2.0, 25.3).starts_with("the robot could not move on"));
     }
 }

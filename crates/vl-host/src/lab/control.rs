@@ -58,10 +58,9 @@ const FACE_MIN_WHEEL_MM_S: f64 = 8.0;
 /// A run whose robot the camera has not seen for this long, s, stops: the
 /// odometry it drove on meanwhile drifts too far to keep it off obstacles.
 const ROBOT_LOST_S: f64 = 2.0;
-/// A followed run that comes no further than `PROGRESS_MM` along its path
-/// in this long, s, is held back for good: it ends, saying why.
+/// A followed run that comes no further than `HeldBack::CREEP_MM` along
+/// its path in this long, s, is held back for good: it ends, saying why.
 const HELD_BACK: Duration = Duration::from_secs(5);
-const PROGRESS_MM: f64 = 5.0;
 /// How far ahead along the path the room it leaves is looked for, mm.
 const ROOM_AHEAD_MM: f64 = 60.0;
 
@@ -523,7 +522,7 @@ impl Control {
         }
         let follower = run.follower.as_ref()?;
         let along = follower.progress_mm();
-        if !(run.progress).stalled(along, PROGRESS_MM, HELD_BACK, now) {
+        if !(run.progress).stalled(along, HeldBack::CREEP_MM, HELD_BACK, now) {
             return None;
         }
         let arena = &self.info.arena;
