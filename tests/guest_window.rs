@@ -1094,6 +1094,44 @@ fn the_window_logs_in_with_an_account() {
     assert!(harness.query_by_label_contains("correct horse").is_none());
 }
 
+/// A window opened to drive a lab where someone drives watches and takes
+/// its place in line by itself (it does not log in again and again), shows
+/// the place and the wait with no error, and drives when the slot ends.
+#[test]
+fn a_window_asking_to_drive_a_busy_lab_waits_in_line() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let host = host_without_camera(
+        &runtime,
+        HostConfig {
+            slot: Some(Duration::from_secs(3)),
+            ..HostConfig::default()
+        },
+    );
+    let url = host.url();
+    let _driver = runtime.block_on(async {
+        let mut driver = common::peer::Peer::connect(&url).await;
+        driver.hello("operator").await;
+        driver
+    });
+    let _entered = runtime.enter();
+    let mut harness = window_as(&url, Role::Operator, Vec2::new(1100.0, 720.0));
+    step_until(&mut harness, "be in line", |app| {
+        app.session().queue.is_some()
+    });
+    assert_eq!(harness.state().session().role, Some(Role::Observer));
+    assert!(
+        harness.state().session().errors.is_empty(),
+        "{:?}",
+        harness.state().session().errors
+    );
+    harness.get_by_label_contains("You are 1st in line for control (1 waiting)");
+    assert_eq!(harness.state().session().welcomes, 1, "logged in once");
+    step_until(&mut harness, "get control", |app| {
+        app.session().role == Some(Role::Operator)
+    });
+    harness.get_by_label_contains("your slot: 0:0");
+}
+
 /// An observer joins the line with one click, sees its place and how long
 /// it waits, and drives when the operator's slot ends, the time left shown.
 #[test]

@@ -17,7 +17,8 @@ use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::tungstenite::{self, Message};
 use vl_core::{
-    FrameHeader, GuestMessage, HostMessage, MAX_FRAME_BYTES, MAX_TEXT_BYTES, PartHeader, Wire,
+    ErrorCode, FrameHeader, GuestMessage, HostMessage, MAX_FRAME_BYTES, MAX_TEXT_BYTES, PartHeader,
+    Role, Wire,
 };
 
 /// How often the Guest measures the round trip.
@@ -271,6 +272,10 @@ struct Remembered {
     hello: Option<GuestMessage>,
     /// The operator's secret from the last welcome.
     resume: Option<String>,
+    /// Whether the Guest asked for control and has not had it yet: said
+    /// again after a reconnection, so a dropped link costs no more than
+    /// the place.
+    in_line: bool,
 }
 
 impl Remembered {
@@ -285,9 +290,46 @@ impl Remembered {
         if let Some(secret) = resume {
             self.resume = Some(secret.clone());
         }
-        if let (Some(now), Some(GuestMessage::Hello { role, .. })) = (role, &mut self.hello) {
+        if role == Some(Role::Operator) {
+            self.in_line = false;
+        }
+        if let Some(now) = role {
+            self.say_role(now);
+        }
+    }
+
+    /// Keeps `now` as the role a new connection says hello as.
+    fn say_role(&mut self, now: Role) {
+        if let Some(GuestMessage::Hello { role, .. }) = &mut self.hello {
             *role = now;
         }
+    }
+
+    /// Whether the Host's `refusal` of the hello says someone else drives
+    /// (or holds the role, or waits for it first), while the Guest said
+    /// hello as operator: then it watches and takes its place in line, as
+    /// a person would, instead of saying the same hello again forever.
+    fn to_watch_and_queue(&mut self, refusal: &HostMessage) -> Option<GuestMessage> {
+        let asked_to_drive = matches!(
+            &self.hello,
+            Some(GuestMessage::Hello {
+                role: Role::Operator,
+                ..
+            })
+        );
+        let taken = matches!(
+            refusal,
+            HostMessage::Error {
+                code: ErrorCode::OperatorTaken,
+                ..
+            }
+        );
+        if !(asked_to_drive && taken) {
+            return None;
+        }
+        self.say_role(Role::Observer);
+        self.in_line = true;
+        self.hello_again()
     }
 
     /// The hello to say on a new connection: the last one, with the secret.
@@ -519,8 +561,11 @@ async fn carry(
             message = to_send.recv() => match message {
                 Some(message) => {
                     let bye = message == GuestMessage::Bye;
-                    if matches!(message, GuestMessage::Hello { .. }) {
-                        remembered.hello = Some(message.clone());
+                    match message {
+                        GuestMessage::Hello { .. } => remembered.hello = Some(message.clone()),
+                        GuestMessage::Queue => remembered.in_line = true,
+                        GuestMessage::LeaveQueue => remembered.in_line = false,
+                        _ => {}
                     }
                     if let Err(e) = sink.send(text(&message)).await {
                         return Ended::Lost(format!("send failed: {e}"));
@@ -549,12 +594,25 @@ async fn carry(
                         let _ = deliver.send(Incoming::RoundTrip(rtt));
                     }
                     Ok(HostMessage::Bye) => return Ended::Lost("the Host said bye".to_owned()),
+                    // Not an error to show: the place in line that follows says it.
+                    Ok(message) if !*welcomed && let Some(hello) = remembered.to_watch_and_queue(&message) => {
+                        if let Err(e) = sink.send(text(&hello)).await {
+                            return Ended::Lost(format!("send failed: {e}"));
+                        }
+                    }
                     Ok(message) => {
                         remembered.heard(&message);
-                        if let HostMessage::Welcome { .. } = &message {
-                            *welcomed = true;
-                        }
+                        let queue = match &message {
+                            HostMessage::Welcome { role, .. } => {
+                                *welcomed = true;
+                                *role == Role::Observer && remembered.in_line
+                            }
+                            _ => false,
+                        };
                         let _ = deliver.send(Incoming::Message(Box::new(message)));
+                        if queue && let Err(e) = sink.send(text(&GuestMessage::Queue)).await {
+                            return Ended::Lost(format!("send failed: {e}"));
+                        }
                     }
                     Err(e) => tracing::warn!("ignoring a message from the Host: {e}"),
                 },

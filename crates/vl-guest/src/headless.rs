@@ -311,40 +311,28 @@ pub(crate) async fn welcomed(
         timeout: script.timeout,
         connect_by: Instant::now() + script.connect_within,
     };
-    match guest
+    guest
         .until("say hello", |_, _| {}, |s| s.role.is_some())
-        .await
-    {
-        // Someone else drives: watch, and wait in line for control.
-        Err(ScriptError::Refused {
-            code: ErrorCode::OperatorTaken,
-            message,
-            ..
-        }) if role == Role::Operator => {
-            if guest.progress {
-                eprintln!("{message}: waiting in line for control");
+        .await?;
+    if role == Role::Operator && guest.session.role == Some(Role::Observer) {
+        // Someone else drives: the connection watches and waits in line.
+        let mut told = None;
+        let progress = guest.progress;
+        let tell_place = |s: &mut Session, _: &Connection| {
+            let position = s.queue.map(|q| q.position);
+            if progress && position.is_some() && position != told {
+                told = position;
+                eprintln!(
+                    "someone else drives: number {} in line for control",
+                    position.unwrap_or(0)
+                );
             }
-            guest.connection.send(script.login.hello(Role::Observer));
-            guest
-                .until("watch", |_, _| {}, |s| s.role.is_some())
-                .await?;
-            guest.connection.send(GuestMessage::Queue);
-            let mut told = None;
-            let progress = guest.progress;
-            let tell_place = |s: &mut Session, _: &Connection| {
-                let position = s.queue.map(|q| q.position);
-                if progress && position.is_some() && position != told {
-                    told = position;
-                    eprintln!("{} in line for control", position.unwrap_or(0));
-                }
-            };
-            guest
-                .until("wait in line for control", tell_place, |s| {
-                    s.role == Some(Role::Operator)
-                })
-                .await?;
-        }
-        waited => waited?,
+        };
+        guest
+            .until("wait in line for control", tell_place, |s| {
+                s.role == Some(Role::Operator)
+            })
+            .await?;
     }
     Ok(guest)
 }
