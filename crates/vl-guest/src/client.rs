@@ -309,7 +309,7 @@ impl Remembered {
     /// (or holds the role, or waits for it first), while the Guest said
     /// hello as operator: then it watches and takes its place in line, as
     /// a person would, instead of saying the same hello again forever.
-    fn to_watch_and_queue(&mut self, refusal: &HostMessage) -> Option<GuestMessage> {
+    fn watch_and_queue(&mut self, refusal: &HostMessage) -> Option<GuestMessage> {
         let asked_to_drive = matches!(
             &self.hello,
             Some(GuestMessage::Hello {
@@ -595,7 +595,7 @@ async fn carry(
                     }
                     Ok(HostMessage::Bye) => return Ended::Lost("the Host said bye".to_owned()),
                     // Not an error to show: the place in line that follows says it.
-                    Ok(message) if !*welcomed && let Some(hello) = remembered.to_watch_and_queue(&message) => {
+                    Ok(message) if !*welcomed && let Some(hello) = remembered.watch_and_queue(&message) => {
                         if let Err(e) = sink.send(text(&hello)).await {
                             return Ended::Lost(format!("send failed: {e}"));
                         }
