@@ -268,7 +268,8 @@ fn login(role: &str, user: &str, password: &str) -> Value {
 /// Two people want control of a lab whose slots last 2 s, with sixty
 /// anonymous people watching: the second waits first in line (told how
 /// long at most), keeps the place across a dropped link, and gets control
-/// when the slot ends; the first then watches.
+/// when the slot ends, the experiment still mounted: she plans at once. The
+/// first then watches.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_second_in_line_drives_when_the_first_s_slot_ends() {
     let dir = scratch("queue-host");
@@ -287,6 +288,9 @@ async fn the_second_in_line_drives_when_the_first_s_slot_ends() {
     ada.expect("welcome").await;
     let slot = ada.expect("role").await;
     assert!(slot["slot_s"].as_f64().unwrap() <= 3.0, "{slot}");
+    ada.send(json!({"type": "mount", "experiment": "navigation"}))
+        .await;
+    ada.expect("mounted").await;
     let mut carol = Peer::connect(&url).await;
     carol
         .send(login("operator", "carol", "carol's password"))
@@ -323,10 +327,14 @@ async fn the_second_in_line_drives_when_the_first_s_slot_ends() {
     ada.send(json!({"type": "mount", "experiment": "navigation"}))
         .await;
     ada.expect_error("not_operator").await;
+    // What Ada mounted is mounted afresh for Carol, who plans without mounting.
+    let mounted = carol.expect("mounted").await;
+    assert_eq!(mounted["experiment"], "navigation", "{mounted}");
     carol
-        .send(json!({"type": "mount", "experiment": "navigation"}))
+        .send(json!({"type": "plan", "goal": {"x_mm": 400.0, "y_mm": 300.0}}))
         .await;
-    carol.expect("mounted").await;
+    let planned = carol.expect("planned").await;
+    assert!(planned["path"].as_array().unwrap().len() >= 2, "{planned}");
 }
 
 /// A headless Guest that asks to drive a busy lab waits in line, then runs.

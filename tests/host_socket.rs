@@ -539,3 +539,26 @@ async fn an_operator_token_refusal_says_what_to_do() {
     right.expect("welcome").await;
     Peer::connect(&url).await.hello("observer").await;
 }
+
+/// The last operator says goodbye with teleoperation mounted: whoever
+/// drives next finds it mounted, nothing defined, and defines at once.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_next_operator_finds_the_experiment_mounted() {
+    let (_host, url) = start_host(&[]);
+    let mut first = Peer::connect(&url).await;
+    first.hello("operator").await;
+    first
+        .send(json!({"type": "mount", "experiment": "teleoperation"}))
+        .await;
+    first.expect("mounted").await;
+    first.send(json!({"type": "bye"})).await;
+    drop(first);
+    let mut next = Peer::connect(&url).await;
+    let welcome = next.hello("operator").await;
+    assert_eq!(welcome["role"], "operator", "{welcome}");
+    let mounted = next.expect("mounted").await;
+    assert_eq!(mounted["experiment"], "teleoperation", "{mounted}");
+    next.send(json!({"type": "define"})).await;
+    next.expect("defined").await;
+    next.start_run().await;
+}

@@ -478,10 +478,22 @@ async fn play(url: &str, nets: &HashMap<String, Net>, acts: &[Act]) {
                 continue;
             }
             Act::Leave => {
+                let left = mirror.lab.clone();
+                let was_mounted = mirror.marking() != initial(mirror.net());
                 leave(op).await;
                 op = operator(url, &mut mirror, None).await;
-                // Leaving released the lab: its net is back where it began.
-                assert_eq!(mirror.marking(), initial(mirror.net()), "released");
+                // Leaving released the lab: its net is back where it began,
+                // or — what was mounted mounted again for the next operator —
+                // mounted afresh: nothing defined, no run.
+                if was_mounted {
+                    assert_eq!(mirror.lab, left, "the same lab mounted again");
+                    let marked = mirror.marked();
+                    for place in ["mount.mounted", "define.default", "execute.ready"] {
+                        assert!(marked.iter().any(|p| p == place), "{place}: {marked:?}");
+                    }
+                } else {
+                    assert_eq!(mirror.marking(), initial(mirror.net()), "released");
+                }
                 continue;
             }
             Act::Drop => {

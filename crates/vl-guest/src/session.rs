@@ -199,6 +199,9 @@ pub struct Session {
     /// How many welcomes this Guest has had: each is a new connection,
     /// perhaps to a new Host, and starts what is shown afresh.
     pub welcomes: u64,
+    /// How many mounts this Guest has seen: each (the same experiment
+    /// mounted again for a new operator too) starts the lab afresh.
+    pub mounts: u64,
     /// Where this Guest stands in the line for control, when it is in it.
     pub queue: Option<InLine>,
     /// When the operator's slot ends, for an operator whose slots have a length.
@@ -257,6 +260,7 @@ impl Default for Session {
             queue: None,
             slot_ends: None,
             welcomes: 0,
+            mounts: 0,
         }
     }
 }
@@ -312,6 +316,7 @@ impl Session {
             }
             HostMessage::Mounted(lab) => {
                 self.lab = Some(*lab);
+                self.mounts += 1;
                 self.definition = None;
                 self.forecast = None;
                 self.done = None;

@@ -300,7 +300,7 @@ impl GuestApp {
 
     /// Takes in everything that arrived since the last frame.
     fn pump(&mut self) {
-        let was_mounted = self.session.lab.clone();
+        let mounts = self.session.mounts;
         let was_running = self.session.running;
         if let Some(replay) = &mut self.replay {
             replay.advance(&mut self.session);
@@ -320,9 +320,9 @@ impl GuestApp {
             self.forget_the_host();
         }
         if let Some(lab) = &self.session.lab
-            && Some(lab) != was_mounted.as_ref()
+            && self.session.mounts != mounts
         {
-            // Another experiment: nothing of the last one's stays on screen.
+            // A mount (for a new operator too): nothing of the last one's stays on screen.
             self.plan_note = None;
             self.trail.clear();
             self.dragging_sample = None;

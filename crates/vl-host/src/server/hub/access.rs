@@ -197,6 +197,10 @@ impl Hub {
         // Every welcome carries a fresh secret, so every drop has its
         // grace (and an old secret, once used, opens nothing).
         self.resume = Some(secret());
+        self.mount_kept();
+        // Those welcomed see the mount fire; the newcomer's welcome shows
+        // the net as it is after it.
+        self.tell_state();
         true
     }
 
@@ -271,7 +275,7 @@ impl Hub {
             self.happened(Action::Release);
         }
         self.seat(how, Seat::Operator);
-        self.experiment = None;
+        self.kept = self.experiment.take().or(self.kept);
         self.definition = None;
         self.cspace = None;
         self.field = None;

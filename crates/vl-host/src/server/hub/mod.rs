@@ -120,6 +120,9 @@ pub(crate) struct Hub {
     slot_until: Option<Instant>,
     /// The mounted experiment.
     experiment: Option<Experiment>,
+    /// What the last operator left mounted: mounted again for the next,
+    /// who plans, defines and starts at once.
+    kept: Option<Experiment>,
     definition: Option<Definition>,
     /// Event number of the last command accepted in this run.
     last_event: u64,
@@ -184,6 +187,7 @@ impl Hub {
             queue: std::collections::VecDeque::new(),
             slot_until: None,
             experiment: None,
+            kept: None,
             definition: None,
             last_event: 0,
             max_event_gap: 0,

@@ -60,9 +60,25 @@ impl Hub {
                 ),
             );
         };
-        if let Err(e) = self.supervisor.mount(experiment) {
-            return self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
+        if let Err(e) = self.put_up(experiment) {
+            self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
         }
+    }
+
+    /// Mounts again, for a new operator, what the last one left mounted.
+    pub(super) fn mount_kept(&mut self) {
+        if let Some(experiment) = self.kept.take()
+            && self.experiment.is_none()
+            && let Err(e) = self.put_up(experiment)
+        {
+            warn!("the experiment left mounted could not be mounted again: {e}");
+        }
+    }
+
+    /// Mounts `experiment` afresh: no definition yet, every client told.
+    fn put_up(&mut self, experiment: Experiment) -> Result<(), vl_core::NotAllowed> {
+        self.supervisor.mount(experiment)?;
+        self.kept = None;
         self.experiment = Some(experiment);
         self.definition = None;
         self.forecasts.forget();
@@ -71,6 +87,7 @@ impl Hub {
             self.broadcast(&mounted);
         }
         self.build_cspace();
+        Ok(())
     }
 
     /// Takes the definition of the next run, once checked against the lab.

@@ -202,6 +202,8 @@ impl Hub {
                 slot_s: self.config.slot.map(|s| s.as_secs_f64()),
             },
         );
+        // Told after the role, so the new operator knows they may use it.
+        self.mount_kept();
     }
 
     /// Gives up places whose grace ran out; ends the operator's slot when
