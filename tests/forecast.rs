@@ -289,3 +289,59 @@ fn forecast_limits_out_of_range_are_refused_by_name() {
         common::stderr(&out)
     );
 }
+
+/// A path planned from where an emergency stop left the robot, then a run
+/// of it stopped half way: the robot drives back to its start, the path is
+/// planned again from there to the same goal (the old one would begin
+/// where the robot no longer is), and the twin passes it: no alarming
+/// refusal of what the operator has not changed.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_run_stopped_half_way_keeps_a_definition_that_passes() {
+    let (_host, url) = start_host(&[]);
+    let (mut op, arena, robot) = mounted(&url).await;
+    let goal = arena.goal.unwrap();
+    let path = planned(&arena, &robot, goal);
+    let definition =
+        json!({"goal": {"x_mm": goal.x_mm, "y_mm": goal.y_mm, "tolerance_mm": 15}, "path": path});
+    let forecast = forecast_of(&mut op, definition).await;
+    assert_eq!(forecast["refusals"], json!([]), "{forecast}");
+    op.start_run().await;
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    // Left where it stands: no drive back after an emergency stop.
+    op.send(json!({"type": "emergency_stop"})).await;
+    op.expect("done").await;
+    op.send(json!({"type": "plan", "goal": {"x_mm": goal.x_mm, "y_mm": goal.y_mm}}))
+        .await;
+    let planned = op.expect("planned").await;
+    let from = &planned["path"][0];
+    let from: Point = serde_json::from_value(from.clone()).unwrap();
+    assert!(from.distance(arena.start.point()) > 50.0, "{planned}");
+    let definition = json!({"goal": {"x_mm": goal.x_mm, "y_mm": goal.y_mm, "tolerance_mm": 15},
+        "path": planned["path"]});
+    let forecast = forecast_of(&mut op, definition).await;
+    assert_eq!(forecast["refusals"], json!([]), "{forecast}");
+    op.start_run().await;
+    tokio::time::sleep(Duration::from_millis(1000)).await;
+    op.send(json!({"type": "stop"})).await;
+    let done = op.expect("done").await;
+    assert_eq!(done["summary"]["reason"], "stopped", "{done}");
+    let defined = op.expect("defined").await;
+    let first = &defined["path"][0];
+    let first: Point = serde_json::from_value(first.clone()).unwrap();
+    assert!(
+        first.distance(arena.start.point()) < 20.0,
+        "planned again from the start: {defined}"
+    );
+    loop {
+        let v = op
+            .next_of_any(&["forecast", "error"], Duration::from_secs(30))
+            .await
+            .expect("the definition tried again");
+        if v["type"] == "forecast" {
+            assert_eq!(v["refusals"], json!([]), "{v}");
+            break;
+        }
+        assert_ne!(v["code"], "forecast_refused", "{v}");
+    }
+    op.start_run().await;
+}

@@ -623,8 +623,13 @@ fn at_a_lab_with_accounts_the_page_logs_in_and_waits_in_line() {
     assert!(
         line.as_str()
             .unwrap()
-            .starts_with("you are number 1 in line, at most 10 min to wait"),
+            .starts_with("you are number 1 of 1 in line, at most 10 min to wait"),
         "{line}"
+    );
+    // Ada is told someone waits after her.
+    ada.expect(
+        "document.getElementById('queue').innerText === '1 waiting for control after you'",
+        Duration::from_secs(5),
     );
     // Ada lets go: bob drives.
     ada.click("#watch");

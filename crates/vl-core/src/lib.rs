@@ -116,6 +116,7 @@ pub use contract::forecast::{
 };
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
 pub use contract::host_status::{HostStatus, Person, Priorities, Priority, RunRecord};
+pub use contract::legend::Mark;
 pub use contract::protocol::{
     DecodeError, DeviceState, Drive, ErrorCode, Feedback, GuestMessage, HostMessage,
     MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Readiness, Role, Secret, WATCHDOG, Wire,

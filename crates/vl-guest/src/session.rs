@@ -202,6 +202,13 @@ pub struct Session {
     /// How many mounts this Guest has seen: each (the same experiment
     /// mounted again for a new operator too) starts the lab afresh.
     pub mounts: u64,
+    /// The lab's last run that ended, as the Host last said.
+    pub last_run: Option<vl_core::RunRecord>,
+    /// Why this Guest's control was taken (its slot ended, an
+    /// administrator ended it), until it asks again.
+    pub control_ended: Option<vl_core::EndReason>,
+    /// How many wait in line for control, as the Host last said.
+    pub waiting: u32,
     /// Where this Guest stands in the line for control, when it is in it.
     pub queue: Option<InLine>,
     /// When the operator's slot ends, for an operator whose slots have a length.
@@ -261,6 +268,9 @@ impl Default for Session {
             slot_ends: None,
             welcomes: 0,
             mounts: 0,
+            last_run: None,
+            control_ended: None,
+            waiting: 0,
         }
     }
 }
@@ -352,23 +362,36 @@ impl Session {
                 self.running = false;
                 self.done = Some(*summary);
             }
-            HostMessage::Status { robot, camera, lab } => {
+            HostMessage::Status {
+                robot,
+                camera,
+                lab,
+                last_run,
+            } => {
                 self.devices = Some(DeviceStates { robot, camera, lab });
+                self.last_run = last_run;
             }
             HostMessage::Queue {
                 position,
                 length,
                 wait_s,
             } => {
+                self.waiting = length;
                 self.queue = position.map(|position| InLine {
                     position,
                     length,
                     by: wait_s.map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6))),
                 });
             }
-            HostMessage::Role { role, slot_s, .. } => {
+            HostMessage::Role {
+                role,
+                slot_s,
+                ended,
+                ..
+            } => {
                 self.role = Some(role);
                 self.queue = None;
+                self.control_ended = ended.filter(|_| role == Role::Observer);
                 self.slot_ends = slot_s
                     .filter(|_| role == Role::Operator)
                     .map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6)));

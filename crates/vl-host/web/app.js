@@ -20,6 +20,10 @@ const ENDINGS = {
   kicked: "ended by an administrator",
 };
 const DEVICES = { online: "online", offline: "not answering", absent: "none" };
+// The colours the desktop window draws with (legend.js, from the Host).
+const COLOUR = Object.fromEntries(LEGEND.map((m) => [m.id, m.colour]));
+// What the page draws, in the legend under the camera view.
+const DRAWN = ["robot", "trail", "path", "goal", "force"];
 const ROLES = { operator: "driving", observer: "watching" };
 
 // Everything the page knows, one place (read by the tests as window.vl).
@@ -28,9 +32,10 @@ const vl = {
   wanted: "observer", login: {}, user: null, lineAfterWelcome: false, experiments: [], lab: null, state: null,
   status: null, definition: null, forecast: null, planned: null, goal: null,
   feedback: null, trail: [], running: false, lastEvent: 0, sentEvent: 0,
-  lastCommandAt: 0, summary: null, error: null, rttMs: null, hostOffsetMs: null,
+  lastCommandAt: 0, summary: null, error: null, rttMs: null,
   frame: null, frames: 0, image: null, keys: new Set(), stick: { v: 0, w: 0 },
-  gamepad: null, queue: null, sent: [],
+  gamepad: null, queue: null, waiting: 0, controlEnded: null, lastRun: null, sent: [],
+  feedbackAt: null, frameAt: null, stopUnsent: false,
 };
 window.vl = vl;
 
@@ -96,8 +101,11 @@ function rejoin(role) {
   connect();
 }
 
-function hostNow() {
-  return vl.hostOffsetMs === null ? null : performance.now() + vl.hostOffsetMs;
+// How old what the Host measured is now: the time since it arrived, and
+// half a round trip on the way (the Host's clocks are its own).
+function ageMs(arrivedAt) {
+  if (arrivedAt === null) return null;
+  return performance.now() - arrivedAt + (vl.rttMs === null ? 0 : vl.rttMs / 2);
 }
 
 // ---- what the Host says -----------------------------------------------
@@ -112,15 +120,21 @@ function take(m) {
       if (vl.lineAfterWelcome && m.role === "observer") send(VL.guest.queue());
       vl.lineAfterWelcome = false;
       // A Host started again counts anew: forget what it said.
-      vl.feedback = null; vl.frame = null; vl.hostOffsetMs = null;
+      vl.feedback = null; vl.frame = null; vl.feedbackAt = null; vl.frameAt = null;
+      vl.image = null;
       clearError();
       break;
     case "role":
       vl.role = m.role; if (m.resume) vl.resume = m.resume;
       vl.slotEnds = m.role === "operator" && m.slot_s ? performance.now() + m.slot_s * 1000 : null;
       if (m.role === "operator") vl.queue = null;
+      vl.controlEnded = m.role === "observer" ? m.ended || null : null;
       break;
-    case "queue": vl.queue = m.position ? m : null; clearError(); break;
+    case "queue":
+      vl.queue = m.position ? m : null; vl.waiting = m.length || 0;
+      if (vl.queue) vl.controlEnded = null;
+      clearError();
+      break;
     case "mounted":
       vl.lab = m; vl.definition = null; vl.planned = null; vl.goal = null;
       vl.forecast = null; vl.trail = []; vl.summary = null;
@@ -132,7 +146,7 @@ function take(m) {
       if (running && !vl.running) { vl.running = true; vl.trail = []; vl.summary = null; }
       break;
     }
-    case "status": vl.status = m; break;
+    case "status": vl.status = m; vl.lastRun = m.last_run || null; break;
     case "planned": vl.planned = m.path; vl.goal = m.goal; clearError(); break;
     case "defined": vl.definition = m; vl.planned = null; clearError(); break;
     case "forecast": vl.forecast = m; break;
@@ -152,11 +166,7 @@ function take(m) {
         if (vl.link !== "open") vl.link = "refused";
       }
       break;
-    case "ping":
-      send(VL.guest.pong(m.t));
-      // The Host's clock, a half round trip ago.
-      if (vl.rttMs !== null) vl.hostOffsetMs = m.t + vl.rttMs / 2 - performance.now();
-      break;
+    case "ping": send(VL.guest.pong(m.t)); break;
     case "pong": vl.rttMs = performance.now() - m.t; break;
     case "bye": break;
   }
@@ -165,6 +175,7 @@ function take(m) {
 function takeFeedback(m) {
   if (vl.feedback && m.event < vl.feedback.event && vl.running) return;
   vl.feedback = m;
+  vl.feedbackAt = performance.now();
   if (vl.running) {
     vl.lastEvent = Math.max(vl.lastEvent, m.event);
     const last = vl.trail[vl.trail.length - 1];
@@ -196,6 +207,7 @@ function takeFrame(buffer) {
   const f = VL.frame(buffer);
   if (!f || (vl.frame && f.seq <= vl.frame.seq)) return;
   vl.frame = f;
+  vl.frameAt = performance.now();
   vl.frames += 1;
   createImageBitmap(f.image).then((bitmap) => {
     if (vl.image) vl.image.close();
@@ -248,8 +260,13 @@ function drive() {
   send(VL.guest.command(vl.sentEvent, vl.lastEvent, s.v, s.w));
 }
 
+// The keys drive only the operator of a teleoperation lab; for everyone
+// else they scroll and move between controls as usual.
+function keysDrive() {
+  return vl.role === "operator" && vl.lab && vl.lab.experiment === "teleoperation";
+}
 document.addEventListener("keydown", (e) => {
-  if (KEYS[e.code] && e.target.tagName !== "INPUT") {
+  if (KEYS[e.code] && keysDrive() && e.target.tagName !== "INPUT") {
     vl.keys.add(e.code); e.preventDefault(); drive(); render();
   }
 });
@@ -291,13 +308,13 @@ function draw() {
   ctx.fillRect(0, 0, width, height);
   if (vl.image) ctx.drawImage(vl.image, 0, 0, width, height);
   if (!cam) return;
-  if (vl.definition && vl.definition.path) polyline(vl.definition.path, "#1e7fff", 3);
-  if (vl.planned) polyline(vl.planned, "#1e7fff", 2, [6, 4]);
-  polyline(vl.trail, "#ff9a1e", 2);
+  if (vl.definition && vl.definition.path) polyline(vl.definition.path, COLOUR.path, 3);
+  if (vl.planned) polyline(vl.planned, COLOUR.path, 2, [6, 4]);
+  polyline(vl.trail, COLOUR.trail, 2);
   const goal = (vl.definition && vl.definition.goal) || vl.goal;
   if (goal) {
     const [x, y] = VL.toPixel(cam, goal);
-    ctx.strokeStyle = "#2fbf4f"; ctx.lineWidth = 3;
+    ctx.strokeStyle = COLOUR.goal; ctx.lineWidth = 3;
     ctx.beginPath(); ctx.arc(x, y, 8, 0, 2 * Math.PI); ctx.stroke();
   }
   if (vl.feedback) {
@@ -309,7 +326,7 @@ function draw() {
       y_mm: pose.y_mm + r * Math.sin(pose.theta_rad),
     });
     const [ex] = VL.toPixel(cam, { x_mm: pose.x_mm + r, y_mm: pose.y_mm });
-    ctx.strokeStyle = vl.feedback.limited ? "#ff3b3b" : "#ffcc00"; ctx.lineWidth = 2;
+    ctx.strokeStyle = vl.feedback.limited ? COLOUR.force : COLOUR.robot; ctx.lineWidth = 2;
     ctx.beginPath(); ctx.arc(x, y, Math.abs(ex - x), 0, 2 * Math.PI); ctx.stroke();
     ctx.beginPath(); ctx.moveTo(x, y); ctx.lineTo(hx, hy); ctx.stroke();
   }
@@ -323,11 +340,16 @@ canvas.addEventListener("click", (e) => {
   const box = canvas.getBoundingClientRect();
   const c = (e.clientX - box.left) * (canvas.width / box.width);
   const r = (e.clientY - box.top) * (canvas.height / box.height);
-  const goal = VL.toArena(cam, c, r);
+  planTo(VL.toArena(cam, c, r));
+});
+
+// Asks the Host for a path to `goal` (from a click or the goal's fields).
+function planTo(goal) {
   vl.goal = goal;
+  $("goal-x").value = Math.round(goal.x_mm); $("goal-y").value = Math.round(goal.y_mm);
   send(VL.guest.plan(goal));
   render();
-});
+}
 
 // The force the obstacles push back with, over the stick.
 function drawStick() {
@@ -341,7 +363,7 @@ function drawStick() {
   const force = vl.feedback && vl.feedback.force;
   if (force && Math.hypot(force[0], force[1]) > 0.01) {
     const tx = m + force[0] * (m - 8), ty = m - force[1] * (m - 8);
-    g.strokeStyle = "#ff3b3b"; g.fillStyle = "#ff3b3b"; g.lineWidth = 3;
+    g.strokeStyle = COLOUR.force; g.fillStyle = COLOUR.force; g.lineWidth = 3;
     g.beginPath(); g.moveTo(m, m); g.lineTo(tx, ty); g.stroke();
     const a = Math.atan2(ty - m, tx - m);
     g.beginPath(); g.moveTo(tx, ty);
@@ -380,6 +402,11 @@ function runWords() {
     return `last run: ${ENDINGS[s.reason] || s.reason} after ${s.seconds.toFixed(1)} s, ` +
       `${(s.distance_mm / 1000).toFixed(2)} m, ${s.collisions} contacts`;
   }
+  const r = vl.lastRun;
+  if (r && r.ended) {
+    return `last run: ${ENDINGS[r.ended] || r.ended} (run ${r.run}, ${r.experiment}` +
+      `${r.user ? `, driven by ${r.user}` : ""})`;
+  }
   return "no run yet";
 }
 
@@ -400,6 +427,55 @@ function forecastWords() {
   return `tried on the lab's twin: ${reached} of ${runs.length} runs reach the goal, in ${mean.toFixed(1)} s`;
 }
 
+// What whoever looks at the page may do next, in a line.
+function nextWords() {
+  if (vl.link !== "open") return "";
+  if (vl.role === "observer") {
+    if (vl.queue) return "";
+    const why = { slot_ended: "your slot ended", kicked: "an administrator ended your turn" };
+    if (vl.controlEnded) return `You watch now: ${why[vl.controlEnded] || vl.controlEnded}, and the next in line drives. Ask for control to drive again.`;
+    return "You watch. Ask for control to drive.";
+  }
+  if (!vl.lab) return "Next: mount an experiment below.";
+  const navigation = vl.lab.experiment === "navigation";
+  if (vl.running) {
+    return navigation ? "The robot follows the path: Stop ends the run, STOP halts it at once." :
+      "Drive with the arrow keys or a gamepad: Stop ends the run, STOP halts it at once.";
+  }
+  if (vl.status && vl.status.lab === "getting_ready") return "Wait: the robot drives back to its start.";
+  const path = vl.definition && vl.definition.path && vl.definition.path.length > 1;
+  if (navigation && !vl.definition) {
+    return vl.planned ? "Next: Define, to run along the planned path." :
+      "Next: choose a goal (click the floor, or type it below the view).";
+  }
+  if (!vl.definition) return "Next: Define the run (no path: you drive), then Start.";
+  if (path && !vl.forecast) return "The lab's twin tries the definition first…";
+  if (vl.forecast && vl.forecast.refusals && vl.forecast.refusals.length) {
+    return "Next: choose another goal: the twin refused this definition.";
+  }
+  return enabled("start") ? "Next: Start the run." : "";
+}
+
+// The mount buttons, made once per list of experiments (a button replaced
+// under the pointer would lose its click, and the focus with it).
+let mountsFor = null;
+function mountButtons() {
+  const key = vl.experiments.map((e) => e.id).join(",");
+  if (key !== mountsFor) {
+    mountsFor = key;
+    $("mounts").replaceChildren(...vl.experiments.map((e) => {
+      const b = document.createElement("button");
+      b.textContent = e.title;
+      b.dataset.experiment = e.id;
+      b.onclick = () => send(VL.guest.mount(e.id));
+      return b;
+    }));
+  }
+  for (const b of $("mounts").children) {
+    b.disabled = !enabled("mount") || (vl.lab && vl.lab.experiment === b.dataset.experiment);
+  }
+}
+
 function render() {
   const operator = vl.role === "operator";
   const who = vl.user ? ` as ${vl.user}` : "";
@@ -408,9 +484,16 @@ function render() {
     vl.link === "refused" ? "not let in: log in below" : "connecting…");
   $("link").className = vl.link === "open" ? "ok" : "bad";
   text("rtt", vl.rttMs === null ? "round trip …" : `round trip ${vl.rttMs.toFixed(0)} ms`);
-  const now = hostNow();
-  const age = (t) => (now === null || t === undefined ? "…" : `${Math.max(0, now - t).toFixed(0)} ms`);
-  text("age", `image ${age(vl.frame && vl.frame.captureMs)} old · pose ${age(vl.feedback && vl.feedback.t_ms)} old`);
+  // An image is as old as the pose plus how much earlier the Host
+  // captured it than it measured the pose (the two share its lab clock).
+  const poseAge = vl.link === "open" ? ageMs(vl.feedbackAt) : null;
+  const f0 = vl.feedback, fr = vl.frame;
+  let imageAge = vl.link === "open" && vl.image ? ageMs(vl.frameAt) : null;
+  if (imageAge !== null && poseAge !== null && f0 && fr) {
+    imageAge = poseAge + Math.max(0, f0.t_ms - fr.captureMs);
+  }
+  const ms = (a) => (a === null ? "…" : `${a.toFixed(0)} ms`);
+  text("age", (vl.image ? `image ${ms(imageAge)} old · ` : "no image · ") + `pose ${ms(poseAge)} old`);
   text("lab", labWords());
   text("net", netWords());
   text("run", runWords());
@@ -424,23 +507,21 @@ function render() {
   const left = vl.slotEnds && operator ? Math.max(0, (vl.slotEnds - performance.now()) / 1000) : null;
   text("slot", left === null ? "" :
     `your turn ends in ${Math.floor(left / 60)}:${String(Math.floor(left % 60)).padStart(2, "0")}`);
-  text("queue", vl.queue ? `you are number ${vl.queue.position} in line` +
-    (vl.queue.wait_s ? `, at most ${Math.ceil(vl.queue.wait_s / 60)} min to wait` : "") : "");
+  const q = vl.queue;
+  text("queue", q ? `you are number ${q.position} of ${q.length} in line` +
+    (q.wait_s !== undefined && q.wait_s !== null ? `, at most ${Math.max(1, Math.ceil(q.wait_s / 60))} min to wait` :
+      ": slots have no length here, so you drive when the operator leaves") :
+    operator && vl.waiting ? `${vl.waiting} waiting for control after you` : "");
+  text("next", nextWords());
 
   show("drive", !operator);
   show("line", vl.link === "open" && vl.role === "observer");
   text("line", vl.queue ? "Leave the line" : "Ask for control");
   show("operate", operator);
-  $("mounts").replaceChildren(...vl.experiments.map((e) => {
-    const b = document.createElement("button");
-    b.textContent = e.title;
-    b.dataset.experiment = e.id;
-    b.disabled = !enabled("mount") || (vl.lab && vl.lab.experiment === e.id);
-    b.onclick = () => send(VL.guest.mount(e.id));
-    return b;
-  }));
+  mountButtons();
   const navigation = vl.lab && vl.lab.experiment === "navigation";
   show("goal-hint", operator && navigation && !vl.running);
+  $("plan").disabled = !enabled("define");
   $("define").disabled = !(vl.planned && vl.goal && enabled("define"));
   $("start").disabled = !enabled("start") || (vl.status && vl.status.lab === "getting_ready");
   $("stop").disabled = !enabled("stop");
@@ -466,7 +547,27 @@ $("define").onclick = () => {
 };
 $("start").onclick = () => send(VL.guest.start());
 $("stop").onclick = () => send(VL.guest.stop());
-$("estop").onclick = () => send(VL.guest.emergency_stop());
+$("estop").onclick = () => {
+  if (send(VL.guest.emergency_stop())) return;
+  vl.error = {
+    code: "not_sent", at: performance.now(),
+    message: "STOP was not sent: the page has no link to the Host now (connecting again). " +
+      "The Host holds the robot still while its operator's link is down.",
+  };
+  render();
+};
+$("plan").onclick = () => {
+  const x = parseFloat($("goal-x").value), y = parseFloat($("goal-y").value);
+  if (Number.isFinite(x) && Number.isFinite(y)) planTo({ x_mm: x, y_mm: y });
+};
+// The legend of what the view draws, in the window's colours.
+$("legend").replaceChildren(...LEGEND.filter((m) => DRAWN.includes(m.id)).map((m) => {
+  const li = document.createElement("li");
+  const swatch = document.createElement("span");
+  swatch.style.background = m.colour;
+  li.append(swatch, m.words);
+  return li;
+}));
 
 // The Host's clock and the round trip, every 200 ms as `vl guest` does;
 // the gamepad and the stick at the screen's pace.

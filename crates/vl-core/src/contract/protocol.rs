@@ -339,6 +339,9 @@ pub enum HostMessage {
         resume: Option<String>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         slot_s: Option<f64>,
+        /// Why control ended, when it was taken (`slot_ended`, `kicked`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        ended: Option<crate::EndReason>,
     },
     Mounted(Box<MountedLab>),
     Defined {
@@ -368,6 +371,10 @@ pub enum HostMessage {
         /// the start pose after the last one.
         #[serde(default)]
         lab: Readiness,
+        /// The last run that ended, so someone who joins later knows how
+        /// the lab has been used; none before the first.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        last_run: Option<crate::RunRecord>,
     },
     /// The recorded runs this Guest may see, newest first.
     Recordings {

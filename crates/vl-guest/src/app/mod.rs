@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 
 use egui::{Color32, TextureHandle, Vec2};
 use vl_core::{
-    DeviceState, Drive, ErrorCode, Goal, GuestMessage, Joystick, Point, Readiness, Role, Shape,
-    Teleop, Vector,
+    DeviceState, Drive, ErrorCode, Goal, GuestMessage, Joystick, Mark, Point, Readiness, Role,
+    Shape, Teleop, Vector,
 };
 
 use crate::client::GOODBYE_WAIT;
@@ -30,16 +30,23 @@ mod tasks;
 mod view;
 
 const JOYSTICK_PX: f32 = 140.0;
-const ROBOT_COLOUR: Color32 = Color32::from_rgb(40, 200, 255);
-const GOAL_COLOUR: Color32 = Color32::from_rgb(40, 190, 60);
-const PATH_COLOUR: Color32 = Color32::from_rgb(250, 220, 40);
-const VIRTUAL_COLOUR: Color32 = Color32::from_rgb(255, 150, 0);
+
+/// A mark's colour in the shared legend (the page draws with the same).
+const fn colour(mark: Mark) -> Color32 {
+    let [r, g, b] = mark.rgb();
+    Color32::from_rgb(r, g, b)
+}
+
+const ROBOT_COLOUR: Color32 = colour(Mark::Robot);
+const GOAL_COLOUR: Color32 = colour(Mark::Goal);
+const PATH_COLOUR: Color32 = colour(Mark::Path);
+const VIRTUAL_COLOUR: Color32 = colour(Mark::VirtualObstacle);
 /// The obstacles' push, on the stick and on the robot.
-const FORCE_COLOUR: Color32 = Color32::from_rgb(255, 70, 90);
+const FORCE_COLOUR: Color32 = colour(Mark::Force);
 /// The predictive display's ghost: where the robot is now, by prediction.
-const GHOST_COLOUR: Color32 = Color32::from_rgb(235, 90, 255);
+const GHOST_COLOUR: Color32 = colour(Mark::Ghost);
 /// The forecast's ghosts and paths: the definition's runs on the lab's twin.
-const FORECAST_COLOUR: Color32 = Color32::from_rgb(150, 150, 255);
+const FORECAST_COLOUR: Color32 = colour(Mark::Forecast);
 const STOP_COLOUR: Color32 = Color32::from_rgb(200, 30, 30);
 /// The force arrow on the robot at full force, mm.
 const FORCE_ARROW_MM: f64 = 80.0;
@@ -49,7 +56,7 @@ const OBSTACLE_COLOUR: Color32 = Color32::from_rgb(45, 48, 56);
 /// The C-space overlay: translucent, so the image shows through.
 const CSPACE_COLOUR: Color32 = Color32::from_rgba_premultiplied(60, 20, 80, 80);
 /// The path the robot drove in this run.
-const TRAIL_COLOUR: Color32 = Color32::from_rgb(0, 170, 150);
+const TRAIL_COLOUR: Color32 = colour(Mark::Trail);
 /// Trail points kept, and how far apart, mm.
 const TRAIL_KEPT: usize = 20_000;
 const TRAIL_STEP_MM: f64 = 2.0;
@@ -534,6 +541,17 @@ impl GuestApp {
             let left = ends.saturating_duration_since(std::time::Instant::now());
             add(
                 &format!("your slot: {} left", panels::clock(left.as_secs())),
+                Color32::LIGHT_BLUE,
+            );
+        }
+        if s.role == Some(Role::Operator) && s.waiting > 0 {
+            let people = if s.waiting == 1 {
+                "person waits"
+            } else {
+                "people wait"
+            };
+            add(
+                &format!("{} {people} for control after you", s.waiting),
                 Color32::LIGHT_BLUE,
             );
         }

@@ -186,10 +186,13 @@ impl GuestApp {
     fn line_panel(&mut self, ui: &mut egui::Ui) {
         match self.session.queue {
             Some(place) => {
-                let wait = place.by.map_or(String::new(), |by| {
-                    let s = by.saturating_duration_since(std::time::Instant::now());
-                    format!(", control within {}", clock(s.as_secs()))
-                });
+                let wait = place.by.map_or(
+                    ": slots have no length here, so you drive when the operator leaves".to_owned(),
+                    |by| {
+                        let s = by.saturating_duration_since(std::time::Instant::now());
+                        format!(", control within {}", clock(s.as_secs()))
+                    },
+                );
                 ui.label(format!(
                     "You are {} in line for control ({} waiting){wait}.",
                     ordinal(place.position),
@@ -200,6 +203,16 @@ impl GuestApp {
                 }
             }
             None => {
+                if let Some(ended) = self.session.control_ended {
+                    let why = match ended {
+                        vl_core::EndReason::SlotEnded => "your slot ended".to_owned(),
+                        vl_core::EndReason::Kicked => "an administrator ended your turn".to_owned(),
+                        other => other.to_string(),
+                    };
+                    ui.label(format!(
+                        "You watch now: {why}, and the next in line drives. Ask for control to drive again."
+                    ));
+                }
                 if ui
                     .button("Ask for control")
                     .on_hover_text("Join the line: you drive when your turn comes")

@@ -3,14 +3,16 @@
 //! it, and the clicks and drags that edit the definition on it.
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureOptions, Vec2};
-use vl_core::{Definition, GuestMessage, MountedLab, Point, Pose, Shape, arena_of, disc_cspace};
+use vl_core::{
+    Definition, GuestMessage, Mark, MountedLab, Point, Pose, Shape, arena_of, disc_cspace,
+};
 
 use std::time::Instant;
 
 use super::{
     CAMERA_VIEW, CSPACE_COLOUR, CSpaceKey, FLOOR_COLOUR, FORCE_ARROW_MM, FORCE_COLOUR,
-    FORECAST_COLOUR, GHOST_COLOUR, GOAL_COLOUR, GuestApp, OBSTACLE_COLOUR, PATH_COLOUR,
-    ROBOT_COLOUR, TRAIL_COLOUR, VIRTUAL_COLOUR,
+    GHOST_COLOUR, GOAL_COLOUR, GuestApp, OBSTACLE_COLOUR, PATH_COLOUR, ROBOT_COLOUR, TRAIL_COLOUR,
+    VIRTUAL_COLOUR, colour,
 };
 use crate::route::{check_path, drag_path};
 use crate::session::LinkState;
@@ -192,16 +194,17 @@ impl GuestApp {
                 .on_hover_text("a ghost of the robot where it is now, predicted from the last feedback and the commands sent since; the solid outline is where the last feedback put it");
         });
         ui.horizontal_wrapped(|ui| {
-            legend(ui, ROBOT_COLOUR, "robot, as last reported");
+            let mut mark = |mark: Mark| legend(ui, colour(mark), mark.words());
+            mark(Mark::Robot);
             if self.show_ghost {
-                legend(ui, GHOST_COLOUR, "ghost: where it is now, predicted");
+                mark(Mark::Ghost);
             }
-            legend(ui, TRAIL_COLOUR, "driven");
-            legend(ui, PATH_COLOUR, "path");
+            mark(Mark::Trail);
+            mark(Mark::Path);
             if self.session.forecast.is_some() && !self.session.running {
-                legend(ui, FORECAST_COLOUR, "forecast");
+                mark(Mark::Forecast);
             }
-            legend(ui, GOAL_COLOUR, "goal");
+            mark(Mark::Goal);
         });
         ui.label(self.ages());
         ui.label(match &self.session.frame {

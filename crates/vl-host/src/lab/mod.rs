@@ -54,11 +54,16 @@ pub(crate) struct LabStatus {
 
 impl LabStatus {
     /// The status message, with whether the lab is `ready` for a run.
-    pub(crate) fn message(&self, lab: Readiness) -> HostMessage {
+    pub(crate) fn message(
+        &self,
+        lab: Readiness,
+        last_run: Option<vl_core::RunRecord>,
+    ) -> HostMessage {
         HostMessage::Status {
             robot: self.robot,
             camera: self.camera,
             lab,
+            last_run,
         }
     }
 }

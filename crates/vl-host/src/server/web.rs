@@ -32,8 +32,29 @@ const FILES: [(&str, &str, &str); 4] = [
     ),
 ];
 
+/// The colour legend the desktop window draws with, as the page's script
+/// (made once).
+static LEGEND_JS: std::sync::LazyLock<String> = std::sync::LazyLock::new(legend_js);
+
+fn legend_js() -> String {
+    let marks: Vec<serde_json::Value> = vl_core::Mark::ALL
+        .iter()
+        .map(|m| serde_json::json!({"id": m.id(), "colour": m.css(), "words": m.words()}))
+        .collect();
+    format!(
+        "// The lab's colour legend, as the desktop window draws (vl-core's Mark).\n\
+         const LEGEND = {};\n",
+        serde_json::Value::Array(marks)
+    )
+}
+
 /// The web Guest's routes.
 pub(super) fn routes<S: Clone + Send + Sync + 'static>() -> Router<S> {
+    let legend: &'static str = LEGEND_JS.as_str();
+    let script = [
+        (header::CONTENT_TYPE, "text/javascript; charset=utf-8"),
+        (header::CACHE_CONTROL, "no-cache"),
+    ];
     FILES
         .iter()
         .fold(Router::new(), |router, &(path, media_type, body)| {
@@ -51,4 +72,5 @@ pub(super) fn routes<S: Clone + Send + Sync + 'static>() -> Router<S> {
                 }),
             )
         })
+        .route("/legend.js", get(move || async move { (script, legend) }))
 }

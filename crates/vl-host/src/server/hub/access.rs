@@ -109,6 +109,7 @@ impl Hub {
                     role,
                     resume: None,
                     slot_s: Some(left.as_secs_f64()),
+                    ended: None,
                 },
             );
         }
@@ -118,6 +119,10 @@ impl Hub {
         }
         if let Some(definition) = self.definition.clone() {
             self.send(id, HostMessage::Defined { definition });
+            // And what the lab's twin made of it, when it has tried it.
+            if let Some(verdict) = self.verdict.clone() {
+                self.send(id, HostMessage::Forecast(Box::new(verdict)));
+            }
         }
         self.send(id, self.status());
         self.send(id, HostMessage::State(Box::new(self.supervisor.state())));

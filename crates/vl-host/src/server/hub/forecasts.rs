@@ -11,7 +11,7 @@ use std::time::Duration;
 use tracing::{info, warn};
 use vl_core::{
     Action, Arena, Definition, ErrorCode, ForecastLimits, ForecastVerdict, HostMessage, Pose,
-    Readiness, RobotModel, Summary,
+    Readiness, RobotModel, Summary, plan_route,
 };
 use vl_sim::{ForecastError, Forecasting, forecast};
 
@@ -22,6 +22,9 @@ use super::Hub;
 /// p99 against 1.2×) but starved forecasts on a loaded machine, and with
 /// them the operator's Start.
 const FORECAST_NICE: i32 = 10;
+/// A path whose first point is further than this from where the next run
+/// starts, mm, is planned again from there after a run.
+const REFIT_MM: f64 = 20.0;
 
 /// The most seeds a forecast takes, whatever the lab asks.
 pub const MOST_SEEDS: u32 = 8;
@@ -102,12 +105,8 @@ impl Hub {
             self.forecasts.forget();
             return self.happened(Action::ForecastPassed);
         }
+        let start = self.next_start();
         let info = &self.lab.info;
-        // A robot driving back to the start pose starts the run from there.
-        let start = match (self.readiness, self.robot_pose()) {
-            (Readiness::Ready, Some(pose)) => pose,
-            _ => info.arena.start,
-        };
         let job = ForecastJob {
             arena: info.arena.clone(),
             robot: info.robot.clone(),
@@ -117,6 +116,51 @@ impl Hub {
         };
         self.forecasts
             .ask(move |cancel: &AtomicBool| job.run(cancel));
+    }
+
+    /// Where the next run starts: where the robot stands, or the start
+    /// pose while it drives back there. Forecasts and plans start here.
+    pub(super) fn next_start(&self) -> Pose {
+        match (self.readiness, self.robot_pose()) {
+            (Readiness::Ready, Some(pose)) => pose,
+            _ => self.lab.info.arena.start,
+        }
+    }
+
+    /// After a run, the definition for the next: as it was, unless its
+    /// path began where the next run does not (the robot drove back to its
+    /// start, or stopped elsewhere) — then planned again from there to the
+    /// same goal, so the twin tries what the robot can follow and the path
+    /// drawn starts at the robot.
+    pub(super) fn refit(&mut self, definition: Definition) -> Definition {
+        let start = self.next_start();
+        let (Some(first), Some(goal)) = (definition.path.first(), definition.goal) else {
+            return definition;
+        };
+        if first.distance(start.point()) <= REFIT_MM {
+            return definition;
+        }
+        let info = &self.lab.info;
+        let plan = plan_route(
+            &info.arena,
+            &definition.virtual_obstacles,
+            &info.robot,
+            start,
+            goal.point(),
+        );
+        let Ok(plan) = plan else {
+            return definition;
+        };
+        info!("the path began where the next run does not: planned again to the same goal");
+        let refitted = Definition {
+            path: plan.points(),
+            ..definition
+        };
+        self.definition = Some(refitted.clone());
+        self.broadcast(&HostMessage::Defined {
+            definition: refitted.clone(),
+        });
+        refitted
     }
 
     /// A forecast ended: the newest one's verdict is told and fired.

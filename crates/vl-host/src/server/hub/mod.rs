@@ -251,11 +251,16 @@ impl Hub {
                     self.compare_with_forecast(&mut summary);
                     self.note_recording(&mut summary);
                     info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
+                    let driver = self.run_log.last_ended().and_then(|r| r.user);
                     self.config.audit.record(
-                        AuditEntry::new("run_ended").detail(format!("run {run}: {}", summary.ending())),
+                        AuditEntry::new("run_ended")
+                            .user(driver.as_deref())
+                            .detail(format!("run {run}: {}", summary.ending())),
                     );
                     let reset = resets_after(summary.reason);
                     self.broadcast(&HostMessage::Done { summary: Box::new(summary) });
+                    // Who joins later hears how the lab was last used.
+                    self.broadcast(&self.status());
                     // The run's last firings go in its file before it closes.
                     self.tell_state();
                     self.end_recording();
@@ -266,6 +271,7 @@ impl Hub {
                     if let (Some(Experiment::Navigation), Some(definition)) =
                         (self.experiment, self.definition.clone())
                     {
+                        let definition = self.refit(definition);
                         self.ask_forecast(&definition);
                     }
                 }
@@ -436,6 +442,7 @@ impl Hub {
 
     /// The status every client is told: the devices, and whether a run may start.
     fn status(&self) -> HostMessage {
-        self.lab.status.borrow().message(self.readiness)
+        let last_run = self.run_log.last_ended();
+        self.lab.status.borrow().message(self.readiness, last_run)
     }
 }

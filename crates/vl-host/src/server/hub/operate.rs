@@ -5,8 +5,8 @@ use std::time::Instant;
 
 use tracing::warn;
 use vl_core::{
-    Action, Definition, DeviceState, Drive, EndReason, ErrorCode, Experiment, Feedback,
-    GuestMessage, HostMessage, Named, Point, Readiness, Shape, Stopper, plan_route,
+    Action, Definition, DeviceState, Drive, EndReason, ErrorCode, Experiment, GuestMessage,
+    HostMessage, Named, Point, Readiness, Shape, Stopper, plan_route,
 };
 
 use super::Hub;
@@ -156,10 +156,8 @@ impl Hub {
             return self.refuse(id, ErrorCode::InvalidDefinition, why);
         }
         self.last_plan = Some(Instant::now());
-        let start = match &*self.lab.feedback.borrow() {
-            Some(HostMessage::Feedback(Feedback { pose, .. })) => *pose,
-            _ => arena.start,
-        };
+        let start = self.next_start();
+        let arena = &self.lab.info.arena;
         match plan_route(arena, &[], &self.lab.info.robot, start, goal) {
             Ok(plan) => {
                 let path = plan.points();

@@ -200,6 +200,7 @@ impl Hub {
                 role: Role::Operator,
                 resume: self.resume.clone(),
                 slot_s: self.config.slot.map(|s| s.as_secs_f64()),
+                ended: None,
             },
         );
         // Told after the role, so the new operator knows they may use it.
@@ -239,13 +240,17 @@ impl Hub {
                     role: Role::Operator,
                     resume: None,
                     slot_s: Some(slot.as_secs_f64()),
+                    ended: None,
                 },
             );
         }
         info!(connection = id, "the operator's slot ended");
-        self.config
-            .audit
-            .record(AuditEntry::new("slot_ended").connection(id));
+        let driver = self.operator_user.clone();
+        self.config.audit.record(
+            AuditEntry::new("slot_ended")
+                .connection(id)
+                .user(driver.as_deref()),
+        );
         if self.supervisor.allows(Action::Stop) {
             self.lab.request(LabRequest::Finish(EndReason::SlotEnded));
         }
@@ -259,6 +264,7 @@ impl Hub {
                 role: Role::Observer,
                 resume: None,
                 slot_s: None,
+                ended: Some(EndReason::SlotEnded),
             },
         );
     }
@@ -302,6 +308,7 @@ impl Hub {
                 role: Role::Observer,
                 resume: None,
                 slot_s: None,
+                ended: Some(EndReason::Kicked),
             };
             return self.send(session, watch);
         }
@@ -345,6 +352,17 @@ impl Hub {
                     position: Some(i as u32 + 1),
                     length,
                     wait_s,
+                },
+            );
+        }
+        // The operator hears how many wait after them.
+        if let Some(operator) = self.operator {
+            self.send(
+                operator,
+                HostMessage::Queue {
+                    position: None,
+                    length,
+                    wait_s: None,
                 },
             );
         }

@@ -53,6 +53,11 @@ impl RunLog {
         }
     }
 
+    /// The newest run that has ended.
+    pub(super) fn last_ended(&self) -> Option<RunRecord> {
+        self.runs.iter().rev().find(|r| r.ended.is_some()).cloned()
+    }
+
     fn today(&self) -> u32 {
         if unix_now() / DAY_S == self.day {
             self.today
