@@ -17,7 +17,11 @@ use vl_host::{Host, HostConfig, SimCamera, SimLab};
 /// The simulated camera paints the robot's body this colour.
 const BODY: [u8; 3] = [170, 36, 32];
 
-fn step_until(harness: &mut Harness<'_, GuestApp>, what: &str, done: impl Fn(&GuestApp) -> bool) {
+pub(crate) fn step_until(
+    harness: &mut Harness<'_, GuestApp>,
+    what: &str,
+    done: impl Fn(&GuestApp) -> bool,
+) {
     let deadline = Instant::now() + Duration::from_secs(10);
     while !done(harness.state()) {
         assert!(Instant::now() < deadline, "the window never got to: {what}");
@@ -39,7 +43,7 @@ fn window_as(url: &str, role: Role, size: Vec2) -> Harness<'static, GuestApp> {
 }
 
 /// `app` in a window `size` px, rendered by wgpu.
-fn harness_of(app: GuestApp, size: Vec2) -> Harness<'static, GuestApp> {
+pub(crate) fn harness_of(app: GuestApp, size: Vec2) -> Harness<'static, GuestApp> {
     Harness::builder()
         .with_size(size)
         .wgpu()
@@ -47,7 +51,7 @@ fn harness_of(app: GuestApp, size: Vec2) -> Harness<'static, GuestApp> {
 }
 
 /// A simulated Host on `runtime`, the navigation arena without a camera.
-fn host_without_camera(runtime: &tokio::runtime::Runtime, config: HostConfig) -> Host {
+pub(crate) fn host_without_camera(runtime: &tokio::runtime::Runtime, config: HostConfig) -> Host {
     let lab = SimLab {
         camera: None,
         ..SimLab::new(Arena::navigation())
@@ -73,7 +77,7 @@ fn mount_navigation(
 
 /// Defines the goal shown (the window plans the path) and, once its
 /// forecast has passed, starts the run.
-fn define_and_start(harness: &mut Harness<'_, GuestApp>) {
+pub(crate) fn define_and_start(harness: &mut Harness<'_, GuestApp>) {
     let told = harness.state().session().forecasts;
     harness
         .get_by_role_and_label(egui::accesskit::Role::Button, "Define")

@@ -11,6 +11,7 @@ mod camera_follow;
 mod camera_map;
 mod camera_replay;
 mod cameras;
+mod class;
 mod cli;
 mod experiment_media;
 mod faults;

@@ -21,7 +21,7 @@ use tokio_tungstenite::tungstenite::Message;
 const PAGE_JS: &str = include_str!("../crates/vl-host/web/protocol.js");
 
 /// The page's address on the Host at `url` (`ws://host:port`).
-fn page(url: &str) -> String {
+pub(crate) fn page(url: &str) -> String {
     format!(
         "{}/",
         url.replacen("ws://", "http://", 1).trim_end_matches('/')
@@ -569,7 +569,7 @@ fn the_watchers_bench_runs_a_class_against_no_one() {
 }
 
 /// Logs in on the page with an account, to drive or (`drive` false) watch.
-fn log_in(browser: &mut Browser, user: &str, password: &str, drive: bool) {
+pub(crate) fn log_in(browser: &mut Browser, user: &str, password: &str, drive: bool) {
     browser.click("#user");
     browser.type_text(user);
     browser.click("#password");

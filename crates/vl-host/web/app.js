@@ -298,6 +298,37 @@ function polyline(points, style, width, dash) {
   ctx.restore();
 }
 
+// The arena as its map describes it, where there is no camera image.
+function drawArena(cam) {
+  const arena = vl.lab.arena;
+  const shape = (points) => {
+    ctx.beginPath();
+    points.forEach((p, i) => {
+      const [x, y] = VL.toPixel(cam, p);
+      if (i === 0) ctx.moveTo(x, y); else ctx.lineTo(x, y);
+    });
+    ctx.closePath(); ctx.fill();
+  };
+  const box = (x, y, w, h) => shape([
+    { x_mm: x, y_mm: y }, { x_mm: x + w, y_mm: y }, { x_mm: x + w, y_mm: y + h }, { x_mm: x, y_mm: y + h },
+  ]);
+  ctx.fillStyle = COLOUR.floor;
+  box(0, 0, arena.width_mm, arena.height_mm);
+  ctx.fillStyle = COLOUR.obstacle;
+  for (const o of arena.obstacles) {
+    if (o.shape === "rect") box(o.x_mm, o.y_mm, o.width_mm, o.height_mm);
+    else if (o.shape === "polygon") shape(o.points);
+    else if (o.shape === "circle") {
+      const n = 48, ring = [];
+      for (let i = 0; i < n; i++) {
+        const a = (2 * Math.PI * i) / n;
+        ring.push({ x_mm: o.x_mm + o.radius_mm * Math.cos(a), y_mm: o.y_mm + o.radius_mm * Math.sin(a) });
+      }
+      shape(ring);
+    }
+  }
+}
+
 function draw() {
   const cam = camera();
   const width = cam ? cam.width_px : (vl.image ? vl.image.width : 640);
@@ -308,6 +339,7 @@ function draw() {
   ctx.fillRect(0, 0, width, height);
   if (vl.image) ctx.drawImage(vl.image, 0, 0, width, height);
   if (!cam) return;
+  if (!vl.image) drawArena(cam);
   if (vl.definition && vl.definition.path) polyline(vl.definition.path, COLOUR.path, 3);
   if (vl.planned) polyline(vl.planned, COLOUR.path, 2, [6, 4]);
   polyline(vl.trail, COLOUR.trail, 2);

@@ -19,10 +19,13 @@ pub enum Mark {
     VirtualObstacle,
     /// The obstacles' push; the robot is outlined in it when held back.
     Force,
+    /// The arena drawn from its model, where there is no camera image.
+    Floor,
+    Obstacle,
 }
 
 impl Mark {
-    pub const ALL: [Mark; 8] = [
+    pub const ALL: [Mark; 10] = [
         Mark::Robot,
         Mark::Ghost,
         Mark::Trail,
@@ -31,6 +34,8 @@ impl Mark {
         Mark::Goal,
         Mark::VirtualObstacle,
         Mark::Force,
+        Mark::Floor,
+        Mark::Obstacle,
     ];
 
     /// Its colour, red, green, blue.
@@ -44,6 +49,8 @@ impl Mark {
             Mark::Goal => [40, 190, 60],
             Mark::VirtualObstacle => [255, 150, 0],
             Mark::Force => [255, 70, 90],
+            Mark::Floor => [226, 224, 218],
+            Mark::Obstacle => [45, 48, 56],
         }
     }
 
@@ -58,6 +65,8 @@ impl Mark {
             Mark::Goal => "goal",
             Mark::VirtualObstacle => "virtual obstacle",
             Mark::Force => "obstacles' push (robot outlined: held back)",
+            Mark::Floor => "floor, from the arena's map (no camera image)",
+            Mark::Obstacle => "obstacle, from the arena's map",
         }
     }
 
@@ -72,6 +81,8 @@ impl Mark {
             Mark::Goal => "goal",
             Mark::VirtualObstacle => "virtual_obstacle",
             Mark::Force => "force",
+            Mark::Floor => "floor",
+            Mark::Obstacle => "obstacle",
         }
     }
 

@@ -51,8 +51,8 @@ const STOP_COLOUR: Color32 = Color32::from_rgb(200, 30, 30);
 /// The force arrow on the robot at full force, mm.
 const FORCE_ARROW_MM: f64 = 80.0;
 /// The arena drawn from its model when the lab has no camera.
-const FLOOR_COLOUR: Color32 = Color32::from_rgb(226, 224, 218);
-const OBSTACLE_COLOUR: Color32 = Color32::from_rgb(45, 48, 56);
+const FLOOR_COLOUR: Color32 = colour(Mark::Floor);
+const OBSTACLE_COLOUR: Color32 = colour(Mark::Obstacle);
 /// The C-space overlay: translucent, so the image shows through.
 const CSPACE_COLOUR: Color32 = Color32::from_rgba_premultiplied(60, 20, 80, 80);
 /// The path the robot drove in this run.

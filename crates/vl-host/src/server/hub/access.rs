@@ -67,7 +67,7 @@ impl Hub {
 
     fn hello(&mut self, id: u64, protocol: u32, role: Role, resume: Option<String>) {
         if protocol != PROTOCOL_VERSION {
-            return self.refuse(
+            return self.refuse_hello(
                 id,
                 ErrorCode::ProtocolMismatch,
                 format!("this Host speaks protocol {PROTOCOL_VERSION}, not {protocol}"),
@@ -139,6 +139,19 @@ impl Hub {
         }
     }
 
+    /// Refuses a hello, in the audit log too: who was turned away, and why.
+    fn refuse_hello(&mut self, id: u64, code: ErrorCode, message: impl Into<String>) {
+        let message = message.into();
+        let user = self.user_of(id);
+        self.config.audit.record(
+            AuditEntry::new("refused")
+                .connection(id)
+                .user(user.as_deref())
+                .detail(format!("{code}: {message}")),
+        );
+        self.refuse(id, code, message);
+    }
+
     /// Makes `id` the operator, when the role is free and no one waits for
     /// it (or it is theirs, held since their link dropped, and `resume`
     /// says so); else tells them why not.
@@ -147,7 +160,7 @@ impl Hub {
             Some(away) if resume == Some(away.resume.as_str()) => true,
             Some(away) => {
                 let left = away.until.saturating_duration_since(Instant::now());
-                self.refuse(
+                self.refuse_hello(
                     id,
                     ErrorCode::OperatorTaken,
                     format!(
@@ -160,7 +173,7 @@ impl Hub {
             None => false,
         };
         if self.operator.is_some() {
-            self.refuse(
+            self.refuse_hello(
                 id,
                 ErrorCode::OperatorTaken,
                 "another operator is driving; say hello again as an observer to watch, and ask for control to be next",
@@ -169,7 +182,7 @@ impl Hub {
         }
         if !returning && !self.queue.is_empty() {
             let waiting = self.queue.len();
-            self.refuse(
+            self.refuse_hello(
                 id,
                 ErrorCode::OperatorTaken,
                 format!("{waiting} waiting for control before you: watch as an observer and ask for control"),
@@ -184,7 +197,7 @@ impl Hub {
                 (AccessEvent::Grant, Seat::Head),
             ])
         {
-            self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
+            self.refuse_hello(id, ErrorCode::NotAllowedNow, e.to_string());
             return false;
         }
         self.operator = Some(id);

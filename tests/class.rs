@@ -1,0 +1,213 @@
+//! A class plays the lab as README's class section sets it up: accounts,
+//! slots, one driver at a time. Ada drives over the protocol; Bob asks
+//! from the desktop window and Carol from the page while she does; Ada's
+//! slot ends and Bob drives what is mounted without mounting it again;
+//! Carol is told her place and her wait; the audit log names each run's
+//! driver and each refusal.
+
+use std::time::{Duration, Instant};
+
+use egui::Vec2;
+use egui_kittest::kittest::Queryable;
+use serde_json::{Value, json};
+use vl_core::{Experiment, Role};
+use vl_guest::{GuestApp, Login};
+use vl_host::{AccountRole, Audit, HostConfig, Users};
+
+use crate::common::chromium::{self, Browser};
+use crate::common::peer::Peer;
+use crate::common::scratch;
+use crate::guest_window::{define_and_start, harness_of, host_without_camera, step_until};
+use crate::web::{log_in, page};
+
+/// The slot each of them gets.
+const SLOT: Duration = Duration::from_secs(4);
+
+#[test]
+fn a_class_takes_turns_without_dead_ends() {
+    if !chromium::available() {
+        return;
+    }
+    let dir = scratch("class");
+    let audit_file = dir.join("audit.jsonl");
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let _entered = runtime.enter();
+    let mut users = Users::default();
+    for (name, password) in [
+        ("ada", "ada's secret"),
+        ("bob", "bob's secret"),
+        ("carol", "carol's secret"),
+    ] {
+        users.add(name, AccountRole::Operator, password).unwrap();
+    }
+    let host = host_without_camera(
+        &runtime,
+        HostConfig {
+            users: Some(users),
+            slot: Some(SLOT),
+            audit: Audit::open(&audit_file).unwrap(),
+            ..HostConfig::default()
+        },
+    );
+    let url = host.url();
+
+    // Ada drives: navigation mounted, a run under way.
+    let mut ada = runtime.block_on(ada_drives(&url));
+
+    // Bob asks from the window: it watches and takes the first place by itself.
+    let login = Login {
+        user: Some("bob".into()),
+        password: Some("bob's secret".into()),
+        token: None,
+    };
+    let app = GuestApp::new(&url, Role::Operator, login).unwrap();
+    let mut bob = harness_of(app, Vec2::new(800.0, 600.0));
+    step_until(&mut bob, "be first in line", |app| {
+        app.session().queue.is_some_and(|q| q.position == 1)
+    });
+    bob.get_by_label_contains("You are 1st in line for control");
+    let _ = bob
+        .render()
+        .map(|i| i.save(dir.join("window-800-in-line.png")));
+
+    // Carol asks from the page: second, told how long at most.
+    let mut carol = Browser::open(&page(&url), (1600, 1000));
+    carol.expect(
+        "vl.link === 'refused' || vl.link === 'open'",
+        Duration::from_secs(10),
+    );
+    log_in(&mut carol, "carol", "carol's secret", true);
+    carol.expect(
+        "vl.queue && vl.queue.position === 2",
+        Duration::from_secs(10),
+    );
+    let line = carol.eval("document.getElementById('queue').innerText");
+    assert!(
+        line.as_str()
+            .unwrap()
+            .starts_with("you are number 2 of 2 in line, at most"),
+        "{line}"
+    );
+    carol.screenshot(&dir.join("page-1600-in-line.png"));
+
+    // Ada's slot ends: her run ends, she is told why, Bob drives.
+    runtime.block_on(slot_ends(&mut ada));
+    let deadline = Instant::now() + SLOT * 3;
+    while bob.state().session().role != Some(Role::Operator) {
+        assert!(Instant::now() < deadline, "bob never got control");
+        bob.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // What Ada mounted is Bob's at once: he defines and starts, no mount.
+    step_until(&mut bob, "see navigation mounted", |app| {
+        app.session()
+            .lab
+            .as_ref()
+            .is_some_and(|l| l.experiment == Experiment::Navigation)
+            && app.session().ready()
+    });
+    let _ = bob
+        .render()
+        .map(|i| i.save(dir.join("window-800-after-hand-over.png")));
+    define_and_start(&mut bob);
+
+    // Carol is first now, told her wait; the page says what is next.
+    carol.expect(
+        "vl.queue && vl.queue.position === 1",
+        Duration::from_secs(10),
+    );
+    let line = carol.eval("document.getElementById('queue').innerText");
+    assert!(
+        line.as_str()
+            .unwrap()
+            .starts_with("you are number 1 of 1 in line, at most 1 min to wait"),
+        "{line}"
+    );
+    carol.screenshot(&dir.join("page-1600-after-hand-over.png"));
+    let errors = carol.errors();
+    assert!(
+        errors.is_empty(),
+        "the page's console had errors: {errors:#?}"
+    );
+
+    // The audit log: each run's driver, each refusal.
+    audit_names_drivers_and_refusals(&audit_file);
+}
+
+/// Ada logs in, mounts navigation and starts a run.
+async fn ada_drives(url: &str) -> Peer {
+    let mut ada = Peer::connect(url).await;
+    ada.send(json!({"type": "hello", "protocol": 1, "role": "operator",
+        "user": "ada", "password": "ada's secret"}))
+        .await;
+    ada.expect("welcome").await;
+    ada.start("navigation").await;
+    ada
+}
+
+/// Ada's slot ends: her run ends, and she is told she watches, and why.
+async fn slot_ends(ada: &mut Peer) {
+    let (mut done, mut watching) = (None, None);
+    while done.is_none() || watching.is_none() {
+        let v = ada
+            .next_of_any(&["done", "role"], SLOT * 3)
+            .await
+            .expect("ada's slot ends");
+        match v["type"].as_str() {
+            Some("done") => done = Some(v),
+            _ if v["role"] == "observer" => watching = Some(v),
+            _ => {}
+        }
+    }
+    let (done, watching) = (done.unwrap(), watching.unwrap());
+    assert_eq!(done["summary"]["reason"], "slot_ended", "{done}");
+    assert_eq!(watching["ended"], "slot_ended", "{watching}");
+}
+
+/// The audit log names each run's driver and each refusal (written by its
+/// own task: read until it has them, a while at most).
+fn audit_names_drivers_and_refusals(audit_file: &std::path::Path) {
+    let entries = || -> Vec<Value> {
+        std::fs::read_to_string(audit_file)
+            .unwrap_or_default()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect()
+    };
+    let has = |entries: &[Value], event: &str, user: &str| {
+        entries
+            .iter()
+            .any(|e| e["event"] == event && e["user"] == user)
+    };
+    let deadline = Instant::now() + Duration::from_secs(5);
+    loop {
+        let log = entries();
+        let complete = has(&log, "run_started", "ada")
+            && has(&log, "run_ended", "ada")
+            && has(&log, "run_started", "bob")
+            && has(&log, "refused", "bob")
+            && has(&log, "refused", "carol")
+            && has(&log, "slot_ended", "ada");
+        if complete {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the audit log misses a driver or a refusal:\n{}",
+            std::fs::read_to_string(audit_file).unwrap_or_default()
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let log = entries();
+    let refusal = log
+        .iter()
+        .find(|e| e["event"] == "refused" && e["user"] == "carol")
+        .unwrap();
+    assert!(
+        refusal["detail"]
+            .as_str()
+            .unwrap()
+            .starts_with("operator_taken"),
+        "{refusal}"
+    );
+}
