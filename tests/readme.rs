@@ -141,7 +141,7 @@ fn for_test(args: &mut Vec<String>, ports: &[(String, String)], link: &str) {
         }
         // The whole matrix runs in tests/experiment_media.rs.
         Some("experiment") if args.get(1).map(String::as_str) == Some("report") => {
-            args.extend(["--profiles", "lan,intercontinental"].map(String::from));
+            args.extend(["--profiles", "lan,intercontinental", "--seeds", "2"].map(String::from));
         }
         _ => {}
     }

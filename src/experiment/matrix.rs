@@ -21,7 +21,7 @@ pub(crate) struct ReportArgs {
     #[arg(long)]
     out: PathBuf,
     /// Seeds per cell (profile × experiment × pacing).
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..=100))]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(1..=100))]
     seeds: u64,
     /// The first seed.
     #[arg(long, default_value_t = 0)]

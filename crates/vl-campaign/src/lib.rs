@@ -12,6 +12,7 @@
 mod markdown;
 mod matrix;
 mod runs;
+mod stats;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -25,6 +26,7 @@ use vl_sim::{LinkModel, Optics, Scheduled};
 pub use markdown::{headline, write_report};
 pub use matrix::{Matrix, MatrixCell, Timing, cells_of, run_all};
 pub use runs::RunSeries;
+pub use stats::Interval;
 use vl_guest::plots;
 use vl_guest::{MeanMax, Pacing, RoundTripMs, Script, ScriptError, ScriptReport, run_script};
 

@@ -12,9 +12,9 @@ use vl_core::{Arena, Experiment};
 use vl_host::{Delays, FramePolicy};
 use vl_sim::{LinkModel, Optics};
 
-use super::{CampaignError, Leg, MeasuredRun, Pacing, RunSpec, overall, run_one};
+use super::{CampaignError, Interval, Leg, MeasuredRun, Pacing, RunSpec, overall, run_one};
 use vl_guest::MeanMax;
-use vl_guest::plots::{self, EVENT, TIME};
+use vl_guest::plots::{self, EVENT, Marks, TIME};
 
 /// One cell of the matrix, over its seeds.
 #[derive(Serialize, Clone)]
@@ -28,11 +28,15 @@ pub struct MatrixCell {
     /// The largest gap in any run, and the violations summed over runs.
     pub max_event_gap: u64,
     pub sync_violations: u64,
+    /// Pooled over the runs that succeeded (its max is the largest).
     pub tracking_error_mm: Option<vl_core::ErrorMm>,
-    /// Of the runs that succeeded: none when none did.
-    pub completion_s: Option<f64>,
-    pub prediction_error_mm: Option<[f64; 2]>,
-    pub stale_error_mm: Option<[f64; 2]>,
+    /// Over the seeds that succeeded, each run's figure once: the mean
+    /// tracking error, the run's length, and the predictive display's and
+    /// the last feedback's mean error. None when none did.
+    pub tracking_mm: Option<Interval>,
+    pub completion_s: Option<Interval>,
+    pub prediction_mm: Option<Interval>,
+    pub stale_mm: Option<Interval>,
     /// The Guest's ping round trip, median over runs, ms.
     pub round_trip_p50_ms: f64,
     /// The runs against their forecasts: the mean share their time was
@@ -156,18 +160,13 @@ fn cell(all: &[&MeasuredRun]) -> MatrixCell {
     let first = all[0];
     let runs: Vec<&MeasuredRun> = all.iter().copied().filter(|r| r.succeeded()).collect();
     let owned: Vec<MeasuredRun> = runs.iter().map(|r| (*r).clone()).collect();
-    let spreads = |pick: fn(&MeasuredRun) -> MeanMax| {
-        let s: Vec<MeanMax> = runs
-            .iter()
-            .map(|r| pick(r))
-            .filter(|s| s.count > 0)
-            .collect();
-        (!s.is_empty()).then(|| {
-            [
-                s.iter().map(|s| s.mean).sum::<f64>() / s.len() as f64,
-                s.iter().map(|s| s.max).fold(0.0, f64::max),
-            ]
-        })
+    let means = |pick: fn(&MeasuredRun) -> MeanMax| {
+        Interval::of(
+            runs.iter()
+                .map(|r| pick(r))
+                .filter(|s| s.count > 0)
+                .map(|s| s.mean),
+        )
     };
     // The link's round trip is the link's, whatever became of the run.
     let mut rtts: Vec<f64> = all.iter().map(|r| r.round_trip_ms.p50).collect();
@@ -182,10 +181,14 @@ fn cell(all: &[&MeasuredRun]) -> MatrixCell {
         max_event_gap: all.iter().map(|r| r.max_event_gap).max().unwrap_or(0),
         sync_violations: all.iter().map(|r| r.sync_violations).sum(),
         tracking_error_mm: overall(&owned, |r| r.tracking_error_mm),
-        completion_s: (!runs.is_empty())
-            .then(|| runs.iter().map(|r| r.completion_s).sum::<f64>() / runs.len() as f64),
-        prediction_error_mm: spreads(|r| r.prediction_error_mm),
-        stale_error_mm: spreads(|r| r.stale_error_mm),
+        tracking_mm: Interval::of(
+            runs.iter()
+                .filter_map(|r| r.tracking_error_mm)
+                .map(|e| e.mean),
+        ),
+        completion_s: Interval::of(runs.iter().map(|r| r.completion_s)),
+        prediction_mm: means(|r| r.prediction_error_mm),
+        stale_mm: means(|r| r.stale_error_mm),
         round_trip_p50_ms: rtts[rtts.len() / 2],
         forecast_time_off: mean(
             all.iter()
@@ -283,54 +286,54 @@ pub(super) fn draw(
     arena: &Arena,
 ) -> Result<Vec<(String, PathBuf)>, CampaignError> {
     let mut out = Vec::new();
-    // Tracking and prediction against the round trip, event against time.
-    let by_delay = |pacing: Pacing, pick: fn(&MatrixCell) -> Option<f64>| -> Vec<(f64, f64)> {
-        let mut v: Vec<(f64, f64)> = m
-            .cells
+    // Link profiles are categories (ordered by their round trip), not a
+    // continuous axis: each cell a mean with its 95 % interval, unjoined.
+    let mut by_rtt: Vec<&Timing> = m.timing.iter().collect();
+    by_rtt.sort_by(|a, b| a.round_trip_p50_ms.total_cmp(&b.round_trip_p50_ms));
+    let profiles: Vec<String> = by_rtt.iter().map(|t| t.profile.clone()).collect();
+    let by_profile = |pacing: Pacing, pick: fn(&MatrixCell) -> Option<Interval>| {
+        profiles
             .iter()
-            .filter(|c| c.experiment == Experiment::Teleoperation && c.pacing == pacing)
-            .filter_map(|c| pick(c).map(|y| (c.round_trip_p50_ms, y)))
-            .collect();
-        v.sort_by(|a, b| a.0.total_cmp(&b.0));
-        v
+            .map(|p| {
+                m.cells
+                    .iter()
+                    .find(|c| {
+                        c.experiment == Experiment::Teleoperation
+                            && c.pacing == pacing
+                            && &c.profile == p
+                    })
+                    .and_then(pick)
+                    .map(|i| (i.mean, i.low(), i.high()))
+            })
+            .collect::<Vec<_>>()
     };
-    let tracking = |c: &MatrixCell| c.tracking_error_mm.map(|e| e.mean);
     out.push((
-        "Tracking error against the round trip: teleoperation, event-based against time-based"
+        "Tracking error by link profile: teleoperation, event-based against time-based (mean over seeds, 95 % interval)"
             .to_owned(),
-        plots::lines(
+        plots::intervals(
             dir,
-            "tracking-vs-delay",
-            "Teleoperation: tracking error against delay",
-            (
-                "round trip, ms (median of the Guest's pings)",
-                "mean distance of the true path to the planned, mm",
-            ),
+            "tracking-by-profile",
+            "Teleoperation: tracking error by link",
+            ("link profile (by round trip)", "mean distance of the true path to the planned, mm"),
+            &profiles,
             &[
-                (
-                    "event-based".into(),
-                    EVENT,
-                    by_delay(Pacing::Event, tracking),
-                ),
-                ("time-based".into(), TIME, by_delay(Pacing::Time, tracking)),
+                ("event-based".into(), EVENT, by_profile(Pacing::Event, |c| c.tracking_mm)),
+                ("time-based".into(), TIME, by_profile(Pacing::Time, |c| c.tracking_mm)),
             ],
-            true,
         )?,
     ));
-    let predicted = |c: &MatrixCell| c.prediction_error_mm.map(|e| e[0]);
-    let stale = |c: &MatrixCell| c.stale_error_mm.map(|e| e[0]);
     out.push((
-        "The predictive display's error against the round trip, beside showing the last feedback alone".to_owned(),
-        plots::lines(
+        "The predictive display's error by link profile, beside showing the last feedback alone (event-based; mean over seeds, 95 % interval)".to_owned(),
+        plots::intervals(
             dir,
-            "prediction-vs-delay",
+            "prediction-by-profile",
             "Predicted pose against the last reported pose (event-based)",
-            ("round trip, ms", "mean error against the next feedback, mm"),
+            ("link profile (by round trip)", "mean error against the next feedback, mm"),
+            &profiles,
             &[
-                ("predicted (ghost)".into(), EVENT, by_delay(Pacing::Event, predicted)),
-                ("last reported".into(), TIME, by_delay(Pacing::Event, stale)),
+                ("predicted (ghost)".into(), EVENT, by_profile(Pacing::Event, |c| c.prediction_mm)),
+                ("last reported".into(), TIME, by_profile(Pacing::Event, |c| c.stale_mm)),
             ],
-            true,
         )?,
     ));
     for t in &m.timing {
@@ -399,7 +402,7 @@ fn profile_pictures(
                 ("event-based".into(), EVENT, trace(Pacing::Event)),
                 ("time-based".into(), TIME, trace(Pacing::Time)),
             ],
-            false,
+            Marks::Lines,
         )?,
     ));
     let taken = |pacing: Pacing, label: &str, colour| {
@@ -428,7 +431,7 @@ fn profile_pictures(
             dir,
             &format!("paths-{}", t.profile),
             &format!("Teleoperation paths: {}", t.profile),
-            (arena.width_mm, arena.height_mm),
+            arena,
             &planned,
             &paths,
         )?,

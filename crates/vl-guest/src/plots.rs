@@ -8,7 +8,7 @@ use std::sync::Once;
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
-use vl_core::Point;
+use vl_core::{Arena, Point, Shape};
 
 /// Why a picture could not be drawn (or written).
 #[derive(Debug, thiserror::Error)]
@@ -27,6 +27,10 @@ const FONT: &str = "sans-serif";
 pub const EVENT: RGBColor = RGBColor(0x1f, 0x77, 0xb4);
 pub const TIME: RGBColor = RGBColor(0xd6, 0x27, 0x28);
 const PLANNED: RGBColor = RGBColor(0x99, 0x99, 0x99);
+const OBSTACLE: RGBColor = RGBColor(0x55, 0x58, 0x60);
+/// What the chart's frame takes besides the plot area, px: the y labels
+/// and margins across, the title, x labels and margins down.
+const AXES_PX: (u32, u32) = (52 + 24, 36 + 30 + 24);
 /// A third series where there is one.
 pub const THIRD: RGBColor = RGBColor(0x2c, 0xa0, 0x2c);
 
@@ -50,16 +54,21 @@ trait Picture {
 
 /// Draws `picture` into `dir/name.svg` and `dir/name.png`; returns the PNG's name.
 fn both(dir: &Path, name: &str, picture: &impl Picture) -> Result<PathBuf> {
+    both_sized(dir, name, picture, SIZE)
+}
+
+/// [`both`], `size` px.
+fn both_sized(dir: &Path, name: &str, picture: &impl Picture, size: (u32, u32)) -> Result<PathBuf> {
     font();
     let svg = dir.join(format!("{name}.svg"));
     let png = dir.join(format!("{name}.png"));
     {
-        let root = SVGBackend::new(&svg, SIZE).into_drawing_area();
+        let root = SVGBackend::new(&svg, size).into_drawing_area();
         picture.draw(&root)?;
         root.present().map_err(|e| draw_error(&svg, e))?;
     }
     {
-        let root = BitMapBackend::new(&png, SIZE).into_drawing_area();
+        let root = BitMapBackend::new(&png, size).into_drawing_area();
         picture.draw(&root)?;
         root.present().map_err(|e| draw_error(&png, e))?;
     }
@@ -210,6 +219,15 @@ pub fn delays(dir: &Path, name: &str, title: &str, legs: &[(&str, &[f64])]) -> R
 /// A labelled, coloured series of (x, y) points.
 pub type Series = (String, RGBColor, Vec<(f64, f64)>);
 
+/// How a series' points are drawn: joined where they sample something
+/// continuous, apart where they are sparse or categories.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Marks {
+    Lines,
+    LinesAndPoints,
+    Points,
+}
+
 /// Lines of (x, y) points, one per labelled series.
 pub fn lines(
     dir: &Path,
@@ -217,7 +235,7 @@ pub fn lines(
     title: &str,
     axes: (&str, &str),
     series: &[Series],
-    points: bool,
+    marks: Marks,
 ) -> Result<PathBuf> {
     let xs = series.iter().flat_map(|(_, _, v)| v.iter().map(|p| p.0));
     let ys = series.iter().flat_map(|(_, _, v)| v.iter().map(|p| p.1));
@@ -227,7 +245,7 @@ pub fn lines(
         title: &'a str,
         axes: (&'a str, &'a str),
         series: &'a [Series],
-        points: bool,
+        marks: Marks,
         x_max: f64,
         y_max: f64,
     }
@@ -237,25 +255,30 @@ pub fn lines(
                 title,
                 axes,
                 series,
-                points,
+                marks,
                 x_max,
                 y_max,
             } = self;
-            let (x_max, y_max, points) = (*x_max, *y_max, *points);
+            let (x_max, y_max, marks) = (*x_max, *y_max, *marks);
             let mut chart = chart(root, title, (x_max, y_max), *axes)?;
             for (label, colour, data) in series.iter() {
                 let colour = *colour;
-                chart
-                    .draw_series(LineSeries::new(
+                let line = marks != Marks::Points;
+                let drawn = if line {
+                    chart.draw_series(LineSeries::new(
                         data.iter().copied(),
                         colour.stroke_width(2),
                     ))
+                } else {
+                    chart.draw_series(data.iter().map(|&p| Circle::new(p, 3, colour.filled())))
+                };
+                drawn
                     .map_err(err)?
                     .label(label.as_str())
                     .legend(move |(x, y)| {
                         PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
                     });
-                if points {
+                if marks == Marks::LinesAndPoints {
                     chart
                         .draw_series(data.iter().map(|&p| Circle::new(p, 4, colour.filled())))
                         .map_err(err)?;
@@ -271,25 +294,122 @@ pub fn lines(
             title,
             axes,
             series,
-            points,
+            marks,
             x_max,
             y_max,
         },
     )
 }
 
-/// The planned path and the paths the robot truly took, on the arena's floor.
+/// A value with its interval: (mean, low, high).
+pub type Estimate = (f64, f64, f64);
+
+/// Categories along x (link profiles, …), each series a mean with its
+/// interval per category (a whisker), side by side and not joined: the
+/// categories are no continuous axis.
+pub fn intervals(
+    dir: &Path,
+    name: &str,
+    title: &str,
+    (x_desc, y_desc): (&str, &str),
+    categories: &[String],
+    series: &[(String, RGBColor, Vec<Option<Estimate>>)],
+) -> Result<PathBuf> {
+    struct Whiskers<'a> {
+        title: &'a str,
+        axes: (&'a str, &'a str),
+        categories: &'a [String],
+        series: &'a [(String, RGBColor, Vec<Option<Estimate>>)],
+    }
+    impl Picture for Whiskers<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
+            let Whiskers {
+                title,
+                axes,
+                categories,
+                series,
+            } = self;
+            let top = series
+                .iter()
+                .flat_map(|(_, _, v)| v.iter().flatten().map(|e| e.2))
+                .fold(0.0f64, f64::max)
+                .max(1e-3)
+                * 1.15;
+            let n = categories.len().max(1);
+            root.fill(&WHITE).map_err(err)?;
+            let mut chart = ChartBuilder::on(root)
+                .caption(*title, (FONT, 20))
+                .margin(12)
+                .x_label_area_size(36)
+                .y_label_area_size(52)
+                .build_cartesian_2d(-0.5..n as f64 - 0.5, 0.0..top)
+                .map_err(err)?;
+            let label = |x: &f64| {
+                let i = x.round();
+                if (x - i).abs() < 1e-6 && i >= 0.0 {
+                    categories.get(i as usize).cloned().unwrap_or_default()
+                } else {
+                    String::new()
+                }
+            };
+            chart
+                .configure_mesh()
+                .x_labels(n * 2 + 1)
+                .x_label_formatter(&label)
+                .disable_x_mesh()
+                .x_desc(axes.0)
+                .y_desc(axes.1)
+                .label_style((FONT, 13))
+                .draw()
+                .map_err(err)?;
+            let k = series.len().max(1) as f64;
+            for (s, (name, colour, values)) in series.iter().enumerate() {
+                let colour = *colour;
+                let dx = (s as f64 - (k - 1.0) / 2.0) * 0.12;
+                let at = |i: usize| i as f64 + dx;
+                chart
+                    .draw_series(values.iter().enumerate().filter_map(|(i, e)| {
+                        e.map(|(_, lo, hi)| {
+                            PathElement::new(vec![(at(i), lo), (at(i), hi)], colour.stroke_width(2))
+                        })
+                    }))
+                    .map_err(err)?;
+                chart
+                    .draw_series(values.iter().enumerate().filter_map(|(i, e)| {
+                        e.map(|(mean, _, _)| Circle::new((at(i), mean), 5, colour.filled()))
+                    }))
+                    .map_err(err)?
+                    .label(name.as_str())
+                    .legend(move |(x, y)| Circle::new((x + 9, y), 5, colour.filled()));
+            }
+            legend(&mut chart, SeriesLabelPosition::UpperLeft)
+        }
+    }
+    both(
+        dir,
+        name,
+        &Whiskers {
+            title,
+            axes: (x_desc, y_desc),
+            categories,
+            series,
+        },
+    )
+}
+
+/// The planned path and the paths the robot truly took, on the arena's
+/// floor with its obstacles, to scale.
 pub fn paths(
     dir: &Path,
     name: &str,
     title: &str,
-    floor_mm: (f64, f64),
+    arena: &Arena,
     planned: &[Point],
     taken: &[(String, RGBColor, Vec<Point>)],
 ) -> Result<PathBuf> {
     struct Paths<'a> {
         title: &'a str,
-        floor_mm: (f64, f64),
+        arena: &'a Arena,
         planned: &'a [Point],
         taken: &'a [(String, RGBColor, Vec<Point>)],
     }
@@ -297,12 +417,43 @@ pub fn paths(
         fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
             let Paths {
                 title,
-                floor_mm,
+                arena,
                 planned,
                 taken,
             } = self;
-            let mut chart = chart(root, title, *floor_mm, ("x, mm", "y, mm"))?;
+            let floor = (arena.width_mm, arena.height_mm);
+            let mut chart = chart(root, title, floor, ("x, mm", "y, mm"))?;
             let xy = |p: &Point| (p.x_mm, p.y_mm);
+            let obstacle = OBSTACLE.filled();
+            for o in &arena.obstacles {
+                let outline: Vec<(f64, f64)> = match &o.shape {
+                    Shape::Rect {
+                        x_mm,
+                        y_mm,
+                        width_mm,
+                        height_mm,
+                    } => vec![
+                        (*x_mm, *y_mm),
+                        (x_mm + width_mm, *y_mm),
+                        (x_mm + width_mm, y_mm + height_mm),
+                        (*x_mm, y_mm + height_mm),
+                    ],
+                    Shape::Circle {
+                        x_mm,
+                        y_mm,
+                        radius_mm,
+                    } => (0..48)
+                        .map(|i| {
+                            let a = std::f64::consts::TAU * f64::from(i) / 48.0;
+                            (x_mm + radius_mm * a.cos(), y_mm + radius_mm * a.sin())
+                        })
+                        .collect(),
+                    Shape::Polygon { points } => points.iter().map(xy).collect(),
+                };
+                chart
+                    .draw_series(std::iter::once(Polygon::new(outline, obstacle)))
+                    .map_err(err)?;
+            }
             chart
                 .draw_series(LineSeries::new(
                     planned.iter().map(xy),
@@ -326,14 +477,20 @@ pub fn paths(
             legend(&mut chart, SeriesLabelPosition::UpperRight)
         }
     }
-    both(
+    // The floor to scale: the plot's area as wide for its height as the
+    // floor (the axes' labels and the title around it).
+    let width = SIZE.0;
+    let area = f64::from(width - AXES_PX.0) / arena.width_mm.max(1.0);
+    let height = (arena.height_mm * area).round().clamp(100.0, 2000.0) as u32 + AXES_PX.1;
+    both_sized(
         dir,
         name,
         &Paths {
             title,
-            floor_mm,
+            arena,
             planned,
             taken,
         },
+        (width, height),
     )
 }

@@ -9,7 +9,7 @@ use vl_core::{Feedback, HostMessage, Point, distance_to_polyline};
 use std::path::PathBuf;
 
 use crate::client::Incoming;
-use crate::plots::{self, PlotError};
+use crate::plots::{self, Marks, PlotError};
 
 /// A series of (x, y) points.
 type Series = Vec<[f64; 2]>;
@@ -17,8 +17,8 @@ type Series = Vec<[f64; 2]>;
 /// What the plots draw, read once from the recording.
 #[derive(Debug, Clone, Default)]
 pub struct Results {
-    /// The floor's size, mm.
-    pub floor_mm: (f64, f64),
+    /// The arena the run was on: its floor and obstacles, drawn under the paths.
+    pub arena: Option<vl_core::Arena>,
     pub planned: Series,
     pub followed: Series,
     /// Each seed's forecast path.
@@ -50,7 +50,7 @@ impl Results {
             };
             match &**message {
                 HostMessage::Mounted(lab) => {
-                    results.floor_mm = (lab.arena.width_mm, lab.arena.height_mm);
+                    results.arena = Some(lab.arena.clone());
                 }
                 HostMessage::Defined { definition } => {
                     path = definition.path.clone();
@@ -108,14 +108,17 @@ impl Results {
             .into_iter()
             .collect();
         taken.push(("followed".to_owned(), plots::EVENT, points(&self.followed)));
-        let mut saved = vec![plots::paths(
-            dir,
-            "paths",
-            "planned, followed and forecast",
-            self.floor_mm,
-            &planned,
-            &taken,
-        )?];
+        let mut saved = Vec::new();
+        if let Some(arena) = &self.arena {
+            saved.push(plots::paths(
+                dir,
+                "paths",
+                "planned, followed and forecast",
+                arena,
+                &planned,
+                &taken,
+            )?);
+        }
         let over_time = [
             (
                 "tracking",
@@ -129,7 +132,13 @@ impl Results {
         for (name, title, unit, s) in over_time {
             if !s.is_empty() {
                 let lines = [series(title, plots::EVENT, s)];
-                saved.push(plots::lines(dir, name, title, ("s", unit), &lines, false)?);
+                // Round trips are pinged every 200 ms: points, not a line.
+                let marks = if name == "round_trip" {
+                    Marks::Points
+                } else {
+                    Marks::Lines
+                };
+                saved.push(plots::lines(dir, name, title, ("s", unit), &lines, marks)?);
             }
         }
         Ok(saved)

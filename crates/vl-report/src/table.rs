@@ -61,6 +61,58 @@ impl Table {
     }
 }
 
+impl Table {
+    /// The table as a Markdown table (lines before and after as
+    /// paragraphs): figures to the right, as on a console.
+    pub fn markdown(&self) -> String {
+        let mut out = String::new();
+        for line in &self.before {
+            out.push_str(line);
+            out.push_str("\n\n");
+        }
+        let cell = |c: &str| c.replace('|', "\\|");
+        let columns = self
+            .header
+            .iter()
+            .chain(&self.rows)
+            .map(Vec::len)
+            .max()
+            .unwrap_or(0);
+        let header: Vec<String> = match &self.header {
+            Some(h) => h.iter().map(|c| cell(c)).collect(),
+            None => vec![String::new(); columns],
+        };
+        out.push_str(&format!("| {} |\n", header.join(" | ")));
+        // Figures to the right; a column of words (names, kinds) to the left.
+        let figures = |c: usize| {
+            self.rows.iter().filter_map(|r| r.get(c)).all(|cell| {
+                cell.is_empty()
+                    || cell.starts_with(|ch: char| ch.is_ascii_digit() || "–-+".contains(ch))
+            })
+        };
+        let rule: Vec<&str> = (0..columns)
+            .map(|c| {
+                if c == 0 || self.pairs || !figures(c) {
+                    ":--"
+                } else {
+                    "--:"
+                }
+            })
+            .collect();
+        out.push_str(&format!("|{}|\n", rule.join("|")));
+        for row in &self.rows {
+            let cells: Vec<String> = row.iter().map(|c| cell(c)).collect();
+            out.push_str(&format!("| {} |\n", cells.join(" | ")));
+        }
+        for line in &self.after {
+            out.push('\n');
+            out.push_str(line);
+            out.push('\n');
+        }
+        out
+    }
+}
+
 impl fmt::Display for Table {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         for line in &self.before {
@@ -134,5 +186,22 @@ mod tests {
         assert_eq!(p.to_string(), "net      x\nbounded  yes\n");
         assert_eq!(count(1u32, "token", "tokens"), "1 token");
         assert_eq!(count(0u32, "token", "tokens"), "0 tokens");
+    }
+}
+
+#[cfg(test)]
+mod markdown_tests {
+    use super::Table;
+
+    #[test]
+    fn a_table_in_markdown_keeps_its_figures_right_and_escapes_bars() {
+        let mut t = Table::columns(&["profile", "tracking, mm"]);
+        t.row(vec!["lan".into(), "1.2 ± 0.3".into()]);
+        t.row(vec!["a|b".into(), "4".into()]);
+        let md = t.note("n = 5 seeds").markdown();
+        assert_eq!(
+            md,
+            "| profile | tracking, mm |\n|:--|--:|\n| lan | 1.2 ± 0.3 |\n| a\\|b | 4 |\n\nn = 5 seeds\n"
+        );
     }
 }
