@@ -243,11 +243,6 @@ fn discussion(md: &mut String, m: &Matrix) {
         md,
         "## Against the thesis: event-based and time-based control\n"
     );
-    let teleop = |profile: &str, pacing: Pacing| {
-        m.cells.iter().find(|c| {
-            c.experiment == Experiment::Teleoperation && c.pacing == pacing && c.profile == profile
-        })
-    };
     let time_lost: Vec<&MatrixCell> = m
         .cells
         .iter()
@@ -273,6 +268,59 @@ fn discussion(md: &mut String, m: &Matrix) {
             .collect::<Vec<_>>()
             .join("; ")
     );
+    let (t, event_better, time_better) = tracking_by_pacing(m);
+    let _ = writeln!(md, "{}", t.markdown());
+    let _ = writeln!(
+        md,
+        "**Tracking — {}.** The thesis expects event-based control to make teleoperation over \
+         the Internet at least as good as time-based. Event-based tracked nearer the path on {} \
+         ({}); time-based on {} ({}); elsewhere the seeds' spread covers the difference.\n",
+        if time_better.is_empty() {
+            "agrees"
+        } else {
+            "disagrees in part"
+        },
+        table::count(event_better.len() as u64, "profile", "profiles"),
+        if event_better.is_empty() {
+            "none".into()
+        } else {
+            event_better.join(", ")
+        },
+        table::count(time_better.len() as u64, "profile", "profiles"),
+        if time_better.is_empty() {
+            "none".into()
+        } else {
+            time_better.join(", ")
+        },
+    );
+    let _ = writeln!(
+        md,
+        "**Why.** Event-based pacing sends the next command as soon as the feedback of the last \
+         has come: on a short link that is more often than time-based pacing's every 20 ms, on a \
+         long one once a round trip (the *commands/s* columns), while time-based pacing goes on \
+         correcting every 20 ms on feedback just as old. A difference under a millimetre, as on \
+         a short link, is of no weight for a robot 55 mm across. This matrix's operator \
+         is a script that steers toward waypoints along the path from whatever feedback it has: \
+         it turns as soon as the feedback shows it off course, so more frequent corrections keep \
+         it nearer the path even when each rests on stale feedback, and where the round trip is \
+         long each event-based command drives the robot for a whole round trip uncorrected. What \
+         time-based pacing costs is what the thesis is about: its commands pile up ahead of the \
+         feedback they were decided on (*sync lost*, *max gap*), so the Host executes commands \
+         for situations already past — harmless to a script that only ever steers toward the \
+         path, not to a person reacting to what they see, for whom the thesis designed the \
+         scheme. The tracking figures measure the script, not that person.\n"
+    );
+}
+
+/// Event- against time-based tracking per profile, with the command
+/// rates behind them; and the profiles where each was nearer the path
+/// beyond the seeds' spread.
+fn tracking_by_pacing(m: &Matrix) -> (Table, Vec<&str>, Vec<&str>) {
+    let teleop = |profile: &str, pacing: Pacing| {
+        m.cells.iter().find(|c| {
+            c.experiment == Experiment::Teleoperation && c.pacing == pacing && c.profile == profile
+        })
+    };
     let mut t = Table::columns(&[
         "profile",
         "rtt p50, ms",
@@ -319,47 +367,7 @@ fn discussion(md: &mut String, m: &Matrix) {
             Interval::cell(rate(p, Pacing::Time), 0),
         ]);
     }
-    let _ = writeln!(md, "{}", t.markdown());
-    let _ = writeln!(
-        md,
-        "**Tracking — {}.** The thesis expects event-based control to make teleoperation over \
-         the Internet at least as good as time-based. Event-based tracked nearer the path on {} \
-         ({}); time-based on {} ({}); elsewhere the seeds' spread covers the difference.\n",
-        if time_better.is_empty() {
-            "agrees"
-        } else {
-            "disagrees in part"
-        },
-        table::count(event_better.len() as u64, "profile", "profiles"),
-        if event_better.is_empty() {
-            "none".into()
-        } else {
-            event_better.join(", ")
-        },
-        table::count(time_better.len() as u64, "profile", "profiles"),
-        if time_better.is_empty() {
-            "none".into()
-        } else {
-            time_better.join(", ")
-        },
-    );
-    let _ = writeln!(
-        md,
-        "**Why.** Event-based pacing sends the next command as soon as the feedback of the last \
-         has come: on a short link that is more often than time-based pacing's every 20 ms, on a \
-         long one once a round trip (the *commands/s* columns), while time-based pacing goes on \
-         correcting every 20 ms on feedback just as old. A difference under a millimetre, as on \
-         a short link, is of no weight for a robot 55 mm across. This matrix's operator \
-         is a script that steers toward waypoints along the path from whatever feedback it has: \
-         it turns as soon as the feedback shows it off course, so more frequent corrections keep \
-         it nearer the path even when each rests on stale feedback, and where the round trip is \
-         long each event-based command drives the robot for a whole round trip uncorrected. What \
-         time-based pacing costs is what the thesis is about: its commands pile up ahead of the \
-         feedback they were decided on (*sync lost*, *max gap*), so the Host executes commands \
-         for situations already past — harmless to a script that only ever steers toward the \
-         path, not to a person reacting to what they see, for whom the thesis designed the \
-         scheme. The tracking figures measure the script, not that person.\n"
-    );
+    (t, event_better, time_better)
 }
 
 impl Report for Matrix {
