@@ -1384,7 +1384,14 @@ fn a_downloaded_run_replays_in_the_window_and_scrubbing_moves_the_robot() {
     for _ in 0..5 {
         harness.step();
     }
-    harness.get_by_label("off the planned path, mm, against s");
+    let plot = harness
+        .get_by_label("off the planned path, mm, against s")
+        .rect();
+    // Beside the camera view, not over it; ages by the replay's clock.
+    let view = harness.get_by_label(vl_guest::CAMERA_VIEW).rect();
+    assert!(plot.left() >= view.right() - 1.0, "{plot:?} over {view:?}");
+    harness.get_by_label_contains("replay at ");
+    assert!(harness.query_by_label_contains("ghost").is_none());
     let results = &harness.state_mut().replay().unwrap().results;
     assert!(results.followed.len() > 100 && results.planned.len() > 10);
     assert!(

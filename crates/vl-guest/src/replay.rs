@@ -143,6 +143,20 @@ impl Replay {
         }
     }
 
+    /// The run's results, at the side of the window (beside the camera
+    /// view, not over it) while they are asked for.
+    pub fn results_panel(&self, ui: &mut egui::Ui) {
+        if !self.show_results {
+            return;
+        }
+        egui::Panel::right("results")
+            .default_size(360.0)
+            .show(ui, |ui| {
+                ui.heading("Results");
+                egui::ScrollArea::vertical().show(ui, |ui| self.results.show(ui, self.at_s));
+            });
+    }
+
     /// The replay's controls: play or pause, the time slider, the speed.
     pub fn controls(&mut self, ui: &mut egui::Ui) {
         // Wrapped, so a narrow window keeps every control in view; the
@@ -176,17 +190,6 @@ impl Replay {
                 });
             ui.toggle_value(&mut self.show_results, "Results");
         });
-        let mut open = self.show_results;
-        let right = ui.ctx().content_rect().right();
-        egui::Window::new("Results")
-            .open(&mut open)
-            .default_pos([right - 400.0, 70.0])
-            .default_width(380.0)
-            .default_height(600.0)
-            .show(ui.ctx(), |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| self.results.show(ui, self.at_s));
-            });
-        self.show_results = open;
     }
 }
 

@@ -3,8 +3,10 @@
 //! the force over time, and the round trip — what a student hands in and a
 //! teacher grades, beside the replay.
 
-use egui_plot::{Legend, Line, Plot, PlotPoints, VLine};
-use vl_core::{Feedback, HostMessage, Point, distance_to_polyline};
+use egui_plot::{Legend, Line, Plot, PlotPoints, Points, VLine};
+use vl_core::{Feedback, HostMessage, Mark, Point, distance_to_polyline};
+
+use crate::app::colour;
 
 use std::path::PathBuf;
 
@@ -155,26 +157,24 @@ impl Results {
             .show(ui, |plot| {
                 for (i, run) in self.forecast.iter().enumerate() {
                     let name = if i == 0 { "forecast" } else { "" };
-                    plot.line(line(name, run).color(egui::Color32::from_rgb(150, 150, 255)));
+                    plot.line(line(name, run).color(colour(Mark::Forecast)));
                 }
-                plot.line(
-                    line("planned", &self.planned).color(egui::Color32::from_rgb(250, 220, 40)),
-                );
-                plot.line(
-                    line("followed", &self.followed).color(egui::Color32::from_rgb(40, 200, 255)),
-                );
+                plot.line(line("planned", &self.planned).color(colour(Mark::Path)));
+                plot.line(line("followed", &self.followed).color(colour(Mark::Robot)));
             });
         let over_time = |ui: &mut egui::Ui, id: &str, title: &str, series: &[(&str, &Series)]| {
             ui.label(title);
-            Plot::new(id)
-                .height(110.0)
-                .legend(Legend::default())
-                .show(ui, |plot| {
-                    for (name, s) in series {
-                        plot.line(line(name, s));
-                    }
-                    plot.vline(VLine::new("now", at_s));
-                });
+            let mut plot = Plot::new(id).height(110.0);
+            // One series is named by the title: a legend would only cover it.
+            if series.len() > 1 {
+                plot = plot.legend(Legend::default().background_alpha(0.6));
+            }
+            plot.show(ui, |plot| {
+                for (name, s) in series {
+                    plot.line(line(name, s));
+                }
+                plot.vline(VLine::new("now", at_s));
+            });
         };
         over_time(
             ui,
@@ -196,11 +196,13 @@ impl Results {
                 &[("force", &self.force)],
             );
         }
-        over_time(
-            ui,
-            "rtt",
-            "round trip, ms, against s",
-            &[("round trip", &self.round_trip_ms)],
-        );
+        // Pinged every 200 ms: points, not a line between them.
+        ui.label("round trip, ms, against s");
+        Plot::new("rtt").height(110.0).show(ui, |plot| {
+            plot.points(
+                Points::new("round trip", PlotPoints::from(self.round_trip_ms.clone())).radius(2.5),
+            );
+            plot.vline(VLine::new("now", at_s));
+        });
     }
 }

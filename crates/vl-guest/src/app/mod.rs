@@ -32,7 +32,7 @@ mod view;
 const JOYSTICK_PX: f32 = 140.0;
 
 /// A mark's colour in the shared legend (the page draws with the same).
-const fn colour(mark: Mark) -> Color32 {
+pub(crate) const fn colour(mark: Mark) -> Color32 {
     let [r, g, b] = mark.rgb();
     Color32::from_rgb(r, g, b)
 }
@@ -288,6 +288,9 @@ impl GuestApp {
         }
         if self.session.lab.is_some() || self.session.frame.is_some() {
             egui::Panel::bottom("view legend").show(ui, |ui| self.view_legend(ui));
+        }
+        if let Some(replay) = &self.replay {
+            replay.results_panel(ui);
         }
         egui::CentralPanel::default().show(ui, |ui| self.camera_view(ui));
         // Repaint when something moves; an idle window only keeps its

@@ -190,13 +190,15 @@ impl GuestApp {
         ui.horizontal(|ui| {
             ui.checkbox(&mut self.show_cspace, "C-space")
                 .on_hover_text("where the robot's centre may not go: the map and the virtual obstacles grown by its radius");
-            ui.checkbox(&mut self.show_ghost, "predictive display")
-                .on_hover_text("a ghost of the robot where it is now, predicted from the last feedback and the commands sent since; the solid outline is where the last feedback put it");
+            if self.replay.is_none() {
+                ui.checkbox(&mut self.show_ghost, "predictive display")
+                    .on_hover_text("a ghost of the robot where it is now, predicted from the last feedback and the commands sent since; the solid outline is where the last feedback put it");
+            }
         });
         ui.horizontal_wrapped(|ui| {
             let mut mark = |mark: Mark| legend(ui, colour(mark), mark.words());
             mark(Mark::Robot);
-            if self.show_ghost {
+            if self.show_ghost && self.replay.is_none() {
                 mark(Mark::Ghost);
             }
             mark(Mark::Trail);
@@ -282,6 +284,14 @@ impl GuestApp {
     /// one-way delay it travelled: half the round trip), and how far ahead
     /// the ghost is.
     fn ages(&self) -> String {
+        // A recording is as old as the replay makes it: no wall clock, no
+        // prediction (the Guest's commands are not in it).
+        if let Some(replay) = &self.replay {
+            return format!(
+                "replay at {:.1} s of {:.1} s: the pose and the frame as recorded then",
+                replay.at_s, replay.duration_s
+            );
+        }
         let now = Instant::now();
         let travelled = self.session.predictor.one_way();
         let age = |at: Option<Instant>| {
@@ -367,6 +377,7 @@ impl GuestApp {
                 );
             }
             if self.show_ghost
+                && self.replay.is_none()
                 && let Some(ghost) = self.session.predicted(Instant::now())
                 // On the reported pose, it would hide it.
                 && ghost.point().distance(robot.pose.point()) >= 1.0
