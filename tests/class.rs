@@ -21,7 +21,7 @@ use crate::guest_window::{define_and_start, harness_of, host_without_camera, ste
 use crate::web::{log_in, page};
 
 /// The slot each of them gets.
-const SLOT: Duration = Duration::from_secs(4);
+const SLOT: Duration = Duration::from_secs(6);
 
 #[test]
 fn a_class_takes_turns_without_dead_ends() {
@@ -66,9 +66,7 @@ fn a_class_takes_turns_without_dead_ends() {
         app.session().queue.is_some_and(|q| q.position == 1)
     });
     bob.get_by_label_contains("You are 1st in line for control");
-    let _ = bob
-        .render()
-        .map(|i| i.save(dir.join("window-800-in-line.png")));
+    shots(&mut bob, &dir, "in-line");
 
     // Carol asks from the page: second, told how long at most.
     let mut carol = Browser::open(&page(&url), (1600, 1000));
@@ -88,7 +86,7 @@ fn a_class_takes_turns_without_dead_ends() {
             .starts_with("you are number 2 of 2 in line, at most"),
         "{line}"
     );
-    carol.screenshot(&dir.join("page-1600-in-line.png"));
+    page_shots(&mut carol, &dir, "in-line");
 
     // Ada's slot ends: her run ends, she is told why, Bob drives.
     runtime.block_on(slot_ends(&mut ada));
@@ -106,9 +104,7 @@ fn a_class_takes_turns_without_dead_ends() {
             .is_some_and(|l| l.experiment == Experiment::Navigation)
             && app.session().ready()
     });
-    let _ = bob
-        .render()
-        .map(|i| i.save(dir.join("window-800-after-hand-over.png")));
+    shots(&mut bob, &dir, "after-hand-over");
     define_and_start(&mut bob);
 
     // Carol is first now, told her wait; the page says what is next.
@@ -123,12 +119,20 @@ fn a_class_takes_turns_without_dead_ends() {
             .starts_with("you are number 1 of 1 in line, at most 1 min to wait"),
         "{line}"
     );
-    carol.screenshot(&dir.join("page-1600-after-hand-over.png"));
-    let errors = carol.errors();
-    assert!(
-        errors.is_empty(),
-        "the page's console had errors: {errors:#?}"
-    );
+    page_shots(&mut carol, &dir, "after-hand-over");
+    // She gives up her place: with no one waiting, Bob's slot runs on.
+    carol.click("#line");
+    carol.expect("vl.queue === null", Duration::from_secs(5));
+
+    let mut ada_page = observer_joins(&url, &dir);
+    bob_stops(&mut bob, &mut ada_page, &dir);
+    for page in [&mut carol, &mut ada_page] {
+        let errors = page.errors();
+        assert!(
+            errors.is_empty(),
+            "the page's console had errors: {errors:#?}"
+        );
+    }
 
     // The audit log: each run's driver, each refusal.
     audit_names_drivers_and_refusals(&audit_file);
@@ -210,4 +214,79 @@ fn audit_names_drivers_and_refusals(audit_file: &std::path::Path) {
             .starts_with("operator_taken"),
         "{refusal}"
     );
+}
+
+/// The window at 800 and 1600 px wide, saved as `window-{size}-{what}.png`.
+fn shots(window: &mut egui_kittest::Harness<'_, GuestApp>, dir: &std::path::Path, what: &str) {
+    for (w, h) in [(800.0, 600.0), (1600.0, 1000.0)] {
+        window.set_size(Vec2::new(w, h));
+        window.step();
+        window.step();
+        let _ = window
+            .render()
+            .map(|i| i.save(dir.join(format!("window-{w}-{what}.png"))));
+    }
+}
+
+/// The page at 800 and 1600 px wide, saved as `page-{size}-{what}.png`.
+fn page_shots(page: &mut Browser, dir: &std::path::Path, what: &str) {
+    for (w, h) in [(800, 900), (1600, 1000)] {
+        page.resize(w, h);
+        std::thread::sleep(Duration::from_millis(300));
+        page.screenshot(&dir.join(format!("page-{w}-{what}.png")));
+    }
+}
+
+/// Ada watches from a page opened during Bob's run: the twin's verdict on
+/// his definition is there, not stale news.
+fn observer_joins(url: &str, dir: &std::path::Path) -> Browser {
+    let mut ada_page = Browser::open(&page(url), (1600, 1000));
+    ada_page.expect(
+        "vl.link === 'refused' || vl.link === 'open'",
+        Duration::from_secs(10),
+    );
+    log_in(&mut ada_page, "ada", "ada's secret", false);
+    ada_page.expect(
+        "document.getElementById('forecast').innerText.startsWith(\"tried on the lab's twin\")",
+        Duration::from_secs(10),
+    );
+    ada_page.expect(
+        "document.getElementById('run').innerText === 'a run is under way'",
+        Duration::from_secs(5),
+    );
+    page_shots(&mut ada_page, dir, "observer-joins");
+
+    ada_page
+}
+
+/// Bob stops his run: the robot drives back, the twin passes what is
+/// defined again, and nothing alarming is left on screen.
+fn bob_stops(
+    bob: &mut egui_kittest::Harness<'_, GuestApp>,
+    ada_page: &mut Browser,
+    dir: &std::path::Path,
+) {
+    bob.get_by_label("Stop").click();
+    step_until(bob, "see the run end", |app| app.session().done.is_some());
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let s = bob.state().session();
+        if s.ready() && s.forecast.as_ref().is_some_and(|f| f.passed()) {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the lab never got ready after Stop"
+        );
+        bob.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let errors = &bob.state().session().errors;
+    assert!(errors.is_empty(), "{errors:?}");
+    shots(bob, dir, "after-stop");
+    ada_page.expect(
+        "document.getElementById('run').innerText.startsWith('last run: stopped by the operator')",
+        Duration::from_secs(10),
+    );
+    page_shots(ada_page, dir, "after-stop");
 }

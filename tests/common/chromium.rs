@@ -260,6 +260,14 @@ impl Browser {
         self.call("Input.insertText", json!({"text": text}));
     }
 
+    /// The page laid out for a window `width` × `height` px from now on.
+    pub(crate) fn resize(&mut self, width: u32, height: u32) {
+        self.call(
+            "Emulation.setDeviceMetricsOverride",
+            json!({"width": width, "height": height, "deviceScaleFactor": 1, "mobile": false}),
+        );
+    }
+
     /// The page as shown, saved to `path`.
     pub(crate) fn screenshot(&mut self, path: &std::path::Path) -> image::RgbaImage {
         let shot = self.call("Page.captureScreenshot", json!({"format": "png"}));
