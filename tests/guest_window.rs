@@ -1407,6 +1407,21 @@ fn a_downloaded_run_replays_in_the_window_and_scrubbing_moves_the_robot() {
             "/target/tmp/guest-window-results.png"
         ))
         .unwrap();
+    // And at either end of the sizes people use.
+    for (w, h) in [(800.0, 600.0), (1600.0, 1000.0)] {
+        harness.set_size(Vec2::new(w, h));
+        harness.step();
+        harness.step();
+        let plot = harness.get_by_label("off the planned path, mm, against s").rect();
+        let view = harness.get_by_label(vl_guest::CAMERA_VIEW).rect();
+        assert!(plot.left() >= view.right() - 1.0, "at {w} px: {plot:?} over {view:?}");
+        let _ = harness.render().map(|i| {
+            i.save(format!(
+                "{}/guest-window-results-{w}.png",
+                env!("CARGO_TARGET_TMPDIR")
+            ))
+        });
+    }
 }
 
 /// A definition saved as a task in the window is loaded back and defined

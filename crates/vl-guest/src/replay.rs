@@ -149,8 +149,11 @@ impl Replay {
         if !self.show_results {
             return;
         }
+        // A third of the window at most: the camera view keeps the most.
+        let width = (ui.available_width() * 0.3).clamp(200.0, 420.0);
         egui::Panel::right("results")
-            .default_size(360.0)
+            .default_size(width)
+            .max_size(width)
             .show(ui, |ui| {
                 ui.heading("Results");
                 egui::ScrollArea::vertical().show(ui, |ui| self.results.show(ui, self.at_s));
