@@ -110,7 +110,14 @@ pub(crate) async fn host_command(command: HostCommand) -> Result<()> {
             commands,
             json,
         }) => {
-            let latency = vl_host::operator_latency(observers as usize, commands as usize)
+            let began = std::time::Instant::now();
+            let step = |what: &str| {
+                eprintln!(
+                    "vl host bench: {:>4.0} s  {what}…",
+                    began.elapsed().as_secs_f64()
+                );
+            };
+            let latency = vl_host::operator_latency(observers as usize, commands as usize, step)
                 .await
                 .context("the operator bench failed")?;
             emit(&latency, json)

@@ -1412,9 +1412,14 @@ fn a_downloaded_run_replays_in_the_window_and_scrubbing_moves_the_robot() {
         harness.set_size(Vec2::new(w, h));
         harness.step();
         harness.step();
-        let plot = harness.get_by_label("off the planned path, mm, against s").rect();
+        let plot = harness
+            .get_by_label("off the planned path, mm, against s")
+            .rect();
         let view = harness.get_by_label(vl_guest::CAMERA_VIEW).rect();
-        assert!(plot.left() >= view.right() - 1.0, "at {w} px: {plot:?} over {view:?}");
+        assert!(
+            plot.left() >= view.right() - 1.0,
+            "at {w} px: {plot:?} over {view:?}"
+        );
         let _ = harness.render().map(|i| {
             i.save(format!(
                 "{}/guest-window-results-{w}.png",

@@ -367,7 +367,11 @@ async fn started(url: &str, script: &Script) -> Result<(Scripted, Definition, Go
         Some(definition) => definition.clone(),
         None => Route::plan(&lab, start, goal, Vec::new(), &Settings::default())?.definition,
     };
-    script.task.keep(script.experiment, &definition)?;
+    if let Some(file) = script.task.keep(script.experiment, &definition)?
+        && script.progress
+    {
+        eprintln!("saved the definition as a task: {}", file.display());
+    }
     guest.connection.send(GuestMessage::Define {
         definition: definition.clone(),
     });
@@ -401,16 +405,18 @@ pub async fn drive_to_goal(url: &str, script: &Script) -> Result<ScriptReport, S
     let (mut guest, definition, goal) = started(url, script).await?;
     let ignore = |_: &mut Session, _: &Connection| {};
 
-    // The Host follows the path; the Guest watches it go.
+    // The Host follows the path; the Guest watches it go. No commands, so
+    // no events to count: the run's time instead.
     let mut last_progress = Instant::now();
+    let since = Instant::now();
     let progress = script.progress;
     let watch = move |session: &mut Session, _: &Connection| {
         let Some(robot) = &session.robot else { return };
         if progress && last_progress.elapsed() >= Duration::from_secs(1) {
             last_progress = Instant::now();
             eprintln!(
-                "event {:>5}  pose ({:>5.0}, {:>5.0}) mm  {:>5.0} mm to go",
-                robot.event,
+                "{:>5.1} s  pose ({:>5.0}, {:>5.0}) mm  {:>5.0} mm to go",
+                since.elapsed().as_secs_f64(),
                 robot.pose.x_mm,
                 robot.pose.y_mm,
                 robot.pose.point().distance(goal.point())
@@ -607,6 +613,12 @@ impl vl_report::table::Report for ScriptReport {
             (
                 "against the forecast",
                 self.forecast.map_or("–".into(), |gap| gap.to_string()),
+            ),
+            (
+                "recording",
+                self.downloaded
+                    .as_ref()
+                    .map_or("–".into(), |file| file.display().to_string()),
             ),
         ])
     }

@@ -88,11 +88,13 @@ impl Tasks {
     }
 
     /// Keeps `task` as `name`, replacing any task of that name.
-    pub fn save(&self, name: &TaskName, task: &Task) -> Result<(), TaskError> {
+    /// Saves `task` as `name`; returns the file it is in.
+    pub fn save(&self, name: &TaskName, task: &Task) -> Result<PathBuf, TaskError> {
         std::fs::create_dir_all(&self.dir).map_err(|e| TaskError::Io(self.dir.clone(), e))?;
         let path = self.path(name);
         let text = serde_json::to_vec_pretty(task).expect("tasks serialise");
-        std::fs::write(&path, text).map_err(|e| TaskError::Io(path, e))
+        std::fs::write(&path, text).map_err(|e| TaskError::Io(path.clone(), e))?;
+        Ok(path)
     }
 
     pub fn load(&self, name: &TaskName) -> Result<Task, TaskError> {
@@ -145,20 +147,21 @@ impl TaskChoice {
             .transpose()
     }
 
-    /// Keeps the definition a run was given, if a name was given for it.
+    /// Keeps the definition a run was given, if a name was given for it;
+    /// returns the file it went to.
     pub(crate) fn keep(
         &self,
         experiment: Experiment,
         definition: &Definition,
-    ) -> Result<(), TaskError> {
+    ) -> Result<Option<PathBuf>, TaskError> {
         let Some(name) = &self.save_task else {
-            return Ok(());
+            return Ok(None);
         };
         let task = Task {
             experiment,
             definition: definition.clone(),
         };
-        Tasks::of_user()?.save(name, &task)
+        Tasks::of_user()?.save(name, &task).map(Some)
     }
 }
 

@@ -107,7 +107,15 @@ impl Report for PlanReport {
                     count(self.path.len() as u64, "sample", "samples")
                 ),
             ));
-            rows.push(("clearance", format!("{clear:.1} mm at the closest")));
+            // Not the body's distance from obstacles (the window's "keeps"):
+            // how far the centre may stray off the path before the C-space,
+            // whose obstacles are grown by the body and the margin, blocks it.
+            rows.push((
+                "room to stray",
+                format!(
+                    "{clear:.1} mm at the closest, in the C-space (obstacles grown by the body)"
+                ),
+            ));
         }
         rows.push(("planned in", format!("{:.2} ms", self.seconds * 1e3)));
         Table::pairs(rows)

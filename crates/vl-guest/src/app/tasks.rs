@@ -21,17 +21,19 @@ impl GuestApp {
                 let save = ui.add_enabled(definition.is_some(), egui::Button::new("Save"));
                 if let (true, Some(definition)) = (save.clicked(), definition) {
                     let saved = self.task_name.parse::<TaskName>().and_then(|name| {
-                        tasks.save(
+                        let file = tasks.save(
                             &name,
                             &Task {
                                 experiment,
                                 definition,
                             },
                         )?;
-                        Ok(name)
+                        Ok((name, file))
                     });
                     self.task_note = Some(match saved {
-                        Ok(name) => format!("Saved the definition as \"{name}\"."),
+                        Ok((name, file)) => {
+                            format!("Saved the definition as \"{name}\" in {}.", file.display())
+                        }
                         Err(e) => e.to_string(),
                     });
                 }

@@ -222,11 +222,14 @@ async fn observe(mut ws: Socket, mut stop: tokio::sync::watch::Receiver<bool>) -
     (feedback, frames, began.elapsed().as_secs_f64())
 }
 
-/// Runs the bench: `observers` reading, `commands` timed.
+/// Runs the bench: `observers` reading, `commands` timed; `step` is told
+/// each stage as it begins (the whole takes minutes).
 pub async fn operator_latency(
     observers: usize,
     commands: usize,
+    mut step: impl FnMut(&str),
 ) -> Result<OperatorLatency, BenchError> {
+    step(&format!("a Host with {observers} observers watching"));
     let listen: SocketAddr = ([127, 0, 0, 1], 0).into();
     let lab = SimLab::new(Arena::named("open").expect("the open arena ships with vl"));
     let mut users = Users::default();
@@ -247,10 +250,17 @@ pub async fn operator_latency(
     }
     let mut operator = teleoperating(&url, Some(ACCOUNT.1)).await?;
     let began = Instant::now();
+    step(&format!("timing {commands} commands"));
     let mut took = time_commands(&mut operator, 1, commands, || false).await?;
     // The next command's event, carried through the rounds.
     let mut event = took.len() as u64 + 1;
+    step(&format!(
+        "timing {commands} commands while passwords are guessed"
+    ));
     let under_guessing = guessing(&mut operator, &url, &mut event, commands).await?;
+    step(&format!(
+        "timing {commands} commands while the twin forecasts"
+    ));
     let while_forecasting = forecasting(&mut operator, &mut event, commands).await?;
     let _ = say(&mut operator, &GuestMessage::Bye).await;
     let _ = stop_tx.send(true);
@@ -261,6 +271,9 @@ pub async fn operator_latency(
         fed.push(counts.unwrap_or_default());
     }
     drop(host);
+    step(&format!(
+        "timing {commands} commands while recording, and without"
+    ));
     let recording = recording::recording_cost(commands).await?;
     took.sort_by(f64::total_cmp);
     let q = |p| nearest_rank(&took, p).unwrap_or(f64::NAN);
