@@ -1407,7 +1407,12 @@ fn a_downloaded_run_replays_in_the_window_and_scrubbing_moves_the_robot() {
             "/target/tmp/guest-window-results.png"
         ))
         .unwrap();
-    // And at either end of the sizes people use.
+    results_beside_the_view_at_800_and_1600(&mut harness);
+}
+
+/// The replay's results beside the camera view, not over it, at either
+/// end of the sizes people use (screenshots saved).
+fn results_beside_the_view_at_800_and_1600(harness: &mut Harness<'_, GuestApp>) {
     for (w, h) in [(800.0, 600.0), (1600.0, 1000.0)] {
         harness.set_size(Vec2::new(w, h));
         harness.step();
