@@ -580,12 +580,12 @@ $("define").onclick = () => {
 $("start").onclick = () => send(VL.guest.start());
 $("stop").onclick = () => send(VL.guest.stop());
 $("estop").onclick = () => {
-  if (send(VL.guest.emergency_stop())) return;
-  vl.error = {
-    code: "not_sent", at: performance.now(),
-    message: "STOP was not sent: the page has no link to the Host now (connecting again). " +
-      "The Host holds the robot still while its operator's link is down.",
-  };
+  if (vl.link === "open" && send(VL.guest.emergency_stop())) return;
+  const message = vl.link === "refused" ?
+    "STOP was not sent: this lab lets only those who log in watch, and STOP is theirs. Log in below to watch." :
+    "STOP was not sent: the page has no link to the Host now (connecting again). " +
+      "The Host holds the robot still while its operator's link is down.";
+  vl.error = { code: "not_sent", at: performance.now(), message };
   render();
 };
 $("plan").onclick = () => {

@@ -70,14 +70,26 @@ pub struct Runs(pub Vec<RecordedRun>);
 
 impl Report for Runs {
     fn table(&self) -> Table {
-        let mut table = Table::columns(&["file", "run", "experiment", "who", "s", "MB", "ending"]);
+        // When it started tells the runs of one Host's day from another's
+        // (each Host numbers its runs from 1).
+        let mut table = Table::columns(&[
+            "file",
+            "started",
+            "run",
+            "experiment",
+            "who",
+            "s",
+            "MB",
+            "ending",
+        ]);
         for r in &self.0 {
             table.row(vec![
                 r.name.to_string(),
+                vl_report::table::utc(r.started_ms),
                 r.run.to_string(),
                 r.experiment
                     .map_or_else(|| "between runs".into(), |e| e.to_string()),
-                r.user.clone().unwrap_or_else(|| "-".into()),
+                r.user.clone().unwrap_or_else(|| "anonymous".into()),
                 r.seconds.map_or_else(|| "-".into(), |s| format!("{s:.1}")),
                 format!("{:.1}", r.bytes as f64 / 1e6),
                 r.ending

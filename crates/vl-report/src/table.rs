@@ -205,3 +205,39 @@ mod markdown_tests {
         );
     }
 }
+
+/// `unix_ms` (ms since 1970, UTC) as people read a time of day:
+/// "2026-11-27 10:52 UTC". (Days to a civil date as in Howard Hinnant's
+/// `civil_from_days`.)
+pub fn utc(unix_ms: u64) -> String {
+    let minutes = unix_ms / 60_000;
+    let (days, minute_of_day) = ((minutes / 1440) as i64, minutes % 1440);
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year}-{month:02}-{day:02} {:02}:{:02} UTC",
+        minute_of_day / 60,
+        minute_of_day % 60
+    )
+}
+
+#[cfg(test)]
+mod utc_tests {
+    use super::utc;
+
+    #[test]
+    fn days_since_1970_are_calendar_dates() {
+        assert_eq!(utc(0), "1970-01-01 00:00 UTC");
+        // 2000-02-29, a leap day in a century year.
+        assert_eq!(utc(951_782_400_000 + 90_000), "2000-02-29 00:01 UTC");
+        assert_eq!(utc(1_795_764_149_849), "2026-11-27 07:22 UTC");
+        assert_eq!(utc(4_102_444_799_000), "2099-12-31 23:59 UTC");
+    }
+}
