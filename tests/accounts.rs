@@ -531,6 +531,24 @@ async fn a_lab_file_sets_the_host_up_and_its_administrator_sees_it() {
             "{event}: {audit}"
         );
     }
+    // A look at the status is logged as one, not as a login to watch.
+    let root_logins: Vec<Value> = audit
+        .lines()
+        .map(|l| serde_json::from_str::<Value>(l).unwrap())
+        .filter(|e| e["event"] == "login" && e["user"] == "root")
+        .collect();
+    assert!(
+        root_logins.iter().any(|e| e["detail"] == "status"),
+        "{root_logins:?}"
+    );
+    assert_eq!(
+        root_logins
+            .iter()
+            .filter(|e| e["detail"] == "observer")
+            .count(),
+        1,
+        "only the kicking session watched: {root_logins:?}"
+    );
 }
 
 /// A lab file with what is not an option of `vl host` is refused, naming it.

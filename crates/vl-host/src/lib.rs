@@ -95,7 +95,7 @@ use vl_sim::{Optics, Scheduled};
 pub use accounts::audit::{Audit, AuditEntry};
 pub use accounts::gate::{
     Admitted, Credentials, FAILURE_DELAY, FAILURE_REFILL, FAILURES_BURST, Gate, Identity,
-    Observers, Refusal,
+    Observers, Purpose, Refusal,
 };
 pub use accounts::users::{AccountRole, Member, Roster, Users, UsersError};
 pub use accounts::{SecretError, secret_from_file};

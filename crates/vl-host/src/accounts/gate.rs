@@ -103,6 +103,19 @@ pub struct Credentials<'a> {
     pub user: Option<&'a str>,
     pub password: Option<&'a str>,
     pub token: Option<&'a str>,
+    /// What they are shown for: the audit tells a session's login from a
+    /// look at the status.
+    pub purpose: Purpose,
+}
+
+/// What credentials are shown for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Purpose {
+    /// A Guest's session, in its role.
+    #[default]
+    Session,
+    /// The administrator's `GET /status`.
+    Status,
 }
 
 /// Why a hello proves no one, as the client is told.
@@ -332,8 +345,10 @@ impl Gate {
             match self.prove(hello, users).await {
                 Ok(identity) => {
                     self.failures().refund(address, account);
-                    self.audit
-                        .record(log("login").detail(hello.role.to_string()));
+                    self.audit.record(log("login").detail(match hello.purpose {
+                        Purpose::Session => hello.role.to_string(),
+                        Purpose::Status => "status".to_owned(),
+                    }));
                     identity
                 }
                 Err(why) => {
@@ -433,6 +448,7 @@ mod tests {
             user,
             password,
             token: None,
+            purpose: Purpose::Session,
         }
     }
 

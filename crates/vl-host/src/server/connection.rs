@@ -22,7 +22,7 @@ use super::foxglove;
 use super::http::{self, Opening};
 use super::hub::{ToConnection, ToHub};
 use super::socket::{self, Sink, Socket, Unwritten};
-use crate::accounts::gate::{Credentials, Gate, Identity};
+use crate::accounts::gate::{Credentials, Gate, Identity, Purpose};
 use crate::accounts::users::AccountRole;
 use crate::lab::Watching;
 use tokio_tungstenite::tungstenite::handshake::server::{Request, Response};
@@ -484,6 +484,7 @@ impl ConnectionTask {
                     user: user.as_deref(),
                     password: password.as_ref().map(|p| p.0.as_str()),
                     token: token.as_deref(),
+                    purpose: Purpose::Session,
                 };
                 match self.gate.check(self.id, self.peer.ip(), hello).await {
                     Ok(admitted) if !self.ticket.seat(admitted.may_drive) => {

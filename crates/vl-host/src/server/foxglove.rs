@@ -23,7 +23,7 @@ use vl_core::{ErrorCode, HostMessage, PROTOCOL_VERSION, Role, Wire};
 use super::admission::Ticket;
 use super::hub::{ToConnection, ToHub};
 use super::socket::{self, Sink, Socket};
-use crate::accounts::gate::{Credentials, Gate};
+use crate::accounts::gate::{Credentials, Gate, Purpose};
 use crate::lab::Watching;
 use vl_record::{Level, Topic, View, Views, now_ns};
 
@@ -300,6 +300,7 @@ impl Watcher {
             user: None,
             password: None,
             token: None,
+            purpose: Purpose::Session,
         };
         let admitted = match self.gate.check(self.id, self.peer.ip(), anyone).await {
             Ok(admitted) if self.ticket.seat(admitted.may_drive) => admitted,

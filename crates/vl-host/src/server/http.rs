@@ -29,7 +29,7 @@ use vl_core::{ErrorCode, Role};
 use super::foxglove::Subprotocol;
 use super::hub::ToHub;
 use super::web;
-use crate::accounts::gate::{Credentials, Gate, Identity};
+use crate::accounts::gate::{Credentials, Gate, Identity, Purpose};
 use crate::accounts::users::AccountRole;
 use vl_core::Io;
 
@@ -233,6 +233,7 @@ async fn admitted(
         user: Some(user),
         password: Some(password),
         token: None,
+        purpose: Purpose::Status,
     };
     let admitted = asking
         .gate
