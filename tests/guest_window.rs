@@ -558,7 +558,7 @@ fn draw_obstacle(harness: &mut Harness<'_, GuestApp>) {
 /// and the mounted camera model.
 fn on_screen(harness: &Harness<'_, GuestApp>, p: Point) -> egui::Pos2 {
     let rect = harness.get_by_label(vl_guest::CAMERA_VIEW).rect();
-    let camera = harness.state().session().lab.as_ref().unwrap().camera;
+    let camera = harness.state().session().lab.as_ref().unwrap().scene.camera;
     let (c, r) = camera.to_pixel(p);
     rect.min
         + Vec2::new(
@@ -1562,4 +1562,50 @@ fn the_window_lists_downloads_and_replays_its_runs() {
     step_until(&mut harness, "be back at the lab", |app| {
         app.session().role == Some(Role::Operator)
     });
+}
+
+/// With frames sent only on change (README's host command), the camera's
+/// image has no robot in it: the window draws the robot from the feedback
+/// over it, before anything is mounted, from the lab's scene its welcome
+/// told (the floor looked empty before).
+#[test]
+fn the_robot_is_drawn_before_anything_is_mounted() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let host = runtime
+        .block_on(Host::start_sim(
+            "127.0.0.1:0".parse().unwrap(),
+            SimLab {
+                camera: Some(SimCamera::default()),
+                ..SimLab::new(Arena::navigation())
+            },
+            HostConfig {
+                frames: vl_host::FramePolicy::OnChange {
+                    max_interval: Duration::from_secs(5),
+                },
+                ..HostConfig::default()
+            },
+        ))
+        .unwrap();
+    let _entered = runtime.enter();
+    let mut harness = window_as(&host.url(), Role::Observer, Vec2::new(1100.0, 720.0));
+    step_until(
+        &mut harness,
+        "see the robot's feedback and a frame",
+        |app| {
+            let s = app.session();
+            s.robot.is_some() && s.frame.is_some() && s.scene().is_some()
+        },
+    );
+    assert!(harness.state().session().lab.is_none(), "nothing mounted");
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-before-mount.png"
+    ));
+    let robot = vl_core::Mark::Robot.rgb();
+    assert!(
+        pixels_of(&image, robot) > 100,
+        "the robot's outline is drawn: {} pixels",
+        pixels_of(&image, robot)
+    );
 }

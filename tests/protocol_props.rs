@@ -438,6 +438,14 @@ fn experiment() -> impl Strategy<Value = Experiment> {
     proptest::sample::select(Experiment::ALL)
 }
 
+fn scene() -> impl Strategy<Value = vl_core::LabScene> {
+    (arena(), robot(), camera()).prop_map(|(arena, robot, camera)| vl_core::LabScene {
+        arena,
+        robot,
+        camera,
+    })
+}
+
 fn host_message() -> impl Strategy<Value = HostMessage> {
     let info = (experiment(), text()).prop_map(|(id, title)| ExperimentInfo { id, title });
     prop_oneof![
@@ -445,30 +453,25 @@ fn host_message() -> impl Strategy<Value = HostMessage> {
             any::<u64>(),
             role(),
             proptest::collection::vec(info, 0..3),
-            proptest::option::of(text())
+            proptest::option::of(text()),
+            proptest::option::of(scene()),
         )
             .prop_map(
-                |(session, role, experiments, resume)| HostMessage::Welcome {
+                |(session, role, experiments, resume, scene)| HostMessage::Welcome {
                     session,
                     role,
                     experiments,
                     user: resume.clone(),
                     resume,
+                    scene: scene.map(Box::new),
                 }
             ),
         (error_code(), text()).prop_map(|(code, message)| HostMessage::Error { code, message }),
         num().prop_map(|t| HostMessage::Ping { t }),
         num().prop_map(|t| HostMessage::Pong { t }),
-        (experiment(), arena(), robot(), camera()).prop_map(
-            |(experiment, arena, robot, camera)| {
-                HostMessage::Mounted(Box::new(MountedLab {
-                    experiment,
-                    arena,
-                    robot,
-                    camera,
-                }))
-            }
-        ),
+        (experiment(), scene()).prop_map(|(experiment, scene)| {
+            HostMessage::Mounted(Box::new(MountedLab { experiment, scene }))
+        }),
         definition().prop_map(|definition| HostMessage::Defined { definition }),
         verdict().prop_map(|v| HostMessage::Forecast(Box::new(v))),
         any::<u64>().prop_map(|event| HostMessage::Started { event }),

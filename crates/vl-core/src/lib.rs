@@ -118,7 +118,7 @@ pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES}
 pub use contract::host_status::{HostStatus, Person, Priorities, Priority, RunRecord};
 pub use contract::legend::Mark;
 pub use contract::protocol::{
-    DecodeError, DeviceState, Drive, ErrorCode, Feedback, GuestMessage, HostMessage,
+    DecodeError, DeviceState, Drive, ErrorCode, Feedback, GuestMessage, HostMessage, LabScene,
     MAX_TEXT_BYTES, MountedLab, PROTOCOL_VERSION, Readiness, Role, Secret, WATCHDOG, Wire,
 };
 pub use contract::recording::{

@@ -350,7 +350,7 @@ async fn started(url: &str, script: &Script) -> Result<(Scripted, Definition, Go
     guest.until("mount", ignore, |s| s.lab.is_some()).await?;
     let lab = guest.session.lab.clone().expect("mounted");
     let task_goal = script.definition.as_ref().and_then(|d| d.goal);
-    let goal = match (task_goal.or(script.goal), lab.arena.goal) {
+    let goal = match (task_goal.or(script.goal), lab.scene.arena.goal) {
         (Some(goal), _) => goal,
         (None, Some(p)) => Goal::at(p),
         (None, None) => return Err(ScriptError::NoGoal(script.experiment)),

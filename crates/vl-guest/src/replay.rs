@@ -81,6 +81,7 @@ impl Replay {
             experiments: Vec::new(),
             resume: None,
             user: None,
+            scene: None,
         })));
         session
     }

@@ -52,7 +52,7 @@ impl Results {
             };
             match &**message {
                 HostMessage::Mounted(lab) => {
-                    results.arena = Some(lab.arena.clone());
+                    results.arena = Some(lab.scene.arena.clone());
                 }
                 HostMessage::Defined { definition } => {
                     path = definition.path.clone();

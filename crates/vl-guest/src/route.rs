@@ -65,7 +65,11 @@ pub fn check_path(
     virtual_obstacles: &[Shape],
     path: &[Point],
 ) -> Result<(), EditRefused> {
-    let cspace = disc_cspace(&lab.arena, virtual_obstacles, lab.robot.radius_mm)?;
+    let cspace = disc_cspace(
+        &lab.scene.arena,
+        virtual_obstacles,
+        lab.scene.robot.radius_mm,
+    )?;
     match path.iter().find(|&&p| !cspace.is_free(p, 0.0)) {
         Some(p) => Err(EditRefused::Blocked {
             x_mm: p.x_mm,
@@ -94,9 +98,9 @@ impl Route {
         settings: &Settings,
     ) -> Result<Route, ArenaPlanError> {
         let plan = plan_route_with_margin(
-            &lab.arena,
+            &lab.scene.arena,
             &virtual_obstacles,
-            &lab.robot,
+            &lab.scene.robot,
             start,
             goal.point(),
             settings.margin_mm,
@@ -117,7 +121,7 @@ impl Route {
         self.definition
             .path
             .iter()
-            .map(|&p| lab.arena.clearance(p) - lab.robot.radius_mm)
+            .map(|&p| lab.scene.arena.clearance(p) - lab.scene.robot.radius_mm)
             .fold(f64::INFINITY, f64::min)
     }
 }
@@ -131,19 +135,21 @@ mod tests {
         let arena = Arena::navigation();
         MountedLab {
             experiment: Experiment::Navigation,
-            camera: CameraModel::overhead(arena.width_mm, arena.height_mm, 320, 15.0),
-            robot: RobotModel::khepera_ii(),
-            arena,
+            scene: vl_core::LabScene {
+                camera: CameraModel::overhead(arena.width_mm, arena.height_mm, 320, 15.0),
+                robot: RobotModel::khepera_ii(),
+                arena,
+            },
         }
     }
 
     #[test]
     fn a_dragged_path_bends_smoothly_and_is_checked_against_the_cspace() {
         let lab = lab();
-        let goal = Goal::at(lab.arena.goal.unwrap());
+        let goal = Goal::at(lab.scene.arena.goal.unwrap());
         let route = Route::plan(
             &lab,
-            lab.arena.start,
+            lab.scene.arena.start,
             goal,
             Vec::new(),
             &Settings::default(),
@@ -186,10 +192,10 @@ mod tests {
     #[test]
     fn routes_define_the_goal_and_a_clear_path_to_it() {
         let lab = lab();
-        let goal = Goal::at(lab.arena.goal.unwrap());
+        let goal = Goal::at(lab.scene.arena.goal.unwrap());
         let route = Route::plan(
             &lab,
-            lab.arena.start,
+            lab.scene.arena.start,
             goal,
             Vec::new(),
             &Settings::default(),
@@ -205,7 +211,7 @@ mod tests {
         assert!(
             Route::plan(
                 &lab,
-                lab.arena.start,
+                lab.scene.arena.start,
                 blocked,
                 Vec::new(),
                 &Settings::default()

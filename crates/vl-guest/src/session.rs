@@ -202,6 +202,9 @@ pub struct Session {
     /// How many mounts this Guest has seen: each (the same experiment
     /// mounted again for a new operator too) starts the lab afresh.
     pub mounts: u64,
+    /// The lab's floor, robot and camera, as the welcome (or the mount)
+    /// told them: enough to draw the robot before anything is mounted.
+    pub floor: Option<vl_core::LabScene>,
     /// The lab's last run that ended, as the Host last said.
     pub last_run: Option<vl_core::RunRecord>,
     /// Why this Guest's control was taken (its slot ended, an
@@ -268,6 +271,7 @@ impl Default for Session {
             slot_ends: None,
             welcomes: 0,
             mounts: 0,
+            floor: None,
             last_run: None,
             control_ended: None,
             waiting: 0,
@@ -316,8 +320,12 @@ impl Session {
                 role,
                 experiments,
                 user,
+                scene,
                 ..
-            } => self.welcomed(session, role, experiments, user),
+            } => {
+                self.welcomed(session, role, experiments, user);
+                self.floor = scene.map(|s| *s);
+            }
             HostMessage::Error { code, message } => {
                 if self.errors.len() == ERRORS_KEPT {
                     self.errors.pop_front();
@@ -325,6 +333,7 @@ impl Session {
                 self.errors.push_back((code, message));
             }
             HostMessage::Mounted(lab) => {
+                self.floor = Some(lab.scene.clone());
                 self.lab = Some(*lab);
                 self.mounts += 1;
                 self.definition = None;
@@ -461,7 +470,7 @@ impl Session {
         self.predictor
             .feedback(robot.event, robot.pose, robot.wheels, now);
         if let Some(lab) = &self.lab {
-            self.predictor.remember(&lab.robot, now);
+            self.predictor.remember(&lab.scene.robot, now);
         }
         self.feedback_at = Some(now);
         self.robot = Some(robot);
@@ -559,7 +568,7 @@ impl Session {
         }
         if let Some(lab) = &self.lab {
             self.predictor
-                .sent(self.sent_event, drive.wheels(&lab.robot), now);
+                .sent(self.sent_event, drive.wheels(&lab.scene.robot), now);
         }
         Some(GuestMessage::Command {
             event: self.sent_event,
@@ -572,7 +581,13 @@ impl Session {
     /// feedback has come.
     pub fn predicted(&self, now: Instant) -> Option<Pose> {
         let lab = self.lab.as_ref()?;
-        self.predictor.predict(&lab.robot, now)
+        self.predictor.predict(&lab.scene.robot, now)
+    }
+
+    /// What to draw the lab with: the mounted lab's scene, else the one
+    /// the welcome told.
+    pub fn scene(&self) -> Option<&vl_core::LabScene> {
+        self.lab.as_ref().map(|l| &l.scene).or(self.floor.as_ref())
     }
 
     /// Whether the run under way, or the next, follows its path on the Host.

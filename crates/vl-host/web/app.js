@@ -29,7 +29,7 @@ const ROLES = { operator: "driving", observer: "watching" };
 // Everything the page knows, one place (read by the tests as window.vl).
 const vl = {
   socket: null, link: "connecting", role: null, session: null, resume: null,
-  wanted: "observer", login: {}, user: null, lineAfterWelcome: false, experiments: [], lab: null, state: null,
+  wanted: "observer", login: {}, user: null, lineAfterWelcome: false, experiments: [], lab: null, scene: null, state: null,
   status: null, definition: null, forecast: null, planned: null, goal: null,
   feedback: null, trail: [], running: false, lastEvent: 0, sentEvent: 0,
   lastCommandAt: 0, summary: null, error: null, rttMs: null,
@@ -116,6 +116,7 @@ function take(m) {
       vl.link = "open"; vl.role = m.role; vl.session = m.session; vl.user = m.user || null;
       vl.slotEnds = m.slot_s ? performance.now() + m.slot_s * 1000 : null;
       vl.experiments = m.experiments || []; vl.resume = m.resume || null;
+      vl.scene = m.scene || null; vl.lab = null;
       // Told someone drives: wait in line for control, as `vl guest` does.
       if (vl.lineAfterWelcome && m.role === "observer") send(VL.guest.queue());
       vl.lineAfterWelcome = false;
@@ -282,7 +283,10 @@ window.addEventListener("gamepaddisconnected", () => { vl.gamepad = null; render
 const canvas = $("camera");
 const ctx = canvas.getContext("2d");
 
-function camera() { return vl.lab && vl.lab.camera; }
+// The floor, robot and camera to draw with: the mounted lab's, else the
+// welcome's (the robot is drawn before anything is mounted).
+function scene() { return vl.lab || vl.scene; }
+function camera() { const s = scene(); return s && s.camera; }
 
 function polyline(points, style, width, dash) {
   const cam = camera();
@@ -300,7 +304,7 @@ function polyline(points, style, width, dash) {
 
 // The arena as its map describes it, where there is no camera image.
 function drawArena(cam) {
-  const arena = vl.lab.arena;
+  const arena = scene().arena;
   const shape = (points) => {
     ctx.beginPath();
     points.forEach((p, i) => {
@@ -352,7 +356,7 @@ function draw() {
   if (vl.feedback) {
     const pose = vl.feedback.pose;
     const [x, y] = VL.toPixel(cam, pose);
-    const r = vl.lab.robot.radius_mm;
+    const r = scene().robot.radius_mm;
     const [hx, hy] = VL.toPixel(cam, {
       x_mm: pose.x_mm + r * Math.cos(pose.theta_rad),
       y_mm: pose.y_mm + r * Math.sin(pose.theta_rad),

@@ -58,7 +58,7 @@ impl Views {
     /// The arena, its obstacles, the path and the robot's body as a scene.
     pub fn scene(&self, ns: u64) -> Option<View> {
         let lab = self.lab.as_ref()?;
-        let scene = foxglove::scene(ns, &lab.arena, &self.definition, &lab.robot);
+        let scene = foxglove::scene(ns, &lab.scene.arena, &self.definition, &lab.scene.robot);
         Some(View::json(Topic::Scene, ns, &scene))
     }
 
@@ -120,9 +120,9 @@ impl Views {
             &foxglove::image(taken, jpeg),
         )];
         if let Some(lab) = &self.lab {
-            let robot = self.pose.map(|p| (p, lab.robot.radius_mm));
+            let robot = self.pose.map(|p| (p, lab.scene.robot.radius_mm));
             let annotations =
-                foxglove::annotations(taken, &lab.camera, &self.definition.path, robot);
+                foxglove::annotations(taken, &lab.scene.camera, &self.definition.path, robot);
             views.push(View::json(Topic::Annotations, taken, &annotations));
         }
         views

@@ -299,7 +299,7 @@ impl RunFile {
                         .map_or("between runs", |e| e.id())
                         .to_owned(),
                 ),
-                ("arena".to_owned(), begin.lab.arena.name.clone()),
+                ("arena".to_owned(), begin.lab.scene.arena.name.clone()),
                 (
                     "user".to_owned(),
                     begin.owner.user.clone().unwrap_or_default(),
@@ -317,7 +317,10 @@ impl RunFile {
                 "definition.json",
                 serde_json::to_vec_pretty(&begin.definition),
             ),
-            ("robot.json", serde_json::to_vec_pretty(&begin.lab.robot)),
+            (
+                "robot.json",
+                serde_json::to_vec_pretty(&begin.lab.scene.robot),
+            ),
             ("lab.json", serde_json::to_vec_pretty(&begin.lab)),
             ("config.json", serde_json::to_vec_pretty(&begin.config)),
         ] {

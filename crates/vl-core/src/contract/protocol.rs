@@ -285,6 +285,14 @@ pub enum GuestMessage {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MountedLab {
     pub experiment: Experiment,
+    #[serde(flatten)]
+    pub scene: LabScene,
+}
+
+/// What a Guest needs to draw the lab, mounted or not: told at the welcome
+/// too, so the robot is drawn on the floor before anything is mounted.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LabScene {
     /// The floor and its obstacles: as the camera sees them when the lab
     /// has one, else as configured.
     pub arena: Arena,
@@ -310,6 +318,9 @@ pub enum HostMessage {
         /// The account the Guest logged in as.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         user: Option<String>,
+        /// The lab's floor, robot and camera, to draw before a mount.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        scene: Option<Box<LabScene>>,
     },
     Error {
         code: ErrorCode,

@@ -336,7 +336,7 @@ impl GuestApp {
             self.plan_note = None;
             self.trail.clear();
             self.dragging_sample = None;
-            if let Some(goal) = lab.arena.goal {
+            if let Some(goal) = lab.scene.arena.goal {
                 self.goal.x_mm = goal.x_mm;
                 self.goal.y_mm = goal.y_mm;
             }
@@ -407,7 +407,7 @@ impl GuestApp {
             return;
         }
         let asked = self.teleop.desired(stick);
-        let drive = Drive::from(self.teleop.wheels(&lab.robot, asked));
+        let drive = Drive::from(self.teleop.wheels(&lab.scene.robot, asked));
         if let Some(command) = self.session.next_command(drive, Instant::now()) {
             self.connection.send(command);
         }
@@ -440,8 +440,8 @@ impl GuestApp {
         let (robot, lab) = (self.session.robot.as_ref()?, self.session.lab.as_ref()?);
         let w = robot.wheels;
         let v = (w.left_mm_s + w.right_mm_s) / 2.0;
-        let turn = (w.right_mm_s - w.left_mm_s) / lab.robot.wheel_base_mm;
-        let Vector { x, y } = self.teleop.velocity_for(&lab.robot, v, turn);
+        let turn = (w.right_mm_s - w.left_mm_s) / lab.scene.robot.wheel_base_mm;
+        let Vector { x, y } = self.teleop.velocity_for(&lab.scene.robot, v, turn);
         let top = self.teleop.max_speed_mm_s;
         Some(Vec2::new((-y / top) as f32, (x / top) as f32))
     }

@@ -325,7 +325,7 @@ impl GuestApp {
             .session
             .robot
             .as_ref()
-            .map_or(lab.arena.start, |r| r.pose);
+            .map_or(lab.scene.arena.start, |r| r.pose);
         let obstacles = self.virtual_obstacles.clone();
         let definition = match Route::plan(lab, start, self.goal, obstacles.clone(), &self.settings)
         {

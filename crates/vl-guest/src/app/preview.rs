@@ -6,7 +6,7 @@
 use std::time::Instant;
 
 use egui::{Color32, Pos2, Stroke, Vec2};
-use vl_core::{ForecastVerdict, MountedLab, Point, SeedRun};
+use vl_core::{ForecastVerdict, LabScene, Point, SeedRun};
 
 use super::view::OnScreen;
 use super::{FORECAST_COLOUR, GuestApp};
@@ -115,7 +115,7 @@ impl GuestApp {
         &self,
         painter: &egui::Painter,
         view: &OnScreen,
-        lab: &MountedLab,
+        scene: &LabScene,
     ) {
         let Some(verdict) = &self.session.forecast else {
             return;
@@ -123,7 +123,7 @@ impl GuestApp {
         if self.session.running {
             return;
         }
-        let r = lab.robot.radius_mm as f32 * view.px_per_mm;
+        let r = scene.robot.radius_mm as f32 * view.px_per_mm;
         let every = verdict.forecast.path_every_s;
         for run in &verdict.forecast.runs {
             let path: Vec<Pos2> = run.path.iter().map(|&p| view.to_screen(p)).collect();

@@ -4,7 +4,7 @@
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureOptions, Vec2};
 use vl_core::{
-    Definition, GuestMessage, Mark, MountedLab, Point, Pose, Shape, arena_of, disc_cspace,
+    Definition, GuestMessage, LabScene, Mark, MountedLab, Point, Pose, Shape, arena_of, disc_cspace,
 };
 
 use std::time::Instant;
@@ -29,9 +29,11 @@ impl GuestApp {
     /// camera, the arena as its model describes it.
     pub(super) fn camera_view(&mut self, ui: &mut egui::Ui) {
         self.take_frame(ui.ctx());
-        let image_size = match (&self.texture, &self.session.lab) {
+        let image_size = match (&self.texture, self.session.scene()) {
             (Some((_, texture)), _) => texture.size_vec2(),
-            (None, Some(lab)) => Vec2::new(lab.camera.width_px as f32, lab.camera.height_px as f32),
+            (None, Some(scene)) => {
+                Vec2::new(scene.camera.width_px as f32, scene.camera.height_px as f32)
+            }
             (None, None) => {
                 let waiting = match &self.session.link {
                     LinkState::Connecting if !self.session.errors.is_empty() => {
@@ -53,10 +55,10 @@ impl GuestApp {
             .max(0.1);
         let (rect, response) = ui.allocate_exact_size(image_size * scale, Sense::click_and_drag());
         response.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Image, true, CAMERA_VIEW));
-        let on_floor = |pos: Pos2, lab: &MountedLab| on_floor(rect, pos, lab);
+        let on_floor = |pos: Pos2, scene: &LabScene| on_floor(rect, pos, scene);
         self.interact(ui, &response, rect);
         let painter = ui.painter_at(rect);
-        match (&self.texture, &self.session.lab) {
+        match (&self.texture, self.session.scene()) {
             (Some((_, texture)), _) => {
                 painter.image(
                     texture.id(),
@@ -65,25 +67,26 @@ impl GuestApp {
                     Color32::WHITE,
                 );
             }
-            (None, Some(lab)) => {
+            (None, Some(scene)) => {
                 painter.rect_filled(rect, 0.0, FLOOR_COLOUR);
-                let view = OnScreen::new(rect, lab);
-                for obstacle in &lab.arena.obstacles {
+                let view = OnScreen::new(rect, scene);
+                for obstacle in &scene.arena.obstacles {
                     view.fill(&painter, &obstacle.shape, OBSTACLE_COLOUR);
                 }
             }
             (None, None) => {}
         }
-        if let Some(lab) = self.session.lab.clone() {
-            let view = OnScreen::new(rect, &lab);
-            if self.show_cspace {
+        // Before a mount too: the welcome told the floor, the robot and the camera.
+        if let Some(scene) = self.session.scene().cloned() {
+            let view = OnScreen::new(rect, &scene);
+            if let (true, Some(lab)) = (self.show_cspace, self.session.lab.clone()) {
                 painter.add(self.cspace_mesh(&view, &lab));
             }
             if self.trail.len() > 1 {
                 let line: Vec<Pos2> = self.trail.iter().map(|&p| view.to_screen(p)).collect();
                 painter.line(line, Stroke::new(1.5, TRAIL_COLOUR));
             }
-            self.overlay(&painter, &view, &lab);
+            self.overlay(&painter, &view, &scene);
             for obstacle in &self.virtual_obstacles {
                 view.outline(
                     &painter,
@@ -92,7 +95,7 @@ impl GuestApp {
                 );
             }
             if let (Some(from), Some(pos)) = (self.drag_from, response.interact_pointer_pos())
-                && let Some(shape) = drawn_box(from, on_floor(pos, &lab))
+                && let Some(shape) = drawn_box(from, on_floor(pos, &scene))
             {
                 view.outline(&painter, &shape, Stroke::new(1.5, VIRTUAL_COLOUR));
             }
@@ -101,7 +104,7 @@ impl GuestApp {
                 self.dragging_sample,
                 response.interact_pointer_pos(),
                 &self.session.definition,
-            ) && let Ok(bent) = drag_path(&definition.path, index, on_floor(pos, &lab))
+            ) && let Ok(bent) = drag_path(&definition.path, index, on_floor(pos, &scene))
             {
                 let line: Vec<Pos2> = bent.iter().map(|&p| view.to_screen(p)).collect();
                 painter.line(line, Stroke::new(1.5, PATH_COLOUR.gamma_multiply(0.6)));
@@ -133,7 +136,7 @@ impl GuestApp {
     /// What a click or drag on the view does: draws a virtual obstacle,
     /// bends the path, or places the goal.
     fn interact(&mut self, ui: &egui::Ui, response: &egui::Response, rect: Rect) {
-        let on_floor = |pos: Pos2, lab: &MountedLab| on_floor(rect, pos, lab);
+        let on_floor = |pos: Pos2, lab: &MountedLab| on_floor(rect, pos, &lab.scene);
         if let (Some(pos), Some(lab)) = (response.interact_pointer_pos(), &self.session.lab) {
             let p = on_floor(pos, lab);
             // A drag is seen to start only once the pointer has moved a
@@ -153,7 +156,8 @@ impl GuestApp {
             } else if !self.session.running && self.session.is_operator() {
                 if response.drag_started() {
                     // A drag that starts on the defined path bends it.
-                    self.dragging_sample = self.sample_near(origin, &OnScreen::new(rect, lab));
+                    self.dragging_sample =
+                        self.sample_near(origin, &OnScreen::new(rect, &lab.scene));
                 }
                 if response.drag_stopped()
                     && let Some(index) = self.dragging_sample.take()
@@ -257,12 +261,15 @@ impl GuestApp {
     /// computed again only when either changes.
     fn cspace_boxes(&mut self, lab: &MountedLab) -> &[Shape] {
         let key = CSpaceKey {
-            arena: lab.arena.clone(),
+            arena: lab.scene.arena.clone(),
             virtual_obstacles: self.virtual_obstacles.clone(),
         };
         if self.cspace.as_ref().is_none_or(|(k, _)| *k != key) {
-            let boxes = match disc_cspace(&lab.arena, &self.virtual_obstacles, lab.robot.radius_mm)
-            {
+            let boxes = match disc_cspace(
+                &lab.scene.arena,
+                &self.virtual_obstacles,
+                lab.scene.robot.radius_mm,
+            ) {
                 Ok(cspace) => arena_of(cspace.grid(), "cspace", None)
                     .obstacles
                     .into_iter()
@@ -331,7 +338,7 @@ impl GuestApp {
         text
     }
 
-    fn overlay(&self, painter: &egui::Painter, view: &OnScreen, lab: &MountedLab) {
+    fn overlay(&self, painter: &egui::Painter, view: &OnScreen, scene: &LabScene) {
         let to_screen = |p: Point| view.to_screen(p);
         let px_per_mm = view.px_per_mm;
         // The goal being chosen, before it is defined (the operator's only).
@@ -362,12 +369,12 @@ impl GuestApp {
                 view.outline(painter, obstacle, Stroke::new(2.0, VIRTUAL_COLOUR));
             }
         }
-        self.forecast_overlay(painter, view, lab);
+        self.forecast_overlay(painter, view, scene);
         if let Some(robot) = &self.session.robot {
             let centre = to_screen(robot.pose.point());
-            let r = lab.robot.radius_mm as f32 * px_per_mm;
+            let r = scene.robot.radius_mm as f32 * px_per_mm;
             painter.circle_stroke(centre, r, Stroke::new(2.0, ROBOT_COLOUR));
-            let nose = to_screen(robot.pose.to_world(lab.robot.radius_mm * 1.6, 0.0));
+            let nose = to_screen(robot.pose.to_world(scene.robot.radius_mm * 1.6, 0.0));
             painter.line_segment([centre, nose], Stroke::new(2.0, ROBOT_COLOUR));
             if let Some(tip) = robot.force.and_then(|f| force_tip(robot.pose, f)) {
                 painter.arrow(
@@ -385,7 +392,7 @@ impl GuestApp {
                 let at = to_screen(ghost.point());
                 // An outline only: the camera's image of the robot stays visible.
                 painter.circle_stroke(at, r, Stroke::new(2.0, GHOST_COLOUR));
-                let nose = to_screen(ghost.to_world(lab.robot.radius_mm * 1.6, 0.0));
+                let nose = to_screen(ghost.to_world(scene.robot.radius_mm * 1.6, 0.0));
                 painter.line_segment([at, nose], Stroke::new(1.5, GHOST_COLOUR));
                 painter.line_segment([centre, at], Stroke::new(1.0, GHOST_COLOUR));
             }
@@ -423,24 +430,25 @@ fn force_tip(pose: Pose, [right, ahead]: [f64; 2]) -> Option<Point> {
 /// the view's rectangle.
 pub(super) struct OnScreen<'a> {
     rect: Rect,
-    lab: &'a MountedLab,
+    scene: &'a LabScene,
     pub(super) px_per_mm: f32,
 }
 
 impl<'a> OnScreen<'a> {
-    fn new(rect: Rect, lab: &'a MountedLab) -> OnScreen<'a> {
+    fn new(rect: Rect, scene: &'a LabScene) -> OnScreen<'a> {
         // Lengths drawn as circles (the robot, the goal) take the scale at
         // the image's centre.
-        let px_per_mm = rect.width() / (lab.camera.width_px as f32 * lab.camera.mm_per_px() as f32);
+        let px_per_mm =
+            rect.width() / (scene.camera.width_px as f32 * scene.camera.mm_per_px() as f32);
         OnScreen {
             rect,
-            lab,
+            scene,
             px_per_mm,
         }
     }
 
     pub(super) fn to_screen(&self, p: Point) -> Pos2 {
-        let camera = &self.lab.camera;
+        let camera = &self.scene.camera;
         let (c, r) = camera.to_pixel(p);
         self.rect.min
             + Vec2::new(
@@ -500,8 +508,8 @@ impl<'a> OnScreen<'a> {
 }
 
 /// The point on the floor under `pos` in the view `rect`.
-fn on_floor(rect: Rect, pos: Pos2, lab: &MountedLab) -> Point {
-    let col = (pos.x - rect.min.x) / rect.width() * lab.camera.width_px as f32;
-    let row = (pos.y - rect.min.y) / rect.height() * lab.camera.height_px as f32;
-    lab.camera.to_arena(f64::from(col), f64::from(row))
+fn on_floor(rect: Rect, pos: Pos2, scene: &LabScene) -> Point {
+    let col = (pos.x - rect.min.x) / rect.width() * scene.camera.width_px as f32;
+    let row = (pos.y - rect.min.y) / rect.height() * scene.camera.height_px as f32;
+    scene.camera.to_arena(f64::from(col), f64::from(row))
 }

@@ -98,6 +98,7 @@ impl Hub {
                     .then(|| self.resume.clone())
                     .flatten(),
                 user,
+                scene: Some(Box::new(self.scene())),
             },
         );
         // An operator's slot, when slots have a length, is told with the role.

@@ -412,15 +412,22 @@ impl Hub {
     }
 
     fn mounted(&self) -> Option<HostMessage> {
-        let info = &self.lab.info;
         self.experiment.map(|experiment| {
             HostMessage::Mounted(Box::new(MountedLab {
                 experiment,
-                arena: info.arena.clone(),
-                robot: info.robot.clone(),
-                camera: info.camera,
+                scene: self.scene(),
             }))
         })
+    }
+
+    /// The lab's floor, robot and camera: what a Guest draws it with.
+    fn scene(&self) -> vl_core::LabScene {
+        let info = &self.lab.info;
+        vl_core::LabScene {
+            arena: info.arena.clone(),
+            robot: info.robot.clone(),
+            camera: info.camera,
+        }
     }
 
     /// Whether the supervisor enables `action` now; if not, tells the

@@ -86,16 +86,13 @@ impl Hub {
     /// What a file begins with: the lab as mounted (as it stands, before a
     /// mount), the definition and the Host's settings.
     fn beginning(&self, run: RecordedRun, owner: Owner, definition: &Definition) -> Begin {
-        let info = &self.lab.info;
         let config = &self.config;
         Begin {
             run,
             owner,
             lab: MountedLab {
                 experiment: self.experiment.unwrap_or(config.experiments[0]),
-                arena: info.arena.clone(),
-                robot: info.robot.clone(),
-                camera: info.camera,
+                scene: self.scene(),
             },
             definition: definition.clone(),
             config: json!({
