@@ -1207,6 +1207,7 @@ fn the_forecast_is_previewed_before_start_and_a_refusal_is_shown() {
     let _entered = runtime.enter();
     let mut harness = window(&host.url());
     mount_navigation(&mut harness, |s| s.lab.is_some() && s.robot.is_some());
+    let view_before = harness.get_by_label(vl_guest::CAMERA_VIEW).rect();
     harness
         .get_by_role_and_label(egui::accesskit::Role::Button, "Define")
         .click();
@@ -1214,6 +1215,12 @@ fn the_forecast_is_previewed_before_start_and_a_refusal_is_shown() {
         app.session().forecast.is_some()
     });
     harness.get_by_label("Passed: the run may start.");
+    // The forecast's table opens in the controls: the view does not jump.
+    let view_after = harness.get_by_label(vl_guest::CAMERA_VIEW).rect();
+    assert!(
+        (view_after.left() - view_before.left()).abs() < 1.0,
+        "the camera view moved from {view_before:?} to {view_after:?}"
+    );
     harness.get_by_label_contains("5 of 5 tries");
     let still = harness.render().expect("the window renders");
     harness.get_by_label("Play").click();

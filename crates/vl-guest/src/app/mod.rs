@@ -272,8 +272,12 @@ impl GuestApp {
             }
         }
         egui::Panel::top("status").show(ui, |ui| self.status_bar(ui));
+        // A width of its own, set by the window's: what opens in it (a
+        // forecast's table) wraps instead of widening it, so the camera view
+        // does not jump.
+        let controls = (ui.available_width() * 0.3).clamp(250.0, 340.0);
         egui::Panel::left("controls")
-            .default_size(270.0)
+            .exact_size(controls)
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
             });

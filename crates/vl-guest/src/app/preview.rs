@@ -82,12 +82,15 @@ impl GuestApp {
         for refusal in &verdict.refusals {
             ui.colored_label(REFUSED_COLOUR, format!("• {refusal}"));
         }
+        // Values wrap within the panel's width rather than run off it.
+        let width = ui.available_width();
         egui::Grid::new("forecast figures")
             .num_columns(2)
+            .max_col_width(width * 0.6)
             .show(ui, |ui| {
                 for (what, value) in verdict.figures() {
                     ui.label(what);
-                    ui.label(value);
+                    ui.add(egui::Label::new(value).wrap());
                     ui.end_row();
                 }
             });
