@@ -104,6 +104,8 @@ fn a_class_takes_turns_without_dead_ends() {
             .is_some_and(|l| l.experiment == Experiment::Navigation)
             && app.session().ready()
     });
+    // The window names the next action.
+    bob.get_by_label("Next: click the view for a goal, then Define.");
     shots(&mut bob, &dir, "after-hand-over");
     define_and_start(&mut bob);
 

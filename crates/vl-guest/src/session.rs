@@ -616,6 +616,43 @@ impl Session {
     pub fn ready(&self) -> bool {
         self.devices.is_none_or(|d| d.lab == Readiness::Ready)
     }
+
+    /// What the operator may do next, in words (a lab's state names its
+    /// next action); none for someone watching, whose place in line says it.
+    pub fn next_step(&self) -> Option<&'static str> {
+        if !self.is_operator() {
+            return None;
+        }
+        let Some(lab) = &self.lab else {
+            return Some("Next: mount an experiment.");
+        };
+        let navigation = lab.experiment == Experiment::Navigation;
+        if self.running {
+            return Some(if navigation {
+                "The robot follows the path: Stop ends the run, STOP halts it at once."
+            } else {
+                "Drive with the stick or the arrow keys: Stop ends the run, STOP halts it at once."
+            });
+        }
+        if !self.ready() {
+            return Some("Wait: the robot drives back to its start.");
+        }
+        let Some(definition) = &self.definition else {
+            return Some(if navigation {
+                "Next: click the view for a goal, then Define."
+            } else {
+                "Next: Define the run (no path: you drive), then Start."
+            });
+        };
+        match &self.forecast {
+            None if definition.path.len() > 1 => Some("The lab's twin tries the definition first…"),
+            Some(f) if !f.passed() => {
+                Some("Next: another goal or path: the twin refused this one.")
+            }
+            _ if self.allows(Action::Start) => Some("Next: Start the run."),
+            _ => None,
+        }
+    }
 }
 
 /// Percentiles of the round-trip time, ms.

@@ -552,15 +552,8 @@ impl GuestApp {
             );
         }
         if s.role == Some(Role::Operator) && s.waiting > 0 {
-            let people = if s.waiting == 1 {
-                "person waits"
-            } else {
-                "people wait"
-            };
-            add(
-                &format!("{} {people} for control after you", s.waiting),
-                Color32::LIGHT_BLUE,
-            );
+            // Short: the status bar is one line at 800 px.
+            add(&format!("{} waiting", s.waiting), Color32::LIGHT_BLUE);
         }
         if let Some(devices) = s.devices {
             if devices.robot == DeviceState::Offline {

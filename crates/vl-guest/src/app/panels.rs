@@ -21,6 +21,10 @@ impl GuestApp {
         if self.session.role == Some(Role::Observer) && self.replay.is_none() {
             self.line_panel(ui);
         }
+        if let (Some(step), None) = (self.session.next_step(), &self.replay) {
+            ui.label(egui::RichText::new(step).strong());
+            ui.separator();
+        }
         if self.replay.is_none() {
             self.recordings_panel(ui);
         }

@@ -22,8 +22,12 @@ const QUEUE: usize = 1024;
 pub struct AuditEntry {
     /// Milliseconds since 1970 (UTC).
     pub at_ms: u64,
-    /// What happened: `login`, `login_failed`, `rate_limited`, `welcome`,
-    /// `refused`, `run_started`, `run_ended`, `left`, `lost`.
+    /// What happened: `login` (detail: the role, or `status`),
+    /// `login_failed`, `rate_limited`, `welcome`, `refused` (a hello, and
+    /// why), `queued`, `granted`, `slot_ended`, `kicked`, `released`,
+    /// `run_started`, `run_ended` (with the driver), `reset` (the drive
+    /// back to the start, numbered as runs are), `accounts_read`, and the
+    /// devices' faults and returns.
     pub event: &'static str,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub connection: Option<u64>,

@@ -9,6 +9,7 @@ use vl_core::{
 };
 
 use super::{Hub, ResetRoute};
+use crate::accounts::audit::AuditEntry;
 use crate::lab::LabRequest;
 
 /// A robot this near the start pose, mm and rad, is back: no drive needed
@@ -87,6 +88,13 @@ impl Hub {
             Ok(definition) => {
                 self.runs += 1;
                 self.reset_run = Some(self.runs);
+                // Numbered as runs are, so the audit's numbers have no gaps.
+                self.config
+                    .audit
+                    .record(AuditEntry::new("reset").detail(format!(
+                        "run {}: the robot drives back to its start pose",
+                        self.runs
+                    )));
                 self.lab.request(LabRequest::Start {
                     run: self.runs,
                     definition,
