@@ -11,14 +11,16 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::dial::Target;
+
+mod remembered;
 use futures_util::{SinkExt, StreamExt};
+use remembered::Remembered;
 use thiserror::Error;
 use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::tungstenite::{self, Message};
 use vl_core::{
-    ErrorCode, FrameHeader, GuestMessage, HostMessage, MAX_FRAME_BYTES, MAX_TEXT_BYTES, PartHeader,
-    Role, Wire,
+    FrameHeader, GuestMessage, HostMessage, MAX_FRAME_BYTES, MAX_TEXT_BYTES, PartHeader, Role, Wire,
 };
 
 /// How often the Guest measures the round trip.
@@ -263,96 +265,6 @@ enum Ended {
 struct Served {
     ended: Ended,
     welcomed: bool,
-}
-
-/// What a connection remembers across reconnections.
-#[derive(Default)]
-struct Remembered {
-    /// The last hello the Guest said.
-    hello: Option<GuestMessage>,
-    /// The operator's secret from the last welcome.
-    resume: Option<String>,
-    /// Whether the Guest asked for control and has not had it yet: said
-    /// again after a reconnection, so a dropped link costs no more than
-    /// the place.
-    in_line: bool,
-}
-
-impl Remembered {
-    /// Keeps what a new connection needs from `message`: the operator's
-    /// secret, and the role a grant of control or its end gave.
-    fn heard(&mut self, message: &HostMessage) {
-        let (role, resume) = match message {
-            HostMessage::Welcome { resume, .. } => (None, resume),
-            HostMessage::Role { role, resume, .. } => (Some(*role), resume),
-            _ => return,
-        };
-        if let Some(secret) = resume {
-            self.resume = Some(secret.clone());
-        }
-        if role == Some(Role::Operator) {
-            self.in_line = false;
-        }
-        if let Some(now) = role {
-            self.say_role(now);
-        }
-    }
-
-    /// Keeps `now` as the role a new connection says hello as.
-    fn say_role(&mut self, now: Role) {
-        if let Some(GuestMessage::Hello { role, .. }) = &mut self.hello {
-            *role = now;
-        }
-    }
-
-    /// Whether the Host's `refusal` of the hello says someone else drives
-    /// (or holds the role, or waits for it first), while the Guest said
-    /// hello as operator: then it watches and takes its place in line, as
-    /// a person would, instead of saying the same hello again forever.
-    fn watch_and_queue(&mut self, refusal: &HostMessage) -> Option<GuestMessage> {
-        let asked_to_drive = matches!(
-            &self.hello,
-            Some(GuestMessage::Hello {
-                role: Role::Operator,
-                ..
-            })
-        );
-        let taken = matches!(
-            refusal,
-            HostMessage::Error {
-                code: ErrorCode::OperatorTaken,
-                ..
-            }
-        );
-        if !(asked_to_drive && taken) {
-            return None;
-        }
-        self.say_role(Role::Observer);
-        self.in_line = true;
-        self.hello_again()
-    }
-
-    /// The hello to say on a new connection: the last one, with the secret.
-    fn hello_again(&self) -> Option<GuestMessage> {
-        match self.hello.clone()? {
-            GuestMessage::Hello {
-                protocol,
-                role,
-                token,
-                user,
-                password,
-                ..
-            } => Some(GuestMessage::Hello {
-                protocol,
-                role,
-                token,
-                resume: self.resume.clone(),
-                user,
-                password,
-            }),
-            _ => None,
-        }
-    }
 }
 
 /// Opens a connection to the Host at `url` (ws://host:port): connecting
