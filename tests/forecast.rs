@@ -45,6 +45,18 @@ async fn forecast_of(op: &mut Peer, definition: Value) -> Value {
         .expect("a forecast of the definition")
 }
 
+/// Defines the path planned to the arena's goal; its goal and forecast,
+/// which passed.
+async fn to_the_arenas_goal(op: &mut Peer, arena: &Arena, robot: &RobotModel) -> (Point, Value) {
+    let goal = arena.goal.unwrap();
+    let path = planned(arena, robot, goal);
+    let definition =
+        json!({"goal": {"x_mm": goal.x_mm, "y_mm": goal.y_mm, "tolerance_mm": 15}, "path": path});
+    let forecast = forecast_of(op, definition).await;
+    assert_eq!(forecast["refusals"], json!([]), "{forecast}");
+    (goal, forecast)
+}
+
 /// The refusals' words, one per line.
 fn reasons(forecast: &Value) -> Vec<String> {
     forecast["refusals"]
@@ -75,12 +87,7 @@ async fn refused_in_words(op: &mut Peer, what: &str) {
 async fn a_safe_definition_is_forecast_runs_and_is_compared_with_its_forecast() {
     let (_host, url) = start_host(&[]);
     let (mut op, arena, robot) = mounted(&url).await;
-    let goal = arena.goal.unwrap();
-    let path = planned(&arena, &robot, goal);
-    let definition =
-        json!({"goal": {"x_mm": goal.x_mm, "y_mm": goal.y_mm, "tolerance_mm": 15}, "path": path});
-    let forecast = forecast_of(&mut op, definition).await;
-    assert_eq!(forecast["refusals"], json!([]), "{forecast}");
+    let (_, forecast) = to_the_arenas_goal(&mut op, &arena, &robot).await;
     let runs = forecast["forecast"]["runs"].as_array().unwrap();
     assert_eq!(runs.len(), 5, "five seeds by default");
     assert!(runs.iter().all(|r| r["reached_goal"] == true), "{forecast}");
@@ -299,12 +306,7 @@ fn forecast_limits_out_of_range_are_refused_by_name() {
 async fn a_run_stopped_half_way_keeps_a_definition_that_passes() {
     let (_host, url) = start_host(&[]);
     let (mut op, arena, robot) = mounted(&url).await;
-    let goal = arena.goal.unwrap();
-    let path = planned(&arena, &robot, goal);
-    let definition =
-        json!({"goal": {"x_mm": goal.x_mm, "y_mm": goal.y_mm, "tolerance_mm": 15}, "path": path});
-    let forecast = forecast_of(&mut op, definition).await;
-    assert_eq!(forecast["refusals"], json!([]), "{forecast}");
+    let (goal, _) = to_the_arenas_goal(&mut op, &arena, &robot).await;
     op.start_run().await;
     tokio::time::sleep(Duration::from_millis(1500)).await;
     // Left where it stands: no drive back after an emergency stop.

@@ -1098,25 +1098,34 @@ fn the_window_logs_in_with_an_account() {
     assert!(harness.query_by_label_contains("correct horse").is_none());
 }
 
+/// A simulated Host whose slots last `slot`, someone driving it; its address.
+fn busy_lab(
+    runtime: &tokio::runtime::Runtime,
+    slot: Duration,
+) -> (Host, common::peer::Peer, String) {
+    let host = host_without_camera(
+        runtime,
+        HostConfig {
+            slot: Some(slot),
+            ..HostConfig::default()
+        },
+    );
+    let url = host.url();
+    let driver = runtime.block_on(async {
+        let mut driver = common::peer::Peer::connect(&url).await;
+        driver.hello("operator").await;
+        driver
+    });
+    (host, driver, url)
+}
+
 /// A window opened to drive a lab where someone drives watches and takes
 /// its place in line by itself (it does not log in again and again), shows
 /// the place and the wait with no error, and drives when the slot ends.
 #[test]
 fn a_window_asking_to_drive_a_busy_lab_waits_in_line() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
-    let host = host_without_camera(
-        &runtime,
-        HostConfig {
-            slot: Some(Duration::from_secs(3)),
-            ..HostConfig::default()
-        },
-    );
-    let url = host.url();
-    let _driver = runtime.block_on(async {
-        let mut driver = common::peer::Peer::connect(&url).await;
-        driver.hello("operator").await;
-        driver
-    });
+    let (_host, _driver, url) = busy_lab(&runtime, Duration::from_secs(3));
     let _entered = runtime.enter();
     let mut harness = window_as(&url, Role::Operator, Vec2::new(1100.0, 720.0));
     step_until(&mut harness, "be in line", |app| {
@@ -1141,19 +1150,7 @@ fn a_window_asking_to_drive_a_busy_lab_waits_in_line() {
 #[test]
 fn an_observer_asks_for_control_and_gets_it_in_turn() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
-    let host = host_without_camera(
-        &runtime,
-        HostConfig {
-            slot: Some(Duration::from_secs(2)),
-            ..HostConfig::default()
-        },
-    );
-    let url = host.url();
-    let _driver = runtime.block_on(async {
-        let mut driver = common::peer::Peer::connect(&url).await;
-        driver.hello("operator").await;
-        driver
-    });
+    let (_host, _driver, url) = busy_lab(&runtime, Duration::from_secs(2));
     let _entered = runtime.enter();
     let mut harness = window_as(&url, Role::Observer, Vec2::new(1100.0, 720.0));
     step_until(&mut harness, "be welcomed", |app| {
