@@ -291,4 +291,16 @@ fn bob_stops(
         Duration::from_secs(10),
     );
     page_shots(ada_page, dir, "after-stop");
+    // Someone who opens the page now hears how the lab was last used.
+    let mut late = Browser::open(&page_of(ada_page), (1280, 900));
+    late.expect(
+        "document.getElementById('run').innerText.startsWith('last run: stopped by the operator (run ') && \
+         document.getElementById('run').innerText.endsWith('navigation, driven by bob)')",
+        Duration::from_secs(10),
+    );
+}
+
+/// The address `page` shows.
+fn page_of(page: &mut Browser) -> String {
+    page.eval("location.href").as_str().unwrap().to_owned()
 }
