@@ -166,11 +166,27 @@ async fn a_lab_with_accounts_lets_in_whom_it_names_and_logs_it() {
     assert!(has("run_started", Some("ada")), "{events:?}");
     assert!(has("run_ended", None), "{events:?}");
     assert!(has("refused", Some("bob")), "{events:?}");
-    assert!(has("login_failed", Some("nobody")), "{events:?}");
+    assert!(has("login_failed", Some("ada")), "{events:?}");
+    // A name that is no account's is not kept: it may be a password typed
+    // in the wrong field (issue 43, item 13).
+    assert!(
+        events.iter().any(|e| e["event"] == "login_failed"
+            && e["user"].is_null()
+            && e["detail"] == "a name that is no account's"),
+        "{events:?}"
+    );
+    assert!(
+        events.iter().all(|e| !e.to_string().contains("nobody")),
+        "{events:?}"
+    );
     assert!(
         events.iter().all(|e| !e.to_string().contains("horse")),
         "no password is logged"
     );
+    // The log is the lab manager's alone.
+    use std::os::unix::fs::PermissionsExt;
+    let mode = std::fs::metadata(&audit).unwrap().permissions().mode();
+    assert_eq!(mode & 0o777, 0o600, "audit.jsonl is {mode:o}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -585,4 +601,95 @@ async fn accounts_changed_while_the_lab_runs_count_at_the_next_login() {
     assert_eq!(bob["code"], "unauthorized", "{bob}");
     let audit = std::fs::read_to_string(dir.join("audit.jsonl")).unwrap_or_default();
     assert!(audit.contains("\"event\":\"accounts_read\""), "{audit}");
+}
+
+/// One person, one place: a second connection of an account that waits in
+/// line (or drives) is refused a second place, and the next person is not
+/// put further back (issue 43, item 3).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_account_holds_one_place_in_line() {
+    let dir = scratch("one-place");
+    let file = accounts(&dir);
+    for (name, password) in [("carol", "carol's password"), ("dan", "dan's password")] {
+        assert!(users(&["add", &file, name], password).status.success());
+    }
+    let (_host, url) = start_host(&["--users", &file, "--slot", "10m"]);
+    let mut ada = Peer::connect(&url).await;
+    ada.send(login("operator", "ada", "correct horse")).await;
+    ada.expect("welcome").await;
+    // Ada's second connection may not queue behind her own drive.
+    let mut ada_again = Peer::connect(&url).await;
+    ada_again
+        .send(login("observer", "ada", "correct horse"))
+        .await;
+    ada_again.expect("welcome").await;
+    ada_again.send(json!({"type": "queue"})).await;
+    let refused = ada_again.expect_error("not_allowed_now").await;
+    assert!(
+        refused["message"]
+            .as_str()
+            .unwrap()
+            .contains("one place per account"),
+        "{refused}"
+    );
+    // Carol queues once; her second and third connections are refused.
+    let mut carol = Vec::new();
+    for _ in 0..3 {
+        let mut c = Peer::connect(&url).await;
+        c.send(login("observer", "carol", "carol's password")).await;
+        c.expect("welcome").await;
+        c.send(json!({"type": "queue"})).await;
+        carol.push(c);
+    }
+    assert_eq!(carol[0].expect("queue").await["position"], 1);
+    for c in &mut carol[1..] {
+        c.expect_error("not_allowed_now").await;
+    }
+    // Dan is second, not fourth.
+    let mut dan = Peer::connect(&url).await;
+    dan.send(login("observer", "dan", "dan's password")).await;
+    dan.expect("welcome").await;
+    dan.send(json!({"type": "queue"})).await;
+    assert_eq!(dan.expect("queue").await["position"], 2);
+}
+
+/// 400 `leave_queue` from someone not in line tell the line nothing: those
+/// waiting hear no burst, stay connected, and keep their places (issue 43,
+/// item 6).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_burst_of_leave_queue_costs_the_line_nothing() {
+    let dir = scratch("leave-burst");
+    let file = accounts(&dir);
+    assert!(
+        users(&["add", &file, "carol"], "carol's password")
+            .status
+            .success()
+    );
+    let (_host, url) = start_host(&["--users", &file, "--slot", "10m"]);
+    let mut ada = Peer::connect(&url).await;
+    ada.send(login("operator", "ada", "correct horse")).await;
+    ada.expect("welcome").await;
+    let mut carol = Peer::connect(&url).await;
+    carol
+        .send(login("observer", "carol", "carol's password"))
+        .await;
+    carol.expect("welcome").await;
+    carol.send(json!({"type": "queue"})).await;
+    assert_eq!(carol.expect("queue").await["position"], 1);
+    let mut stranger = Peer::connect(&url).await;
+    stranger.hello("observer").await;
+    for _ in 0..400 {
+        stranger.send(json!({"type": "leave_queue"})).await;
+    }
+    // Carol hears no `queue` for any of them, and is still first.
+    assert!(
+        carol
+            .next_of("queue", Duration::from_millis(1500))
+            .await
+            .is_none(),
+        "the line was told of a burst that changed nothing"
+    );
+    carol.send(json!({"type": "leave_queue"})).await;
+    let told = carol.expect("queue").await;
+    assert!(told["position"].is_null(), "{told}");
 }

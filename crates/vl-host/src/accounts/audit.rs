@@ -83,12 +83,17 @@ pub struct Audit {
 }
 
 impl Audit {
-    /// A log appended to `path`, by a task on the current runtime.
+    /// A log appended to `path`, by a task on the current runtime; the
+    /// file is the lab manager's alone (0600: it says who logged in from
+    /// where), made so or narrowed so.
     pub fn open(path: &Path) -> std::io::Result<Audit> {
+        use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
         let file = std::fs::OpenOptions::new()
             .create(true)
             .append(true)
+            .mode(0o600)
             .open(path)?;
+        file.set_permissions(std::fs::Permissions::from_mode(0o600))?;
         let (queue, entries) = mpsc::channel(QUEUE);
         let dropped = Arc::new(AtomicU64::new(0));
         let writer = Writer {

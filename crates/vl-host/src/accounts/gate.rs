@@ -322,17 +322,23 @@ impl Gate {
         address: IpAddr,
         hello: Credentials<'_>,
     ) -> Result<Admitted, Refusal> {
+        let users = self.users();
+        // A name is logged only when it is an account's: what someone typed
+        // in the name field may be their password.
+        let account = hello
+            .user
+            .filter(|name| users.as_ref().is_some_and(|u| u.role_of(name).is_some()));
         let log = |event: &'static str| {
-            AuditEntry::new(event)
+            let entry = AuditEntry::new(event)
                 .connection(connection)
                 .address(address)
-                .user(hello.user)
+                .user(account);
+            match (hello.user, account) {
+                (Some(_), None) => entry.detail("a name that is no account's"),
+                _ => entry,
+            }
         };
         let identity = if hello.user.is_some() || hello.token.is_some() {
-            let users = self.users();
-            let account = hello
-                .user
-                .filter(|name| users.as_ref().is_some_and(|u| u.role_of(name).is_some()));
             if !self.failures().take(address, account) {
                 self.audit.record(log("rate_limited"));
                 tokio::time::sleep(FAILURE_DELAY).await;
@@ -352,7 +358,12 @@ impl Gate {
                     identity
                 }
                 Err(why) => {
-                    self.audit.record(log("login_failed").detail(why.clone()));
+                    let failed = log("login_failed");
+                    let failed = match failed.detail {
+                        Some(_) => failed,
+                        None => failed.detail(why.clone()),
+                    };
+                    self.audit.record(failed);
                     tokio::time::sleep(FAILURE_DELAY).await;
                     return Err(refusal(ErrorCode::Unauthorized, why));
                 }

@@ -49,13 +49,31 @@ impl Hub {
         if self.queue.iter().any(|p| p.id == Some(id)) {
             return self.refuse(id, ErrorCode::NotAllowedNow, "you are in line already");
         }
+        // One place per account: more connections of one person do not
+        // make the next person wait more slots.
+        let account = self.user_of(id);
+        if let Some(name) = account.as_deref() {
+            let drives = self.operator_user.as_deref() == Some(name);
+            if drives
+                || self
+                    .queue
+                    .iter()
+                    .any(|p| p.account.as_deref() == Some(name))
+            {
+                let why = if drives {
+                    format!("{name} drives already: one place per account")
+                } else {
+                    format!("{name} has a place in line already: one place per account")
+                };
+                return self.refuse(id, ErrorCode::NotAllowedNow, why);
+            }
+        }
         if let Err(e) = self
             .supervisor
             .access(&[(AccessEvent::Ask, Seat::Observer)])
         {
             return self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
         }
-        let account = self.user_of(id);
         self.queue.push_back(Spot {
             id: Some(id),
             account: account.clone(),
@@ -74,7 +92,8 @@ impl Hub {
     /// `id` gives up its place in line (`LeaveQueue`) or is removed from it
     /// (`Kick`).
     pub(super) fn leave_queue(&mut self, id: u64, how: AccessEvent) {
-        if let Some(index) = self.queue.iter().position(|p| p.id == Some(id)) {
+        let left = self.queue.iter().position(|p| p.id == Some(id));
+        if let Some(index) = left {
             self.drop_place(index, how);
         }
         self.send(
@@ -85,7 +104,11 @@ impl Hub {
                 wait_s: None,
             },
         );
-        self.tell_queue();
+        // Only a line that changed is told again: a burst of leave_queue
+        // from someone not in it costs the others nothing.
+        if left.is_some() {
+            self.tell_queue();
+        }
     }
 
     /// A queued client's link dropped (`meant`: it left): an account's
