@@ -51,6 +51,11 @@ pub(crate) struct AccessArgs {
     /// one (every Guest must then pin the new fingerprint).
     #[arg(long, requires = "tls_self_signed")]
     tls_renew: bool,
+    /// Web pages from this origin (https://host[:port]) may open the lab's
+    /// WebSocket too, besides the Host's own page: e.g. Foxglove's web app,
+    /// https://app.foxglove.dev. Repeat it, or separate with commas.
+    #[arg(long, value_delimiter = ',')]
+    allow_origin: Vec<String>,
 }
 
 /// The first line of `path`: a secret kept in a file.
@@ -97,6 +102,8 @@ impl AccessArgs {
         }
         .transpose()
         .map_err(bad_input)?;
+        config.allow_origins = vl_host::AllowedOrigins::new(&self.allow_origin)
+            .map_err(|e| BadInput(format!("--allow-origin: {e}")))?;
         let audit = self
             .audit
             .clone()

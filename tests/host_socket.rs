@@ -562,3 +562,50 @@ async fn the_next_operator_finds_the_experiment_mounted() {
     next.expect("defined").await;
     next.start_run().await;
 }
+
+/// Opens a WebSocket to `url` as a page from `origin` would; the Host's
+/// answer: the status of a refusal, or none when it opened.
+async fn opened_from(url: &str, origin: &str) -> Option<u16> {
+    use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+    let mut request = url.into_client_request().unwrap();
+    request
+        .headers_mut()
+        .insert("origin", origin.parse().unwrap());
+    match tokio_tungstenite::connect_async(request).await {
+        Ok(_) => None,
+        Err(tokio_tungstenite::tungstenite::Error::Http(response)) => {
+            Some(response.status().as_u16())
+        }
+        Err(e) => panic!("{origin}: {e}"),
+    }
+}
+
+/// A page from another origin may not open the lab's WebSocket (a student
+/// who opens it would drive for it); the Host's own page and the origins
+/// it is told to allow may; clients that are no browser send no Origin
+/// (issue 43, item 7). The pages may not be framed.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn only_the_hosts_own_pages_open_its_websocket() {
+    let (_host, url) = start_host(&["--allow-origin", "https://app.foxglove.dev"]);
+    let port = url.rsplit(':').next().unwrap().trim_end_matches('/');
+    assert_eq!(opened_from(&url, "http://evil.example").await, Some(403));
+    assert_eq!(opened_from(&url, "null").await, Some(403));
+    assert_eq!(
+        opened_from(&url, &format!("http://127.0.0.1:{port}")).await,
+        None
+    );
+    assert_eq!(opened_from(&url, "https://app.foxglove.dev").await, None);
+    // The page says who may frame it: no one.
+    let mut stream = std::net::TcpStream::connect(format!("127.0.0.1:{port}")).unwrap();
+    use std::io::{Read, Write};
+    write!(
+        stream,
+        "GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut reply = String::new();
+    stream.read_to_string(&mut reply).unwrap();
+    let head = reply.split("\r\n\r\n").next().unwrap().to_lowercase();
+    assert!(head.contains("frame-ancestors 'none'"), "{head}");
+    assert!(head.contains("x-frame-options: deny"), "{head}");
+}

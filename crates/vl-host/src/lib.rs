@@ -113,6 +113,7 @@ pub use priority::raise_for_control as raise_priority;
 pub use server::bench::{
     BenchError, Guessing, OperatorLatency, WatchersBench, WatchersCost, operator_latency,
 };
+pub use server::origin::{AllowedOrigins, NotAnOrigin};
 pub use server::{ForecastSettings, HostConfig, MOST_FORECAST_SEEDS};
 pub use setup::{LabSpec, RobotSpec, SetupError};
 pub use source::CameraSource;

@@ -142,9 +142,12 @@ function take(m) {
       break;
     case "state": {
       vl.state = m;
-      // Who joins during a run hears no `started`: the net says it runs.
-      const running = (m.marking || []).includes("execute.running");
+      // Who joins during a run hears no `started`: the net says it runs,
+      // and says when it no longer does (a `done` missed is no run forever).
+      const marking = m.marking || [];
+      const running = marking.includes("execute.running");
       if (running && !vl.running) { vl.running = true; vl.trail = []; vl.summary = null; }
+      if (!running && !marking.includes("execute.stopping")) vl.running = false;
       break;
     }
     case "status": vl.status = m; vl.lastRun = m.last_run || null; break;
@@ -568,6 +571,12 @@ function render() {
 }
 
 // ---- controls ---------------------------------------------------------
+
+// The forms submit nowhere: their buttons act (and the page's policy
+// allows no inline handler to say so).
+for (const form of document.querySelectorAll("form")) {
+  form.addEventListener("submit", (e) => e.preventDefault());
+}
 
 // The form's login: an account, else the lab's token.
 function login() {

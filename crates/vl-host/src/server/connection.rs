@@ -26,6 +26,8 @@ use crate::accounts::gate::{Credentials, Gate, Identity, Purpose};
 use crate::accounts::users::AccountRole;
 use crate::lab::Watching;
 use tokio_tungstenite::tungstenite::handshake::server::{Request, Response};
+
+use super::origin::AllowedOrigins;
 use vl_core::Io;
 use vl_record::{Feed, RecordError, Recordable};
 
@@ -166,6 +168,7 @@ async fn handshake(
     tls: Option<Arc<rustls::ServerConfig>>,
     ws_config: WebSocketConfig,
     asking: http::Asking,
+    origins: &AllowedOrigins,
 ) -> Result<Option<Client>, tungstenite::Error> {
     let stream: Box<dyn Io> = match tls {
         Some(tls) => {
@@ -182,14 +185,21 @@ async fn handshake(
     };
     match http::opening(stream).await? {
         Opening::Guest(stream) => {
-            tokio_tungstenite::accept_async_with_config(stream, Some(ws_config))
+            // tungstenite's callback type fixes the error's size.
+            #[allow(clippy::result_large_err)]
+            let answer = |request: &Request, response: Response| {
+                from_allowed_origin(request, origins)?;
+                Ok(response)
+            };
+            tokio_tungstenite::accept_hdr_async_with_config(stream, answer, Some(ws_config))
                 .await
                 .map(|socket| Some(Client::Guest(socket)))
         }
         Opening::Foxglove(stream, subprotocol) => {
             // tungstenite's callback type fixes the error's size.
             #[allow(clippy::result_large_err)]
-            let answer = |_: &Request, mut response: Response| {
+            let answer = |request: &Request, mut response: Response| {
+                from_allowed_origin(request, origins)?;
                 response.headers_mut().insert(
                     "sec-websocket-protocol",
                     tungstenite::http::HeaderValue::from_static(subprotocol.name()),
@@ -208,6 +218,24 @@ async fn handshake(
             Ok(None)
         }
     }
+}
+
+/// Refuses (403, saying why) a WebSocket a web page from an origin the
+/// Host does not allow opens.
+#[allow(clippy::result_large_err)]
+fn from_allowed_origin(
+    request: &Request,
+    origins: &AllowedOrigins,
+) -> Result<(), tungstenite::handshake::server::ErrorResponse> {
+    let header = |name: &str| request.headers().get(name).and_then(|v| v.to_str().ok());
+    origins
+        .admit(header("origin"), header("host"))
+        .map_err(|why| {
+            debug!("{why}");
+            let mut refused = tungstenite::handshake::server::ErrorResponse::new(Some(why));
+            *refused.status_mut() = tungstenite::http::StatusCode::FORBIDDEN;
+            refused
+        })
 }
 
 impl ConnectionTask {
@@ -242,7 +270,8 @@ impl ConnectionTask {
             gate: self.gate.clone(),
             hub: self.hub.clone(),
         };
-        let handshake = handshake(stream, tls, ws_config, asking);
+        let origins = self.config.allow_origins.clone();
+        let handshake = handshake(stream, tls, ws_config, asking, &origins);
         let mut evicted = self.ticket.evicted.clone();
         let ws = tokio::select! {
             ws = tokio::time::timeout(HANDSHAKE_TIMEOUT, handshake) => match ws {

@@ -18,6 +18,7 @@ mod connection;
 mod foxglove;
 mod http;
 mod hub;
+pub(crate) mod origin;
 mod socket;
 mod web;
 
@@ -69,6 +70,9 @@ pub struct HostConfig {
     pub hello_timeout: Duration,
     /// Which camera frames are sent.
     pub frames: FramePolicy,
+    /// Web pages from these origins may open a WebSocket, besides the
+    /// Host's own.
+    pub allow_origins: origin::AllowedOrigins,
     /// How long an operator whose link dropped keeps the role and the run
     /// (the robot held still meanwhile), to say hello again with `resume`.
     pub grace: Duration,
@@ -115,6 +119,7 @@ impl Default for HostConfig {
             ping_timeout: Duration::from_secs(10),
             hello_timeout: Duration::from_secs(10),
             frames: FramePolicy::EveryFrame,
+            allow_origins: origin::AllowedOrigins::default(),
             grace: Duration::from_secs(10),
             nets: None,
             reset: true,

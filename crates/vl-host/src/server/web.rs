@@ -48,6 +48,13 @@ fn legend_js() -> String {
     )
 }
 
+/// The pages' content policy: their own scripts, styles and socket, the
+/// camera's frames as blobs, and no one may frame them (a page in a frame
+/// could be made to click STOP, or Start, for someone else).
+const POLICY: &str = "default-src 'self'; connect-src 'self'; img-src 'self' blob: data:; \
+     style-src 'self'; script-src 'self'; object-src 'none'; base-uri 'none'; \
+     frame-ancestors 'none'; form-action 'none'";
+
 /// The web Guest's routes.
 pub(super) fn routes<S: Clone + Send + Sync + 'static>() -> Router<S> {
     let legend: &'static str = LEGEND_JS.as_str();
@@ -66,6 +73,8 @@ pub(super) fn routes<S: Clone + Send + Sync + 'static>() -> Router<S> {
                         [
                             (header::CONTENT_TYPE, media_type),
                             (header::CACHE_CONTROL, "no-cache"),
+                            (header::CONTENT_SECURITY_POLICY, POLICY),
+                            (header::X_FRAME_OPTIONS, "DENY"),
                         ],
                         body,
                     )
