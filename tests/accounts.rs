@@ -527,7 +527,10 @@ async fn a_lab_file_sets_the_host_up_and_its_administrator_sees_it() {
     let session = status["operator"]["session"].clone();
     root.expect("welcome").await;
     root.send(json!({"type": "kick", "session": session})).await;
-    assert_eq!(ada.expect("done").await["summary"]["reason"], "kicked");
+    assert_eq!(root.expect("done").await["summary"]["reason"], "kicked");
+    // Her connection is ended, saying why: she cannot ask for control
+    // again from it (issue 43, item 4).
+    ended_saying_why(&mut ada).await;
     let logged = ["granted", "run_started", "run_ended", "kicked", "released"];
     let by = Instant::now() + Duration::from_secs(5);
     let audit = loop {
@@ -547,24 +550,7 @@ async fn a_lab_file_sets_the_host_up_and_its_administrator_sees_it() {
             "{event}: {audit}"
         );
     }
-    // A look at the status is logged as one, not as a login to watch.
-    let root_logins: Vec<Value> = audit
-        .lines()
-        .map(|l| serde_json::from_str::<Value>(l).unwrap())
-        .filter(|e| e["event"] == "login" && e["user"] == "root")
-        .collect();
-    assert!(
-        root_logins.iter().any(|e| e["detail"] == "status"),
-        "{root_logins:?}"
-    );
-    assert_eq!(
-        root_logins
-            .iter()
-            .filter(|e| e["detail"] == "observer")
-            .count(),
-        1,
-        "only the kicking session watched: {root_logins:?}"
-    );
+    status_looks_are_logged_as_such(&audit);
 }
 
 /// A lab file with what is not an option of `vl host` is refused, naming it.
@@ -678,8 +664,16 @@ async fn a_burst_of_leave_queue_costs_the_line_nothing() {
     assert_eq!(carol.expect("queue").await["position"], 1);
     let mut stranger = Peer::connect(&url).await;
     stranger.hello("observer").await;
+    // As fast as it may: the Host may cut the stranger off first.
+    let leave = json!({"type": "leave_queue"}).to_string();
     for _ in 0..400 {
-        stranger.send(json!({"type": "leave_queue"})).await;
+        let text = tokio_tungstenite::tungstenite::Message::text(leave.clone());
+        if futures_util::SinkExt::send(&mut stranger.ws, text)
+            .await
+            .is_err()
+        {
+            break;
+        }
     }
     // Carol hears no `queue` for any of them, and is still first.
     assert!(
@@ -692,4 +686,45 @@ async fn a_burst_of_leave_queue_costs_the_line_nothing() {
     carol.send(json!({"type": "leave_queue"})).await;
     let told = carol.expect("queue").await;
     assert!(told["position"].is_null(), "{told}");
+}
+
+/// `peer`'s connection ends with an error saying an administrator ended it.
+async fn ended_saying_why(ada: &mut Peer) {
+    let mut ended = ada.next_any().await.expect("told why");
+    while ended["type"] != "error" {
+        ended = ada
+            .next_any()
+            .await
+            .unwrap_or_else(|| panic!("closed without a word after {ended}"));
+    }
+    assert_eq!(ended["code"], "unauthorized", "{ended}");
+    assert!(
+        ended["message"]
+            .as_str()
+            .unwrap()
+            .contains("an administrator ended your session"),
+        "{ended}"
+    );
+    assert!(ada.next_any().await.is_none(), "the connection is closed");
+}
+
+/// A look at the status is logged as one, not as a login to watch.
+fn status_looks_are_logged_as_such(audit: &str) {
+    let root_logins: Vec<Value> = audit
+        .lines()
+        .map(|l| serde_json::from_str::<Value>(l).unwrap())
+        .filter(|e| e["event"] == "login" && e["user"] == "root")
+        .collect();
+    assert!(
+        root_logins.iter().any(|e| e["detail"] == "status"),
+        "{root_logins:?}"
+    );
+    assert_eq!(
+        root_logins
+            .iter()
+            .filter(|e| e["detail"] == "observer")
+            .count(),
+        1,
+        "only the kicking session watched: {root_logins:?}"
+    );
 }

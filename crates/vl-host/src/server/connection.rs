@@ -94,6 +94,9 @@ enum End {
     Failed(tungstenite::Error),
 }
 
+/// How long a closing connection waits for the client's own close.
+const CLOSE_WAIT: Duration = Duration::from_millis(500);
+
 /// A token bucket, `rate` a second and `burst` at once, that may be
 /// overdrawn: the overdraft says how long to wait before taking more.
 struct Bucket {
@@ -319,6 +322,17 @@ impl ConnectionTask {
             End::Failed(e) => return Err(e),
         }
         let _ = put(&mut sink, Message::Close(None)).await;
+        // Read on a moment, until the client closes too: a socket dropped
+        // with the client's pongs still unread is reset, and the reset can
+        // take the error just sent with it.
+        let _ = tokio::time::timeout(CLOSE_WAIT, async {
+            while let Some(Ok(message)) = source.next().await {
+                if message.is_close() {
+                    break;
+                }
+            }
+        })
+        .await;
         Ok(())
     }
 
@@ -365,6 +379,7 @@ impl ConnectionTask {
                             return end;
                         }
                     }
+                    Some(ToConnection::End(code, why)) => return End::Refused(code, why),
                     Some(ToConnection::Subscribe) => {
                         r.welcomed = true;
                         watching.get_or_insert_with(|| Watching::new(&self.watchers));

@@ -364,6 +364,7 @@ impl Watcher {
                 },
                 out = inbox.recv() => match out {
                     Some(ToConnection::Send(message)) => watcher.hub_said(sink, &message).await,
+                    Some(ToConnection::End(..)) => return,
                     Some(ToConnection::Subscribe) => {
                         watching.get_or_insert_with(|| Watching::new(&self.watchers));
                         self.ticket.welcomed();

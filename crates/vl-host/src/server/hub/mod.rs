@@ -69,6 +69,8 @@ pub(crate) enum ToConnection {
     Send(Message),
     /// The client was welcomed: start streaming feedback and frames.
     Subscribe,
+    /// The lab ends this connection, saying why (an administrator's kick).
+    End(vl_core::ErrorCode, String),
 }
 
 struct Client {
@@ -259,13 +261,17 @@ impl Hub {
                     );
                     let reset = resets_after(summary.reason);
                     self.broadcast(&HostMessage::Done { summary: Box::new(summary) });
-                    // Who joins later hears how the lab was last used.
-                    self.broadcast(&self.status());
                     // The run's last firings go in its file before it closes.
                     self.tell_state();
                     self.end_recording();
+                    let readiness = self.readiness;
                     if reset {
                         self.reset();
+                    }
+                    // Who joins later hears how the lab was last used (a
+                    // drive back has said so with its own status).
+                    if self.readiness == readiness {
+                        self.broadcast(&self.status());
                     }
                     // The next run starts elsewhere: the definition is tried again.
                     if let (Some(Experiment::Navigation), Some(definition)) =

@@ -292,8 +292,10 @@ impl Hub {
         );
     }
 
-    /// An administrator ends `session`'s turn (its run stops, it watches,
-    /// the next in line drives) or its place in line.
+    /// An administrator ends `session`'s turn (its run stops, the next in
+    /// line drives) or its place in line, and every connection of its
+    /// account (or the session itself, without one): a kicked person does
+    /// not ask for control again from a connection still open.
     pub(super) fn kick(&mut self, id: u64, session: u64) {
         let admin = self.clients.get(&id).is_some_and(|c| {
             matches!(
@@ -311,6 +313,36 @@ impl Hub {
                 "only the lab's administrators may end someone's turn",
             );
         }
+        if !self.clients.contains_key(&session) {
+            return self.refuse(
+                id,
+                ErrorCode::NotAllowedNow,
+                format!("no session {session} is connected"),
+            );
+        }
+        let kicked = self.user_of(session);
+        self.kick_turn(id, session);
+        let ended: Vec<u64> = match &kicked {
+            Some(account) => self
+                .clients
+                .keys()
+                .copied()
+                .filter(|&c| self.user_of(c).as_ref() == Some(account))
+                .collect(),
+            None => vec![session],
+        };
+        for connection in ended.into_iter().filter(|&c| c != id) {
+            if let Some(client) = self.clients.get(&connection) {
+                let why = "an administrator ended your session at this lab".to_owned();
+                let _ = client
+                    .out
+                    .try_send(ToConnection::End(ErrorCode::Unauthorized, why));
+            }
+        }
+    }
+
+    /// The kick's part in the line: the turn or the place `session` holds.
+    fn kick_turn(&mut self, id: u64, session: u64) {
         let by = self.user_of(id);
         let entry = |what: &str| {
             AuditEntry::new("kicked")
@@ -339,11 +371,7 @@ impl Hub {
             self.config.audit.record(entry("place in line"));
             return self.leave_queue(session, AccessEvent::Kick);
         }
-        self.refuse(
-            id,
-            ErrorCode::NotAllowedNow,
-            format!("session {session} neither drives nor waits in line"),
-        );
+        self.config.audit.record(entry("session"));
     }
 
     /// Where the hub's own bookkeeping (the operator, one held for the

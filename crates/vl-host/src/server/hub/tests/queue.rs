@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use vl_core::{EndReason, ErrorCode, GuestMessage, HostMessage, Role};
 
-use super::{Client, HubRig};
+use super::{Client, HubRig, PATIENCE};
 use crate::accounts::users::AccountRole;
 use crate::server::HostConfig;
 
@@ -174,7 +174,9 @@ async fn an_administrator_ends_a_turn_and_a_place_and_no_one_else_may() {
     root.welcome().await;
     root.say(GuestMessage::Kick { session: op.id }).await;
     assert_eq!(op.role().await.0, Role::Observer);
-    assert_eq!(op.done().await.reason, EndReason::Kicked);
+    // Its connection is ended: it asks for nothing more from it.
+    assert!(op.ended(PATIENCE).await);
+    assert_eq!(root.done().await.reason, EndReason::Kicked);
     assert_eq!(next.role().await.0, Role::Operator);
     root.say(GuestMessage::Kick { session: last.id }).await;
     loop {
@@ -182,6 +184,7 @@ async fn an_administrator_ends_a_turn_and_a_place_and_no_one_else_may() {
             break;
         }
     }
-    root.say(GuestMessage::Kick { session: last.id }).await;
+    assert!(last.ended(PATIENCE).await);
+    root.say(GuestMessage::Kick { session: 999 }).await;
     assert_eq!(root.refused().await.0, ErrorCode::NotAllowedNow);
 }
