@@ -728,3 +728,64 @@ fn status_looks_are_logged_as_such(audit: &str) {
         "only the kicking session watched: {root_logins:?}"
     );
 }
+
+/// One address guesses the administrator's password as fast as it is
+/// answered: the administrator, right password, own address, gets in every
+/// time of 13 meanwhile, and the status page too; a third address's one
+/// try is answered the same for her name and for a name that is none's
+/// (issue 43, items 1 and 2).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_guesser_never_locks_the_owner_out_nor_learns_the_names() {
+    let dir = scratch("guesser");
+    let file = accounts(&dir);
+    let (_host, url) = start_host(&["--users", &file]);
+    let guesser: std::net::IpAddr = [127, 0, 0, 2].into();
+    let teacher: std::net::IpAddr = [127, 0, 0, 3].into();
+    let stranger: std::net::IpAddr = [127, 0, 0, 4].into();
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let mut guessing = tokio::task::JoinSet::new();
+    for n in 0..4 {
+        let (url, stop) = (url.clone(), stop.clone());
+        guessing.spawn(async move {
+            let mut peer = Peer::connect_from(&url, guesser).await;
+            let mut k = 0;
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                k += 1;
+                peer.send(login("observer", "root", &format!("guess {n} {k}")))
+                    .await;
+                if peer
+                    .next_of("error", Duration::from_secs(10))
+                    .await
+                    .is_none()
+                {
+                    break;
+                }
+            }
+            k
+        });
+    }
+    // Past the guesser's first ten: it is held from here on.
+    tokio::time::sleep(Duration::from_secs(4)).await;
+    for attempt in 0..13 {
+        let mut root = Peer::connect_from(&url, teacher).await;
+        root.send(login("observer", "root", "admin password")).await;
+        let answer = root
+            .next_of_any(&["welcome", "error"], Duration::from_secs(10))
+            .await
+            .expect("an answer");
+        assert_eq!(answer["type"], "welcome", "attempt {attempt}: {answer}");
+    }
+    for (name, password) in [("root", "not it"), ("nosuchname", "not it")] {
+        let mut peer = Peer::connect_from(&url, stranger).await;
+        peer.send(login("observer", name, password)).await;
+        let answer = peer.expect("error").await;
+        assert_eq!(answer["code"], "unauthorized", "{name}: {answer}");
+        assert_eq!(answer["message"], "wrong user name or password");
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let mut guesses = 0;
+    while let Some(k) = guessing.join_next().await {
+        guesses += k.unwrap();
+    }
+    assert!(guesses > 13, "the guesser kept on: {guesses} guesses");
+}

@@ -32,6 +32,21 @@ impl Peer {
         Ok(Peer { ws, frames: 0 })
     }
 
+    /// A peer connecting from `local` (127.0.0.x on the loopback standing
+    /// for another machine's address).
+    pub(crate) async fn connect_from(url: &str, local: std::net::IpAddr) -> Peer {
+        let authority = url.trim_start_matches("ws://").trim_end_matches('/');
+        let target: std::net::SocketAddr = authority.parse().expect("ws://address:port");
+        let socket = tokio::net::TcpSocket::new_v4().unwrap();
+        socket.bind((local, 0).into()).expect("a loopback address");
+        let stream = socket.connect(target).await.expect("connects");
+        let stream = MaybeTlsStream::Plain(stream);
+        let (ws, _) = tokio_tungstenite::client_async(url, stream)
+            .await
+            .expect("a WebSocket");
+        Peer { ws, frames: 0 }
+    }
+
     pub(crate) async fn send(&mut self, message: Value) {
         self.send_text(&message.to_string()).await;
     }

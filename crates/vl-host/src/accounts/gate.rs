@@ -1,8 +1,10 @@
 //! Who a hello proves its sender is: an account by name and password, a
 //! script by the lab's token, or no one. Wrong credentials are answered
-//! only after [`FAILURE_DELAY`]; each address and each account may fail
-//! [`FAILURES_BURST`] times and then once per [`FAILURE_REFILL`], beyond
-//! which attempts are refused without the cost of checking them; tokens
+//! only after [`FAILURE_DELAY`]; each address, and each account from each
+//! address, may fail [`FAILURES_BURST`] times and then once per
+//! [`FAILURE_REFILL`], beyond which attempts are refused without the cost
+//! of checking them — the guesser is slowed, never the account's owner
+//! from their own address, and a throttled name answers as any; tokens
 //! are compared in constant time; every attempt is logged. Checking a
 //! password is slow on purpose, so it runs off the async threads, one at
 //! a time, on a thread of its own at the lowest priority: a flood of
@@ -26,11 +28,12 @@ use super::users::{AccountRole, Users};
 
 /// How long a wrong password, name or token waits for its answer.
 pub const FAILURE_DELAY: Duration = Duration::from_secs(1);
-/// Failures an address or an account may have at once…
+/// Failures an address, or an account from an address, may have at once…
 pub const FAILURES_BURST: f64 = 10.0;
 /// …and how often one more is allowed after those.
 pub const FAILURE_REFILL: Duration = Duration::from_secs(6);
-/// Addresses whose failures are remembered, at most.
+/// Addresses (and address–account pairs) whose failures are remembered,
+/// at most.
 const MAX_ADDRESSES: usize = 4096;
 
 /// Whether people who watch must log in too.
@@ -155,59 +158,75 @@ impl Allowance {
     }
 }
 
+/// Allowances by key, at most [`MAX_ADDRESSES`]: full ones are forgotten
+/// first, and one rather than refuse everyone new.
+struct Allowances<K>(HashMap<K, Allowance>);
+
+impl<K: std::hash::Hash + Eq + Clone> Allowances<K> {
+    fn left(&mut self, key: &K) -> bool {
+        self.0.get_mut(key).is_none_or(|a| a.now() >= 1.0)
+    }
+
+    fn take(&mut self, key: K) {
+        if self.0.len() >= MAX_ADDRESSES && !self.0.contains_key(&key) {
+            self.0.retain(|_, a| a.now() < FAILURES_BURST);
+            if self.0.len() >= MAX_ADDRESSES {
+                let some = self.0.keys().next().cloned();
+                if let Some(some) = some {
+                    self.0.remove(&some);
+                }
+            }
+        }
+        let a = self.0.entry(key).or_insert_with(Allowance::full);
+        a.now();
+        a.left -= 1.0;
+    }
+
+    fn give(&mut self, key: &K) {
+        if let Some(a) = self.0.get_mut(key) {
+            a.left = (a.left + 1.0).min(FAILURES_BURST);
+        }
+    }
+}
+
+impl<K> Default for Allowances<K> {
+    fn default() -> Self {
+        Allowances(HashMap::new())
+    }
+}
+
 #[derive(Default)]
 struct Failures {
-    by_address: HashMap<IpAddr, Allowance>,
-    by_account: HashMap<String, Allowance>,
+    by_address: Allowances<IpAddr>,
+    /// An account guessed at from an address: the guesser's, not the
+    /// account's — its owner elsewhere is never slowed by it.
+    by_pair: Allowances<(IpAddr, String)>,
 }
 
 impl Failures {
     /// Takes one failure's worth of allowance from `address` (and
-    /// `account`) for an attempt about to be checked: false, taking
-    /// nothing, when either has none left. Taken before the check, so
-    /// attempts checked at once cannot pass the limit together.
+    /// `account` from it) for an attempt about to be checked: false,
+    /// taking nothing, when either has none left. Taken before the check,
+    /// so attempts checked at once cannot pass the limit together.
     fn take(&mut self, address: IpAddr, account: Option<&str>) -> bool {
-        let left = |a: Option<&mut Allowance>| a.is_none_or(|a| a.now() >= 1.0);
-        let by_account = account.and_then(|name| self.by_account.get_mut(name));
-        if !left(by_account) || !left(self.by_address.get_mut(&address)) {
+        let pair = account.map(|name| (address, name.to_owned()));
+        let pair_left = pair.as_ref().is_none_or(|p| self.by_pair.left(p));
+        if !pair_left || !self.by_address.left(&address) {
             return false;
         }
-        if self.by_address.len() >= MAX_ADDRESSES && !self.by_address.contains_key(&address) {
-            self.by_address.retain(|_, a| a.now() < FAILURES_BURST);
-            if self.by_address.len() >= MAX_ADDRESSES {
-                // Forget one rather than refuse everyone new.
-                let some = self.by_address.keys().next().copied();
-                if let Some(some) = some {
-                    self.by_address.remove(&some);
-                }
-            }
-        }
-        let take = |a: &mut Allowance| {
-            a.now();
-            a.left -= 1.0;
-        };
-        take(
-            self.by_address
-                .entry(address)
-                .or_insert_with(Allowance::full),
-        );
-        if let Some(name) = account {
-            take(
-                self.by_account
-                    .entry(name.to_owned())
-                    .or_insert_with(Allowance::full),
-            );
+        self.by_address.take(address);
+        if let Some(pair) = pair {
+            self.by_pair.take(pair);
         }
         true
     }
 
     /// Gives back what an attempt that succeeded took.
     fn refund(&mut self, address: IpAddr, account: Option<&str>) {
-        let give = |a: &mut Allowance| a.left = (a.left + 1.0).min(FAILURES_BURST);
-        self.by_address.get_mut(&address).map(give);
-        account
-            .and_then(|name| self.by_account.get_mut(name))
-            .map(give);
+        self.by_address.give(&address);
+        if let Some(name) = account {
+            self.by_pair.give(&(address, name.to_owned()));
+        }
     }
 }
 
@@ -595,22 +614,26 @@ mod tests {
     }
 
     #[test]
-    fn an_account_guessed_from_many_addresses_is_held_and_the_others_are_not() {
+    fn the_guesser_is_held_never_the_owner_elsewhere() {
         let mut failures = Failures::default();
-        for n in 0..FAILURES_BURST as u8 {
-            assert!(failures.take(address(n), Some("ada")));
-        }
-        assert!(!failures.take(address(200), Some("ada")));
-        assert!(failures.take(address(200), Some("bob")));
-        assert!(failures.take(address(200), None));
-        // An address that failed as often is held for any account…
+        let (guesser, teacher, stranger) = (address(1), address(2), address(3));
         for _ in 0..FAILURES_BURST as u8 {
-            failures.take(address(201), None);
+            assert!(failures.take(guesser, Some("ada")));
         }
-        assert!(!failures.take(address(201), Some("bob")));
-        // …and an attempt that succeeded costs nothing.
-        failures.refund(address(201), None);
-        assert!(failures.take(address(201), None));
+        // The guesser's address is held, for any account…
+        assert!(!failures.take(guesser, Some("ada")));
+        assert!(!failures.take(guesser, Some("bob")));
+        assert!(!failures.take(guesser, None));
+        // …not the account from its owner's address, and from a new address
+        // a real account and a name that is none's are answered alike.
+        assert!(failures.take(teacher, Some("ada")));
+        assert!(failures.take(stranger, Some("ada")));
+        assert!(failures.take(address(4), None));
+        // An attempt that succeeded costs nothing.
+        failures.refund(teacher, Some("ada"));
+        for _ in 0..(FAILURES_BURST as u8 - 1) {
+            assert!(failures.take(teacher, Some("ada")));
+        }
     }
 
     #[test]
@@ -619,6 +642,6 @@ mod tests {
         for n in 0..(MAX_ADDRESSES as u32 + 100) {
             failures.take(IpAddr::from(n.to_be_bytes()), None);
         }
-        assert!(failures.by_address.len() <= MAX_ADDRESSES);
+        assert!(failures.by_address.0.len() <= MAX_ADDRESSES);
     }
 }
