@@ -789,3 +789,64 @@ async fn a_guesser_never_locks_the_owner_out_nor_learns_the_names() {
     }
     assert!(guesses > 13, "the guesser kept on: {guesses} guesses");
 }
+
+/// While Ada's link is down, Eve logs in with her own account and Ada's
+/// resume secret: refused, and audited; Ada's own return gets her run back
+/// (issue 43, item 5).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_resume_secret_resumes_only_its_own_account() {
+    let dir = scratch("resume-bound");
+    let file = accounts(&dir);
+    assert!(
+        users(&["add", &file, "eve"], "eve's password")
+            .status
+            .success()
+    );
+    let (_host, url) = start_host(&["--users", &file, "--grace", "20"]);
+    let mut ada = Peer::connect(&url).await;
+    ada.send(login("operator", "ada", "correct horse")).await;
+    let secret = ada.expect("welcome").await["resume"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    ada.start("teleoperation").await;
+    drop(ada);
+    let mut eve = Peer::connect(&url).await;
+    let mut hello = login("operator", "eve", "eve's password");
+    hello["resume"] = json!(secret);
+    let deadline = Instant::now() + Duration::from_secs(5);
+    let refused = loop {
+        eve.send(hello.clone()).await;
+        let answer = eve
+            .next_of_any(&["welcome", "error"], Duration::from_secs(5))
+            .await
+            .unwrap();
+        assert_ne!(answer["type"], "welcome", "eve took ada's run: {answer}");
+        // Until the Host has seen Ada's link go, it is simply taken.
+        if answer["message"]
+            .as_str()
+            .unwrap()
+            .contains("another account's session")
+            || Instant::now() > deadline
+        {
+            break answer;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    assert_eq!(refused["code"], "operator_taken", "{refused}");
+    let mut back = Peer::connect(&url).await;
+    let mut hello = login("operator", "ada", "correct horse");
+    hello["resume"] = json!(secret);
+    back.send(hello).await;
+    assert_eq!(back.expect("welcome").await["role"], "operator");
+    back.expect("started").await;
+    let by = Instant::now() + Duration::from_secs(5);
+    loop {
+        let audit = std::fs::read_to_string(dir.join("audit.jsonl")).unwrap_or_default();
+        if audit.contains("\"event\":\"takeover_refused\"") && audit.contains("\"user\":\"eve\"") {
+            break;
+        }
+        assert!(Instant::now() < by, "no takeover attempt audited:\n{audit}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}

@@ -24,7 +24,7 @@ pub struct AuditEntry {
     pub at_ms: u64,
     /// What happened: `login` (detail: the role, or `status`),
     /// `login_failed`, `rate_limited`, `welcome`, `refused` (a hello, and
-    /// why), `queued`, `granted`, `slot_ended`, `kicked`, `released`,
+    /// why), `takeover_refused` (another account's resume secret), `queued`, `granted`, `slot_ended`, `kicked`, `released`,
     /// `run_started`, `run_ended` (with the driver), `reset` (the drive
     /// back to the start, numbered as runs are), `accounts_read`, and the
     /// devices' faults and returns.

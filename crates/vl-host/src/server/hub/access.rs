@@ -157,6 +157,31 @@ impl Hub {
     /// it (or it is theirs, held since their link dropped, and `resume`
     /// says so); else tells them why not.
     fn take_control(&mut self, id: u64, resume: Option<&str>) -> bool {
+        // A secret resumes only its own account's session: someone else's
+        // hello that carries it is refused, and the attempt audited.
+        let owner = self.operator_user.clone();
+        let caller = self.user_of(id);
+        let someone_else = owner.is_some() && caller != owner;
+        if let Some(away) = &self.away
+            && resume == Some(away.resume.as_str())
+            && someone_else
+        {
+            self.config.audit.record(
+                AuditEntry::new("takeover_refused")
+                    .connection(id)
+                    .user(caller.as_deref())
+                    .detail(format!(
+                        "the resume secret of {}'s session",
+                        owner.as_deref().unwrap_or("another")
+                    )),
+            );
+            self.refuse_hello(
+                id,
+                ErrorCode::OperatorTaken,
+                "that secret resumes another account's session: log in as yourself and ask for control",
+            );
+            return false;
+        }
         let returning = match &self.away {
             Some(away) if resume == Some(away.resume.as_str()) => true,
             Some(away) => {
