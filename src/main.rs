@@ -122,8 +122,14 @@ fn main() -> ExitCode {
     if matches!(cli.command, Command::Petri(_)) {
         vl_report::Counting::switch_on();
     }
+    // Whatever RUST_LOG asks, the WebSocket libraries stay above trace:
+    // at trace they print every frame, a hello's password among them.
+    let filter = EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| "warn".into())
+        .add_directive("tungstenite=debug".parse().expect("a directive"))
+        .add_directive("tokio_tungstenite=debug".parse().expect("a directive"));
     tracing_subscriber::fmt()
-        .with_env_filter(EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()))
+        .with_env_filter(filter)
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();

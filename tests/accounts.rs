@@ -850,3 +850,34 @@ async fn a_resume_secret_resumes_only_its_own_account() {
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
 }
+
+/// No secret in any log at any level: a Guest logging in with RUST_LOG at
+/// trace prints no password (the WebSocket library printed every frame,
+/// the hello's among them; issue 43, item 13).
+#[test]
+fn no_password_reaches_the_log_even_at_trace() {
+    let dir = scratch("trace-secret");
+    let file = accounts(&dir);
+    let (_host, url) = start_host(&["--users", &file, "--no-record"]);
+    let out = common::vl_command()
+        .args([
+            "guest",
+            "--headless",
+            "--connect",
+            &url,
+            "--user",
+            "ada",
+            "--timeout",
+            "10",
+        ])
+        .env("VL_PASSWORD", "correct horse")
+        .env("RUST_LOG", "trace")
+        .output()
+        .unwrap();
+    let err = common::stderr(&out);
+    assert!(!err.is_empty(), "something was logged at trace");
+    assert!(
+        !err.contains("correct horse"),
+        "the password is in the log:\n{err}"
+    );
+}
