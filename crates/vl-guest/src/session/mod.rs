@@ -582,7 +582,7 @@ impl Session {
         let navigation = lab.experiment == Experiment::Navigation;
         if self.running {
             return Some(if navigation {
-                "The robot follows the path: Stop ends the run, STOP halts it at once."
+                "Running: Stop ends the run, STOP halts the robot at once."
             } else {
                 "Drive with the stick or the arrow keys: Stop ends the run, STOP halts it at once."
             });
