@@ -429,3 +429,66 @@ fn files_that_are_no_recordings_are_named_not_panicked_on() {
         "holds no run",
     );
 }
+
+/// Strangers write nothing into the experiment's data: sockets that never
+/// say hello send pongs echoing times never sent, an observer sends what
+/// only the operator may; the run's file keeps its own log and round trips
+/// (issue 43, item 11).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn strangers_write_nothing_into_a_run() {
+    let dir = scratch("recordings-strangers");
+    let recordings = dir.join("host");
+    let (_host, url) = start_host(&["--recordings", s(&recordings)]);
+    let mut operator = Peer::connect(&url).await;
+    operator.hello("operator").await;
+    operator.start("teleoperation").await;
+    let mut observer = Peer::connect(&url).await;
+    observer.hello("observer").await;
+    for _ in 0..100 {
+        observer
+            .send(json!({"type": "mount", "experiment": "navigation"}))
+            .await;
+    }
+    for _ in 0..40 {
+        if let Ok(mut stranger) = Peer::try_connect(&url).await {
+            for _ in 0..15 {
+                let pong = json!({"type": "pong", "t": -1e12}).to_string();
+                if futures_util::SinkExt::send(
+                    &mut stranger.ws,
+                    tokio_tungstenite::tungstenite::Message::text(pong),
+                )
+                .await
+                .is_err()
+                {
+                    break;
+                }
+            }
+        }
+    }
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    operator.send(json!({"type": "stop"})).await;
+    let done = operator.expect("done").await;
+    let name = done["summary"]["recording"]["name"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let file = recordings.join(name);
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let info = loop {
+        let info = vl_json(&["record", "info", s(&file), "--json"]);
+        if info["complete"] == true || Instant::now() > deadline {
+            break info;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    let topics: Vec<String> = info["topics"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| format!("{} {}", t["topic"], t["messages"]))
+        .collect();
+    let log = count(&info, "/log");
+    assert!(log < 60, "{log} log lines: {topics:?}");
+    let round_trips = count(&info, "/round_trip");
+    assert!(round_trips < 200, "{round_trips} round trips: {topics:?}");
+}

@@ -94,6 +94,10 @@ enum End {
     Failed(tungstenite::Error),
 }
 
+/// A round trip longer than this, ms, is no true one (the Host would have
+/// let the client go first).
+const PING_TIMEOUT_MS: f64 = 60_000.0;
+
 /// How long a closing connection waits for the client's own close.
 const CLOSE_WAIT: Duration = Duration::from_millis(500);
 
@@ -507,10 +511,15 @@ impl ConnectionTask {
             Ok(GuestMessage::Pong { t }) => {
                 let rtt_ms = r.clock.elapsed().as_secs_f64() * 1e3 - t;
                 debug!(connection = self.id, rtt_ms, "round trip");
-                self.record.send(Recordable::RoundTrip {
-                    connection: self.id,
-                    ms: rtt_ms,
-                });
+                // Only a welcomed client's, and only a true one, goes in the
+                // run's record: a stranger's socket, or a pong echoing a time
+                // never sent, writes nothing into the experiment's data.
+                if r.welcomed && (0.0..=PING_TIMEOUT_MS).contains(&rtt_ms) {
+                    self.record.send(Recordable::RoundTrip {
+                        connection: self.id,
+                        ms: rtt_ms,
+                    });
+                }
                 None
             }
             Ok(GuestMessage::Bye) => return Err(End::Left),

@@ -344,7 +344,14 @@ impl Hub {
 
     fn refuse(&mut self, id: u64, code: ErrorCode, message: impl Into<String>) {
         let message = message.into();
-        self.record_log(Level::Warning, format!("refused ({code}): {message}"));
+        // The operator's refusals are part of the experiment; those of
+        // others only of the lab's log (one line each would let anyone
+        // write thousands into the run's record).
+        if self.operator == Some(id) {
+            self.record_log(Level::Warning, format!("refused ({code}): {message}"));
+        } else {
+            debug!(connection = id, %code, "refused: {message}");
+        }
         self.send(id, HostMessage::error(code, message));
     }
 
