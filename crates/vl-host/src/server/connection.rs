@@ -497,6 +497,20 @@ impl ConnectionTask {
             .map_err(|_| End::Closed)
     }
 
+    /// A pong's round trip, into the run's record: only a welcomed
+    /// client's, and only a true one — a stranger's socket, or a pong
+    /// echoing a time never sent, writes nothing into the experiment's data.
+    fn round_trip(&self, r: &Reading, t: f64) {
+        let rtt_ms = r.clock.elapsed().as_secs_f64() * 1e3 - t;
+        debug!(connection = self.id, rtt_ms, "round trip");
+        if r.welcomed && (0.0..=PING_TIMEOUT_MS).contains(&rtt_ms) {
+            self.record.send(Recordable::RoundTrip {
+                connection: self.id,
+                ms: rtt_ms,
+            });
+        }
+    }
+
     /// Passes a text message on to the hub, or answers it here (pings,
     /// refusals before hello); over the rate, a command waits in place of
     /// any before it and anything else pauses reading.
@@ -509,17 +523,7 @@ impl ConnectionTask {
         let reply = match GuestMessage::decode(text) {
             Ok(GuestMessage::Ping { t }) => Some(HostMessage::Pong { t }),
             Ok(GuestMessage::Pong { t }) => {
-                let rtt_ms = r.clock.elapsed().as_secs_f64() * 1e3 - t;
-                debug!(connection = self.id, rtt_ms, "round trip");
-                // Only a welcomed client's, and only a true one, goes in the
-                // run's record: a stranger's socket, or a pong echoing a time
-                // never sent, writes nothing into the experiment's data.
-                if r.welcomed && (0.0..=PING_TIMEOUT_MS).contains(&rtt_ms) {
-                    self.record.send(Recordable::RoundTrip {
-                        connection: self.id,
-                        ms: rtt_ms,
-                    });
-                }
+                self.round_trip(r, t);
                 None
             }
             Ok(GuestMessage::Bye) => return Err(End::Left),
