@@ -62,6 +62,18 @@ pub(crate) fn host_without_camera(runtime: &tokio::runtime::Runtime, config: Hos
         .unwrap()
 }
 
+/// A simulated Host on `runtime`, the navigation arena with its camera.
+fn host_with_camera(runtime: &tokio::runtime::Runtime, config: HostConfig) -> Host {
+    let lab = SimLab {
+        camera: Some(SimCamera::default()),
+        ..SimLab::new(Arena::navigation())
+    };
+    let listen = "127.0.0.1:0".parse().unwrap();
+    runtime
+        .block_on(Host::start_sim(listen, lab, config))
+        .unwrap()
+}
+
 /// Waits for the welcome, mounts the navigation experiment and waits
 /// until `seen` holds of the session.
 fn mount_navigation(
@@ -861,16 +873,7 @@ fn the_net_view_follows_the_marking_through_a_run() {
 #[test]
 fn the_window_at_800_and_1600_px() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
-    let host = runtime
-        .block_on(Host::start_sim(
-            "127.0.0.1:0".parse().unwrap(),
-            SimLab {
-                camera: Some(SimCamera::default()),
-                ..SimLab::new(Arena::navigation())
-            },
-            HostConfig::default(),
-        ))
-        .unwrap();
+    let host = host_with_camera(&runtime, HostConfig::default());
     let _entered = runtime.enter();
     for size in [Vec2::new(800.0, 600.0), Vec2::new(1600.0, 1000.0)] {
         let name = |what: &str| {
@@ -1575,21 +1578,13 @@ fn the_window_lists_downloads_and_replays_its_runs() {
 #[test]
 fn the_robot_is_drawn_before_anything_is_mounted() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
-    let host = runtime
-        .block_on(Host::start_sim(
-            "127.0.0.1:0".parse().unwrap(),
-            SimLab {
-                camera: Some(SimCamera::default()),
-                ..SimLab::new(Arena::navigation())
-            },
-            HostConfig {
-                frames: vl_host::FramePolicy::OnChange {
-                    max_interval: Duration::from_secs(5),
-                },
-                ..HostConfig::default()
-            },
-        ))
-        .unwrap();
+    let on_change = HostConfig {
+        frames: vl_host::FramePolicy::OnChange {
+            max_interval: Duration::from_secs(5),
+        },
+        ..HostConfig::default()
+    };
+    let host = host_with_camera(&runtime, on_change);
     let _entered = runtime.enter();
     let mut harness = window_as(&host.url(), Role::Observer, Vec2::new(1100.0, 720.0));
     step_until(
