@@ -124,10 +124,16 @@ fn main() -> ExitCode {
     }
     // Whatever RUST_LOG asks, the WebSocket libraries stay above trace:
     // at trace they print every frame, a hello's password among them.
-    let filter = EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| "warn".into())
-        .add_directive("tungstenite=debug".parse().expect("a directive"))
-        .add_directive("tokio_tungstenite=debug".parse().expect("a directive"));
+    let asked = std::env::var("RUST_LOG")
+        .ok()
+        .filter(|asked| !asked.trim().is_empty())
+        .unwrap_or_else(|| "warn".into());
+    let capped = if asked.to_lowercase().contains("trace") {
+        format!("{asked},tungstenite=debug,tokio_tungstenite=debug")
+    } else {
+        asked
+    };
+    let filter = EnvFilter::try_new(&capped).unwrap_or_else(|_| "warn".into());
     tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
