@@ -155,8 +155,8 @@ pub struct Session {
     /// How many mounts this Guest has seen: each (the same experiment
     /// mounted again for a new operator too) starts the lab afresh.
     pub mounts: u64,
-    /// The lab's floor, robot and camera, as the welcome (or the mount)
-    /// told them: enough to draw the robot before anything is mounted.
+    /// The lab's floor, robot and camera, as the welcome told them: enough
+    /// to draw the robot before anything is mounted (see [`Session::scene`]).
     pub floor: Option<vl_core::LabScene>,
     /// The lab's last run that ended, as the Host last said.
     pub last_run: Option<vl_core::RunRecord>,
@@ -286,7 +286,6 @@ impl Session {
                 self.errors.push_back((code, message));
             }
             HostMessage::Mounted(lab) => {
-                self.floor = Some(lab.scene.clone());
                 self.lab = Some(*lab);
                 self.mounts += 1;
                 self.definition = None;

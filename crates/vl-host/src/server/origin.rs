@@ -31,14 +31,14 @@ impl AllowedOrigins {
     /// on; if not, why, in words for the page's developer.
     pub(crate) fn admit(&self, origin: Option<&str>, host: Option<&str>) -> Result<(), String> {
         let Some(origin) = origin else { return Ok(()) };
-        let same = match (normal(origin), host) {
-            (Some(page), Some(host)) => page
-                .split_once("://")
-                .is_some_and(|(_, authority)| authority.eq_ignore_ascii_case(host.trim())),
-            _ => false,
-        };
-        if same || normal(origin).is_some_and(|o| self.0.contains(&o)) {
-            return Ok(());
+        if let Some(page) = normal(origin) {
+            let same = host.is_some_and(|host| {
+                page.split_once("://")
+                    .is_some_and(|(_, authority)| authority.eq_ignore_ascii_case(host.trim()))
+            });
+            if same || self.0.contains(&page) {
+                return Ok(());
+            }
         }
         Err(format!(
             "a page from {origin} may not use this lab: its Host lets in its own pages, and those of --allow-origin"
