@@ -530,7 +530,7 @@ async fn a_lab_file_sets_the_host_up_and_its_administrator_sees_it() {
     assert_eq!(root.expect("done").await["summary"]["reason"], "kicked");
     // Her connection is ended, saying why: she cannot ask for control
     // again from it (issue 43, item 4).
-    ended_saying_why(&mut ada).await;
+    ended_saying_why(&mut ada, "an administrator ended your session").await;
     let logged = ["granted", "run_started", "run_ended", "kicked", "released"];
     let by = Instant::now() + Duration::from_secs(5);
     let audit = loop {
@@ -568,10 +568,12 @@ fn a_lab_file_with_an_unknown_option_is_refused_naming_it() {
     );
 }
 
-/// Accounts added or removed with `vl users` while the lab runs count at
-/// the next login: no restart, and no one's session cut.
+/// Accounts added with `vl users` while the lab runs count at the next
+/// login, no restart; an account removed loses its connections at once:
+/// its run ends, its open connections close saying why, and no one
+/// else's session is cut (issue 43, item 4).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn accounts_changed_while_the_lab_runs_count_at_the_next_login() {
+async fn accounts_changed_while_the_lab_runs_count_at_once() {
     let dir = scratch("users-live");
     let file = accounts(&dir);
     let (_host, url) = start_host(&["--users", &file]);
@@ -581,12 +583,44 @@ async fn accounts_changed_while_the_lab_runs_count_at_the_next_login() {
     assert!(out.status.success(), "{}", common::stderr(&out));
     let welcome = answer(&url, dan).await;
     assert_eq!(welcome["user"], "dan", "{welcome}");
-    let out = users(&["remove", &file, "bob"], "");
+    // Ada drives a run and watches from a second connection; bob watches.
+    let mut ada = Peer::connect(&url).await;
+    ada.send(login("operator", "ada", "correct horse")).await;
+    ada.expect("welcome").await;
+    ada.send(json!({"type": "mount", "experiment": "teleoperation"}))
+        .await;
+    ada.expect("mounted").await;
+    ada.send(json!({"type": "start"})).await;
+    ada.expect("started").await;
+    let mut ada_watching = Peer::connect(&url).await;
+    ada_watching
+        .send(login("observer", "ada", "correct horse"))
+        .await;
+    ada_watching.expect("welcome").await;
+    let mut bob = Peer::connect(&url).await;
+    bob.send(login("observer", "bob", "battery staple")).await;
+    bob.expect("welcome").await;
+    let out = users(&["remove", &file, "ada"], "");
     assert!(out.status.success(), "{}", common::stderr(&out));
-    let bob = answer(&url, login("observer", "bob", "battery staple")).await;
-    assert_eq!(bob["code"], "unauthorized", "{bob}");
+    let removed = Instant::now();
+    let done = bob.expect("done").await;
+    assert_eq!(done["summary"]["reason"], "kicked", "{done}");
+    for peer in [&mut ada, &mut ada_watching] {
+        ended_saying_why(peer, "your account at this lab was removed").await;
+    }
+    assert!(
+        removed.elapsed() < Duration::from_secs(3),
+        "ended {:?} after the removal",
+        removed.elapsed()
+    );
+    // Bob still watches; ada cannot come back.
+    bob.send(json!({"type": "recordings"})).await;
+    bob.expect("recordings").await;
+    let ada = answer(&url, login("observer", "ada", "correct horse")).await;
+    assert_eq!(ada["code"], "unauthorized", "{ada}");
     let audit = std::fs::read_to_string(dir.join("audit.jsonl")).unwrap_or_default();
     assert!(audit.contains("\"event\":\"accounts_read\""), "{audit}");
+    assert!(audit.contains("\"event\":\"account_ended\""), "{audit}");
 }
 
 /// One person, one place: a second connection of an account that waits in
@@ -688,8 +722,8 @@ async fn a_burst_of_leave_queue_costs_the_line_nothing() {
     assert!(told["position"].is_null(), "{told}");
 }
 
-/// `peer`'s connection ends with an error saying an administrator ended it.
-async fn ended_saying_why(ada: &mut Peer) {
+/// `peer`'s connection ends with an error whose message contains `why`.
+async fn ended_saying_why(ada: &mut Peer, why: &str) {
     let mut ended = ada.next_any().await.expect("told why");
     while ended["type"] != "error" {
         ended = ada
@@ -702,7 +736,7 @@ async fn ended_saying_why(ada: &mut Peer) {
         ended["message"]
             .as_str()
             .unwrap()
-            .contains("an administrator ended your session"),
+            .contains(why),
         "{ended}"
     );
     assert!(ada.next_any().await.is_none(), "the connection is closed");

@@ -296,12 +296,23 @@ impl Gate {
     /// added on the running lab); a file that no longer reads keeps the
     /// accounts last read, and the log says why.
     fn users(&self) -> Option<Arc<Users>> {
+        self.refresh().map(|(users, _)| users)
+    }
+
+    /// The accounts, if their file was read again since last asked: the
+    /// Host then ends what accounts removed still hold.
+    pub(crate) fn reread(&self) -> Option<Arc<Users>> {
+        self.refresh().and_then(|(users, read)| read.then_some(users))
+    }
+
+    /// The accounts now, and whether they were just read again.
+    fn refresh(&self) -> Option<(Arc<Users>, bool)> {
         let mut current = self
             .users
             .as_ref()?
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner());
-        match current.reread() {
+        let read = match current.reread() {
             Some(Ok(users)) => {
                 info!(
                     accounts = users.accounts().len(),
@@ -312,16 +323,18 @@ impl Gate {
                         .detail(format!("{} accounts", users.accounts().len())),
                 );
                 *current = Arc::new(users);
+                true
             }
             Some(Err(e)) => {
                 warn!("the accounts file changed but does not read; keeping the accounts: {e}");
                 let mut kept = Users::clone(&current);
                 kept.seen();
                 *current = Arc::new(kept);
+                false
             }
-            None => {}
-        }
-        Some(current.clone())
+            None => false,
+        };
+        Some((current.clone(), read))
     }
 
     /// Whether the lab has accounts (so some things are an administrator's).

@@ -159,11 +159,34 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         config.audit.clone(),
     ));
     let hub = Hub::new(lab, config.clone(), supervisor);
+    let accounts = watch_accounts(gate.clone(), hub_tx.clone());
     // The hub lives exactly as long as the server: dropping this future
     // drops the lab, which stops the robot.
     tokio::select! {
         () = hub.run(hub_rx) => {}
         () = accept(listener, hub_tx, outlets, config, gate) => {}
+        () = accounts => {}
+    }
+}
+
+/// How often the accounts file is looked at while the lab runs.
+const ACCOUNTS_CHECK: Duration = Duration::from_secs(1);
+
+/// Reads the accounts file again when it changes, and tells the hub: an
+/// account removed on the running lab (`vl users remove`) loses its
+/// connections within a second, not at its next hello.
+async fn watch_accounts(gate: Arc<Gate>, hub: mpsc::Sender<hub::ToHub>) {
+    if !gate.has_accounts() {
+        return std::future::pending().await;
+    }
+    let mut check = tokio::time::interval(ACCOUNTS_CHECK);
+    loop {
+        check.tick().await;
+        if let Some(users) = gate.reread()
+            && hub.send(hub::ToHub::Accounts(users)).await.is_err()
+        {
+            return;
+        }
     }
 }
 

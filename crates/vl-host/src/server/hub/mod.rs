@@ -27,6 +27,7 @@ use vl_record::Level;
 use worker::JobThread;
 
 mod access;
+mod ending;
 mod fields;
 mod forecasts;
 mod operate;
@@ -56,6 +57,8 @@ pub(crate) enum ToHub {
         resume: Option<String>,
     },
     Message(u64, GuestMessage),
+    /// The accounts file was read again, with these accounts.
+    Accounts(Arc<crate::accounts::users::Users>),
     /// An administrator asks how the Host is.
     Status(tokio::sync::oneshot::Sender<vl_core::HostStatus>),
     /// The connection closed; true when the client meant to leave (said
@@ -308,6 +311,7 @@ impl Hub {
                         let _ = answer.send(self.host_status());
                     }
                     Some(ToHub::Leave(id, meant)) => self.leave(id, meant),
+                    Some(ToHub::Accounts(users)) => self.accounts_changed(&users),
                     None => return,
                 },
             }

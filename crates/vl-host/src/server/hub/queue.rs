@@ -18,8 +18,6 @@ use vl_core::{AccessEvent, Action, EndReason, ErrorCode, HostMessage, Role, Seat
 use super::access::secret;
 use super::{Hub, ToConnection};
 use crate::accounts::audit::AuditEntry;
-use crate::accounts::gate::Identity;
-use crate::accounts::users::AccountRole;
 use crate::lab::LabRequest;
 
 /// Someone's place in the line.
@@ -130,7 +128,7 @@ impl Hub {
 
     /// Takes the place at `index` out of the line as `how` says, in the
     /// access net too, and moves the next up to the head.
-    fn drop_place(&mut self, index: usize, how: AccessEvent) {
+    pub(super) fn drop_place(&mut self, index: usize, how: AccessEvent) {
         let seat = if index == 0 {
             Seat::Head
         } else {
@@ -290,88 +288,6 @@ impl Hub {
                 ended: Some(EndReason::SlotEnded),
             },
         );
-    }
-
-    /// An administrator ends `session`'s turn (its run stops, the next in
-    /// line drives) or its place in line, and every connection of its
-    /// account (or the session itself, without one): a kicked person does
-    /// not ask for control again from a connection still open.
-    pub(super) fn kick(&mut self, id: u64, session: u64) {
-        let admin = self.clients.get(&id).is_some_and(|c| {
-            matches!(
-                c.admitted.identity,
-                Identity::Account {
-                    role: AccountRole::Admin,
-                    ..
-                }
-            )
-        });
-        if !admin {
-            return self.refuse(
-                id,
-                ErrorCode::Unauthorized,
-                "only the lab's administrators may end someone's turn",
-            );
-        }
-        if !self.clients.contains_key(&session) {
-            return self.refuse(
-                id,
-                ErrorCode::NotAllowedNow,
-                format!("no session {session} is connected"),
-            );
-        }
-        let kicked = self.user_of(session);
-        self.kick_turn(id, session);
-        let ended: Vec<u64> = match &kicked {
-            Some(account) => self
-                .clients
-                .keys()
-                .copied()
-                .filter(|&c| self.user_of(c).as_ref() == Some(account))
-                .collect(),
-            None => vec![session],
-        };
-        for connection in ended.into_iter().filter(|&c| c != id) {
-            if let Some(client) = self.clients.get(&connection) {
-                let why = "an administrator ended your session at this lab".to_owned();
-                let _ = client
-                    .out
-                    .try_send(ToConnection::End(ErrorCode::Unauthorized, why));
-            }
-        }
-    }
-
-    /// The kick's part in the line: the turn or the place `session` holds.
-    fn kick_turn(&mut self, id: u64, session: u64) {
-        let by = self.user_of(id);
-        let entry = |what: &str| {
-            AuditEntry::new("kicked")
-                .connection(session)
-                .user(by.as_deref())
-                .detail(what.to_owned())
-        };
-        if self.operator == Some(session) {
-            self.config.audit.record(entry("control"));
-            if self.supervisor.allows(Action::Stop) {
-                self.lab.request(LabRequest::Finish(EndReason::Kicked));
-            }
-            self.release_operator(AccessEvent::Kick);
-            if let Some(client) = self.clients.get_mut(&session) {
-                client.role = Some(Role::Observer);
-            }
-            let watch = HostMessage::Role {
-                role: Role::Observer,
-                resume: None,
-                slot_s: None,
-                ended: Some(EndReason::Kicked),
-            };
-            return self.send(session, watch);
-        }
-        if self.queue.iter().any(|p| p.id == Some(session)) {
-            self.config.audit.record(entry("place in line"));
-            return self.leave_queue(session, AccessEvent::Kick);
-        }
-        self.config.audit.record(entry("session"));
     }
 
     /// Where the hub's own bookkeeping (the operator, one held for the
