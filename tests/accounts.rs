@@ -732,13 +732,7 @@ async fn ended_saying_why(ada: &mut Peer, why: &str) {
             .unwrap_or_else(|| panic!("closed without a word after {ended}"));
     }
     assert_eq!(ended["code"], "unauthorized", "{ended}");
-    assert!(
-        ended["message"]
-            .as_str()
-            .unwrap()
-            .contains(why),
-        "{ended}"
-    );
+    assert!(ended["message"].as_str().unwrap().contains(why), "{ended}");
     assert!(ada.next_any().await.is_none(), "the connection is closed");
 }
 

@@ -36,6 +36,7 @@ mod protocol_docs;
 mod protocol_props;
 mod readme;
 mod reconnect;
+mod recording_damage;
 mod recordings;
 mod safety;
 mod serial_safety;

@@ -18,6 +18,8 @@ pub struct Exported {
     pub feedback_rows: usize,
     pub command_rows: usize,
     pub frames: usize,
+    /// Frames whose picture did not decode (a damaged file): skipped.
+    pub frames_skipped: usize,
     pub summary: bool,
     /// Pictures of the run drawn by the caller (the Guest's plots).
     pub plots: Vec<String>,
@@ -29,7 +31,13 @@ impl Report for Exported {
             ("folder", self.dir.clone()),
             ("feedback.csv", format!("{} rows", self.feedback_rows)),
             ("commands.csv", format!("{} rows", self.command_rows)),
-            ("frames/", format!("{} PNGs", self.frames)),
+            (
+                "frames/",
+                match self.frames_skipped {
+                    0 => format!("{} PNGs", self.frames),
+                    n => format!("{} PNGs ({n} damaged frames skipped)", self.frames),
+                },
+            ),
             (
                 "summary.json",
                 if self.summary {
@@ -60,6 +68,7 @@ pub fn export(recording: &Recording, dir: &Path) -> Result<Exported, RecordError
     );
     let mut feedback_rows = 0;
     let mut frames = 0;
+    let mut frames_skipped = 0;
     for (ns, replayed) in recording.replay()? {
         match replayed {
             Replayed::Message(HostMessage::Feedback(Feedback {
@@ -93,10 +102,16 @@ pub fn export(recording: &Recording, dir: &Path) -> Result<Exported, RecordError
                 let Ok((_, jpeg)) = FrameHeader::decode(&wire) else {
                     continue;
                 };
+                // Limits on by default: a damaged header cannot make it
+                // allocate more than image's 512 MiB.
+                let Ok(picture) = image::load_from_memory(jpeg) else {
+                    frames_skipped += 1;
+                    continue;
+                };
                 frames += 1;
                 let path = frames_dir.join(format!("frame-{frames:05}.png"));
-                image::load_from_memory(jpeg)
-                    .and_then(|image| image.save(&path))
+                picture
+                    .save(&path)
                     .map_err(|e| RecordError::Io(path.clone(), std::io::Error::other(e)))?;
             }
             Replayed::Message(_) => {}
@@ -138,6 +153,7 @@ pub fn export(recording: &Recording, dir: &Path) -> Result<Exported, RecordError
         feedback_rows,
         command_rows,
         frames,
+        frames_skipped,
         summary: summary.is_some(),
         plots: Vec::new(),
     })

@@ -20,6 +20,7 @@ mod catalogue;
 mod export;
 mod foxglove;
 mod reader;
+mod records;
 mod views;
 mod writer;
 
@@ -30,6 +31,7 @@ pub use foxglove::Level;
 pub use reader::{
     Message, RecordError, Recording, RecordingInfo, Repaired, Replayed, TopicCount, repair,
 };
+pub use records::Damage;
 pub use views::{View, Views};
 pub use writer::{Begin, Feed, Recordable, now_ns, unix_ns_at};
 

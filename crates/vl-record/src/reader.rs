@@ -5,14 +5,15 @@ use std::collections::BTreeMap;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-use mcap::read::{ChunkReader, LinearReader, Options};
-use mcap::records::{MessageHeader, Record};
+use mcap::records::MessageHeader;
 use serde::Serialize;
 use thiserror::Error;
 use vl_core::{FrameHeader, HostMessage, ImageFormat, RecordingName, Summary, Wire};
 use vl_report::table::{Report, Table};
 
 use super::Topic;
+use crate::records::{Damage, Record, records};
+use tracing::debug;
 
 /// The largest file read back.
 const MAX_FILE_BYTES: u64 = 8 << 30;
@@ -69,14 +70,15 @@ pub struct Recording {
     /// Whether the file was finished (its footer written); a crashed
     /// Host's is not.
     pub complete: bool,
-    /// Whether reading stopped at damage before the file's end.
-    pub damaged: bool,
+    /// The first damage met: reading stopped there, or (a chunk that
+    /// does not decompress) went on past it.
+    pub damaged: Option<Damage>,
     pub bytes: u64,
     channels: BTreeMap<u16, Channel>,
 }
 
 impl Recording {
-    /// Reads `path` up to its end or its first damage.
+    /// Reads `path` up to its end, or to damage it cannot read past.
     pub fn open(path: &Path) -> Result<Recording, RecordError> {
         let io = |e| RecordError::Io(path.to_owned(), e);
         let bytes = std::fs::metadata(path).map_err(io)?.len();
@@ -84,41 +86,55 @@ impl Recording {
             return Err(RecordError::TooLarge(path.to_owned(), bytes));
         }
         let buf = std::fs::read(path).map_err(io)?;
+        Recording::read(path, &buf)
+    }
+
+    /// Reads a file's bytes, `buf`, read from `path`, up to their end or
+    /// damage it cannot read past: whatever the bytes, this returns.
+    pub fn read(path: &Path, buf: &[u8]) -> Result<Recording, RecordError> {
         if !buf.starts_with(mcap::MAGIC) {
             return Err(RecordError::NotMcap(path.to_owned()));
         }
+        let bytes = buf.len() as u64;
         let mut recording = Recording {
             path: path.to_owned(),
             messages: Vec::new(),
             attachments: BTreeMap::new(),
             metadata: BTreeMap::new(),
             complete: false,
-            damaged: false,
+            damaged: None,
             bytes,
             channels: BTreeMap::new(),
         };
         let mut schemas = BTreeMap::new();
-        for record in LinearReader::new_with_options(&buf, Options::IgnoreEndMagic.into())? {
-            let Ok(record) = record else {
-                recording.damaged = true;
-                break;
-            };
-            match record {
-                Record::Chunk { header, data } => {
-                    for inner in ChunkReader::new(header, &data)? {
-                        let Ok(inner) = inner else {
-                            recording.damaged = true;
-                            break;
-                        };
-                        recording.take(inner, &mut schemas);
+        let magic = mcap::MAGIC.len();
+        for record in records(&buf[magic..], magic) {
+            let record = match record {
+                Ok(Record::Chunk(content)) => {
+                    for inner in records(&content, 0) {
+                        match inner {
+                            Ok(inner) => recording.take(inner, &mut schemas),
+                            Err(damage) => {
+                                recording.damaged.get_or_insert(damage);
+                                break;
+                            }
+                        }
                     }
-                    if recording.damaged {
-                        break;
-                    }
+                    continue;
                 }
-                Record::Footer(_) => recording.complete = true,
-                other => recording.take(other, &mut schemas),
+                Ok(record) => record,
+                Err(damage) => {
+                    recording.damaged.get_or_insert(damage);
+                    continue;
+                }
+            };
+            if record == Record::Footer {
+                recording.complete = true;
             }
+            recording.take(record, &mut schemas);
+        }
+        if let Some(damage) = &recording.damaged {
+            debug!(path = %path.display(), "read up to damage: {damage}");
         }
         recording.messages.sort_by_key(|m| m.log_ns);
         Ok(recording)
@@ -126,35 +142,50 @@ impl Recording {
 
     fn take(&mut self, record: Record<'_>, schemas: &mut BTreeMap<u16, (String, String, Vec<u8>)>) {
         match record {
-            Record::Schema { header, data } => {
-                schemas.insert(header.id, (header.name, header.encoding, data.into_owned()));
+            Record::Schema {
+                id,
+                name,
+                encoding,
+                data,
+            } => {
+                schemas.insert(id, (name, encoding, data.to_vec()));
             }
-            Record::Channel(c) => {
+            Record::Channel {
+                id,
+                schema_id,
+                topic,
+                message_encoding,
+            } => {
                 self.channels.insert(
-                    c.id,
+                    id,
                     Channel {
-                        topic: c.topic,
-                        message_encoding: c.message_encoding,
-                        schema: schemas.get(&c.schema_id).cloned(),
+                        topic,
+                        message_encoding,
+                        schema: schemas.get(&schema_id).cloned(),
                     },
                 );
             }
-            Record::Message { header, data } => {
-                if let Some(channel) = self.channels.get(&header.channel_id) {
+            Record::Message {
+                channel_id,
+                log_ns,
+                publish_ns,
+                data,
+            } => {
+                if let Some(channel) = self.channels.get(&channel_id) {
                     self.messages.push(Message {
                         topic: channel.topic.clone(),
-                        log_ns: header.log_time,
-                        publish_ns: header.publish_time,
-                        data: data.into_owned(),
-                        channel: header.channel_id,
+                        log_ns,
+                        publish_ns,
+                        data: data.to_vec(),
+                        channel: channel_id,
                     });
                 }
             }
-            Record::Attachment { header, data, .. } => {
-                self.attachments.insert(header.name, data.into_owned());
+            Record::Attachment { name, data } => {
+                self.attachments.insert(name, data.to_vec());
             }
-            Record::Metadata(m) => self.metadata.extend(m.metadata),
-            _ => {}
+            Record::Metadata(m) => self.metadata.extend(m),
+            Record::Chunk(_) | Record::Footer | Record::Other => {}
         }
     }
 
@@ -236,6 +267,7 @@ impl Recording {
             file: self.path.display().to_string(),
             bytes: self.bytes,
             complete: self.complete,
+            damage: self.damaged.as_ref().map(ToString::to_string),
             seconds: span,
             feedback_seconds: span_of(self.on(Topic::Feedback.name())),
             metadata: self.metadata.clone(),
@@ -299,6 +331,8 @@ pub struct RecordingInfo {
     pub file: String,
     pub bytes: u64,
     pub complete: bool,
+    /// The first damage met, and where.
+    pub damage: Option<String>,
     /// From the first message to the last, s.
     pub seconds: f64,
     /// From the first feedback to the last, s.
@@ -330,6 +364,9 @@ impl Report for RecordingInfo {
                 "{:.1} s recorded, {:.1} s of feedback; the run: {ending}",
                 self.seconds, self.feedback_seconds
             ));
+        if let Some(damage) = &self.damage {
+            table = table.title(format!("damaged: {damage}"));
+        }
         for (key, value) in &self.metadata {
             table = table.title(format!("{key}: {value}"));
         }
@@ -426,6 +463,6 @@ pub fn repair(from: &Path, to: Option<&Path>) -> Result<Repaired, RecordError> {
         to: to.display().to_string(),
         messages: recording.messages.len(),
         feedback_seconds: span_of(recording.on(Topic::Feedback.name())),
-        was_complete: recording.complete && !recording.damaged,
+        was_complete: recording.complete && recording.damaged.is_none(),
     })
 }

@@ -302,7 +302,8 @@ impl Gate {
     /// The accounts, if their file was read again since last asked: the
     /// Host then ends what accounts removed still hold.
     pub(crate) fn reread(&self) -> Option<Arc<Users>> {
-        self.refresh().and_then(|(users, read)| read.then_some(users))
+        self.refresh()
+            .and_then(|(users, read)| read.then_some(users))
     }
 
     /// The accounts now, and whether they were just read again.
