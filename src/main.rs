@@ -119,6 +119,10 @@ fn main() -> ExitCode {
         // SAFETY: restoring the default action of one signal before any thread starts.
         unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
     }
+    // A file grown past the system's limit (`ulimit -f`) is a failed write
+    // the recorder reports, as a full disk, not a signal that kills the lab.
+    // SAFETY: ignoring one signal before any thread starts.
+    unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
     if matches!(cli.command, Command::Petri(_)) {
         vl_report::Counting::switch_on();
     }

@@ -23,7 +23,8 @@ pub(crate) struct KeepArgs {
     /// Delete recordings older than this many days, oldest first.
     #[arg(long, value_parser = positive)]
     keep_days: Option<f64>,
-    /// Keep at most this many GB of recordings, deleting the oldest first.
+    /// Keep at most this many GB of recordings, the file being written
+    /// among them: the oldest go first, then the run's own recording stops.
     #[arg(long, value_parser = positive)]
     keep_gb: Option<f64>,
     /// Record the time between runs too (files idle-*.mcap, for

@@ -428,10 +428,16 @@ fn recording_name() -> impl Strategy<Value = vl_core::RecordingName> {
 }
 
 fn recording_note() -> impl Strategy<Value = vl_core::RecordingNote> {
-    (recording_name(), any::<u64>()).prop_map(|(name, dropped_frames)| vl_core::RecordingNote {
-        name,
-        dropped_frames,
-    })
+    (
+        recording_name(),
+        any::<u64>(),
+        proptest::option::of(".{0,40}"),
+    )
+        .prop_map(|(name, dropped_frames, stopped)| vl_core::RecordingNote {
+            name,
+            dropped_frames,
+            stopped,
+        })
 }
 
 fn experiment() -> impl Strategy<Value = Experiment> {

@@ -37,6 +37,7 @@ mod protocol_props;
 mod readme;
 mod reconnect;
 mod recording_damage;
+mod recording_room;
 mod recordings;
 mod safety;
 mod serial_safety;

@@ -33,7 +33,7 @@ pub use reader::{
 };
 pub use records::Damage;
 pub use views::{View, Views};
-pub use writer::{Begin, Feed, Recordable, now_ns, unix_ns_at};
+pub use writer::{Begin, Feed, Recordable, Stopped, now_ns, unix_ns_at};
 
 pub use foxglove::Schema;
 

@@ -38,6 +38,25 @@ pub enum RecordError {
     PastEnd { offset: u64, total: u64 },
     #[error("{0} holds no run (no /lab channel): not a recording of vl's")]
     NotARun(PathBuf),
+    #[error(
+        "the recordings folder reached its limit (--keep-gb): this run's file may grow to {0} bytes and no further"
+    )]
+    FolderFull(u64),
+}
+
+impl RecordError {
+    /// Whether this is the disk (or the file size the system allows) full.
+    pub fn is_disk_full(&self) -> bool {
+        let io = match self {
+            RecordError::Io(_, e) => e,
+            RecordError::Mcap(mcap::McapError::Io(e)) => e,
+            _ => return false,
+        };
+        matches!(
+            io.kind(),
+            std::io::ErrorKind::StorageFull | std::io::ErrorKind::FileTooLarge
+        )
+    }
 }
 
 /// A channel as the file declares it.

@@ -3,10 +3,10 @@
 
 use std::collections::HashMap;
 use std::fs::File;
-use std::io::BufWriter;
-use std::sync::Arc;
+use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError, SyncSender, TrySendError};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use bytes::Bytes;
@@ -31,6 +31,13 @@ const FRAMES_QUEUED: usize = QUEUE / 2;
 /// twice a second, so a crash loses less than the second promised even
 /// when the recorder runs late.
 const FLUSH_EVERY: Duration = Duration::from_millis(500);
+/// What a file's end takes beyond its chunks (the summary: schemas,
+/// channels, statistics, indexes), at most, with the closing log line…
+const SUMMARY_BYTES: u64 = 64 << 10;
+/// …and a chunk's index in it, for each chunk.
+const CHUNK_INDEX_BYTES: u64 = 512;
+/// A message's record and its index entry beyond its data.
+const MESSAGE_BYTES: u64 = 64;
 
 /// What begins a run's file.
 pub struct Begin {
@@ -70,6 +77,19 @@ pub(crate) struct Shared {
     dropped_frames: AtomicU64,
     /// Nanoseconds since 1970 at the lab's clock's zero.
     since_ns: u64,
+    /// The last file whose recording stopped before its run ended.
+    stopped: Mutex<Option<Stopped>>,
+}
+
+/// A run's recording stopped before the run ended: the folder reached its
+/// limit, or the disk is full.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stopped {
+    pub name: RecordingName,
+    pub why: String,
+    /// Whether the file was kept (finished, readable up to there); a file
+    /// that holds nothing of the run is deleted, entry and all.
+    pub kept: bool,
 }
 
 /// A handle on the recorder; none when the Host records nothing.
@@ -120,6 +140,7 @@ impl Feed {
             active: AtomicBool::new(false),
             dropped_frames: AtomicU64::new(0),
             since_ns: unix_ns_at(since),
+            stopped: Mutex::default(),
         });
         let recorder = Recorder {
             catalogue,
@@ -179,6 +200,18 @@ impl Feed {
         }
     }
 
+    /// Why the recording of `name` stopped before its run ended, if it did.
+    pub fn stopped(&self, name: &RecordingName) -> Option<Stopped> {
+        self.last_stopped().filter(|s| &s.name == name)
+    }
+
+    /// The last recording that stopped before its run ended.
+    pub fn last_stopped(&self) -> Option<Stopped> {
+        let shared = self.0.as_ref()?;
+        let stopped = shared.stopped.lock().unwrap_or_else(|e| e.into_inner());
+        stopped.clone()
+    }
+
     /// Frames dropped since the run began.
     pub fn dropped_frames(&self) -> u64 {
         self.0
@@ -209,8 +242,7 @@ impl Recorder {
                 && file.unflushed.is_some_and(|t| t.elapsed() >= FLUSH_EVERY)
                 && let Err(e) = file.flush()
             {
-                warn!("the recording {} stops: {e}", file.run.name);
-                self.file = None;
+                self.stop(&e);
             }
         }
         self.close();
@@ -222,13 +254,27 @@ impl Recorder {
                 self.close();
                 let name = begin.run.name.clone();
                 self.catalogue.writing(Some(&name));
+                self.catalogue.retain(&name);
                 match RunFile::create(&self.catalogue, *begin, ns, self.shared.since_ns) {
                     Ok(file) => {
                         self.file = Some(file);
-                        self.catalogue.retain(&name);
                         Ok(())
                     }
-                    Err(e) => Err(e),
+                    Err(e) => {
+                        // Nothing of it was kept: no entry names a file that is not there.
+                        self.catalogue.delete(&name, "it could not be begun");
+                        let why = e.to_string();
+                        *self
+                            .shared
+                            .stopped
+                            .lock()
+                            .unwrap_or_else(|e| e.into_inner()) = Some(Stopped {
+                            name,
+                            why,
+                            kept: false,
+                        });
+                        Err(e)
+                    }
                 }
             }
             Recordable::End => {
@@ -241,10 +287,33 @@ impl Recorder {
             },
         };
         if let Err(e) = result {
-            warn!("a run could not be recorded: {e}");
-            self.file = None;
-            self.catalogue.writing(None);
+            self.stop(&e);
         }
+    }
+
+    /// The file under way cannot go on (the folder's limit, a full disk):
+    /// it is finished as far as it goes, or deleted when it holds nothing
+    /// of the run, and the Host told why.
+    fn stop(&mut self, e: &super::RecordError) {
+        let why = match e {
+            super::RecordError::FolderFull(_) => e.to_string(),
+            e if e.is_disk_full() => format!("the disk is full ({e})"),
+            e => e.to_string(),
+        };
+        warn!("a run's recording stops: {why}");
+        if let Some(file) = self.file.take() {
+            let name = file.run.name.clone();
+            let kept = file.stop(&self.catalogue, &why);
+            if !kept {
+                self.catalogue.delete(&name, "it holds nothing of its run");
+            }
+            *self
+                .shared
+                .stopped
+                .lock()
+                .unwrap_or_else(|e| e.into_inner()) = Some(Stopped { name, why, kept });
+        }
+        self.catalogue.writing(None);
     }
 
     fn close(&mut self) {
@@ -258,9 +327,47 @@ impl Recorder {
     }
 }
 
+/// A writer that knows how far its file reaches: what the folder's
+/// limit is checked against.
+struct Counted<W> {
+    inner: W,
+    at: u64,
+    /// Shared with the `RunFile`: the writer owns this.
+    end: Arc<AtomicU64>,
+}
+
+impl<W: Write> Write for Counted<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.at += n as u64;
+        self.end.fetch_max(self.at, Ordering::Relaxed);
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+impl<W: Seek> Seek for Counted<W> {
+    fn seek(&mut self, to: SeekFrom) -> std::io::Result<u64> {
+        self.at = self.inner.seek(to)?;
+        Ok(self.at)
+    }
+}
+
 /// A run's file while it is written.
 struct RunFile {
-    writer: mcap::Writer<BufWriter<File>>,
+    writer: mcap::Writer<Counted<BufWriter<File>>>,
+    /// How far the file reaches, as handed to its buffer.
+    end: Arc<AtomicU64>,
+    catalogue: Catalogue,
+    /// Bytes handed to the writer since its chunk last closed, with their
+    /// records: what the open chunk may still add to the file.
+    pending: u64,
+    chunks: u64,
+    /// How large the file may grow under the folder's limit (none: no limit).
+    room: Option<u64>,
     channels: HashMap<Topic, u16>,
     /// The latest log time written: log times never go back.
     last_ns: u64,
@@ -283,10 +390,16 @@ impl RunFile {
     ) -> Result<RunFile, super::RecordError> {
         let path = catalogue.path(&begin.run.name);
         let file = File::create(&path).map_err(|e| super::RecordError::Io(path.clone(), e))?;
+        let end = Arc::new(AtomicU64::new(0));
+        let counted = Counted {
+            inner: BufWriter::new(file),
+            at: 0,
+            end: end.clone(),
+        };
         let mut writer = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
             .profile("")
-            .create(BufWriter::new(file))?;
+            .create(counted)?;
         let metadata = Metadata {
             name: "run".into(),
             metadata: [
@@ -339,6 +452,11 @@ impl RunFile {
         };
         let mut file = RunFile {
             writer,
+            end,
+            catalogue: catalogue.clone(),
+            pending: 0,
+            chunks: 0,
+            room: catalogue.room(&begin.run.name, SUMMARY_BYTES),
             channels: HashMap::new(),
             last_ns: ns,
             sequence: 0,
@@ -359,8 +477,46 @@ impl RunFile {
         Ok(file)
     }
 
+    /// How large the file would be, at most, with `more` bytes of data
+    /// more and its end written.
+    fn reach(&self, more: u64) -> u64 {
+        let ends = SUMMARY_BYTES + CHUNK_INDEX_BYTES * (self.chunks + 1);
+        self.end.load(Ordering::Relaxed) + self.pending + more + MESSAGE_BYTES + ends
+    }
+
+    /// Whether `more` bytes fit under the folder's limit: older runs are
+    /// let go to make room first.
+    fn fits(&mut self, more: u64) -> Written {
+        let Some(room) = self.room else {
+            return Ok(());
+        };
+        let reach = self.reach(more);
+        if reach <= room {
+            return Ok(());
+        }
+        // Room for a while more, not for one message at a time.
+        let wanted = reach + (room / 8).min(1 << 20);
+        self.room = self.catalogue.room(&self.run.name, wanted);
+        match self.room {
+            Some(room) if reach > room => Err(super::RecordError::FolderFull(room)),
+            _ => Ok(()),
+        }
+    }
+
     /// Writes `data` on `topic`, its channel made on first use.
     fn put(&mut self, topic: Topic, log_ns: u64, publish_ns: u64, data: &[u8]) -> Written {
+        self.fits(data.len() as u64)?;
+        self.put_unchecked(topic, log_ns, publish_ns, data)
+    }
+
+    /// Writes `data` on `topic` whatever the folder's limit.
+    fn put_unchecked(
+        &mut self,
+        topic: Topic,
+        log_ns: u64,
+        publish_ns: u64,
+        data: &[u8],
+    ) -> Written {
         let channel_id = match self.channels.get(&topic) {
             Some(&id) => id,
             None => {
@@ -388,6 +544,7 @@ impl RunFile {
             },
             data,
         )?;
+        self.pending += data.len() as u64 + MESSAGE_BYTES;
         self.unflushed.get_or_insert_with(Instant::now);
         Ok(())
     }
@@ -447,11 +604,30 @@ impl RunFile {
     fn flush(&mut self) -> Written {
         self.writer.flush()?;
         self.unflushed = None;
+        self.pending = 0;
+        self.chunks += 1;
         Ok(())
     }
 
     fn finish(mut self, catalogue: &Catalogue) -> Written {
         self.writer.finish()?;
         catalogue.write_entry(&self.run, &self.owner)
+    }
+
+    /// Ends the file early, saying `why` in its log if it still can:
+    /// whether it was kept (it holds at least a closed chunk of the run,
+    /// finished if the disk let it, else as a crash leaves it, which
+    /// `repair` makes whole).
+    fn stop(mut self, catalogue: &Catalogue, why: &str) -> bool {
+        let text = format!("the recording stops here: {why}");
+        let ns = self.last_ns;
+        // Within what the summary's reserve leaves for it.
+        let line = View::log(ns, Level::Warning, &text);
+        let said = self.put_unchecked(line.topic, ns, ns, &line.data);
+        let held = self.chunks > 0 || (said.is_ok() && self.flush().is_ok());
+        if let Err(e) = self.finish(catalogue) {
+            warn!("the stopped recording could not be finished: {e}");
+        }
+        held
     }
 }

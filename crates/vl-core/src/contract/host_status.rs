@@ -33,6 +33,10 @@ pub struct HostStatus {
     /// What the processor gives the control loop and the serial guard.
     #[serde(default)]
     pub priority: Priorities,
+    /// Why the recorder last stopped a run's file before its end (the
+    /// folder's limit, a full disk); none while every run is recorded whole.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recording_stopped: Option<String>,
 }
 
 /// How soon the system runs a thread that wakes: what stands between a
@@ -158,6 +162,9 @@ impl Report for HostStatus {
             ("priority", self.priority.to_string()),
         ])
         .title("the Host now:");
+        if let Some(why) = &self.recording_stopped {
+            table = table.note(format!("recording stopped: {why}"));
+        }
         for (i, person) in self.queue.iter().enumerate() {
             table = table.note(format!("in line {}: {person}", i + 1));
         }

@@ -107,6 +107,10 @@ pub struct Summary {
 pub struct RecordingNote {
     pub name: crate::RecordingName,
     pub dropped_frames: u64,
+    /// Why the recording stopped before the run ended (the folder reached
+    /// its limit, the disk is full): the file holds the run up to there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stopped: Option<String>,
 }
 
 impl Summary {

@@ -107,11 +107,19 @@ impl Hub {
         }
     }
 
-    /// Says in the run's summary where it was recorded.
+    /// Says in the run's summary where it was recorded, and whether its
+    /// recording stopped early; a file that was not kept is not named.
     pub(super) fn note_recording(&self, summary: &mut Summary) {
-        summary.recording = self.recording.as_ref().map(|r| RecordingNote {
-            name: r.name.clone(),
-            dropped_frames: self.lab.record.dropped_frames(),
+        summary.recording = self.recording.as_ref().and_then(|r| {
+            let stopped = self.lab.record.stopped(&r.name);
+            if stopped.as_ref().is_some_and(|s| !s.kept) {
+                return None;
+            }
+            Some(RecordingNote {
+                name: r.name.clone(),
+                dropped_frames: self.lab.record.dropped_frames(),
+                stopped: stopped.map(|s| s.why),
+            })
         });
     }
 

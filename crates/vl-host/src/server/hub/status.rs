@@ -94,6 +94,14 @@ impl Hub {
             runs_today: self.run_log.today(),
             runs: self.run_log.runs.iter().cloned().collect(),
             priority: devices.priority,
+            recording_stopped: self.lab.record.last_stopped().map(|s| {
+                let kept = if s.kept {
+                    "kept up to there"
+                } else {
+                    "deleted: it held nothing"
+                };
+                format!("{}: {} ({kept})", s.name, s.why)
+            }),
         }
     }
 

@@ -3,7 +3,7 @@
 //! the retention limits let go.
 
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, SystemTime};
 
 use serde::{Deserialize, Serialize};
@@ -12,6 +12,9 @@ use vl_core::{PART_BYTES, RecordedRun, RecordingName};
 use vl_report::table::{Report, Table};
 
 use super::RecordError;
+use index::Index;
+
+mod index;
 
 /// The most runs a Guest is sent in one list.
 const MOST_LISTED: usize = 100;
@@ -140,6 +143,8 @@ pub struct Catalogue {
     writing: Arc<Mutex<Option<RecordingName>>>,
     /// Whether the time between runs is recorded too.
     pub record_idle: bool,
+    /// The entries, read from the folder once and kept.
+    index: Arc<Mutex<Index>>,
 }
 
 impl Catalogue {
@@ -153,6 +158,7 @@ impl Catalogue {
             opened_ms: now_ms(),
             writing: Arc::default(),
             record_idle: false,
+            index: Arc::default(),
         })
     }
 
@@ -192,54 +198,67 @@ impl Catalogue {
         self.dir.join(format!("{}.json", name.as_str()))
     }
 
+    /// The entries, read from the folder the first time.
+    fn index(&self) -> MutexGuard<'_, Index> {
+        let mut index = self.index.lock().unwrap_or_else(|e| e.into_inner());
+        index.read_once(&self.dir);
+        index
+    }
+
+    /// Keeps `run`'s entry, with its file's size now.
     pub fn write_entry(&self, run: &RecordedRun, owner: &Owner) -> Result<(), RecordError> {
         let path = self.entry_path(&run.name);
-        let entry = CatalogueEntry {
+        let mut entry = CatalogueEntry {
             run: run.clone(),
             owner: owner.clone(),
         };
+        entry.run.bytes = self.size(&run.name).unwrap_or(0);
         let text = serde_json::to_vec_pretty(&entry).expect("entries serialise");
-        // Written aside and renamed into place: a Guest listing the runs
-        // meanwhile reads the old entry or the new, never half of one.
+        // Written aside and renamed into place: a `vl record ls` reading
+        // the folder meanwhile reads the old entry or the new, never half.
         let aside = path.with_extension("json.new");
         std::fs::write(&aside, text)
             .and_then(|()| std::fs::rename(&aside, &path))
-            .map_err(|e| RecordError::Io(path, e))
+            .map_err(|e| RecordError::Io(path, e))?;
+        self.index().put(entry);
+        Ok(())
     }
 
-    /// Every run with an entry, newest first, with its file's size now.
-    fn entries(&self) -> Vec<CatalogueEntry> {
-        let Ok(listing) = std::fs::read_dir(&self.dir) else {
-            return Vec::new();
-        };
-        let mut entries: Vec<CatalogueEntry> = listing
-            .filter_map(Result::ok)
-            .filter(|f| f.file_name().to_string_lossy().ends_with(".mcap.json"))
-            .filter_map(|f| {
-                let text = std::fs::read(f.path()).ok()?;
-                let mut entry: CatalogueEntry = serde_json::from_slice(&text).ok()?;
-                entry.run.bytes = std::fs::metadata(self.path(&entry.run.name)).ok()?.len();
-                Some(entry)
-            })
-            .collect();
-        entries.sort_by_key(|e| std::cmp::Reverse((e.run.started_ms, e.run.run)));
+    /// The size of `name`'s file now, if it is there.
+    fn size(&self, name: &RecordingName) -> Option<u64> {
+        std::fs::metadata(self.path(name)).ok().map(|m| m.len())
+    }
+
+    /// `entries` with their files' sizes now; those whose file is gone
+    /// left out.
+    fn sized(&self, entries: Vec<CatalogueEntry>) -> Vec<RecordedRun> {
         entries
+            .into_iter()
+            .filter_map(|mut e| {
+                e.run.bytes = self.size(&e.run.name)?;
+                Some(e.run)
+            })
+            .collect()
     }
 
     /// Every recorded run, newest first.
     pub fn runs(&self) -> Runs {
-        Runs(self.entries().into_iter().map(|e| e.run).collect())
+        let entries: Vec<CatalogueEntry> = self.index().iter().cloned().collect();
+        Runs(self.sized(entries))
     }
 
     /// The newest runs `who` may see (their own, or every one for an
     /// administrator), at most `MOST_LISTED`: the list fits one message.
+    /// Only those listed are looked at on disk.
     pub fn visible(&self, who: &Owner, admin: bool) -> Vec<RecordedRun> {
-        self.entries()
-            .into_iter()
+        let entries: Vec<CatalogueEntry> = self
+            .index()
+            .iter()
             .filter(|e| admin || who.sees(&e.owner))
             .take(MOST_LISTED)
-            .map(|e| e.run)
-            .collect()
+            .cloned()
+            .collect();
+        self.sized(entries)
     }
 
     /// The part of recording `name` from `offset` on, and the file's
@@ -251,10 +270,9 @@ impl Catalogue {
         who: &Owner,
         admin: bool,
     ) -> Result<(u64, Vec<u8>), RecordError> {
-        // The run's own entry: a part is asked for often, the folder not read.
-        let known = std::fs::read(self.entry_path(name))
-            .ok()
-            .and_then(|text| serde_json::from_slice::<CatalogueEntry>(&text).ok())
+        let known = self
+            .index()
+            .get(name)
             .is_some_and(|e| admin || who.sees(&e.owner));
         if !known {
             return Err(RecordError::Unknown(name.clone()));
@@ -284,32 +302,70 @@ impl Catalogue {
         Ok((total, bytes))
     }
 
-    /// Deletes the oldest runs past the retention limits, never `running`.
+    /// Deletes the runs older than `--keep-days`, and the oldest past
+    /// `--keep-gb` (counting `running` as it is now), never `running`.
     pub fn retain(&self, running: &RecordingName) {
-        if self.keep_days.is_none() && self.keep_gb.is_none() {
-            return;
-        }
-        let now_ms = now_ms();
-        let max_age_ms = self.keep_days.map(|d| (d * 86_400e3) as u64);
-        let max_bytes = self.keep_gb.map(|gb| (gb * 1e9) as u64);
-        let mut total: u64 = 0;
-        // Newest first: what is kept fills the limit before the old.
-        for entry in self.entries() {
-            let run = &entry.run;
-            let too_old = max_age_ms.is_some_and(|age| now_ms.saturating_sub(run.started_ms) > age);
-            let too_much = max_bytes.is_some_and(|most| total + run.bytes > most);
-            if &run.name == running || !(too_old || too_much) {
-                total += run.bytes;
-                continue;
+        if let Some(days) = self.keep_days {
+            let max_age_ms = (days * 86_400e3) as u64;
+            let now_ms = now_ms();
+            let old: Vec<RecordingName> = self
+                .index()
+                .iter()
+                .filter(|e| {
+                    &e.run.name != running && now_ms.saturating_sub(e.run.started_ms) > max_age_ms
+                })
+                .map(|e| e.run.name.clone())
+                .collect();
+            for name in old {
+                self.delete(&name, "older than the retention limit (--keep-days)");
             }
-            info!(recording = %run.name, "deleted by the retention limits");
-            for path in [self.path(&run.name), self.entry_path(&run.name)] {
-                if let Err(e) = std::fs::remove_file(&path) {
+        }
+        let now = self.size(running).unwrap_or(0);
+        self.room(running, now);
+    }
+
+    /// How large the file `running` may grow under `--keep-gb` (none: no
+    /// limit) once it is `wanted` bytes: the oldest other runs are deleted
+    /// while the folder would pass the limit.
+    pub fn room(&self, running: &RecordingName, wanted: u64) -> Option<u64> {
+        let most = self.limit()?;
+        // Newest first; the stored sizes (the running file is not among them).
+        let mut others: Vec<(RecordingName, u64)> = self
+            .index()
+            .iter()
+            .filter(|e| &e.run.name != running)
+            .map(|e| (e.run.name.clone(), e.run.bytes))
+            .collect();
+        let mut total: u64 = others.iter().map(|(_, bytes)| bytes).sum();
+        while wanted.saturating_add(total) > most {
+            let Some((oldest, bytes)) = others.pop() else {
+                break;
+            };
+            self.delete(&oldest, "past the folder's limit (--keep-gb)");
+            total -= bytes;
+        }
+        Some(most.saturating_sub(total))
+    }
+
+    /// Deletes run `name`'s file and entry.
+    pub(crate) fn delete(&self, name: &RecordingName, why: &str) {
+        info!(recording = %name, "deleted: {why}");
+        self.index().remove(name);
+        for path in [self.path(name), self.entry_path(name)] {
+            match std::fs::remove_file(&path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
                     warn!("could not delete {}: {e}", path.display());
                 }
+                _ => {}
             }
         }
     }
+
+    /// The limit on the folder, bytes.
+    pub(crate) fn limit(&self) -> Option<u64> {
+        self.keep_gb.map(|gb| (gb * 1e9) as u64)
+    }
+
 }
 
 #[cfg(test)]
