@@ -116,3 +116,49 @@ async fn bare_connects_from_elsewhere_never_keep_a_far_operator_out() {
     );
     assert!(peak < 100.0, "{peak:.0} MB");
 }
+
+/// A Foxglove client offering its subprotocol: the server's first word.
+async fn foxglove_server_info(url: &str) -> Option<serde_json::Value> {
+    use futures_util::StreamExt;
+    use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+    let mut request = url.into_client_request().ok()?;
+    request.headers_mut().insert(
+        "Sec-WebSocket-Protocol",
+        "foxglove.websocket.v1".parse().ok()?,
+    );
+    let (mut ws, _) = tokio_tungstenite::connect_async(request).await.ok()?;
+    let first = tokio::time::timeout(Duration::from_secs(10), ws.next())
+        .await
+        .ok()??
+        .ok()?;
+    serde_json::from_str(first.to_text().ok()?).ok()
+}
+
+/// A class behind one router — thirty pages and thirty Foxglove clients,
+/// one address, all at once — is let in whole: no one is pushed out by a
+/// classmate (issue 43, item 8).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_class_behind_one_router_gets_in_at_once() {
+    let (_host, url) = start_host(&["--camera", "sim"]);
+    let guests = (0..30).map(|_| {
+        let url = url.clone();
+        async move {
+            let mut peer = Peer::try_connect(&url).await.ok()?;
+            peer.send(json!({"type": "hello", "protocol": 1, "role": "observer"}))
+                .await;
+            let welcome = peer.next_of("welcome", Duration::from_secs(10)).await?;
+            Some((welcome, peer))
+        }
+    });
+    let foxglove = (0..30).map(|_| foxglove_server_info(&url));
+    let (guests, foxglove) = tokio::join!(
+        futures_util::future::join_all(guests),
+        futures_util::future::join_all(foxglove)
+    );
+    let welcomed = guests.iter().filter(|g| g.is_some()).count();
+    let informed = foxglove
+        .iter()
+        .filter(|f| f.as_ref().is_some_and(|v| v["op"] == "serverInfo"))
+        .count();
+    assert_eq!((welcomed, informed), (30, 30));
+}

@@ -286,3 +286,92 @@ fn a_demo_behind_a_link_feels_its_delay() {
         "a 150 ms link, round trip {rtt} ms"
     );
 }
+
+/// A Guest's socket behind the relay that says hello as an observer and
+/// then never reads: its receive buffer kept small, so what it does not
+/// take stays with the relay.
+async fn deaf_observer(url: &str) -> tokio_tungstenite::WebSocketStream<tokio::net::TcpStream> {
+    let address = url.trim_start_matches("ws://").trim_end_matches('/');
+    let socket = tokio::net::TcpSocket::new_v4().unwrap();
+    socket.set_recv_buffer_size(4096).unwrap();
+    let stream = socket.connect(address.parse().unwrap()).await.unwrap();
+    let (mut ws, _) = tokio_tungstenite::client_async(url, stream).await.unwrap();
+    let hello = serde_json::json!({"type": "hello", "protocol": 1, "role": "observer"});
+    ws.send(Message::text(hello.to_string())).await.unwrap();
+    ws
+}
+
+/// Footage of a bare floor's grain, which no JPEG makes small: ~100 KB a
+/// frame, 15 a second, so that what a Guest does not read piles up quickly.
+fn noise_footage() -> std::path::PathBuf {
+    let dir = scratch("media-noise");
+    let mut state = 0x9e37_79b9_u32;
+    for n in 0..4 {
+        let image = image::RgbImage::from_fn(640, 480, |_, _| {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            let [r, g, b, _] = state.to_le_bytes().map(|v| 200 + v % 32);
+            image::Rgb([r, g, b])
+        });
+        image.save(dir.join(format!("{n}.png"))).unwrap();
+    }
+    dir
+}
+
+/// 16 observers that never read, through `vl media` for 40 s, cost the
+/// relay at most a megabyte each (the newest frame and a little text, then
+/// they are let go as not reading), and what they held is given back when
+/// they are gone; a reading observer is served throughout (issue 43,
+/// item 14).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn observers_that_never_read_cost_the_relay_little() {
+    let _one = ONE_AT_A_TIME.lock().await;
+    let camera = format!("dir:{}", noise_footage().display());
+    let (_emu, device) = common::start_emulator(&[]);
+    let (_host, upstream) = common::start_khepera_host_with(&device, &["--camera", &camera]);
+    let (relay, url) = media(&upstream, "lan");
+    let pid = relay.0.id();
+    let mut reader = common::peer::Peer::connect(&url).await;
+    reader.hello("observer").await;
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let (before, _) = common::peer::memory_mb(pid);
+    let mut deaf = Vec::new();
+    for _ in 0..16 {
+        deaf.push(deaf_observer(&url).await);
+    }
+    let began = Instant::now();
+    let mut most: f64 = before;
+    let mut frames = 0;
+    while began.elapsed() < Duration::from_secs(40) {
+        // The reading observer keeps reading meanwhile.
+        if let Ok(Some(Ok(m))) =
+            tokio::time::timeout(Duration::from_millis(200), reader.ws.next()).await
+        {
+            frames += usize::from(m.is_binary());
+        }
+        most = most.max(common::peer::memory_mb(pid).0);
+        if frames % 20 == 0 {
+            eprintln!(
+                "{:?} {:.1} MB",
+                began.elapsed(),
+                common::peer::memory_mb(pid).0
+            );
+        }
+    }
+    drop(deaf);
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    let (after, _) = common::peer::memory_mb(pid);
+    eprintln!(
+        "relay: {before:.1} MB, at most {most:.1} MB with 16 deaf observers, {after:.1} MB after; the reader got {frames} frames"
+    );
+    assert!(
+        most - before <= 16.0,
+        "the relay grew from {before:.1} to {most:.1} MB"
+    );
+    assert!(
+        after - before <= 8.0,
+        "{after:.1} MB held after they left (from {before:.1})"
+    );
+    assert!(frames > 100, "the reader got {frames} frames in 40 s");
+}

@@ -77,6 +77,7 @@ mod khepera;
 mod lab;
 mod line;
 mod media;
+mod memory;
 mod priority;
 mod reach;
 mod server;

@@ -12,8 +12,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use futures_util::StreamExt;
 use futures_util::stream::{SplitSink, SplitStream};
-use futures_util::{SinkExt, StreamExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc;
 use tokio_tungstenite::WebSocketStream;
@@ -21,21 +21,25 @@ use tokio_tungstenite::tungstenite::protocol::frame::coding::CloseCode;
 use tokio_tungstenite::tungstenite::protocol::{CloseFrame, WebSocketConfig};
 use tokio_tungstenite::tungstenite::{self, Message};
 use tracing::{debug, warn};
-use vl_core::{MAX_FRAME_BYTES, MAX_TEXT_BYTES};
+use vl_core::{MAX_FRAME_BYTES, MAX_TEXT_BYTES, PART_BYTES, PartHeader};
 use vl_sim::{Delivery, LinkModel, MessageLink};
 
 use crate::server::admission::{Admission, Ticket};
+use crate::server::socket::{self, Unwritten};
 
 mod bench;
 
 pub use bench::{MediaBench, MediaBenchError, Reproduced, RoundTrip, bench};
 
-/// Bytes of text one direction of a connection may hold in flight; a link
-/// slower than what is sent into it closes rather than grow without end.
-const IN_FLIGHT_BYTES: usize = 8 << 20;
-/// Bytes of camera frames one direction holds; past that the oldest go
-/// unsent, so a client that does not read gets the newest frame when it
-/// reads again, as it would from the Host itself.
+/// Bytes of text (and recordings' parts) one direction of a connection may
+/// hold in flight (besides one message however large): what a slow link
+/// holds of the feedback, a definition and a part; a link slower than what
+/// is sent into it closes rather than grow without end.
+const IN_FLIGHT_BYTES: usize = MAX_TEXT_BYTES + PART_BYTES;
+/// Bytes of camera frames one direction holds on their way (the link's
+/// delay); a frame whose time came while the client did not read is let
+/// go when a newer one comes, so a client that does not read costs the
+/// newest frame, as it would at the Host itself.
 const FRAME_BYTES_HELD: usize = 2 << 20;
 /// How long the handshakes on either side may take.
 const HANDSHAKE: Duration = Duration::from_secs(10);
@@ -168,6 +172,7 @@ async fn relay(listener: TcpListener, config: Arc<MediaConfig>, delays: Arc<Mute
                 Ok(why) => debug!(%peer, "relay ended: {why}"),
                 Err(why) => debug!(%peer, "relay failed: {why}"),
             }
+            crate::memory::give_back();
         });
     }
 }
@@ -177,6 +182,7 @@ fn ws_config() -> WebSocketConfig {
     WebSocketConfig::default()
         .max_message_size(Some(most))
         .max_frame_size(Some(most))
+        .max_write_buffer_size(2 * most)
 }
 
 /// Relays one Guest's connection until either end closes or the link goes down.
@@ -283,33 +289,38 @@ type Sink<S> = SplitSink<WebSocketStream<S>, Message>;
 /// carries their numbers, this holds their bytes within a budget.
 #[derive(Default)]
 struct FrameBudget {
-    held: std::collections::VecDeque<(u64, Message)>,
+    /// Each frame's number, when it is due, and the frame.
+    held: std::collections::VecDeque<(u64, Instant, Message)>,
     bytes: usize,
     next: u64,
 }
 
 impl FrameBudget {
-    /// Holds `frame`, letting the oldest go past the budget; its number.
-    fn hold(&mut self, frame: Message) -> u64 {
+    /// Holds `frame`, due `at`: frames already due and not taken (the
+    /// client is not reading) go, and the oldest past the budget; its number.
+    fn hold(&mut self, frame: Message, at: Instant) -> u64 {
+        let now = Instant::now();
+        while let Some((_, due, old)) = self.held.front() {
+            if *due > now && self.bytes <= FRAME_BYTES_HELD {
+                break;
+            }
+            self.bytes -= old.len();
+            self.held.pop_front();
+        }
         let number = self.next;
         self.next += 1;
         self.bytes += frame.len();
-        self.held.push_back((number, frame));
-        while self.bytes > FRAME_BYTES_HELD && self.held.len() > 1 {
-            if let Some((_, old)) = self.held.pop_front() {
-                self.bytes -= old.len();
-            }
-        }
+        self.held.push_back((number, at, frame));
         number
     }
 
     /// Frame `number`, unless it was let go.
     fn take(&mut self, number: u64) -> Option<Message> {
-        while let Some((n, _)) = self.held.front() {
+        while let Some((n, _, _)) = self.held.front() {
             if *n > number {
                 return None;
             }
-            let (n, frame) = self.held.pop_front()?;
+            let (n, _, frame) = self.held.pop_front()?;
             self.bytes -= frame.len();
             if n == number {
                 return Some(frame);
@@ -353,21 +364,30 @@ where
             }
             let closing = message.is_close();
             let bytes = message.len();
-            let carried = if message.is_binary() {
+            let at = match link.send(clock.ms(), bytes) {
+                Delivery::At(ms) => clock.at(ms),
+                Delivery::Disconnected => return Ok("the link went down"),
+            };
+            // Camera frames: the newest matters; text and recordings' parts
+            // are each needed, within a budget.
+            // Each message held gets bytes of its own: one read shares its
+            // allocation with the socket's read buffer, so a small message
+            // held while the other end does not read would keep whole
+            // buffers of frames read around it.
+            let message = owned(message);
+            let carried = if matches!(&message, Message::Binary(b) if !PartHeader::is_part(b)) {
                 let mut frames = frames.lock().map_err(|_| "frames lost".to_owned())?;
-                Carried::Frame(frames.hold(message))
+                Carried::Frame(frames.hold(message, at))
             } else {
-                if in_flight.fetch_add(bytes, Ordering::Relaxed) + bytes > IN_FLIGHT_BYTES {
+                // One message, however large the socket let it be, always
+                // goes; more than the budget with others does not.
+                let before = in_flight.fetch_add(bytes, Ordering::Relaxed);
+                if before > 0 && before + bytes > IN_FLIGHT_BYTES {
                     return Err("more in flight than the link can hold".to_owned());
                 }
                 Carried::Text(message)
             };
-            match link.send(clock.ms(), bytes) {
-                Delivery::At(ms) => {
-                    let _ = queue.send((Instant::now(), clock.at(ms), carried));
-                }
-                Delivery::Disconnected => return Ok("the link went down"),
-            }
+            let _ = queue.send((Instant::now(), at, carried));
             if closing {
                 break;
             }
@@ -393,9 +413,10 @@ where
             };
             held(read.elapsed().as_secs_f64() * 1e3, message.is_binary());
             let closing = message.is_close();
-            to.send(message)
-                .await
-                .map_err(|e| format!("write failed: {e}"))?;
+            socket::write(&mut to, message).await.map_err(|e| match e {
+                Unwritten::TimedOut => "the other end took nothing: it is not reading".to_owned(),
+                Unwritten::Failed(e) => format!("write failed: {e}"),
+            })?;
             if closing {
                 return Ok("closed");
             }
@@ -405,6 +426,15 @@ where
     tokio::select! {
         r = read => r,
         r = write => r,
+    }
+}
+
+/// `message` with its payload copied out of whatever buffer it was read into.
+fn owned(message: Message) -> Message {
+    match message {
+        Message::Text(text) => Message::text(text.as_str().to_owned()),
+        Message::Binary(bytes) => Message::Binary(tungstenite::Bytes::copy_from_slice(&bytes)),
+        other => other,
     }
 }
 

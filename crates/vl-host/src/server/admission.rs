@@ -21,10 +21,12 @@ use tokio::sync::watch;
 /// Connections the Host serves at once: a class of a hundred watching, and room.
 pub(crate) const MAX_CONNECTIONS: usize = 256;
 /// Of those, connections that have not been welcomed yet.
-pub(crate) const MAX_UNWELCOMED: usize = 32;
-/// Of those, connections from one address: a class behind one router
-/// connecting at once, each saying hello within a round trip.
-pub(crate) const MAX_UNWELCOMED_PER_ADDRESS: usize = 8;
+pub(crate) const MAX_UNWELCOMED: usize = 128;
+/// Of those, connections from one address: a class of thirty behind one
+/// router (or one `vl media`) connecting at once with a page and Foxglove
+/// each, saying hello within a round trip and waiting their turn for the
+/// password check.
+pub(crate) const MAX_UNWELCOMED_PER_ADDRESS: usize = 64;
 /// Welcomed places only people who may drive take.
 pub(crate) const KEPT_FOR_DRIVERS: usize = 16;
 

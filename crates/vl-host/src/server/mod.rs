@@ -19,7 +19,7 @@ mod foxglove;
 mod http;
 mod hub;
 pub(crate) mod origin;
-mod socket;
+pub(crate) mod socket;
 mod web;
 
 use std::path::PathBuf;
@@ -244,6 +244,7 @@ async fn accept(
             if let Err(e) = connection.run(stream).await {
                 debug!(%peer, "connection {id} ended: {e}");
             }
+            crate::memory::give_back();
         });
     }
 }

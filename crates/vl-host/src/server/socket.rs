@@ -1,5 +1,6 @@
 //! A client's WebSocket as the Host holds it, and writing to it within a
-//! time: a client that does not take a message in time is not reading.
+//! time: a client that does not take a message in time is not reading (the
+//! Host's rule, and the Media's for the Guests behind it).
 
 use std::time::Duration;
 
@@ -17,14 +18,17 @@ pub(super) type Socket = WebSocketStream<Box<dyn Io>>;
 pub(super) type Sink = SplitSink<Socket, Message>;
 
 /// Why a message was not written.
-pub(super) enum Unwritten {
+pub(crate) enum Unwritten {
     /// The client took nothing for the write timeout.
     TimedOut,
     Failed(tungstenite::Error),
 }
 
 /// Writes `message`, within the write timeout.
-pub(super) async fn write(sink: &mut Sink, message: Message) -> Result<(), Unwritten> {
+pub(crate) async fn write<S>(sink: &mut S, message: Message) -> Result<(), Unwritten>
+where
+    S: futures_util::Sink<Message, Error = tungstenite::Error> + Unpin,
+{
     match tokio::time::timeout(WRITE_TIMEOUT, sink.send(message)).await {
         Ok(Ok(())) => Ok(()),
         Ok(Err(e)) => Err(Unwritten::Failed(e)),

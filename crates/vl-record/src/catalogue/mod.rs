@@ -365,7 +365,6 @@ impl Catalogue {
     pub(crate) fn limit(&self) -> Option<u64> {
         self.keep_gb.map(|gb| (gb * 1e9) as u64)
     }
-
 }
 
 #[cfg(test)]
