@@ -344,3 +344,65 @@ fn camera_addresses_are_checked_before_anything_starts() {
         "{out}"
     );
 }
+
+/// `jpeg` declaring `width`×`height` in its frame header, nothing else
+/// changed: a few kilobytes that would decode to a huge picture.
+fn declaring(mut jpeg: Vec<u8>, width: u16, height: u16) -> Vec<u8> {
+    let sof = jpeg
+        .windows(2)
+        .position(|w| w == [0xFF, 0xC0])
+        .expect("a baseline JPEG");
+    jpeg[sof + 5..sof + 7].copy_from_slice(&height.to_be_bytes());
+    jpeg[sof + 7..sof + 9].copy_from_slice(&width.to_be_bytes());
+    jpeg
+}
+
+/// A network camera that sends, between its frames, frames declaring
+/// 8192×8192 px: each is dropped by its header before any decoding, the
+/// Host stays small, and the camera's own frames still reach a watcher
+/// (issue 43, item 15).
+#[test]
+fn frames_larger_than_the_camera_are_dropped_before_decoding() {
+    let arena = Arena::named("navigation").unwrap();
+    let (_emulator, device, _lines) = start_emulator_watched(&[]);
+    let good = frame(&arena, arena.start);
+    let huge = declaring(good.clone(), 8192, 8192);
+    let sent = Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let scene: Scene = {
+        let sent = sent.clone();
+        Arc::new(move || {
+            let n = sent.fetch_add(1, Ordering::SeqCst);
+            if n % 2 == 0 {
+                good.clone()
+            } else {
+                huge.clone()
+            }
+        })
+    };
+    let camera = HttpCamera::serve(scene);
+    let (host, url) = start_khepera_host_with(&device, &["--camera", &camera.url()]);
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let frames = runtime.block_on(async {
+        let mut watcher = common::peer::Peer::connect(&url).await;
+        watcher.hello("observer").await;
+        let began = std::time::Instant::now();
+        let mut frames = 0;
+        while began.elapsed() < Duration::from_secs(8) {
+            if let Ok(Some(Ok(m))) = tokio::time::timeout(
+                Duration::from_millis(500),
+                futures_util::StreamExt::next(&mut watcher.ws),
+            )
+            .await
+            {
+                frames += usize::from(m.is_binary());
+            }
+        }
+        frames
+    });
+    let (_, peak_mb) = common::peer::memory_mb(host.0.id());
+    let sent = sent.load(Ordering::SeqCst);
+    assert!(sent > 60, "the camera sent {sent} frames");
+    assert!(frames > 20, "{frames} frames reached the watcher");
+    // Decoded, one such frame takes 200 MB (the Host peaked at 402 MB).
+    assert!(peak_mb < 150.0, "the Host peaked at {peak_mb:.0} MB");
+}

@@ -14,7 +14,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use tracing::debug;
 use vl_core::CameraModel;
 
-use super::pixels::{PixelFormat, decode};
+use super::pixels::{MAX_CAMERA_SIDE, PixelFormat, declared_size, decode};
 use crate::drivers::{Camera, CameraError, Captured, believed};
 
 /// No JPEG part is larger than this, nor a header line longer than
@@ -77,6 +77,9 @@ struct Newest {
     /// Frames read so far: `grab` waits for this to pass what it had.
     count: u64,
     error: Option<String>,
+    /// The camera's size once known: a frame declaring another is dropped
+    /// as it arrives, never kept in place of the last good one.
+    size: Option<(u32, u32)>,
 }
 
 struct StreamShared {
@@ -140,11 +143,23 @@ impl HttpCamera {
                         FIRST_FRAME.as_secs()
                     )));
                 };
+                let first =
+                    |e: String| CameraError::Frame(format!("the first frame from {url}: {e}"));
+                match declared_size(jpeg) {
+                    Some((w, h)) if w <= MAX_CAMERA_SIDE && h <= MAX_CAMERA_SIDE => {}
+                    Some((w, h)) => {
+                        return Err(first(format!(
+                            "{w}×{h} px, over the {MAX_CAMERA_SIDE} px a camera may have"
+                        )));
+                    }
+                    None => return Err(first("no JPEG frame header".into())),
+                }
                 let image = vl_core::decode_image(jpeg, Some(image::ImageFormat::Jpeg))
-                    .map_err(|e| CameraError::Frame(format!("the first frame from {url}: {e}")))?;
+                    .map_err(|e| first(e.to_string()))?;
                 believed(None, floor_mm, image.width(), fps)
             }
         };
+        shared.lock().size = Some((model.width_px, model.height_px));
         Ok(HttpCamera {
             url: url.to_owned(),
             model,
@@ -300,6 +315,12 @@ fn stream(address: &Address, shared: &Arc<StreamShared>) -> Result<(), String> {
             .unwrap_or_else(Instant::now);
         {
             let mut newest = shared.lock();
+            if let Some(size) = newest.size
+                && declared_size(&jpeg) != Some(size)
+            {
+                debug!("a frame not {}×{} px dropped as it came", size.0, size.1);
+                continue;
+            }
             newest.jpeg = Some((jpeg, taken));
             newest.count += 1;
         }

@@ -35,9 +35,27 @@ pub fn decode(
     stride: usize,
 ) -> Result<RgbImage, CameraError> {
     let image = match format {
-        PixelFormat::Mjpeg => decode_image(&with_huffman_tables(bytes), Some(ImageFormat::Jpeg))
-            .map_err(|e| CameraError::Frame(format!("an unreadable MJPEG frame: {e}")))?
-            .to_rgb8(),
+        PixelFormat::Mjpeg => {
+            // A frame larger than the camera's is dropped before it takes
+            // the memory of its decoding.
+            match declared_size(bytes) {
+                Some(size) if size != (width, height) => {
+                    return Err(CameraError::Frame(format!(
+                        "a {}×{} px frame from a camera set to {width}×{height}: dropped undecoded",
+                        size.0, size.1
+                    )));
+                }
+                None => {
+                    return Err(CameraError::Frame(
+                        "an MJPEG frame with no frame header".to_owned(),
+                    ));
+                }
+                Some(_) => {}
+            }
+            decode_image(&with_huffman_tables(bytes), Some(ImageFormat::Jpeg))
+                .map_err(|e| CameraError::Frame(format!("an unreadable MJPEG frame: {e}")))?
+                .to_rgb8()
+        }
         PixelFormat::Yuyv => yuyv(bytes, width, height, stride)?,
     };
     if image.dimensions() != (width, height) {
@@ -110,10 +128,8 @@ const AC_CHROMINANCE: [u8; 162] = [
 /// it has none of its own, as USB webcams' MJPEG leaves them out (UVC
 /// says the standard ones apply).
 fn with_huffman_tables(jpeg: &[u8]) -> std::borrow::Cow<'_, [u8]> {
-    // Walk the segments from SOI to the start of scan.
-    let mut i = 2;
-    while i + 4 <= jpeg.len() && jpeg[i] == 0xFF {
-        match jpeg[i + 1] {
+    for (marker, i) in segments(jpeg) {
+        match marker {
             0xC4 => return jpeg.into(),
             0xDA => {
                 let mut segment = Vec::with_capacity(420);
@@ -130,10 +146,46 @@ fn with_huffman_tables(jpeg: &[u8]) -> std::borrow::Cow<'_, [u8]> {
                 out.extend_from_slice(&jpeg[i..]);
                 return out.into();
             }
-            _ => i += 2 + usize::from(u16::from_be_bytes([jpeg[i + 2], jpeg[i + 3]])),
+            _ => {}
         }
     }
     jpeg.into()
+}
+
+/// The JPEG's segments from SOI to the start of scan: each marker, and
+/// where its segment begins.
+fn segments(jpeg: &[u8]) -> impl Iterator<Item = (u8, usize)> + '_ {
+    let mut i = 2;
+    std::iter::from_fn(move || {
+        if i + 4 > jpeg.len() || jpeg[i] != 0xFF {
+            return None;
+        }
+        let at = i;
+        let marker = jpeg[i + 1];
+        // Nothing is read past the start of scan.
+        i = if marker == 0xDA {
+            usize::MAX - 4
+        } else {
+            i + 2 + usize::from(u16::from_be_bytes([jpeg[i + 2], jpeg[i + 3]]))
+        };
+        Some((marker, at))
+    })
+}
+
+/// The widest or tallest camera a lab takes, px: a first frame declaring
+/// more is refused before it is decoded.
+pub(crate) const MAX_CAMERA_SIDE: u32 = 4096;
+
+/// The size a JPEG declares in its frame header (width, height), read
+/// without decoding anything.
+pub(crate) fn declared_size(jpeg: &[u8]) -> Option<(u32, u32)> {
+    // SOF0–SOF15, but for DHT (C4), JPG (C8) and DAC (CC).
+    let (_, at) = segments(jpeg)
+        .find(|&(m, _)| (0xC0..=0xCF).contains(&m) && !matches!(m, 0xC4 | 0xC8 | 0xCC))?;
+    let header = jpeg.get(at + 5..at + 9)?;
+    let height = u16::from_be_bytes([header[0], header[1]]);
+    let width = u16::from_be_bytes([header[2], header[3]]);
+    Some((u32::from(width), u32::from(height)))
 }
 
 fn yuyv(bytes: &[u8], width: u32, height: u32, stride: usize) -> Result<RgbImage, CameraError> {
@@ -225,6 +277,25 @@ mod mjpeg_tests {
         let Err(e) = decode(PixelFormat::Mjpeg, b"\xFF\xD8 not a frame", 64, 48, 0) else {
             panic!("noise decoded as a frame");
         };
-        assert!(e.to_string().contains("unreadable MJPEG"), "{e}");
+        assert!(e.to_string().contains("no frame header"), "{e}");
+    }
+
+    #[test]
+    fn a_frame_larger_than_the_camera_is_dropped_undecoded() {
+        let image = RgbImage::new(64, 48);
+        let mut jpeg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 90)
+            .encode_image(&image)
+            .unwrap();
+        assert_eq!(declared_size(&jpeg), Some((64, 48)));
+        // The same frame declaring 8192×8192: refused by its header alone
+        // (decoded, it would take 200 MB).
+        let (_, sof) = segments(&jpeg).find(|&(m, _)| m == 0xC0).unwrap();
+        jpeg[sof + 5..sof + 9].copy_from_slice(&[0x20, 0x00, 0x20, 0x00]);
+        let Err(e) = decode(PixelFormat::Mjpeg, &jpeg, 64, 48, 0) else {
+            panic!("an 8192×8192 frame taken from a 64×48 camera");
+        };
+        assert!(e.to_string().contains("8192×8192 px frame"), "{e}");
+        assert!(e.to_string().contains("dropped undecoded"), "{e}");
     }
 }
