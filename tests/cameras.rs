@@ -372,7 +372,7 @@ fn frames_larger_than_the_camera_are_dropped_before_decoding() {
         let sent = sent.clone();
         Arc::new(move || {
             let n = sent.fetch_add(1, Ordering::SeqCst);
-            if n % 2 == 0 {
+            if n.is_multiple_of(2) {
                 good.clone()
             } else {
                 huge.clone()
