@@ -209,3 +209,146 @@ async fn floods_and_half_frames_do_not_slow_the_operator() {
     assert!(p99 < P99_LIMIT_MS, "round trip p99 {p99:.2} ms");
     assert!(peak < 256.0, "the Host grew to {peak:.0} MB");
 }
+
+/// `path` ([{x_mm, y_mm}…]) with points added along each leg until it
+/// has `n`.
+fn densified(path: &[serde_json::Value], n: usize) -> Vec<serde_json::Value> {
+    let points: Vec<(f64, f64)> = path
+        .iter()
+        .map(|p| (p["x_mm"].as_f64().unwrap(), p["y_mm"].as_f64().unwrap()))
+        .collect();
+    let per_leg = n.div_ceil(points.len() - 1);
+    let mut out = Vec::with_capacity(n);
+    for leg in points.windows(2) {
+        for k in 0..per_leg {
+            let t = k as f64 / per_leg as f64;
+            let (x, y) = (
+                leg[0].0 + t * (leg[1].0 - leg[0].0),
+                leg[0].1 + t * (leg[1].1 - leg[0].1),
+            );
+            out.push(json!({"x_mm": x, "y_mm": y}));
+        }
+    }
+    out.truncate(n - 1);
+    let last = points[points.len() - 1];
+    out.push(json!({"x_mm": last.0, "y_mm": last.1}));
+    out
+}
+
+/// How long each of `n` newcomers waits from its hello to its welcome, ms.
+async fn welcome_times(url: &str, n: usize) -> Vec<f64> {
+    let mut times = Vec::new();
+    for _ in 0..n {
+        let mut peer = Peer::connect(url).await;
+        let asked = Instant::now();
+        peer.send(json!({"type": "hello", "protocol": 1, "role": "observer"}))
+            .await;
+        peer.expect("welcome").await;
+        times.push(asked.elapsed().as_secs_f64() * 1e3);
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+    times
+}
+
+/// An operator defines a 10,000-point path 22 times in 5 s while twenty
+/// watch (issue 43, item 15): two are taken at once, then one every five
+/// seconds, the rest refused saying when to try again; newcomers are
+/// welcomed and the hub answers meanwhile.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_flood_of_long_definitions_costs_the_others_nothing() {
+    let _alone = crate::alone().await;
+    let (_host, url) = start_host(&[]);
+    let mut operator = Peer::connect(&url).await;
+    operator.hello("operator").await;
+    operator
+        .send(json!({"type": "mount", "experiment": "navigation"}))
+        .await;
+    operator.expect("mounted").await;
+    operator
+        .send(json!({"type": "plan", "goal": {"x_mm": 400.0, "y_mm": 300.0}}))
+        .await;
+    let planned = operator.expect("planned").await;
+    let path = densified(planned["path"].as_array().unwrap(), 10_000);
+    let definition = json!({"type": "define", "path": path}).to_string();
+    // Twenty watchers, reading all they are sent: each definition taken
+    // goes to every one of them.
+    let mut watchers = Vec::new();
+    for _ in 0..20 {
+        let mut watcher = Peer::connect(&url).await;
+        watcher.hello("observer").await;
+        watchers.push(tokio::spawn(async move {
+            while watcher.next_any().await.is_some() {}
+        }));
+    }
+    let quiet = welcome_times(&url, 5).await;
+    // An observer asks the hub something every 50 ms: how long it answers.
+    let mut asking = Peer::connect(&url).await;
+    asking.hello("observer").await;
+    let answers = tokio::spawn(async move {
+        let mut slowest: f64 = 0.0;
+        let began = Instant::now();
+        while began.elapsed() < Duration::from_secs(6) {
+            let asked = Instant::now();
+            asking.send(json!({"type": "leave_queue"})).await;
+            asking.expect("queue").await;
+            slowest = slowest.max(asked.elapsed().as_secs_f64() * 1e3);
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        slowest
+    });
+    let flood = tokio::spawn(async move {
+        let (mut defined, mut refused) = (0, 0);
+        for _ in 0..22 {
+            operator.send_text(&definition).await;
+            tokio::time::sleep(Duration::from_millis(227)).await;
+            while let Some(answer) = operator
+                .next_of_any(&["defined", "error"], Duration::from_millis(1))
+                .await
+            {
+                if answer["type"] == "defined" {
+                    defined += 1;
+                } else {
+                    refused += 1;
+                }
+            }
+        }
+        // What is still on its way: the connection reads a client within
+        // its byte rate, so some definitions are answered late.
+        while defined + refused < 22 {
+            let Some(answer) = operator
+                .next_of_any(&["defined", "error"], Duration::from_secs(10))
+                .await
+            else {
+                break;
+            };
+            if answer["type"] == "defined" {
+                defined += 1;
+            } else {
+                refused += 1;
+            }
+        }
+        (defined, refused)
+    });
+    let flooded = welcome_times(&url, 20).await;
+    let (defined, refused) = flood.await.unwrap();
+    let slowest = answers.await.unwrap();
+    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    println!(
+        "welcomes: quiet at most {:.1} ms, flooded at most {:.1} ms; the hub answered within {slowest:.1} ms; {defined} definitions taken, {refused} refused",
+        max(&quiet),
+        max(&flooded)
+    );
+    // Two at once, then one every five seconds or so.
+    assert!((2..=5).contains(&defined), "{defined} taken");
+    assert_eq!(defined + refused, 22);
+    // A debug build's figures (taking every one: 20 and 204 ms here).
+    assert!(
+        max(&flooded) < 150.0,
+        "a newcomer waited {:.1} ms",
+        max(&flooded)
+    );
+    assert!(slowest < 300.0, "the hub took {slowest:.1} ms to answer");
+    for watcher in watchers {
+        watcher.abort();
+    }
+}

@@ -209,6 +209,17 @@ impl Definition {
         experiment == Experiment::Navigation && !self.path.is_empty()
     }
 
+    /// The points it carries: its path's and its virtual obstacles'
+    /// vertices, what checking, sending and trying it costs.
+    pub fn size(&self) -> usize {
+        self.path.len()
+            + self
+                .virtual_obstacles
+                .iter()
+                .map(Shape::vertices)
+                .sum::<usize>()
+    }
+
     /// Checks the definition against the arena and robot it will run on,
     /// saying what is wrong in words a user can act on.
     pub fn validate(&self, arena: &Arena, robot: &RobotModel) -> Result<(), DefinitionError> {
@@ -226,7 +237,7 @@ impl Definition {
         if self.virtual_obstacles.len() > MAX_VIRTUAL_OBSTACLES {
             return Err(E::TooManyObstacles(self.virtual_obstacles.len()));
         }
-        let vertices: usize = self.virtual_obstacles.iter().map(Shape::vertices).sum();
+        let vertices = self.size() - self.path.len();
         if vertices > MAX_VIRTUAL_VERTICES {
             return Err(E::TooManyVertices(vertices));
         }

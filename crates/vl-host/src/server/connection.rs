@@ -27,6 +27,7 @@ use crate::accounts::users::AccountRole;
 use crate::lab::Watching;
 use tokio_tungstenite::tungstenite::handshake::server::{Request, Response};
 
+use super::bucket::Bucket;
 use super::origin::AllowedOrigins;
 use vl_core::Io;
 use vl_record::{Feed, RecordError, Recordable};
@@ -100,40 +101,6 @@ const PING_TIMEOUT_MS: f64 = 60_000.0;
 
 /// How long a closing connection waits for the client's own close.
 const CLOSE_WAIT: Duration = Duration::from_millis(500);
-
-/// A token bucket, `rate` a second and `burst` at once, that may be
-/// overdrawn: the overdraft says how long to wait before taking more.
-struct Bucket {
-    rate: f64,
-    burst: f64,
-    tokens: f64,
-    last: Instant,
-}
-
-impl Bucket {
-    fn new(rate: f64, burst: f64) -> Bucket {
-        Bucket {
-            rate,
-            burst,
-            tokens: burst,
-            last: Instant::now(),
-        }
-    }
-
-    /// Gives back `amount` taken for something that never went ahead.
-    fn refund(&mut self, amount: f64) {
-        self.tokens = (self.tokens + amount).min(self.burst);
-    }
-
-    /// Takes `amount`; how long until the bucket is out of debt.
-    fn take(&mut self, amount: f64) -> Duration {
-        let now = Instant::now();
-        let refill = now.duration_since(self.last).as_secs_f64() * self.rate;
-        self.tokens = (self.tokens + refill).min(self.burst) - amount;
-        self.last = now;
-        Duration::from_secs_f64((-self.tokens).max(0.0) / self.rate)
-    }
-}
 
 /// Writes `message`, within the write timeout.
 async fn put(sink: &mut Sink, message: Message) -> Result<(), End> {

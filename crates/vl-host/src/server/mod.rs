@@ -14,6 +14,7 @@
 
 pub(crate) mod admission;
 pub(crate) mod bench;
+mod bucket;
 mod connection;
 mod foxglove;
 mod http;

@@ -140,6 +140,8 @@ pub(crate) struct Hub {
     /// When the operator last had a path planned (`plan`): plans are
     /// the Host's work, so they are spaced.
     last_plan: Option<Instant>,
+    /// The points the operator's definitions may still carry now.
+    definitions: super::bucket::Bucket,
     /// The number of the run under way (kept until the lab reports its end).
     run: Option<u64>,
     /// How many runs have started.
@@ -199,6 +201,10 @@ impl Hub {
             sync_violations: 0,
             last_command: Instant::now(),
             last_plan: None,
+            definitions: super::bucket::Bucket::new(
+                operate::DEFINITION_POINTS_PER_S,
+                operate::DEFINITION_POINTS_BURST,
+            ),
             run: None,
             runs: 0,
             operator_user: None,

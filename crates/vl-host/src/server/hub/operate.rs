@@ -16,6 +16,12 @@ use crate::lab::LabRequest;
 
 /// The least time between two plans for the operator.
 const PLAN_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
+/// The points definitions may carry a second, on average, and at once:
+/// each is checked, sent to every watcher, recorded and tried on the
+/// twin, so a flood of the longest would cost everyone; two of the longest
+/// go at once, then one every five seconds.
+pub(super) const DEFINITION_POINTS_PER_S: f64 = 2_000.0;
+pub(super) const DEFINITION_POINTS_BURST: f64 = 20_000.0;
 
 impl Hub {
     pub(super) fn operate(&mut self, id: u64, message: GuestMessage) {
@@ -97,6 +103,16 @@ impl Hub {
         }
         if let Err(why) = definition.validate(&self.lab.info.arena, &self.lab.info.robot) {
             return self.refuse(id, ErrorCode::InvalidDefinition, why.to_string());
+        }
+        let size = definition.size() as f64;
+        let wait = self.definitions.take(size);
+        if !wait.is_zero() {
+            self.definitions.refund(size);
+            let why = format!(
+                "definitions may carry {DEFINITION_POINTS_PER_S} points a second on average, and this one has {size}: define it again in {:.1} s",
+                wait.as_secs_f64()
+            );
+            return self.refuse(id, ErrorCode::NotAllowedNow, why);
         }
         if self.experiment == Some(Experiment::Navigation)
             && let Some(cspace) = &self.cspace
