@@ -201,3 +201,66 @@ async fn a_lab_that_admits_only_accounts_to_watch_refuses_foxglove() {
         "still open after the refusal"
     );
 }
+
+/// Four Foxglove clients subscribing to every channel and unsubscribing
+/// again as fast as they can for 6 s, during a run: each draws no more
+/// than its budget (4 MiB a second, 8 MiB at once), where each drew over
+/// a gigabyte (issue 43, item 8).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn foxglove_clients_draw_no_more_than_their_budget() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let (_host, url) = start_host(&["--camera", "sim"]);
+    let mut operator = common::peer::Peer::connect(&url).await;
+    operator.hello("operator").await;
+    operator.start("teleoperation").await;
+    let seconds = 6.0;
+    let drawn: Vec<Arc<AtomicUsize>> = (0..4).map(|_| Arc::default()).collect();
+    let mut tasks = Vec::new();
+    for bytes in &drawn {
+        let ws = foxglove(&url, "foxglove.websocket.v1").await;
+        let (mut sink, mut source) = ws.split();
+        let bytes = bytes.clone();
+        tasks.push(tokio::spawn(async move {
+            while let Some(Ok(message)) = source.next().await {
+                bytes.fetch_add(message.len(), Ordering::Relaxed);
+            }
+        }));
+        tasks.push(tokio::spawn(async move {
+            for round in 0u32.. {
+                let ids: Vec<u32> = (0..14).map(|c| round * 14 + c).collect();
+                let subscriptions: Vec<Value> = ids
+                    .iter()
+                    .zip(0..)
+                    .map(|(id, c)| json!({"id": id, "channelId": c}))
+                    .collect();
+                let ops = [
+                    json!({"op": "subscribe", "subscriptions": subscriptions}),
+                    json!({"op": "unsubscribe", "subscriptionIds": ids}),
+                ];
+                for op in ops {
+                    if sink.send(Message::text(op.to_string())).await.is_err() {
+                        return;
+                    }
+                }
+            }
+        }));
+    }
+    tokio::time::sleep(Duration::from_secs_f64(seconds)).await;
+    let most = (4.0 * seconds + 8.0) * 1024.0 * 1024.0 * 1.1;
+    for bytes in &drawn {
+        let bytes = bytes.load(Ordering::Relaxed);
+        println!("a Foxglove client drew {bytes} bytes in {seconds} s");
+        assert!(
+            (bytes as f64) < most,
+            "a client drew {bytes} bytes in {seconds} s"
+        );
+        assert!(
+            bytes > 100_000,
+            "a client was sent almost nothing: {bytes} bytes"
+        );
+    }
+    for task in tasks {
+        task.abort();
+    }
+}

@@ -21,6 +21,7 @@ use tokio_tungstenite::tungstenite::{Bytes, Message};
 use vl_core::{ErrorCode, HostMessage, PROTOCOL_VERSION, Role, Wire};
 
 use super::admission::Ticket;
+use super::bucket::Bucket;
 use super::hub::{ToConnection, ToHub};
 use super::socket::{self, Sink, Socket};
 use crate::accounts::gate::{Credentials, Gate, Purpose};
@@ -91,6 +92,17 @@ pub(super) const MAX_MESSAGE: usize = 64 << 10;
 /// How often the Host pings a Foxglove client (WebSocket pings, which
 /// every client answers by itself).
 const PING_EVERY: Duration = Duration::from_secs(1);
+/// Ops a client may send a second, and in a burst (a Guest's rates): past
+/// them, the client is not read until it is within them again.
+const OPS_PER_S: f64 = 200.0;
+const OPS_BURST: f64 = 400.0;
+/// Bytes a client may be sent a second, and in a burst: a camera, the
+/// scene, the path and every number, several times over. What passes it
+/// is not sent (newest-only, as a slow link gets fewer frames): a client
+/// subscribing again and again to the lab's largest channels draws no
+/// more than this.
+const BYTES_OUT_PER_S: f64 = 4.0 * 1024.0 * 1024.0;
+const BYTES_OUT_BURST: f64 = 8.0 * 1024.0 * 1024.0;
 
 /// Message data, server to client.
 const MESSAGE_DATA: u8 = 0x01;
@@ -160,6 +172,8 @@ struct Subscriptions {
     subscribed: HashMap<Topic, Vec<u32>>,
     views: Views,
     latest: HashMap<Topic, View>,
+    /// What it may still be sent now.
+    out: Bucket,
 }
 
 impl Subscriptions {
@@ -179,7 +193,7 @@ impl Subscriptions {
         for view in views {
             if let Some(ids) = self.subscribed.get(&view.topic) {
                 for &id in ids {
-                    put(sink, data(id, &view)).await?;
+                    put_data(&mut self.out, sink, id, &view).await?;
                 }
             }
             if LATCHED.contains(&view.topic) {
@@ -238,7 +252,7 @@ impl Subscriptions {
                     }
                     self.subscribed.entry(topic).or_default().push(s.id);
                     if let Some(view) = self.latest.get(&topic) {
-                        put(sink, data(s.id, view)).await?;
+                        put_data(&mut self.out, sink, s.id, view).await?;
                     }
                 }
                 refused.map(|why| status(1, &why))
@@ -259,6 +273,18 @@ impl Subscriptions {
             None => Ok(()),
         }
     }
+}
+
+/// Sends `view` on subscription `id`, within the client's budget `out`;
+/// past it, the message is not sent.
+async fn put_data(out: &mut Bucket, sink: &mut Sink, id: u32, view: &View) -> Result<(), ()> {
+    let message = data(id, view);
+    let bytes = message.len() as f64;
+    if !out.take(bytes).is_zero() {
+        out.refund(bytes);
+        return Ok(());
+    }
+    put(sink, message).await
 }
 
 /// Message data: opcode, subscription id, log time, payload.
@@ -348,16 +374,29 @@ impl Watcher {
             subscribed: HashMap::new(),
             views: Views::new(self.since_ns, None, Default::default()),
             latest: HashMap::new(),
+            out: Bucket::new(BYTES_OUT_PER_S, BYTES_OUT_BURST),
         };
+        let mut ops = Bucket::new(OPS_PER_S, OPS_BURST);
+        let mut paused_until: Option<tokio::time::Instant> = None;
         let mut watching = None;
         let mut ping = tokio::time::interval(PING_EVERY);
         let mut heard = Instant::now();
         let mut evicted = self.ticket.evicted.clone();
         loop {
             let sent = tokio::select! {
-                incoming = source.next() => match incoming {
+                () = async { tokio::time::sleep_until(paused_until.unwrap_or_else(tokio::time::Instant::now)).await }, if paused_until.is_some() => {
+                    paused_until = None;
+                    Ok(())
+                }
+                incoming = source.next(), if paused_until.is_none() => match incoming {
                     Some(Ok(message)) => {
                         heard = Instant::now();
+                        // Over its rate, the client is not read for a while:
+                        // its own socket holds it back.
+                        let wait = ops.take(1.0);
+                        if !wait.is_zero() {
+                            paused_until = Some(tokio::time::Instant::now() + wait);
+                        }
                         watcher.heard(sink, message).await
                     }
                     Some(Err(_)) | None => return,
