@@ -909,3 +909,87 @@ fn no_password_reaches_the_log_even_at_trace() {
         "the password is in the log:\n{err}"
     );
 }
+
+/// Someone in line leaving and joining again 200 times as fast as they
+/// can: the others in line are told once per change they can see at most
+/// five times a second, never cut off, and keep their places (issue 43,
+/// items 6 and 8: broadcasts coalesced).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_burst_of_line_changes_is_told_in_a_few_messages() {
+    let dir = scratch("line-burst");
+    let file = accounts(&dir);
+    let names = ["carol", "dan", "erin", "frank", "mallory"];
+    for name in names {
+        let out = users(&["add", &file, name], &format!("{name}'s password"));
+        assert!(out.status.success(), "{}", common::stderr(&out));
+    }
+    let (_host, url) = start_host(&["--users", &file, "--slot", "10m"]);
+    let mut ada = Peer::connect(&url).await;
+    ada.send(login("operator", "ada", "correct horse")).await;
+    ada.expect("welcome").await;
+    let mut waiting = Vec::new();
+    for (place, name) in names.iter().enumerate() {
+        let mut peer = Peer::connect(&url).await;
+        peer.send(login("observer", name, &format!("{name}'s password")))
+            .await;
+        peer.expect("welcome").await;
+        peer.send(json!({"type": "queue"})).await;
+        let told = peer.expect("queue").await;
+        assert_eq!(told["position"], place + 1, "{told}");
+        waiting.push(peer);
+    }
+    let mut mallory = waiting.pop().unwrap();
+    // Everyone's first news settles.
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    for peer in &mut waiting {
+        while peer
+            .next_of("queue", Duration::from_millis(50))
+            .await
+            .is_some()
+        {}
+    }
+    let began = Instant::now();
+    for _ in 0..200 {
+        for kind in ["leave_queue", "queue"] {
+            let text =
+                tokio_tungstenite::tungstenite::Message::text(json!({"type": kind}).to_string());
+            if futures_util::SinkExt::send(&mut mallory.ws, text)
+                .await
+                .is_err()
+            {
+                break;
+            }
+        }
+    }
+    let took = began.elapsed().as_secs_f64();
+    // What the others heard, over the burst and a second after.
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    for peer in &mut waiting {
+        let mut told = 0;
+        while peer
+            .next_of("queue", Duration::from_millis(100))
+            .await
+            .is_some()
+        {
+            told += 1;
+        }
+        let most = ((took + 1.5) * 5.0).ceil() as usize + 2;
+        assert!(
+            told <= most,
+            "told {told} times in {took:.1} s (at most {most})"
+        );
+    }
+    // All still connected, in their places.
+    for (place, peer) in waiting.iter_mut().enumerate() {
+        peer.send(json!({"type": "queue"})).await;
+        let refused = peer.expect_error("not_allowed_now").await;
+        assert!(
+            refused["message"]
+                .as_str()
+                .unwrap()
+                .contains("in line already"),
+            "place {}: {refused}",
+            place + 1
+        );
+    }
+}

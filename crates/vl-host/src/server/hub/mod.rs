@@ -121,6 +121,9 @@ pub(crate) struct Hub {
     away: Option<Away>,
     /// Who waits for control, first first.
     queue: std::collections::VecDeque<queue::Spot>,
+    /// Whether the line changed since it was last told, and when that was.
+    line_changed: bool,
+    line_told: Option<Instant>,
     /// When the operator's slot ends, when slots have a length.
     slot_until: Option<Instant>,
     /// The mounted experiment.
@@ -192,6 +195,8 @@ impl Hub {
             resume: None,
             away: None,
             queue: std::collections::VecDeque::new(),
+            line_changed: false,
+            line_told: None,
             slot_until: None,
             experiment: None,
             kept: None,
@@ -322,6 +327,7 @@ impl Hub {
                 },
             }
             self.tell_state();
+            self.tell_line_if_due();
             // With the shipped design, the line and the net always agree;
             // a design of one's own may refuse what happens anyway (a
             // person leaving), which `seat` logs.

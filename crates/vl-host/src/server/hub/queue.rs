@@ -20,6 +20,9 @@ use super::{Hub, ToConnection};
 use crate::accounts::audit::AuditEntry;
 use crate::lab::LabRequest;
 
+/// The line is told of its changes at most this often.
+const TELL_LINE_EVERY: std::time::Duration = std::time::Duration::from_millis(200);
+
 /// Someone's place in the line.
 pub(super) struct Spot {
     /// Their connection; none while their link is down.
@@ -302,8 +305,25 @@ impl Hub {
         (net != hub.map(Some)).then(|| format!("hub {hub:?}, access net {net:?}"))
     }
 
-    /// Tells everyone in line where they stand.
+    /// The line changed: everyone in it is told where they stand, at once
+    /// or, after a change told less than [`TELL_LINE_EVERY`] ago, with the
+    /// next (a burst of changes is told once, not once each).
     pub(super) fn tell_queue(&mut self) {
+        self.line_changed = true;
+        self.tell_line_if_due();
+    }
+
+    /// Tells the line of a change not yet told, if it is time to.
+    pub(super) fn tell_line_if_due(&mut self) {
+        if !self.line_changed
+            || self
+                .line_told
+                .is_some_and(|told| told.elapsed() < TELL_LINE_EVERY)
+        {
+            return;
+        }
+        self.line_changed = false;
+        self.line_told = Some(Instant::now());
         let length = self.queue.len() as u32;
         let waiting: Vec<(usize, u64)> = self
             .queue
