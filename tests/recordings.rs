@@ -492,3 +492,60 @@ async fn strangers_write_nothing_into_a_run() {
     let round_trips = count(&info, "/round_trip");
     assert!(round_trips < 200, "{round_trips} round trips: {topics:?}");
 }
+
+/// A Guest asking for a part of its run again and again, as fast as it
+/// can, draws no more than 8 MiB a second (16 at once), where it drew 200
+/// parts a second (issue 43, item 8: a budget for what a client draws).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn asking_for_parts_faster_draws_nothing_faster() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let dir = scratch("recordings-drawn");
+    let (_host, url) = start_host(&["--recordings", s(&dir), "--camera", "sim"]);
+    let mut operator = Peer::connect(&url).await;
+    operator.hello("operator").await;
+    operator.start("teleoperation").await;
+    for event in 1..=60 {
+        operator.command(event, json!({"v": 0.0, "w": 1.0})).await;
+    }
+    operator.send(json!({"type": "stop"})).await;
+    let done = operator.expect("done").await;
+    let name = done["summary"]["recording"]["name"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    // The recorder closes the file a moment after `done`.
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let size = std::fs::metadata(dir.join(&name)).unwrap().len();
+    assert!(size > 50_000, "a run of {size} bytes");
+    let (mut sink, mut source) = futures_util::StreamExt::split(operator.ws);
+    let drawn = Arc::new(AtomicUsize::new(0));
+    let reading = {
+        let drawn = drawn.clone();
+        tokio::spawn(async move {
+            while let Some(Ok(message)) = futures_util::StreamExt::next(&mut source).await {
+                if message.is_binary() {
+                    drawn.fetch_add(message.len(), Ordering::Relaxed);
+                }
+            }
+        })
+    };
+    let asking = tokio::spawn(async move {
+        let ask = json!({"type": "download", "name": name, "offset": 0}).to_string();
+        loop {
+            let text = tokio_tungstenite::tungstenite::Message::text(ask.clone());
+            if futures_util::SinkExt::send(&mut sink, text).await.is_err() {
+                return;
+            }
+        }
+    });
+    let seconds = 5.0;
+    tokio::time::sleep(Duration::from_secs_f64(seconds)).await;
+    let drawn = drawn.load(Ordering::Relaxed) as f64;
+    asking.abort();
+    reading.abort();
+    let most = (8.0 * seconds + 16.0) * 1024.0 * 1024.0 * 1.2;
+    println!("parts of a {size}-byte run: {drawn:.0} bytes drawn in {seconds} s");
+    assert!(drawn < most, "{drawn:.0} bytes drawn in {seconds} s");
+    assert!(drawn > 8.0 * 1024.0 * 1024.0, "only {drawn:.0} bytes drawn");
+}

@@ -45,6 +45,12 @@ const BURST: f64 = 400.0;
 /// largest fits in the burst.
 const BYTES_PER_S: f64 = 1024.0 * 1024.0;
 const BYTES_BURST: f64 = 2.0 * 1024.0 * 1024.0;
+/// Bytes of answers (recordings' parts, listings) a client may draw a
+/// second, and in a burst: a download at a good link's speed. Past it the
+/// client is not read until it is within it again: asking faster gets
+/// nothing faster.
+const ANSWER_BYTES_PER_S: f64 = 8.0 * 1024.0 * 1024.0;
+const ANSWER_BYTES_BURST: f64 = 16.0 * 1024.0 * 1024.0;
 /// Messages refused before hello, in all, before the client is cut off.
 const MAX_BEFORE_HELLO: u32 = 16;
 /// How long a client refused before hello is held before it is closed.
@@ -128,6 +134,8 @@ struct Reading {
     welcomed: bool,
     messages: Bucket,
     bytes: Bucket,
+    /// What the connection's own answers may still send.
+    answers: Bucket,
     /// Reading waits until then.
     paused_until: Option<tokio::time::Instant>,
     held_command: Option<(tokio::time::Instant, GuestMessage)>,
@@ -322,6 +330,7 @@ impl ConnectionTask {
             welcomed: false,
             messages: Bucket::new(RATE_PER_S, BURST),
             bytes: Bucket::new(BYTES_PER_S, BYTES_BURST),
+            answers: Bucket::new(ANSWER_BYTES_PER_S, ANSWER_BYTES_BURST),
             paused_until: None,
             held_command: None,
             before_hello: 0,
@@ -451,7 +460,16 @@ impl ConnectionTask {
             _ => return Ok(()),
         };
         match self.route(text.as_str(), r, over_rate).await? {
-            Some(reply) => put(sink, reply).await,
+            Some(reply) => {
+                // Answered here, over its rate or its budget for answers,
+                // the client is not read for a while, as when it goes to the hub.
+                let over = r.answers.take(reply.len() as f64).max(over_rate);
+                if !over.is_zero() {
+                    let until = tokio::time::Instant::now() + over;
+                    r.paused_until = Some(r.paused_until.map_or(until, |p| p.max(until)));
+                }
+                put(sink, reply).await
+            }
             None => Ok(()),
         }
     }
