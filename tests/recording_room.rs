@@ -215,7 +215,8 @@ async fn five_thousand_runs_kept_are_listed_at_once() {
     took.remove(0);
     took.sort();
     let median = took[took.len() / 2];
-    // 63 ms a request when each read every entry (release build); a
-    // debug build on a shared runner stays well under 15.
-    assert!(median < Duration::from_millis(15), "median {median:?}");
+    println!("5,000 runs kept: a listing answered in {median:?} (median of 20)");
+    // 63 ms a request when each read every entry (release build); 0.3 ms
+    // now in a debug build.
+    assert!(median < Duration::from_millis(5), "median {median:?}");
 }
