@@ -247,6 +247,16 @@ async fn runs_listed(peer: &mut Peer) -> Value {
     }
 }
 
+/// Stops the run under way: the name of its recording.
+async fn stopped_recording(operator: &mut Peer) -> String {
+    operator.send(json!({"type": "stop"})).await;
+    let done = operator.expect("done").await;
+    done["summary"]["recording"]["name"]
+        .as_str()
+        .unwrap_or_else(|| panic!("not recorded: {done}"))
+        .to_owned()
+}
+
 /// A run with the operator's commands, ended by the operator: its `done`.
 async fn recorded_run(operator: &mut Peer) -> Value {
     operator.hello("operator").await;
@@ -466,12 +476,7 @@ async fn strangers_write_nothing_into_a_run() {
         }
     }
     tokio::time::sleep(Duration::from_secs(1)).await;
-    operator.send(json!({"type": "stop"})).await;
-    let done = operator.expect("done").await;
-    let name = done["summary"]["recording"]["name"]
-        .as_str()
-        .unwrap()
-        .to_owned();
+    let name = stopped_recording(&mut operator).await;
     let file = recordings.join(name);
     let deadline = Instant::now() + Duration::from_secs(10);
     let info = loop {
@@ -508,12 +513,7 @@ async fn asking_for_parts_faster_draws_nothing_faster() {
     for event in 1..=60 {
         operator.command(event, json!({"v": 0.0, "w": 1.0})).await;
     }
-    operator.send(json!({"type": "stop"})).await;
-    let done = operator.expect("done").await;
-    let name = done["summary"]["recording"]["name"]
-        .as_str()
-        .unwrap()
-        .to_owned();
+    let name = stopped_recording(&mut operator).await;
     // The recorder closes the file a moment after `done`.
     tokio::time::sleep(Duration::from_secs(2)).await;
     let size = std::fs::metadata(dir.join(&name)).unwrap().len();
