@@ -1,6 +1,7 @@
 //! Floods from clients that hold no token, and a hundred half-sent 8 MiB
 //! frames, against one Host, while an operator is welcomed and drives. The
-//! attackers run in their own threads and runtime; the test runs alone
+//! attackers stand on another machine (127.0.0.2) and run in their own
+//! threads and runtime; the test runs alone
 //! (tests/alone.rs), so no other test's Hosts share the machine with it.
 
 use crate::common;
@@ -13,16 +14,37 @@ use std::time::{Duration, Instant};
 
 use futures_util::SinkExt;
 use serde_json::json;
-use tokio_tungstenite::connect_async;
 use tokio_tungstenite::tungstenite::Message;
 
 use common::peer::{Peer, memory_mb};
 use common::start_host;
 
+/// Where the attackers stand: another machine than the operator's. (One
+/// address's silent sockets push out only each other; whoever shares an
+/// attacker's address — a class behind one router — shares its fate.)
+const ELSEWHERE: &str = "127.0.0.2:0";
+
+/// A TCP connection to `addr` from [`ELSEWHERE`].
+async fn from_elsewhere(addr: &str) -> Option<tokio::net::TcpStream> {
+    let socket = tokio::net::TcpSocket::new_v4().ok()?;
+    socket.bind(ELSEWHERE.parse().ok()?).ok()?;
+    socket.connect(addr.parse().ok()?).await.ok()
+}
+
+/// A WebSocket to `url` from [`ELSEWHERE`].
+async fn websocket_from_elsewhere(
+    url: &str,
+) -> Option<tokio_tungstenite::WebSocketStream<tokio::net::TcpStream>> {
+    let stream = from_elsewhere(url.trim_start_matches("ws://")).await?;
+    let (ws, _) = tokio_tungstenite::client_async(url, stream).await.ok()?;
+    Some(ws)
+}
+
 /// Sends a WebSocket handshake by hand, then the start of a frame that
 /// claims 8 MiB − 1 bytes, and stalls.
-fn half_frame(addr: &str) -> Option<StdTcp> {
-    let mut s = StdTcp::connect(addr).ok()?;
+fn half_frame(addr: &str, runtime: &tokio::runtime::Runtime) -> Option<StdTcp> {
+    let mut s = runtime.block_on(from_elsewhere(addr))?.into_std().ok()?;
+    s.set_nonblocking(false).ok()?;
     let request = format!(
         "GET / HTTP/1.1\r\nHost: {addr}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
          Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
@@ -75,7 +97,7 @@ fn attack(url: String, stop: Arc<AtomicBool>) -> Vec<std::thread::JoinHandle<()>
                     let (url, stop) = (url.clone(), stop.clone());
                     tasks.push(tokio::spawn(async move {
                         while !stop.load(Ordering::Relaxed) {
-                            let Ok((mut ws, _)) = connect_async(&url).await else {
+                            let Some(mut ws) = websocket_from_elsewhere(&url).await else {
                                 continue;
                             };
                             // Until the Host cuts it off: a full socket holds it back.
@@ -106,7 +128,7 @@ fn attack(url: String, stop: Arc<AtomicBool>) -> Vec<std::thread::JoinHandle<()>
                             r#"{{"type":"hello","protocol":1,"role":"observer","pad":"{pad}"}}"#
                         );
                         while !stop.load(Ordering::Relaxed) {
-                            let Ok((mut ws, _)) = connect_async(&url).await else {
+                            let Some(mut ws) = websocket_from_elsewhere(&url).await else {
                                 continue;
                             };
                             while !stop.load(Ordering::Relaxed) {
@@ -126,6 +148,10 @@ fn attack(url: String, stop: Arc<AtomicBool>) -> Vec<std::thread::JoinHandle<()>
     let addr = url.trim_start_matches("ws://").to_owned();
     threads.push(std::thread::spawn(move || {
         behind_the_host();
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
         // A hundred of them open at once; one the Host has closed is opened again.
         let mut held: Vec<Option<StdTcp>> = (0..100).map(|_| None).collect();
         while !stop.load(Ordering::Relaxed) {
@@ -137,7 +163,7 @@ fn attack(url: String, stop: Arc<AtomicBool>) -> Vec<std::thread::JoinHandle<()>
                         || matches!(std::io::Read::read(&mut &*s, &mut byte), Err(e) if e.kind() != std::io::ErrorKind::WouldBlock)
                 });
                 if closed {
-                    *slot = half_frame(&addr);
+                    *slot = half_frame(&addr, &runtime);
                 }
             }
             std::thread::sleep(Duration::from_millis(20));

@@ -461,9 +461,9 @@ impl ConnectionTask {
         };
         match self.route(text.as_str(), r, over_rate).await? {
             Some(reply) => {
-                // Answered here, over its rate or its budget for answers,
-                // the client is not read for a while, as when it goes to the hub.
-                let over = r.answers.take(reply.len() as f64).max(over_rate);
+                // Answered here, over its budget for answers (a part, a
+                // listing), the client is not read for a while.
+                let over = r.answers.take(reply.len() as f64);
                 if !over.is_zero() {
                     let until = tokio::time::Instant::now() + over;
                     r.paused_until = Some(r.paused_until.map_or(until, |p| p.max(until)));
