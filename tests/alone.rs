@@ -6,6 +6,7 @@
 #[allow(dead_code)] // this binary uses a part of what the tests share
 mod common;
 
+mod disk_full;
 mod floods;
 mod hiccups;
 mod stalls;

@@ -1,21 +1,18 @@
 //! The recordings folder under pressure (issue 43, items 9 and 10): a
 //! folder capped by `--keep-gb` stays under its cap while a run grows
 //! (older runs go first, then the run's own file stops, finished and
-//! readable, and its `done` says why); a disk that fills leaves no `done`
-//! naming a file that is not there; thousands of runs kept are listed as
-//! fast as a few.
+//! readable, and its `done` says why); thousands of runs kept are listed
+//! as fast as a few. A disk that fills is `disk_full.rs`, in `alone`.
 
-use std::os::unix::process::CommandExt;
 use std::path::Path;
-use std::process::Stdio;
 use std::time::{Duration, Instant};
 
-use serde_json::{Value, json};
+use serde_json::json;
 use vl_core::{Experiment, RecordedRun, RecordingName};
 use vl_record::{Catalogue, Owner, Recording};
 
 use crate::common::peer::Peer;
-use crate::common::{self, VlProcess, s, scratch, start_host};
+use crate::common::{s, scratch, start_host};
 
 /// Puts `count` runs of `bytes` each in `dir`, begun days ago, as an old
 /// Host left them.
@@ -60,22 +57,6 @@ fn folder_bytes(dir: &Path) -> u64 {
         .unwrap_or(0)
 }
 
-/// Drives a teleoperation run turning on the spot for `seconds` (the
-/// camera's frames change), while `watch` looks at the folder every
-/// command; its `done`.
-async fn a_run_of(operator: &mut Peer, seconds: f64, mut watch: impl FnMut()) -> Value {
-    operator.start("teleoperation").await;
-    let began = Instant::now();
-    let mut event = 0;
-    while began.elapsed().as_secs_f64() < seconds {
-        event += 1;
-        operator.command(event, json!({"v": 0.0, "w": 1.0})).await;
-        watch();
-    }
-    operator.send(json!({"type": "stop"})).await;
-    operator.expect("done").await
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_capped_folder_stays_under_its_cap_while_a_run_grows() {
     let dir = scratch("room-capped").join("runs");
@@ -87,15 +68,16 @@ async fn a_capped_folder_stays_under_its_cap_while_a_run_grows() {
     operator.hello("operator").await;
     let mut most = 0;
     let mut gone = Vec::new();
-    let done = a_run_of(&mut operator, 20.0, || {
-        most = most.max(folder_bytes(&dir));
-        for name in &old {
-            if !dir.join(name.as_str()).exists() && !gone.contains(name) {
-                gone.push(name.clone());
+    let done = operator
+        .turn_for(20.0, || {
+            most = most.max(folder_bytes(&dir));
+            for name in &old {
+                if !dir.join(name.as_str()).exists() && !gone.contains(name) {
+                    gone.push(name.clone());
+                }
             }
-        }
-    })
-    .await;
+        })
+        .await;
     assert!(
         most <= cap,
         "the folder reached {most} bytes, over its {cap}"
@@ -125,73 +107,6 @@ async fn a_capped_folder_stays_under_its_cap_while_a_run_grows() {
         "{log:?}"
     );
     assert!(folder_bytes(&dir) <= cap);
-}
-
-/// `vl host ARGS` whose files may grow to `fsize` bytes at most, as on a
-/// disk that fills: its URL.
-fn host_on_a_small_disk(args: &[&str], fsize: u64) -> (VlProcess, String) {
-    let mut command = common::vl_command();
-    command
-        .args(["host", "--listen", "127.0.0.1:0", "--robot", "sim"])
-        .args(args)
-        .stdout(Stdio::piped());
-    // SAFETY: setrlimit is async-signal-safe, called between fork and exec.
-    unsafe {
-        command.pre_exec(move || {
-            let limit = libc::rlimit {
-                rlim_cur: fsize,
-                rlim_max: fsize,
-            };
-            if libc::setrlimit(libc::RLIMIT_FSIZE, &limit) != 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            Ok(())
-        });
-    }
-    let mut child = command.spawn().expect("vl starts");
-    let stdout = child.stdout.take().unwrap();
-    let process = VlProcess(child);
-    let mut line = String::new();
-    std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line).unwrap();
-    let url = line.trim().strip_prefix("vl host listening on ").unwrap();
-    (process, url.to_owned())
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_full_disk_stops_the_recording_and_no_done_names_a_missing_file() {
-    // Room for part of a run: its file is kept as far as it went.
-    let dir = scratch("room-full").join("runs");
-    let (mut host, url) = host_on_a_small_disk(&["--recordings", s(&dir)], 150_000);
-    let mut operator = Peer::connect(&url).await;
-    operator.hello("operator").await;
-    let done = a_run_of(&mut operator, 8.0, || {}).await;
-    let note = &done["summary"]["recording"];
-    let why = note["stopped"].as_str().unwrap_or_else(|| panic!("{done}"));
-    assert!(why.contains("the disk is full"), "{why}");
-    let kept = Recording::open(&dir.join(note["name"].as_str().unwrap())).unwrap();
-    assert!(
-        kept.messages.len() > 10,
-        "{} messages kept",
-        kept.messages.len()
-    );
-    assert!(host.0.try_wait().unwrap().is_none(), "the Host died");
-    // No room for a file's beginning: no `done` names a file, and no empty
-    // file or entry is left behind.
-    let dir = scratch("room-none").join("runs");
-    let (mut host, url) = host_on_a_small_disk(&["--recordings", s(&dir)], 2_000);
-    let mut operator = Peer::connect(&url).await;
-    operator.hello("operator").await;
-    for _ in 0..2 {
-        let done = a_run_of(&mut operator, 2.0, || {}).await;
-        assert!(done["summary"]["recording"].is_null(), "{done}");
-    }
-    let left: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .filter_map(Result::ok)
-        .map(|e| e.file_name())
-        .collect();
-    assert!(left.is_empty(), "left behind: {left:?}");
-    assert!(host.0.try_wait().unwrap().is_none(), "the Host died");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

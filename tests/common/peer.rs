@@ -147,6 +147,22 @@ impl Peer {
         answer
     }
 
+    /// Drives a teleoperation run turning on the spot for `seconds` (the
+    /// camera's frames change), while `watch` looks at the folder every
+    /// command; its `done`.
+    pub(crate) async fn turn_for(&mut self, seconds: f64, mut watch: impl FnMut()) -> Value {
+        self.start("teleoperation").await;
+        let began = std::time::Instant::now();
+        let mut event = 0;
+        while began.elapsed().as_secs_f64() < seconds {
+            event += 1;
+            self.command(event, json!({"v": 0.0, "w": 1.0})).await;
+            watch();
+        }
+        self.send(json!({"type": "stop"})).await;
+        self.expect("done").await
+    }
+
     /// Mounts `experiment`, defines nothing but the defaults and starts a
     /// run once the lab is ready (after a run the robot first drives back
     /// to its start).
