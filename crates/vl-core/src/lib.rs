@@ -105,6 +105,9 @@ mod teleop;
 mod vision;
 
 /// Results printed for people (vl-petri's, the crate every other builds on).
+/// For `named_by_id!` in other crates, and the protocol's schemas.
+pub use schemars;
+
 pub use contract::access::{AccessEvent, AccessNet, AccessNetError, AccessRefused, Seat};
 pub use contract::experiment::{
     Definition, DefinitionError, Experiment, ExperimentInfo, Goal, LOOKAHEAD_MM,
@@ -141,6 +144,7 @@ pub use model::khepera::{
 };
 pub use model::leash::{Leash, PositionControl, WheelMove};
 pub use model::lens::{Distortion, LensError};
+pub use model::pinhole::Pinhole;
 pub use model::proximity::{MAX_READING, ir_distance, ir_reading, mapped_reading};
 pub use model::response_fit::{Fit, FitError, Step as ResponseStep, fit_response};
 pub use model::robot::{

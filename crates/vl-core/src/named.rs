@@ -70,6 +70,20 @@ macro_rules! named_by_id {
             }
         }
 
+        impl $crate::schemars::JsonSchema for $t {
+            fn schema_name() -> ::std::borrow::Cow<'static, str> {
+                <$t as $crate::Named>::KIND.into()
+            }
+
+            fn json_schema(_: &mut $crate::schemars::SchemaGenerator) -> $crate::schemars::Schema {
+                let ids: Vec<&str> = <$t as $crate::Named>::ALL
+                    .iter()
+                    .map(|v| $crate::Named::id(*v))
+                    .collect();
+                $crate::schemars::json_schema!({"type": "string", "enum": ids})
+            }
+        }
+
         impl<'de> ::serde::Deserialize<'de> for $t {
             fn deserialize<D: ::serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
                 let id = <::std::borrow::Cow<'de, str> as ::serde::Deserialize>::deserialize(d)?;

@@ -58,14 +58,14 @@ impl Experiment {
 }
 
 /// An experiment the Host offers, as the Guest lists it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ExperimentInfo {
     pub id: Experiment,
     pub title: String,
 }
 
 /// Where the robot should go, and how close counts as there.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Goal {
     pub x_mm: f64,
     pub y_mm: f64,
@@ -94,7 +94,7 @@ impl Goal {
 }
 
 /// The user's settings for one experiment run (the thesis's "define").
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 pub struct Definition {
     /// The run ends with success when the robot is within tolerance of it.
     pub goal: Option<Goal>,

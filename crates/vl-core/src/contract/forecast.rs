@@ -11,7 +11,7 @@ use crate::{Point, Summary};
 use vl_report::table::{Report, Table};
 
 /// What a closest approach was to.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Nearest {
     Wall,
@@ -34,7 +34,7 @@ impl std::fmt::Display for Nearest {
 }
 
 /// The least room the body had, where, and to what.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Closest {
     pub mm: f64,
     pub at: Point,
@@ -42,7 +42,7 @@ pub struct Closest {
 }
 
 /// One seed's forecast run.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct SeedRun {
     pub seed: u64,
     pub reached_goal: bool,
@@ -69,7 +69,7 @@ pub struct SeedRun {
 }
 
 /// A definition's forecast: one run per seed.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Forecast {
     pub runs: Vec<SeedRun>,
     /// The time between two points of a run's path, s.
@@ -77,7 +77,7 @@ pub struct Forecast {
 }
 
 /// The least, mean and most of some figure over the seeds.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Spread {
     pub least: f64,
     pub mean: f64,
@@ -223,7 +223,7 @@ impl Forecast {
 
 /// What a lab asks of a definition's forecast besides reaching the goal
 /// without contact (`lab.toml` or `vl host` flags).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ForecastLimits {
     /// The least room the body may come to anything, mm.
     pub min_clearance_mm: f64,
@@ -242,7 +242,7 @@ impl Default for ForecastLimits {
 }
 
 /// Why a forecast does not pass.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum ForecastRefusal {
     /// The robot would touch something.
@@ -309,7 +309,7 @@ impl std::fmt::Display for ForecastRefusal {
 }
 
 /// A definition's forecast and the lab's verdict on it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ForecastVerdict {
     pub forecast: Forecast,
     pub limits: ForecastLimits,
@@ -387,7 +387,7 @@ impl Report for ForecastVerdict {
 }
 
 /// A run against its forecast: the twin's honesty, run by run.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Gap {
     /// The foreseen time to the goal (mean over the seeds that reach it).
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -10,7 +10,7 @@ use crate::{Experiment, Named};
 use vl_report::table::{Report, Table};
 
 /// The Host's state for its administrator.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct HostStatus {
     pub robot: DeviceState,
     pub camera: DeviceState,
@@ -41,7 +41,9 @@ pub struct HostStatus {
 
 /// How soon the system runs a thread that wakes: what stands between a
 /// busy machine and a robot told too late.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case", tag = "kind")]
 pub enum Priority {
     /// Real-time (`SCHED_FIFO` at this level): before every ordinary thread.
@@ -64,7 +66,9 @@ impl std::fmt::Display for Priority {
 }
 
 /// The priorities of the Host's real-time parts.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema,
+)]
 pub struct Priorities {
     pub control: Priority,
     /// The serial guard's; none without one (a simulated robot).
@@ -87,7 +91,7 @@ impl HostStatus {
 }
 
 /// Someone driving or waiting.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Person {
     /// Their connection; none while their link is down (their role or
     /// place is held for them).
@@ -97,7 +101,7 @@ pub struct Person {
 }
 
 /// One run.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct RunRecord {
     pub run: u64,
     pub experiment: Experiment,

@@ -27,7 +27,7 @@ pub const WATCHDOG: std::time::Duration = std::time::Duration::from_millis(500);
 
 /// A password on the wire: a string in JSON, never shown by `Debug`, so
 /// no log line can hold one.
-#[derive(Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(transparent)]
 pub struct Secret(pub String);
 
@@ -38,7 +38,7 @@ impl std::fmt::Debug for Secret {
 }
 
 /// Who a connection speaks for: one operator drives, observers watch.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Role {
     Operator,
@@ -55,7 +55,7 @@ impl std::fmt::Display for Role {
 }
 
 /// How a command asks the robot to move.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum Drive {
     /// Wheel speeds, mm/s.
@@ -95,7 +95,9 @@ impl Drive {
 
 /// Whether the lab is ready for a run, as remote labs reset their
 /// equipment between users.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum Readiness {
     #[default]
@@ -116,7 +118,7 @@ impl std::fmt::Display for Readiness {
 /// The robot's state after executing command `event`, at Host time `t_ms`
 /// since the session began: what the Host sends every control period and
 /// what the Guest shows.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Feedback {
     pub event: u64,
     pub t_ms: f64,
@@ -137,7 +139,17 @@ pub struct Feedback {
 }
 
 /// Machine-readable reason in an `error` message.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, strum::VariantArray)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::VariantArray,
+    schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum ErrorCode {
     /// Not JSON, not an object, or a field of the wrong shape.
@@ -182,7 +194,7 @@ impl std::fmt::Display for ErrorCode {
 }
 
 /// Whether a device of the lab answers.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum DeviceState {
     Online,
@@ -194,7 +206,14 @@ pub enum DeviceState {
 /// Messages the Guest sends. Each travels as `"type"`: its variant's name
 /// in snake case, as serde writes it and `kind()` and `TYPES` list it.
 #[derive(
-    Debug, Clone, PartialEq, Serialize, Deserialize, strum::IntoStaticStr, strum::VariantNames,
+    Debug,
+    Clone,
+    PartialEq,
+    Serialize,
+    Deserialize,
+    strum::IntoStaticStr,
+    strum::VariantNames,
+    schemars::JsonSchema,
 )]
 #[serde(tag = "type", rename_all = "snake_case")]
 #[strum(serialize_all = "snake_case")]
@@ -282,7 +301,7 @@ pub enum GuestMessage {
 }
 
 /// The lab as mounted: what the Guest needs to show and plan on it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct MountedLab {
     pub experiment: Experiment,
     #[serde(flatten)]
@@ -291,7 +310,7 @@ pub struct MountedLab {
 
 /// What a Guest needs to draw the lab, mounted or not: told at the welcome
 /// too, so the robot is drawn on the floor before anything is mounted.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct LabScene {
     /// The floor and its obstacles: as the camera sees them when the lab
     /// has one, else as configured.
@@ -302,7 +321,14 @@ pub struct LabScene {
 
 /// Messages the Host sends, named on the wire as the Guest's are.
 #[derive(
-    Debug, Clone, PartialEq, Serialize, Deserialize, strum::IntoStaticStr, strum::VariantNames,
+    Debug,
+    Clone,
+    PartialEq,
+    Serialize,
+    Deserialize,
+    strum::IntoStaticStr,
+    strum::VariantNames,
+    schemars::JsonSchema,
 )]
 #[serde(tag = "type", rename_all = "snake_case")]
 #[strum(serialize_all = "snake_case")]

@@ -32,7 +32,9 @@ const MAX_NAME: usize = 64;
 /// A recording's file name: `run-<ms since 1970>-<run>.mcap` (or
 /// `idle-<ms>.mcap` between runs), nothing that could reach outside the
 /// recordings folder.
-#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize, schemars::JsonSchema,
+)]
 #[serde(try_from = "String", into = "String")]
 pub struct RecordingName(String);
 
@@ -97,7 +99,7 @@ impl std::fmt::Display for RecordingName {
 }
 
 /// A recorded run, as the Host lists it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct RecordedRun {
     pub name: RecordingName,
     /// The run's number at its Host (0: the time between runs).

@@ -6,7 +6,17 @@ use serde::{Deserialize, Serialize};
 use crate::{PathAnalysis, Pose, PoseSource, Role};
 
 /// Why a run ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, strum::VariantArray)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::VariantArray,
+    schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum EndReason {
     GoalReached,
@@ -49,7 +59,7 @@ impl std::fmt::Display for EndReason {
 }
 
 /// What a finished run achieved.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Summary {
     pub reason: EndReason,
     pub reached_goal: bool,
@@ -103,7 +113,7 @@ pub struct Summary {
 
 /// The file a run was recorded to, and what the recorder could not keep
 /// up with (camera frames go first, so the control loop never waits).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct RecordingNote {
     pub name: crate::RecordingName,
     pub dropped_frames: u64,
@@ -129,7 +139,7 @@ impl Summary {
 }
 
 /// Where a run was held back, and how unsure the estimate was there.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct HeldBack {
     /// How far the robot may be from its estimate (two standard
     /// deviations), mm.
@@ -179,7 +189,7 @@ impl std::fmt::Display for HeldBack {
 }
 
 /// Who pressed an emergency stop: their role and session.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Stopper {
     pub role: Role,
     pub session: u64,

@@ -113,7 +113,7 @@ pub enum SupervisorError {
 
 /// What the supervisor did or is: the mounted lab, its marked places and
 /// enabled events, and the transitions fired since the last state told.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 pub struct NetState {
     /// The lab whose net runs; none before the first mount.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -130,7 +130,7 @@ pub struct NetState {
 }
 
 /// A transition fired in a lab's net.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Fired {
     pub lab: Experiment,
     /// The transition's id.

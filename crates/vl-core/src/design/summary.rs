@@ -10,7 +10,7 @@ use super::pipeline::{Designed, Interleaving};
 use vl_report::table::{Report, Table};
 
 /// One lab's outcome, as the table and `--json` show it.
-#[derive(Debug, Serialize)]
+#[derive(Debug, Serialize, schemars::JsonSchema)]
 pub struct LabRow {
     pub lab: &'static str,
     pub charts: usize,
@@ -38,7 +38,7 @@ pub struct LabRow {
 }
 
 /// One rule of a lab, without and with its controllers.
-#[derive(Debug, Serialize)]
+#[derive(Debug, Serialize, schemars::JsonSchema)]
 pub struct RuleVerdict {
     pub why: String,
     /// The events of the shortest sequence breaking it without the
@@ -48,7 +48,7 @@ pub struct RuleVerdict {
 }
 
 /// Every lab's outcome, and where its files are.
-#[derive(Debug, Serialize)]
+#[derive(Debug, Serialize, schemars::JsonSchema)]
 pub struct NetsReport {
     pub out: PathBuf,
     pub check: bool,

@@ -18,7 +18,7 @@ use vl_report::table::{Report, Table};
 
 /// A camera: its image size and frame rate, and where each floor point
 /// appears in its images.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(try_from = "CameraWire", into = "CameraWire")]
 pub struct CameraModel {
     pub width_px: u32,
@@ -32,7 +32,7 @@ pub struct CameraModel {
 }
 
 /// How a camera model travels: the map one way; the other is derived.
-#[derive(Serialize, Deserialize)]
+#[derive(Serialize, Deserialize, schemars::JsonSchema)]
 struct CameraWire {
     width_px: u32,
     height_px: u32,
@@ -86,7 +86,7 @@ impl From<CameraModel> for CameraWire {
 }
 
 /// How well a calibration fits the points it was made from, px.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Reprojection {
     pub points: usize,
     pub rms_px: f64,
@@ -95,7 +95,7 @@ pub struct Reprojection {
 
 /// A lab's camera as calibration found it: what `vl camera calibrate`
 /// writes and `vl host --camera-calibration` reads.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Calibration {
     pub camera: CameraModel,
     /// None in a file written by hand: the camera is all it says.

@@ -191,6 +191,17 @@ impl Serialize for Homography {
     }
 }
 
+/// As serialised: three rows of three.
+impl schemars::JsonSchema for Homography {
+    fn schema_name() -> std::borrow::Cow<'static, str> {
+        "Homography".into()
+    }
+
+    fn json_schema(generator: &mut schemars::SchemaGenerator) -> schemars::Schema {
+        <[[f64; 3]; 3]>::json_schema(generator)
+    }
+}
+
 impl<'de> Deserialize<'de> for Homography {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         let rows = <[[f64; 3]; 3]>::deserialize(deserializer)?;

@@ -8,6 +8,7 @@ pub(crate) mod homography;
 pub(crate) mod khepera;
 pub(crate) mod leash;
 pub(crate) mod lens;
+pub(crate) mod pinhole;
 pub(crate) mod proximity;
 pub(crate) mod response_fit;
 pub(crate) mod robot;

@@ -22,7 +22,7 @@ pub struct Step {
 }
 
 /// The fitted law and how well it fits.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct Fit {
     pub response: SpeedResponse,
     /// Root mean square of the residuals over every sample, mm/s.

@@ -11,7 +11,7 @@ use crate::syntax::{SyntaxError, parse_numbers};
 
 /// A planar pose in the arena frame: mm, origin at the arena's bottom-left
 /// corner, x right, y up, θ counter-clockwise from +x.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 pub struct Pose {
     pub x_mm: f64,
     pub y_mm: f64,
@@ -19,14 +19,14 @@ pub struct Pose {
 }
 
 /// A point in the arena frame, in mm.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 pub struct Point {
     pub x_mm: f64,
     pub y_mm: f64,
 }
 
 /// Wheel surface speeds, mm/s, positive forward.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 pub struct WheelSpeeds {
     pub left_mm_s: f64,
     pub right_mm_s: f64,
@@ -40,7 +40,7 @@ impl WheelSpeeds {
 }
 
 /// Where a proximity sensor sits on the body (x forward, y left) and where it looks.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct SensorMount {
     pub x_mm: f64,
     pub y_mm: f64,
@@ -48,7 +48,7 @@ pub struct SensorMount {
 }
 
 /// A round differential-drive robot.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct RobotModel {
     pub name: String,
     pub radius_mm: f64,
@@ -84,7 +84,7 @@ fn default_wheel_slip() -> f64 {
 /// first-order response, limited in acceleration, after a dead time. The
 /// simulator moves its wheels by it, the Host's safety layer brakes by it,
 /// and `vl khepera characterise` measures it on a real robot.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct SpeedResponse {
     /// Steady speed over commanded speed.
     pub gain: f64,

@@ -8,7 +8,9 @@ use serde::{Deserialize, Serialize};
 use crate::{Point, Pose};
 
 /// Where the pose a run steered from came from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum PoseSource {
     /// The overhead camera, with odometry between frames.
@@ -28,7 +30,7 @@ impl std::fmt::Display for PoseSource {
 }
 
 /// Mean, largest and root-mean-square of a set of distances, mm.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ErrorMm {
     pub mean: f64,
     pub max: f64,
@@ -116,7 +118,7 @@ pub fn distance_to_polyline(path: &[Point], p: Point) -> f64 {
 }
 
 /// A finished run's paths and their errors.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct PathAnalysis {
     /// The path as the Host estimated it, thinned to a point per few mm.
     pub estimated: Vec<Point>,

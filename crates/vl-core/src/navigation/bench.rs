@@ -17,7 +17,7 @@ use crate::{
 pub(crate) const MIN_BENCH_CELLS: u32 = 50;
 
 /// Median milliseconds of each planning stage.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct PlanBench {
     pub size: u32,
     pub runs: u32,

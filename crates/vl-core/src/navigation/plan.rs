@@ -54,7 +54,7 @@ impl std::fmt::Display for PathEnd {
 }
 
 /// How the path was smoothed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Smoothing {
     /// A cubic spline through this many knots.

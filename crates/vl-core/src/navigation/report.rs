@@ -8,7 +8,7 @@ use vl_report::table::{Report, Table, count};
 
 /// A plan as `vl plan` prints it: the grid, the paths on it and in mm,
 /// their length and clearance; or why there is none.
-#[derive(Debug, Serialize)]
+#[derive(Debug, Serialize, schemars::JsonSchema)]
 pub struct PlanReport {
     pub found: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -30,7 +30,7 @@ pub struct PlanReport {
 }
 
 /// The grid a plan was made on.
-#[derive(Debug, Serialize)]
+#[derive(Debug, Serialize, schemars::JsonSchema)]
 pub struct GridInfo {
     pub width: u32,
     pub height: u32,

@@ -7,7 +7,7 @@ use super::Connectivity;
 use super::threshold::Mask;
 
 /// One connected component and what its shape says.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct Component {
     /// Its number in the label image (1, 2, …; 0 is background).
     pub label: u32,
@@ -25,7 +25,7 @@ pub struct Component {
     pub hole_centroid: Option<Centroid>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct Centroid {
     pub x: f64,
     pub y: f64,

@@ -51,7 +51,7 @@ crate::named_by_id!(Connectivity);
 
 /// Everything the camera tells: the threshold used, each component, and
 /// the robot's pose if one component is the robot.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct Scene {
     pub threshold: u8,
     pub components: Vec<Component>,
@@ -77,7 +77,7 @@ pub fn inspect(image: &RgbImage, threshold: Threshold, invert: bool) -> Scene {
 }
 
 /// How fast [`inspect`] and [`look`] run on one frame.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, schemars::JsonSchema)]
 pub struct VisionBench {
     pub width: u32,
     pub height: u32,

@@ -7,7 +7,7 @@ use super::components::Component;
 
 /// The robot's pose seen from above, in image pixels: x right, y down as
 /// the image is stored, θ counter-clockwise from +x as the arena sees it.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct RobotPose {
     pub x: f64,
     pub y: f64,

@@ -25,7 +25,7 @@ pub enum TargetError {
 
 /// A calibration target: `cols` × `rows` dark dots laid on the floor, with
 /// the target's rows running roughly along the image's rows.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct DotTarget {
     pub cols: u32,
     pub rows: u32,

@@ -6,7 +6,7 @@ use crate::Shape;
 
 /// What an obstacle's surface is like to the robot's infrared sensors and
 /// to the overhead camera.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Material {
     /// Fraction of the infrared a white surface returns (K-Team's
     /// calibration is for white): 0.01 for matt black, 1 for white.
@@ -49,7 +49,7 @@ impl Default for Material {
 }
 
 /// An obstacle: a shape and what it is made of.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Obstacle {
     #[serde(flatten)]
     pub shape: Shape,

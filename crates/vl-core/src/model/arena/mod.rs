@@ -59,7 +59,7 @@ pub enum MapImageError {
 
 /// A rectangular walled arena with its obstacles, where the robot starts,
 /// and the goal the experiment suggests.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Arena {
     pub name: String,
     pub width_mm: f64,

@@ -24,7 +24,7 @@ pub enum ShapeError {
 
 /// A shape on the arena floor, in mm in the arena frame: an obstacle's
 /// geometry, or a virtual obstacle an experiment adds.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(tag = "shape", rename_all = "snake_case")]
 pub enum Shape {
     /// An axis-aligned box; (x, y) is its bottom-left corner.
