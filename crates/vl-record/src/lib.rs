@@ -21,6 +21,7 @@ mod export;
 mod foxglove;
 mod reader;
 mod records;
+mod schemas;
 mod views;
 mod writer;
 
@@ -32,10 +33,18 @@ pub use reader::{
     Message, RecordError, Recording, RecordingInfo, Repaired, Replayed, TopicCount, repair,
 };
 pub use records::Damage;
-pub use views::{View, Views};
+pub use views::{Motion, View, Views};
 pub use writer::{Begin, Feed, Recordable, Stopped, now_ns, unix_ns_at};
 
 pub use foxglove::Schema;
+
+/// A client's round trip, from the Host's pings.
+#[derive(Debug, Clone, Copy, serde::Serialize, schemars::JsonSchema)]
+pub struct RoundTrip {
+    /// The connection, as the Host numbers them.
+    pub connection: u64,
+    pub ms: f64,
+}
 
 /// Each channel of a recording: one home for its topic and schema.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -58,9 +67,21 @@ pub enum Topic {
     /// Foxglove's views.
     Camera,
     Annotations,
+    /// The camera's intrinsics and lens, and where it stands.
+    Calibration,
+    CameraTransform,
     Pose,
     Transform,
     Scene,
+    /// The camera-built map and the C-space, as grids.
+    Map,
+    CSpace,
+    /// The defined path and each forecast seed's, as poses.
+    Path,
+    Seeds,
+    /// The proximity sensors as a scan, and the robot's motion as numbers.
+    Scan,
+    Motion,
     Log,
 }
 
@@ -80,9 +101,17 @@ impl Topic {
             Topic::TruePose => "/robot/true_pose",
             Topic::Camera => "/camera",
             Topic::Annotations => "/camera/annotations",
+            Topic::Calibration => "/camera/calibration",
+            Topic::CameraTransform => "/tf_static",
             Topic::Pose => "/robot/pose",
             Topic::Transform => "/tf",
             Topic::Scene => "/scene",
+            Topic::Map => "/map",
+            Topic::CSpace => "/cspace",
+            Topic::Path => "/path",
+            Topic::Seeds => "/forecast/seeds",
+            Topic::Scan => "/robot/ir",
+            Topic::Motion => "/robot/motion",
             Topic::Log => "/log",
         }
     }
@@ -100,34 +129,38 @@ impl Topic {
     ];
 
     pub fn schema(self) -> Schema {
-        let plain = |name: &'static str, what: &str| Schema {
-            name,
-            body: serde_json::json!({
-                "type": "object",
-                "title": name,
-                "description": format!("{what}: the message of vl's protocol v1 (docs/protocol.md), as its Guests got it"),
-            }),
-        };
+        use foxglove::Kind;
+        use schemas::{heard, sent};
         match self {
-            Topic::Lab => plain("vl.Mounted", "the lab as mounted"),
-            Topic::Definition => plain("vl.Defined", "the run's definition"),
-            Topic::Forecast => plain("vl.Forecast", "the definition tried on the lab's twin"),
-            Topic::Started => plain("vl.Started", "the run began"),
-            Topic::Feedback => plain(
+            Topic::Lab => sent("vl.Mounted", "mounted", "the lab as mounted"),
+            Topic::Definition => sent("vl.Defined", "defined", "the run's definition"),
+            Topic::Forecast => sent(
+                "vl.Forecast",
+                "forecast",
+                "the definition tried on the lab's twin",
+            ),
+            Topic::Started => sent("vl.Started", "started", "the run began"),
+            Topic::Feedback => sent(
                 "vl.Feedback",
+                "feedback",
                 "the robot, every control period it is published",
             ),
-            Topic::State => plain("vl.State", "the supervisor's firings and marking"),
-            Topic::Status => plain("vl.Status", "the lab's devices"),
-            Topic::Summary => plain("vl.Done", "the run's summary"),
-            Topic::Commands => plain("vl.Command", "an operator's command"),
-            Topic::RoundTrip => plain("vl.RoundTrip", "a client's round trip, ms"),
-            Topic::TruePose | Topic::Pose => foxglove::pose_in_frame(),
-            Topic::Camera => foxglove::compressed_image(),
-            Topic::Annotations => foxglove::image_annotations(),
-            Topic::Transform => foxglove::frame_transform(),
-            Topic::Scene => foxglove::scene_update(),
-            Topic::Log => foxglove::log(),
+            Topic::State => sent("vl.State", "state", "the supervisor's firings and marking"),
+            Topic::Status => sent("vl.Status", "status", "the lab's devices"),
+            Topic::Summary => sent("vl.Done", "done", "the run's summary"),
+            Topic::Commands => heard("vl.Command", "command", "an operator's command"),
+            Topic::RoundTrip => foxglove::schema_of::<RoundTrip>("vl.RoundTrip"),
+            Topic::Motion => foxglove::schema_of::<Motion>("vl.Motion"),
+            Topic::TruePose | Topic::Pose => Kind::PoseInFrame.schema(),
+            Topic::Path | Topic::Seeds => Kind::PosesInFrame.schema(),
+            Topic::Camera => Kind::CompressedImage.schema(),
+            Topic::Annotations => Kind::ImageAnnotations.schema(),
+            Topic::Calibration => Kind::CameraCalibration.schema(),
+            Topic::Transform | Topic::CameraTransform => Kind::FrameTransform.schema(),
+            Topic::Scene => Kind::SceneUpdate.schema(),
+            Topic::Map | Topic::CSpace => Kind::Grid.schema(),
+            Topic::Scan => Kind::LaserScan.schema(),
+            Topic::Log => Kind::Log.schema(),
         }
     }
 

@@ -1,10 +1,16 @@
 //! What the Host sends, as channels: each protocol message on its own
-//! topic, and Foxglove's views of it (pose, transform, camera image,
-//! annotations, scene). One home for that conversion, shared by the
-//! recorder (into a run's file) and the live Foxglove server (onto its
-//! watchers' sockets), so a live view and a recorded one are the same.
+//! topic, and Foxglove's views of it (pose, transforms, camera image and
+//! calibration, annotations, scene, grids, paths, sensors, numbers). One
+//! home for that conversion, shared by the recorder (into a run's file)
+//! and the live Foxglove server (onto its watchers' sockets), so a live
+//! view and a recorded one are the same.
 
-use vl_core::{Definition, Feedback, FrameHeader, HostMessage, MountedLab, Pose, Wire};
+use schemars::JsonSchema;
+use serde::Serialize;
+use vl_core::{
+    Definition, Feedback, FrameHeader, HostMessage, LabScene, Point, PoseSource, Wire,
+    distance_to_polyline,
+};
 
 use super::Topic;
 use super::foxglove::{self, Level};
@@ -33,38 +39,100 @@ impl View {
     }
 }
 
-/// What the views need to remember between messages: the lab (for the
-/// camera's pixels and the scene), the definition (its path) and the
-/// robot's last pose (drawn over the next frame).
+/// The robot's motion as numbers, one message a feedback, every field
+/// always there: what Plot draws.
+#[derive(Debug, Clone, Serialize, JsonSchema)]
+pub struct Motion {
+    pub left_mm_s: f64,
+    pub right_mm_s: f64,
+    pub forward_mm_s: f64,
+    /// How far the robot is from the defined path; none without one.
+    pub tracking_error_mm: Option<f64>,
+    /// The Host held the robot back from what was asked (the safety layer,
+    /// or an assisted run's push).
+    pub limited: bool,
+    pub contact: bool,
+    /// The pose rests on a recent camera sighting (else odometry alone).
+    pub sighted: bool,
+}
+
+/// What the views need to remember between messages: the lab's scene (for
+/// the camera's pixels, the scene and the grids), the definition (its
+/// path), the forecast's seeds and the robot's last pose (drawn over the
+/// next frame).
 pub struct Views {
-    lab: Option<MountedLab>,
+    scene: Option<LabScene>,
     definition: Definition,
-    pose: Option<Pose>,
+    seeds: Vec<Vec<Point>>,
+    pose: Option<vl_core::Pose>,
     /// ns since 1970 at the lab's clock's zero, which feedback's `t_ms`
     /// and frames' capture times count from.
     since_ns: u64,
 }
 
 impl Views {
-    pub fn new(since_ns: u64, lab: Option<MountedLab>, definition: Definition) -> Views {
+    pub fn new(since_ns: u64, scene: Option<LabScene>, definition: Definition) -> Views {
         Views {
-            lab,
+            scene,
             definition,
+            seeds: Vec::new(),
             pose: None,
             since_ns,
         }
     }
 
-    /// The arena, its obstacles, the path and the robot's body as a scene.
+    /// The arena, its obstacles, the paths and the robot's body as a scene.
     pub fn scene(&self, ns: u64) -> Option<View> {
-        let lab = self.lab.as_ref()?;
-        let scene = foxglove::scene(ns, &lab.scene.arena, &self.definition, &lab.scene.robot);
+        let lab = self.scene.as_ref()?;
+        let scene = foxglove::scene(ns, &lab.arena, &self.definition, &self.seeds, &lab.robot);
         Some(View::json(Topic::Scene, ns, &scene))
+    }
+
+    /// Everything that says what the lab is, as it stands: the scene, the
+    /// grids, the camera's place and calibration, the defined path.
+    pub fn lab(&self, ns: u64) -> Vec<View> {
+        let Some(lab) = &self.scene else {
+            return Vec::new();
+        };
+        let mut views: Vec<View> = self.scene(ns).into_iter().collect();
+        views
+            .extend(foxglove::map_grid(ns, &lab.arena).map(|map| View::json(Topic::Map, ns, &map)));
+        views.extend(self.cspace(ns));
+        views.push(View::json(
+            Topic::CameraTransform,
+            ns,
+            &foxglove::camera_transform(ns, &lab.camera),
+        ));
+        views.push(View::json(
+            Topic::Calibration,
+            ns,
+            &foxglove::calibration(ns, &lab.camera),
+        ));
+        views.push(self.path(ns));
+        views
+    }
+
+    fn cspace(&self, ns: u64) -> Option<View> {
+        let lab = self.scene.as_ref()?;
+        let grid = foxglove::cspace_grid(ns, &lab.arena, &self.definition, &lab.robot)?;
+        Some(View::json(Topic::CSpace, ns, &grid))
+    }
+
+    fn path(&self, ns: u64) -> View {
+        let poses = foxglove::path_poses(ns, &self.definition.path);
+        View::json(Topic::Path, ns, &poses)
     }
 
     /// `message`, sent at `ns`, on its topic, and Foxglove's views of it;
     /// nothing for a message no channel keeps.
     pub fn sent(&mut self, ns: u64, message: &HostMessage) -> Vec<View> {
+        if let HostMessage::Welcome {
+            scene: Some(scene), ..
+        } = message
+        {
+            self.scene = Some((**scene).clone());
+            return self.lab(ns);
+        }
         let Some(topic) = Topic::of(message) else {
             return Vec::new();
         };
@@ -81,28 +149,66 @@ impl Views {
             data: message.encode().into_bytes(),
         }];
         match message {
-            HostMessage::Feedback(Feedback { pose, .. }) => {
-                self.pose = Some(*pose);
-                views.push(View::json(
-                    Topic::Pose,
-                    ns,
-                    &foxglove::pose_message(ns, *pose),
-                ));
-                views.push(View::json(
-                    Topic::Transform,
-                    ns,
-                    &foxglove::transform(ns, *pose),
-                ));
-            }
+            HostMessage::Feedback(feedback) => views.extend(self.feedback(ns, feedback)),
             HostMessage::Defined { definition } => {
                 self.definition = definition.clone();
+                self.seeds.clear();
                 views.extend(self.scene(ns));
+                views.extend(self.cspace(ns));
+                views.push(self.path(ns));
             }
             HostMessage::Mounted(lab) => {
-                self.lab = Some((**lab).clone());
+                self.scene = Some(lab.scene.clone());
+                self.seeds.clear();
+                views.extend(self.lab(ns));
+            }
+            HostMessage::Forecast(verdict) => {
+                self.seeds = verdict
+                    .forecast
+                    .runs
+                    .iter()
+                    .map(|run| run.path.clone())
+                    .collect();
                 views.extend(self.scene(ns));
+                views.extend(
+                    self.seeds
+                        .iter()
+                        .map(|seed| View::json(Topic::Seeds, ns, &foxglove::path_poses(ns, seed))),
+                );
             }
             _ => {}
+        }
+        views
+    }
+
+    fn feedback(&mut self, ns: u64, feedback: &Feedback) -> Vec<View> {
+        let pose = feedback.pose;
+        self.pose = Some(pose);
+        let path = &self.definition.path;
+        let motion = Motion {
+            left_mm_s: feedback.wheels.left_mm_s,
+            right_mm_s: feedback.wheels.right_mm_s,
+            forward_mm_s: feedback.wheels.forward_mm_s(),
+            tracking_error_mm: (!path.is_empty()).then(|| distance_to_polyline(path, pose.point())),
+            limited: feedback.limited,
+            contact: feedback.contact,
+            sighted: feedback.source == PoseSource::Camera,
+        };
+        let mut views = vec![
+            View::json(Topic::Pose, ns, &foxglove::pose_message(ns, pose)),
+            View::json(Topic::Transform, ns, &foxglove::transform(ns, pose)),
+            View::json(
+                Topic::Motion,
+                ns,
+                &serde_json::to_value(&motion).expect("numbers serialise"),
+            ),
+        ];
+        if let Some(lab) = &self.scene {
+            views.push(View::json(
+                Topic::Scan,
+                ns,
+                &foxglove::scan(ns, &lab.robot, &feedback.proximity),
+            ));
         }
         views
     }
@@ -119,10 +225,10 @@ impl Views {
             taken,
             &foxglove::image(taken, jpeg),
         )];
-        if let Some(lab) = &self.lab {
-            let robot = self.pose.map(|p| (p, lab.scene.robot.radius_mm));
+        if let Some(lab) = &self.scene {
+            let robot = self.pose.map(|p| (p, lab.robot.radius_mm));
             let annotations =
-                foxglove::annotations(taken, &lab.scene.camera, &self.definition.path, robot);
+                foxglove::annotations(taken, &lab.camera, &self.definition.path, robot);
             views.push(View::json(Topic::Annotations, taken, &annotations));
         }
         views

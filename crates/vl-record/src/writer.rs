@@ -577,7 +577,8 @@ impl RunFile {
                 self.put(Topic::Commands, ns, ns, command.encode().as_bytes())
             }
             Recordable::RoundTrip { connection, ms } => {
-                let value = serde_json::json!({"connection": connection, "ms": ms});
+                let value = serde_json::to_value(crate::RoundTrip { connection, ms })
+                    .expect("numbers serialise");
                 self.foxglove(Topic::RoundTrip, ns, &value)
             }
             Recordable::Truth(pose) => {
