@@ -308,7 +308,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
         Some(_) => ([127, 0, 0, 1], 0).into(),
         None => public,
     };
-    let host = Host::serve(listen, spec, config).await.map_err(|e| {
+    let mut host = Host::serve(listen, spec, config).await.map_err(|e| {
         if e.is_bad_input() {
             BadInput(e.to_string()).into()
         } else {
@@ -349,13 +349,15 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             None => std::future::pending().await,
         }
     };
+    let mut terminate = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+        .context("cannot wait for SIGTERM")?;
     tokio::select! {
-        () = host.wait() => bail!("the server stopped"),
+        () = host.stopped() => bail!("the server stopped"),
         () = relaying => bail!("the Media stopped"),
-        signal = tokio::signal::ctrl_c() => {
-            signal.context("cannot wait for Ctrl-C")?;
-            eprintln!("vl host: stopping");
-            Ok(())
-        }
+        signal = tokio::signal::ctrl_c() => signal.context("cannot wait for Ctrl-C")?,
+        _ = terminate.recv() => {}
     }
+    eprintln!("vl host: stopping");
+    host.stop().await;
+    Ok(())
 }

@@ -2,9 +2,10 @@
 //! protocol to a client that offers its subprotocol, by either name.
 //! An outside client (Python's websockets, nothing of vl's) subscribes to
 //! the camera and the pose during a run and decodes what comes; a careless
-//! or hostile one cannot publish, subscribe without bound, or send more
-//! than a subscription's worth, and a lab that admits only accounts to
-//! watch refuses it.
+//! or hostile one cannot publish but on `/cmd_vel`, subscribe without
+//! bound, or send more than a subscription's worth, and a lab that admits
+//! only accounts to watch refuses it. (Foxglove's own libraries check the
+//! rest: `foxglove_outside`.)
 
 use std::process::Command;
 use std::time::Duration;
@@ -12,6 +13,8 @@ use std::time::Duration;
 use futures_util::{SinkExt, StreamExt};
 use serde_json::{Value, json};
 use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+use tokio_tungstenite::tungstenite::protocol::CloseFrame;
+use tokio_tungstenite::tungstenite::protocol::frame::coding::CloseCode;
 use tokio_tungstenite::tungstenite::{Bytes, Message};
 
 use crate::common::{self, s, scratch, start_host};
@@ -138,12 +141,15 @@ async fn a_foxglove_client_is_read_only_and_bounded() {
         .unwrap();
     let status = next_status(&mut ws).await.unwrap();
     assert!(
-        status["message"].as_str().unwrap().contains("read-only"),
+        status["message"]
+            .as_str()
+            .unwrap()
+            .contains("was not advertised"),
         "{status}"
     );
     for text in [
         json!({"type": "emergency_stop"}).to_string(),
-        json!({"op": "advertise", "channels": []}).to_string(),
+        json!({"op": "advertise", "channels": [{"id": 1, "topic": "/wheels", "encoding": "json", "schemaName": "x"}]}).to_string(),
         "{not json".to_owned(),
     ] {
         ws.send(Message::text(text)).await.unwrap();
@@ -263,4 +269,42 @@ async fn foxglove_clients_draw_no_more_than_their_budget() {
     for task in tasks {
         task.abort();
     }
+}
+
+/// The close handshake both ways: a client's close is answered with its
+/// code, and a Host that stops (SIGTERM) says so with 1001 (going away).
+#[tokio::test]
+async fn a_stopping_host_says_it_is_going_away() {
+    let (host, url) = start_host(&["--no-record"]);
+    let mut leaving = foxglove(&url, "foxglove.sdk.v1").await;
+    assert_eq!(next_op(&mut leaving).await.unwrap()["op"], "serverInfo");
+    leaving
+        .send(Message::Close(Some(CloseFrame {
+            code: CloseCode::Normal,
+            reason: "done".into(),
+        })))
+        .await
+        .unwrap();
+    assert_eq!(close_code(&mut leaving).await, Some(CloseCode::Normal));
+    let mut staying = foxglove(&url, "foxglove.websocket.v1").await;
+    assert_eq!(next_op(&mut staying).await.unwrap()["op"], "serverInfo");
+    let pid = host.0.id().to_string();
+    let killed = Command::new("kill").args(["-TERM", &pid]).status().unwrap();
+    assert!(killed.success());
+    assert_eq!(close_code(&mut staying).await, Some(CloseCode::Away));
+}
+
+/// The code of the close frame that ends `ws`, within 5 s.
+async fn close_code(ws: &mut Socket) -> Option<CloseCode> {
+    tokio::time::timeout(Duration::from_secs(5), async {
+        while let Some(Ok(message)) = ws.next().await {
+            if let Message::Close(frame) = message {
+                return frame.map(|f| f.code);
+            }
+        }
+        None
+    })
+    .await
+    .ok()
+    .flatten()
 }

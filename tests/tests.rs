@@ -18,6 +18,7 @@ mod faults;
 mod following_in_sim;
 mod forecast;
 mod foxglove;
+mod foxglove_outside;
 mod fuzz;
 mod gamepad;
 mod guest_window;

@@ -48,9 +48,9 @@ async def main():
                 break
             if isinstance(message, str):
                 continue
-            opcode, sub, ns = struct.unpack_from("<BIQ", message)
-            if opcode != 1:
+            if message[0] != 1:  # time (2) and the rest are not message data
                 continue
+            opcode, sub, ns = struct.unpack_from("<BIQ", message)
             topic = topic_of.get(sub)
             if topic is None:
                 seen["bad"].append(f"unknown subscription {sub}")

@@ -290,7 +290,21 @@ impl Host {
 
     /// Serves until the process ends.
     pub async fn wait(mut self) {
+        self.stopped().await;
+    }
+
+    /// Until the server stops by itself.
+    pub async fn stopped(&mut self) {
         let _ = (&mut self.task).await;
+    }
+
+    /// Stops serving: the lab (and so the robot) stops, and the clients
+    /// are told the Host is going (Foxglove's with close code 1001), given
+    /// a moment to hear it.
+    pub async fn stop(mut self) {
+        self.task.abort();
+        let _ = (&mut self.task).await;
+        tokio::time::sleep(std::time::Duration::from_millis(300)).await;
     }
 }
 

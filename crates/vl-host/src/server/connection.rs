@@ -75,10 +75,10 @@ pub(crate) struct ConnectionTask {
     pub(crate) record: Feed,
     /// Who the gate let in (for the recordings they may see).
     pub(crate) identity: Option<Identity>,
-    /// The Host's log, live (for Foxglove's watchers).
-    pub(crate) log: tokio::sync::broadcast::Sender<(vl_record::Level, String)>,
-    /// ns since 1970 at the lab's clock's zero.
-    pub(crate) since_ns: u64,
+    /// The lab's views, made once for every Foxglove client.
+    pub(crate) foxglove: foxglove::Feed,
+    /// One per Host start, for Foxglove's clients.
+    pub(crate) session: Arc<str>,
 }
 
 /// Who a connection's WebSocket is for.
@@ -227,14 +227,13 @@ impl ConnectionTask {
             id: self.id,
             hub: self.hub,
             feedback: self.feedback,
-            frames: self.frames,
+            feed: self.foxglove,
             watchers: self.watchers,
             gate: self.gate,
             peer: self.peer,
             ticket: self.ticket,
             ping_timeout: self.config.ping_timeout,
-            log: self.log,
-            since_ns: self.since_ns,
+            session: self.session.to_string(),
         }
     }
 

@@ -137,13 +137,24 @@ const HUB_QUEUE: usize = 256;
 /// Accepts connections on `listener` and serves the lab until the task is dropped.
 pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
     let (hub_tx, hub_rx) = mpsc::channel(HUB_QUEUE);
+    let (feed, views, feeding) = foxglove::Feed::start(foxglove::Sources {
+        scene: vl_core::LabScene {
+            arena: lab.info.arena.clone(),
+            robot: lab.info.robot.clone(),
+            camera: lab.info.camera,
+        },
+        since_ns: lab.since_ns,
+        feedback: lab.feedback.clone(),
+        frames: lab.frames.clone(),
+        log: lab.log.clone(),
+    });
     let outlets = Outlets {
         feedback: lab.feedback.clone(),
         frames: lab.frames.clone(),
         watchers: lab.watchers.clone(),
         record: lab.record.clone(),
-        log: lab.log.clone(),
-        since_ns: lab.since_ns,
+        foxglove: feed,
+        session: lab.since_ns.to_string().into(),
     };
     let config = Arc::new(config);
     let supervisor = match config.supervisor() {
@@ -159,7 +170,7 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         config.observers,
         config.audit.clone(),
     ));
-    let hub = Hub::new(lab, config.clone(), supervisor);
+    let hub = Hub::new(lab, config.clone(), supervisor).with_views(views);
     let accounts = watch_accounts(gate.clone(), hub_tx.clone());
     // The hub lives exactly as long as the server: dropping this future
     // drops the lab, which stops the robot.
@@ -167,6 +178,7 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         () = hub.run(hub_rx) => {}
         () = accept(listener, hub_tx, outlets, config, gate) => {}
         () = accounts => {}
+        () = feeding => {}
     }
 }
 
@@ -197,8 +209,8 @@ struct Outlets {
     frames: tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
     watchers: Arc<std::sync::atomic::AtomicUsize>,
     record: vl_record::Feed,
-    log: tokio::sync::broadcast::Sender<(vl_record::Level, String)>,
-    since_ns: u64,
+    foxglove: foxglove::Feed,
+    session: Arc<str>,
 }
 
 async fn accept(
@@ -238,8 +250,8 @@ async fn accept(
             ticket,
             record: outlets.record.clone(),
             identity: None,
-            log: outlets.log.clone(),
-            since_ns: outlets.since_ns,
+            foxglove: outlets.foxglove.clone(),
+            session: outlets.session.clone(),
         };
         tokio::spawn(async move {
             if let Err(e) = connection.run(stream).await {

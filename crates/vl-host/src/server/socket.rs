@@ -12,7 +12,7 @@ use tokio_tungstenite::tungstenite::{self, Message};
 use vl_core::Io;
 
 /// A client must take each message within this, or it is too slow to serve.
-const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
+pub(crate) const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
 
 pub(super) type Socket = WebSocketStream<Box<dyn Io>>;
 pub(super) type Sink = SplitSink<Socket, Message>;

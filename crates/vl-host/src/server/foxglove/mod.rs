@@ -1,24 +1,29 @@
 //! Live in Foxglove and Lichtblick: the Foxglove WebSocket protocol on the
 //! Host's own port, told apart from a Guest by its subprotocol. A Foxglove
-//! client is an observer like any other (the same gate, the same places to
-//! watch from, the same newest-only feedback and frames) that never
-//! speaks: it is advertised the channels a run's recording has, in the
-//! same schemas (`vl_record::Views` makes both), and gets those it subscribes
-//! to. Read-only: it cannot publish, call services or set parameters.
+//! client watches like any observer (the same gate, the same places to
+//! watch from) and gets the channels a run's recording has, in the same
+//! schemas, made once for all clients (`feed`). It may also drive, as the
+//! operator, through services and a Twist on `/cmd_vel` (`drive`).
 //!
 //! Written here rather than with Foxglove's SDK (crate `foxglove`): the
 //! SDK runs a server of its own on its own listener, with its own TLS
 //! (aws-lc-rs) and admission; here the lab's port, TLS, admission and
 //! gate stay one, and the views are the recorder's own.
 
-use std::collections::HashMap;
+mod drive;
+mod feed;
+mod ops;
+
+use std::collections::{HashMap, HashSet};
 use std::time::{Duration, Instant};
 
 use futures_util::StreamExt;
-use serde::Deserialize;
 use tokio::sync::broadcast;
+use tokio_tungstenite::tungstenite::protocol::CloseFrame;
+use tokio_tungstenite::tungstenite::protocol::frame::coding::CloseCode;
 use tokio_tungstenite::tungstenite::{Bytes, Message};
-use vl_core::{ErrorCode, HostMessage, PROTOCOL_VERSION, Role, Wire};
+use vl_core::{ErrorCode, GuestMessage, HostMessage, PROTOCOL_VERSION, Role, Wire};
+use vl_record::{Topic, View, now_ns};
 
 use super::admission::Ticket;
 use super::bucket::Bucket;
@@ -26,7 +31,9 @@ use super::hub::{ToConnection, ToHub};
 use super::socket::{self, Sink, Socket};
 use crate::accounts::gate::{Credentials, Gate, Purpose};
 use crate::lab::Watching;
-use vl_record::{Level, Topic, View, Views, now_ns};
+use drive::{CMD_VEL, Driver, SERVICES};
+pub(crate) use feed::{Feed, Sources};
+use ops::{CHANNELS, ClientOp, Level, ServiceCall, status};
 
 /// The protocol's two names: Foxglove's SDK and foxglove_bridge 3.x ask
 /// for the first only, older clients and Lichtblick before 2026 for the
@@ -55,43 +62,16 @@ impl Subprotocol {
     }
 }
 
-/// The channels advertised, their ids their places here.
-const CHANNELS: [Topic; 14] = [
-    Topic::Camera,
-    Topic::Annotations,
-    Topic::Pose,
-    Topic::Transform,
-    Topic::Scene,
-    Topic::Log,
-    Topic::Feedback,
-    Topic::State,
-    Topic::Status,
-    Topic::Lab,
-    Topic::Definition,
-    Topic::Forecast,
-    Topic::Started,
-    Topic::Summary,
-];
-
-/// Channels whose newest message a late subscriber gets at once: they
-/// change seldom and say what the lab is.
-const LATCHED: [Topic; 6] = [
-    Topic::Scene,
-    Topic::State,
-    Topic::Status,
-    Topic::Lab,
-    Topic::Definition,
-    Topic::Forecast,
-];
-
-/// Subscriptions one client may hold.
+/// Subscriptions one client may hold, and channels it may advertise.
 const MAX_SUBSCRIPTIONS: usize = 64;
+const MAX_CLIENT_CHANNELS: usize = 16;
 /// The largest message a Foxglove client may send (a subscribe to every
 /// channel is a few hundred bytes).
 pub(super) const MAX_MESSAGE: usize = 64 << 10;
 /// How often the Host pings a Foxglove client (WebSocket pings, which
-/// every client answers by itself).
+/// every client answers by itself), and tells it the time.
 const PING_EVERY: Duration = Duration::from_secs(1);
+const TIME_EVERY: Duration = Duration::from_millis(100);
 /// Ops a client may send a second, and in a burst (a Guest's rates): past
 /// them, the client is not read until it is within them again.
 const OPS_PER_S: f64 = 200.0;
@@ -104,217 +84,79 @@ const OPS_BURST: f64 = 400.0;
 const BYTES_OUT_PER_S: f64 = 4.0 * 1024.0 * 1024.0;
 const BYTES_OUT_BURST: f64 = 8.0 * 1024.0 * 1024.0;
 
-/// Message data, server to client.
-const MESSAGE_DATA: u8 = 0x01;
-
-/// What a Foxglove client asks.
-#[derive(Deserialize)]
-#[serde(tag = "op", rename_all = "camelCase")]
-enum ClientOp {
-    Subscribe {
-        subscriptions: Vec<Subscription>,
-    },
-    #[serde(rename_all = "camelCase")]
-    Unsubscribe {
-        subscription_ids: Vec<u32>,
-    },
+/// Writes `message` in time, or the client is let go (`Err`).
+async fn put(sink: &mut Sink, message: Message) -> Result<(), ()> {
+    socket::write(sink, message).await.map_err(|_| ())
 }
 
-#[derive(Deserialize)]
-#[serde(rename_all = "camelCase")]
-struct Subscription {
-    id: u32,
-    channel_id: u32,
+/// Why a connection ends, as its close frame says.
+enum Ending {
+    /// The client closed, or is let go: 1000.
+    Normal,
+    /// The Host is stopping: 1001.
+    Away,
 }
 
-fn text(value: serde_json::Value) -> Message {
-    Message::text(value.to_string())
-}
-
-/// A status message to the client: 0 info, 1 warning, 2 error.
-fn status(level: u8, message: &str) -> Message {
-    text(serde_json::json!({"op": "status", "level": level, "message": message}))
-}
-
-fn server_info(connection: u64) -> Message {
-    text(serde_json::json!({
-        "op": "serverInfo",
-        "name": format!("vl host {}", env!("CARGO_PKG_VERSION")),
-        "capabilities": [],
-        "supportedEncodings": [],
-        "metadata": {},
-        "sessionId": connection.to_string(),
-    }))
-}
-
-fn advertise() -> Message {
-    let channels: Vec<serde_json::Value> = CHANNELS
-        .iter()
-        .enumerate()
-        .map(|(id, topic)| {
-            let schema = topic.schema();
-            serde_json::json!({
-                "id": id,
-                "topic": topic.name(),
-                "encoding": "json",
-                "schemaName": schema.name,
-                "schema": schema.body.to_string(),
-                "schemaEncoding": "jsonschema",
-            })
-        })
-        .collect();
-    text(serde_json::json!({"op": "advertise", "channels": channels}))
-}
-
-/// One client's subscriptions and what it has been told.
-struct Subscriptions {
+/// One client's subscriptions, channels and driving.
+struct Client {
     /// Subscription ids by channel.
     subscribed: HashMap<Topic, Vec<u32>>,
-    views: Views,
-    latest: HashMap<Topic, View>,
+    ids: HashSet<u32>,
+    /// The client's `/cmd_vel` channels.
+    cmd_vel: HashSet<u32>,
+    advertised: usize,
     /// What it may still be sent now.
     out: Bucket,
+    driver: Driver,
 }
 
-impl Subscriptions {
+impl Client {
     fn wants(&self, topic: Topic) -> bool {
         self.subscribed
             .get(&topic)
             .is_some_and(|ids| !ids.is_empty())
     }
 
-    fn count(&self) -> usize {
-        self.subscribed.values().map(Vec::len).sum()
+    fn watches_camera(&self) -> bool {
+        self.wants(Topic::Camera) || self.wants(Topic::Annotations)
     }
 
-    /// Sends `views` to whoever subscribed to their channels, keeping the
-    /// latched ones for later subscribers.
-    async fn send(&mut self, sink: &mut Sink, views: Vec<View>) -> Result<(), ()> {
-        for view in views {
-            if let Some(ids) = self.subscribed.get(&view.topic) {
-                for &id in ids {
-                    put_data(&mut self.out, sink, id, &view).await?;
-                }
-            }
-            if LATCHED.contains(&view.topic) {
-                self.latest.insert(view.topic, view);
+    /// Sends `view` on every subscription to its channel, within budget.
+    async fn send(&mut self, sink: &mut Sink, view: &View) -> Result<(), ()> {
+        if let Some(ids) = self.subscribed.get(&view.topic).cloned() {
+            for id in ids {
+                self.send_on(sink, id, view).await?;
             }
         }
         Ok(())
     }
 
-    /// Takes what the client sent: only subscriptions are taken; a
-    /// close ends the connection (`Err`).
-    async fn heard(&mut self, sink: &mut Sink, message: Message) -> Result<(), ()> {
-        match message {
-            Message::Text(op) => self.take(sink, op.as_str()).await,
-            Message::Binary(_) => {
-                put(
-                    sink,
-                    status(1, "this server is read-only: nothing may be published"),
-                )
-                .await
-            }
-            Message::Close(_) => Err(()),
-            _ => Ok(()),
-        }
-    }
-
-    /// Passes on what the hub told every client, as its views.
-    async fn hub_said(&mut self, sink: &mut Sink, message: &Message) -> Result<(), ()> {
-        let Message::Text(json) = message else {
+    /// Sends `view` on subscription `id`, within the client's budget; past
+    /// it, the message is not sent.
+    async fn send_on(&mut self, sink: &mut Sink, id: u32, view: &View) -> Result<(), ()> {
+        let message = ops::data(id, view);
+        let bytes = message.len() as f64;
+        if !self.out.take(bytes).is_zero() {
+            self.out.refund(bytes);
             return Ok(());
-        };
-        match HostMessage::decode(json.as_str()) {
-            Ok(message) => {
-                let views = self.views.sent(now_ns(), &message);
-                self.send(sink, views).await
-            }
-            Err(_) => Ok(()),
         }
+        put(sink, message).await
     }
-
-    /// Takes a client's op; what to tell it, if anything.
-    async fn take(&mut self, sink: &mut Sink, op: &str) -> Result<(), ()> {
-        let reply = match serde_json::from_str::<ClientOp>(op) {
-            Ok(ClientOp::Subscribe { subscriptions }) => {
-                let mut refused = None;
-                for s in subscriptions {
-                    let Some(&topic) = CHANNELS.get(s.channel_id as usize) else {
-                        refused = Some(format!("no channel {}", s.channel_id));
-                        continue;
-                    };
-                    if self.count() >= MAX_SUBSCRIPTIONS {
-                        refused = Some(format!(
-                            "at most {MAX_SUBSCRIPTIONS} subscriptions a client"
-                        ));
-                        break;
-                    }
-                    self.subscribed.entry(topic).or_default().push(s.id);
-                    if let Some(view) = self.latest.get(&topic) {
-                        put_data(&mut self.out, sink, s.id, view).await?;
-                    }
-                }
-                refused.map(|why| status(1, &why))
-            }
-            Ok(ClientOp::Unsubscribe { subscription_ids }) => {
-                for ids in self.subscribed.values_mut() {
-                    ids.retain(|id| !subscription_ids.contains(id));
-                }
-                None
-            }
-            Err(e) => Some(status(
-                1,
-                &format!("this server is read-only and takes subscribe and unsubscribe only: {e}"),
-            )),
-        };
-        match reply {
-            Some(reply) => put(sink, reply).await,
-            None => Ok(()),
-        }
-    }
-}
-
-/// Sends `view` on subscription `id`, within the client's budget `out`;
-/// past it, the message is not sent.
-async fn put_data(out: &mut Bucket, sink: &mut Sink, id: u32, view: &View) -> Result<(), ()> {
-    let message = data(id, view);
-    let bytes = message.len() as f64;
-    if !out.take(bytes).is_zero() {
-        out.refund(bytes);
-        return Ok(());
-    }
-    put(sink, message).await
-}
-
-/// Message data: opcode, subscription id, log time, payload.
-fn data(subscription: u32, view: &View) -> Message {
-    let mut bytes = Vec::with_capacity(13 + view.data.len());
-    bytes.push(MESSAGE_DATA);
-    bytes.extend_from_slice(&subscription.to_le_bytes());
-    bytes.extend_from_slice(&view.ns.to_le_bytes());
-    bytes.extend_from_slice(&view.data);
-    Message::Binary(Bytes::from(bytes))
-}
-
-/// Writes `message` in time, or the client is let go (`Err`).
-async fn put(sink: &mut Sink, message: Message) -> Result<(), ()> {
-    socket::write(sink, message).await.map_err(|_| ())
 }
 
 /// A Foxglove client's connection, and what it takes from the lab.
 pub(super) struct Watcher {
     pub id: u64,
     pub hub: tokio::sync::mpsc::Sender<ToHub>,
+    pub feed: Feed,
     pub feedback: tokio::sync::watch::Receiver<Option<HostMessage>>,
-    pub frames: tokio::sync::watch::Receiver<Option<Bytes>>,
     pub watchers: std::sync::Arc<std::sync::atomic::AtomicUsize>,
     pub gate: std::sync::Arc<Gate>,
     pub peer: std::net::SocketAddr,
     pub ticket: Ticket,
     pub ping_timeout: Duration,
-    pub log: broadcast::Sender<(Level, String)>,
-    pub since_ns: u64,
+    /// One per Host start.
+    pub session: String,
 }
 
 impl Watcher {
@@ -332,17 +174,17 @@ impl Watcher {
             Ok(admitted) if self.ticket.seat(admitted.may_drive) => admitted,
             Ok(_) => {
                 let why = "the lab is full: every place to watch from is taken";
-                let _ = put(&mut sink, status(2, why)).await;
-                return;
+                let _ = put(&mut sink, status(Level::Error, why)).await;
+                return close(&mut sink, Ending::Normal).await;
             }
             Err(refused) => {
-                let _ = put(&mut sink, status(2, &refused.why)).await;
-                return;
+                let _ = put(&mut sink, status(Level::Error, &refused.why)).await;
+                return close(&mut sink, Ending::Normal).await;
             }
         };
         let (to_me, mut inbox) = tokio::sync::mpsc::channel(super::hub::OUTBOX);
         if self.hub.send(ToHub::Join(self.id, to_me)).await.is_err() {
-            return;
+            return close(&mut sink, Ending::Away).await;
         }
         let hello = ToHub::Hello {
             id: self.id,
@@ -351,11 +193,13 @@ impl Watcher {
             role: Role::Observer,
             resume: None,
         };
-        if self.hub.send(hello).await.is_ok() {
-            self.watch(&mut sink, &mut source, &mut inbox).await;
-        }
+        let ending = if self.hub.send(hello).await.is_ok() {
+            self.watch(&mut sink, &mut source, &mut inbox).await
+        } else {
+            Ending::Away
+        };
         let _ = self.hub.send(ToHub::Leave(self.id, true)).await;
-        let _ = put(&mut sink, Message::Close(None)).await;
+        close(&mut sink, ending).await;
     }
 
     async fn watch(
@@ -363,23 +207,47 @@ impl Watcher {
         sink: &mut Sink,
         source: &mut futures_util::stream::SplitStream<Socket>,
         inbox: &mut tokio::sync::mpsc::Receiver<ToConnection>,
-    ) {
-        for opening in [server_info(self.id), advertise()] {
+    ) -> Ending {
+        for opening in [
+            ops::server_info(&self.session),
+            ops::advertise(),
+            drive::advertise_services(),
+        ] {
             if put(sink, opening).await.is_err() {
-                return;
+                return Ending::Normal;
             }
         }
-        let mut log = self.log.subscribe();
-        let mut watcher = Subscriptions {
+        let mut views = self.feed.subscribe();
+        let mut client = Client {
             subscribed: HashMap::new(),
-            views: Views::new(self.since_ns, None, Default::default()),
-            latest: HashMap::new(),
+            ids: HashSet::new(),
+            cmd_vel: HashSet::new(),
+            advertised: 0,
             out: Bucket::new(BYTES_OUT_PER_S, BYTES_OUT_BURST),
+            driver: Driver::default(),
         };
+        let ending = self
+            .serve_client(sink, source, inbox, &mut views, &mut client)
+            .await;
+        if client.watches_camera() {
+            self.feed.watch_camera(false);
+        }
+        ending
+    }
+
+    async fn serve_client(
+        &mut self,
+        sink: &mut Sink,
+        source: &mut futures_util::stream::SplitStream<Socket>,
+        inbox: &mut tokio::sync::mpsc::Receiver<ToConnection>,
+        views: &mut broadcast::Receiver<std::sync::Arc<View>>,
+        client: &mut Client,
+    ) -> Ending {
         let mut ops = Bucket::new(OPS_PER_S, OPS_BURST);
         let mut paused_until: Option<tokio::time::Instant> = None;
         let mut watching = None;
         let mut ping = tokio::time::interval(PING_EVERY);
+        let mut clock = tokio::time::interval(TIME_EVERY);
         let mut heard = Instant::now();
         let mut evicted = self.ticket.evicted.clone();
         loop {
@@ -389,6 +257,7 @@ impl Watcher {
                     Ok(())
                 }
                 incoming = source.next(), if paused_until.is_none() => match incoming {
+                    Some(Ok(Message::Close(_))) | Some(Err(_)) | None => return Ending::Normal,
                     Some(Ok(message)) => {
                         heard = Instant::now();
                         // Over its rate, the client is not read for a while:
@@ -397,73 +266,329 @@ impl Watcher {
                         if !wait.is_zero() {
                             paused_until = Some(tokio::time::Instant::now() + wait);
                         }
-                        watcher.heard(sink, message).await
+                        self.heard(sink, client, message).await
                     }
-                    Some(Err(_)) | None => return,
+                },
+                view = views.recv(), if watching.is_some() => match view {
+                    Ok(view) => client.send(sink, &view).await,
+                    // A client that fell behind skips to the newest.
+                    Err(broadcast::error::RecvError::Lagged(_)) => Ok(()),
+                    Err(broadcast::error::RecvError::Closed) => return Ending::Away,
                 },
                 out = inbox.recv() => match out {
-                    Some(ToConnection::Send(message)) => watcher.hub_said(sink, &message).await,
-                    Some(ToConnection::End(..)) => return,
+                    Some(ToConnection::Send(message)) => self.hub_said(sink, client, &message).await,
+                    Some(ToConnection::End(_, why)) => {
+                        let _ = put(sink, status(Level::Error, &why)).await;
+                        return Ending::Normal;
+                    }
                     Some(ToConnection::Subscribe) => {
                         watching.get_or_insert_with(|| Watching::new(&self.watchers));
                         self.ticket.welcomed();
-                        self.feedback.mark_changed();
-                        self.frames.mark_changed();
                         Ok(())
                     }
+                    // The hub let go of this client: it is gone, or the
+                    // client fell too far behind.
+                    None if self.hub.is_closed() => return Ending::Away,
                     None => {
-                        let _ = put(sink, status(2, ErrorCode::SlowReader.to_string().as_str())).await;
-                        return;
+                        let _ = put(sink, status(Level::Error, ErrorCode::SlowReader.to_string().as_str())).await;
+                        return Ending::Normal;
                     }
                 },
-                Ok(()) = self.feedback.changed(), if watching.is_some() => {
-                    let latest = self.feedback.borrow_and_update().clone();
-                    match latest {
-                        Some(message) => {
-                            let views = watcher.views.sent(now_ns(), &message);
-                            watcher.send(sink, views).await
-                        }
+                Ok(()) = self.feedback.changed(), if client.driver.operator => {
+                    let event = match &*self.feedback.borrow_and_update() {
+                        Some(HostMessage::Feedback(feedback)) => Some(feedback.event),
+                        _ => None,
+                    };
+                    match event.and_then(|event| client.driver.feedback(event)) {
+                        Some(command) => self.tell_hub(command).await,
                         None => Ok(()),
                     }
                 }
-                Ok(()) = self.frames.changed(), if watching.is_some() => {
-                    let latest = self.frames.borrow_and_update().clone();
-                    match latest {
-                        // Only a subscriber's frame is made into base64 JSON.
-                        Some(frame) if watcher.wants(Topic::Camera) || watcher.wants(Topic::Annotations) => {
-                            let views = watcher.views.frame(&frame);
-                            watcher.send(sink, views).await
-                        }
-                        _ => Ok(()),
-                    }
-                }
-                line = log.recv() => match line {
-                    Ok((level, line)) => watcher.send(sink, vec![View::log(now_ns(), level, &line)]).await,
-                    Err(broadcast::error::RecvError::Lagged(skipped)) => {
-                        let line = format!("{skipped} lines of the Host's log skipped: this client fell behind");
-                        watcher.send(sink, vec![View::log(now_ns(), Level::Warning, &line)]).await
-                    }
-                    Err(broadcast::error::RecvError::Closed) => return,
-                },
                 Ok(()) = evicted.changed() => {
                     if *evicted.borrow() {
-                        return;
+                        return Ending::Normal;
                     }
                     Ok(())
                 }
-                () = self.hub.closed() => return,
+                () = self.hub.closed() => return Ending::Away,
+                _ = clock.tick(), if watching.is_some() => put(sink, ops::time(now_ns())).await,
                 _ = ping.tick() => {
                     if heard.elapsed() > self.ping_timeout {
-                        return;
+                        return Ending::Normal;
                     }
                     put(sink, Message::Ping(Bytes::new())).await
                 }
             };
             if sent.is_err() {
-                return;
+                return Ending::Normal;
             }
         }
     }
+
+    async fn tell_hub(&self, message: GuestMessage) -> Result<(), ()> {
+        self.hub
+            .send(ToHub::Message(self.id, message))
+            .await
+            .map_err(|_| ())
+    }
+
+    /// What the hub told this client: its errors as statuses, and what
+    /// its driving needs to know.
+    async fn hub_said(
+        &self,
+        sink: &mut Sink,
+        client: &mut Client,
+        message: &Message,
+    ) -> Result<(), ()> {
+        let Message::Text(json) = message else {
+            return Ok(());
+        };
+        let Ok(message) = HostMessage::decode(json.as_str()) else {
+            return Ok(());
+        };
+        client.driver.heard(&message);
+        match message {
+            HostMessage::Error { code, message } => {
+                put(sink, status(Level::Error, &format!("{code}: {message}"))).await
+            }
+            HostMessage::Role { role, ended, .. } => {
+                let text = match (role, ended) {
+                    (Role::Operator, _) => {
+                        "you are the operator: call /vl/mount and /vl/start, then drive on /cmd_vel"
+                            .to_owned()
+                    }
+                    (_, Some(why)) => format!("you are no longer the operator: {why}"),
+                    _ => "you are watching".to_owned(),
+                };
+                put(sink, status(Level::Info, &text)).await
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Takes what the client sent.
+    async fn heard(
+        &self,
+        sink: &mut Sink,
+        client: &mut Client,
+        message: Message,
+    ) -> Result<(), ()> {
+        match message {
+            Message::Text(op) => self.op(sink, client, op.as_str()).await,
+            Message::Binary(bytes) => match bytes.first() {
+                Some(&ops::CLIENT_MESSAGE_DATA) => self.published(sink, client, &bytes).await,
+                Some(&ops::SERVICE_CALL_REQUEST) => match ServiceCall::parse(&bytes) {
+                    Some(call) => self.call(sink, &call).await,
+                    None => put(sink, status(Level::Error, "a service call request too short for its lengths")).await,
+                },
+                _ => put(sink, status(Level::Warning, "unknown binary opcode: this server takes client messages (1) and service calls (2)")).await,
+            },
+            _ => Ok(()),
+        }
+    }
+
+    /// A message on one of the client's channels: a Twist on `/cmd_vel`.
+    async fn published(
+        &self,
+        sink: &mut Sink,
+        client: &mut Client,
+        bytes: &Bytes,
+    ) -> Result<(), ()> {
+        let Some((channel, payload)) = ops::client_data(bytes) else {
+            return put(
+                sink,
+                status(
+                    Level::Error,
+                    "a client message too short for its channel id",
+                ),
+            )
+            .await;
+        };
+        if !client.cmd_vel.contains(&channel) {
+            let why = format!(
+                "channel {channel} was not advertised: only {CMD_VEL} (a Twist, json) may be published"
+            );
+            return put(sink, status(Level::Error, &why)).await;
+        }
+        match client.driver.twist(&payload) {
+            Ok(Some(command)) => self.tell_hub(command).await,
+            Ok(None) => Ok(()),
+            Err(why) => put(sink, status(Level::Error, &why)).await,
+        }
+    }
+
+    /// A service call: taken to the hub as a Guest's message would be.
+    async fn call(&self, sink: &mut Sink, call: &ServiceCall) -> Result<(), ()> {
+        let Some(&service) = SERVICES.get(call.service as usize) else {
+            let why = format!("no service {}", call.service);
+            return put(sink, ops::service_failure(call, &why)).await;
+        };
+        if call.encoding != "json" {
+            let why = format!("requests are json, not {}", call.encoding);
+            return put(sink, ops::service_failure(call, &why)).await;
+        }
+        let request: serde_json::Value = if call.payload.is_empty() {
+            serde_json::json!({})
+        } else {
+            match serde_json::from_slice(&call.payload) {
+                Ok(request) => request,
+                Err(e) => {
+                    return put(sink, ops::service_failure(call, &format!("not JSON: {e}"))).await;
+                }
+            }
+        };
+        let message = match service.message(&request) {
+            Ok(Some(message)) => message,
+            Ok(None) => return self.take_control(sink, call, &request).await,
+            Err(why) => return put(sink, ops::service_failure(call, &why)).await,
+        };
+        self.tell_hub(message).await?;
+        let answer = serde_json::json!({"ok": true, "message": "asked the lab; a refusal comes as a status"});
+        put(sink, ops::service_response(call, &answer)).await
+    }
+
+    /// Asks for the operator's role, as the account in `request` at a lab
+    /// with accounts.
+    async fn take_control(
+        &self,
+        sink: &mut Sink,
+        call: &ServiceCall,
+        request: &serde_json::Value,
+    ) -> Result<(), ()> {
+        let credentials = Credentials {
+            role: Role::Operator,
+            user: request["user"].as_str(),
+            password: request["password"].as_str(),
+            token: None,
+            purpose: Purpose::Session,
+        };
+        match self.gate.check(self.id, self.peer.ip(), credentials).await {
+            Ok(admitted) if admitted.may_drive => {
+                let hello = ToHub::Hello {
+                    id: self.id,
+                    admitted,
+                    protocol: PROTOCOL_VERSION,
+                    role: Role::Operator,
+                    resume: None,
+                };
+                self.hub.send(hello).await.map_err(|_| ())?;
+                let answer = serde_json::json!({"ok": true, "message": "asked for the operator's role: a status says whether it is yours"});
+                put(sink, ops::service_response(call, &answer)).await
+            }
+            Ok(_) => {
+                put(
+                    sink,
+                    ops::service_failure(call, "this account may watch, not drive"),
+                )
+                .await
+            }
+            Err(refused) => put(sink, ops::service_failure(call, &refused.why)).await,
+        }
+    }
+
+    /// A text op: subscriptions and the client's own channels.
+    async fn op(&self, sink: &mut Sink, client: &mut Client, op: &str) -> Result<(), ()> {
+        let reply = match serde_json::from_str::<ClientOp>(op) {
+            Ok(ClientOp::Subscribe { subscriptions }) => {
+                let mut refused = Vec::new();
+                for s in subscriptions {
+                    let Some(&topic) = CHANNELS.get(s.channel_id as usize) else {
+                        refused.push(format!("no channel {}", s.channel_id));
+                        continue;
+                    };
+                    if client.ids.contains(&s.id) {
+                        refused.push(format!("subscription id {} is in use", s.id));
+                        continue;
+                    }
+                    if client.ids.len() >= MAX_SUBSCRIPTIONS {
+                        refused.push(format!(
+                            "at most {MAX_SUBSCRIPTIONS} subscriptions a client"
+                        ));
+                        break;
+                    }
+                    let camera_before = client.watches_camera();
+                    client.ids.insert(s.id);
+                    client.subscribed.entry(topic).or_default().push(s.id);
+                    if !camera_before && client.watches_camera() {
+                        self.feed.watch_camera(true);
+                    }
+                    for view in self.feed.latched(topic) {
+                        client.send_on(sink, s.id, &view).await?;
+                    }
+                }
+                (!refused.is_empty()).then(|| status(Level::Warning, &refused.join("; ")))
+            }
+            Ok(ClientOp::Unsubscribe { subscription_ids }) => {
+                let camera_before = client.watches_camera();
+                let unknown: Vec<String> = subscription_ids
+                    .iter()
+                    .filter(|id| !client.ids.remove(id))
+                    .map(u32::to_string)
+                    .collect();
+                for ids in client.subscribed.values_mut() {
+                    ids.retain(|id| !subscription_ids.contains(id));
+                }
+                if camera_before && !client.watches_camera() {
+                    self.feed.watch_camera(false);
+                }
+                (!unknown.is_empty()).then(|| {
+                    status(
+                        Level::Warning,
+                        &format!("no subscription {}", unknown.join(", ")),
+                    )
+                })
+            }
+            Ok(ClientOp::Advertise { channels }) => {
+                let mut refused = Vec::new();
+                for channel in channels {
+                    if channel.topic != CMD_VEL || channel.encoding != "json" {
+                        refused.push(format!(
+                            "{} ({}): only {CMD_VEL} in json may be published",
+                            channel.topic, channel.encoding
+                        ));
+                    } else if client.advertised >= MAX_CLIENT_CHANNELS {
+                        refused.push(format!("at most {MAX_CLIENT_CHANNELS} channels a client"));
+                    } else {
+                        client.advertised += 1;
+                        client.cmd_vel.insert(channel.id);
+                    }
+                }
+                (!refused.is_empty()).then(|| status(Level::Warning, &refused.join("; ")))
+            }
+            Ok(ClientOp::Unadvertise { channel_ids }) => {
+                for id in channel_ids {
+                    client.cmd_vel.remove(&id);
+                }
+                None
+            }
+            Err(e) => Some(status(
+                Level::Warning,
+                &format!(
+                    "this server takes subscribe, unsubscribe, advertise and unadvertise: {e}"
+                ),
+            )),
+        };
+        match reply {
+            Some(reply) => put(sink, reply).await,
+            None => Ok(()),
+        }
+    }
+}
+
+/// Ends the connection with a close frame saying why.
+async fn close(sink: &mut Sink, ending: Ending) {
+    let (code, reason) = match ending {
+        Ending::Normal => (CloseCode::Normal, "goodbye"),
+        Ending::Away => (CloseCode::Away, "the Host is stopping"),
+    };
+    let frame = CloseFrame {
+        code,
+        reason: reason.into(),
+    };
+    // After the client's close, ours is refused and the close that
+    // tungstenite queued in answer goes out with the flush.
+    let _ = put(sink, Message::Close(Some(frame))).await;
+    let _ = tokio::time::timeout(socket::WRITE_TIMEOUT, futures_util::SinkExt::close(sink)).await;
 }
 
 #[cfg(test)]
@@ -482,37 +607,5 @@ mod tests {
         );
         assert_eq!(Subprotocol::chosen("vl.v1"), None);
         assert_eq!(Subprotocol::chosen(""), None);
-    }
-
-    #[test]
-    fn every_channel_is_advertised_once_with_its_schema() {
-        let Message::Text(json) = advertise() else {
-            panic!("advertise is text")
-        };
-        let value: serde_json::Value = serde_json::from_str(json.as_str()).unwrap();
-        let channels = value["channels"].as_array().unwrap();
-        assert_eq!(channels.len(), CHANNELS.len());
-        for (id, channel) in channels.iter().enumerate() {
-            assert_eq!(channel["id"], id);
-            let schema: serde_json::Value =
-                serde_json::from_str(channel["schema"].as_str().unwrap()).unwrap();
-            assert!(schema.is_object(), "{channel}");
-        }
-    }
-
-    #[test]
-    fn message_data_is_opcode_subscription_time_payload() {
-        let view = View {
-            topic: Topic::Pose,
-            ns: 0x0102_0304_0506_0708,
-            data: b"{}".to_vec(),
-        };
-        let Message::Binary(bytes) = data(7, &view) else {
-            panic!("message data is binary")
-        };
-        assert_eq!(bytes[0], 1);
-        assert_eq!(&bytes[1..5], &7u32.to_le_bytes());
-        assert_eq!(&bytes[5..13], &view.ns.to_le_bytes());
-        assert_eq!(&bytes[13..], b"{}");
     }
 }

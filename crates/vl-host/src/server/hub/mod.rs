@@ -180,6 +180,8 @@ pub(crate) struct Hub {
     stopper: Option<Stopper>,
     /// The run being recorded.
     recording: Option<recording::RunRecording>,
+    /// Foxglove's feed, handed every broadcast to make its views of.
+    views: Option<mpsc::Sender<HostMessage>>,
 }
 
 impl Hub {
@@ -214,6 +216,7 @@ impl Hub {
             runs: 0,
             operator_user: None,
             run_log: status::RunLog::default(),
+            views: None,
             devices,
             cspace: None,
             field: None,
@@ -377,9 +380,19 @@ impl Hub {
         client.admitted.identity.name().map(str::to_owned)
     }
 
+    /// Hands every broadcast to `views` (Foxglove's feed) too.
+    pub(crate) fn with_views(mut self, views: mpsc::Sender<HostMessage>) -> Hub {
+        self.views = Some(views);
+        self
+    }
+
     /// Sends to every welcomed client, encoded once.
     fn broadcast(&mut self, message: &HostMessage) {
         self.record_sent(message);
+        if let Some(views) = &self.views {
+            // A feed that fell this far behind loses a view, not the lab's pace.
+            let _ = views.try_send(message.clone());
+        }
         let encoded = Message::text(message.encode());
         let welcomed: Vec<u64> = self
             .clients

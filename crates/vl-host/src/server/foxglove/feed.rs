@@ -1,0 +1,157 @@
+//! The Foxglove views of the lab, made once for every Foxglove client: one
+//! task per Host turns each feedback, frame, broadcast and log line into
+//! its views (`vl_record::Views`, as the recorder does) and hands the same
+//! encoded bytes to every client, keeping the newest of each latched
+//! channel for those who subscribe later.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+
+use tokio::sync::{broadcast, mpsc, watch};
+use tokio_tungstenite::tungstenite::Bytes;
+use vl_core::{HostMessage, LabScene, Role};
+use vl_record::{Level, Topic, View, Views, now_ns};
+
+/// Channels whose newest messages a late subscriber gets at once: they
+/// change seldom and say what the lab is.
+pub(super) const LATCHED: [Topic; 14] = [
+    Topic::Scene,
+    Topic::Map,
+    Topic::CSpace,
+    Topic::Calibration,
+    Topic::CameraTransform,
+    Topic::Path,
+    Topic::Seeds,
+    Topic::State,
+    Topic::Status,
+    Topic::Lab,
+    Topic::Definition,
+    Topic::Forecast,
+    Topic::Started,
+    Topic::Summary,
+];
+
+/// Views waiting for the slowest client: past this it skips to the newest.
+const FANOUT: usize = 512;
+/// Broadcasts waiting for the feed.
+const INBOX: usize = 256;
+
+/// What every Foxglove client shares.
+#[derive(Clone)]
+pub(crate) struct Feed {
+    views: broadcast::Sender<Arc<View>>,
+    latched: Arc<Mutex<HashMap<Topic, Vec<Arc<View>>>>>,
+    /// Clients subscribed to the camera or its annotations: frames are
+    /// made into base64 JSON only for them.
+    camera: Arc<AtomicUsize>,
+}
+
+/// What the feed is made from.
+pub(crate) struct Sources {
+    pub scene: LabScene,
+    pub since_ns: u64,
+    pub feedback: watch::Receiver<Option<HostMessage>>,
+    pub frames: watch::Receiver<Option<Bytes>>,
+    pub log: broadcast::Sender<(Level, String)>,
+}
+
+impl Feed {
+    /// The feed, the sender the hub hands its broadcasts to, and the task
+    /// that makes the views.
+    pub(crate) fn start(
+        sources: Sources,
+    ) -> (
+        Feed,
+        mpsc::Sender<HostMessage>,
+        impl std::future::Future<Output = ()>,
+    ) {
+        let (inbox_tx, inbox) = mpsc::channel(INBOX);
+        let feed = Feed {
+            views: broadcast::channel(FANOUT).0,
+            latched: Arc::default(),
+            camera: Arc::default(),
+        };
+        let task = feed.clone().run(sources, inbox);
+        (feed, inbox_tx, task)
+    }
+
+    pub(super) fn subscribe(&self) -> broadcast::Receiver<Arc<View>> {
+        self.views.subscribe()
+    }
+
+    /// The newest messages of latched channel `topic`.
+    pub(super) fn latched(&self, topic: Topic) -> Vec<Arc<View>> {
+        let latched = self.latched.lock().unwrap_or_else(|e| e.into_inner());
+        latched.get(&topic).cloned().unwrap_or_default()
+    }
+
+    /// A client starts (`true`) or stops watching the camera.
+    pub(super) fn watch_camera(&self, watching: bool) {
+        if watching {
+            self.camera.fetch_add(1, Ordering::Relaxed);
+        } else {
+            self.camera.fetch_sub(1, Ordering::Relaxed);
+        }
+    }
+
+    fn publish(&self, views: Vec<View>) {
+        let mut fresh: HashMap<Topic, Vec<Arc<View>>> = HashMap::new();
+        for view in views {
+            let view = Arc::new(view);
+            if LATCHED.contains(&view.topic) {
+                fresh.entry(view.topic).or_default().push(view.clone());
+            }
+            // Nobody listening is no error.
+            let _ = self.views.send(view);
+        }
+        if !fresh.is_empty() {
+            let mut latched = self.latched.lock().unwrap_or_else(|e| e.into_inner());
+            latched.extend(fresh);
+        }
+    }
+
+    async fn run(self, mut sources: Sources, mut inbox: mpsc::Receiver<HostMessage>) {
+        let mut views = Views::new(sources.since_ns, None, Default::default());
+        let lab = HostMessage::Welcome {
+            session: 0,
+            role: Role::Observer,
+            experiments: Vec::new(),
+            resume: None,
+            user: None,
+            scene: Some(Box::new(sources.scene.clone())),
+        };
+        self.publish(views.sent(now_ns(), &lab));
+        let mut log = sources.log.subscribe();
+        loop {
+            tokio::select! {
+                message = inbox.recv() => match message {
+                    Some(message) => self.publish(views.sent(now_ns(), &message)),
+                    None => return,
+                },
+                Ok(()) = sources.feedback.changed() => {
+                    let latest = sources.feedback.borrow_and_update().clone();
+                    if let Some(message) = latest {
+                        self.publish(views.sent(now_ns(), &message));
+                    }
+                }
+                Ok(()) = sources.frames.changed() => {
+                    let latest = sources.frames.borrow_and_update().clone();
+                    if let Some(frame) = latest
+                        && self.camera.load(Ordering::Relaxed) > 0
+                    {
+                        self.publish(views.frame(&frame));
+                    }
+                }
+                line = log.recv() => match line {
+                    Ok((level, line)) => self.publish(vec![View::log(now_ns(), level, &line)]),
+                    Err(broadcast::error::RecvError::Lagged(skipped)) => {
+                        let line = format!("{skipped} lines of the Host's log skipped");
+                        self.publish(vec![View::log(now_ns(), Level::Warning, &line)]);
+                    }
+                    Err(broadcast::error::RecvError::Closed) => return,
+                },
+            }
+        }
+    }
+}
