@@ -50,6 +50,9 @@ pub(crate) struct WatchersArgs {
     /// Rounds of each kind, alternating.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=100))]
     rounds: u64,
+    /// The watchers are Foxglove clients subscribed to every channel.
+    #[arg(long)]
+    foxglove: bool,
     #[arg(long)]
     json: bool,
 }
@@ -60,6 +63,7 @@ impl WatchersArgs {
             watchers: self.watchers,
             commands: self.commands,
             rounds: self.rounds,
+            foxglove: self.foxglove,
         }
     }
 }

@@ -308,3 +308,72 @@ async fn close_code(ws: &mut Socket) -> Option<CloseCode> {
     .ok()
     .flatten()
 }
+
+/// The layout in docs/foxglove opens what the Host serves: every topic,
+/// plotted field and service it names is advertised, and every panel it
+/// configures is placed.
+#[tokio::test]
+async fn the_documented_layout_names_only_what_the_host_serves() {
+    let layout: Value = serde_json::from_str(include_str!("../docs/foxglove/vl-layout.json"))
+        .expect("the layout is JSON");
+    let (_host, url) = start_host(&["--no-record"]);
+    let mut ws = foxglove(&url, "foxglove.websocket.v1").await;
+    let mut channels = None;
+    let mut services = None;
+    while channels.is_none() || services.is_none() {
+        let op = next_op(&mut ws).await.expect("the opening ops");
+        match op["op"].as_str() {
+            Some("advertise") => channels = Some(op["channels"].clone()),
+            Some("advertiseServices") => services = Some(op["services"].clone()),
+            _ => {}
+        }
+    }
+    let channels = channels.unwrap();
+    let schema_of = |topic: &str| -> Option<Value> {
+        let channel = channels.as_array()?.iter().find(|c| c["topic"] == topic)?;
+        serde_json::from_str(channel["schema"].as_str()?).ok()
+    };
+    let served = |name: &str| {
+        services
+            .as_ref()
+            .unwrap()
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|s| s["name"] == name)
+    };
+    let panels = layout["configById"].as_object().unwrap();
+    let placed = layout["layout"].to_string();
+    for (id, config) in panels {
+        assert!(placed.contains(&format!("\"{id}\"")), "{id} is not placed");
+        for topic in config["topics"]
+            .as_object()
+            .into_iter()
+            .flatten()
+            .map(|(t, _)| t)
+        {
+            assert!(schema_of(topic).is_some(), "{id}: no channel {topic}");
+        }
+        if let Some(image) = config["imageMode"]["imageTopic"].as_str() {
+            assert!(schema_of(image).is_some(), "{id}: no channel {image}");
+        }
+        for path in config["paths"].as_array().into_iter().flatten() {
+            let path = path["value"].as_str().unwrap();
+            let (topic, field) = path.split_once('.').unwrap();
+            let schema = schema_of(topic).unwrap_or_else(|| panic!("{id}: no channel {topic}"));
+            assert!(
+                schema["properties"].get(field).is_some(),
+                "{id}: {topic} has no {field}"
+            );
+        }
+        if let Some(service) = config["serviceName"].as_str() {
+            assert!(served(service), "{id}: no service {service}");
+        }
+        if let Some(topic) = config["topic"].as_str() {
+            assert_eq!(
+                topic, "/cmd_vel",
+                "{id} publishes where the Host takes Twists"
+            );
+        }
+    }
+}

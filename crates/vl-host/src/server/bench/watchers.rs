@@ -31,6 +31,9 @@ pub struct WatchersBench {
     pub commands: u64,
     /// Rounds of each kind, alternating.
     pub rounds: u64,
+    /// The watchers are Foxglove clients subscribed to every channel,
+    /// rather than web pages.
+    pub foxglove: bool,
 }
 
 impl WatchersBench {
@@ -42,6 +45,7 @@ impl WatchersBench {
             size(self.watchers),
             size(self.commands),
             size(self.rounds),
+            self.foxglove,
         )
         .await
     }
@@ -51,6 +55,8 @@ impl WatchersBench {
 #[derive(Debug, Clone, Serialize)]
 pub struct WatchersCost {
     pub watchers: usize,
+    /// Foxglove clients, subscribed to every channel (else web pages).
+    pub foxglove: bool,
     /// Commands timed in each round, and rounds of each kind.
     pub commands: usize,
     pub rounds: usize,
@@ -74,7 +80,18 @@ pub struct WatchersCost {
 impl Report for WatchersCost {
     fn table(&self) -> Table {
         Table::pairs([
-            ("watchers", self.watchers.to_string()),
+            (
+                "watchers",
+                format!(
+                    "{} {}",
+                    self.watchers,
+                    if self.foxglove {
+                        "Foxglove clients, subscribed to every channel"
+                    } else {
+                        "web pages"
+                    }
+                ),
+            ),
             (
                 "commands timed",
                 format!("{} a round, {} rounds of each", self.commands, self.rounds),
@@ -195,6 +212,7 @@ async fn watchers_cost(
     watchers: usize,
     commands: usize,
     rounds: usize,
+    foxglove: bool,
 ) -> Result<WatchersCost, BenchError> {
     let (host, url) = start_host(vl)?;
     let pid = host.0.id();
@@ -214,8 +232,13 @@ async fn watchers_cost(
         let (stop_tx, stop) = tokio::sync::watch::channel(false);
         let mut reading = JoinSet::new();
         for _ in 0..watchers {
-            let ws = observer(&url).await?;
-            reading.spawn(observe(ws, stop.clone()));
+            if foxglove {
+                let ws = foxglove_client(&url).await?;
+                reading.spawn(watch_in_foxglove(ws, stop.clone()));
+            } else {
+                let ws = observer(&url).await?;
+                reading.spawn(observe(ws, stop.clone()));
+            }
         }
         // The class is in, the first frames sent: now time.
         tokio::time::sleep(Duration::from_secs(1)).await;
@@ -242,6 +265,7 @@ async fn watchers_cost(
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     Ok(WatchersCost {
         watchers,
+        foxglove,
         commands,
         rounds,
         idle_p50_ms: q(&idle, 0.5),
@@ -255,6 +279,66 @@ async fn watchers_cost(
         frames_hz_median: frames_hz.get(frames_hz.len() / 2).copied().unwrap_or(0.0),
         feedback_hz_min: if fed.is_empty() { 0.0 } else { feedback_hz_min },
     })
+}
+
+/// A Foxglove client of the Host at `url`.
+async fn foxglove_client(url: &str) -> Result<Socket, BenchError> {
+    use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+    let mut request = url
+        .into_client_request()
+        .map_err(|e| BenchError::Connect(e.to_string()))?;
+    request.headers_mut().insert(
+        "sec-websocket-protocol",
+        tokio_tungstenite::tungstenite::http::HeaderValue::from_static("foxglove.websocket.v1"),
+    );
+    tokio_tungstenite::connect_async(request)
+        .await
+        .map(|(ws, _)| ws)
+        .map_err(|e| BenchError::Connect(e.to_string()))
+}
+
+/// Subscribes to every channel advertised and reads until `stop`: the
+/// poses (one a feedback) and the camera's images it got, and for how long.
+async fn watch_in_foxglove(
+    mut ws: Socket,
+    mut stop: tokio::sync::watch::Receiver<bool>,
+) -> (u64, u64, f64) {
+    use futures_util::{SinkExt, StreamExt};
+    use tokio_tungstenite::tungstenite::Message;
+    let began = Instant::now();
+    let (mut poses, mut images) = (0, 0);
+    let (mut pose, mut camera) = (None, None);
+    loop {
+        tokio::select! {
+            _ = stop.changed() => break,
+            next = ws.next() => match next {
+                Some(Ok(Message::Text(text))) => {
+                    let op: serde_json::Value = serde_json::from_str(text.as_str()).unwrap_or_default();
+                    if op["op"] != "advertise" {
+                        continue;
+                    }
+                    let channels = op["channels"].as_array().cloned().unwrap_or_default();
+                    let subscriptions: Vec<serde_json::Value> = channels
+                        .iter()
+                        .map(|c| serde_json::json!({"id": c["id"], "channelId": c["id"]}))
+                        .collect();
+                    let id_of = |topic: &str| channels.iter().find(|c| c["topic"] == topic).and_then(|c| c["id"].as_u64());
+                    (pose, camera) = (id_of("/robot/pose"), id_of("/camera"));
+                    let subscribe = serde_json::json!({"op": "subscribe", "subscriptions": subscriptions});
+                    let _ = ws.send(Message::text(subscribe.to_string())).await;
+                }
+                Some(Ok(Message::Binary(data))) if data.first() == Some(&1) && data.len() >= 5 => {
+                    let id = Some(u64::from(u32::from_le_bytes([data[1], data[2], data[3], data[4]])));
+                    poses += u64::from(id == pose);
+                    images += u64::from(id == camera);
+                }
+                Some(Ok(_)) => {}
+                _ => break,
+            },
+        }
+    }
+    let _ = ws.close(None).await;
+    (poses, images, began.elapsed().as_secs_f64())
 }
 
 /// The `p` quantile of `took`, sorted or not.
