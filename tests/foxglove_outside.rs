@@ -122,6 +122,10 @@ fn every_message_of_a_run_is_valid_to_foxglove_live_and_recorded() {
     }
     assert!(count(&live, "/robot/motion") >= 50, "{live}");
     assert!(
+        count(&live, "/round_trip") >= 1,
+        "the Guest's round trips: {live}"
+    );
+    assert!(
         live["summary"]["path_poses"].as_u64().unwrap() >= 2,
         "{live}"
     );

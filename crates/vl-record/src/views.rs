@@ -37,6 +37,12 @@ impl View {
     pub fn log(ns: u64, level: Level, text: &str) -> View {
         View::json(Topic::Log, ns, &foxglove::log_message(ns, level, text))
     }
+
+    /// A client's round trip.
+    pub fn round_trip(ns: u64, round_trip: crate::RoundTrip) -> View {
+        let value = serde_json::to_value(round_trip).expect("numbers serialise");
+        View::json(Topic::RoundTrip, ns, &value)
+    }
 }
 
 /// The robot's motion as numbers, one message a feedback, every field

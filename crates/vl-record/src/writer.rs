@@ -576,11 +576,10 @@ impl RunFile {
             Recordable::Command(command) => {
                 self.put(Topic::Commands, ns, ns, command.encode().as_bytes())
             }
-            Recordable::RoundTrip { connection, ms } => {
-                let value = serde_json::to_value(crate::RoundTrip { connection, ms })
-                    .expect("numbers serialise");
-                self.foxglove(Topic::RoundTrip, ns, &value)
-            }
+            Recordable::RoundTrip { connection, ms } => self.put_all(vec![View::round_trip(
+                ns,
+                crate::RoundTrip { connection, ms },
+            )]),
             Recordable::Truth(pose) => {
                 self.foxglove(Topic::TruePose, ns, &foxglove::pose_message(ns, pose))
             }

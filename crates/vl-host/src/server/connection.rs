@@ -492,6 +492,7 @@ impl ConnectionTask {
                 connection: self.id,
                 ms: rtt_ms,
             });
+            self.foxglove.round_trip(self.id, rtt_ms);
         }
     }
 

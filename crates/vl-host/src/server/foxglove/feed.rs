@@ -95,6 +95,12 @@ impl Feed {
         }
     }
 
+    /// A Guest's round trip, as the Host's pings measured it.
+    pub(crate) fn round_trip(&self, connection: u64, ms: f64) {
+        let round_trip = vl_record::RoundTrip { connection, ms };
+        self.publish(vec![View::round_trip(now_ns(), round_trip)]);
+    }
+
     fn publish(&self, views: Vec<View>) {
         let mut fresh: HashMap<Topic, Vec<Arc<View>>> = HashMap::new();
         for view in views {

@@ -8,9 +8,9 @@ use tokio_tungstenite::tungstenite::{Bytes, Message};
 use vl_record::{Topic, View};
 
 /// The channels advertised, their ids their places here.
-/// Live: what a recording has but the operator's commands and the
-/// round trips, which only the recorder is handed.
-pub(super) const CHANNELS: [Topic; 22] = [
+/// Live: what a recording has but the operator's commands, which only
+/// the recorder is handed.
+pub(super) const CHANNELS: [Topic; 23] = [
     Topic::Camera,
     Topic::Annotations,
     Topic::Calibration,
@@ -33,6 +33,7 @@ pub(super) const CHANNELS: [Topic; 22] = [
     Topic::Forecast,
     Topic::Started,
     Topic::Summary,
+    Topic::RoundTrip,
 ];
 
 /// Client ops, in text.
