@@ -164,6 +164,28 @@ impl Topic {
         }
     }
 
+    /// Whether a late subscriber gets this channel's newest messages at
+    /// once: it changes seldom and says what the lab is.
+    pub fn latched(self) -> bool {
+        matches!(
+            self,
+            Topic::Scene
+                | Topic::Map
+                | Topic::CSpace
+                | Topic::Calibration
+                | Topic::CameraTransform
+                | Topic::Path
+                | Topic::Seeds
+                | Topic::State
+                | Topic::Status
+                | Topic::Lab
+                | Topic::Definition
+                | Topic::Forecast
+                | Topic::Started
+                | Topic::Summary
+        )
+    }
+
     /// The topic a message of the protocol is kept on, if it is kept.
     pub fn of(message: &vl_core::HostMessage) -> Option<Topic> {
         use vl_core::HostMessage as M;

@@ -2,7 +2,7 @@
 //! task per Host turns each feedback, frame, broadcast and log line into
 //! its views (`vl_record::Views`, as the recorder does) and hands the same
 //! encoded bytes to every client, keeping the newest of each latched
-//! channel for those who subscribe later.
+//! channel (`Topic::latched`) for those who subscribe later.
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -12,25 +12,6 @@ use tokio::sync::{broadcast, mpsc, watch};
 use tokio_tungstenite::tungstenite::Bytes;
 use vl_core::{HostMessage, LabScene, Role};
 use vl_record::{Level, Topic, View, Views, now_ns};
-
-/// Channels whose newest messages a late subscriber gets at once: they
-/// change seldom and say what the lab is.
-pub(super) const LATCHED: [Topic; 14] = [
-    Topic::Scene,
-    Topic::Map,
-    Topic::CSpace,
-    Topic::Calibration,
-    Topic::CameraTransform,
-    Topic::Path,
-    Topic::Seeds,
-    Topic::State,
-    Topic::Status,
-    Topic::Lab,
-    Topic::Definition,
-    Topic::Forecast,
-    Topic::Started,
-    Topic::Summary,
-];
 
 /// Views waiting for the slowest client: past this it skips to the newest.
 const FANOUT: usize = 512;
@@ -105,7 +86,7 @@ impl Feed {
         let mut fresh: HashMap<Topic, Vec<Arc<View>>> = HashMap::new();
         for view in views {
             let view = Arc::new(view);
-            if LATCHED.contains(&view.topic) {
+            if view.topic.latched() {
                 fresh.entry(view.topic).or_default().push(view.clone());
             }
             // Nobody listening is no error.
