@@ -129,7 +129,7 @@ async fn next_status(ws: &mut Socket) -> Option<Value> {
 }
 
 #[tokio::test]
-async fn a_foxglove_client_is_read_only_and_bounded() {
+async fn a_foxglove_client_publishes_only_twists_and_is_bounded() {
     let (_host, url) = start_host(&["--no-record"]);
     let mut ws = foxglove(&url, "foxglove.sdk.v1").await;
     assert_eq!(next_op(&mut ws).await.unwrap()["op"], "serverInfo");
@@ -144,12 +144,30 @@ async fn a_foxglove_client_is_read_only_and_bounded() {
         status["message"]
             .as_str()
             .unwrap()
-            .contains("was not advertised"),
+            .contains("only Twists on /cmd_vel"),
         "{status}"
     );
+    // Any topic may be advertised (a 3D panel advertises where its clicks
+    // go); what is published on one but /cmd_vel in json is refused.
+    let advertise = json!({"op": "advertise", "channels": [
+        {"id": 1, "topic": "/clicked_point", "encoding": "json", "schemaName": "x"},
+        {"id": 2, "topic": "/cmd_vel", "encoding": "cdr", "schemaName": "x"},
+    ]});
+    ws.send(Message::text(advertise.to_string())).await.unwrap();
+    for channel in [1u8, 2] {
+        ws.send(Message::Binary(Bytes::from(vec![
+            1, channel, 0, 0, 0, b'{', b'}',
+        ])))
+        .await
+        .unwrap();
+        let status = next_status(&mut ws).await.unwrap();
+        assert!(
+            status["message"].as_str().unwrap().contains("only Twists"),
+            "{status}"
+        );
+    }
     for text in [
         json!({"type": "emergency_stop"}).to_string(),
-        json!({"op": "advertise", "channels": [{"id": 1, "topic": "/wheels", "encoding": "json", "schemaName": "x"}]}).to_string(),
         "{not json".to_owned(),
     ] {
         ws.send(Message::text(text)).await.unwrap();

@@ -40,11 +40,47 @@ function validatorFor(schemaName, schemaText) {
   return validators.get(key);
 }
 
+/// Why Foxglove's (and Lichtblick's) JSON Schema parser would refuse a
+/// channel's schema, by its rules (packages/mcap-support parseJsonSchema):
+/// an object whose every property has one type of boolean, string, number,
+/// integer, object or array of one of those but arrays, or is a oneOf of
+/// numeric constants. Null when it reads it.
+function unreadable(schema, path = "") {
+  if (schema.type !== "object") return `${path || "the root"}: "type" is ${JSON.stringify(schema.type)}, not "object"`;
+  for (const [name, field] of Object.entries(schema.properties ?? {})) {
+    const at = path ? `${path}.${name}` : name;
+    if (Array.isArray(field.oneOf)) {
+      if (field.oneOf.every((c) => typeof c.const === "number")) continue;
+      return `${at}: oneOf alternatives must have number values`;
+    }
+    if (["boolean", "string", "number", "integer"].includes(field.type)) continue;
+    if (field.type === "object") {
+      const why = unreadable(field, at);
+      if (why) return why;
+      continue;
+    }
+    if (field.type === "array") {
+      const items = field.items ?? {};
+      if (["boolean", "string", "number", "integer"].includes(items.type)) continue;
+      if (items.type === "object") {
+        const why = unreadable(items, at);
+        if (why) return why;
+        continue;
+      }
+      return `${at}: unsupported array item type ${JSON.stringify(items.type)}`;
+    }
+    return `${at}: unsupported type ${JSON.stringify(field.type)}`;
+  }
+  return null;
+}
+
 class Report {
   constructor() {
     this.counts = {};
     this.channels = {};
     this.bad = [];
+    this.unreadable = [];
+    this.channels_checked = {};
     this.latest = {};
   }
   take(topic, schemaName, schemaText, bytes) {
@@ -57,11 +93,19 @@ class Report {
       this.bad.push({ topic, error: `not JSON: ${e}` });
       return;
     }
+    if (!(topic in this.channels_checked)) {
+      this.channels_checked[topic] = true;
+      const why = unreadable(JSON.parse(schemaText));
+      if (why) this.unreadable.push({ topic, schema: schemaName, why });
+    }
     const validate = validatorFor(schemaName, schemaText);
     if (!validate(message) && this.bad.length < 20) {
       this.bad.push({ topic, schema: schemaName, errors: validate.errors.slice(0, 3) });
     }
     this.latest[topic] = message;
+    if (topic === "/robot/motion" && typeof message.tracking_error_mm === "number") {
+      this.tracked = (this.tracked ?? 0) + 1;
+    }
     if (topic === "/robot/pose") {
       const { x, y } = message.pose.position;
       this.first_pose ??= { x, y };
@@ -164,6 +208,7 @@ async function live(url, seconds, mode, user, password) {
   out.close = await Promise.race([closed, sleep(3000).then(() => "no close")]);
   Object.assign(out, report, { summary: summary(report) });
   delete out.latest;
+  delete out.channels_checked;
   return out;
 }
 
@@ -186,6 +231,7 @@ function mcap(file) {
   }
   const out = { ...report, summary: summary(report) };
   delete out.latest;
+  delete out.channels_checked;
   return out;
 }
 

@@ -5,6 +5,8 @@
 //! and the live Foxglove server (onto its watchers' sockets), so a live
 //! view and a recorded one are the same.
 
+use std::collections::VecDeque;
+
 use schemars::JsonSchema;
 use serde::Serialize;
 use vl_core::{
@@ -45,14 +47,15 @@ impl View {
     }
 }
 
-/// The robot's motion as numbers, one message a feedback, every field
-/// always there: what Plot draws.
+/// The robot's motion as numbers, one message a feedback: what Plot
+/// draws (the tracking error only when there is a path to be off).
 #[derive(Debug, Clone, Serialize, JsonSchema)]
 pub struct Motion {
     pub left_mm_s: f64,
     pub right_mm_s: f64,
     pub forward_mm_s: f64,
     /// How far the robot is from the defined path; none without one.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub tracking_error_mm: Option<f64>,
     /// The Host held the robot back from what was asked (the safety layer,
     /// or an assisted run's push).
@@ -62,15 +65,25 @@ pub struct Motion {
     pub sighted: bool,
 }
 
+/// Poses kept to draw over frames: 2 s of feedback at 50 Hz, longer than
+/// any camera's delay.
+const POSES_KEPT: usize = 100;
+
 /// What the views need to remember between messages: the lab's scene (for
 /// the camera's pixels, the scene and the grids), the definition (its
-/// path), the forecast's seeds and the robot's last pose (drawn over the
-/// next frame).
+/// path), the forecast's seeds, whether a run is under way and the robot's
+/// recent poses (drawn over the frames).
 pub struct Views {
     scene: Option<LabScene>,
     definition: Definition,
     seeds: Vec<Vec<Point>>,
-    pose: Option<vl_core::Pose>,
+    /// The robot's recent poses, oldest first, each with when it was read:
+    /// a frame is drawn over with the pose of when it was taken.
+    poses: VecDeque<(u64, vl_core::Pose)>,
+    /// A run is under way: only then is the robot off its path by any
+    /// measure (between runs it drives back to the start on a route of
+    /// its own).
+    running: bool,
     /// ns since 1970 at the lab's clock's zero, which feedback's `t_ms`
     /// and frames' capture times count from.
     since_ns: u64,
@@ -82,7 +95,8 @@ impl Views {
             scene,
             definition,
             seeds: Vec::new(),
-            pose: None,
+            poses: VecDeque::new(),
+            running: false,
             since_ns,
         }
     }
@@ -156,6 +170,8 @@ impl Views {
         }];
         match message {
             HostMessage::Feedback(feedback) => views.extend(self.feedback(ns, feedback)),
+            HostMessage::Started { .. } => self.running = true,
+            HostMessage::Done { .. } => self.running = false,
             HostMessage::Defined { definition } => {
                 self.definition = definition.clone();
                 self.seeds.clear();
@@ -189,13 +205,17 @@ impl Views {
 
     fn feedback(&mut self, ns: u64, feedback: &Feedback) -> Vec<View> {
         let pose = feedback.pose;
-        self.pose = Some(pose);
+        if self.poses.len() >= POSES_KEPT {
+            self.poses.pop_front();
+        }
+        self.poses.push_back((ns, pose));
         let path = &self.definition.path;
         let motion = Motion {
             left_mm_s: feedback.wheels.left_mm_s,
             right_mm_s: feedback.wheels.right_mm_s,
             forward_mm_s: feedback.wheels.forward_mm_s(),
-            tracking_error_mm: (!path.is_empty()).then(|| distance_to_polyline(path, pose.point())),
+            tracking_error_mm: (self.running && !path.is_empty())
+                .then(|| distance_to_polyline(path, pose.point())),
             limited: feedback.limited,
             contact: feedback.contact,
             sighted: feedback.source == PoseSource::Camera,
@@ -219,8 +239,16 @@ impl Views {
         views
     }
 
+    /// The pose read nearest `ns`.
+    fn pose_at(&self, ns: u64) -> Option<vl_core::Pose> {
+        self.poses
+            .iter()
+            .min_by_key(|(at, _)| at.abs_diff(ns))
+            .map(|(_, pose)| *pose)
+    }
+
     /// A camera frame as sent (header and JPEG): the image, and the path
-    /// and the robot drawn over it.
+    /// and the robot drawn over it, where it was when the frame was taken.
     pub fn frame(&self, wire: &[u8]) -> Vec<View> {
         let Ok((header, jpeg)) = FrameHeader::decode(wire) else {
             return Vec::new();
@@ -232,7 +260,7 @@ impl Views {
             &foxglove::image(taken, jpeg),
         )];
         if let Some(lab) = &self.scene {
-            let robot = self.pose.map(|p| (p, lab.robot.radius_mm));
+            let robot = self.pose_at(taken).map(|p| (p, lab.robot.radius_mm));
             let annotations =
                 foxglove::annotations(taken, &lab.camera, &self.definition.path, robot);
             views.push(View::json(Topic::Annotations, taken, &annotations));

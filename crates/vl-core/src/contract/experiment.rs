@@ -97,6 +97,7 @@ impl Goal {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 pub struct Definition {
     /// The run ends with success when the robot is within tolerance of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub goal: Option<Goal>,
     /// A planned path, arena mm, for path-following experiments.
     #[serde(default)]
@@ -105,8 +106,10 @@ pub struct Definition {
     #[serde(default)]
     pub virtual_obstacles: Vec<Shape>,
     /// Cap on wheel speed for this run, below the robot's own limit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_speed_mm_s: Option<f64>,
     /// The run is stopped when it lasts longer than this.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_limit_s: Option<f64>,
     /// How far ahead on the path the Host's follower aims, mm (thesis F.6:
     /// shorter tracks tighter, longer cuts corners smoother).

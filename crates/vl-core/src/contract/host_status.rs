@@ -107,8 +107,10 @@ pub struct RunRecord {
     pub experiment: Experiment,
     /// When it started, seconds since 1970 (UTC).
     pub started_unix_s: u64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub user: Option<String>,
     /// Why it ended; none while it goes on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ended: Option<EndReason>,
 }
 

@@ -51,6 +51,7 @@ pub(crate) fn schema_of<T: JsonSchema>(name: &'static str) -> Schema {
         object.remove("$schema");
         object.insert("title".into(), Value::from(name));
     }
+    crate::schemas::readable(&mut body);
     Schema { name, body }
 }
 

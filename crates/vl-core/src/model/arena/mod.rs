@@ -69,6 +69,7 @@ pub struct Arena {
     #[serde(default)]
     pub walls: Material,
     pub start: Pose,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub goal: Option<Point>,
 }
 

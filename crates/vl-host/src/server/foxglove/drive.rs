@@ -112,8 +112,6 @@ pub(super) fn advertise_services() -> tokio_tungstenite::tungstenite::Message {
                     "schemaEncoding": "jsonschema",
                     "schema": response.to_string(),
                 },
-                "requestSchema": request.to_string(),
-                "responseSchema": response.to_string(),
             })
         })
         .collect();

@@ -406,7 +406,7 @@ impl Watcher {
         };
         if !client.cmd_vel.contains(&channel) {
             let why = format!(
-                "channel {channel} was not advertised: only {CMD_VEL} (a Twist, json) may be published"
+                "channel {channel} is not {CMD_VEL} in json: only Twists on {CMD_VEL} may be published"
             );
             return put(sink, status(Level::Error, &why)).await;
         }
@@ -538,22 +538,22 @@ impl Watcher {
                     )
                 })
             }
+            // Any topic may be advertised (a 3D panel advertises where its
+            // clicks would go): only what is published on one but
+            // `/cmd_vel` in json is refused, when it comes.
             Ok(ClientOp::Advertise { channels }) => {
-                let mut refused = Vec::new();
+                let mut refused = None;
                 for channel in channels {
-                    if channel.topic != CMD_VEL || channel.encoding != "json" {
-                        refused.push(format!(
-                            "{} ({}): only {CMD_VEL} in json may be published",
-                            channel.topic, channel.encoding
-                        ));
-                    } else if client.advertised >= MAX_CLIENT_CHANNELS {
-                        refused.push(format!("at most {MAX_CLIENT_CHANNELS} channels a client"));
-                    } else {
-                        client.advertised += 1;
+                    if client.advertised >= MAX_CLIENT_CHANNELS {
+                        refused = Some(format!("at most {MAX_CLIENT_CHANNELS} channels a client"));
+                        break;
+                    }
+                    client.advertised += 1;
+                    if channel.topic == CMD_VEL && channel.encoding == "json" {
                         client.cmd_vel.insert(channel.id);
                     }
                 }
-                (!refused.is_empty()).then(|| status(Level::Warning, &refused.join("; ")))
+                refused.map(|why| status(Level::Warning, &why))
             }
             Ok(ClientOp::Unadvertise { channel_ids }) => {
                 for id in channel_ids {
