@@ -36,7 +36,7 @@ pub use records::Damage;
 pub use views::{Motion, View, Views};
 pub use writer::{Begin, Feed, Recordable, Stopped, now_ns, unix_ns_at};
 
-pub use foxglove::Schema;
+pub use schemas::Schema;
 
 /// A client's round trip, from the Host's pings.
 #[derive(Debug, Clone, Copy, serde::Serialize, schemars::JsonSchema)]
@@ -149,8 +149,8 @@ impl Topic {
             Topic::Status => sent("vl.Status", "status", "the lab's devices"),
             Topic::Summary => sent("vl.Done", "done", "the run's summary"),
             Topic::Commands => heard("vl.Command", "command", "an operator's command"),
-            Topic::RoundTrip => foxglove::schema_of::<RoundTrip>("vl.RoundTrip"),
-            Topic::Motion => foxglove::schema_of::<Motion>("vl.Motion"),
+            Topic::RoundTrip => schemas::schema_of::<RoundTrip>("vl.RoundTrip"),
+            Topic::Motion => schemas::schema_of::<Motion>("vl.Motion"),
             Topic::TruePose | Topic::Pose => Kind::PoseInFrame.schema(),
             Topic::Path | Topic::Seeds => Kind::PosesInFrame.schema(),
             Topic::Camera => Kind::CompressedImage.schema(),

@@ -4,14 +4,38 @@
 //! the type it describes; and every schema cut to what Foxglove's and
 //! Lichtblick's parser reads (`readable`).
 
+use schemars::JsonSchema;
 use serde_json::Value;
 use vl_core::{GuestMessage, HostMessage};
 
-use super::foxglove::{Schema, schema_of};
+/// A schema: its name, which Foxglove's panels recognise, and its JSON
+/// Schema.
+pub struct Schema {
+    pub name: &'static str,
+    pub body: Value,
+}
+
+/// The JSON Schema of `T`, named `name`, with every part written out where
+/// it is used (Foxglove's schema parser follows no `$ref`).
+pub(crate) fn schema_of<T: JsonSchema>(name: &'static str) -> Schema {
+    let settings = schemars::generate::SchemaSettings::draft07().with(|s| {
+        s.inline_subschemas = true;
+    });
+    let mut body = settings
+        .into_generator()
+        .into_root_schema_for::<T>()
+        .to_value();
+    if let Some(object) = body.as_object_mut() {
+        object.remove("$schema");
+        object.insert("title".into(), Value::from(name));
+    }
+    readable(&mut body);
+    Schema { name, body }
+}
 
 /// The schema of the variant of `T` (an internally tagged enum) whose
 /// `"type"` is `kind`.
-fn variant<T: schemars::JsonSchema>(name: &'static str, kind: &str, what: &str) -> Schema {
+fn variant<T: JsonSchema>(name: &'static str, kind: &str, what: &str) -> Schema {
     let whole = schema_of::<T>(name).body;
     let tagged = |schema: &&Value| {
         let tag = &schema["properties"]["type"];

@@ -12,7 +12,6 @@
 mod messages;
 mod scene;
 
-use schemars::JsonSchema;
 use serde_json::Value;
 use vl_core::{CameraModel, Point, Pose, RobotModel, ir_distance};
 
@@ -30,31 +29,6 @@ pub(crate) const CAMERA_FRAME: &str = "camera";
 
 const MM: f64 = 1e-3;
 
-/// A schema: its name, which Foxglove's panels recognise, and its JSON
-/// Schema.
-pub struct Schema {
-    pub name: &'static str,
-    pub body: Value,
-}
-
-/// The JSON Schema of `T`, named `name`, with every part written out where
-/// it is used (Foxglove's schema parser follows no `$ref`).
-pub(crate) fn schema_of<T: JsonSchema>(name: &'static str) -> Schema {
-    let settings = schemars::generate::SchemaSettings::draft07().with(|s| {
-        s.inline_subschemas = true;
-    });
-    let mut body = settings
-        .into_generator()
-        .into_root_schema_for::<T>()
-        .to_value();
-    if let Some(object) = body.as_object_mut() {
-        object.remove("$schema");
-        object.insert("title".into(), Value::from(name));
-    }
-    crate::schemas::readable(&mut body);
-    Schema { name, body }
-}
-
 /// Each Foxglove schema a view uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Kind {
@@ -71,7 +45,8 @@ pub(crate) enum Kind {
 }
 
 impl Kind {
-    pub(crate) fn schema(self) -> Schema {
+    pub(crate) fn schema(self) -> crate::Schema {
+        use crate::schemas::schema_of;
         use messages as m;
         match self {
             Kind::CompressedImage => schema_of::<m::CompressedImage>("foxglove.CompressedImage"),
