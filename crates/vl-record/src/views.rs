@@ -118,15 +118,16 @@ impl Views {
         views
             .extend(foxglove::map_grid(ns, &lab.arena).map(|map| View::json(Topic::Map, ns, &map)));
         views.extend(self.cspace(ns));
+        let pinhole = lab.camera.pinhole();
         views.push(View::json(
             Topic::CameraTransform,
             ns,
-            &foxglove::camera_transform(ns, &lab.camera),
+            &foxglove::camera_transform(ns, &pinhole),
         ));
         views.push(View::json(
             Topic::Calibration,
             ns,
-            &foxglove::calibration(ns, &lab.camera),
+            &foxglove::calibration(ns, &pinhole),
         ));
         views.push(self.path(ns));
         views
@@ -146,13 +147,6 @@ impl Views {
     /// `message`, sent at `ns`, on its topic, and Foxglove's views of it;
     /// nothing for a message no channel keeps.
     pub fn sent(&mut self, ns: u64, message: &HostMessage) -> Vec<View> {
-        if let HostMessage::Welcome {
-            scene: Some(scene), ..
-        } = message
-        {
-            self.scene = Some((**scene).clone());
-            return self.lab(ns);
-        }
         let Some(topic) = Topic::of(message) else {
             return Vec::new();
         };

@@ -13,7 +13,7 @@ mod messages;
 mod scene;
 
 use serde_json::Value;
-use vl_core::{CameraModel, Point, Pose, RobotModel, ir_distance};
+use vl_core::{CameraModel, Pinhole, Point, Pose, RobotModel, ir_distance};
 
 use messages::{
     Base64, CameraCalibration, CircleAnnotation, CompressedImage, FrameTransform, ImageAnnotations,
@@ -113,8 +113,7 @@ pub(crate) fn transform(ns: u64, robot: Pose) -> Value {
 }
 
 /// Where the camera is: the arena → camera transform, from its calibration.
-pub(crate) fn camera_transform(ns: u64, camera: &CameraModel) -> Value {
-    let pinhole = camera.pinhole();
+pub(crate) fn camera_transform(ns: u64, pinhole: &Pinhole) -> Value {
     let [x, y, z] = pinhole.position_mm;
     let q = pinhole.orientation.quaternion();
     json(&FrameTransform {
@@ -136,8 +135,7 @@ pub(crate) fn camera_transform(ns: u64, camera: &CameraModel) -> Value {
 }
 
 /// The camera's intrinsics and lens, for the image's frame.
-pub(crate) fn calibration(ns: u64, camera: &CameraModel) -> Value {
-    let pinhole = camera.pinhole();
+pub(crate) fn calibration(ns: u64, pinhole: &Pinhole) -> Value {
     json(&CameraCalibration {
         timestamp: Time::at(ns),
         frame_id: CAMERA_FRAME.into(),

@@ -10,7 +10,7 @@ use std::sync::{Arc, Mutex};
 
 use tokio::sync::{broadcast, mpsc, watch};
 use tokio_tungstenite::tungstenite::Bytes;
-use vl_core::{HostMessage, LabScene, Role};
+use vl_core::{HostMessage, LabScene};
 use vl_record::{Level, Topic, View, Views, now_ns};
 
 /// Views waiting for the slowest client: past this it skips to the newest.
@@ -78,8 +78,15 @@ impl Feed {
 
     /// A Guest's round trip, as the Host's pings measured it.
     pub(crate) fn round_trip(&self, connection: u64, ms: f64) {
-        let round_trip = vl_record::RoundTrip { connection, ms };
-        self.publish(vec![View::round_trip(now_ns(), round_trip)]);
+        if self.watched() {
+            let round_trip = vl_record::RoundTrip { connection, ms };
+            self.publish(vec![View::round_trip(now_ns(), round_trip)]);
+        }
+    }
+
+    /// Whether any Foxglove client is connected.
+    fn watched(&self) -> bool {
+        self.views.receiver_count() > 0
     }
 
     fn publish(&self, views: Vec<View>) {
@@ -99,16 +106,8 @@ impl Feed {
     }
 
     async fn run(self, mut sources: Sources, mut inbox: mpsc::Receiver<HostMessage>) {
-        let mut views = Views::new(sources.since_ns, None, Default::default());
-        let lab = HostMessage::Welcome {
-            session: 0,
-            role: Role::Observer,
-            experiments: Vec::new(),
-            resume: None,
-            user: None,
-            scene: Some(Box::new(sources.scene.clone())),
-        };
-        self.publish(views.sent(now_ns(), &lab));
+        let mut views = Views::new(sources.since_ns, Some(sources.scene), Default::default());
+        self.publish(views.lab(now_ns()));
         let mut log = sources.log.subscribe();
         loop {
             tokio::select! {
@@ -116,9 +115,13 @@ impl Feed {
                     Some(message) => self.publish(views.sent(now_ns(), &message)),
                     None => return,
                 },
+                // Feedback and the log change often and latch nothing:
+                // made into views only while a client is there to take them.
                 Ok(()) = sources.feedback.changed() => {
                     let latest = sources.feedback.borrow_and_update().clone();
-                    if let Some(message) = latest {
+                    if let Some(message) = latest
+                        && self.watched()
+                    {
                         self.publish(views.sent(now_ns(), &message));
                     }
                 }
@@ -131,6 +134,7 @@ impl Feed {
                     }
                 }
                 line = log.recv() => match line {
+                    Ok(_) if !self.watched() => {}
                     Ok((level, line)) => self.publish(vec![View::log(now_ns(), level, &line)]),
                     Err(broadcast::error::RecvError::Lagged(skipped)) => {
                         let line = format!("{skipped} lines of the Host's log skipped");

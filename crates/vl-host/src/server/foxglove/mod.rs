@@ -101,7 +101,6 @@ enum Ending {
 struct Client {
     /// Subscription ids by channel.
     subscribed: HashMap<Topic, Vec<u32>>,
-    ids: HashSet<u32>,
     /// The client's `/cmd_vel` channels.
     cmd_vel: HashSet<u32>,
     advertised: usize,
@@ -117,31 +116,37 @@ impl Client {
             .is_some_and(|ids| !ids.is_empty())
     }
 
+    fn holds(&self, id: u32) -> bool {
+        self.subscribed.values().any(|ids| ids.contains(&id))
+    }
+
+    fn subscriptions(&self) -> usize {
+        self.subscribed.values().map(Vec::len).sum()
+    }
+
     fn watches_camera(&self) -> bool {
         self.wants(Topic::Camera) || self.wants(Topic::Annotations)
     }
 
     /// Sends `view` on every subscription to its channel, within budget.
     async fn send(&mut self, sink: &mut Sink, view: &View) -> Result<(), ()> {
-        if let Some(ids) = self.subscribed.get(&view.topic).cloned() {
-            for id in ids {
-                self.send_on(sink, id, view).await?;
-            }
+        for &id in self.subscribed.get(&view.topic).into_iter().flatten() {
+            send_within(&mut self.out, sink, id, view).await?;
         }
         Ok(())
     }
+}
 
-    /// Sends `view` on subscription `id`, within the client's budget; past
-    /// it, the message is not sent.
-    async fn send_on(&mut self, sink: &mut Sink, id: u32, view: &View) -> Result<(), ()> {
-        let message = ops::data(id, view);
-        let bytes = message.len() as f64;
-        if !self.out.take(bytes).is_zero() {
-            self.out.refund(bytes);
-            return Ok(());
-        }
-        put(sink, message).await
+/// Sends `view` on subscription `id` within the client's budget `out`;
+/// past it, the message is not sent.
+async fn send_within(out: &mut Bucket, sink: &mut Sink, id: u32, view: &View) -> Result<(), ()> {
+    let message = ops::data(id, view);
+    let bytes = message.len() as f64;
+    if !out.take(bytes).is_zero() {
+        out.refund(bytes);
+        return Ok(());
     }
+    put(sink, message).await
 }
 
 /// A Foxglove client's connection, and what it takes from the lab.
@@ -220,7 +225,6 @@ impl Watcher {
         let mut views = self.feed.subscribe();
         let mut client = Client {
             subscribed: HashMap::new(),
-            ids: HashSet::new(),
             cmd_vel: HashSet::new(),
             advertised: 0,
             out: Bucket::new(BYTES_OUT_PER_S, BYTES_OUT_BURST),
@@ -496,24 +500,23 @@ impl Watcher {
                         refused.push(format!("no channel {}", s.channel_id));
                         continue;
                     };
-                    if client.ids.contains(&s.id) {
+                    if client.holds(s.id) {
                         refused.push(format!("subscription id {} is in use", s.id));
                         continue;
                     }
-                    if client.ids.len() >= MAX_SUBSCRIPTIONS {
+                    if client.subscriptions() >= MAX_SUBSCRIPTIONS {
                         refused.push(format!(
                             "at most {MAX_SUBSCRIPTIONS} subscriptions a client"
                         ));
                         break;
                     }
                     let camera_before = client.watches_camera();
-                    client.ids.insert(s.id);
                     client.subscribed.entry(topic).or_default().push(s.id);
                     if !camera_before && client.watches_camera() {
                         self.feed.watch_camera(true);
                     }
                     for view in self.feed.latched(topic) {
-                        client.send_on(sink, s.id, &view).await?;
+                        send_within(&mut client.out, sink, s.id, &view).await?;
                     }
                 }
                 (!refused.is_empty()).then(|| status(Level::Warning, &refused.join("; ")))
@@ -522,7 +525,7 @@ impl Watcher {
                 let camera_before = client.watches_camera();
                 let unknown: Vec<String> = subscription_ids
                     .iter()
-                    .filter(|id| !client.ids.remove(id))
+                    .filter(|&&id| !client.holds(id))
                     .map(u32::to_string)
                     .collect();
                 for ids in client.subscribed.values_mut() {
