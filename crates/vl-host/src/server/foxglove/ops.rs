@@ -236,6 +236,22 @@ mod tests {
         assert_eq!(&bytes[13..], b"{}");
     }
 
+    proptest::proptest! {
+        /// Whatever bytes a client sends, reading them as a call or a
+        /// message on its channel answers, never panics, and takes no
+        /// more than was sent.
+        #[test]
+        fn any_bytes_are_read_or_refused(bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..64)) {
+            let bytes = Bytes::from(bytes);
+            if let Some(call) = ServiceCall::parse(&bytes) {
+                proptest::prop_assert!(13 + call.encoding.len() + call.payload.len() == bytes.len());
+            }
+            if let Some((_, payload)) = client_data(&bytes) {
+                proptest::prop_assert_eq!(payload.len() + 5, bytes.len());
+            }
+        }
+    }
+
     #[test]
     fn a_service_call_is_read_and_a_short_one_refused() {
         let mut bytes = vec![SERVICE_CALL_REQUEST];
