@@ -240,6 +240,13 @@ pub(crate) struct HostArgs {
     forecast: crate::options::ForecastArgs,
     #[command(flatten)]
     recordings: crate::record::KeepArgs,
+    /// Join the gateway whose Zenoh router is here (tcp/HOST:PORT) as one
+    /// of its cells (with --cell).
+    #[arg(long, requires = "cell")]
+    gateway: Vec<vl_host::Endpoint>,
+    /// This cell's name at its gateway: 1–32 of a-z, 0-9, '-' and '_'.
+    #[arg(long, requires = "gateway")]
+    cell: Option<vl_core::CellName>,
 }
 
 /// The Host's configuration from its flags, checked before anything starts.
@@ -262,6 +269,13 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         ..HostConfig::default()
     };
     args.access.apply(&mut config)?;
+    config.cell = args.cell.clone().map(|name| vl_host::CellOptions {
+        name,
+        zenoh: vl_host::ZenohOptions {
+            connect: args.gateway.clone(),
+            listen: Vec::new(),
+        },
+    });
     // A folder of nets that cannot run is the user's to fix, before anything starts.
     config
         .supervisor()

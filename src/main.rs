@@ -7,6 +7,7 @@ mod access;
 mod camera;
 mod experiment;
 mod flag_file;
+mod gateway;
 mod guest;
 mod host;
 mod input;
@@ -44,6 +45,9 @@ struct Cli {
 enum Command {
     /// Serve the lab to Guests over WebSocket (on the lab machine).
     Host(Box<host::HostCommand>),
+    /// The lab's one public address in front of many cells (each a `vl
+    /// host --gateway … --cell NAME`), on Zenoh.
+    Gateway(gateway::GatewayArgs),
     /// Open the Guest window on a Host (on the user's desktop).
     Guest(guest::GuestArgs),
     /// Run a Host on the simulated lab and a Guest against it, in one process.
@@ -114,7 +118,11 @@ fn main() -> ExitCode {
     // servers outlive clients whose sockets close (TLS writes with writev).
     if !matches!(
         cli.command,
-        Command::Host(_) | Command::Guest(_) | Command::Demo(_) | Command::Media(_)
+        Command::Host(_)
+            | Command::Gateway(_)
+            | Command::Guest(_)
+            | Command::Demo(_)
+            | Command::Media(_)
     ) {
         // SAFETY: restoring the default action of one signal before any thread starts.
         unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
@@ -161,6 +169,9 @@ fn run(cli: Cli) -> Result<ExitCode> {
     match cli.command {
         Command::Host(command) => runtime()?
             .block_on(host::host_command(*command))
+            .map(|()| ExitCode::SUCCESS),
+        Command::Gateway(args) => runtime()?
+            .block_on(gateway::gateway(args))
             .map(|()| ExitCode::SUCCESS),
         Command::Guest(args) => guest::guest(&runtime()?, args),
         Command::Demo(args) => guest::demo(&runtime()?, args),

@@ -109,6 +109,7 @@ mod vision;
 pub use schemars;
 
 pub use contract::access::{AccessEvent, AccessNet, AccessNetError, AccessRefused, Seat};
+pub use contract::cells::{CellInfo, CellName, CellStatus, GatewayStatus, NotACellName};
 pub use contract::experiment::{
     Definition, DefinitionError, Experiment, ExperimentInfo, Goal, LOOKAHEAD_MM,
 };

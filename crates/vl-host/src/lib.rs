@@ -68,6 +68,7 @@
 //!   delays and measures its own cost (`media`)
 
 mod accounts;
+mod cells;
 mod characterise;
 mod drivers;
 #[cfg(test)]
@@ -100,6 +101,7 @@ pub use accounts::gate::{
 };
 pub use accounts::users::{AccountRole, Member, Roster, Users, UsersError};
 pub use accounts::{SecretError, secret_from_file};
+pub use cells::{CellOptions, Endpoint, ZenohError, ZenohOptions};
 pub use characterise::{CharacteriseError, characterise};
 pub use drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness};
 pub use footage::FootageCamera;
@@ -305,6 +307,43 @@ impl Host {
         self.task.abort();
         let _ = (&mut self.task).await;
         tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+    }
+}
+
+/// A gateway, bound and serving Guests in front of the cells that join it.
+pub struct Gateway {
+    pub addr: SocketAddr,
+    task: tokio::task::JoinHandle<()>,
+}
+
+impl Gateway {
+    /// Binds `listen` for Guests and meets cells on Zenoh by `zenoh`;
+    /// `config` is a Host's: accounts, TLS, timeouts (its lab's own fields
+    /// are the cells').
+    pub async fn start(
+        listen: SocketAddr,
+        config: HostConfig,
+        zenoh: ZenohOptions,
+    ) -> Result<Gateway, HostError> {
+        let listener = TcpListener::bind(listen)
+            .await
+            .map_err(|e| HostError::Bind(listen, e))?;
+        let addr = listener
+            .local_addr()
+            .map_err(|e| HostError::Bind(listen, e))?;
+        let task = tokio::spawn(cells::serve_gateway(listener, config, zenoh));
+        Ok(Gateway { addr, task })
+    }
+
+    /// Serves until the process ends (or Zenoh cannot open).
+    pub async fn wait(mut self) {
+        let _ = (&mut self.task).await;
+    }
+}
+
+impl Drop for Gateway {
+    fn drop(&mut self) {
+        self.task.abort();
     }
 }
 

@@ -5,6 +5,7 @@
 //! Host's certificate by, and the one colour legend both ends draw with.
 
 pub(crate) mod access;
+pub(crate) mod cells;
 pub(crate) mod experiment;
 pub(crate) mod fingerprint;
 pub(crate) mod forecast;

@@ -183,6 +183,11 @@ pub enum ErrorCode {
     LabFull,
     /// No recording of that name that this Guest may see.
     UnknownRecording,
+    /// At a gateway: no cell is up, or none of the name asked for.
+    NoCell,
+    /// At a gateway: the cell this Guest was on stopped answering (its
+    /// machine died or its cable came out); its run is over.
+    CellLost,
 }
 
 /// As on the wire: `unknown_experiment`.

@@ -60,8 +60,10 @@ impl Named for Observers {
 
 vl_core::named_by_id!(Observers);
 
-/// Who a connection speaks for, as its hello proved.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// Who a connection speaks for, as its hello proved (told by a gateway to
+/// its cells, which take its word for it).
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
 pub enum Identity {
     /// No one in particular.
     Anonymous,
@@ -82,7 +84,7 @@ impl Identity {
 }
 
 /// Who a hello proved its sender is, and whether they may drive.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Admitted {
     pub identity: Identity,
     /// Whether they may take the operator's role, now or in their turn.

@@ -75,15 +75,17 @@ pub(crate) struct ConnectionTask {
     pub(crate) record: Feed,
     /// Who the gate let in (for the recordings they may see).
     pub(crate) identity: Option<Identity>,
-    /// The lab's views, made once for every Foxglove client.
-    pub(crate) foxglove: foxglove::Feed,
+    /// The lab's views, made once for every Foxglove client (none at a
+    /// gateway, whose Foxglove clients connect to a cell's Host).
+    pub(crate) foxglove: Option<foxglove::Feed>,
     /// One per Host start, for Foxglove's clients.
     pub(crate) session: Arc<str>,
 }
 
 /// Who a connection's WebSocket is for.
 enum Client {
-    Guest(Socket),
+    /// With the path it opened (`/cells/NAME` asks a gateway for a cell).
+    Guest(Socket, Option<String>),
     Foxglove(Socket),
 }
 
@@ -167,15 +169,18 @@ async fn handshake(
     };
     match http::opening(stream).await? {
         Opening::Guest(stream) => {
+            let mut path = None;
             // tungstenite's callback type fixes the error's size.
             #[allow(clippy::result_large_err)]
             let answer = |request: &Request, response: Response| {
                 from_allowed_origin(request, origins)?;
+                path = Some(request.uri().path().to_owned());
                 Ok(response)
             };
-            tokio_tungstenite::accept_hdr_async_with_config(stream, answer, Some(ws_config))
-                .await
-                .map(|socket| Some(Client::Guest(socket)))
+            let socket =
+                tokio_tungstenite::accept_hdr_async_with_config(stream, answer, Some(ws_config))
+                    .await?;
+            Ok(Some(Client::Guest(socket, path)))
         }
         Opening::Foxglove(stream, subprotocol) => {
             // tungstenite's callback type fixes the error's size.
@@ -222,12 +227,12 @@ fn from_allowed_origin(
 
 impl ConnectionTask {
     /// This connection as a Foxglove client's: what it takes from the lab.
-    fn foxglove(self) -> foxglove::Watcher {
+    fn foxglove(self, feed: foxglove::Feed) -> foxglove::Watcher {
         foxglove::Watcher {
             id: self.id,
             hub: self.hub,
             feedback: self.feedback,
-            feed: self.foxglove,
+            feed,
             watchers: self.watchers,
             gate: self.gate,
             peer: self.peer,
@@ -269,16 +274,31 @@ impl ConnectionTask {
             _ = evicted.wait_for(|out| *out) => return Ok(()),
         };
         self.ticket.upgraded();
-        let ws = match ws {
-            Client::Guest(ws) => ws,
-            Client::Foxglove(ws) => {
-                self.foxglove().serve(ws).await;
+        let (ws, path) = match ws {
+            Client::Guest(ws, path) => (ws, path),
+            Client::Foxglove(mut ws) => {
+                match self.foxglove.clone() {
+                    Some(feed) => self.foxglove(feed).serve(ws).await,
+                    None => {
+                        let why = "Foxglove connects to a cell's own Host, not to the gateway";
+                        let frame = tungstenite::protocol::CloseFrame {
+                            code: tungstenite::protocol::frame::coding::CloseCode::Policy,
+                            reason: why.into(),
+                        };
+                        let _ = ws.close(Some(frame)).await;
+                    }
+                }
                 return Ok(());
             }
         };
         let (mut sink, mut source) = ws.split();
         let (to_me, mut inbox) = mpsc::channel(super::hub::OUTBOX);
-        if self.hub.send(ToHub::Join(self.id, to_me)).await.is_err() {
+        if self
+            .hub
+            .send(ToHub::Join(self.id, to_me, path))
+            .await
+            .is_err()
+        {
             return Ok(());
         }
         let end = self.serve(&mut sink, &mut source, &mut inbox).await;
@@ -359,13 +379,12 @@ impl ConnectionTask {
                         }
                     }
                     Some(ToConnection::End(code, why)) => return End::Refused(code, why),
-                    Some(ToConnection::Subscribe) => {
-                        r.welcomed = true;
-                        watching.get_or_insert_with(|| Watching::new(&self.watchers));
-                        self.ticket.welcomed();
-                        self.feedback.mark_changed();
-                        self.frames.mark_changed();
+                    Some(ToConnection::Watch(streams)) => {
+                        self.feedback = streams.feedback;
+                        self.frames = streams.frames;
+                        self.subscribed(&mut r, &mut watching);
                     }
+                    Some(ToConnection::Subscribe) => self.subscribed(&mut r, &mut watching),
                     // The hub let go of this client: it could not keep up.
                     None => {
                         return End::Refused(ErrorCode::SlowReader, "messages for you piled up unread".into());
@@ -412,6 +431,15 @@ impl ConnectionTask {
                 }
             }
         }
+    }
+
+    /// Welcomed: the newest feedback and frame are for this client now.
+    fn subscribed(&mut self, r: &mut Reading, watching: &mut Option<Watching>) {
+        r.welcomed = true;
+        watching.get_or_insert_with(|| Watching::new(&self.watchers));
+        self.ticket.welcomed();
+        self.feedback.mark_changed();
+        self.frames.mark_changed();
     }
 
     /// Takes in what the client sent, within its rates.
@@ -492,7 +520,9 @@ impl ConnectionTask {
                 connection: self.id,
                 ms: rtt_ms,
             });
-            self.foxglove.round_trip(self.id, rtt_ms);
+            if let Some(feed) = &self.foxglove {
+                feed.round_trip(self.id, rtt_ms);
+            }
         }
     }
 

@@ -18,7 +18,7 @@ mod bucket;
 mod connection;
 mod foxglove;
 mod http;
-mod hub;
+pub(crate) mod hub;
 pub(crate) mod origin;
 pub(crate) mod socket;
 mod web;
@@ -91,6 +91,8 @@ pub struct HostConfig {
     pub forecast: ForecastSettings,
     /// Where every run is recorded; none: nowhere.
     pub recordings: Option<vl_record::Catalogue>,
+    /// The gateway this Host joins as one of its cells; none: alone.
+    pub cell: Option<crate::cells::CellOptions>,
 }
 
 impl HostConfig {
@@ -127,12 +129,13 @@ impl Default for HostConfig {
             compensate_latency: true,
             forecast: ForecastSettings::default(),
             recordings: None,
+            cell: None,
         }
     }
 }
 
 /// Messages waiting for the hub, from every connection together.
-const HUB_QUEUE: usize = 256;
+pub(crate) const HUB_QUEUE: usize = 256;
 
 /// Accepts connections on `listener` and serves the lab until the task is dropped.
 pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
@@ -153,7 +156,7 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         frames: lab.frames.clone(),
         watchers: lab.watchers.clone(),
         record: lab.record.clone(),
-        foxglove: feed,
+        foxglove: Some(feed),
         session: lab.since_ns.to_string().into(),
     };
     let config = Arc::new(config);
@@ -170,6 +173,19 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         config.observers,
         config.audit.clone(),
     ));
+    let joined = match config.cell.clone() {
+        Some(cell) => {
+            let side = crate::cells::Cell {
+                hub: hub_tx.clone(),
+                feedback: lab.feedback.clone(),
+                frames: lab.frames.clone(),
+                watchers: lab.watchers.clone(),
+                experiments: config.experiments.clone(),
+            };
+            futures_util::future::Either::Left(crate::cells::join(cell, side))
+        }
+        None => futures_util::future::Either::Right(std::future::pending()),
+    };
     let hub = Hub::new(lab, config.clone(), supervisor).with_views(views);
     let accounts = watch_accounts(gate.clone(), hub_tx.clone());
     // The hub lives exactly as long as the server: dropping this future
@@ -179,6 +195,7 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         () = accept(listener, hub_tx, outlets, config, gate) => {}
         () = accounts => {}
         () = feeding => {}
+        () = joined => {}
     }
 }
 
@@ -188,7 +205,7 @@ const ACCOUNTS_CHECK: Duration = Duration::from_secs(1);
 /// Reads the accounts file again when it changes, and tells the hub: an
 /// account removed on the running lab (`vl users remove`) loses its
 /// connections within a second, not at its next hello.
-async fn watch_accounts(gate: Arc<Gate>, hub: mpsc::Sender<hub::ToHub>) {
+pub(crate) async fn watch_accounts(gate: Arc<Gate>, hub: mpsc::Sender<hub::ToHub>) {
     if !gate.has_accounts() {
         return std::future::pending().await;
     }
@@ -204,16 +221,18 @@ async fn watch_accounts(gate: Arc<Gate>, hub: mpsc::Sender<hub::ToHub>) {
 }
 
 /// What every connection takes from the lab directly, not through the hub.
-struct Outlets {
-    feedback: tokio::sync::watch::Receiver<Option<vl_core::HostMessage>>,
-    frames: tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
-    watchers: Arc<std::sync::atomic::AtomicUsize>,
-    record: vl_record::Feed,
-    foxglove: foxglove::Feed,
-    session: Arc<str>,
+pub(crate) struct Outlets {
+    pub(crate) feedback: tokio::sync::watch::Receiver<Option<vl_core::HostMessage>>,
+    pub(crate) frames: tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
+    pub(crate) watchers: Arc<std::sync::atomic::AtomicUsize>,
+    pub(crate) record: vl_record::Feed,
+    pub(crate) foxglove: Option<foxglove::Feed>,
+    pub(crate) session: Arc<str>,
 }
 
-async fn accept(
+/// Accepts connections on `listener`, each a task of its own speaking to
+/// `hub` (a Host's, or a gateway's).
+pub(crate) async fn accept(
     listener: TcpListener,
     hub: mpsc::Sender<hub::ToHub>,
     outlets: Outlets,

@@ -188,7 +188,12 @@ impl Watcher {
             }
         };
         let (to_me, mut inbox) = tokio::sync::mpsc::channel(super::hub::OUTBOX);
-        if self.hub.send(ToHub::Join(self.id, to_me)).await.is_err() {
+        if self
+            .hub
+            .send(ToHub::Join(self.id, to_me, None))
+            .await
+            .is_err()
+        {
             return close(&mut sink, Ending::Away).await;
         }
         let hello = ToHub::Hello {
@@ -285,7 +290,7 @@ impl Watcher {
                         let _ = put(sink, status(Level::Error, &why)).await;
                         return Ending::Normal;
                     }
-                    Some(ToConnection::Subscribe) => {
+                    Some(ToConnection::Subscribe | ToConnection::Watch(_)) => {
                         watching.get_or_insert_with(|| Watching::new(&self.watchers));
                         self.ticket.welcomed();
                         Ok(())

@@ -88,19 +88,10 @@ impl Hub {
                 .user(user.as_deref())
                 .detail(role.to_string()),
         );
-        self.send(
-            id,
-            HostMessage::Welcome {
-                session: id,
-                role,
-                experiments: self.config.experiments.iter().map(|e| e.info()).collect(),
-                resume: (role == Role::Operator)
-                    .then(|| self.resume.clone())
-                    .flatten(),
-                user,
-                scene: Some(Box::new(self.scene())),
-            },
-        );
+        let resume = (role == Role::Operator)
+            .then(|| self.resume.clone())
+            .flatten();
+        self.send(id, self.welcome(id, role, user, resume));
         // An operator's slot, when slots have a length, is told with the role.
         if let (Role::Operator, Some(until)) = (role, self.slot_until) {
             let left = until.saturating_duration_since(Instant::now());
@@ -115,18 +106,9 @@ impl Hub {
             );
         }
         // A late observer catches up on what is mounted and defined.
-        if let Some(mounted) = self.mounted() {
-            self.send(id, mounted);
+        for message in self.catch_up() {
+            self.send(id, message);
         }
-        if let Some(definition) = self.definition.clone() {
-            self.send(id, HostMessage::Defined { definition });
-            // And what the lab's twin made of it, when it has tried it.
-            if let Some(verdict) = self.verdict.clone() {
-                self.send(id, HostMessage::Forecast(Box::new(verdict)));
-            }
-        }
-        self.send(id, self.status());
-        self.send(id, HostMessage::State(Box::new(self.supervisor.state())));
         // An operator back within the grace takes up the run where it stood.
         if role == Role::Operator && self.supervisor.allows(Action::Stop) {
             self.last_command = Instant::now();
@@ -138,6 +120,40 @@ impl Hub {
                 },
             );
         }
+    }
+
+    /// The welcome of `session` in `role`.
+    pub(super) fn welcome(
+        &self,
+        session: u64,
+        role: Role,
+        user: Option<String>,
+        resume: Option<String>,
+    ) -> HostMessage {
+        HostMessage::Welcome {
+            session,
+            role,
+            experiments: self.config.experiments.iter().map(|e| e.info()).collect(),
+            resume,
+            user,
+            scene: Some(Box::new(self.scene())),
+        }
+    }
+
+    /// What a late observer catches up on after its welcome: what is
+    /// mounted and defined, the forecast, the lab's status, the net's state.
+    pub(super) fn catch_up(&self) -> Vec<HostMessage> {
+        let mut told: Vec<HostMessage> = self.mounted().into_iter().collect();
+        if let Some(definition) = self.definition.clone() {
+            told.push(HostMessage::Defined { definition });
+            // And what the lab's twin made of it, when it has tried it.
+            if let Some(verdict) = self.verdict.clone() {
+                told.push(HostMessage::Forecast(Box::new(verdict)));
+            }
+        }
+        told.push(self.status());
+        told.push(HostMessage::State(Box::new(self.supervisor.state())));
+        told
     }
 
     /// Refuses a hello, in the audit log too: who was turned away, and why.

@@ -47,7 +47,8 @@ const LEASE_CHECK: Duration = Duration::from_millis(250);
 
 /// What a connection tells the hub.
 pub(crate) enum ToHub {
-    Join(u64, mpsc::Sender<ToConnection>),
+    /// A new connection, with the path its WebSocket opened.
+    Join(u64, mpsc::Sender<ToConnection>, Option<String>),
     /// A hello whose sender the gate identified.
     Hello {
         id: u64,
@@ -59,8 +60,11 @@ pub(crate) enum ToHub {
     Message(u64, GuestMessage),
     /// The accounts file was read again, with these accounts.
     Accounts(Arc<crate::accounts::users::Users>),
-    /// An administrator asks how the Host is.
-    Status(tokio::sync::oneshot::Sender<vl_core::HostStatus>),
+    /// An administrator asks how the Host (or the gateway) is.
+    Status(tokio::sync::oneshot::Sender<Status>),
+    /// What a late observer is told on its welcome (for a gateway's
+    /// watchers of this cell).
+    CatchUp(tokio::sync::oneshot::Sender<Vec<HostMessage>>),
     /// The connection closed; true when the client meant to leave (said
     /// bye or closed the WebSocket), false when its link dropped.
     Leave(u64, bool),
@@ -72,8 +76,25 @@ pub(crate) enum ToConnection {
     Send(Message),
     /// The client was welcomed: start streaming feedback and frames.
     Subscribe,
+    /// The client was welcomed: start streaming these feedback and frames
+    /// (a gateway's Guest: its cell's).
+    Watch(Box<Streams>),
     /// The lab ends this connection, saying why (an administrator's kick).
     End(vl_core::ErrorCode, String),
+}
+
+/// A cell's newest feedback and frame, as a gateway mirrors them.
+pub(crate) struct Streams {
+    pub(crate) feedback: tokio::sync::watch::Receiver<Option<HostMessage>>,
+    pub(crate) frames: tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
+}
+
+/// What `GET /status` shows: a Host's state, or a gateway's.
+#[derive(serde::Serialize)]
+#[serde(untagged)]
+pub(crate) enum Status {
+    Host(Box<vl_core::HostStatus>),
+    Gateway(vl_core::GatewayStatus),
 }
 
 struct Client {
@@ -313,7 +334,7 @@ impl Hub {
                     self.check_slot();
                 }
                 message = inbox.recv() => match message {
-                    Some(ToHub::Join(id, out)) => {
+                    Some(ToHub::Join(id, out, _)) => {
                         let admitted = Admitted::anyone();
                         self.clients.insert(id, Client { out, role: None, admitted });
                     }
@@ -322,7 +343,11 @@ impl Hub {
                     }
                     Some(ToHub::Message(id, message)) => self.handle(id, message),
                     Some(ToHub::Status(answer)) => {
-                        let _ = answer.send(self.host_status());
+                        let _ = answer.send(Status::Host(Box::new(self.host_status())));
+                    }
+                    Some(ToHub::CatchUp(answer)) => {
+                        let welcome = self.welcome(0, Role::Observer, None, None);
+                        let _ = answer.send([welcome].into_iter().chain(self.catch_up()).collect());
                     }
                     Some(ToHub::Leave(id, meant)) => self.leave(id, meant),
                     Some(ToHub::Accounts(users)) => self.accounts_changed(&users),

@@ -68,7 +68,7 @@ impl HubRig {
         self.next_id += 1;
         let (out, inbox) = mpsc::channel(OUTBOX);
         self.hub
-            .send(ToHub::Join(self.next_id, out))
+            .send(ToHub::Join(self.next_id, out, None))
             .await
             .expect("the hub runs");
         Client {
@@ -220,7 +220,7 @@ impl Client {
                     let text = message.to_text().expect("the hub sends text");
                     return Some(HostMessage::decode(text).expect("the hub speaks the protocol"));
                 }
-                Ok(Some(ToConnection::Subscribe)) => {}
+                Ok(Some(ToConnection::Subscribe | ToConnection::Watch(_))) => {}
                 Ok(Some(ToConnection::End(..)) | None) | Err(_) => return None,
             }
         }

@@ -1,0 +1,671 @@
+//! The gateway's hub: the one owner of who is where. It gives each
+//! operator a free cell (or a place in the one line for all of them),
+//! each watcher the cell it asked for (or the busiest), passes a linked
+//! Guest's messages to its cell and back, and tells every watcher of a
+//! cell what that cell tells its observers, from the one copy it sent.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use tokio::sync::mpsc;
+use tokio_tungstenite::tungstenite::{Message, Utf8Bytes};
+use tracing::{debug, info, warn};
+use vl_core::{
+    CellInfo, CellName, CellStatus, ErrorCode, GatewayStatus, GuestMessage, HostMessage, Person,
+    Role, Wire,
+};
+
+use super::asked_cell;
+use super::mirror::Mirror;
+use crate::accounts::audit::AuditEntry;
+use crate::accounts::gate::Admitted;
+use crate::cells::keys;
+use crate::cells::link::{LinkDown, LinkUp};
+use crate::server::HostConfig;
+use crate::server::hub::{Status, ToConnection, ToHub};
+
+/// What the cells tell the front.
+pub(super) enum Event {
+    /// A cell's liveliness token came: it is up.
+    Up(CellName),
+    /// Its token went: the cell died, or its link did.
+    Gone(CellName),
+    Info(CellInfo),
+    /// A message the cell tells its observers.
+    Told(CellName, Utf8Bytes),
+    /// What a late observer of the cell is told now.
+    CaughtUp(CellName, Vec<HostMessage>),
+    /// A link's cell said something to its Guest: the Guest, the link's
+    /// number, what was said.
+    Down(u64, u64, LinkDown),
+}
+
+/// How long a cell given to an operator counts as taken before its info
+/// says so.
+const CLAIM: Duration = Duration::from_secs(3);
+
+/// A cell the gateway sees.
+struct Cell {
+    info: Option<CellInfo>,
+    mirror: Mirror,
+    /// What a late observer is told, newest asked.
+    catch_up: Option<Vec<HostMessage>>,
+    /// Guests watching through the gateway (not linked to the cell).
+    watchers: BTreeSet<u64>,
+    /// Watchers waiting for the first catch-up.
+    waiting: Vec<u64>,
+    /// When an operator was last sent here.
+    claimed: Option<Instant>,
+}
+
+impl Cell {
+    fn is_free(&self) -> bool {
+        self.info.as_ref().is_some_and(CellInfo::is_free)
+            && self.claimed.is_none_or(|at| at.elapsed() > CLAIM)
+    }
+}
+
+/// A Guest of the gateway linked to a cell.
+struct Link {
+    number: u64,
+    cell: CellName,
+    up: zenoh::pubsub::Publisher<'static>,
+    _token: zenoh::liveliness::LivelinessToken,
+    listening: tokio::task::JoinHandle<()>,
+    welcomed: bool,
+    /// Given to a Guest already watching (from the line, or asking
+    /// control): its cell's welcome is told as the role it grants.
+    promoted: bool,
+}
+
+impl Drop for Link {
+    fn drop(&mut self) {
+        self.listening.abort();
+    }
+}
+
+struct Guest {
+    out: mpsc::Sender<ToConnection>,
+    asked: Option<Result<CellName, String>>,
+    admitted: Admitted,
+    role: Option<Role>,
+    watching: Option<CellName>,
+    link: Option<Link>,
+}
+
+pub(super) struct Front {
+    config: Arc<HostConfig>,
+    session: zenoh::Session,
+    events: mpsc::Sender<Event>,
+    /// This gateway's start, naming its links apart from an earlier one's.
+    since: u64,
+    links: u64,
+    guests: HashMap<u64, Guest>,
+    cells: BTreeMap<CellName, Cell>,
+    /// Operators waiting for any cell, first first.
+    line: VecDeque<u64>,
+}
+
+impl Front {
+    pub(super) fn new(
+        config: Arc<HostConfig>,
+        session: zenoh::Session,
+        events: mpsc::Sender<Event>,
+        since: u64,
+    ) -> Front {
+        Front {
+            config,
+            session,
+            events,
+            since,
+            links: 0,
+            guests: HashMap::new(),
+            cells: BTreeMap::new(),
+            line: VecDeque::new(),
+        }
+    }
+
+    pub(super) async fn run(
+        mut self,
+        mut inbox: mpsc::Receiver<ToHub>,
+        mut events: mpsc::Receiver<Event>,
+    ) {
+        let mut line_check = tokio::time::interval(Duration::from_millis(500));
+        loop {
+            tokio::select! {
+                event = events.recv() => match event {
+                    Some(event) => self.event(event).await,
+                    None => return,
+                },
+                message = inbox.recv() => match message {
+                    Some(message) => self.guest_said(message).await,
+                    None => return,
+                },
+                _ = line_check.tick() => {}
+            }
+            self.serve_line().await;
+        }
+    }
+
+    async fn guest_said(&mut self, message: ToHub) {
+        match message {
+            ToHub::Join(id, out, path) => {
+                let guest = Guest {
+                    out,
+                    asked: asked_cell(path.as_deref()),
+                    admitted: Admitted::anyone(),
+                    role: None,
+                    watching: None,
+                    link: None,
+                };
+                self.guests.insert(id, guest);
+            }
+            ToHub::Hello {
+                id,
+                admitted,
+                protocol,
+                role,
+                resume,
+            } => {
+                if let Some(guest) = self.guests.get_mut(&id) {
+                    guest.admitted = admitted;
+                }
+                self.hello(id, protocol, role, resume).await;
+            }
+            ToHub::Message(id, message) => self.message(id, message).await,
+            ToHub::Leave(id, meant) => self.leave(id, meant).await,
+            ToHub::Status(answer) => {
+                let _ = answer.send(Status::Gateway(self.status()));
+            }
+            ToHub::CatchUp(answer) => drop(answer),
+            // Who may log in is checked at each hello, by the gate.
+            ToHub::Accounts(_) => {}
+        }
+    }
+
+    fn send(&mut self, id: u64, message: ToConnection) {
+        let Some(guest) = self.guests.get(&id) else {
+            return;
+        };
+        if guest.out.try_send(message).is_err() {
+            // Its outbox is full: it is let go, as at a Host.
+            debug!(connection = id, "a Guest of the gateway fell behind");
+            self.guests.remove(&id);
+        }
+    }
+
+    fn tell(&mut self, id: u64, message: &HostMessage) {
+        self.send(id, ToConnection::Send(Message::text(message.encode())));
+    }
+
+    fn refuse(&mut self, id: u64, code: ErrorCode, why: impl Into<String>) {
+        let why = why.into();
+        self.config.audit.record(
+            AuditEntry::new("refused")
+                .connection(id)
+                .detail(format!("{code}: {why}")),
+        );
+        self.tell(id, &HostMessage::error(code, why));
+    }
+
+    async fn hello(&mut self, id: u64, protocol: u32, role: Role, resume: Option<String>) {
+        let Some(guest) = self.guests.get(&id) else {
+            return;
+        };
+        if guest.link.is_some() {
+            // Linked: its cell answers every hello.
+            let admitted = guest.admitted.clone();
+            let up = LinkUp::Hello {
+                admitted,
+                protocol,
+                role,
+                resume,
+            };
+            return self.up(id, &up).await;
+        }
+        let asked = match guest.asked.clone() {
+            Some(Ok(name)) if !self.cells.contains_key(&name) => {
+                return self.refuse(
+                    id,
+                    ErrorCode::NoCell,
+                    format!("no cell named {name} is up here"),
+                );
+            }
+            Some(Err(name)) => {
+                return self.refuse(id, ErrorCode::NoCell, format!("{name:?} is no cell's name"));
+            }
+            Some(Ok(name)) => Some(name),
+            None => None,
+        };
+        let watching = guest.role.is_some();
+        match role {
+            Role::Operator => {
+                let cell = asked.or_else(|| self.free_cell());
+                match cell {
+                    Some(cell) => self.link(id, cell, protocol, resume, watching).await,
+                    None if self.cells.is_empty() => {
+                        self.refuse(id, ErrorCode::NoCell, "no cell is up at this gateway yet")
+                    }
+                    None => self.refuse(
+                        id,
+                        ErrorCode::OperatorTaken,
+                        "every cell is in use: say hello as an observer and ask for control; the first cell free is yours",
+                    ),
+                }
+            }
+            Role::Observer if watching => {
+                self.refuse(id, ErrorCode::NotAllowedNow, "already said hello")
+            }
+            Role::Observer => match asked.or_else(|| self.busiest_cell()) {
+                Some(cell) => self.watch(id, cell),
+                None => self.refuse(id, ErrorCode::NoCell, "no cell is up at this gateway yet"),
+            },
+        }
+    }
+
+    /// A cell an operator may have at once, first by name.
+    fn free_cell(&self) -> Option<CellName> {
+        self.cells
+            .iter()
+            .find(|(_, cell)| cell.is_free())
+            .map(|(name, _)| name.clone())
+    }
+
+    /// The cell most worth watching: one with a run, then with an
+    /// operator, then with the most watchers.
+    fn busiest_cell(&self) -> Option<CellName> {
+        self.cells
+            .iter()
+            .max_by_key(|(name, cell)| {
+                let info = cell.info.as_ref();
+                (
+                    info.is_some_and(|i| i.run.is_some()),
+                    info.is_some_and(|i| i.operator.is_some()),
+                    cell.watchers.len(),
+                    std::cmp::Reverse((*name).clone()),
+                )
+            })
+            .map(|(name, _)| name.clone())
+    }
+
+    /// Makes `id` a watcher of `name`, welcomed from its catch-up.
+    fn watch(&mut self, id: u64, name: CellName) {
+        let Some(cell) = self.cells.get_mut(&name) else {
+            return;
+        };
+        cell.watchers.insert(id);
+        if let Some(guest) = self.guests.get_mut(&id) {
+            guest.watching = Some(name.clone());
+            guest.role = Some(Role::Observer);
+        }
+        match cell.catch_up.clone() {
+            Some(told) => self.welcome(id, &name, told),
+            None => cell.waiting.push(id),
+        }
+    }
+
+    /// Welcomes watcher `id` of `name` with what a late observer is told.
+    fn welcome(&mut self, id: u64, name: &CellName, told: Vec<HostMessage>) {
+        let user = self
+            .guests
+            .get(&id)
+            .and_then(|g| g.admitted.identity.name().map(str::to_owned));
+        info!(connection = id, cell = %name, "welcomed to watch");
+        self.config.audit.record(
+            AuditEntry::new("welcome")
+                .connection(id)
+                .user(user.as_deref())
+                .detail(format!("observer of cell {name}")),
+        );
+        for message in told {
+            let message = match message {
+                HostMessage::Welcome {
+                    experiments, scene, ..
+                } => HostMessage::Welcome {
+                    session: id,
+                    role: Role::Observer,
+                    experiments,
+                    resume: None,
+                    user: user.clone(),
+                    scene,
+                },
+                other => other,
+            };
+            self.tell(id, &message);
+        }
+        if let Some(cell) = self.cells.get(name) {
+            let streams = cell.mirror.streams();
+            self.send(id, ToConnection::Watch(streams));
+        }
+    }
+
+    /// Links Guest `id` to cell `name` and passes its hello as operator on.
+    async fn link(
+        &mut self,
+        id: u64,
+        name: CellName,
+        protocol: u32,
+        resume: Option<String>,
+        promoted: bool,
+    ) {
+        self.links += 1;
+        let number = self.links;
+        let key = format!("{}-{number}", self.since);
+        let opened = async {
+            // Listening first: the cell answers at once.
+            let down = self
+                .session
+                .declare_subscriber(keys::down(&name, &key))
+                .await?;
+            let token = self
+                .session
+                .liveliness()
+                .declare_token(keys::link(&name, &key))
+                .await?;
+            let up = self
+                .session
+                .declare_publisher(keys::up(&name, &key))
+                .await?;
+            Ok::<_, zenoh::Error>((down, token, up))
+        };
+        let (down, token, up) = match opened.await {
+            Ok(opened) => opened,
+            Err(e) => {
+                warn!("the gateway cannot link a Guest to cell {name}: {e}");
+                return self.refuse(
+                    id,
+                    ErrorCode::NoCell,
+                    format!("cell {name} cannot be reached"),
+                );
+            }
+        };
+        let events = self.events.clone();
+        let listening = tokio::spawn(async move {
+            while let Ok(sample) = down.recv_async().await {
+                match serde_json::from_slice(&sample.payload().to_bytes()) {
+                    Ok(said) => {
+                        if events.send(Event::Down(id, number, said)).await.is_err() {
+                            return;
+                        }
+                    }
+                    Err(e) => warn!("a cell said what is no link message: {e}"),
+                }
+            }
+        });
+        if let Some(cell) = self.cells.get_mut(&name) {
+            cell.claimed = Some(Instant::now());
+        }
+        let Some(guest) = self.guests.get_mut(&id) else {
+            return;
+        };
+        info!(connection = id, cell = %name, "linked");
+        guest.link = Some(Link {
+            number,
+            cell: name,
+            up,
+            _token: token,
+            listening,
+            welcomed: false,
+            promoted,
+        });
+        let hello = LinkUp::Hello {
+            admitted: guest.admitted.clone(),
+            protocol,
+            role: Role::Operator,
+            resume,
+        };
+        self.up(id, &hello).await;
+    }
+
+    /// Passes `said` up Guest `id`'s link.
+    async fn up(&mut self, id: u64, said: &LinkUp) {
+        let Some(link) = self.guests.get(&id).and_then(|g| g.link.as_ref()) else {
+            return;
+        };
+        if let Err(e) = link.up.put(said.encode()).await {
+            warn!(connection = id, "a link to cell {} failed: {e}", link.cell);
+        }
+    }
+
+    async fn message(&mut self, id: u64, message: GuestMessage) {
+        let Some(guest) = self.guests.get(&id) else {
+            return;
+        };
+        if guest.link.is_some() {
+            return self.up(id, &LinkUp::Message { message }).await;
+        }
+        match message {
+            GuestMessage::Queue => {
+                if !guest.admitted.may_drive {
+                    return self.refuse(
+                        id,
+                        ErrorCode::Unauthorized,
+                        "your account may watch, not drive",
+                    );
+                }
+                if !self.line.contains(&id) {
+                    self.line.push_back(id);
+                }
+                self.tell_line();
+            }
+            GuestMessage::LeaveQueue => {
+                self.line.retain(|&waiting| waiting != id);
+                let length = self.line.len() as u32;
+                self.tell(
+                    id,
+                    &HostMessage::Queue {
+                        position: None,
+                        length,
+                        wait_s: None,
+                    },
+                );
+                self.tell_line();
+            }
+            other => self.refuse(
+                id,
+                ErrorCode::NotAllowedNow,
+                format!(
+                    "watching through the gateway, {} is not yours to send: ask for control",
+                    other.kind()
+                ),
+            ),
+        }
+    }
+
+    /// Tells everyone in line where they stand.
+    fn tell_line(&mut self) {
+        let length = self.line.len() as u32;
+        let line: Vec<u64> = self.line.iter().copied().collect();
+        for (at, id) in line.into_iter().enumerate() {
+            let position = Some(at as u32 + 1);
+            self.tell(
+                id,
+                &HostMessage::Queue {
+                    position,
+                    length,
+                    wait_s: None,
+                },
+            );
+        }
+    }
+
+    /// Gives the first in line the first free cell, while there are both.
+    async fn serve_line(&mut self) {
+        self.line.retain(|id| self.guests.contains_key(id));
+        while let Some(&id) = self.line.front() {
+            let Some(cell) = self.free_cell() else { return };
+            self.line.pop_front();
+            self.link(id, cell, vl_core::PROTOCOL_VERSION, None, true)
+                .await;
+            self.tell_line();
+        }
+    }
+
+    async fn leave(&mut self, id: u64, meant: bool) {
+        self.up(id, &LinkUp::Leave { meant }).await;
+        self.unwatch(id);
+        self.line.retain(|&waiting| waiting != id);
+        self.guests.remove(&id);
+    }
+
+    /// Takes `id` from the watchers of the cell it watched.
+    fn unwatch(&mut self, id: u64) {
+        let watching = self.guests.get_mut(&id).and_then(|g| g.watching.take());
+        if let Some(cell) = watching.and_then(|name| self.cells.get_mut(&name)) {
+            cell.watchers.remove(&id);
+            cell.waiting.retain(|&w| w != id);
+        }
+    }
+
+    async fn event(&mut self, event: Event) {
+        match event {
+            Event::Up(name) => {
+                if !self.cells.contains_key(&name) {
+                    info!(cell = %name, "a cell is up");
+                    let mirror = Mirror::start(&self.session, &name, self.events.clone());
+                    let cell = Cell {
+                        info: None,
+                        mirror,
+                        catch_up: None,
+                        watchers: BTreeSet::new(),
+                        waiting: Vec::new(),
+                        claimed: None,
+                    };
+                    self.cells.insert(name, cell);
+                }
+            }
+            Event::Gone(name) => self.cell_lost(&name),
+            Event::Info(info) => {
+                if let Some(cell) = self.cells.get_mut(&info.name) {
+                    if info.operator.is_some() {
+                        cell.claimed = None;
+                    }
+                    cell.info = Some(info);
+                }
+            }
+            Event::Told(name, text) => {
+                let Some(cell) = self.cells.get(&name) else {
+                    return;
+                };
+                let watchers: Vec<u64> = cell.watchers.iter().copied().collect();
+                let message = Message::Text(text);
+                for id in watchers {
+                    self.send(id, ToConnection::Send(message.clone()));
+                }
+            }
+            Event::CaughtUp(name, told) => {
+                let Some(cell) = self.cells.get_mut(&name) else {
+                    return;
+                };
+                cell.catch_up = Some(told.clone());
+                let waiting = std::mem::take(&mut cell.waiting);
+                for id in waiting {
+                    self.welcome(id, &name, told.clone());
+                }
+            }
+            Event::Down(id, number, said) => self.down(id, number, said),
+        }
+    }
+
+    /// What a linked Guest's cell says to it.
+    fn down(&mut self, id: u64, number: u64, said: LinkDown) {
+        let Some(guest) = self.guests.get_mut(&id) else {
+            return;
+        };
+        // A link already let go may still have said something.
+        let Some(link) = guest.link.as_mut().filter(|l| l.number == number) else {
+            return;
+        };
+        match said {
+            LinkDown::Send { text } if !link.welcomed => {
+                match HostMessage::decode(&text) {
+                    // The cell would not have them: they are where they were.
+                    Ok(HostMessage::Error { code, message }) => {
+                        guest.link = None;
+                        self.tell(id, &HostMessage::error(code, message));
+                    }
+                    Ok(HostMessage::Welcome { role, resume, .. }) if link.promoted => {
+                        let granted = HostMessage::Role {
+                            role,
+                            resume,
+                            slot_s: None,
+                            ended: None,
+                        };
+                        self.tell(id, &granted);
+                    }
+                    _ => self.send(id, ToConnection::Send(Message::text(text))),
+                }
+            }
+            LinkDown::Send { text } => self.send(id, ToConnection::Send(Message::text(text))),
+            LinkDown::Welcomed => {
+                link.welcomed = true;
+                let name = link.cell.clone();
+                self.unwatch(id);
+                if let Some(guest) = self.guests.get_mut(&id) {
+                    guest.role = Some(Role::Operator);
+                    guest.watching = Some(name.clone());
+                }
+                if let Some(cell) = self.cells.get(&name) {
+                    let streams = cell.mirror.streams();
+                    self.send(id, ToConnection::Watch(streams));
+                }
+            }
+            LinkDown::End { code, why } => {
+                guest.link = None;
+                self.send(id, ToConnection::End(code, why));
+            }
+        }
+    }
+
+    /// A cell that went: its Guests are told and let go, to come back to
+    /// another.
+    fn cell_lost(&mut self, name: &CellName) {
+        let Some(cell) = self.cells.remove(name) else {
+            return;
+        };
+        warn!(cell = %name, "a cell is lost");
+        self.config
+            .audit
+            .record(AuditEntry::new("cell_lost").detail(format!("cell {name}")));
+        let linked = self
+            .guests
+            .iter()
+            .filter_map(|(id, g)| g.link.as_ref().filter(|l| &l.cell == name).map(|_| *id));
+        let on_it: BTreeSet<u64> = linked
+            .chain(cell.watchers.iter().copied())
+            .chain(cell.waiting)
+            .collect();
+        for id in on_it {
+            let why = format!(
+                "cell {name} stopped answering: its run, if any, is over; connect again for another cell"
+            );
+            self.send(id, ToConnection::End(ErrorCode::CellLost, why));
+        }
+    }
+
+    fn status(&self) -> GatewayStatus {
+        let cells = self
+            .cells
+            .values()
+            .filter_map(|cell| {
+                Some(CellStatus {
+                    info: cell.info.clone()?,
+                    watchers: cell.watchers.len() as u32,
+                })
+            })
+            .collect();
+        let person = |id: &u64| Person {
+            session: Some(*id),
+            user: self
+                .guests
+                .get(id)
+                .and_then(|g| g.admitted.identity.name().map(str::to_owned)),
+        };
+        GatewayStatus {
+            cells,
+            connected: self.guests.values().filter(|g| g.role.is_some()).count() as u32,
+            line: self.line.iter().map(person).collect(),
+        }
+    }
+}

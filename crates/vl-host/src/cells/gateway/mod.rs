@@ -1,0 +1,120 @@
+//! The gateway: the lab's one public address in front of many cells. Its
+//! connections are a Host's (pages, Guests, TLS, accounts, admission);
+//! behind them, instead of a lab, the front (`front`) routes each Guest to
+//! a cell and serves each cell's watchers from the one copy the cell
+//! publishes (`mirror`).
+
+mod front;
+mod mirror;
+
+use std::sync::Arc;
+
+use tokio::net::TcpListener;
+use tokio::sync::{mpsc, watch};
+use tracing::{error, info};
+use vl_core::CellName;
+use zenoh::sample::SampleKind;
+
+use super::{ZenohError, ZenohOptions, keys};
+use crate::accounts::gate::Gate;
+use crate::server::{HUB_QUEUE, HostConfig, Outlets, accept, watch_accounts};
+use front::{Event, Front};
+
+/// Events from the cells waiting for the front.
+const EVENTS: usize = 4096;
+
+/// Serves Guests on `listener` and the cells met on Zenoh by `zenoh`,
+/// until the task is dropped.
+pub(crate) async fn serve(listener: TcpListener, config: HostConfig, zenoh: ZenohOptions) {
+    let session = match super::open(&zenoh).await {
+        Ok(session) => session,
+        Err(e) => return error!("the gateway cannot open Zenoh: {e}"),
+    };
+    info!(zid = %session.zid(), "the gateway is on Zenoh");
+    let config = Arc::new(config);
+    let gate = Arc::new(Gate::new(
+        config.users.clone(),
+        config.token.clone(),
+        config.observers,
+        config.audit.clone(),
+    ));
+    let (hub_tx, hub_rx) = mpsc::channel(HUB_QUEUE);
+    let (events_tx, events_rx) = mpsc::channel(EVENTS);
+    // A gateway's connections are given their cell's feedback and frames
+    // on their welcome; until then, nothing.
+    let (_no_feedback, feedback) = watch::channel(None);
+    let (_no_frames, frames) = watch::channel(None);
+    let since = vl_record::now_ns();
+    let outlets = Outlets {
+        feedback,
+        frames,
+        watchers: Arc::default(),
+        record: vl_record::Feed::default(),
+        foxglove: None,
+        session: since.to_string().into(),
+    };
+    let front = Front::new(config.clone(), session.clone(), events_tx.clone(), since);
+    tokio::select! {
+        () = front.run(hub_rx, events_rx) => {}
+        () = accept(listener, hub_tx.clone(), outlets, config, gate.clone()) => {}
+        () = watch_accounts(gate, hub_tx) => {}
+        Err(e) = watch_cells(&session, events_tx) => error!("the gateway no longer sees its cells: {e}"),
+    }
+}
+
+/// Tells the front which cells come and go, and what each says of itself.
+async fn watch_cells(
+    session: &zenoh::Session,
+    events: mpsc::Sender<Event>,
+) -> Result<(), ZenohError> {
+    let tokens = session
+        .liveliness()
+        .declare_subscriber(keys::CELLS)
+        .history(true)
+        .await?;
+    let infos = session.declare_subscriber(keys::INFOS).await?;
+    loop {
+        let event = tokio::select! {
+            token = tokens.recv_async() => {
+                let Ok(token) = token else { return Ok(()) };
+                let Some(name) = keys::cell_of(token.key_expr().as_str()) else { continue };
+                match token.kind() {
+                    SampleKind::Put => Event::Up(name),
+                    SampleKind::Delete => Event::Gone(name),
+                }
+            }
+            sample = infos.recv_async() => {
+                let Ok(sample) = sample else { return Ok(()) };
+                match serde_json::from_slice(&sample.payload().to_bytes()) {
+                    Ok(info) => Event::Info(info),
+                    Err(e) => {
+                        tracing::warn!("{} is no cell's info: {e}", sample.key_expr());
+                        continue;
+                    }
+                }
+            }
+        };
+        if events.send(event).await.is_err() {
+            return Ok(());
+        }
+    }
+}
+
+/// The name a Guest's path asks for (`/cells/NAME`), if any.
+fn asked_cell(path: Option<&str>) -> Option<Result<CellName, String>> {
+    let name = path?.strip_prefix("/cells/")?.trim_end_matches('/');
+    Some(name.parse().map_err(|_| name.to_owned()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_path_asks_for_a_cell_by_name() {
+        assert_eq!(asked_cell(Some("/")), None);
+        assert_eq!(asked_cell(None), None);
+        assert_eq!(asked_cell(Some("/cells/b")), Some(Ok("b".parse().unwrap())));
+        assert_eq!(asked_cell(Some("/cells/B C")), Some(Err("B C".into())));
+    }
+}

@@ -1,0 +1,72 @@
+//! `vl gateway`: the lab's one public address in front of many cells
+//! (`vl host --gateway … --cell NAME`), on Zenoh.
+
+use std::net::SocketAddr;
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use vl_host::{Endpoint, Gateway, HostConfig, ZenohOptions};
+
+use crate::access::AccessArgs;
+
+#[derive(clap::Args)]
+pub(crate) struct GatewayArgs {
+    /// Address for Guests and browsers; port 0 picks a free one.
+    #[arg(long, default_value = "127.0.0.1:7400", value_parser = vl_core::listen_address)]
+    listen: SocketAddr,
+    /// Where the embedded Zenoh router listens for cells (tcp/HOST:PORT).
+    #[arg(long, default_value = "tcp/0.0.0.0:7447", conflicts_with = "zenoh")]
+    zenoh_listen: Vec<Endpoint>,
+    /// Join an existing Zenoh network here instead (a site's zenohd),
+    /// with no router of its own.
+    #[arg(long)]
+    zenoh: Vec<Endpoint>,
+    /// A client the gateway hears nothing from this long is disconnected.
+    #[arg(long, default_value = "10", value_parser = crate::duration)]
+    ping_timeout: Duration,
+    #[command(flatten)]
+    access: AccessArgs,
+}
+
+pub(crate) async fn gateway(args: GatewayArgs) -> Result<()> {
+    let mut config = HostConfig {
+        ping_timeout: args.ping_timeout,
+        ..HostConfig::default()
+    };
+    args.access.apply(&mut config)?;
+    let zenoh = if args.zenoh.is_empty() {
+        ZenohOptions {
+            connect: Vec::new(),
+            listen: args.zenoh_listen.clone(),
+        }
+    } else {
+        ZenohOptions {
+            connect: args.zenoh.clone(),
+            listen: Vec::new(),
+        }
+    };
+    let gateway = Gateway::start(args.listen, config, zenoh.clone())
+        .await
+        .context("the gateway cannot start")?;
+    // Scripts and tests read the bound address from this first line.
+    println!("vl gateway listening on ws://{}", gateway.addr);
+    match zenoh.connect.first() {
+        Some(network) => eprintln!("vl gateway: cells meet it on the Zenoh network at {network}"),
+        None => {
+            let at: Vec<String> = zenoh.listen.iter().map(Endpoint::to_string).collect();
+            eprintln!(
+                "vl gateway: cells join with `vl host --gateway {} --cell NAME`",
+                at.join(" --gateway ")
+            );
+        }
+    }
+    let mut terminate = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+        .context("cannot wait for SIGTERM")?;
+    tokio::select! {
+        () = gateway.wait() => bail!("the gateway stopped (see the log above)"),
+        signal = tokio::signal::ctrl_c() => signal.context("cannot wait for Ctrl-C")?,
+        _ = terminate.recv() => {}
+    }
+    eprintln!("vl gateway: stopping");
+    Ok(())
+}
