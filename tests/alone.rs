@@ -8,6 +8,7 @@ mod common;
 
 mod disk_full;
 mod floods;
+mod gateway;
 mod hiccups;
 mod stalls;
 

@@ -82,7 +82,11 @@ async fn watched(
         .express(true)
         .await?;
     let frames_out = session.declare_publisher(keys::frames(name)).await?;
+    // Frames are made only while someone watches: the gateway takes them
+    // only while one of its Guests is on this cell.
+    let looked_at = frames_out.matching_listener().await?;
     let (mut feedback, mut frames) = (cell.feedback.clone(), cell.frames.clone());
+    let mut watching = None;
     loop {
         let id = ids.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let (to_me, mut inbox) = mpsc::channel(OUTBOX);
@@ -98,7 +102,7 @@ async fn watched(
         {
             return Ok(());
         }
-        let mut watching = None;
+        let mut welcomed = false;
         loop {
             tokio::select! {
                 out = inbox.recv() => match out {
@@ -106,20 +110,24 @@ async fn watched(
                         messages.put(message.into_data().to_vec()).await?;
                     }
                     Some(ToConnection::Subscribe | ToConnection::Watch(_)) => {
-                        watching.get_or_insert_with(|| Watching::new(&cell.watchers));
+                        welcomed = true;
                         feedback.mark_changed();
                         frames.mark_changed();
                     }
                     // Let go (it fell behind): join again.
                     Some(ToConnection::End(..)) | None => break,
                 },
-                Ok(()) = feedback.changed(), if watching.is_some() => {
+                status = looked_at.recv_async() => {
+                    let Ok(status) = status else { return Ok(()) };
+                    watching = status.matching().then(|| Watching::new(&cell.watchers));
+                }
+                Ok(()) = feedback.changed(), if welcomed => {
                     let latest = feedback.borrow_and_update().clone();
                     if let Some(message) = latest {
                         feedback_out.put(message.encode()).await?;
                     }
                 }
-                Ok(()) = frames.changed(), if watching.is_some() => {
+                Ok(()) = frames.changed(), if welcomed && watching.is_some() => {
                     let latest = frames.borrow_and_update().clone();
                     if let Some(frame) = latest {
                         frames_out.put(frame.to_vec()).await?;

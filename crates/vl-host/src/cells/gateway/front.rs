@@ -135,11 +135,18 @@ impl Front {
         loop {
             tokio::select! {
                 event = events.recv() => match event {
-                    Some(event) => self.event(event).await,
+                    Some(event @ (Event::Told(..) | Event::Info(_))) => self.event(event).await,
+                    Some(event) => {
+                        self.event(event).await;
+                        self.want_frames();
+                    }
                     None => return,
                 },
                 message = inbox.recv() => match message {
-                    Some(message) => self.guest_said(message).await,
+                    Some(message) => {
+                        self.guest_said(message).await;
+                        self.want_frames();
+                    }
                     None => return,
                 },
                 _ = line_check.tick() => {}
@@ -189,9 +196,30 @@ impl Front {
             return;
         };
         if guest.out.try_send(message).is_err() {
-            // Its outbox is full: it is let go, as at a Host.
+            // Its outbox is full: it is let go, as at a Host (its
+            // connection says why; its link's token goes with it).
             debug!(connection = id, "a Guest of the gateway fell behind");
-            self.guests.remove(&id);
+            self.forget(id);
+        }
+    }
+
+    /// Lets go of Guest `id`: off its cell, out of the line.
+    fn forget(&mut self, id: u64) {
+        self.unwatch(id);
+        self.line.retain(|&waiting| waiting != id);
+        self.guests.remove(&id);
+    }
+
+    /// Takes frames from the cells someone is on, and from no other.
+    fn want_frames(&mut self) {
+        let watched: BTreeSet<&CellName> = self
+            .guests
+            .values()
+            .filter_map(|g| g.watching.as_ref())
+            .collect();
+        for (name, cell) in &mut self.cells {
+            cell.mirror
+                .want_frames(&self.session, watched.contains(name));
         }
     }
 
@@ -504,9 +532,7 @@ impl Front {
 
     async fn leave(&mut self, id: u64, meant: bool) {
         self.up(id, &LinkUp::Leave { meant }).await;
-        self.unwatch(id);
-        self.line.retain(|&waiting| waiting != id);
-        self.guests.remove(&id);
+        self.forget(id);
     }
 
     /// Takes `id` from the watchers of the cell it watched.

@@ -20,21 +20,25 @@ const CATCH_UP_AFTER: Duration = Duration::from_millis(50);
 
 /// A cell's newest feedback and frame, and the tasks that keep them.
 pub(super) struct Mirror {
+    name: CellName,
     feedback: watch::Sender<Option<HostMessage>>,
     frames: watch::Sender<Option<Bytes>>,
     tasks: Vec<JoinHandle<()>>,
+    /// Taking frames, while a Guest is on the cell: the cell makes them
+    /// only while someone takes them.
+    taking_frames: Option<JoinHandle<()>>,
 }
 
 impl Drop for Mirror {
     fn drop(&mut self) {
-        for task in &self.tasks {
+        for task in self.tasks.iter().chain(&self.taking_frames) {
             task.abort();
         }
     }
 }
 
 impl Mirror {
-    /// Starts taking `name`'s feedback, frames and messages from Zenoh.
+    /// Starts taking `name`'s feedback and messages from Zenoh.
     pub(super) fn start(
         session: &zenoh::Session,
         name: &CellName,
@@ -48,13 +52,30 @@ impl Mirror {
                 name.clone(),
                 feedback.clone(),
             )),
-            tokio::spawn(take_frames(session.clone(), name.clone(), frames.clone())),
             tokio::spawn(take_messages(session.clone(), name.clone(), events)),
         ];
         Mirror {
+            name: name.clone(),
             feedback,
             frames,
             tasks,
+            taking_frames: None,
+        }
+    }
+
+    /// Takes the cell's frames while `wanted`, else not.
+    pub(super) fn want_frames(&mut self, session: &zenoh::Session, wanted: bool) {
+        match (&self.taking_frames, wanted) {
+            (None, true) => {
+                let task = take_frames(session.clone(), self.name.clone(), self.frames.clone());
+                self.taking_frames = Some(tokio::spawn(task));
+            }
+            (Some(task), false) => {
+                task.abort();
+                self.taking_frames = None;
+                self.frames.send_replace(None);
+            }
+            _ => {}
         }
     }
 
