@@ -108,9 +108,7 @@ fn until_idle(url: &str) {
 
 /// The liveliness tokens under `vl/cells/*` an outside Zenoh client sees.
 fn tokens_seen_from_python(zenoh: &str) -> Option<Vec<String>> {
-    let Some(python) = common::python_with("zenoh") else {
-        return None;
-    };
+    let python = common::python_with("zenoh")?;
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/gateway/tokens.py");
     let out = Command::new(python).args([script, zenoh]).output().unwrap();
     assert!(out.status.success(), "{}", common::stderr(&out));
