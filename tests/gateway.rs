@@ -269,3 +269,88 @@ async fn a_gateway_serves_three_cells_and_outlives_one() {
     let next = common::headless_run(&url, 90, &[]);
     assert_eq!(next["reached_goal"], true, "{next}");
 }
+
+/// Operators wait in one line for all the cells, and the first cell free
+/// is the first in line's; a gateway restarted finds its cells again;
+/// careless asks get clear refusals.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn operators_wait_in_one_line_for_every_cell() {
+    let _alone = alone().await;
+    let (gateway, url, zenoh) = start_gateway();
+    let _cells: Vec<VlProcess> = ["x", "y"].iter().map(|n| start_cell(&zenoh, n)).collect();
+    until_cells(&url, &["x", "y"], Duration::from_secs(30));
+
+    // Asking for a cell that is not there, or by no cell's name.
+    let mut lost = Peer::connect(&format!("{url}/cells/z")).await;
+    lost.send(json!({"type": "hello", "protocol": 1, "role": "observer"}))
+        .await;
+    lost.expect_error("no_cell").await;
+    let mut careless = Peer::connect(&format!("{url}/cells/NOT%20ONE")).await;
+    careless
+        .send(json!({"type": "hello", "protocol": 1, "role": "operator"}))
+        .await;
+    careless.expect_error("no_cell").await;
+
+    // Two operators take the two cells; a third is told to wait.
+    let mut first = Peer::connect(&url).await;
+    first.hello("operator").await;
+    let mut second = Peer::connect(&url).await;
+    second.hello("operator").await;
+    let mut third = Peer::connect(&url).await;
+    third
+        .send(json!({"type": "hello", "protocol": 1, "role": "operator"}))
+        .await;
+    third.expect_error("operator_taken").await;
+    let welcome = third.hello("observer").await;
+    assert!(
+        welcome["scene"].is_object(),
+        "a watcher sees its cell's lab: {welcome}"
+    );
+    third
+        .send(json!({"type": "mount", "experiment": "teleoperation"}))
+        .await;
+    third.expect_error("not_allowed_now").await;
+    third.send(json!({"type": "queue"})).await;
+    let place = third.expect("queue").await;
+    assert_eq!(place["position"], 1, "{place}");
+
+    // The first leaves: its cell is the third's, who drives there.
+    first.send(json!({"type": "bye"})).await;
+    let granted = third
+        .next_of("role", Duration::from_secs(10))
+        .await
+        .expect("control within 10 s of a cell coming free");
+    assert_eq!(granted["role"], "operator", "{granted}");
+    third.start("teleoperation").await;
+    let moved = third.command(1, json!({"v": 40.0, "w": 0.0})).await;
+    assert_eq!(moved["type"], "feedback", "{moved}");
+    let status = status(&url);
+    let driven = status["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| !c["operator"].is_null());
+    assert_eq!(driven.count(), 2, "{status}");
+    assert_eq!(status["line"], json!([]), "{status}");
+
+    // A gateway restarted on the same router address finds its cells
+    // again by itself.
+    drop(gateway);
+    let port = zenoh.rsplit_once(':').unwrap().1;
+    let listen = format!("tcp/127.0.0.1:{port}");
+    let (_again, url, _) = {
+        let (g, u) = start_vl(
+            &[
+                "gateway",
+                "--listen",
+                "127.0.0.1:0",
+                "--zenoh-listen",
+                &listen,
+            ],
+            "vl gateway listening on ",
+        );
+        (g, u, ())
+    };
+    let back = until_cells(&url, &["x", "y"], Duration::from_secs(15));
+    eprintln!("the cells are back at a restarted gateway after {back:?}");
+}

@@ -41,6 +41,9 @@ pub(super) enum Event {
     Down(u64, u64, LinkDown),
 }
 
+/// How a welcome's text begins (serde writes the tag first).
+const WELCOME: &str = r#"{"type":"welcome""#;
+
 /// How long a cell given to an operator counts as taken before its info
 /// says so.
 const CLAIM: Duration = Duration::from_secs(3);
@@ -604,14 +607,18 @@ impl Front {
             return;
         };
         match said {
-            LinkDown::Send { text } if !link.welcomed => {
-                match HostMessage::decode(&text) {
+            LinkDown::Send { text } => {
+                // Read only what decides where the Guest stands: a refusal
+                // of its hello, and the welcome of one already watching,
+                // told as the role it grants.
+                let deciding = !link.welcomed || (link.promoted && text.starts_with(WELCOME));
+                match deciding.then(|| HostMessage::decode(&text).ok()).flatten() {
                     // The cell would not have them: they are where they were.
-                    Ok(HostMessage::Error { code, message }) => {
+                    Some(HostMessage::Error { code, message }) if !link.welcomed => {
                         guest.link = None;
                         self.tell(id, &HostMessage::error(code, message));
                     }
-                    Ok(HostMessage::Welcome { role, resume, .. }) if link.promoted => {
+                    Some(HostMessage::Welcome { role, resume, .. }) if link.promoted => {
                         let granted = HostMessage::Role {
                             role,
                             resume,
@@ -623,7 +630,6 @@ impl Front {
                     _ => self.send(id, ToConnection::Send(Message::text(text))),
                 }
             }
-            LinkDown::Send { text } => self.send(id, ToConnection::Send(Message::text(text))),
             LinkDown::Welcomed => {
                 link.welcomed = true;
                 let name = link.cell.clone();
@@ -693,5 +699,25 @@ impl Front {
             connected: self.guests.values().filter(|g| g.role.is_some()).count() as u32,
             line: self.line.iter().map(person).collect(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The front tells a welcome by how its text begins.
+    #[test]
+    fn a_welcome_begins_as_the_front_looks_for() {
+        let welcome = HostMessage::Welcome {
+            session: 1,
+            role: Role::Operator,
+            experiments: Vec::new(),
+            resume: Some("s".into()),
+            user: None,
+            scene: None,
+        };
+        assert!(welcome.encode().starts_with(WELCOME));
+        assert!(!HostMessage::Bye.encode().starts_with(WELCOME));
     }
 }
