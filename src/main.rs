@@ -47,7 +47,7 @@ enum Command {
     Host(Box<host::HostCommand>),
     /// The lab's one public address in front of many cells (each a `vl
     /// host --gateway … --cell NAME`), on Zenoh.
-    Gateway(gateway::GatewayArgs),
+    Gateway(gateway::GatewayCommand),
     /// Open the Guest window on a Host (on the user's desktop).
     Guest(guest::GuestArgs),
     /// Run a Host on the simulated lab and a Guest against it, in one process.
@@ -171,7 +171,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             .block_on(host::host_command(*command))
             .map(|()| ExitCode::SUCCESS),
         Command::Gateway(args) => runtime()?
-            .block_on(gateway::gateway(args))
+            .block_on(gateway::gateway_command(args))
             .map(|()| ExitCode::SUCCESS),
         Command::Guest(args) => guest::guest(&runtime()?, args),
         Command::Demo(args) => guest::demo(&runtime()?, args),

@@ -114,7 +114,8 @@ pub use media::{
 };
 pub use priority::raise_for_control as raise_priority;
 pub use server::bench::{
-    BenchError, Guessing, OperatorLatency, WatchersBench, WatchersCost, operator_latency,
+    BenchError, GatewayBench, GatewayCost, Guessing, OperatorLatency, WatchersBench, WatchersCost,
+    operator_latency,
 };
 pub use server::origin::{AllowedOrigins, NotAnOrigin};
 pub use server::{ForecastSettings, HostConfig, MOST_FORECAST_SEEDS};

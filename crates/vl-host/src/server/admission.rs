@@ -53,6 +53,8 @@ struct Silent {
 
 #[derive(Default)]
 struct Counts {
+    /// Connections served at once (welcomed, or not yet).
+    capacity: usize,
     total: usize,
     /// Connections not yet welcomed, oldest first.
     unwelcomed: VecDeque<Silent>,
@@ -106,7 +108,7 @@ impl Counts {
 }
 
 /// The Host's connection slots.
-#[derive(Clone, Default)]
+#[derive(Clone)]
 pub(crate) struct Admission {
     counts: Arc<Mutex<Counts>>,
 }
@@ -127,7 +129,19 @@ fn lock(counts: &Mutex<Counts>) -> MutexGuard<'_, Counts> {
 
 impl Admission {
     pub(crate) fn new() -> Admission {
-        Admission::default()
+        Admission::with_capacity(MAX_CONNECTIONS)
+    }
+
+    /// Slots for `capacity` connections at once (a gateway serves a
+    /// class of hundreds: its watchers cost its cells nothing).
+    pub(crate) fn with_capacity(capacity: usize) -> Admission {
+        let counts = Counts {
+            capacity,
+            ..Counts::default()
+        };
+        Admission {
+            counts: Arc::new(Mutex::new(counts)),
+        }
     }
 
     /// A slot for connection `id` from `address`, pushing out a silent
@@ -137,11 +151,11 @@ impl Admission {
         let mut counts = lock(&self.counts);
         if counts.from(address) >= MAX_UNWELCOMED_PER_ADDRESS {
             counts.evict_oldest_of(address);
-        } else if counts.total >= MAX_CONNECTIONS || counts.unwelcomed.len() >= MAX_UNWELCOMED {
+        } else if counts.total >= counts.capacity || counts.unwelcomed.len() >= MAX_UNWELCOMED {
             let greediest = counts.greediest()?;
             counts.evict_oldest_of(greediest);
         }
-        if counts.total >= MAX_CONNECTIONS + MAX_UNWELCOMED {
+        if counts.total >= counts.capacity + MAX_UNWELCOMED {
             return None;
         }
         counts.total += 1;
@@ -196,7 +210,7 @@ impl Ticket {
         if may_drive || counts.watching.contains(&self.id) {
             return true;
         }
-        if counts.watching.len() >= MAX_CONNECTIONS - KEPT_FOR_DRIVERS {
+        if counts.watching.len() >= counts.capacity - KEPT_FOR_DRIVERS {
             return false;
         }
         counts.watching.insert(self.id);

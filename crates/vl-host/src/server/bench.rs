@@ -21,10 +21,12 @@ use vl_report::table::{Report, Table};
 
 use super::hub::ForecastJob;
 
+mod gateway;
 mod recording;
 mod watchers;
 use crate::accounts::users::{AccountRole, Users};
 use crate::{ForecastSettings, Host, HostConfig, SimLab};
+pub use gateway::{GatewayBench, GatewayCost};
 pub use watchers::{WatchersBench, WatchersCost};
 
 /// Why the bench could not run.
@@ -123,6 +125,76 @@ const ACCOUNT: (&str, &str) = ("bench", "bench password");
 type Socket =
     tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
+/// A `vl` child process (a Host, a gateway), killed when dropped.
+struct Process(std::process::Child);
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+impl Process {
+    /// Starts `vl ARGS…`; it, and the rest of its first line after
+    /// `prefix` (where it listens).
+    fn start(
+        vl: &std::path::Path,
+        args: &[&str],
+        prefix: &str,
+    ) -> Result<(Process, String), BenchError> {
+        use std::io::BufRead;
+        let child = std::process::Command::new(vl)
+            .args(args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .map_err(|e| BenchError::Connect(format!("cannot start {}: {e}", vl.display())))?;
+        let mut process = Process(child);
+        let stdout = process.0.stdout.take().expect("piped stdout");
+        let mut line = String::new();
+        std::io::BufReader::new(stdout)
+            .read_line(&mut line)
+            .map_err(|e| BenchError::Connect(e.to_string()))?;
+        let rest = line
+            .trim()
+            .strip_prefix(prefix)
+            .ok_or_else(|| BenchError::Connect(format!("vl {} said {line:?}", args[0])))?
+            .to_owned();
+        Ok((process, rest))
+    }
+
+    fn pid(&self) -> u32 {
+        self.0.id()
+    }
+}
+
+/// The processor time `pid` has used so far, s (user and system).
+fn cpu_seconds(pid: u32) -> f64 {
+    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
+        return f64::NAN;
+    };
+    // The fields after the command's name, which may hold spaces.
+    let fields: Vec<&str> = stat
+        .rsplit_once(')')
+        .map_or(vec![], |(_, rest)| rest.split_whitespace().collect());
+    let ticks = |i: usize| fields.get(i).and_then(|f| f.parse::<f64>().ok());
+    // utime and stime are the stat's 14th and 15th fields.
+    match (ticks(11), ticks(12)) {
+        (Some(user), Some(system)) => (user + system) / clock_ticks(),
+        _ => f64::NAN,
+    }
+}
+
+fn clock_ticks() -> f64 {
+    #[cfg(target_os = "linux")]
+    // SAFETY: sysconf reads a constant of the system.
+    let ticks = unsafe { libc::sysconf(libc::_SC_CLK_TCK) } as f64;
+    #[cfg(not(target_os = "linux"))]
+    let ticks = 100.0;
+    ticks
+}
+
 /// How long any one answer may take.
 const ANSWER: Duration = Duration::from_secs(10);
 
@@ -196,30 +268,50 @@ async fn observer(url: &str) -> Result<Socket, BenchError> {
     Ok(ws)
 }
 
-/// Reads everything until told to stop, then says goodbye; returns the
-/// feedback and frames read, and over how many seconds.
-async fn observe(mut ws: Socket, mut stop: tokio::sync::watch::Receiver<bool>) -> (u64, u64, f64) {
+/// What an observer read, and over how many seconds.
+#[derive(Debug, Clone, Copy, Default)]
+struct Observed {
+    feedback: u64,
+    frames: u64,
+    /// Of messages, text and frames alike.
+    bytes: u64,
+    seconds: f64,
+}
+
+/// Reads everything until told to stop, then says goodbye.
+async fn observe(mut ws: Socket, mut stop: tokio::sync::watch::Receiver<bool>) -> Observed {
     let began = Instant::now();
-    let (mut feedback, mut frames) = (0, 0);
+    let (mut feedback, mut frames, mut bytes) = (0, 0, 0);
     loop {
         tokio::select! {
             _ = stop.changed() => break,
             next = ws.next() => match next {
-                Some(Ok(Message::Text(text))) => match HostMessage::decode(text.as_str()) {
-                    Ok(HostMessage::Feedback(_)) => feedback += 1,
-                    Ok(HostMessage::Ping { t }) => {
-                        let _ = say(&mut ws, &GuestMessage::Pong { t }).await;
+                Some(Ok(Message::Text(text))) => {
+                    bytes += text.len() as u64;
+                    match HostMessage::decode(text.as_str()) {
+                        Ok(HostMessage::Feedback(_)) => feedback += 1,
+                        Ok(HostMessage::Ping { t }) => {
+                            let _ = say(&mut ws, &GuestMessage::Pong { t }).await;
+                        }
+                        _ => {}
                     }
-                    _ => {}
-                },
-                Some(Ok(Message::Binary(_))) => frames += 1,
+                }
+                Some(Ok(Message::Binary(frame))) => {
+                    frames += 1;
+                    bytes += frame.len() as u64;
+                }
                 Some(Ok(_)) => {}
                 _ => break,
             },
         }
     }
     let _ = say(&mut ws, &GuestMessage::Bye).await;
-    (feedback, frames, began.elapsed().as_secs_f64())
+    Observed {
+        feedback,
+        frames,
+        bytes,
+        seconds: began.elapsed().as_secs_f64(),
+    }
 }
 
 /// Runs the bench: `observers` reading, `commands` timed; `step` is told
@@ -279,7 +371,7 @@ pub async fn operator_latency(
     let q = |p| nearest_rank(&took, p).unwrap_or(f64::NAN);
     let slowest = fed
         .iter()
-        .map(|&(feedback, frames, _)| (feedback, frames))
+        .map(|o| (o.feedback, o.frames))
         .min_by_key(|(f, _)| *f)
         .unwrap_or_default();
     Ok(OperatorLatency {

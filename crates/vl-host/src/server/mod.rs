@@ -37,7 +37,7 @@ use crate::accounts::gate::{Gate, Observers};
 use crate::accounts::users::Users;
 use crate::lab::{FramePolicy, Lab};
 use crate::tls::Tls;
-use admission::Admission;
+pub(crate) use admission::Admission;
 use connection::ConnectionTask;
 use hub::Hub;
 pub use hub::{ForecastSettings, MOST_FORECAST_SEEDS};
@@ -192,7 +192,7 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
     // drops the lab, which stops the robot.
     tokio::select! {
         () = hub.run(hub_rx) => {}
-        () = accept(listener, hub_tx, outlets, config, gate) => {}
+        () = accept(listener, hub_tx, outlets, config, gate, Admission::new()) => {}
         () = accounts => {}
         () = feeding => {}
         () = joined => {}
@@ -238,8 +238,8 @@ pub(crate) async fn accept(
     outlets: Outlets,
     config: Arc<HostConfig>,
     gate: Arc<Gate>,
+    admission: Admission,
 ) {
-    let admission = Admission::new();
     let mut next_id = 1u64;
     loop {
         let (stream, peer) = match listener.accept().await {

@@ -17,8 +17,12 @@ use zenoh::sample::SampleKind;
 
 use super::{ZenohError, ZenohOptions, keys};
 use crate::accounts::gate::Gate;
-use crate::server::{HUB_QUEUE, HostConfig, Outlets, accept, watch_accounts};
+use crate::server::{Admission, HUB_QUEUE, HostConfig, Outlets, accept, watch_accounts};
 use front::{Event, Front};
+
+/// Connections a gateway serves at once: a class or several, watching
+/// cells that each send every frame once.
+const CONNECTIONS: usize = 4096;
 
 /// Events from the cells waiting for the front.
 const EVENTS: usize = 4096;
@@ -56,7 +60,7 @@ pub(crate) async fn serve(listener: TcpListener, config: HostConfig, zenoh: Zeno
     let front = Front::new(config.clone(), session.clone(), events_tx.clone(), since);
     tokio::select! {
         () = front.run(hub_rx, events_rx) => {}
-        () = accept(listener, hub_tx.clone(), outlets, config, gate.clone()) => {}
+        () = accept(listener, hub_tx.clone(), outlets, config, gate.clone(), Admission::with_capacity(CONNECTIONS)) => {}
         () = watch_accounts(gate, hub_tx) => {}
         Err(e) = watch_cells(&session, events_tx) => error!("the gateway no longer sees its cells: {e}"),
     }

@@ -5,9 +5,7 @@
 //! does (every feedback and frame). The Host's processor time is read
 //! from `/proc` over each round, so the watchers' own work is not counted.
 
-use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
@@ -15,7 +13,10 @@ use tokio::task::JoinSet;
 use vl_core::{GuestMessage, nearest_rank};
 use vl_report::table::{Report, Table};
 
-use super::{BenchError, Socket, observe, observer, say, teleoperating, time_commands};
+use super::{
+    BenchError, Observed, Process, Socket, cpu_seconds, observe, observer, say, teleoperating,
+    time_commands,
+};
 
 /// `vl host bench-watchers`: a Host of its own (this `vl`, simulated,
 /// camera at 15 fps) and its operator's command → feedback with no one
@@ -132,63 +133,21 @@ impl Report for WatchersCost {
     }
 }
 
-/// `vl host` as a child process, killed when dropped.
-struct HostProcess(Child);
-
-impl Drop for HostProcess {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
 /// Starts the Host at `vl` on the open arena; it and its address.
-fn start_host(vl: &Path) -> Result<(HostProcess, String), BenchError> {
-    let child = Command::new(vl)
-        .args(["host", "--listen", "127.0.0.1:0", "--arena", "open"])
-        .args(["--robot", "sim", "--camera", "sim", "--no-record"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .map_err(|e| BenchError::Connect(format!("cannot start {}: {e}", vl.display())))?;
-    let mut host = HostProcess(child);
-    let stdout = host.0.stdout.take().expect("piped stdout");
-    let mut line = String::new();
-    BufReader::new(stdout)
-        .read_line(&mut line)
-        .map_err(|e| BenchError::Connect(e.to_string()))?;
-    let url = line
-        .trim()
-        .strip_prefix("vl host listening on ")
-        .ok_or_else(|| BenchError::Connect(format!("the Host said {line:?}")))?
-        .to_owned();
-    Ok((host, url))
-}
-
-/// The processor time `pid` has used so far, s (user and system).
-fn cpu_seconds(pid: u32) -> f64 {
-    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
-        return f64::NAN;
-    };
-    // The fields after the command's name, which may hold spaces.
-    let fields: Vec<&str> = stat
-        .rsplit_once(')')
-        .map_or(vec![], |(_, rest)| rest.split_whitespace().collect());
-    let ticks = |i: usize| fields.get(i).and_then(|f| f.parse::<f64>().ok());
-    // utime and stime are the stat's 14th and 15th fields.
-    match (ticks(11), ticks(12)) {
-        (Some(user), Some(system)) => (user + system) / clock_ticks(),
-        _ => f64::NAN,
-    }
-}
-
-fn clock_ticks() -> f64 {
-    #[cfg(target_os = "linux")]
-    // SAFETY: sysconf reads a constant of the system.
-    let ticks = unsafe { libc::sysconf(libc::_SC_CLK_TCK) } as f64;
-    #[cfg(not(target_os = "linux"))]
-    let ticks = 100.0;
-    ticks
+fn start_host(vl: &Path) -> Result<(Process, String), BenchError> {
+    let args = [
+        "host",
+        "--listen",
+        "127.0.0.1:0",
+        "--arena",
+        "open",
+        "--robot",
+        "sim",
+        "--camera",
+        "sim",
+        "--no-record",
+    ];
+    Process::start(vl, &args, "vl host listening on ")
 }
 
 /// Times `commands` from `event` on; the times, and the Host's cores busy.
@@ -215,7 +174,7 @@ async fn watchers_cost(
     foxglove: bool,
 ) -> Result<WatchersCost, BenchError> {
     let (host, url) = start_host(vl)?;
-    let pid = host.0.id();
+    let pid = host.pid();
     let mut operator = teleoperating(&url, None).await?;
     let mut event = 1;
     let (mut idle, mut watched) = (Vec::new(), Vec::new());
@@ -256,11 +215,11 @@ async fn watchers_cost(
     }
     let _ = say(&mut operator, &GuestMessage::Bye).await;
     drop(host);
-    let mut frames_hz: Vec<f64> = fed.iter().map(|(_, f, s)| *f as f64 / s).collect();
+    let mut frames_hz: Vec<f64> = fed.iter().map(|o| o.frames as f64 / o.seconds).collect();
     frames_hz.sort_by(f64::total_cmp);
     let feedback_hz_min = fed
         .iter()
-        .map(|(f, _, s)| *f as f64 / s)
+        .map(|o| o.feedback as f64 / o.seconds)
         .fold(f64::INFINITY, f64::min);
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     Ok(WatchersCost {
@@ -302,11 +261,11 @@ async fn foxglove_client(url: &str) -> Result<Socket, BenchError> {
 async fn watch_in_foxglove(
     mut ws: Socket,
     mut stop: tokio::sync::watch::Receiver<bool>,
-) -> (u64, u64, f64) {
+) -> Observed {
     use futures_util::{SinkExt, StreamExt};
     use tokio_tungstenite::tungstenite::Message;
     let began = Instant::now();
-    let (mut poses, mut images) = (0, 0);
+    let (mut poses, mut images, mut bytes) = (0, 0, 0);
     let (mut pose, mut camera) = (None, None);
     loop {
         tokio::select! {
@@ -328,6 +287,7 @@ async fn watch_in_foxglove(
                     let _ = ws.send(Message::text(subscribe.to_string())).await;
                 }
                 Some(Ok(Message::Binary(data))) if data.first() == Some(&1) && data.len() >= 5 => {
+                    bytes += data.len() as u64;
                     let id = Some(u64::from(u32::from_le_bytes([data[1], data[2], data[3], data[4]])));
                     poses += u64::from(id == pose);
                     images += u64::from(id == camera);
@@ -338,7 +298,12 @@ async fn watch_in_foxglove(
         }
     }
     let _ = ws.close(None).await;
-    (poses, images, began.elapsed().as_secs_f64())
+    Observed {
+        feedback: poses,
+        frames: images,
+        bytes,
+        seconds: began.elapsed().as_secs_f64(),
+    }
 }
 
 /// The `p` quantile of `took`, sorted or not.
