@@ -249,6 +249,17 @@ pub(crate) struct HostArgs {
     cell: Option<vl_core::CellName>,
 }
 
+/// Where the Host records: a cell, unless told, in a folder of its own
+/// (several cells may share one machine and its data directory).
+fn recordings(args: &HostArgs) -> Result<Option<vl_record::Catalogue>> {
+    let mut settings = args.recordings.settings();
+    if let (Some(cell), None) = (&args.cell, &settings.recordings) {
+        settings.recordings =
+            vl_record::recordings_dir().map(|dir| dir.join("cells").join(cell.as_str()));
+    }
+    Ok(settings.catalogue().map_err(bad_input)?)
+}
+
 /// The Host's configuration from its flags, checked before anything starts.
 fn host_config(args: &HostArgs) -> Result<HostConfig> {
     if args.experiments.is_empty() {
@@ -265,7 +276,7 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         reset: !args.no_reset,
         compensate_latency: !args.no_latency_compensation,
         forecast: args.forecast.settings(),
-        recordings: (args.recordings.settings().catalogue()).map_err(bad_input)?,
+        recordings: recordings(args)?,
         ..HostConfig::default()
     };
     args.access.apply(&mut config)?;

@@ -26,7 +26,7 @@ mod views;
 mod writer;
 
 pub use catalogue::now_ms;
-pub use catalogue::{Catalogue, Owner, RecordSettings, Runs, data_dir};
+pub use catalogue::{Catalogue, Owner, RecordSettings, Runs, data_dir, recordings_dir};
 pub use export::{Exported, export};
 pub use foxglove::Level;
 pub use reader::{

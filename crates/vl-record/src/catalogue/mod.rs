@@ -45,6 +45,12 @@ pub fn data_dir() -> Option<PathBuf> {
     Some(data.join("vl"))
 }
 
+/// Where a Host records when not told (`vl/recordings` in the data
+/// directory).
+pub fn recordings_dir() -> Option<PathBuf> {
+    Some(data_dir()?.join("recordings"))
+}
+
 /// Milliseconds since 1970.
 pub fn now_ms() -> u64 {
     SystemTime::now()
@@ -174,10 +180,7 @@ impl Catalogue {
     pub fn at(dir: Option<&Path>) -> Result<Catalogue, RecordError> {
         match dir {
             Some(dir) => Catalogue::open(dir),
-            None => {
-                let dir = data_dir().ok_or(RecordError::NoDataDir)?;
-                Catalogue::open(&dir.join("recordings"))
-            }
+            None => Catalogue::open(&recordings_dir().ok_or(RecordError::NoDataDir)?),
         }
     }
 

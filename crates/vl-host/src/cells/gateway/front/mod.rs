@@ -16,6 +16,8 @@ use vl_core::{
     Role, Wire,
 };
 
+mod line;
+
 use super::asked_cell;
 use super::mirror::Mirror;
 use crate::accounts::audit::AuditEntry;
@@ -467,32 +469,8 @@ impl Front {
             return self.up(id, &LinkUp::Message { message }).await;
         }
         match message {
-            GuestMessage::Queue => {
-                if !guest.admitted.may_drive {
-                    return self.refuse(
-                        id,
-                        ErrorCode::Unauthorized,
-                        "your account may watch, not drive",
-                    );
-                }
-                if !self.line.contains(&id) {
-                    self.line.push_back(id);
-                }
-                self.tell_line();
-            }
-            GuestMessage::LeaveQueue => {
-                self.line.retain(|&waiting| waiting != id);
-                let length = self.line.len() as u32;
-                self.tell(
-                    id,
-                    &HostMessage::Queue {
-                        position: None,
-                        length,
-                        wait_s: None,
-                    },
-                );
-                self.tell_line();
-            }
+            GuestMessage::Queue => self.join_line(id),
+            GuestMessage::LeaveQueue => self.leave_line(id),
             other => self.refuse(
                 id,
                 ErrorCode::NotAllowedNow,
@@ -501,35 +479,6 @@ impl Front {
                     other.kind()
                 ),
             ),
-        }
-    }
-
-    /// Tells everyone in line where they stand.
-    fn tell_line(&mut self) {
-        let length = self.line.len() as u32;
-        let line: Vec<u64> = self.line.iter().copied().collect();
-        for (at, id) in line.into_iter().enumerate() {
-            let position = Some(at as u32 + 1);
-            self.tell(
-                id,
-                &HostMessage::Queue {
-                    position,
-                    length,
-                    wait_s: None,
-                },
-            );
-        }
-    }
-
-    /// Gives the first in line the first free cell, while there are both.
-    async fn serve_line(&mut self) {
-        self.line.retain(|id| self.guests.contains_key(id));
-        while let Some(&id) = self.line.front() {
-            let Some(cell) = self.free_cell() else { return };
-            self.line.pop_front();
-            self.link(id, cell, vl_core::PROTOCOL_VERSION, None, true)
-                .await;
-            self.tell_line();
         }
     }
 

@@ -1,0 +1,66 @@
+//! One line for all the cells: operators wait at the gateway, and the
+//! first cell free is the first in line's.
+
+use vl_core::{ErrorCode, HostMessage};
+
+use super::Front;
+
+impl Front {
+    /// Guest `id`, watching, asks for control.
+    pub(super) fn join_line(&mut self, id: u64) {
+        let may_drive = self.guests.get(&id).is_some_and(|g| g.admitted.may_drive);
+        if !may_drive {
+            return self.refuse(
+                id,
+                ErrorCode::Unauthorized,
+                "your account may watch, not drive",
+            );
+        }
+        if !self.line.contains(&id) {
+            self.line.push_back(id);
+        }
+        self.tell_line();
+    }
+
+    /// Guest `id` no longer waits.
+    pub(super) fn leave_line(&mut self, id: u64) {
+        self.line.retain(|&waiting| waiting != id);
+        let length = self.line.len() as u32;
+        let out = HostMessage::Queue {
+            position: None,
+            length,
+            wait_s: None,
+        };
+        self.tell(id, &out);
+        self.tell_line();
+    }
+
+    /// Tells everyone in line where they stand.
+    fn tell_line(&mut self) {
+        let length = self.line.len() as u32;
+        let line: Vec<u64> = self.line.iter().copied().collect();
+        for (at, id) in line.into_iter().enumerate() {
+            let position = Some(at as u32 + 1);
+            self.tell(
+                id,
+                &HostMessage::Queue {
+                    position,
+                    length,
+                    wait_s: None,
+                },
+            );
+        }
+    }
+
+    /// Gives the first in line the first free cell, while there are both.
+    pub(super) async fn serve_line(&mut self) {
+        self.line.retain(|id| self.guests.contains_key(id));
+        while let Some(&id) = self.line.front() {
+            let Some(cell) = self.free_cell() else { return };
+            self.line.pop_front();
+            self.link(id, cell, vl_core::PROTOCOL_VERSION, None, true)
+                .await;
+            self.tell_line();
+        }
+    }
+}
