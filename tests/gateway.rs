@@ -55,10 +55,24 @@ fn start_cell(zenoh: &str, name: &str) -> VlProcess {
 
 /// The gateway's `GET /status`.
 fn status(url: &str) -> Value {
+    status_as(url, None)
+}
+
+/// The gateway's `GET /status`, as an administrator (`user:password`).
+fn status_as(url: &str, credentials: Option<&str>) -> Value {
+    use base64::Engine;
     use std::io::{Read, Write};
     let authority = url.trim_start_matches("ws://").trim_end_matches('/');
+    let authorization = credentials.map_or(String::new(), |c| {
+        let encoded = base64::engine::general_purpose::STANDARD.encode(c);
+        format!("Authorization: Basic {encoded}\r\n")
+    });
     let mut tcp = std::net::TcpStream::connect(authority).unwrap();
-    write!(tcp, "GET /status HTTP/1.1\r\nHost: {authority}\r\n\r\n").unwrap();
+    write!(
+        tcp,
+        "GET /status HTTP/1.1\r\nHost: {authority}\r\n{authorization}\r\n"
+    )
+    .unwrap();
     let mut answer = String::new();
     tcp.read_to_string(&mut answer).unwrap();
     let (_, body) = answer.split_once("\r\n\r\n").unwrap();
@@ -76,9 +90,13 @@ fn cell_names(status: &Value) -> Vec<String> {
 
 /// How long until `/status` lists exactly `names`; panics past `within`.
 fn until_cells(url: &str, names: &[&str], within: Duration) -> Duration {
+    until_cells_as(url, None, names, within)
+}
+
+fn until_cells_as(url: &str, admin: Option<&str>, names: &[&str], within: Duration) -> Duration {
     let began = Instant::now();
     loop {
-        let listed = cell_names(&status(url));
+        let listed = cell_names(&status_as(url, admin));
         if listed == names {
             return began.elapsed();
         }
@@ -372,4 +390,96 @@ async fn operators_wait_in_one_line_for_every_cell() {
     };
     let back = until_cells(&url, &["x", "y"], Duration::from_secs(15));
     eprintln!("the cells are back at a restarted gateway after {back:?}");
+}
+
+/// The gateway keeps the accounts: a hello logs in there (a wrong password
+/// gets nowhere near a cell), and an account removed while its person
+/// drives a cell through the gateway is let go within seconds, its cell
+/// freed; others keep watching.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_gateway_keeps_the_accounts() {
+    let _alone = alone().await;
+    let dir = common::scratch("gateway-accounts");
+    let file = dir.join("users.toml");
+    let file = common::s(&file);
+    common::account(file.as_ref(), "ada", "operator", "correct horse");
+    common::account(file.as_ref(), "bob", "observer", "battery staple");
+    common::account(file.as_ref(), "root", "admin", "root password");
+    let admin = Some("root:root password");
+    let zenoh = format!("tcp/127.0.0.1:{}", free_port());
+    let (_gateway, url) = start_vl(
+        &[
+            "gateway",
+            "--listen",
+            "127.0.0.1:0",
+            "--zenoh-listen",
+            &zenoh,
+            "--users",
+            file,
+        ],
+        "vl gateway listening on ",
+    );
+    let _cell = start_cell(&zenoh, "solo");
+    until_cells_as(&url, admin, &["solo"], Duration::from_secs(30));
+    let login = |role: &str, user: &str, password: &str| json!({"type": "hello", "protocol": 1, "role": role, "user": user, "password": password});
+
+    let mut intruder = Peer::connect(&url).await;
+    intruder.send(login("operator", "ada", "wrong")).await;
+    intruder.expect_error("unauthorized").await;
+    let mut bob = Peer::connect(&url).await;
+    bob.send(login("operator", "bob", "battery staple")).await;
+    bob.expect_error("unauthorized").await;
+    bob.send(login("observer", "bob", "battery staple")).await;
+    assert_eq!(bob.expect("welcome").await["user"], "bob");
+
+    let mut ada = Peer::connect(&url).await;
+    ada.send(login("operator", "ada", "correct horse")).await;
+    let welcome = ada.expect("welcome").await;
+    assert_eq!(
+        welcome["user"], "ada",
+        "the cell knows who the gateway let in: {welcome}"
+    );
+    ada.start("teleoperation").await;
+    // The cells tell the gateway how they are twice a second.
+    let began = Instant::now();
+    while status_as(&url, admin)["cells"][0]["operator"]["user"] != "ada" {
+        assert!(
+            began.elapsed() < Duration::from_secs(3),
+            "ada drives, yet /status does not say so"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+
+    let out = common::vl(&["users", "remove", file, "ada"]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let removed = Instant::now();
+    let ended = ada.expect_error("unauthorized").await;
+    assert!(
+        ended["message"].as_str().unwrap().contains("removed"),
+        "{ended}"
+    );
+    let done = bob
+        .next_of("done", Duration::from_secs(5))
+        .await
+        .expect("the run ends");
+    assert!(
+        removed.elapsed() < Duration::from_secs(4),
+        "{:?}",
+        removed.elapsed()
+    );
+    eprintln!(
+        "ada's run ended {:?} after her account went: {}",
+        removed.elapsed(),
+        done["summary"]["reason"]
+    );
+    let began = Instant::now();
+    while !status_as(&url, admin)["cells"][0]["operator"].is_null() {
+        assert!(
+            began.elapsed() < Duration::from_secs(5),
+            "the cell is still ada's"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    bob.send(json!({"type": "ping", "t": 1.0})).await;
+    bob.expect("pong").await;
 }

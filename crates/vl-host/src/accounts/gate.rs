@@ -83,6 +83,10 @@ impl Identity {
     }
 }
 
+/// What a person whose account ended (`ended_by`) is told as they are let go.
+pub(crate) const ACCOUNT_ENDED: &str =
+    "your account at this lab was removed or may no longer drive";
+
 /// Who a hello proved its sender is, and whether they may drive.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Admitted {
@@ -92,6 +96,18 @@ pub struct Admitted {
 }
 
 impl Admitted {
+    /// Whether `users`, read again, no longer let this person in as they
+    /// were let in: their account gone, or no longer allowed to drive.
+    pub(crate) fn ended_by(&self, users: &Users) -> bool {
+        match &self.identity {
+            Identity::Account { name, .. } => match users.role_of(name) {
+                None => true,
+                Some(role) => self.may_drive && !role.may_drive(),
+            },
+            _ => false,
+        }
+    }
+
     /// No one in particular, at a lab that lets anyone drive.
     pub fn anyone() -> Admitted {
         Admitted {

@@ -8,7 +8,7 @@ use vl_core::{AccessEvent, Action, EndReason, ErrorCode, HostMessage, Role};
 
 use super::{Hub, ToConnection};
 use crate::accounts::audit::AuditEntry;
-use crate::accounts::gate::Identity;
+use crate::accounts::gate::{ACCOUNT_ENDED, Identity};
 use crate::accounts::users::{AccountRole, Users};
 use crate::lab::LabRequest;
 
@@ -59,14 +59,8 @@ impl Hub {
         let mut ended: Vec<String> = self
             .clients
             .values()
-            .filter_map(|c| match &c.admitted.identity {
-                Identity::Account { name, .. } => match users.role_of(name) {
-                    None => Some(name.clone()),
-                    Some(role) if c.admitted.may_drive && !role.may_drive() => Some(name.clone()),
-                    Some(_) => None,
-                },
-                _ => None,
-            })
+            .filter(|c| c.admitted.ended_by(users))
+            .filter_map(|c| c.admitted.identity.name().map(str::to_owned))
             .collect();
         ended.sort();
         ended.dedup();
@@ -80,8 +74,7 @@ impl Hub {
                 Some(&session) => self.end_turn(session, entry()),
                 None => self.config.audit.record(entry().detail("session")),
             }
-            let why = "your account at this lab was removed or may no longer drive";
-            self.end_connections(connections.into_iter(), why);
+            self.end_connections(connections.into_iter(), ACCOUNT_ENDED);
         }
         self.drop_absent(users);
     }

@@ -21,7 +21,8 @@ mod line;
 use super::asked_cell;
 use super::mirror::Mirror;
 use crate::accounts::audit::AuditEntry;
-use crate::accounts::gate::Admitted;
+use crate::accounts::gate::{ACCOUNT_ENDED, Admitted};
+use crate::accounts::users::Users;
 use crate::cells::keys;
 use crate::cells::link::{LinkDown, LinkUp};
 use crate::server::HostConfig;
@@ -42,6 +43,9 @@ pub(super) enum Event {
     /// number, what was said.
     Down(u64, u64, LinkDown),
 }
+
+/// How long a gone Guest's link token outlives its `leave`.
+const RETIRE: Duration = Duration::from_secs(1);
 
 /// How a welcome's text begins (serde writes the tag first).
 const WELCOME: &str = r#"{"type":"welcome""#;
@@ -110,6 +114,8 @@ pub(super) struct Front {
     cells: BTreeMap<CellName, Cell>,
     /// Operators waiting for any cell, first first.
     line: VecDeque<u64>,
+    /// Links of Guests gone, held until then (see `unlink`).
+    retiring: Vec<(Instant, Link)>,
 }
 
 impl Front {
@@ -128,6 +134,7 @@ impl Front {
             guests: HashMap::new(),
             cells: BTreeMap::new(),
             line: VecDeque::new(),
+            retiring: Vec::new(),
         }
     }
 
@@ -154,7 +161,9 @@ impl Front {
                     }
                     None => return,
                 },
-                _ = line_check.tick() => {}
+                _ = line_check.tick() => {
+                    self.retiring.retain(|(until, _)| *until > Instant::now());
+                }
             }
             self.serve_line().await;
         }
@@ -191,8 +200,27 @@ impl Front {
                 let _ = answer.send(Status::Gateway(self.status()));
             }
             ToHub::CatchUp(answer) => drop(answer),
-            // Who may log in is checked at each hello, by the gate.
-            ToHub::Accounts(_) => {}
+            ToHub::Accounts(users) => self.accounts_changed(&users).await,
+        }
+    }
+
+    /// The accounts file changed: whoever it no longer lets in as they
+    /// came in is let go at once, off their cell (which ends their run as
+    /// one left) and out of the line.
+    async fn accounts_changed(&mut self, users: &Users) {
+        let ended: Vec<(u64, Option<String>)> = self
+            .guests
+            .iter()
+            .filter(|(_, g)| g.admitted.ended_by(users))
+            .map(|(id, g)| (*id, g.admitted.identity.name().map(str::to_owned)))
+            .collect();
+        for (id, user) in ended {
+            let entry = AuditEntry::new("account_ended").connection(id);
+            self.config.audit.record(entry.user(user.as_deref()));
+            self.unlink(id, true).await;
+            let end = ToConnection::End(ErrorCode::Unauthorized, ACCOUNT_ENDED.into());
+            self.send(id, end);
+            self.forget(id);
         }
     }
 
@@ -483,8 +511,20 @@ impl Front {
     }
 
     async fn leave(&mut self, id: u64, meant: bool) {
-        self.up(id, &LinkUp::Leave { meant }).await;
+        self.unlink(id, meant).await;
         self.forget(id);
+    }
+
+    /// Tells Guest `id`'s cell it left (`meant` to, or its link dropped).
+    /// The link's token is held a moment longer: Zenoh may carry a token's
+    /// end ahead of data, and a cell that saw the token go first would
+    /// take a leaving operator for a dropped one and hold the run.
+    async fn unlink(&mut self, id: u64, meant: bool) {
+        self.up(id, &LinkUp::Leave { meant }).await;
+        let link = self.guests.get_mut(&id).and_then(|g| g.link.take());
+        if let Some(link) = link {
+            self.retiring.push((Instant::now() + RETIRE, link));
+        }
     }
 
     /// Takes `id` from the watchers of the cell it watched.
