@@ -17,6 +17,8 @@ use crate::server::hub::Streams;
 /// How long after a cell's last message the gateway asks it again what a
 /// late observer is told: a burst of messages costs one asking.
 const CATCH_UP_AFTER: Duration = Duration::from_millis(50);
+/// How soon a cell that did not answer is asked again.
+const ASK_AGAIN: Duration = Duration::from_millis(250);
 
 /// A cell's newest feedback and frame, and the tasks that keep them.
 pub(super) struct Mirror {
@@ -149,9 +151,15 @@ async fn take_messages(session: zenoh::Session, name: CellName, events: mpsc::Se
                 }
                 () = async { tokio::time::sleep_until(asking.unwrap_or_else(tokio::time::Instant::now)).await }, if asking.is_some() => {
                     asking = None;
-                    let told = catch_up(&session, &name).await?;
-                    if events.send(Event::CaughtUp(name.clone(), told)).await.is_err() {
-                        return Ok(());
+                    match catch_up(&session, &name).await? {
+                        Some(told) => {
+                            if events.send(Event::CaughtUp(name.clone(), told)).await.is_err() {
+                                return Ok(());
+                            }
+                        }
+                        // Not answering yet (a cell just up declares its
+                        // queryable after its token): ask again.
+                        None => asking = Some(tokio::time::Instant::now() + ASK_AGAIN),
                     }
                 }
             }
@@ -163,11 +171,12 @@ async fn take_messages(session: zenoh::Session, name: CellName, events: mpsc::Se
     }
 }
 
-/// What `name` tells a late observer, asked of it over Zenoh.
+/// What `name` tells a late observer, asked of it over Zenoh: its welcome
+/// first, or none.
 async fn catch_up(
     session: &zenoh::Session,
     name: &CellName,
-) -> Result<Vec<HostMessage>, ZenohError> {
+) -> Result<Option<Vec<HostMessage>>, ZenohError> {
     let replies = session
         .get(keys::catch_up(name))
         .timeout(Duration::from_secs(2))
@@ -176,10 +185,14 @@ async fn catch_up(
         let Ok(sample) = reply.result() else { continue };
         let texts: Vec<String> =
             serde_json::from_slice(&sample.payload().to_bytes()).unwrap_or_default();
-        return Ok(texts
+        let told: Vec<HostMessage> = texts
             .iter()
             .filter_map(|text| HostMessage::decode(text).ok())
-            .collect());
+            .collect();
+        if matches!(told.first(), Some(HostMessage::Welcome { .. })) {
+            return Ok(Some(told));
+        }
+        warn!("cell {name} answered what a late observer is told without a welcome");
     }
-    Ok(Vec::new())
+    Ok(None)
 }
