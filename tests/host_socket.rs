@@ -568,6 +568,9 @@ async fn the_next_operator_finds_the_experiment_mounted() {
         .await;
     first.expect("mounted").await;
     first.send(json!({"type": "bye"})).await;
+    // Until the Host closes: it has let the first go by then (a hello
+    // sent sooner may reach it first, and find the role still taken).
+    while first.next_any().await.is_some() {}
     drop(first);
     let mut next = Peer::connect(&url).await;
     let welcome = next.hello("operator").await;

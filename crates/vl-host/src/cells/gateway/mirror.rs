@@ -10,7 +10,7 @@ use tokio_tungstenite::tungstenite::{Bytes, Utf8Bytes};
 use tracing::warn;
 use vl_core::{CellName, HostMessage, Wire};
 
-use super::front::Event;
+use super::event::Event;
 use crate::cells::{ZenohError, keys};
 use crate::server::hub::Streams;
 

@@ -4,6 +4,7 @@
 //! a cell and serves each cell's watchers from the one copy the cell
 //! publishes (`mirror`).
 
+mod event;
 mod front;
 mod mirror;
 
@@ -18,7 +19,8 @@ use zenoh::sample::SampleKind;
 use super::{ZenohError, ZenohOptions, keys};
 use crate::accounts::gate::Gate;
 use crate::server::{Admission, HUB_QUEUE, HostConfig, Outlets, accept, watch_accounts};
-use front::{Event, Front};
+use event::Event;
+use front::Front;
 
 /// Connections a gateway serves at once: a class or several, watching
 /// cells that each send every frame once.

@@ -9,16 +9,15 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use tokio::sync::mpsc;
-use tokio_tungstenite::tungstenite::{Message, Utf8Bytes};
+use tokio_tungstenite::tungstenite::Message;
 use tracing::{debug, info, warn};
-use vl_core::{
-    CellInfo, CellName, CellStatus, ErrorCode, GatewayStatus, GuestMessage, HostMessage, Person,
-    Role, Wire,
-};
+use vl_core::{CellInfo, CellName, ErrorCode, GuestMessage, HostMessage, Role, Wire};
 
 mod line;
+mod status;
 
 use super::asked_cell;
+use super::event::Event;
 use super::mirror::Mirror;
 use crate::accounts::audit::AuditEntry;
 use crate::accounts::gate::{ACCOUNT_ENDED, Admitted};
@@ -27,22 +26,6 @@ use crate::cells::keys;
 use crate::cells::link::{LinkDown, LinkUp};
 use crate::server::HostConfig;
 use crate::server::hub::{Status, ToConnection, ToHub};
-
-/// What the cells tell the front.
-pub(super) enum Event {
-    /// A cell's liveliness token came: it is up.
-    Up(CellName),
-    /// Its token went: the cell died, or its link did.
-    Gone(CellName),
-    Info(CellInfo),
-    /// A message the cell tells its observers.
-    Told(CellName, Utf8Bytes),
-    /// What a late observer of the cell is told now.
-    CaughtUp(CellName, Vec<HostMessage>),
-    /// A link's cell said something to its Guest: the Guest, the link's
-    /// number, what was said.
-    Down(u64, u64, LinkDown),
-}
 
 /// How long a gone Guest's link token outlives its `leave`.
 const RETIRE: Duration = Duration::from_secs(1);
@@ -662,31 +645,6 @@ impl Front {
                 "cell {name} stopped answering: its run, if any, is over; connect again for another cell"
             );
             self.send(id, ToConnection::End(ErrorCode::CellLost, why));
-        }
-    }
-
-    fn status(&self) -> GatewayStatus {
-        let cells = self
-            .cells
-            .values()
-            .filter_map(|cell| {
-                Some(CellStatus {
-                    info: cell.info.clone()?,
-                    watchers: cell.watchers.len() as u32,
-                })
-            })
-            .collect();
-        let person = |id: &u64| Person {
-            session: Some(*id),
-            user: self
-                .guests
-                .get(id)
-                .and_then(|g| g.admitted.identity.name().map(str::to_owned)),
-        };
-        GatewayStatus {
-            cells,
-            connected: self.guests.values().filter(|g| g.role.is_some()).count() as u32,
-            line: self.line.iter().map(person).collect(),
         }
     }
 }
