@@ -201,12 +201,7 @@ impl Host {
             config.compensate_latency,
             config.recordings.clone(),
         );
-        let listener = TcpListener::bind(listen)
-            .await
-            .map_err(|e| HostError::Bind(listen, e))?;
-        let addr = listener
-            .local_addr()
-            .map_err(|e| HostError::Bind(listen, e))?;
+        let (listener, addr) = bind(listen).await?;
         let pin = config.tls.as_ref().map(|tls| tls.fingerprint);
         let priority = lab.priorities();
         let task = tokio::spawn(server::serve(listener, lab, config));
@@ -311,6 +306,17 @@ impl Host {
     }
 }
 
+/// Binds `listen`: the listener and the address it took (port 0 picks one).
+async fn bind(listen: SocketAddr) -> Result<(TcpListener, SocketAddr), HostError> {
+    let listener = TcpListener::bind(listen)
+        .await
+        .map_err(|e| HostError::Bind(listen, e))?;
+    let addr = listener
+        .local_addr()
+        .map_err(|e| HostError::Bind(listen, e))?;
+    Ok((listener, addr))
+}
+
 /// A gateway, bound and serving Guests in front of the cells that join it.
 pub struct Gateway {
     pub addr: SocketAddr,
@@ -326,12 +332,7 @@ impl Gateway {
         config: HostConfig,
         zenoh: ZenohOptions,
     ) -> Result<Gateway, HostError> {
-        let listener = TcpListener::bind(listen)
-            .await
-            .map_err(|e| HostError::Bind(listen, e))?;
-        let addr = listener
-            .local_addr()
-            .map_err(|e| HostError::Bind(listen, e))?;
+        let (listener, addr) = bind(listen).await?;
         let task = tokio::spawn(cells::serve_gateway(listener, config, zenoh));
         Ok(Gateway { addr, task })
     }
