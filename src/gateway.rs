@@ -5,7 +5,7 @@ use std::net::SocketAddr;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use vl_host::{Endpoint, Gateway, HostConfig, ZenohOptions};
+use vl_host::{Endpoint, Gateway, HostConfig};
 
 use crate::access::AccessArgs;
 
@@ -43,13 +43,9 @@ pub(crate) struct GatewayArgs {
     /// Address for Guests and browsers; port 0 picks a free one.
     #[arg(long, default_value = "127.0.0.1:7400", value_parser = vl_core::listen_address)]
     listen: SocketAddr,
-    /// Where the embedded Zenoh router listens for cells (tcp/HOST:PORT).
-    #[arg(long, default_value = "tcp/0.0.0.0:7447", conflicts_with = "zenoh")]
-    zenoh_listen: Vec<Endpoint>,
-    /// Join an existing Zenoh network here instead (a site's zenohd),
-    /// with no router of its own.
-    #[arg(long)]
-    zenoh: Vec<Endpoint>,
+    /// The Zenoh network its cells meet it on.
+    #[command(flatten)]
+    zenoh: crate::options::ZenohArgs,
     /// A client the gateway hears nothing from this long is disconnected.
     #[arg(long, default_value = "10", value_parser = crate::duration)]
     ping_timeout: Duration,
@@ -103,17 +99,7 @@ async fn gateway(args: GatewayArgs) -> Result<()> {
         ..HostConfig::default()
     };
     args.access.apply(&mut config)?;
-    let zenoh = if args.zenoh.is_empty() {
-        ZenohOptions {
-            connect: Vec::new(),
-            listen: args.zenoh_listen.clone(),
-        }
-    } else {
-        ZenohOptions {
-            connect: args.zenoh.clone(),
-            listen: Vec::new(),
-        }
-    };
+    let zenoh = args.zenoh.options();
     let gateway = Gateway::start(args.listen, config, zenoh.clone())
         .await
         .context("the gateway cannot start")?;

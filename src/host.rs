@@ -23,16 +23,21 @@ enum RobotDriver {
     Sim,
     /// A Khepera I/II on the serial line --port.
     Khepera,
+    /// A ROS 2 differential-drive robot on the Zenoh network (--zenoh):
+    /// Twists on /cmd_vel, its /odom read.
+    Ros2,
 }
 
 impl vl_core::Named for RobotDriver {
     const KIND: &'static str = "robot";
-    const ALL: &'static [RobotDriver] = &[RobotDriver::Sim, RobotDriver::Khepera];
+    const ALL: &'static [RobotDriver] =
+        &[RobotDriver::Sim, RobotDriver::Khepera, RobotDriver::Ros2];
 
     fn id(self) -> &'static str {
         match self {
             RobotDriver::Sim => "sim",
             RobotDriver::Khepera => "khepera",
+            RobotDriver::Ros2 => "ros2",
         }
     }
 }
@@ -247,6 +252,39 @@ pub(crate) struct HostArgs {
     /// This cell's name at its gateway: 1–32 of a-z, 0-9, '-' and '_'.
     #[arg(long, requires = "gateway")]
     cell: Option<vl_core::CellName>,
+    /// Publish the lab as ROS 2 topics (rmw_zenoh's wire format, no ROS
+    /// installed): /odom, /tf, /scan, /map, the camera's.
+    #[arg(long)]
+    ros2: bool,
+    /// The ROS 2 domain (ROS_DOMAIN_ID) of --ros2 and --robot ros2.
+    #[arg(long, default_value = "0")]
+    ros2_domain: u32,
+    /// With --ros2: a Twist on /cmd_vel drives the robot in a teleoperation
+    /// run, when no one else drives.
+    #[arg(long, requires = "ros2")]
+    ros2_operator: bool,
+    /// The Zenoh network of --ros2 and --robot ros2.
+    #[command(flatten)]
+    zenoh: crate::options::ZenohArgs,
+}
+
+/// The Zenoh network the lab's ROS 2 side joins: the one given; else the
+/// gateway's a cell joins; else the router `--robot ros2` opens; else a
+/// router of its own.
+fn ros2_zenoh(args: &HostArgs) -> vl_host::ZenohOptions {
+    let given = args.zenoh.options();
+    if !given.connect.is_empty() {
+        given
+    } else if !args.gateway.is_empty() {
+        vl_host::ZenohOptions {
+            connect: args.gateway.clone(),
+            listen: Vec::new(),
+        }
+    } else if args.robot == RobotDriver::Ros2 {
+        given.local_client()
+    } else {
+        given
+    }
 }
 
 /// Where the Host records: a cell, unless told, in a folder of its own
@@ -280,6 +318,11 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         ..HostConfig::default()
     };
     args.access.apply(&mut config)?;
+    config.ros2 = args.ros2.then(|| vl_host::Ros2Options {
+        domain: args.ros2_domain,
+        zenoh: ros2_zenoh(args),
+        operator: args.ros2_operator,
+    });
     config.cell = args.cell.clone().map(|name| vl_host::CellOptions {
         name,
         zenoh: vl_host::ZenohOptions {
@@ -313,6 +356,10 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
             // A guard process holds the line and stops the robot if this one dies.
             guard: std::env::current_exe().context("cannot find the vl binary")?,
         },
+        RobotDriver::Ros2 => RobotSpec::Ros2(vl_host::Ros2RobotOptions {
+            domain: args.ros2_domain,
+            zenoh: args.zenoh.options(),
+        }),
     };
     let spec = LabSpec {
         robot,

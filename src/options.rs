@@ -154,3 +154,32 @@ impl ForecastArgs {
         }
     }
 }
+
+/// Where `vl` meets a Zenoh network: its own router listening, or an
+/// existing network joined.
+#[derive(clap::Args, Clone)]
+pub(crate) struct ZenohArgs {
+    /// Where the embedded Zenoh router listens (tcp/HOST:PORT).
+    #[arg(long, default_value = "tcp/0.0.0.0:7447", conflicts_with = "zenoh")]
+    zenoh_listen: Vec<vl_host::Endpoint>,
+    /// Join an existing Zenoh network here instead (a site's zenohd, a
+    /// gateway's router), with no router of its own.
+    #[arg(long)]
+    zenoh: Vec<vl_host::Endpoint>,
+}
+
+impl ZenohArgs {
+    pub(crate) fn options(&self) -> vl_host::ZenohOptions {
+        if self.zenoh.is_empty() {
+            vl_host::ZenohOptions {
+                connect: Vec::new(),
+                listen: self.zenoh_listen.clone(),
+            }
+        } else {
+            vl_host::ZenohOptions {
+                connect: self.zenoh.clone(),
+                listen: Vec::new(),
+            }
+        }
+    }
+}

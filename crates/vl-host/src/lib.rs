@@ -81,6 +81,7 @@ mod media;
 mod memory;
 mod priority;
 mod reach;
+mod ros2;
 mod server;
 mod setup;
 mod sim;
@@ -113,6 +114,7 @@ pub use media::{
     bench as media_bench,
 };
 pub use priority::raise_for_control as raise_priority;
+pub use ros2::{MsgError, Ros2Error, Ros2Options, Ros2Robot, Ros2RobotOptions};
 pub use server::bench::{
     BenchError, GatewayBench, GatewayCost, Guessing, OperatorLatency, WatchersBench, WatchersCost,
     operator_latency,

@@ -27,6 +27,8 @@ pub enum RobotSpec {
         baud: u32,
         guard: PathBuf,
     },
+    /// A ROS 2 differential-drive robot on a Zenoh network.
+    Ros2(crate::ros2::Ros2RobotOptions),
 }
 
 /// A lab to serve.
@@ -69,6 +71,8 @@ pub enum SetupError {
     Footage(#[source] CameraError),
     #[error("no Khepera to drive: {0}")]
     Robot(#[source] RobotError),
+    #[error("{0}")]
+    Ros2(#[source] crate::ros2::Ros2Error),
     #[error("cannot start the Host: {0}")]
     Host(#[from] HostError),
 }
@@ -109,8 +113,22 @@ impl Host {
                 Ok(Host::start_sim(listen, lab, config).await?)
             }
             (RobotSpec::Sim, _) => Err(SetupError::RealCameraOnTheSimulator),
-            (RobotSpec::Khepera { .. }, CameraSource::Sim) => {
+            (RobotSpec::Khepera { .. } | RobotSpec::Ros2(_), CameraSource::Sim) => {
                 Err(SetupError::SimulatedCameraOnARobot)
+            }
+            (RobotSpec::Ros2(options), camera) => {
+                let camera = camera
+                    .open(spec.calibration, &spec.arena)
+                    .map_err(SetupError::Camera)?;
+                let robot = crate::ros2::Ros2Robot::connect(&options, spec.model)
+                    .await
+                    .map_err(SetupError::Ros2)?;
+                let devices = Devices {
+                    robot: Box::new(robot),
+                    camera,
+                    witness: None,
+                };
+                Ok(Host::start(listen, devices, spec.arena, config).await?)
             }
             (RobotSpec::Khepera { port, baud, guard }, camera) => {
                 let footage = matches!(camera, CameraSource::Replay(_));

@@ -85,6 +85,17 @@ impl Drive {
         }
     }
 
+    /// What a ROS Twist asks (`linear.x` m/s, `angular.z` rad/s), as
+    /// Foxglove's Teleop panel and ROS 2's `/cmd_vel` send it; none for a
+    /// speed that is no finite number.
+    pub fn from_twist(linear_m_s: f64, angular_rad_s: f64) -> Option<Drive> {
+        let drive = Drive::Velocity {
+            v: linear_m_s * 1000.0,
+            w: angular_rad_s,
+        };
+        drive.is_finite().then_some(drive)
+    }
+
     pub fn is_finite(&self) -> bool {
         match *self {
             Drive::Wheels { left, right } => left.is_finite() && right.is_finite(),

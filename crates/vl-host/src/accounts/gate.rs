@@ -71,6 +71,8 @@ pub enum Identity {
     Token,
     /// A person with an account.
     Account { name: String, role: AccountRole },
+    /// The lab's own ROS 2 side (`--ros2-operator`): `/cmd_vel`.
+    Ros2,
 }
 
 impl Identity {
@@ -78,6 +80,7 @@ impl Identity {
     pub fn name(&self) -> Option<&str> {
         match self {
             Identity::Account { name, .. } => Some(name),
+            Identity::Ros2 => Some("ros2"),
             _ => None,
         }
     }

@@ -58,6 +58,30 @@ pub struct ZenohOptions {
     pub listen: Vec<Endpoint>,
 }
 
+impl ZenohOptions {
+    /// A client of the router these options make, on this machine: a
+    /// second session beside it (a cell's ROS 2 side beside its robot's).
+    pub fn local_client(&self) -> ZenohOptions {
+        if !self.connect.is_empty() {
+            return self.clone();
+        }
+        let connect = self
+            .listen
+            .iter()
+            .map(|e| {
+                Endpoint(
+                    e.0.replace("/0.0.0.0:", "/127.0.0.1:")
+                        .replace("/[::]:", "/[::1]:"),
+                )
+            })
+            .collect();
+        ZenohOptions {
+            connect,
+            listen: Vec::new(),
+        }
+    }
+}
+
 /// A cell joining a gateway.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CellOptions {

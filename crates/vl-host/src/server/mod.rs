@@ -20,6 +20,7 @@ mod foxglove;
 mod http;
 pub(crate) mod hub;
 pub(crate) mod origin;
+pub(crate) mod pacing;
 pub(crate) mod socket;
 mod web;
 
@@ -93,6 +94,8 @@ pub struct HostConfig {
     pub recordings: Option<vl_record::Catalogue>,
     /// The gateway this Host joins as one of its cells; none: alone.
     pub cell: Option<crate::cells::CellOptions>,
+    /// The lab as a ROS 2 node on Zenoh.
+    pub ros2: Option<crate::ros2::Ros2Options>,
 }
 
 impl HostConfig {
@@ -130,6 +133,7 @@ impl Default for HostConfig {
             forecast: ForecastSettings::default(),
             recordings: None,
             cell: None,
+            ros2: None,
         }
     }
 }
@@ -186,6 +190,23 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         }
         None => futures_util::future::Either::Right(std::future::pending()),
     };
+    let on_ros2 = match config.ros2.clone() {
+        Some(options) => {
+            let side = crate::ros2::Lab {
+                hub: hub_tx.clone(),
+                feedback: lab.feedback.clone(),
+                frames: lab.frames.clone(),
+                watchers: lab.watchers.clone(),
+                scene: vl_core::LabScene {
+                    arena: lab.info.arena.clone(),
+                    robot: lab.info.robot.clone(),
+                    camera: lab.info.camera,
+                },
+            };
+            futures_util::future::Either::Left(crate::ros2::serve(options, side))
+        }
+        None => futures_util::future::Either::Right(std::future::pending()),
+    };
     let hub = Hub::new(lab, config.clone(), supervisor).with_views(views);
     let accounts = watch_accounts(gate.clone(), hub_tx.clone());
     // The hub lives exactly as long as the server: dropping this future
@@ -196,6 +217,7 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         () = accounts => {}
         () = feeding => {}
         () = joined => {}
+        () = on_ros2 => {}
     }
 }
 

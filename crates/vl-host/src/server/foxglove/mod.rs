@@ -31,7 +31,8 @@ use super::hub::{ToConnection, ToHub};
 use super::socket::{self, Sink, Socket};
 use crate::accounts::gate::{Credentials, Gate, Purpose};
 use crate::lab::Watching;
-use drive::{CMD_VEL, Driver, SERVICES};
+use crate::server::pacing::Pacer;
+use drive::{CMD_VEL, SERVICES};
 pub(crate) use feed::{Feed, Sources};
 use ops::{CHANNELS, ClientOp, Level, ServiceCall, status};
 
@@ -106,7 +107,7 @@ struct Client {
     advertised: usize,
     /// What it may still be sent now.
     out: Bucket,
-    driver: Driver,
+    driver: Pacer,
 }
 
 impl Client {
@@ -233,7 +234,7 @@ impl Watcher {
             cmd_vel: HashSet::new(),
             advertised: 0,
             out: Bucket::new(BYTES_OUT_PER_S, BYTES_OUT_BURST),
-            driver: Driver::default(),
+            driver: Pacer::default(),
         };
         let ending = self
             .serve_client(sink, source, inbox, &mut views, &mut client)
@@ -303,7 +304,7 @@ impl Watcher {
                         return Ending::Normal;
                     }
                 },
-                Ok(()) = self.feedback.changed(), if client.driver.operator => {
+                Ok(()) = self.feedback.changed(), if client.driver.operator() => {
                     let event = match &*self.feedback.borrow_and_update() {
                         Some(HostMessage::Feedback(feedback)) => Some(feedback.event),
                         _ => None,
@@ -419,9 +420,18 @@ impl Watcher {
             );
             return put(sink, status(Level::Error, &why)).await;
         }
-        match client.driver.twist(&payload) {
-            Ok(Some(command)) => self.tell_hub(command).await,
-            Ok(None) => Ok(()),
+        if !client.driver.operator() {
+            let why = format!(
+                "only the operator drives: call {} first (as the account that may drive, at a lab with accounts)",
+                drive::CONTROL
+            );
+            return put(sink, status(Level::Error, &why)).await;
+        }
+        match drive::twist(&payload) {
+            Ok(drive) => match client.driver.drive(drive) {
+                Some(command) => self.tell_hub(command).await,
+                None => Ok(()),
+            },
             Err(why) => put(sink, status(Level::Error, &why)).await,
         }
     }

@@ -1,0 +1,315 @@
+//! The ROS 2 graph as rmw_zenoh puts it on Zenoh: a node and its
+//! publishers and subscriptions each announced by a liveliness token under
+//! `@ros2_lv/`, topics at `<domain>/<topic>/<DDS type>/<RIHS01 hash>`,
+//! each sample CDR with an attachment (sequence number, source time,
+//! publisher GID), and a latched topic served to late subscribers by
+//! rmw_zenoh's own caching publisher (zenoh-ext's `AdvancedPublisher`).
+
+use std::marker::PhantomData;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicI64, AtomicU32, Ordering};
+
+use sha2::{Digest, Sha256};
+use zenoh::liveliness::LivelinessToken;
+use zenoh::pubsub::Publisher as ZenohPublisher;
+use zenoh::qos::CongestionControl;
+use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig, MissDetectionConfig};
+
+use super::Ros2Error;
+use super::messages::Message;
+use super::msg::{Catalogue, dds_name};
+
+/// How a topic's samples are kept and delivered, as its token says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Qos {
+    /// Every sample delivered (the sender waits), or the newest wins.
+    pub(crate) reliable: bool,
+    /// Latched: the newest `depth` samples wait for late subscribers.
+    pub(crate) transient_local: bool,
+    pub(crate) depth: u32,
+}
+
+impl Qos {
+    /// What a stream of state takes: reliable, volatile, the newest 10.
+    pub(crate) const STATE: Qos = Qos {
+        reliable: true,
+        transient_local: false,
+        depth: 10,
+    };
+    /// What a camera takes (ROS's sensor-data profile): best effort, 5.
+    pub(crate) const SENSOR: Qos = Qos {
+        reliable: false,
+        transient_local: false,
+        depth: 5,
+    };
+    /// A map: reliable and latched, the newest one.
+    pub(crate) const LATCHED: Qos = Qos {
+        reliable: true,
+        transient_local: true,
+        depth: 1,
+    };
+
+    /// rmw_zenoh's QoS chunk: `reliability:durability:history,depth:
+    /// deadline:lifespan:liveliness` with rmw's enum numbers. Every field
+    /// the lab sets is written out, so no reader's defaults change it;
+    /// empty durations are rmw's infinite ones.
+    pub(crate) fn token_chunk(self) -> String {
+        let reliability = if self.reliable { 1 } else { 2 };
+        let durability = if self.transient_local { 1 } else { 2 };
+        format!("{reliability}:{durability}:1,{}:,:,:,,", self.depth)
+    }
+}
+
+/// `/` written as rmw_zenoh writes it inside one chunk of a token.
+fn mangle(name: &str) -> String {
+    name.replace('/', "%")
+}
+
+/// A ROS 2 node on a Zenoh session.
+pub(crate) struct Node {
+    session: zenoh::Session,
+    domain: u32,
+    zid: String,
+    name: String,
+    /// Node and entity ids, unique within the session.
+    ids: Arc<AtomicU32>,
+    nid: u32,
+    catalogue: Arc<Catalogue>,
+    _token: LivelinessToken,
+}
+
+impl Node {
+    /// Node `name` in the root namespace of `domain`, announced at once.
+    pub(crate) async fn new(
+        session: zenoh::Session,
+        domain: u32,
+        name: &str,
+        catalogue: Arc<Catalogue>,
+    ) -> Result<Node, Ros2Error> {
+        let zid = session.zid().to_string();
+        let ids = Arc::new(AtomicU32::new(0));
+        let nid = ids.fetch_add(1, Ordering::Relaxed);
+        let key = format!(
+            "@ros2_lv/{domain}/{zid}/{nid}/{nid}/NN/%/%/{}",
+            mangle(name)
+        );
+        let token = session.liveliness().declare_token(key).await?;
+        Ok(Node {
+            session,
+            domain,
+            zid,
+            name: name.to_owned(),
+            ids,
+            nid,
+            catalogue,
+            _token: token,
+        })
+    }
+
+    /// The data key of `topic` carrying `M`, and its endpoint token's key
+    /// for an entity of `kind` (`MP` publisher, `MS` subscription).
+    fn keys<M: Message>(&self, topic: &str, kind: &str, qos: Qos) -> Result<Keys, Ros2Error> {
+        let hash = self.catalogue.type_hash(M::TYPE)?;
+        let dds = dds_name(M::TYPE);
+        let eid = self.ids.fetch_add(1, Ordering::Relaxed);
+        let data = format!(
+            "{}/{}/{dds}/{hash}",
+            self.domain,
+            topic.trim_start_matches('/')
+        );
+        let token = format!(
+            "@ros2_lv/{}/{}/{}/{eid}/{kind}/%/%/{}/{}/{dds}/{hash}/{}",
+            self.domain,
+            self.zid,
+            self.nid,
+            mangle(&self.name),
+            mangle(topic),
+            qos.token_chunk()
+        );
+        Ok(Keys { data, token })
+    }
+
+    /// A publisher of `M` on `topic`.
+    pub(crate) async fn publisher<M: Message>(
+        &self,
+        topic: &str,
+        qos: Qos,
+    ) -> Result<Publisher<M>, Ros2Error> {
+        let keys = self.keys::<M>(topic, "MP", qos)?;
+        let congestion = if qos.reliable {
+            CongestionControl::Block
+        } else {
+            CongestionControl::Drop
+        };
+        let sender = if qos.transient_local {
+            let cached = self
+                .session
+                .declare_publisher(keys.data.clone())
+                .congestion_control(congestion)
+                .cache(CacheConfig::default().max_samples(qos.depth as usize))
+                .sample_miss_detection(MissDetectionConfig::default())
+                .publisher_detection()
+                .await?;
+            Sender::Cached(cached)
+        } else {
+            let plain = self
+                .session
+                .declare_publisher(keys.data.clone())
+                .congestion_control(congestion)
+                .await?;
+            Sender::Plain(plain)
+        };
+        let token = self
+            .session
+            .liveliness()
+            .declare_token(keys.token.clone())
+            .await?;
+        Ok(Publisher {
+            sender,
+            gid: gid(&keys.token),
+            sequence: AtomicI64::new(0),
+            _token: token,
+            _message: PhantomData,
+        })
+    }
+
+    /// Every sample of `M` on `topic`, decoded, into `deliver`; one that
+    /// does not decode is dropped with a warning naming the topic.
+    pub(crate) async fn subscribe<M, F>(
+        &self,
+        topic: &str,
+        qos: Qos,
+        deliver: F,
+    ) -> Result<Subscription, Ros2Error>
+    where
+        M: Message + Send + 'static,
+        F: Fn(M) + Send + Sync + 'static,
+    {
+        let keys = self.keys::<M>(topic, "MS", qos)?;
+        let topic = topic.to_owned();
+        let subscriber = self
+            .session
+            .declare_subscriber(keys.data.clone())
+            .callback(
+                move |sample| match M::decode(&sample.payload().to_bytes()) {
+                    Ok(message) => deliver(message),
+                    Err(e) => {
+                        tracing::warn!("ROS 2 {topic}: a {} that does not decode: {e}", M::TYPE)
+                    }
+                },
+            )
+            .await?;
+        let token = self.session.liveliness().declare_token(keys.token).await?;
+        Ok(Subscription {
+            _subscriber: subscriber,
+            _token: token,
+        })
+    }
+}
+
+struct Keys {
+    data: String,
+    token: String,
+}
+
+/// An entity's GID: rmw_zenoh derives it from its token; so does the lab
+/// (its first 16 bytes of SHA-256).
+fn gid(token: &str) -> [u8; 16] {
+    let digest = Sha256::digest(token.as_bytes());
+    let mut gid = [0; 16];
+    gid.copy_from_slice(&digest[..16]);
+    gid
+}
+
+/// rmw_zenoh's attachment: sequence number and source time (ns) as
+/// little-endian i64, then the GID as a sequence (its length, 16, in one
+/// byte, and its bytes).
+pub(crate) fn attachment(sequence: i64, source_ns: i64, gid: &[u8; 16]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(33);
+    out.extend(sequence.to_le_bytes());
+    out.extend(source_ns.to_le_bytes());
+    out.push(16);
+    out.extend(gid);
+    out
+}
+
+enum Sender {
+    Plain(ZenohPublisher<'static>),
+    Cached(AdvancedPublisher<'static>),
+}
+
+/// A typed publisher, announced while it lives.
+pub(crate) struct Publisher<M> {
+    sender: Sender,
+    gid: [u8; 16],
+    sequence: AtomicI64,
+    _token: LivelinessToken,
+    _message: PhantomData<fn(&M)>,
+}
+
+impl<M: Message> Publisher<M> {
+    /// The payload and attachment of the next sample of `message`.
+    fn sample(&self, message: &M) -> (Vec<u8>, Vec<u8>) {
+        let sequence = self.sequence.fetch_add(1, Ordering::Relaxed);
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap_or_default();
+        let source_ns = i64::try_from(now.as_nanos()).unwrap_or(i64::MAX);
+        (message.encode(), attachment(sequence, source_ns, &self.gid))
+    }
+
+    pub(crate) async fn put(&self, message: &M) -> Result<(), Ros2Error> {
+        let (payload, attachment) = self.sample(message);
+        let encoding = zenoh::bytes::Encoding::APPLICATION_CDR;
+        match &self.sender {
+            Sender::Plain(p) => {
+                p.put(payload)
+                    .encoding(encoding)
+                    .attachment(attachment)
+                    .await?
+            }
+            Sender::Cached(p) => {
+                p.put(payload)
+                    .encoding(encoding)
+                    .attachment(attachment)
+                    .await?
+            }
+        }
+        Ok(())
+    }
+
+    /// `put`, from a thread outside the async runtime (a robot driver's).
+    pub(crate) fn put_wait(&self, message: &M) -> Result<(), Ros2Error> {
+        use zenoh::Wait;
+        let (payload, attachment) = self.sample(message);
+        let encoding = zenoh::bytes::Encoding::APPLICATION_CDR;
+        match &self.sender {
+            Sender::Plain(p) => p
+                .put(payload)
+                .encoding(encoding)
+                .attachment(attachment)
+                .wait()?,
+            Sender::Cached(p) => p
+                .put(payload)
+                .encoding(encoding)
+                .attachment(attachment)
+                .wait()?,
+        }
+        Ok(())
+    }
+
+    /// Whether some subscriber takes this topic now.
+    pub(crate) async fn matched(&self) -> bool {
+        let status = match &self.sender {
+            Sender::Plain(p) => p.matching_status().await,
+            Sender::Cached(p) => p.matching_status().await,
+        };
+        status.is_ok_and(|s| s.matching())
+    }
+}
+
+/// A subscription, announced while it lives.
+pub(crate) struct Subscription {
+    _subscriber: zenoh::pubsub::Subscriber<()>,
+    _token: LivelinessToken,
+}

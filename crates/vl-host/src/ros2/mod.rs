@@ -1,0 +1,63 @@
+//! The lab on ROS 2, over Zenoh as ROS 2's rmw_zenoh speaks it, with no
+//! ROS installed: the message definitions vendored in `ros2-msgs/` and
+//! their type hashes (`msg`), CDR (`cdr`) and the messages the lab speaks
+//! (`messages`), the graph's key expressions, tokens and attachments
+//! (`graph`), the lab as ROS messages (`views`), the Host publishing them
+//! and taking `/cmd_vel` (`bridge`, `operator`), and any ROS 2
+//! differential-drive robot as the lab's robot (`robot`).
+
+mod bridge;
+mod cdr;
+mod graph;
+mod messages;
+mod msg;
+mod operator;
+mod robot;
+#[cfg(test)]
+mod tests;
+mod views;
+
+pub(crate) use bridge::{Lab, serve};
+pub use msg::MsgError;
+pub use robot::{Ros2Robot, Ros2RobotOptions};
+
+use crate::cells::{ZenohError, ZenohOptions};
+
+/// The lab as a ROS 2 node.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Ros2Options {
+    /// ROS's domain id (`ROS_DOMAIN_ID`): the first chunk of every key.
+    pub domain: u32,
+    /// The Zenoh network: a `zenohd` or a gateway's router to connect to,
+    /// or endpoints to listen on as a router ROS nodes connect to.
+    pub zenoh: ZenohOptions,
+    /// `/cmd_vel` drives the robot.
+    pub operator: bool,
+}
+
+/// Why the lab cannot be on ROS 2.
+#[derive(Debug, thiserror::Error)]
+pub enum Ros2Error {
+    #[error(transparent)]
+    Zenoh(#[from] ZenohError),
+    #[error("ROS 2 message definitions: {0}")]
+    Msg(#[from] msg::MsgError),
+    #[error("no ROS 2 robot: nothing on /odom within {} s", .0.as_secs())]
+    NoRobot(std::time::Duration),
+}
+
+impl From<zenoh::Error> for Ros2Error {
+    fn from(e: zenoh::Error) -> Ros2Error {
+        Ros2Error::Zenoh(e.into())
+    }
+}
+
+/// The node name the lab takes on ROS 2.
+pub(crate) const NODE: &str = "vl_host";
+
+/// The lab's node on its own session, with the vendored definitions.
+async fn node(zenoh: &ZenohOptions, domain: u32, name: &str) -> Result<graph::Node, Ros2Error> {
+    let catalogue = std::sync::Arc::new(msg::Catalogue::vendored()?);
+    let session = crate::cells::open(zenoh).await?;
+    graph::Node::new(session, domain, name, catalogue).await
+}

@@ -1,0 +1,231 @@
+"""An outside ROS 2 client of a lab served with `vl host --ros2`: PyPI's
+zenoh-ros2-sdk (rmw_zenoh's wire format, nothing of vl's), given the
+vendored .msg folder as its registry so it never downloads. Prints one
+JSON object with what it saw; tests/ros2.rs asserts on it.
+
+    python3 lab.py MSG_DIR ROUTER_PORT STEP [SECONDS]
+
+STEP is one of:
+  discover  the topics, their types, hashes and QoS, and the hashes the
+            SDK computes itself from the .msg files
+  watch     every topic for SECONDS: counts, rates, a decoded image's
+            size, the camera info, the last odometry, /tf's frames
+  map       /map as a subscriber joining late (transient local)
+  drive     Twists on /cmd_vel at 20 Hz: SECONDS forward, then the odometry
+            after a second of silence
+"""
+
+import json
+import struct
+import sys
+import threading
+import time
+
+MSG_DIR, PORT, STEP = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+SECONDS = float(sys.argv[4]) if len(sys.argv) > 4 else 3.0
+
+from zenoh_ros2_sdk import get_registry  # noqa: E402
+
+# The first call fixes the registry's folder: the vendored one, offline.
+REGISTRY = get_registry(MSG_DIR)
+
+from zenoh_ros2_sdk import (  # noqa: E402
+    ROS2Publisher,
+    ROS2Subscriber,
+    get_topic_info,
+    get_topic_names_and_types,
+)
+from zenoh_ros2_sdk.qos import QosDurability, QosProfile  # noqa: E402
+from zenoh_ros2_sdk.utils import get_type_hash, load_dependencies_recursive  # noqa: E402
+
+TOPICS = {
+    "/odom": "nav_msgs/msg/Odometry",
+    "/tf": "tf2_msgs/msg/TFMessage",
+    "/scan": "sensor_msgs/msg/LaserScan",
+    "/map": "nav_msgs/msg/OccupancyGrid",
+    "/camera/image_raw/compressed": "sensor_msgs/msg/CompressedImage",
+    "/camera/camera_info": "sensor_msgs/msg/CameraInfo",
+}
+
+
+def sdk_hash(msg_type):
+    """The type hash the SDK computes from the .msg files alone."""
+    definition = open(REGISTRY.get_msg_file_path(msg_type)).read()
+    deps = load_dependencies_recursive(msg_type, definition, REGISTRY)
+    return get_type_hash(msg_type, msg_definition=definition, dependencies=deps)
+
+
+def discover():
+    listed = dict(get_topic_names_and_types(router_port=PORT, timeout=2.0))
+    topics = {}
+    for topic in list(TOPICS) + ["/cmd_vel"]:
+        info = get_topic_info(topic, router_port=PORT, timeout=1.0, verbose=True)
+        if info is None:
+            continue
+        ends = info.publishers + info.subscribers
+        topics[topic] = {
+            "types": info.topic_types,
+            "publishers": info.publisher_count,
+            "subscribers": info.subscriber_count,
+            "hashes": sorted({e.type_hash for e in ends}),
+            "qos": sorted({e.qos for e in ends}),
+            "nodes": sorted({e.node_name for e in ends}),
+            "sdk_hash": sdk_hash(info.topic_types[0]),
+        }
+    return {"listed": listed, "topics": topics}
+
+
+def jpeg_size(data):
+    """(width, height) from a JPEG's start-of-frame, or None."""
+    i = 2
+    while i + 9 < len(data):
+        if data[i] != 0xFF:
+            return None
+        marker, length = data[i + 1], struct.unpack(">H", data[i + 2 : i + 4])[0]
+        if marker in (0xC0, 0xC1, 0xC2):
+            height, width = struct.unpack(">HH", data[i + 5 : i + 9])
+            return [width, height]
+        i += 2 + length
+    return None
+
+
+def watch():
+    seen = {topic: [] for topic in TOPICS if topic != "/map"}
+    last = {}
+    lock = threading.Lock()
+
+    def keep(topic):
+        def on(msg):
+            with lock:
+                seen[topic].append(time.monotonic())
+                last[topic] = msg
+
+        return on
+
+    subs = [ROS2Subscriber(topic=t, msg_type=TOPICS[t], callback=keep(t), router_port=PORT) for t in seen]
+    time.sleep(1.0)
+    with lock:
+        for times in seen.values():
+            times.clear()
+    time.sleep(SECONDS)
+    with lock:
+        counts = {t: len(v) for t, v in seen.items()}
+        rates = {t: len(v) / SECONDS for t, v in seen.items()}
+        image = last.get("/camera/image_raw/compressed")
+        info = last.get("/camera/camera_info")
+        odom = last.get("/odom")
+        tf = last.get("/tf")
+        scan = last.get("/scan")
+    for s in subs:
+        s.close()
+    out = {"counts": counts, "rates": rates}
+    if image is not None:
+        data = bytes(image.data)
+        out["image"] = {
+            "format": image.format,
+            "jpeg": data[:2] == b"\xff\xd8" and data[-2:] == b"\xff\xd9",
+            "size": jpeg_size(data),
+            "frame": image.header.frame_id,
+        }
+    if info is not None:
+        out["camera_info"] = {
+            "size": [info.width, info.height],
+            "k": list(info.k),
+            "model": info.distortion_model,
+            "frame": info.header.frame_id,
+        }
+    if odom is not None:
+        out["odom"] = odom_of(odom)
+    if tf is not None:
+        out["tf"] = [
+            {
+                "parent": t.header.frame_id,
+                "child": t.child_frame_id,
+                "xyz": [t.transform.translation.x, t.transform.translation.y, t.transform.translation.z],
+                "stamp": t.header.stamp.sec + t.header.stamp.nanosec * 1e-9,
+            }
+            for t in tf.transforms
+        ]
+    if scan is not None:
+        finite = [r for r in scan.ranges if r == r and r != float("inf")]
+        out["scan"] = {"bins": len(scan.ranges), "seen": len(finite), "frame": scan.header.frame_id}
+    out["now"] = time.time()
+    return out
+
+
+def odom_of(odom):
+    p, q = odom.pose.pose.position, odom.pose.pose.orientation
+    return {
+        "x": p.x,
+        "y": p.y,
+        "qz": q.z,
+        "qw": q.w,
+        "v": odom.twist.twist.linear.x,
+        "w": odom.twist.twist.angular.z,
+        "frame": odom.header.frame_id,
+        "child": odom.child_frame_id,
+        "stamp": odom.header.stamp.sec + odom.header.stamp.nanosec * 1e-9,
+    }
+
+
+def late_map():
+    got = []
+    done = threading.Event()
+
+    def on(msg):
+        got.append(msg)
+        done.set()
+
+    latched = QosProfile(durability=QosDurability.TRANSIENT_LOCAL, history_depth=1)
+    sub = ROS2Subscriber(topic="/map", msg_type=TOPICS["/map"], callback=on, router_port=PORT, qos=latched)
+    done.wait(SECONDS)
+    sub.close()
+    if not got:
+        return {"maps": 0}
+    m = got[0]
+    return {
+        "maps": len(got),
+        "size": [m.info.width, m.info.height],
+        "resolution": m.info.resolution,
+        "cells": len(m.data),
+        "taken": sum(1 for c in m.data if c == 100),
+        "frame": m.header.frame_id,
+    }
+
+
+def drive():
+    odoms = []
+    sub = ROS2Subscriber(
+        topic="/odom", msg_type=TOPICS["/odom"], callback=lambda m: odoms.append(odom_of(m)), router_port=PORT
+    )
+    pub = ROS2Publisher(topic="/cmd_vel", msg_type="geometry_msgs/msg/Twist", router_port=PORT)
+    time.sleep(1.0)
+    start = odoms[-1] if odoms else None
+    Vector3 = REGISTRY.get_message_class("geometry_msgs/msg/Vector3")
+    began = time.monotonic()
+    sent = 0
+    while time.monotonic() - began < SECONDS:
+        pub.publish(linear=Vector3(x=0.05, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0))
+        sent += 1
+        time.sleep(0.05)
+    driven = odoms[-1] if odoms else None
+    fastest = max((o["v"] for o in odoms), default=0.0)
+    # Silence: the lab's watchdog stops the robot.
+    time.sleep(1.0)
+    after = odoms[-1] if odoms else None
+    time.sleep(0.5)
+    later = odoms[-1] if odoms else None
+    pub.close()
+    sub.close()
+    return {
+        "sent": sent,
+        "start": start,
+        "driven": driven,
+        "fastest_v": fastest,
+        "after_silence": after,
+        "later": later,
+    }
+
+
+STEPS = {"discover": discover, "watch": watch, "map": late_map, "drive": drive}
+print(json.dumps(STEPS[STEP]()), flush=True)
