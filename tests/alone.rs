@@ -10,6 +10,7 @@ mod disk_full;
 mod floods;
 mod gateway;
 mod hiccups;
+mod ros2;
 mod stalls;
 
 use tokio::sync::{Mutex, MutexGuard};

@@ -3,7 +3,7 @@ zenoh-ros2-sdk (rmw_zenoh's wire format, nothing of vl's), given the
 vendored .msg folder as its registry so it never downloads. Prints one
 JSON object with what it saw; tests/ros2.rs asserts on it.
 
-    python3 lab.py MSG_DIR ROUTER_PORT STEP [SECONDS]
+    python3 lab.py MSG_DIR ROUTER_PORT STEP [SECONDS [SPEED]]
 
 STEP is one of:
   discover  the topics, their types, hashes and QoS, and the hashes the
@@ -11,8 +11,8 @@ STEP is one of:
   watch     every topic for SECONDS: counts, rates, a decoded image's
             size, the camera info, the last odometry, /tf's frames
   map       /map as a subscriber joining late (transient local)
-  drive     Twists on /cmd_vel at 20 Hz: SECONDS forward, then the odometry
-            after a second of silence
+  drive     Twists on /cmd_vel at 20 Hz: SECONDS forward at SPEED m/s, then
+            the odometry after a second of silence
 """
 
 import json
@@ -23,6 +23,7 @@ import time
 
 MSG_DIR, PORT, STEP = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 SECONDS = float(sys.argv[4]) if len(sys.argv) > 4 else 3.0
+SPEED = float(sys.argv[5]) if len(sys.argv) > 5 else 0.05
 
 from zenoh_ros2_sdk import get_registry  # noqa: E402
 
@@ -56,7 +57,13 @@ def sdk_hash(msg_type):
 
 
 def discover():
-    listed = dict(get_topic_names_and_types(router_port=PORT, timeout=2.0))
+    # The node may still be coming up: ask until every topic is there.
+    deadline = time.monotonic() + 20
+    while True:
+        listed = dict(get_topic_names_and_types(router_port=PORT, timeout=1.0))
+        if set(TOPICS) | {"/cmd_vel"} <= set(listed) or time.monotonic() > deadline:
+            break
+        time.sleep(0.5)
     topics = {}
     for topic in list(TOPICS) + ["/cmd_vel"]:
         info = get_topic_info(topic, router_port=PORT, timeout=1.0, verbose=True)
@@ -205,7 +212,7 @@ def drive():
     began = time.monotonic()
     sent = 0
     while time.monotonic() - began < SECONDS:
-        pub.publish(linear=Vector3(x=0.05, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0))
+        pub.publish(linear=Vector3(x=SPEED, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0))
         sent += 1
         time.sleep(0.05)
     driven = odoms[-1] if odoms else None

@@ -1,0 +1,265 @@
+//! The lab on ROS 2, checked from outside with PyPI's `zenoh-ros2-sdk`
+//! (rmw_zenoh's wire format in Python, nothing of vl's), offline: it reads
+//! its message definitions from the folder vl vendors, never from the
+//! network. A Host with `--ros2 --ros2-operator` is discovered with the
+//! right types and hashes, streams odometry and images at their rates,
+//! serves its map to a late subscriber, and is driven by Twists through
+//! the safety layer and the watchdog; `--robot ros2` drives a simulated
+//! ROS 2 robot written with the same package to a navigation goal.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Duration;
+
+use serde_json::Value;
+
+use crate::alone;
+use crate::common::peer::Peer;
+use crate::common::{self, free_port, scratch, start_vl};
+
+/// The vendored definitions, the outside client's registry.
+const MSGS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/crates/vl-host/ros2-msgs");
+const LAB: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2/lab.py");
+const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2/robot.py");
+
+/// A Python with the outside ROS 2 client, or `None` (said why).
+fn python() -> Option<&'static str> {
+    common::python_with("zenoh_ros2_sdk")
+}
+
+/// One step of the outside client against the router at `port`.
+fn step(python: &str, port: u16, args: &[&str]) -> Value {
+    let port = port.to_string();
+    let out = Command::new(python)
+        .args([LAB, MSGS, &port])
+        .args(args)
+        .output()
+        .expect("python runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = stdout.lines().last().unwrap_or_default();
+    serde_json::from_str(line).unwrap_or_else(|e| {
+        panic!(
+            "lab.py {args:?} printed no JSON ({e}): {stdout}{}",
+            String::from_utf8_lossy(&out.stderr)
+        )
+    })
+}
+
+const TYPES: [(&str, &str); 7] = [
+    ("/odom", "nav_msgs/msg/Odometry"),
+    ("/tf", "tf2_msgs/msg/TFMessage"),
+    ("/scan", "sensor_msgs/msg/LaserScan"),
+    ("/map", "nav_msgs/msg/OccupancyGrid"),
+    (
+        "/camera/image_raw/compressed",
+        "sensor_msgs/msg/CompressedImage",
+    ),
+    ("/camera/camera_info", "sensor_msgs/msg/CameraInfo"),
+    ("/cmd_vel", "geometry_msgs/msg/Twist"),
+];
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn ros_2_tools_see_and_drive_the_lab() {
+    let Some(python) = python() else { return };
+    let _alone = alone().await;
+    let port = free_port();
+    let audit = scratch("ros2-audit").join("audit.jsonl");
+    let zenoh = format!("tcp/127.0.0.1:{port}");
+    let args = [
+        "host",
+        "--listen",
+        "127.0.0.1:0",
+        "--no-record",
+        "--ros2",
+        "--ros2-operator",
+        "--zenoh-listen",
+        &zenoh,
+        "--audit",
+        common::s(&audit),
+    ];
+    let (_host, url) = start_vl(&args, "vl host listening on ");
+
+    // Discovery: every topic with its type, and the hash the outside
+    // client computes itself from the .msg files.
+    let found = step(python, port, &["discover"]);
+    for (topic, ty) in TYPES {
+        let seen = &found["topics"][topic];
+        assert_eq!(seen["types"], serde_json::json!([ty]), "{topic}: {found}");
+        assert_eq!(
+            seen["hashes"],
+            serde_json::json!([seen["sdk_hash"]]),
+            "{topic}: {seen}"
+        );
+        assert_eq!(
+            seen["nodes"],
+            serde_json::json!(["vl_host"]),
+            "{topic}: {seen}"
+        );
+    }
+    assert_eq!(found["topics"]["/cmd_vel"]["subscribers"], 1);
+    assert!(
+        found["topics"]["/map"]["qos"][0]
+            .as_str()
+            .unwrap()
+            .starts_with("1:1:"),
+        "{found}"
+    );
+
+    // The streams, over 3 s.
+    let watched = step(python, port, &["watch", "3"]);
+    let rate = |topic: &str| watched["rates"][topic].as_f64().unwrap();
+    assert!(rate("/odom") >= 20.0, "{watched}");
+    assert!(rate("/camera/image_raw/compressed") >= 10.0, "{watched}");
+    for topic in ["/tf", "/camera/camera_info", "/scan"] {
+        assert!(rate(topic) >= 1.0, "{topic}: {watched}");
+    }
+    let image = &watched["image"];
+    assert_eq!(image["jpeg"], true, "{watched}");
+    assert_eq!(image["size"], watched["camera_info"]["size"], "{watched}");
+    let odom = &watched["odom"];
+    assert_eq!(
+        (odom["frame"].as_str(), odom["child"].as_str()),
+        (Some("odom"), Some("base_link"))
+    );
+    let now = watched["now"].as_f64().unwrap();
+    assert!(
+        (now - odom["stamp"].as_f64().unwrap()).abs() < 2.0,
+        "wall-clock stamps: {watched}"
+    );
+    let tf = watched["tf"].as_array().unwrap();
+    let edge = |parent: &str, child: &str| {
+        tf.iter()
+            .find(|t| t["parent"] == parent && t["child"] == child)
+            .unwrap_or_else(|| panic!("no {parent} → {child} in {watched}"))
+    };
+    assert_eq!(
+        edge("odom", "base_link")["xyz"][0],
+        odom["x"],
+        "/tf says what /odom says"
+    );
+    edge("map", "odom");
+    assert!(
+        edge("map", "camera")["xyz"][2].as_f64().unwrap() > 0.1,
+        "the camera is above the floor"
+    );
+
+    // A subscriber that joins late still gets the map.
+    let map = step(python, port, &["map", "5"]);
+    assert!(map["maps"].as_u64().unwrap() >= 1, "{map}");
+    assert!(
+        map["taken"].as_u64().unwrap() > 0,
+        "the map shows obstacles: {map}"
+    );
+    assert_eq!(map["frame"], "map");
+
+    // Twists drive; silence stops; a Twist toward a wall for 5 s stops
+    // short. An observer counts contacts all the while.
+    let contacts = Arc::new(AtomicUsize::new(0));
+    let mut observer = Peer::connect(&url).await;
+    observer.hello("observer").await;
+    let counting = contacts.clone();
+    let watching = tokio::spawn(async move {
+        while let Some(message) = observer.next_any().await {
+            if message["type"] == "feedback" && message["contact"] == true {
+                counting.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    });
+    let forward = step(python, port, &["drive", "1.5", "0.05"]);
+    let x = |key: &str| forward[key]["x"].as_f64().unwrap();
+    assert!(
+        x("driven") - x("start") > 0.04,
+        "Twists at 20 Hz move it: {forward}"
+    );
+    assert!(
+        (x("later") - x("after_silence")).abs() < 0.002,
+        "silence stops it: {forward}"
+    );
+    let wall = step(python, port, &["drive", "5", "0.3"]);
+    let wx = |key: &str| wall[key]["x"].as_f64().unwrap();
+    assert!(
+        wx("driven") - wx("start") > 0.01,
+        "it goes toward the wall: {wall}"
+    );
+    assert!(
+        (wx("later") - wx("driven")).abs() < 0.002,
+        "held short of the wall: {wall}"
+    );
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    watching.abort();
+    assert_eq!(contacts.load(Ordering::Relaxed), 0, "no contact, ever");
+    let audit = std::fs::read_to_string(&audit).unwrap();
+    assert!(
+        audit
+            .lines()
+            .any(|l| l.contains("\"run_started\"") && l.contains("\"user\":\"ros2\"")),
+        "the audit log names ros2 as the driver: {audit}"
+    );
+}
+
+/// The simulated ROS 2 robot, started at the lab's start pose, and a
+/// thread keeping its last report.
+fn start_robot(python: &str, port: u16) -> (Child, Arc<std::sync::Mutex<String>>) {
+    let mut robot = Command::new(python)
+        .args([ROBOT, MSGS, &port.to_string(), "0.1", "0.12", "0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("python runs");
+    let said = Arc::new(std::sync::Mutex::new(String::new()));
+    let keep = said.clone();
+    let stdout = robot.stdout.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            *keep.lock().unwrap() = line;
+        }
+    });
+    (robot, said)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
+    let Some(python) = python() else { return };
+    let _alone = alone().await;
+    let port = free_port();
+    let (mut robot, said) = start_robot(python, port);
+    let zenoh = format!("tcp/127.0.0.1:{port}");
+    let args = [
+        "host",
+        "--listen",
+        "127.0.0.1:0",
+        "--no-record",
+        "--robot",
+        "ros2",
+        "--camera",
+        "none",
+        "--zenoh-listen",
+        &zenoh,
+    ];
+    let (_host, url) = start_vl(&args, "vl host listening on ");
+    let report = tokio::task::spawn_blocking(move || common::headless_run(&url, 90, &[]))
+        .await
+        .unwrap();
+    let _ = robot.kill();
+    let summary = &report["summary"];
+    assert_eq!(report["reached_goal"], true, "{summary}");
+    assert_eq!(summary["collisions"], 0, "{summary}");
+    assert!(
+        report["forecast"]["forecast_s"].as_f64().unwrap() > 0.0,
+        "the forecast was in the loop"
+    );
+    let last: Value = serde_json::from_str(&said.lock().unwrap()).unwrap();
+    assert!(
+        last["twists"].as_u64().unwrap() > 50,
+        "the robot took the lab's Twists: {last}"
+    );
+    let final_pose = &summary["final_pose"];
+    let gap = (last["x"].as_f64().unwrap() * 1e3 - final_pose["x_mm"].as_f64().unwrap())
+        .hypot(last["y"].as_f64().unwrap() * 1e3 - final_pose["y_mm"].as_f64().unwrap());
+    assert!(
+        gap < 20.0,
+        "the robot is where the lab says: {gap:.1} mm off"
+    );
+}
