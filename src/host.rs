@@ -150,8 +150,9 @@ pub(crate) struct HostArgs {
     /// given here as well win.
     #[arg(long, value_hint = ValueHint::FilePath)]
     config: Option<PathBuf>,
-    /// Which robot to drive: sim (the simulated Khepera II) or khepera
-    /// (a Khepera I/II on the serial line --port).
+    /// Which robot to drive: sim (the simulated Khepera II), khepera (a
+    /// Khepera I/II on the serial line --port) or ros2 (a ROS 2 base on the
+    /// Zenoh network: /cmd_vel out, /odom in).
     #[arg(long, value_parser = named::<RobotDriver>(), default_value = "sim")]
     robot: RobotDriver,
     /// The serial device of a Khepera (with --robot khepera).
@@ -169,6 +170,7 @@ pub(crate) struct HostArgs {
         long,
         value_parser = str::parse::<CameraSource>,
         default_value_if("robot", "khepera", "none"),
+        default_value_if("robot", "ros2", "none"),
         default_value = "sim"
     )]
     camera: CameraSource,

@@ -80,9 +80,21 @@ async fn ros_2_tools_see_and_drive_the_lab() {
         common::s(&audit),
     ];
     let (_host, url) = start_vl(&args, "vl host listening on ");
+    discovered(python, port);
+    streamed(python, port);
+    driven(python, port, &url).await;
+    let audit = std::fs::read_to_string(&audit).unwrap();
+    assert!(
+        audit
+            .lines()
+            .any(|l| l.contains("\"run_started\"") && l.contains("\"user\":\"ros2\"")),
+        "the audit log names ros2 as the driver: {audit}"
+    );
+}
 
-    // Discovery: every topic with its type, and the hash the outside
-    // client computes itself from the .msg files.
+/// Every topic with its type, and the hash the outside client computes
+/// itself from the .msg files.
+fn discovered(python: &str, port: u16) {
     let found = step(python, port, &["discover"]);
     for (topic, ty) in TYPES {
         let seen = &found["topics"][topic];
@@ -106,8 +118,10 @@ async fn ros_2_tools_see_and_drive_the_lab() {
             .starts_with("1:1:"),
         "{found}"
     );
+}
 
-    // The streams, over 3 s.
+/// The streams over 3 s, and the map as a late subscriber gets it.
+fn streamed(python: &str, port: u16) {
     let watched = step(python, port, &["watch", "3"]);
     let rate = |topic: &str| watched["rates"][topic].as_f64().unwrap();
     assert!(rate("/odom") >= 20.0, "{watched}");
@@ -153,11 +167,13 @@ async fn ros_2_tools_see_and_drive_the_lab() {
         "the map shows obstacles: {map}"
     );
     assert_eq!(map["frame"], "map");
+}
 
-    // Twists drive; silence stops; a Twist toward a wall for 5 s stops
-    // short. An observer counts contacts all the while.
+/// Twists drive; silence stops; a Twist toward a wall for 5 s stops short.
+/// An observer counts contacts all the while.
+async fn driven(python: &str, port: u16, url: &str) {
     let contacts = Arc::new(AtomicUsize::new(0));
-    let mut observer = Peer::connect(&url).await;
+    let mut observer = Peer::connect(url).await;
     observer.hello("observer").await;
     let counting = contacts.clone();
     let watching = tokio::spawn(async move {
@@ -190,13 +206,6 @@ async fn ros_2_tools_see_and_drive_the_lab() {
     tokio::time::sleep(Duration::from_millis(500)).await;
     watching.abort();
     assert_eq!(contacts.load(Ordering::Relaxed), 0, "no contact, ever");
-    let audit = std::fs::read_to_string(&audit).unwrap();
-    assert!(
-        audit
-            .lines()
-            .any(|l| l.contains("\"run_started\"") && l.contains("\"user\":\"ros2\"")),
-        "the audit log names ros2 as the driver: {audit}"
-    );
 }
 
 /// The simulated ROS 2 robot, started at the lab's start pose, and a

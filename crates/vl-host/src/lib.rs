@@ -66,6 +66,10 @@
 //!   refuses connections during a scheduled disconnect, keeps for a client
 //!   that does not read only the newest 2 MiB of frames, records each leg's
 //!   delays and measures its own cost (`media`)
+//! - many cells behind one gateway on Zenoh (`cells`), and the lab as a
+//!   ROS 2 node on Zenoh as rmw_zenoh speaks it, no ROS installed: its
+//!   topics, `/cmd_vel` as an operator, and any ROS 2 base as the lab's
+//!   robot (`ros2`); velocities paced into commands (`server::pacing`)
 
 mod accounts;
 mod cells;
