@@ -324,6 +324,7 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         domain: args.ros2_domain,
         zenoh: ros2_zenoh(args),
         operator: args.ros2_operator,
+        cell: args.cell.clone(),
     });
     config.cell = args.cell.clone().map(|name| vl_host::CellOptions {
         name,

@@ -3,13 +3,15 @@ zenoh-ros2-sdk (rmw_zenoh's wire format, nothing of vl's), given the
 vendored .msg folder as its registry so it never downloads. Prints one
 JSON object with what it saw; tests/ros2.rs asserts on it.
 
-    python3 lab.py MSG_DIR ROUTER_PORT STEP [SECONDS [SPEED]]
+    python3 lab.py MSG_DIR ROUTER_PORT STEP [SECONDS [SPEED | TOPIC...]]
 
 STEP is one of:
   discover  the topics, their types, hashes and QoS, and the hashes the
             SDK computes itself from the .msg files
   watch     every topic for SECONDS: counts, rates, a decoded image's
             size, the camera info, the last odometry, /tf's frames
+  list      the topics and their types, once TOPIC... (after SECONDS) are
+            all listed, or SECONDS have passed
   map       /map as a subscriber joining late (transient local)
   drive     Twists on /cmd_vel at 20 Hz: SECONDS forward at SPEED m/s, then
             the odometry after a second of silence
@@ -23,7 +25,7 @@ import time
 
 MSG_DIR, PORT, STEP = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 SECONDS = float(sys.argv[4]) if len(sys.argv) > 4 else 3.0
-SPEED = float(sys.argv[5]) if len(sys.argv) > 5 else 0.05
+SPEED = float(sys.argv[5]) if len(sys.argv) > 5 and STEP == "drive" else 0.05
 
 from zenoh_ros2_sdk import get_registry  # noqa: E402
 
@@ -80,6 +82,16 @@ def discover():
             "sdk_hash": sdk_hash(info.topic_types[0]),
         }
     return {"listed": listed, "topics": topics}
+
+
+def listing():
+    expected = set(sys.argv[5:])
+    deadline = time.monotonic() + SECONDS
+    while True:
+        listed = dict(get_topic_names_and_types(router_port=PORT, timeout=1.0))
+        if expected <= set(listed) or time.monotonic() > deadline:
+            return {"listed": listed}
+        time.sleep(0.5)
 
 
 def jpeg_size(data):
@@ -234,5 +246,5 @@ def drive():
     }
 
 
-STEPS = {"discover": discover, "watch": watch, "map": late_map, "drive": drive}
+STEPS = {"discover": discover, "list": listing, "watch": watch, "map": late_map, "drive": drive}
 print(json.dumps(STEPS[STEP]()), flush=True)

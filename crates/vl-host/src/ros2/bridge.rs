@@ -16,7 +16,8 @@ use vl_core::{Feedback, FrameHeader, HostMessage, ImageFormat, LabScene};
 
 use super::graph::{Publisher, Qos};
 use super::messages::{CameraInfo, CompressedImage, LaserScan, OccupancyGrid, Odometry, TfMessage};
-use super::{NODE, Ros2Error, Ros2Options, views};
+use super::views::{self, Frames};
+use super::{NODE, Ros2Error, Ros2Options};
 use crate::lab::Watching;
 use crate::server::hub::ToHub;
 
@@ -55,12 +56,15 @@ struct Topics {
     image: Publisher<CompressedImage>,
     camera_info: Publisher<CameraInfo>,
     _map: Publisher<OccupancyGrid>,
+    frames: Frames,
 }
 
 async fn publish(options: &Ros2Options, lab: Lab) -> Result<(), Ros2Error> {
-    let node = super::node(&options.zenoh, options.domain, NODE).await?;
+    let cell = options.cell.as_ref().map(|c| c.as_str());
+    let node = super::node(&options.zenoh, options.domain, cell, NODE).await?;
+    let frames = Frames::of(cell);
     let map = node.publisher("/map", Qos::LATCHED).await?;
-    if let Some(grid) = views::map(&lab.scene.arena) {
+    if let Some(grid) = views::map(&frames, &lab.scene.arena) {
         map.put(&grid).await?;
     }
     let topics = Topics {
@@ -72,9 +76,11 @@ async fn publish(options: &Ros2Options, lab: Lab) -> Result<(), Ros2Error> {
             .await?,
         camera_info: node.publisher("/camera/camera_info", Qos::STATE).await?,
         _map: map,
+        frames,
     };
+    let namespace = cell.map(|c| format!("/{c}")).unwrap_or_default();
     info!(
-        "the lab is on ROS 2 as node /{NODE}, domain {}",
+        "the lab is on ROS 2 as node {namespace}/{NODE}, domain {}",
         options.domain
     );
     let driving = async {
@@ -107,20 +113,20 @@ async fn state(topics: &Topics, lab: &Lab) -> Result<(), Ros2Error> {
                 };
                 if odom_at.elapsed() >= ODOM_EVERY {
                     odom_at = Instant::now();
-                    topics.odom.put(&views::odometry(&fresh, robot)).await?;
-                    topics.tf.put(&views::transforms(&fresh, &pinhole)).await?;
+                    topics.odom.put(&views::odometry(&topics.frames, &fresh, robot)).await?;
+                    topics.tf.put(&views::transforms(&topics.frames, &fresh, &pinhole)).await?;
                 }
                 if scan_at.elapsed() >= SCAN_EVERY {
                     scan_at = Instant::now();
-                    topics.scan.put(&views::scan(&fresh, robot)).await?;
+                    topics.scan.put(&views::scan(&topics.frames, &fresh, robot)).await?;
                 }
                 latest = Some(fresh);
             }
             _ = slow.tick() => {
-                topics.camera_info.put(&views::camera_info(&pinhole)).await?;
+                topics.camera_info.put(&views::camera_info(&topics.frames, &pinhole)).await?;
                 if let Some(fresh) = &latest {
-                    topics.tf.put(&views::transforms(fresh, &pinhole)).await?;
-                    topics.scan.put(&views::scan(fresh, robot)).await?;
+                    topics.tf.put(&views::transforms(&topics.frames, fresh, &pinhole)).await?;
+                    topics.scan.put(&views::scan(&topics.frames, fresh, robot)).await?;
                 }
             }
         }
@@ -149,7 +155,7 @@ async fn camera(topics: &Topics, lab: &Lab) -> Result<(), Ros2Error> {
                 };
                 match FrameHeader::decode(&frame) {
                     Ok((header, jpeg)) if header.format == ImageFormat::Jpeg => {
-                        topics.image.put(&views::image(jpeg)).await?;
+                        topics.image.put(&views::image(&topics.frames, jpeg)).await?;
                     }
                     Ok(_) => {}
                     Err(e) => warn!("ROS 2: a camera frame that does not decode: {e}"),

@@ -70,6 +70,8 @@ pub(crate) struct Node {
     session: zenoh::Session,
     domain: u32,
     zid: String,
+    /// `/` or `/NAME`.
+    namespace: String,
     name: String,
     /// Node and entity ids, unique within the session.
     ids: Arc<AtomicU32>,
@@ -79,18 +81,25 @@ pub(crate) struct Node {
 }
 
 impl Node {
-    /// Node `name` in the root namespace of `domain`, announced at once.
+    /// Node `name` of `domain`, in the root namespace or `/NAME` (a
+    /// cell's: its topics are then `/NAME/…`), announced at once.
     pub(crate) async fn new(
         session: zenoh::Session,
         domain: u32,
+        namespace: Option<&str>,
         name: &str,
         catalogue: Arc<Catalogue>,
     ) -> Result<Node, Ros2Error> {
+        let namespace = match namespace {
+            Some(inner) => format!("/{inner}"),
+            None => "/".to_owned(),
+        };
         let zid = session.zid().to_string();
         let ids = Arc::new(AtomicU32::new(0));
         let nid = ids.fetch_add(1, Ordering::Relaxed);
         let key = format!(
-            "@ros2_lv/{domain}/{zid}/{nid}/{nid}/NN/%/%/{}",
+            "@ros2_lv/{domain}/{zid}/{nid}/{nid}/NN/%/{}/{}",
+            mangle(&namespace),
             mangle(name)
         );
         let token = session.liveliness().declare_token(key).await?;
@@ -98,6 +107,7 @@ impl Node {
             session,
             domain,
             zid,
+            namespace,
             name: name.to_owned(),
             ids,
             nid,
@@ -112,18 +122,21 @@ impl Node {
         let hash = self.catalogue.type_hash(M::TYPE)?;
         let dds = dds_name(M::TYPE);
         let eid = self.ids.fetch_add(1, Ordering::Relaxed);
+        // A relative name is within the node's namespace.
+        let topic = format!("{}{topic}", self.namespace.trim_end_matches('/'));
         let data = format!(
             "{}/{}/{dds}/{hash}",
             self.domain,
             topic.trim_start_matches('/')
         );
         let token = format!(
-            "@ros2_lv/{}/{}/{}/{eid}/{kind}/%/%/{}/{}/{dds}/{hash}/{}",
+            "@ros2_lv/{}/{}/{}/{eid}/{kind}/%/{}/{}/{}/{dds}/{hash}/{}",
             self.domain,
             self.zid,
             self.nid,
+            mangle(&self.namespace),
             mangle(&self.name),
-            mangle(topic),
+            mangle(&topic),
             qos.token_chunk()
         );
         Ok(Keys { data, token })

@@ -33,6 +33,10 @@ pub struct Ros2Options {
     pub zenoh: ZenohOptions,
     /// `/cmd_vel` drives the robot.
     pub operator: bool,
+    /// A cell's name: its node's namespace (`/NAME/odom`, …) and its
+    /// frames' prefix (`NAME/base_link`, …), so several cells share one
+    /// ROS 2 network.
+    pub cell: Option<vl_core::CellName>,
 }
 
 /// Why the lab cannot be on ROS 2.
@@ -56,8 +60,13 @@ impl From<zenoh::Error> for Ros2Error {
 pub(crate) const NODE: &str = "vl_host";
 
 /// The lab's node on its own session, with the vendored definitions.
-async fn node(zenoh: &ZenohOptions, domain: u32, name: &str) -> Result<graph::Node, Ros2Error> {
+async fn node(
+    zenoh: &ZenohOptions,
+    domain: u32,
+    namespace: Option<&str>,
+    name: &str,
+) -> Result<graph::Node, Ros2Error> {
     let catalogue = std::sync::Arc::new(msg::Catalogue::vendored()?);
     let session = crate::cells::open(zenoh).await?;
-    graph::Node::new(session, domain, name, catalogue).await
+    graph::Node::new(session, domain, namespace, name, catalogue).await
 }

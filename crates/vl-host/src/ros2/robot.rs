@@ -51,7 +51,7 @@ impl Ros2Robot {
         options: &Ros2RobotOptions,
         model: RobotModel,
     ) -> Result<Ros2Robot, Ros2Error> {
-        let node = super::node(&options.zenoh, options.domain, "vl_robot").await?;
+        let node = super::node(&options.zenoh, options.domain, None, "vl_robot").await?;
         let latest: Latest = Arc::default();
         let into = latest.clone();
         let odom = node

@@ -12,10 +12,29 @@ use super::messages::{
     TfMessage, Time, TransformStamped, Twist, Vector3,
 };
 
-pub(crate) const MAP_FRAME: &str = "map";
-pub(crate) const ODOM_FRAME: &str = "odom";
-pub(crate) const BASE_FRAME: &str = "base_link";
-pub(crate) const CAMERA_FRAME: &str = "camera";
+/// The lab's frames: ROS's names, each after `NAME/` for a cell (several
+/// cells on one ROS 2 network each have their own).
+pub(crate) struct Frames {
+    map: String,
+    odom: String,
+    base: String,
+    camera: String,
+}
+
+impl Frames {
+    pub(crate) fn of(cell: Option<&str>) -> Frames {
+        let name = |frame: &str| match cell {
+            Some(cell) => format!("{cell}/{frame}"),
+            None => frame.to_owned(),
+        };
+        Frames {
+            map: name("map"),
+            odom: name("odom"),
+            base: name("base_link"),
+            camera: name("camera"),
+        }
+    }
+}
 
 const MM: f64 = 1e-3;
 
@@ -24,7 +43,7 @@ const MM: f64 = 1e-3;
 const POSE_VARIANCE: [f64; 3] = [2.5e-5, 2.5e-5, 1e-3];
 
 /// `/odom`: the pose and the wheels' motion.
-pub(crate) fn odometry(feedback: &Feedback, robot: &RobotModel) -> Odometry {
+pub(crate) fn odometry(frames: &Frames, feedback: &Feedback, robot: &RobotModel) -> Odometry {
     let mut pose_covariance = [0.0; 36];
     // x, y and the rotation about z; the robot stays on the floor.
     for (i, variance) in [
@@ -35,8 +54,8 @@ pub(crate) fn odometry(feedback: &Feedback, robot: &RobotModel) -> Odometry {
         pose_covariance[i] = variance;
     }
     Odometry {
-        header: Header::now(ODOM_FRAME),
-        child_frame_id: BASE_FRAME.into(),
+        header: Header::now(&frames.odom),
+        child_frame_id: frames.base.clone(),
         pose: pose_of(feedback),
         pose_covariance,
         twist: twist_of(feedback, robot),
@@ -77,7 +96,11 @@ fn twist_of(feedback: &Feedback, robot: &RobotModel) -> Twist {
 
 /// `/tf`: `odom` → `base_link` as `/odom` says, `map` → `odom`, and where
 /// the camera is in `map`.
-pub(crate) fn transforms(feedback: &Feedback, camera: &vl_core::Pinhole) -> TfMessage {
+pub(crate) fn transforms(
+    frames: &Frames,
+    feedback: &Feedback,
+    camera: &vl_core::Pinhole,
+) -> TfMessage {
     let stamp = Time::now();
     let stamped = |parent: &str, child: &str, translation, rotation| TransformStamped {
         header: Header {
@@ -94,15 +117,15 @@ pub(crate) fn transforms(feedback: &Feedback, camera: &vl_core::Pinhole) -> TfMe
     TfMessage {
         transforms: vec![
             stamped(
-                MAP_FRAME,
-                ODOM_FRAME,
+                &frames.map,
+                &frames.odom,
                 Vector3::default(),
                 Quaternion::default(),
             ),
-            stamped(ODOM_FRAME, BASE_FRAME, pose.position, pose.orientation),
+            stamped(&frames.odom, &frames.base, pose.position, pose.orientation),
             stamped(
-                MAP_FRAME,
-                CAMERA_FRAME,
+                &frames.map,
+                &frames.camera,
                 Vector3 {
                     x: x * MM,
                     y: y * MM,
@@ -121,9 +144,9 @@ pub(crate) fn transforms(feedback: &Feedback, camera: &vl_core::Pinhole) -> TfMe
 
 /// `/camera/camera_info`: the calibration as a pinhole with OpenCV's
 /// plumb-bob lens.
-pub(crate) fn camera_info(camera: &vl_core::Pinhole) -> CameraInfo {
+pub(crate) fn camera_info(frames: &Frames, camera: &vl_core::Pinhole) -> CameraInfo {
     CameraInfo {
-        header: Header::now(CAMERA_FRAME),
+        header: Header::now(&frames.camera),
         height: camera.height_px,
         width: camera.width_px,
         distortion_model: "plumb_bob".into(),
@@ -135,9 +158,9 @@ pub(crate) fn camera_info(camera: &vl_core::Pinhole) -> CameraInfo {
 }
 
 /// `/camera/image_raw/compressed`: a JPEG as the camera sent it.
-pub(crate) fn image(jpeg: &[u8]) -> CompressedImage {
+pub(crate) fn image(frames: &Frames, jpeg: &[u8]) -> CompressedImage {
     CompressedImage {
-        header: Header::now(CAMERA_FRAME),
+        header: Header::now(&frames.camera),
         format: "jpeg".into(),
         data: jpeg.to_vec(),
     }
@@ -150,7 +173,7 @@ const SCAN_BINS: usize = 360;
 /// degree; a sensor's bin holds how far its obstacle is from the robot's
 /// centre (the sensor sits on the rim looking out), every other bin
 /// +inf (nothing seen).
-pub(crate) fn scan(feedback: &Feedback, robot: &RobotModel) -> LaserScan {
+pub(crate) fn scan(frames: &Frames, feedback: &Feedback, robot: &RobotModel) -> LaserScan {
     let increment = std::f64::consts::TAU / SCAN_BINS as f64;
     let mut ranges = vec![f32::INFINITY; SCAN_BINS];
     for (mount, &reading) in robot.sensors.iter().zip(&feedback.proximity) {
@@ -166,7 +189,7 @@ pub(crate) fn scan(feedback: &Feedback, robot: &RobotModel) -> LaserScan {
         ranges[bin] = ranges[bin].min((from_centre * MM) as f32);
     }
     LaserScan {
-        header: Header::now(BASE_FRAME),
+        header: Header::now(&frames.base),
         angle_min: -std::f32::consts::PI,
         angle_max: (std::f64::consts::PI - increment) as f32,
         angle_increment: increment as f32,
@@ -181,7 +204,7 @@ pub(crate) fn scan(feedback: &Feedback, robot: &RobotModel) -> LaserScan {
 
 /// `/map`: the floor as the camera mapped it, 0 free and 100 taken, rows
 /// from the floor's y = 0 up, in `map`.
-pub(crate) fn map(arena: &Arena) -> Option<OccupancyGrid> {
+pub(crate) fn map(frames: &Frames, arena: &Arena) -> Option<OccupancyGrid> {
     let grid = Grid::from_arena(arena, ARENA_CELL_MM).ok()?;
     let width = grid.width as usize;
     // `Grid` keeps its top row first; ROS's rows go along +y.
@@ -195,7 +218,7 @@ pub(crate) fn map(arena: &Arena) -> Option<OccupancyGrid> {
     Some(OccupancyGrid {
         header: Header {
             stamp: now,
-            frame_id: MAP_FRAME.into(),
+            frame_id: frames.map.clone(),
         },
         map_load_time: now,
         resolution: (grid.cell_mm * MM) as f32,
