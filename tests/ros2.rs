@@ -169,8 +169,9 @@ fn streamed(python: &str, port: u16) {
     assert_eq!(map["frame"], "map");
 }
 
-/// Twists drive; silence stops; a Twist toward a wall for 5 s stops short.
-/// An observer counts contacts all the while.
+/// Twists drive; silence stops; a Twist toward a wall for 5 s stops short;
+/// garbage on `/cmd_vel` drives nothing out of bounds. An observer counts
+/// contacts all the while.
 async fn driven(python: &str, port: u16, url: &str) {
     let contacts = Arc::new(AtomicUsize::new(0));
     let mut observer = Peer::connect(url).await;
@@ -203,6 +204,17 @@ async fn driven(python: &str, port: u16, url: &str) {
         (wx("later") - wx("driven")).abs() < 0.002,
         "held short of the wall: {wall}"
     );
+    // A million garbage samples on /cmd_vel's key: the lab keeps its
+    // rates, the robot within its limits.
+    let hostile = step(python, port, &["hostile", "3"]);
+    assert!(hostile["sent"].as_u64().unwrap() > 1000, "{hostile}");
+    assert!(
+        hostile["odoms"].as_u64().unwrap() >= 60,
+        "/odom kept going: {hostile}"
+    );
+    let fastest = |key: &str| hostile[key].as_f64().unwrap();
+    assert!(fastest("fastest_v") <= 1.0, "{hostile}");
+    assert!(fastest("fastest_w") <= 50.0, "{hostile}");
     tokio::time::sleep(Duration::from_millis(500)).await;
     watching.abort();
     assert_eq!(contacts.load(Ordering::Relaxed), 0, "no contact, ever");

@@ -15,6 +15,9 @@ STEP is one of:
   map       /map as a subscriber joining late (transient local)
   drive     Twists on /cmd_vel at 20 Hz: SECONDS forward at SPEED m/s, then
             the odometry after a second of silence
+  hostile   for SECONDS, as fast as it can, on /cmd_vel's key: random bytes,
+            cut Twists, Twists of NaN, of ±1e300 and of a turn at 1e9 rad/s;
+            the fastest the robot went meanwhile
 """
 
 import json
@@ -246,5 +249,52 @@ def drive():
     }
 
 
-STEPS = {"discover": discover, "list": listing, "watch": watch, "map": late_map, "drive": drive}
+def hostile():
+    import random
+
+    import zenoh
+
+    from zenoh_ros2_sdk import ZenohSession
+    from zenoh_ros2_sdk.utils import ros2_to_dds_type
+
+    msg_type = "geometry_msgs/msg/Twist"
+    key = f"0/cmd_vel/{ros2_to_dds_type(msg_type)}/{sdk_hash(msg_type)}"
+    odoms = []
+    sub = ROS2Subscriber(
+        topic="/odom", msg_type=TOPICS["/odom"], callback=lambda m: odoms.append(odom_of(m)), router_port=PORT
+    )
+    session = ZenohSession.get_instance("127.0.0.1", PORT).session
+    pub = session.declare_publisher(key)
+    header = b"\x00\x01\x00\x00"
+
+    def twist(vx, wz):
+        return header + struct.pack("<6d", vx, 0.0, 0.0, 0.0, 0.0, wz)
+
+    rng = random.Random(7)
+    kinds = [
+        lambda: bytes(rng.getrandbits(8) for _ in range(rng.randrange(0, 200))),
+        lambda: twist(0.1, 0.0)[: rng.randrange(0, 52)],
+        lambda: twist(float("nan"), 0.0),
+        lambda: twist(float("inf"), float("-inf")),
+        lambda: twist(rng.choice([1e300, -1e300]), 0.0),
+        lambda: twist(0.0, 1e9),
+        lambda: header + b"\xff" * 48 + b"extra bytes after the message",
+    ]
+    sent = 0
+    began = time.monotonic()
+    while time.monotonic() - began < SECONDS:
+        pub.put(rng.choice(kinds)())
+        sent += 1
+    time.sleep(1.0)
+    sub.close()
+    return {
+        "sent": sent,
+        "odoms": len(odoms),
+        "fastest_v": max((abs(o["v"]) for o in odoms), default=0.0),
+        "fastest_w": max((abs(o["w"]) for o in odoms), default=0.0),
+        "last": odoms[-1] if odoms else None,
+    }
+
+
+STEPS = {"discover": discover, "list": listing, "watch": watch, "map": late_map, "drive": drive, "hostile": hostile}
 print(json.dumps(STEPS[STEP]()), flush=True)

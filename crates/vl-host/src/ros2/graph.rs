@@ -187,7 +187,8 @@ impl Node {
     }
 
     /// Every sample of `M` on `topic`, decoded, into `deliver`; one that
-    /// does not decode is dropped with a warning naming the topic.
+    /// does not decode is dropped with a warning naming the topic (at most
+    /// one a second: a publisher of garbage does not flood the log).
     pub(crate) async fn subscribe<M, F>(
         &self,
         topic: &str,
@@ -200,15 +201,17 @@ impl Node {
     {
         let keys = self.keys::<M>(topic, "MS", qos)?;
         let topic = topic.to_owned();
+        let hush = Hush::default();
         let subscriber = self
             .session
             .declare_subscriber(keys.data.clone())
             .callback(
                 move |sample| match M::decode(&sample.payload().to_bytes()) {
                     Ok(message) => deliver(message),
-                    Err(e) => {
+                    Err(e) if hush.speak() => {
                         tracing::warn!("ROS 2 {topic}: a {} that does not decode: {e}", M::TYPE)
                     }
+                    Err(_) => {}
                 },
             )
             .await?;
@@ -217,6 +220,21 @@ impl Node {
             _subscriber: subscriber,
             _token: token,
         })
+    }
+}
+
+/// Lets a warning about what others send through once a second.
+#[derive(Default)]
+pub(crate) struct Hush(std::sync::Mutex<Option<std::time::Instant>>);
+
+impl Hush {
+    pub(crate) fn speak(&self) -> bool {
+        let mut last = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let quiet = last.is_none_or(|at| at.elapsed() >= std::time::Duration::from_secs(1));
+        if quiet {
+            *last = Some(std::time::Instant::now());
+        }
+        quiet
     }
 }
 

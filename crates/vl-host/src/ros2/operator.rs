@@ -16,7 +16,7 @@ use tracing::{info, warn};
 use vl_core::{Drive, Experiment, GuestMessage, HostMessage, PROTOCOL_VERSION, Role, Wire};
 
 use super::Ros2Error;
-use super::graph::{Node, Qos};
+use super::graph::{Hush, Node, Qos};
 use super::messages::Twist;
 use crate::accounts::gate::{Admitted, Identity};
 use crate::server::hub::{OUTBOX, ToConnection, ToHub};
@@ -61,6 +61,7 @@ pub(super) async fn drive(
         last_twist: None,
         quiet_needed: false,
         refused_at: None,
+        hush: Hush::default(),
     };
     let mut tick = tokio::time::interval(RETRY_EVERY / 4);
     loop {
@@ -101,6 +102,7 @@ struct Driver {
     quiet_needed: bool,
     /// When the role or the run was last refused.
     refused_at: Option<Instant>,
+    hush: Hush,
 }
 
 impl Driver {
@@ -131,7 +133,9 @@ impl Driver {
             self.quiet_needed = false;
         }
         let Some(drive) = Drive::from_twist(twist.linear.x, twist.angular.z) else {
-            warn!("ROS 2 {CMD_VEL}: a Twist whose speeds are no finite numbers, ignored");
+            if self.hush.speak() {
+                warn!("ROS 2 {CMD_VEL}: a Twist whose speeds are no finite numbers, ignored");
+            }
             return;
         };
         let recently_refused = self.refused_at.is_some_and(|at| at.elapsed() < RETRY_EVERY);
@@ -216,7 +220,9 @@ impl Driver {
                 ..
             } => self.leave().await,
             HostMessage::Error { code, message } => {
-                warn!("ROS 2 {CMD_VEL}: the lab refused ({code}): {message}");
+                if self.hush.speak() {
+                    warn!("ROS 2 {CMD_VEL}: the lab refused ({code}): {message}");
+                }
                 self.refused_at = Some(Instant::now());
                 if !at_hub.pacer.operator() {
                     self.leave().await;
