@@ -26,7 +26,7 @@ const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2/robot.py");
 
 /// A Python with the outside ROS 2 client, or `None` (said why).
 fn python() -> Option<&'static str> {
-    common::python_with("zenoh_ros2_sdk")
+    common::python_with("zenoh_ros2_sdk, PIL")
 }
 
 /// One step of the outside client against the router at `port`.
@@ -130,7 +130,8 @@ fn streamed(python: &str, port: u16) {
         assert!(rate(topic) >= 1.0, "{topic}: {watched}");
     }
     let image = &watched["image"];
-    assert_eq!(image["jpeg"], true, "{watched}");
+    assert_eq!(image["decoded"], "JPEG", "Pillow decodes it: {watched}");
+    assert_eq!(image["size"], image["sof_size"], "{watched}");
     assert_eq!(image["size"], watched["camera_info"]["size"], "{watched}");
     let odom = &watched["odom"];
     assert_eq!(

@@ -142,11 +142,18 @@ def watch():
         s.close()
     out = {"counts": counts, "rates": rates}
     if image is not None:
+        import io
+
+        from PIL import Image
+
         data = bytes(image.data)
+        decoded = Image.open(io.BytesIO(data))
+        decoded.load()  # every pixel decoded, or an exception
         out["image"] = {
             "format": image.format,
-            "jpeg": data[:2] == b"\xff\xd8" and data[-2:] == b"\xff\xd9",
-            "size": jpeg_size(data),
+            "decoded": decoded.format,
+            "size": list(decoded.size),
+            "sof_size": jpeg_size(data),
             "frame": image.header.frame_id,
         }
     if info is not None:
