@@ -8,28 +8,15 @@ use crate::common;
 use std::time::Duration;
 
 use common::peer::Peer;
-use common::{refused, scratch, start_emulator, start_khepera_host_with, vl};
+use common::{refused, scratch, start_emulator, start_khepera_host_with};
 
 /// Frames the simulator renders of the navigation arena, as recorded footage.
 fn footage(name: &str, frames: usize) -> std::path::PathBuf {
     let dir = scratch(name);
     for i in 0..frames {
         let file = dir.join(format!("frame-{i:03}.png"));
-        let out = vl(&[
-            "sim",
-            "render",
-            "--arena",
-            "navigation",
-            "--width",
-            "640",
-            "--optics",
-            "noisy",
-            "--seed",
-            &i.to_string(),
-            "-o",
-            file.to_str().unwrap(),
-        ]);
-        assert!(out.status.success(), "{out:?}");
+        let seed = i.to_string();
+        common::render_arena(&file, &["--optics", "noisy", "--seed", &seed]);
     }
     dir
 }
@@ -97,7 +84,7 @@ fn footage_that_is_not_there_is_a_clear_error() {
     );
     refused(
         &["host", "--camera", "webcam"],
-        "is no camera: use sim, none, http://… (an MJPEG stream), v4l2:/dev/videoN (a webcam) or dir:PATH",
+        "is no camera: use sim, none, http://… (an MJPEG stream), v4l2:/dev/videoN (a webcam), dir:PATH",
     );
     refused(
         &["host", "--camera", &camera],

@@ -336,6 +336,20 @@ fn camera_addresses_are_checked_before_anything_starts() {
         &["host", "--camera", "http://127.0.0.1:9/"],
         "a real camera watches a real robot",
     );
+    common::refused(
+        &[
+            "host",
+            "--robot",
+            "ros2",
+            "--camera",
+            "ros2:/camera/image raw",
+        ],
+        "a ROS 2 topic is /name/name…",
+    );
+    common::refused(
+        &["host", "--camera", "ros2:/camera/image_raw/compressed"],
+        "a real camera watches a real robot",
+    );
     let listed = vl(&["camera", "list"]);
     assert!(listed.status.success(), "{}", common::stderr(&listed));
     let out = common::stdout(&listed);

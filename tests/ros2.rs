@@ -4,8 +4,10 @@
 //! network. A Host with `--ros2 --ros2-operator` is discovered with the
 //! right types and hashes, streams odometry and images at their rates,
 //! serves its map to a late subscriber, and is driven by Twists through
-//! the safety layer and the watchdog; `--robot ros2` drives a simulated
-//! ROS 2 robot written with the same package to a navigation goal.
+//! the safety layer and the watchdog, garbage on `/cmd_vel` moving nothing
+//! out of bounds; `--robot ros2` drives a simulated ROS 2 robot written
+//! with the same package to a navigation goal, seeing it through the
+//! robot's own ROS 2 camera; a gateway's cells are namespaces of their own.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
@@ -27,6 +29,29 @@ const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2/robot.py");
 /// A Python with the outside ROS 2 client, or `None` (said why).
 fn python() -> Option<&'static str> {
     common::python_with("zenoh_ros2_sdk, PIL")
+}
+
+/// `vl host` on loopback, recording nothing, its Zenoh router at `zenoh`,
+/// with `extra`.
+fn host_args(zenoh: &str, extra: &[&str]) -> Vec<String> {
+    [
+        "host",
+        "--listen",
+        "127.0.0.1:0",
+        "--no-record",
+        "--zenoh-listen",
+        zenoh,
+    ]
+    .iter()
+    .chain(extra)
+    .map(ToString::to_string)
+    .collect()
+}
+
+fn start_host(zenoh: &str, extra: &[&str]) -> (common::VlProcess, String) {
+    let args = host_args(zenoh, extra);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    start_vl(&args, "vl host listening on ")
 }
 
 /// One step of the outside client against the router at `port`.
@@ -67,19 +92,8 @@ async fn ros_2_tools_see_and_drive_the_lab() {
     let port = free_port();
     let audit = scratch("ros2-audit").join("audit.jsonl");
     let zenoh = format!("tcp/127.0.0.1:{port}");
-    let args = [
-        "host",
-        "--listen",
-        "127.0.0.1:0",
-        "--no-record",
-        "--ros2",
-        "--ros2-operator",
-        "--zenoh-listen",
-        &zenoh,
-        "--audit",
-        common::s(&audit),
-    ];
-    let (_host, url) = start_vl(&args, "vl host listening on ");
+    let audit_flag = ["--ros2", "--ros2-operator", "--audit", common::s(&audit)];
+    let (_host, url) = start_host(&zenoh, &audit_flag);
     discovered(python, port);
     streamed(python, port);
     driven(python, port, &url).await;
@@ -221,11 +235,16 @@ async fn driven(python: &str, port: u16, url: &str) {
     assert_eq!(contacts.load(Ordering::Relaxed), 0, "no contact, ever");
 }
 
-/// The simulated ROS 2 robot, started at the lab's start pose, and a
-/// thread keeping its last report.
-fn start_robot(python: &str, port: u16) -> (Child, Arc<std::sync::Mutex<String>>) {
+/// The simulated ROS 2 robot, started at the lab's start pose with its
+/// overhead camera over `backdrop`, and a thread keeping its last report.
+fn start_robot(
+    python: &str,
+    port: u16,
+    backdrop: &std::path::Path,
+) -> (Child, Arc<std::sync::Mutex<String>>) {
     let mut robot = Command::new(python)
         .args([ROBOT, MSGS, &port.to_string(), "0.1", "0.12", "0"])
+        .args([common::s(backdrop), "800"])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -246,21 +265,18 @@ async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
     let Some(python) = python() else { return };
     let _alone = alone().await;
     let port = free_port();
-    let (mut robot, said) = start_robot(python, port);
+    // The arena as the camera sees it, which the robot draws itself on.
+    let backdrop = scratch("ros2-robot").join("backdrop.png");
+    common::render_arena(&backdrop, &[]);
+    let (mut robot, said) = start_robot(python, port, &backdrop);
     let zenoh = format!("tcp/127.0.0.1:{port}");
-    let args = [
-        "host",
-        "--listen",
-        "127.0.0.1:0",
-        "--no-record",
+    let camera = [
         "--robot",
         "ros2",
         "--camera",
-        "none",
-        "--zenoh-listen",
-        &zenoh,
+        "ros2:/camera/image_raw/compressed",
     ];
-    let (_host, url) = start_vl(&args, "vl host listening on ");
+    let (_host, url) = start_host(&zenoh, &camera);
     let report = tokio::task::spawn_blocking(move || common::headless_run(&url, 90, &[]))
         .await
         .unwrap();
@@ -268,6 +284,14 @@ async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
     let summary = &report["summary"];
     assert_eq!(report["reached_goal"], true, "{summary}");
     assert_eq!(summary["collisions"], 0, "{summary}");
+    assert_eq!(
+        summary["pose_source"], "camera",
+        "the ROS 2 camera located it: {summary}"
+    );
+    assert!(
+        report["frames"].as_u64().unwrap() > 10,
+        "the Guest saw the ROS 2 camera"
+    );
     assert!(
         report["forecast"]["forecast_s"].as_f64().unwrap() > 0.0,
         "the forecast was in the loop"
@@ -332,5 +356,19 @@ async fn a_gateway_s_cells_are_ros_2_namespaces() {
     assert!(
         listed["listed"].get("/odom").is_none(),
         "no cell is at the root: {listed}"
+    );
+}
+
+/// `--robot ros2` with no robot on the network says so, and stops.
+#[test]
+fn a_missing_ros_2_robot_is_a_clear_error() {
+    let zenoh = format!("tcp/127.0.0.1:{}", free_port());
+    let args = host_args(&zenoh, &["--robot", "ros2"]);
+    let out = common::vl(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(!out.status.success());
+    let said = common::stderr(&out);
+    assert!(
+        said.contains("no ROS 2 robot: nothing on /odom within 10 s"),
+        "{said}"
     );
 }

@@ -256,6 +256,19 @@ fn python_importing(modules: &str) -> Option<&'static str> {
     })
 }
 
+/// Renders one 640-px overhead frame of the navigation arena into `file`
+/// (`vl sim render`, with `extra`).
+pub(crate) fn render_arena(file: &Path, extra: &[&str]) {
+    let args = [
+        &["sim", "render", "--arena", "navigation", "--width", "640"],
+        extra,
+        &["--output", s(file)],
+    ]
+    .concat();
+    let out = vl(&args);
+    assert!(out.status.success(), "vl {args:?}: {}", stderr(&out));
+}
+
 /// Adds account `name` with `role` and `password` to the accounts file `users`.
 pub(crate) fn account(users: &Path, name: &str, role: &str, password: &str) {
     let out = vl_command()

@@ -3,10 +3,15 @@ zenoh-ros2-sdk (nothing of vl's): it takes Twists on /cmd_vel, stops by
 itself 0.5 s after the last (as ROS 2's diff_drive_controller's command
 timeout does), moves as a Khepera-sized differential drive whose wheels
 reach their speeds at 4 m/s² (a Khepera's controller), and publishes
-/odom at 50 Hz. Prints one JSON line a second: its pose and the Twists it
-has taken.
+/odom at 50 Hz. Given an overhead picture of its arena (`vl sim render`,
+which shows the robot at its start), it is also an overhead camera: 15
+times a second it paints the floor over the robot's start and draws the
+robot where it is (a red body, a white marker ahead of its centre, as the
+lab's vision knows a Khepera from above), and publishes the JPEG on
+/camera/image_raw/compressed. Prints one JSON line a second: its pose and
+the Twists it has taken.
 
-    python3 robot.py MSG_DIR ROUTER_PORT X_M Y_M THETA_RAD
+    python3 robot.py MSG_DIR ROUTER_PORT X_M Y_M THETA_RAD [BACKDROP.png ARENA_WIDTH_MM]
 """
 
 import json
@@ -59,6 +64,57 @@ TwistWithCovariance = REGISTRY.get_message_class("geometry_msgs/msg/TwistWithCov
 
 import numpy as np  # noqa: E402  (rosbags' messages take arrays)
 
+RADIUS = 0.035  # m, a Khepera II's
+FLOOR, BODY, MARKER = (226, 224, 216), (170, 36, 32), (250, 250, 250)
+
+
+def camera(backdrop_path, width_mm):
+    """Publishes what an overhead camera sees, 15 frames a second."""
+    import io
+
+    from PIL import Image, ImageDraw
+
+    backdrop = Image.open(backdrop_path).convert("RGB")
+    px_per_m = backdrop.width / (width_mm / 1000)
+
+    def at(mx, my):
+        return mx * px_per_m, backdrop.height - my * px_per_m
+
+    def disc(draw, mx, my, r_m, colour):
+        cx, cy = at(mx, my)
+        r = r_m * px_per_m
+        draw.ellipse([cx - r, cy - r, cx + r, cy + r], fill=colour)
+
+    disc(ImageDraw.Draw(backdrop), x, y, RADIUS + 3 / px_per_m, FLOOR)
+    images = ROS2Publisher(
+        topic="/camera/image_raw/compressed",
+        msg_type="sensor_msgs/msg/CompressedImage",
+        router_port=PORT,
+        node_name="sim_camera",
+    )
+    while True:
+        with lock:
+            px, py, heading = pose
+        frame = backdrop.copy()
+        draw = ImageDraw.Draw(frame)
+        disc(draw, px, py, RADIUS, BODY)
+        ahead = 0.45 * RADIUS
+        disc(draw, px + ahead * math.cos(heading), py + ahead * math.sin(heading), 0.35 * RADIUS, MARKER)
+        jpeg = io.BytesIO()
+        frame.save(jpeg, format="JPEG", quality=90)
+        now = time.time()
+        images.publish(
+            header=Header(stamp=Time(sec=int(now), nanosec=int((now % 1) * 1e9)), frame_id="camera"),
+            format="jpeg",
+            data=np.frombuffer(jpeg.getvalue(), dtype=np.uint8),
+        )
+        time.sleep(1 / 15)
+
+
+pose = (x, y, theta)
+if len(sys.argv) > 7:
+    threading.Thread(target=camera, args=(sys.argv[6], float(sys.argv[7])), daemon=True).start()
+
 
 def toward(now, target, dt):
     step = ACCEL * dt
@@ -77,6 +133,8 @@ while True:
     x += v * math.cos(theta) * PERIOD
     y += v * math.sin(theta) * PERIOD
     theta = math.atan2(math.sin(theta + w * PERIOD), math.cos(theta + w * PERIOD))
+    with lock:
+        pose = (x, y, theta)
     now = time.time()
     stamp = Time(sec=int(now), nanosec=int((now % 1) * 1e9))
     odom.publish(

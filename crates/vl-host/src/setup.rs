@@ -117,12 +117,21 @@ impl Host {
                 Err(SetupError::SimulatedCameraOnARobot)
             }
             (RobotSpec::Ros2(options), camera) => {
-                let camera = camera
-                    .open(spec.calibration, &spec.arena)
-                    .map_err(SetupError::Camera)?;
                 let robot = crate::ros2::Ros2Robot::connect(&options, spec.model)
                     .await
                     .map_err(SetupError::Ros2)?;
+                let camera = match camera {
+                    CameraSource::Ros2(topic) => Some(Box::new(
+                        robot
+                            .camera(&topic, spec.calibration, &spec.arena)
+                            .await
+                            .map_err(SetupError::Camera)?,
+                    )
+                        as Box<dyn crate::drivers::Camera>),
+                    camera => camera
+                        .open(spec.calibration, &spec.arena)
+                        .map_err(SetupError::Camera)?,
+                };
                 let devices = Devices {
                     robot: Box::new(robot),
                     camera,

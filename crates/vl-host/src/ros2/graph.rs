@@ -19,6 +19,10 @@ use super::Ros2Error;
 use super::messages::Message;
 use super::msg::{Catalogue, dds_name};
 
+/// The largest sample taken from a subscription (a camera's frame is far
+/// smaller): a larger one is dropped before it is decoded.
+const MAX_SAMPLE: usize = 16 << 20;
+
 /// How a topic's samples are kept and delivered, as its token says.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Qos {
@@ -202,18 +206,29 @@ impl Node {
         let keys = self.keys::<M>(topic, "MS", qos)?;
         let topic = topic.to_owned();
         let hush = Hush::default();
+        let too_large = Hush::default();
         let subscriber = self
             .session
             .declare_subscriber(keys.data.clone())
-            .callback(
-                move |sample| match M::decode(&sample.payload().to_bytes()) {
+            .callback(move |sample| {
+                let payload = sample.payload();
+                if payload.len() > MAX_SAMPLE {
+                    if too_large.speak() {
+                        tracing::warn!(
+                            "ROS 2 {topic}: a sample of {} bytes, over the {MAX_SAMPLE} taken, dropped",
+                            payload.len()
+                        );
+                    }
+                    return;
+                }
+                match M::decode(&payload.to_bytes()) {
                     Ok(message) => deliver(message),
                     Err(e) if hush.speak() => {
                         tracing::warn!("ROS 2 {topic}: a {} that does not decode: {e}", M::TYPE)
                     }
                     Err(_) => {}
-                },
-            )
+                }
+            })
             .await?;
         let token = self.session.liveliness().declare_token(keys.token).await?;
         Ok(Subscription {

@@ -7,6 +7,7 @@
 //! differential-drive robot as the lab's robot (`robot`).
 
 mod bridge;
+mod camera;
 mod cdr;
 mod graph;
 mod messages;

@@ -42,7 +42,7 @@ pub struct Ros2Robot {
     travel_mm: [f64; 2],
     last_pose: Option<Pose>,
     _odom: Subscription,
-    _node: Node,
+    node: Node,
 }
 
 impl Ros2Robot {
@@ -75,8 +75,20 @@ impl Ros2Robot {
             travel_mm: [0.0; 2],
             last_pose: None,
             _odom: odom,
-            _node: node,
+            node,
         })
+    }
+
+    /// The robot's camera on `topic`, on the robot's own network: seen
+    /// through `calibration`, or as looking straight down on `arena`.
+    pub(crate) async fn camera(
+        &self,
+        topic: &str,
+        calibration: Option<vl_core::CameraModel>,
+        arena: &vl_core::Arena,
+    ) -> Result<super::camera::Ros2Camera, crate::drivers::CameraError> {
+        let floor = (arena.width_mm, arena.height_mm);
+        super::camera::Ros2Camera::open(&self.node, topic, calibration, floor).await
     }
 }
 

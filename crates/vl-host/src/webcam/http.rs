@@ -7,14 +7,15 @@
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
-use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::sync::Arc;
 use std::thread;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use tracing::debug;
 use vl_core::CameraModel;
 
-use super::pixels::{MAX_CAMERA_SIDE, PixelFormat, declared_size, decode};
+use super::pixels::{MAX_CAMERA_SIDE, declared_size};
+use super::slot::FrameSlot;
 use crate::drivers::{Camera, CameraError, Captured, believed};
 
 /// No JPEG part is larger than this, nor a header line longer than
@@ -25,8 +26,6 @@ const MAX_LINE: usize = 8 << 10;
 const MAX_HEADERS: usize = 64;
 /// A camera that sends nothing for this long is gone.
 const SILENT: Duration = Duration::from_secs(2);
-/// `grab` waits this long for a frame newer than the last.
-const GRAB_WAIT: Duration = Duration::from_secs(1);
 /// Reconnecting backs off from the first to the second.
 const RETRY: (Duration, Duration) = (Duration::from_millis(200), Duration::from_secs(3));
 /// How long `open` waits for the first frame, which gives the image's size.
@@ -70,34 +69,11 @@ impl Address {
     }
 }
 
-/// The newest frame the reader has, and what went wrong last.
-#[derive(Default)]
-struct Newest {
-    jpeg: Option<(Vec<u8>, Instant)>,
-    /// Frames read so far: `grab` waits for this to pass what it had.
-    count: u64,
-    error: Option<String>,
-    /// The camera's size once known: a frame declaring another is dropped
-    /// as it arrives, never kept in place of the last good one.
-    size: Option<(u32, u32)>,
-}
-
-struct StreamShared {
-    newest: Mutex<Newest>,
-    arrived: Condvar,
-}
-
-impl StreamShared {
-    fn lock(&self) -> MutexGuard<'_, Newest> {
-        self.newest.lock().unwrap_or_else(|p| p.into_inner())
-    }
-}
-
 /// A camera at an `http://` URL serving MJPEG.
 pub struct HttpCamera {
     url: String,
     model: CameraModel,
-    shared: Arc<StreamShared>,
+    shared: Arc<FrameSlot>,
     seen: u64,
 }
 
@@ -112,10 +88,7 @@ impl HttpCamera {
         fps: f64,
     ) -> Result<HttpCamera, CameraError> {
         let address = Address::parse(url)?;
-        let shared = Arc::new(StreamShared {
-            newest: Mutex::default(),
-            arrived: Condvar::new(),
-        });
+        let shared = Arc::new(FrameSlot::default());
         let reader = shared.clone();
         thread::Builder::new()
             .name("vl-http-camera".into())
@@ -124,15 +97,7 @@ impl HttpCamera {
         let model = match model {
             Some(model) => model,
             None => {
-                let deadline = Instant::now() + FIRST_FRAME;
-                let mut newest = shared.lock();
-                while newest.jpeg.is_none() && Instant::now() < deadline {
-                    newest = shared
-                        .arrived
-                        .wait_timeout(newest, deadline.saturating_duration_since(Instant::now()))
-                        .unwrap_or_else(|p| p.into_inner())
-                        .0;
-                }
+                let newest = shared.wait_for(FIRST_FRAME, |n| n.jpeg.is_some());
                 let Some((jpeg, _)) = &newest.jpeg else {
                     let why = newest
                         .error
@@ -175,37 +140,12 @@ impl Camera for HttpCamera {
     }
 
     fn grab(&mut self) -> Result<Captured, CameraError> {
-        let deadline = Instant::now() + GRAB_WAIT;
-        let mut newest = self.shared.lock();
-        while newest.count == self.seen && Instant::now() < deadline {
-            newest = self
-                .shared
-                .arrived
-                .wait_timeout(newest, deadline.saturating_duration_since(Instant::now()))
-                .unwrap_or_else(|p| p.into_inner())
-                .0;
-        }
-        let fresh = newest.count != self.seen;
-        let (jpeg, taken) = match (&newest.jpeg, fresh) {
-            (Some((jpeg, taken)), true) => (jpeg.clone(), *taken),
-            _ => {
-                let why = newest
-                    .error
-                    .clone()
-                    .unwrap_or_else(|| "no new frame".into());
-                return Err(CameraError::Silent(format!("{}: {why}", self.url)));
-            }
-        };
-        self.seen = newest.count;
-        drop(newest);
-        let (w, h) = (self.model.width_px, self.model.height_px);
-        let image = decode(PixelFormat::Mjpeg, &jpeg, w, h, 0).map_err(|e| e.within(&self.url))?;
-        Ok(Captured { image, taken })
+        self.shared.grab(&mut self.seen, &self.model, &self.url)
     }
 }
 
 /// Reads the stream, again and again, until the camera is dropped.
-fn read_forever(address: &Address, shared: &Arc<StreamShared>) {
+fn read_forever(address: &Address, shared: &Arc<FrameSlot>) {
     let mut wait = RETRY.0;
     // Ends when the camera (the other holder of `shared`) is gone.
     while Arc::strong_count(shared) > 1 {
@@ -219,7 +159,7 @@ fn read_forever(address: &Address, shared: &Arc<StreamShared>) {
             newest.error = Some(error);
             newest.jpeg.is_some()
         };
-        shared.arrived.notify_all();
+        shared.notify();
         thread::sleep(wait);
         wait = if got_frames {
             RETRY.0
@@ -232,7 +172,7 @@ fn read_forever(address: &Address, shared: &Arc<StreamShared>) {
 
 /// One connection: the request, the answer's headers, then parts until
 /// the stream breaks.
-fn stream(address: &Address, shared: &Arc<StreamShared>) -> Result<(), String> {
+fn stream(address: &Address, shared: &Arc<FrameSlot>) -> Result<(), String> {
     let socket = (address.host.as_str(), address.port)
         .to_socket_addrs()
         .map_err(|e| format!("cannot find {}: {e}", address.host))?
@@ -313,18 +253,10 @@ fn stream(address: &Address, shared: &Arc<StreamShared>) -> Result<(), String> {
                     .then(|| Instant::now() - Duration::from_secs_f64(age))
             })
             .unwrap_or_else(Instant::now);
-        {
-            let mut newest = shared.lock();
-            if let Some(size) = newest.size
-                && declared_size(&jpeg) != Some(size)
-            {
-                debug!("a frame not {}×{} px dropped as it came", size.0, size.1);
-                continue;
-            }
-            newest.jpeg = Some((jpeg, taken));
-            newest.count += 1;
+        if !shared.keep(jpeg, taken) {
+            debug!("a frame not of the camera's size dropped as it came");
+            continue;
         }
-        shared.arrived.notify_all();
         if Arc::strong_count(shared) == 1 {
             return Ok(());
         }
