@@ -31,21 +31,13 @@ fn python() -> Option<&'static str> {
     common::python_with("zenoh_ros2_sdk, PIL")
 }
 
-/// `vl host` on loopback, recording nothing, its Zenoh router at `zenoh`,
-/// with `extra`.
+/// `vl host` on loopback, its Zenoh router at `zenoh`, with `extra`.
 fn host_args(zenoh: &str, extra: &[&str]) -> Vec<String> {
-    [
-        "host",
-        "--listen",
-        "127.0.0.1:0",
-        "--no-record",
-        "--zenoh-listen",
-        zenoh,
-    ]
-    .iter()
-    .chain(extra)
-    .map(ToString::to_string)
-    .collect()
+    ["host", "--listen", "127.0.0.1:0", "--zenoh-listen", zenoh]
+        .iter()
+        .chain(extra)
+        .map(ToString::to_string)
+        .collect()
 }
 
 fn start_host(zenoh: &str, extra: &[&str]) -> (common::VlProcess, String) {
@@ -92,8 +84,20 @@ async fn ros_2_tools_see_and_drive_the_lab() {
     let port = free_port();
     let audit = scratch("ros2-audit").join("audit.jsonl");
     let zenoh = format!("tcp/127.0.0.1:{port}");
-    let audit_flag = ["--ros2", "--ros2-operator", "--audit", common::s(&audit)];
-    let (_host, url) = start_host(&zenoh, &audit_flag);
+    // A lab with accounts: the ROS side drives as `ros2`, a Guest watches
+    // as an account.
+    let users = audit.with_file_name("users.toml");
+    common::account(&users, "ada", "observer", "ada-secret-1");
+    let flags = [
+        "--no-record",
+        "--ros2",
+        "--ros2-operator",
+        "--users",
+        common::s(&users),
+        "--audit",
+        common::s(&audit),
+    ];
+    let (_host, url) = start_host(&zenoh, &flags);
     discovered(python, port);
     streamed(python, port);
     driven(python, port, &url).await;
@@ -190,7 +194,12 @@ fn streamed(python: &str, port: u16) {
 async fn driven(python: &str, port: u16, url: &str) {
     let contacts = Arc::new(AtomicUsize::new(0));
     let mut observer = Peer::connect(url).await;
-    observer.hello("observer").await;
+    let hello = serde_json::json!({
+        "type": "hello", "protocol": 1, "role": "observer", "user": "ada", "password": "ada-secret-1",
+    });
+    observer.send(hello).await;
+    let welcome = observer.expect("welcome").await;
+    assert_eq!(welcome["user"], "ada", "{welcome}");
     let counting = contacts.clone();
     let watching = tokio::spawn(async move {
         while let Some(message) = observer.next_any().await {
@@ -270,11 +279,14 @@ async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
     common::render_arena(&backdrop, &[]);
     let (mut robot, said) = start_robot(python, port, &backdrop);
     let zenoh = format!("tcp/127.0.0.1:{port}");
+    let recordings = scratch("ros2-recordings");
     let camera = [
         "--robot",
         "ros2",
         "--camera",
         "ros2:/camera/image_raw/compressed",
+        "--recordings",
+        common::s(&recordings),
     ];
     let (_host, url) = start_host(&zenoh, &camera);
     let report = tokio::task::spawn_blocking(move || common::headless_run(&url, 90, &[]))
@@ -305,6 +317,11 @@ async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
     // itself has travelled (it reports its pose once a second).
     let travelled = (last["x"].as_f64().unwrap() - 0.1).hypot(last["y"].as_f64().unwrap() - 0.12);
     assert!(travelled > 0.3, "the robot itself moved: {last}");
+    let recorded = std::fs::read_dir(&recordings)
+        .unwrap()
+        .filter_map(Result::ok)
+        .any(|f| f.path().extension().is_some_and(|e| e == "mcap"));
+    assert!(recorded, "the run was recorded in {}", recordings.display());
 }
 
 /// Cells behind a gateway each publish in a namespace of their own, on
@@ -363,7 +380,7 @@ async fn a_gateway_s_cells_are_ros_2_namespaces() {
 #[test]
 fn a_missing_ros_2_robot_is_a_clear_error() {
     let zenoh = format!("tcp/127.0.0.1:{}", free_port());
-    let args = host_args(&zenoh, &["--robot", "ros2"]);
+    let args = host_args(&zenoh, &["--no-record", "--robot", "ros2"]);
     let out = common::vl(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(!out.status.success());
     let said = common::stderr(&out);
