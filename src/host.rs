@@ -340,6 +340,28 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
     Ok(config)
 }
 
+/// Where the lab is on ROS 2, for the person who started it.
+fn say_on_ros2(ros2: &vl_host::Ros2Options) {
+    let zenoh = match (ros2.zenoh.connect.first(), ros2.zenoh.listen.first()) {
+        (Some(router), _) => format!("joining the Zenoh router at {router}"),
+        (None, Some(listen)) => format!("its Zenoh router listening on {listen}"),
+        (None, None) => "on Zenoh".to_owned(),
+    };
+    let node = match &ros2.cell {
+        Some(cell) => format!("/{cell}/vl_host"),
+        None => "/vl_host".to_owned(),
+    };
+    let drives = if ros2.operator {
+        "; /cmd_vel drives"
+    } else {
+        ""
+    };
+    eprintln!(
+        "vl host: on ROS 2 as node {node} in domain {}, {zenoh}{drives}",
+        ros2.domain
+    );
+}
+
 pub(crate) async fn host(args: HostArgs) -> Result<()> {
     let config = host_config(&args)?;
     if let Some(file) = &args.config {
@@ -347,6 +369,9 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
     }
     if let Some(kept) = &config.recordings {
         eprintln!("vl host: recording every run in {}", kept.dir().display());
+    }
+    if let Some(ros2) = &config.ros2 {
+        say_on_ros2(ros2);
     }
     let robot = match args.robot {
         RobotDriver::Sim => RobotSpec::Sim,
