@@ -297,10 +297,7 @@ impl<M: Message> Publisher<M> {
     /// The payload and attachment of the next sample of `message`.
     fn sample(&self, message: &M) -> (Vec<u8>, Vec<u8>) {
         let sequence = self.sequence.fetch_add(1, Ordering::Relaxed);
-        let now = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap_or_default();
-        let source_ns = i64::try_from(now.as_nanos()).unwrap_or(i64::MAX);
+        let source_ns = i64::try_from(vl_record::now_ns()).unwrap_or(i64::MAX);
         (message.encode(), attachment(sequence, source_ns, &self.gid))
     }
 

@@ -36,12 +36,10 @@ pub(crate) struct Time {
 impl Time {
     /// The wall clock now, which header stamps are.
     pub(crate) fn now() -> Time {
-        let since = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap_or_default();
+        let ns = vl_record::now_ns();
         Time {
-            sec: i32::try_from(since.as_secs()).unwrap_or(i32::MAX),
-            nanosec: since.subsec_nanos(),
+            sec: i32::try_from(ns / 1_000_000_000).unwrap_or(i32::MAX),
+            nanosec: (ns % 1_000_000_000) as u32,
         }
     }
 
