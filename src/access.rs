@@ -9,8 +9,9 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::ValueHint;
+use vl_core::Rubric;
 use vl_guest::Login;
-use vl_host::{AccountRole, Audit, HostConfig, Observers, Tls, Users};
+use vl_host::{AccountRole, Audit, HostConfig, Lti, LtiOptions, Observers, Tls, Users};
 
 use crate::report::emit;
 use crate::{BadInput, bad_input, named};
@@ -56,6 +57,13 @@ pub(crate) struct AccessArgs {
     /// https://app.foxglove.dev. Repeat it, or separate with commas.
     #[arg(long, value_delimiter = ',')]
     allow_origin: Vec<String>,
+    /// How runs are graded for an LMS the lab is launched from (`vl lti`):
+    /// points and bounds, e.g. "goal=60,time_s=90" (a [rubric] table in
+    /// --config's file). Unset ones keep their defaults: goal=50,
+    /// no_collisions=20, per_collision=10, tracking=10, tracking_mm=10,
+    /// time=10, time_s=60, forecast=10, forecast_mm=10.
+    #[arg(long, value_parser = crate::lti::rubric, requires = "users")]
+    rubric: Option<Rubric>,
 }
 
 /// The first line of `path`: a secret kept in a file.
@@ -77,9 +85,9 @@ impl AccessArgs {
         if let Some(path) = &self.users {
             let users = users_from(path)?;
             anyhow::ensure!(
-                !users.is_empty(),
+                !users.is_empty() || Lti::registered(path),
                 BadInput(format!(
-                    "{} holds no account: add one with vl users add",
+                    "{} holds no account: add one with vl users add (or register an LMS with vl lti add-platform)",
                     path.display()
                 ))
             );
@@ -111,6 +119,13 @@ impl AccessArgs {
         if let Some(path) = audit {
             config.audit = Audit::open(&path)
                 .with_context(|| format!("cannot open the audit log {}", path.display()))?;
+        }
+        if let Some(users) = self.users.as_ref().filter(|u| Lti::registered(u)) {
+            let options = LtiOptions {
+                users: users.clone(),
+                rubric: self.rubric.unwrap_or_default(),
+            };
+            config.lti = Some(Lti::new(options, config.audit.clone()).map_err(bad_input)?);
         }
         Ok(())
     }

@@ -123,6 +123,8 @@ fn flags(command: &clap::Command, path: &Path) -> Result<Vec<OsString>, FlagFile
                 })
                 .collect::<Result<Vec<_>, _>>()?
                 .join(","),
+            // A table (`[rubric]`) is its flag's TOML text.
+            toml::Value::Table(table) => toml::to_string(table).map_err(|e| bad(&e.to_string()))?,
             _ => return Err(bad("a value is a string, a number or a list of strings")),
         };
         out.push(format!("--{key}").into());

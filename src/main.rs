@@ -12,6 +12,7 @@ mod guest;
 mod host;
 mod input;
 mod khepera;
+mod lti;
 mod media;
 mod named;
 mod nets;
@@ -82,6 +83,9 @@ enum Command {
     /// Keep a lab's accounts file: add, remove, passwd, list.
     #[command(subcommand)]
     Users(access::UsersCommand),
+    /// The lab inside a teacher's LMS (LTI 1.3): platforms, the tool's configuration.
+    #[command(subcommand)]
+    Lti(lti::LtiCommand),
     /// Run the lab's experiments headless on the simulator and measure them.
     #[command(subcommand)]
     Experiment(experiment::ExperimentCommand),
@@ -189,6 +193,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Camera(command) => camera::run(command),
         Command::Experiment(command) => experiment::run(&runtime()?, command),
         Command::Users(command) => access::users(command),
+        Command::Lti(command) => lti::run(command),
         Command::Record(command) => record::record(command),
     }
 }

@@ -403,7 +403,8 @@ fn guest_message() -> impl Strategy<Value = GuestMessage> {
                     token: token.clone(),
                     resume,
                     user: token.clone(),
-                    password: token.map(Secret),
+                    password: token.clone().map(Secret),
+                    session: token.map(Secret),
                 }
             }),
         num().prop_map(|t| GuestMessage::Ping { t }),

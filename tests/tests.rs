@@ -26,6 +26,7 @@ mod host_socket;
 mod khepera_emu;
 mod lab_nets;
 mod lab_ready;
+mod lti;
 mod media;
 mod numbers;
 mod petri_cli;

@@ -119,7 +119,9 @@ pub use contract::forecast::{
     Spread,
 };
 pub use contract::frame::{FrameError, FrameHeader, ImageFormat, MAX_FRAME_BYTES};
-pub use contract::host_status::{HostStatus, Person, Priorities, Priority, RunRecord};
+pub use contract::host_status::{
+    GradesStatus, HostStatus, Person, Priorities, Priority, RunRecord,
+};
 pub use contract::legend::Mark;
 pub use contract::protocol::{
     DecodeError, DeviceState, Drive, ErrorCode, Feedback, GuestMessage, HostMessage, LabScene,
@@ -128,6 +130,7 @@ pub use contract::protocol::{
 pub use contract::recording::{
     PART_BYTES, PartError, PartHeader, RecordedRun, RecordingName, RecordingNameError,
 };
+pub use contract::rubric::{Grade, GradeLine, Rubric, RubricError};
 pub use contract::summary::{EndReason, HeldBack, RecordingNote, Stopper, Summary};
 pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use contract::transport::Io;

@@ -49,6 +49,7 @@ impl Login {
             resume: None,
             user: self.user.clone(),
             password: self.password.clone().map(Secret),
+            session: None,
         }
     }
 }

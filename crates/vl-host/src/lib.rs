@@ -81,6 +81,7 @@ mod footage;
 mod khepera;
 mod lab;
 mod line;
+mod lti;
 mod media;
 mod memory;
 mod priority;
@@ -113,6 +114,7 @@ pub use footage::FootageCamera;
 pub use khepera::KheperaSerial;
 pub use lab::{Devices, FramePolicy};
 pub use line::run_guard;
+pub use lti::{Lti, LtiError, LtiOptions, Platform, Registry, ToolKey, key_path, registry_path};
 pub use media::{
     Delays, Media, MediaBench, MediaBenchError, MediaConfig, MediaError, Reproduced, RoundTrip,
     bench as media_bench,

@@ -39,6 +39,25 @@ const vl = {
 };
 window.vl = vl;
 
+// A page an LMS launched (LTI) carries its person's session, and what the
+// course's link asks for: it logs in with the session, no password.
+function meta(name) {
+  const m = document.querySelector(`meta[name="${name}"]`);
+  return m ? m.content : null;
+}
+const launched = meta("vl-session");
+if (launched) {
+  vl.login = { session: launched };
+  if (meta("vl-drives") === "yes") vl.wanted = "operator";
+  const assignment = meta("vl-assignment");
+  if (assignment) { text("assignment", `Your course asks for ${assignment}.`); show("assignment", true); }
+  const goal = (meta("vl-goal") || "").split(",").map(Number);
+  if (goal.length === 2 && goal.every(Number.isFinite)) { $("goal-x").value = goal[0]; $("goal-y").value = goal[1]; }
+  const roster = meta("vl-roster");
+  if (roster) { $("roster").href = roster; show("roster", true); }
+  show("login", false);
+}
+
 // ---- the link ---------------------------------------------------------
 
 function url() {

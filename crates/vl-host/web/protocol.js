@@ -10,9 +10,11 @@ const VL = (() => {
 
   // What the page sends, by kind.
   const guest = {
-    // `login`: the lab's token, or an account's user and password.
+    // `login`: the lab's token, an account's user and password, or the
+    // session an LMS launch opened.
     hello: (role, login, resume) => {
       const m = { type: "hello", protocol: PROTOCOL, role };
+      if (login.session) m.session = login.session;
       if (login.token) m.token = login.token;
       if (login.user) { m.user = login.user; m.password = login.password || ""; }
       if (resume) m.resume = resume;

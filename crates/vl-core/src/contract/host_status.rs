@@ -37,6 +37,20 @@ pub struct HostStatus {
     /// folder's limit, a full disk); none while every run is recorded whole.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub recording_stopped: Option<String>,
+    /// Scores sent to the LMS, at a lab launched from one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grades: Option<GradesStatus>,
+}
+
+/// The scores a lab sent to its LMS: posted, still being tried, given up
+/// on (and why the last one was).
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct GradesStatus {
+    pub posted: u64,
+    pub sending: u64,
+    pub failed: u64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub last_failure: Option<String>,
 }
 
 /// How soon the system runs a thread that wakes: what stands between a

@@ -14,6 +14,7 @@ pub(crate) mod host_status;
 pub(crate) mod legend;
 pub(crate) mod protocol;
 pub(crate) mod recording;
+pub(crate) mod rubric;
 pub(crate) mod summary;
 pub(crate) mod supervisor;
 pub(crate) mod transport;

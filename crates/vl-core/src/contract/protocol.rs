@@ -249,6 +249,10 @@ pub enum GuestMessage {
         user: Option<String>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         password: Option<Secret>,
+        /// The session an LMS launch opened (the launched page's
+        /// `vl-session`): the person the LMS vouched for, no password.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        session: Option<Secret>,
     },
     /// `t` is the sender's clock, ms; the peer echoes it in `pong`.
     Ping {

@@ -80,6 +80,7 @@ impl Remembered {
                 token,
                 user,
                 password,
+                session,
                 ..
             } => Some(GuestMessage::Hello {
                 protocol,
@@ -88,6 +89,7 @@ impl Remembered {
                 resume: self.resume.clone(),
                 user,
                 password,
+                session,
             }),
             _ => None,
         }
@@ -107,6 +109,7 @@ mod tests {
                 resume: None,
                 user: Some("bob".into()),
                 password: None,
+                session: None,
             }),
             ..Remembered::default()
         }

@@ -12,30 +12,23 @@
 //! The accounts file is read again when it changes, so accounts added or
 //! removed on a running lab count from the next login.
 
-use std::collections::HashMap;
 use std::net::IpAddr;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use subtle::ConstantTimeEq;
 use tokio::sync::Semaphore;
-use tokio::time::Instant;
 use tracing::{info, warn};
 use vl_core::{ErrorCode, Named, Role};
 
 use super::audit::{Audit, AuditEntry};
+use super::limits::Failures;
+pub use super::limits::{FAILURE_REFILL, FAILURES_BURST};
 use super::users::{AccountRole, Users};
+use crate::lti::Sessions;
 
 /// How long a wrong password, name or token waits for its answer.
 pub const FAILURE_DELAY: Duration = Duration::from_secs(1);
-/// Failures an address, or an account from an address, may have at once…
-pub const FAILURES_BURST: f64 = 10.0;
-/// …and how often one more is allowed after those.
-pub const FAILURE_REFILL: Duration = Duration::from_secs(6);
-/// Addresses (and address–account pairs) whose failures are remembered,
-/// at most.
-const MAX_ADDRESSES: usize = 4096;
-
 /// Whether people who watch must log in too.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Observers {
@@ -73,16 +66,33 @@ pub enum Identity {
     Account { name: String, role: AccountRole },
     /// The lab's own ROS 2 side (`--ros2-operator`): `/cmd_vel`.
     Ros2,
+    /// A person an LMS vouched for in a launch (LTI 1.3): `sub@platform`.
+    Lms { name: String, role: AccountRole },
 }
 
 impl Identity {
     /// The account's name, if there is one.
     pub fn name(&self) -> Option<&str> {
         match self {
-            Identity::Account { name, .. } => Some(name),
+            Identity::Account { name, .. } | Identity::Lms { name, .. } => Some(name),
             Identity::Ros2 => Some("ros2"),
             _ => None,
         }
+    }
+
+    /// Whether they run the lab: an administrator's account, or an
+    /// instructor launched from the course's LMS.
+    pub fn is_admin(&self) -> bool {
+        matches!(
+            self,
+            Identity::Account {
+                role: AccountRole::Admin,
+                ..
+            } | Identity::Lms {
+                role: AccountRole::Admin,
+                ..
+            }
+        )
     }
 }
 
@@ -127,6 +137,8 @@ pub struct Credentials<'a> {
     pub user: Option<&'a str>,
     pub password: Option<&'a str>,
     pub token: Option<&'a str>,
+    /// A session an LMS launch opened (the launched page's `vl-session`).
+    pub session: Option<&'a str>,
     /// What they are shown for: the audit tells a session's login from a
     /// look at the status.
     pub purpose: Purpose,
@@ -153,101 +165,6 @@ fn refusal(code: ErrorCode, why: impl Into<String>) -> Refusal {
     Refusal {
         code,
         why: why.into(),
-    }
-}
-
-/// Failures allowed, refilling over time.
-#[derive(Debug, Clone, Copy)]
-struct Allowance {
-    left: f64,
-    at: Instant,
-}
-
-impl Allowance {
-    fn full() -> Allowance {
-        Allowance {
-            left: FAILURES_BURST,
-            at: Instant::now(),
-        }
-    }
-
-    fn now(&mut self) -> f64 {
-        let refill = self.at.elapsed().as_secs_f64() / FAILURE_REFILL.as_secs_f64();
-        self.left = (self.left + refill).min(FAILURES_BURST);
-        self.at = Instant::now();
-        self.left
-    }
-}
-
-/// Allowances by key, at most [`MAX_ADDRESSES`]: full ones are forgotten
-/// first, and one rather than refuse everyone new.
-struct Allowances<K>(HashMap<K, Allowance>);
-
-impl<K: std::hash::Hash + Eq + Clone> Allowances<K> {
-    fn left(&mut self, key: &K) -> bool {
-        self.0.get_mut(key).is_none_or(|a| a.now() >= 1.0)
-    }
-
-    fn take(&mut self, key: K) {
-        if self.0.len() >= MAX_ADDRESSES && !self.0.contains_key(&key) {
-            self.0.retain(|_, a| a.now() < FAILURES_BURST);
-            if self.0.len() >= MAX_ADDRESSES {
-                let some = self.0.keys().next().cloned();
-                if let Some(some) = some {
-                    self.0.remove(&some);
-                }
-            }
-        }
-        let a = self.0.entry(key).or_insert_with(Allowance::full);
-        a.now();
-        a.left -= 1.0;
-    }
-
-    fn give(&mut self, key: &K) {
-        if let Some(a) = self.0.get_mut(key) {
-            a.left = (a.left + 1.0).min(FAILURES_BURST);
-        }
-    }
-}
-
-impl<K> Default for Allowances<K> {
-    fn default() -> Self {
-        Allowances(HashMap::new())
-    }
-}
-
-#[derive(Default)]
-struct Failures {
-    by_address: Allowances<IpAddr>,
-    /// An account guessed at from an address: the guesser's, not the
-    /// account's — its owner elsewhere is never slowed by it.
-    by_pair: Allowances<(IpAddr, String)>,
-}
-
-impl Failures {
-    /// Takes one failure's worth of allowance from `address` (and
-    /// `account` from it) for an attempt about to be checked: false,
-    /// taking nothing, when either has none left. Taken before the check,
-    /// so attempts checked at once cannot pass the limit together.
-    fn take(&mut self, address: IpAddr, account: Option<&str>) -> bool {
-        let pair = account.map(|name| (address, name.to_owned()));
-        let pair_left = pair.as_ref().is_none_or(|p| self.by_pair.left(p));
-        if !pair_left || !self.by_address.left(&address) {
-            return false;
-        }
-        self.by_address.take(address);
-        if let Some(pair) = pair {
-            self.by_pair.take(pair);
-        }
-        true
-    }
-
-    /// Gives back what an attempt that succeeded took.
-    fn refund(&mut self, address: IpAddr, account: Option<&str>) {
-        self.by_address.give(&address);
-        if let Some(name) = account {
-            self.by_pair.give(&(address, name.to_owned()));
-        }
     }
 }
 
@@ -287,6 +204,8 @@ pub struct Gate {
     /// The password checker's thread, fed one check at a time.
     checker: std::sync::mpsc::Sender<Check>,
     audit: Audit,
+    /// The sessions LMS launches opened, at a lab launched from one.
+    sessions: Option<Arc<Sessions>>,
 }
 
 impl Gate {
@@ -304,7 +223,14 @@ impl Gate {
             hashing: Semaphore::new(1),
             checker: checker(),
             audit,
+            sessions: None,
         }
+    }
+
+    /// The gate that also lets in whom `sessions` (LMS launches) vouch for.
+    pub fn with_sessions(mut self, sessions: Arc<Sessions>) -> Gate {
+        self.sessions = Some(sessions);
+        self
     }
 
     fn failures(&self) -> MutexGuard<'_, Failures> {
@@ -392,7 +318,8 @@ impl Gate {
                 _ => entry,
             }
         };
-        let identity = if hello.user.is_some() || hello.token.is_some() {
+        let shown = hello.user.is_some() || hello.token.is_some() || hello.session.is_some();
+        let identity = if shown {
             if !self.failures().take(address, account) {
                 self.audit.record(log("rate_limited"));
                 tokio::time::sleep(FAILURE_DELAY).await;
@@ -405,7 +332,8 @@ impl Gate {
             match self.prove(hello, users).await {
                 Ok(identity) => {
                     self.failures().refund(address, account);
-                    self.audit.record(log("login").detail(match hello.purpose {
+                    let login = log("login").user(identity.name());
+                    self.audit.record(login.detail(match hello.purpose {
                         Purpose::Session => hello.role.to_string(),
                         Purpose::Status => "status".to_owned(),
                     }));
@@ -443,6 +371,16 @@ impl Gate {
         hello: Credentials<'_>,
         users: Option<Arc<Users>>,
     ) -> Result<Identity, String> {
+        if let Some(secret) = hello.session {
+            return self
+                .sessions
+                .as_ref()
+                .and_then(|sessions| sessions.identity(secret))
+                .ok_or_else(|| {
+                    "this LMS session is unknown or has expired: open the lab from your course again"
+                        .into()
+                });
+        }
         if let Some(name) = hello.user {
             let Some(users) = users else {
                 return Err("this lab has no accounts: leave out the user name".into());
@@ -494,6 +432,9 @@ impl Gate {
             (Identity::Account { role: account, .. }, Role::Operator) if !account.may_drive() => {
                 Err("your account may watch, not drive: say hello as an observer".into())
             }
+            (Identity::Lms { role, .. }, Role::Operator) if !role.may_drive() => {
+                Err("your role in the course may watch, not drive: say hello as an observer".into())
+            }
             _ => Ok(()),
         }
     }
@@ -513,6 +454,7 @@ mod tests {
             user,
             password,
             token: None,
+            session: None,
             purpose: Purpose::Session,
         }
     }
@@ -669,14 +611,5 @@ mod tests {
         for _ in 0..(FAILURES_BURST as u8 - 1) {
             assert!(failures.take(teacher, Some("ada")));
         }
-    }
-
-    #[test]
-    fn the_failures_remembered_are_bounded() {
-        let mut failures = Failures::default();
-        for n in 0..(MAX_ADDRESSES as u32 + 100) {
-            failures.take(IpAddr::from(n.to_be_bytes()), None);
-        }
-        assert!(failures.by_address.0.len() <= MAX_ADDRESSES);
     }
 }

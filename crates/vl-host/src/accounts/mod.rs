@@ -4,6 +4,7 @@
 
 pub(crate) mod audit;
 pub(crate) mod gate;
+mod limits;
 pub(crate) mod users;
 
 use std::path::{Path, PathBuf};
@@ -26,4 +27,24 @@ pub fn secret_from_file(path: &Path) -> Result<String, SecretError> {
         return Err(SecretError::Empty(path.into()));
     }
     Ok(line.to_owned())
+}
+
+/// Writes `bytes` to `path`, readable by its owner only, through a
+/// temporary file so a crash leaves the old file or the new one: how the
+/// accounts, the LMS platforms and the tool's key are kept.
+pub(crate) fn write_private(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut temporary = path.as_os_str().to_owned();
+    temporary.push(".new");
+    let temporary = PathBuf::from(temporary);
+    {
+        let mut options = std::fs::OpenOptions::new();
+        options.write(true).create(true).truncate(true);
+        #[cfg(unix)]
+        std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
+        let mut file = options.open(&temporary)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+    }
+    std::fs::rename(&temporary, path)
 }

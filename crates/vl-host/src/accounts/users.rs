@@ -222,18 +222,7 @@ impl Users {
             source,
         };
         let text = toml::to_string(self).map_err(|e| UsersError::Hash(e.to_string()))?;
-        let temporary = path.with_extension("toml.new");
-        {
-            use std::io::Write;
-            let mut options = std::fs::OpenOptions::new();
-            options.write(true).create(true).truncate(true);
-            #[cfg(unix)]
-            std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
-            let mut file = options.open(&temporary).map_err(write)?;
-            file.write_all(text.as_bytes()).map_err(write)?;
-            file.sync_all().map_err(write)?;
-        }
-        std::fs::rename(&temporary, path).map_err(write)
+        super::write_private(path, text.as_bytes()).map_err(write)
     }
 
     /// The accounts as their file has them now, when it changed since

@@ -253,6 +253,7 @@ fn hello(role: Role, password: Option<&str>) -> GuestMessage {
         resume: None,
         user: password.map(|_| ACCOUNT.0.to_owned()),
         password: password.map(|p| Secret(p.to_owned())),
+        session: None,
     }
 }
 

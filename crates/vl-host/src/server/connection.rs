@@ -23,7 +23,6 @@ use super::http::{self, Opening};
 use super::hub::{ToConnection, ToHub};
 use super::socket::{self, Sink, Socket, Unwritten};
 use crate::accounts::gate::{Credentials, Gate, Identity, Purpose};
-use crate::accounts::users::AccountRole;
 use crate::lab::Watching;
 use tokio_tungstenite::tungstenite::handshake::server::{Request, Response};
 
@@ -255,6 +254,7 @@ impl ConnectionTask {
             address: self.peer.ip(),
             gate: self.gate.clone(),
             hub: self.hub.clone(),
+            lti: self.config.lti.clone(),
         };
         let origins = self.config.allow_origins.clone();
         let handshake = handshake(stream, tls, ws_config, asking, &origins);
@@ -549,6 +549,7 @@ impl ConnectionTask {
                 resume,
                 user,
                 password,
+                session,
             }) => {
                 self.ticket.greeted();
                 let hello = Credentials {
@@ -556,6 +557,7 @@ impl ConnectionTask {
                     user: user.as_deref(),
                     password: password.as_ref().map(|p| p.0.as_str()),
                     token: token.as_deref(),
+                    session: session.as_ref().map(|s| s.0.as_str()),
                     purpose: Purpose::Session,
                 };
                 match self.gate.check(self.id, self.peer.ip(), hello).await {
@@ -636,13 +638,7 @@ impl ConnectionTask {
     fn owner(&self) -> Option<(vl_record::Catalogue, vl_record::Owner, bool)> {
         let catalogue = self.config.recordings.clone()?;
         let identity = self.identity.as_ref()?;
-        let admin = matches!(
-            identity,
-            Identity::Account {
-                role: AccountRole::Admin,
-                ..
-            }
-        );
+        let admin = identity.is_admin();
         let owner = catalogue.owner(identity.name(), self.id);
         Some((catalogue, owner, admin))
     }

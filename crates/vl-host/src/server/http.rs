@@ -29,8 +29,7 @@ use vl_core::{ErrorCode, Role};
 use super::foxglove::Subprotocol;
 use super::hub::ToHub;
 use super::web;
-use crate::accounts::gate::{Credentials, Gate, Identity, Purpose};
-use crate::accounts::users::AccountRole;
+use crate::accounts::gate::{Credentials, Gate, Purpose};
 use vl_core::Io;
 
 /// The most a request head may be: a WebSocket upgrade is a few hundred bytes.
@@ -140,13 +139,20 @@ pub(super) struct Asking {
     pub address: IpAddr,
     pub gate: Arc<Gate>,
     pub hub: mpsc::Sender<ToHub>,
+    /// The LMS side (`/lti/…`), at a lab registered with a platform.
+    pub lti: Option<Arc<crate::lti::Lti>>,
 }
 
 /// Answers the one request on `stream` (its head read again), then closes:
 /// a page connection holds its place among the Host's connections only
 /// as long as one answer takes.
 pub(super) async fn answer(stream: Box<dyn Io>, asking: Asking) -> io::Result<()> {
+    let lti = match &asking.lti {
+        Some(lti) => crate::lti::pages::routes(lti.clone(), asking.address),
+        None => Router::new(),
+    };
     let router = web::routes()
+        .merge(lti)
         .merge(Router::new().route("/status", get(status)))
         .fallback(not_found)
         .with_state(asking);
@@ -233,6 +239,7 @@ async fn admitted(
         user: Some(user),
         password: Some(password),
         token: None,
+        session: None,
         purpose: Purpose::Status,
     };
     let admitted = asking
@@ -240,12 +247,9 @@ async fn admitted(
         .check(asking.connection, asking.address, credentials)
         .await
         .map_err(|refused| (refused.code, refused.why))?;
-    match admitted.identity {
-        Identity::Account {
-            role: AccountRole::Admin,
-            ..
-        } => Ok(()),
-        _ => Err((
+    match admitted.identity.is_admin() {
+        true => Ok(()),
+        false => Err((
             ErrorCode::Unauthorized,
             format!("{user} is not an administrator of this lab"),
         )),

@@ -22,7 +22,7 @@ pub(crate) mod hub;
 pub(crate) mod origin;
 pub(crate) mod pacing;
 pub(crate) mod socket;
-mod web;
+pub(crate) mod web;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -96,6 +96,9 @@ pub struct HostConfig {
     pub cell: Option<crate::cells::CellOptions>,
     /// The lab as a ROS 2 node on Zenoh.
     pub ros2: Option<crate::ros2::Ros2Options>,
+    /// The lab as an LTI 1.3 tool of its LMS platforms: launches, grades,
+    /// the roster.
+    pub lti: Option<Arc<crate::lti::Lti>>,
 }
 
 impl HostConfig {
@@ -134,6 +137,7 @@ impl Default for HostConfig {
             recordings: None,
             cell: None,
             ros2: None,
+            lti: None,
         }
     }
 }
@@ -171,12 +175,16 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
             return;
         }
     };
-    let gate = Arc::new(Gate::new(
+    let gate = Gate::new(
         config.users.clone(),
         config.token.clone(),
         config.observers,
         config.audit.clone(),
-    ));
+    );
+    let gate = Arc::new(match &config.lti {
+        Some(lti) => gate.with_sessions(lti.sessions()),
+        None => gate,
+    });
     let joined = match config.cell.clone() {
         Some(cell) => {
             let side = crate::cells::Cell {

@@ -51,13 +51,28 @@ fn legend_js() -> String {
 /// The pages' content policy: their own scripts, styles and socket, the
 /// camera's frames as blobs, and no one may frame them (a page in a frame
 /// could be made to click STOP, or Start, for someone else).
-const POLICY: &str = "default-src 'self'; connect-src 'self'; img-src 'self' blob: data:; \
-     style-src 'self'; script-src 'self'; object-src 'none'; base-uri 'none'; \
-     frame-ancestors 'none'; form-action 'none'";
+static POLICY: std::sync::LazyLock<String> =
+    std::sync::LazyLock::new(|| policy("'none'", "'none'"));
+
+/// The content policy of a page that `frame_ancestors` may frame (an LMS
+/// launch's: the registered platforms) and whose forms go to `form_action`.
+pub(crate) fn policy(frame_ancestors: &str, form_action: &str) -> String {
+    format!(
+        "default-src 'self'; connect-src 'self'; img-src 'self' blob: data:; \
+         style-src 'self'; script-src 'self'; object-src 'none'; base-uri 'none'; \
+         frame-ancestors {frame_ancestors}; form-action {form_action}"
+    )
+}
+
+/// The web Guest's page.
+pub(crate) fn index() -> &'static str {
+    FILES[0].2
+}
 
 /// The web Guest's routes.
 pub(super) fn routes<S: Clone + Send + Sync + 'static>() -> Router<S> {
     let legend: &'static str = LEGEND_JS.as_str();
+    let policy: &'static str = POLICY.as_str();
     let script = [
         (header::CONTENT_TYPE, "text/javascript; charset=utf-8"),
         (header::CACHE_CONTROL, "no-cache"),
@@ -73,7 +88,7 @@ pub(super) fn routes<S: Clone + Send + Sync + 'static>() -> Router<S> {
                         [
                             (header::CONTENT_TYPE, media_type),
                             (header::CACHE_CONTROL, "no-cache"),
-                            (header::CONTENT_SECURITY_POLICY, POLICY),
+                            (header::CONTENT_SECURITY_POLICY, policy),
                             (header::X_FRAME_OPTIONS, "DENY"),
                         ],
                         body,

@@ -174,6 +174,7 @@ impl Watcher {
             user: None,
             password: None,
             token: None,
+            session: None,
             purpose: Purpose::Session,
         };
         let admitted = match self.gate.check(self.id, self.peer.ip(), anyone).await {
@@ -479,6 +480,7 @@ impl Watcher {
             user: request["user"].as_str(),
             password: request["password"].as_str(),
             token: None,
+            session: None,
             purpose: Purpose::Session,
         };
         match self.gate.check(self.id, self.peer.ip(), credentials).await {

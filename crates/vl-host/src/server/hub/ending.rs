@@ -8,8 +8,8 @@ use vl_core::{AccessEvent, Action, EndReason, ErrorCode, HostMessage, Role};
 
 use super::{Hub, ToConnection};
 use crate::accounts::audit::AuditEntry;
-use crate::accounts::gate::{ACCOUNT_ENDED, Identity};
-use crate::accounts::users::{AccountRole, Users};
+use crate::accounts::gate::ACCOUNT_ENDED;
+use crate::accounts::users::Users;
 use crate::lab::LabRequest;
 
 impl Hub {
@@ -17,15 +17,10 @@ impl Hub {
     /// line drives) or its place in line, and every connection of its
     /// account (or the session itself, without one).
     pub(super) fn kick(&mut self, id: u64, session: u64) {
-        let admin = self.clients.get(&id).is_some_and(|c| {
-            matches!(
-                c.admitted.identity,
-                Identity::Account {
-                    role: AccountRole::Admin,
-                    ..
-                }
-            )
-        });
+        let admin = self
+            .clients
+            .get(&id)
+            .is_some_and(|c| c.admitted.identity.is_admin());
         if !admin {
             return self.refuse(
                 id,

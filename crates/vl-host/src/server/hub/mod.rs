@@ -269,7 +269,7 @@ impl Hub {
                     self.devices_changed();
                     self.broadcast(&self.status());
                 }
-                Some(Finished(run, mut summary)) = self.lab.finished.recv() => {
+                Some(Finished(run, summary)) = self.lab.finished.recv() => {
                     if self.reset_run == Some(run) {
                         self.reset_done(&summary);
                         continue;
@@ -280,44 +280,7 @@ impl Hub {
                         debug!(run, "a past run's end, after the next began");
                         continue;
                     }
-                    self.run = None;
-                    self.run_log.ended(run, summary.reason);
-                    if self.supervisor.allows(Action::Finish) {
-                        self.happened(Action::Finish);
-                    }
-                    summary.max_event_gap = self.max_event_gap;
-                    summary.sync_violations = self.sync_violations;
-                    summary.stopped_by = self.stopper.take().filter(|_| summary.reason == EndReason::EmergencyStop);
-                    self.compare_with_forecast(&mut summary);
-                    self.note_recording(&mut summary);
-                    info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
-                    let driver = self.run_log.last_ended().and_then(|r| r.user);
-                    self.config.audit.record(
-                        AuditEntry::new("run_ended")
-                            .user(driver.as_deref())
-                            .detail(format!("run {run}: {}", summary.ending())),
-                    );
-                    let reset = resets_after(summary.reason);
-                    self.broadcast(&HostMessage::Done { summary: Box::new(summary) });
-                    // The run's last firings go in its file before it closes.
-                    self.tell_state();
-                    self.end_recording();
-                    let readiness = self.readiness;
-                    if reset {
-                        self.reset();
-                    }
-                    // Who joins later hears how the lab was last used (a
-                    // drive back has said so with its own status).
-                    if self.readiness == readiness {
-                        self.broadcast(&self.status());
-                    }
-                    // The next run starts elsewhere: the definition is tried again.
-                    if let (Some(Experiment::Navigation), Some(definition)) =
-                        (self.experiment, self.definition.clone())
-                    {
-                        let definition = self.refit(definition);
-                        self.ask_forecast(&definition);
-                    }
+                    self.run_ended(run, summary);
                 }
                 Some(route) = self.reset_routes.1.recv() => self.reset_planned(route),
                 Some((number, forecasted)) = self.forecasts.done.recv() => {
@@ -364,6 +327,57 @@ impl Hub {
                 "the line and the access net disagree: {:?}",
                 self.seats_apart()
             );
+        }
+    }
+
+    /// The run under way ended: its summary completed, told, logged (and
+    /// graded for an LMS), its recording closed, the lab made ready again.
+    fn run_ended(&mut self, run: u64, mut summary: vl_core::Summary) {
+        self.run = None;
+        self.run_log.ended(run, summary.reason);
+        if self.supervisor.allows(Action::Finish) {
+            self.happened(Action::Finish);
+        }
+        summary.max_event_gap = self.max_event_gap;
+        summary.sync_violations = self.sync_violations;
+        summary.stopped_by = self
+            .stopper
+            .take()
+            .filter(|_| summary.reason == EndReason::EmergencyStop);
+        self.compare_with_forecast(&mut summary);
+        self.note_recording(&mut summary);
+        info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
+        let driver = self.run_log.last_ended().and_then(|r| r.user);
+        if let (Some(lti), Some(driver)) = (&self.config.lti, &driver) {
+            lti.run_ended(run, driver, &summary);
+        }
+        self.config.audit.record(
+            AuditEntry::new("run_ended")
+                .user(driver.as_deref())
+                .detail(format!("run {run}: {}", summary.ending())),
+        );
+        let reset = resets_after(summary.reason);
+        self.broadcast(&HostMessage::Done {
+            summary: Box::new(summary),
+        });
+        // The run's last firings go in its file before it closes.
+        self.tell_state();
+        self.end_recording();
+        let readiness = self.readiness;
+        if reset {
+            self.reset();
+        }
+        // Who joins later hears how the lab was last used (a
+        // drive back has said so with its own status).
+        if self.readiness == readiness {
+            self.broadcast(&self.status());
+        }
+        // The next run starts elsewhere: the definition is tried again.
+        if let (Some(Experiment::Navigation), Some(definition)) =
+            (self.experiment, self.definition.clone())
+        {
+            let definition = self.refit(definition);
+            self.ask_forecast(&definition);
         }
     }
 

@@ -102,6 +102,7 @@ impl Hub {
                 };
                 format!("{}: {} ({kept})", s.name, s.why)
             }),
+            grades: self.config.lti.as_ref().map(|lti| lti.grades_status()),
         }
     }
 

@@ -1,0 +1,137 @@
+//! The sessions LMS launches open: a secret the launched page carries (in
+//! its `vl-session` meta tag, sent in its hello as `session`: an LMS frames
+//! the tool, where browsers block third-party cookies) standing for the
+//! person the platform vouched for, with what their launch said — their
+//! role, course, line item and roster service — for grades and the roster.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+use tokio::time::Instant;
+
+use crate::accounts::gate::Identity;
+use crate::accounts::users::AccountRole;
+
+/// Sessions kept at once, at most; the oldest go first.
+const MAX_SESSIONS: usize = 10_000;
+/// How long a launch's session lasts.
+const LIFETIME: Duration = Duration::from_secs(8 * 3600);
+
+/// What the teacher chose for the link (deep linking): the experiment,
+/// and a goal.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub(crate) struct Assignment {
+    pub experiment: Option<String>,
+    pub goal: Option<String>,
+}
+
+/// Where a deep-linking request wants its answer.
+#[derive(Debug, Clone)]
+pub(crate) struct DeepLinking {
+    pub return_url: String,
+    pub data: Option<String>,
+}
+
+/// What a checked launch said about its person and where they came from.
+#[derive(Debug, Clone)]
+pub(crate) struct Launch {
+    pub issuer: String,
+    pub client_id: String,
+    pub deployment_id: String,
+    /// Who they are at the platform (the token's `sub`).
+    pub sub: String,
+    /// Who they are at the lab: `sub@platform-host`.
+    pub user: String,
+    /// Their name, when the platform gave it.
+    pub person: Option<String>,
+    pub role: AccountRole,
+    /// The course's title.
+    pub course: Option<String>,
+    /// The line item their runs are graded in, when the platform lets
+    /// the tool post scores there.
+    pub lineitem: Option<String>,
+    /// The course's members (NRPS), when the platform offers them.
+    pub memberships: Option<String>,
+    pub assignment: Assignment,
+    /// For an instructor's deep-linking request: where to answer.
+    pub deep_linking: Option<DeepLinking>,
+}
+
+impl Launch {
+    pub(crate) fn identity(&self) -> Identity {
+        Identity::Lms {
+            name: self.user.clone(),
+            role: self.role,
+        }
+    }
+}
+
+struct Entry {
+    launch: Arc<Launch>,
+    until: Instant,
+}
+
+/// The open sessions, and each person's latest launch.
+#[derive(Default)]
+pub struct Sessions {
+    open: Mutex<HashMap<String, Entry>>,
+    latest: Mutex<HashMap<String, Arc<Launch>>>,
+}
+
+fn locked<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+impl Sessions {
+    /// Opens a session for `launch`: its secret.
+    pub(crate) fn open(&self, launch: Launch) -> String {
+        let secret = super::secret();
+        let launch = Arc::new(launch);
+        let now = Instant::now();
+        {
+            let mut open = locked(&self.open);
+            open.retain(|_, e| e.until > now);
+            if open.len() >= MAX_SESSIONS {
+                let oldest = open
+                    .iter()
+                    .min_by_key(|(_, e)| e.until)
+                    .map(|(k, _)| k.clone());
+                if let Some(oldest) = oldest {
+                    open.remove(&oldest);
+                }
+            }
+            open.insert(
+                secret.clone(),
+                Entry {
+                    launch: launch.clone(),
+                    until: now + LIFETIME,
+                },
+            );
+        }
+        let mut latest = locked(&self.latest);
+        if latest.len() >= MAX_SESSIONS && !latest.contains_key(&launch.user) {
+            latest.clear();
+        }
+        latest.insert(launch.user.clone(), launch);
+        secret
+    }
+
+    /// The launch of the session `secret`, while it lasts.
+    pub(crate) fn launch(&self, secret: &str) -> Option<Arc<Launch>> {
+        let open = locked(&self.open);
+        open.get(secret)
+            .filter(|e| e.until > Instant::now())
+            .map(|e| e.launch.clone())
+    }
+
+    /// Who the session `secret` speaks for, while it lasts.
+    pub fn identity(&self, secret: &str) -> Option<Identity> {
+        self.launch(secret).map(|l| l.identity())
+    }
+
+    /// `user`'s latest launch.
+    pub(crate) fn latest(&self, user: &str) -> Option<Arc<Launch>> {
+        locked(&self.latest).get(user).cloned()
+    }
+}

@@ -1,0 +1,466 @@
+//! The lab as an LTI 1.3 tool, checked against an LMS platform written
+//! from the specifications with PyJWT and cryptography (tests/lti/
+//! lms.py), nothing of vl's: its launches open the lab page logged in
+//! (the WebSocket hello with the page's session is welcomed as that
+//! person), tampered launches are refused and log no one in, an instructor
+//! runs the lab, deep linking answers what the platform verifies by the
+//! tool's published key, a learner's run is graded and posted to the line
+//! item over OAuth2 client credentials, and the roster lists who ran what.
+
+use std::io::{BufRead, BufReader, Write};
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+
+use crate::common::chromium::{self, Browser};
+use crate::common::peer::Peer;
+use crate::common::{self, s, scratch, start_host, vl, vl_command};
+
+const PLATFORM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/lti/lms.py");
+
+/// The outside platform, spoken to a JSON line at a time.
+struct Platform {
+    child: Child,
+    stdin: ChildStdin,
+    stdout: BufReader<ChildStdout>,
+    /// What it printed first: its issuer, client id and endpoints.
+    about: Value,
+}
+
+impl Platform {
+    fn start(python: &str) -> Platform {
+        let mut child = Command::new(python)
+            .arg(PLATFORM)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("python runs");
+        let stdin = child.stdin.take().unwrap();
+        let mut stdout = BufReader::new(child.stdout.take().unwrap());
+        let mut line = String::new();
+        stdout.read_line(&mut line).expect("the platform starts");
+        let about = serde_json::from_str(&line).expect("the platform says where it is");
+        Platform {
+            child,
+            stdin,
+            stdout,
+            about,
+        }
+    }
+
+    fn ask(&mut self, command: Value) -> Value {
+        writeln!(self.stdin, "{command}").unwrap();
+        let mut line = String::new();
+        self.stdout
+            .read_line(&mut line)
+            .expect("the platform answers");
+        let answer: Value = serde_json::from_str(&line).expect("JSON");
+        assert!(answer.get("error").is_none(), "{command}: {answer}");
+        answer
+    }
+
+    fn at(&self, key: &str) -> &str {
+        self.about[key].as_str().unwrap()
+    }
+}
+
+impl Drop for Platform {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Registers `platform` at the lab of `users`, as its administrator would.
+fn register(users: &std::path::Path, platform: &Platform) {
+    let out = vl(&[
+        "lti",
+        "add-platform",
+        "--users",
+        s(users),
+        "--issuer",
+        platform.at("issuer"),
+        "--client-id",
+        platform.at("client_id"),
+        "--deployment-id",
+        platform.at("deployment_id"),
+        "--auth-url",
+        platform.at("auth_url"),
+        "--token-url",
+        platform.at("token_url"),
+        "--jwks-url",
+        platform.at("jwks_url"),
+    ]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+}
+
+/// The session a launched page carries, if it carries one.
+fn session_of(page: &str) -> Option<String> {
+    let at = page.find("<meta name=\"vl-session\" content=\"")?;
+    let rest = &page[at + "<meta name=\"vl-session\" content=\"".len()..];
+    Some(rest[..rest.find('"')?].to_owned())
+}
+
+async fn hello_with_session(url: &str, session: &str, role: &str) -> (Peer, Value) {
+    let mut peer = Peer::connect(url).await;
+    peer.send(json!({"type": "hello", "protocol": 1, "role": role, "session": session}))
+        .await;
+    let answer = peer
+        .next_of_any(&["welcome", "error"], Duration::from_secs(5))
+        .await
+        .expect("an answer to hello");
+    (peer, answer)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_lms_launches_the_lab_and_gets_grades_from_runs() {
+    let Some(python) = common::python_with("jwt, cryptography") else {
+        return;
+    };
+    let mut platform = Platform::start(python);
+    let dir = scratch("lti");
+    let users = dir.join("users.toml");
+    let audit = dir.join("audit.jsonl");
+    register(&users, &platform);
+    let (_host, url) = start_host(&["--users", s(&users), "--audit", s(&audit), "--no-record"]);
+    let tool = url.replace("ws://", "http://");
+    platform.ask(json!({"cmd": "tool", "url": tool}));
+
+    let session = learner_launch(&mut platform);
+    refused_launches(&mut platform, &audit);
+    let (mut learner, welcome) = hello_with_session(&url, &session, "operator").await;
+    assert_eq!(welcome["type"], "welcome", "{welcome}");
+    assert_eq!(welcome["user"], "learner-1@127.0.0.1");
+    assert_eq!(welcome["role"], "operator");
+    let (_, unknown) = hello_with_session(&url, "not-a-session", "observer").await;
+    assert_eq!(unknown["type"], "error", "a made-up session: {unknown}");
+    assert!(
+        unknown["message"].as_str().unwrap().contains("LMS session"),
+        "{unknown}"
+    );
+
+    // The learner's run ends: the platform has its score within 10 s.
+    learner.start("teleoperation").await;
+    for event in 1..=20 {
+        learner.command(event, json!({"v": 60.0, "w": 0.0})).await;
+    }
+    learner.send(json!({"type": "stop"})).await;
+    let done = learner.expect("done").await;
+    let ended = Instant::now();
+    let score = loop {
+        let scores = platform.ask(json!({"cmd": "scores"}));
+        if let Some(score) = scores["scores"].as_array().and_then(|s| s.first()) {
+            break score.clone();
+        }
+        assert!(
+            ended.elapsed() < Duration::from_secs(10),
+            "no score within 10 s: {scores}"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    println!(
+        "score {} of {} posted {:.2} s after the run ended: {}",
+        score["scoreGiven"],
+        score["scoreMaximum"],
+        ended.elapsed().as_secs_f64(),
+        score["comment"]
+    );
+    assert_eq!(score["userId"], "learner-1");
+    assert_eq!(score["scoreMaximum"], 100.0);
+    assert_eq!(score["activityProgress"], "Completed");
+    assert_eq!(score["gradingProgress"], "FullyGraded");
+    let given = score["scoreGiven"].as_f64().unwrap();
+    assert!((0.0..=100.0).contains(&given), "{score}");
+    let comment = score["comment"].as_str().unwrap();
+    assert!(
+        comment.contains("goal: not reached (stopped)") && comment.contains("collisions: 0"),
+        "the comment explains the grade: {comment}"
+    );
+    assert_eq!(done["summary"]["reason"], "stopped");
+    assert!(score["timestamp"].as_str().unwrap().ends_with('Z'));
+
+    in_a_browser(&mut platform);
+    instructor(&mut platform, &url, &tool, &welcome).await;
+    deep_linking(&mut platform);
+    let audit = std::fs::read_to_string(&audit).unwrap();
+    assert!(
+        audit.lines().any(|l| l.contains("\"grade_posted\"")),
+        "{audit}"
+    );
+}
+
+/// A browser sent by the course's page to the lab: the page logs in with
+/// the launch's session, with no password asked.
+fn in_a_browser(platform: &mut Platform) {
+    if !chromium::available() {
+        return;
+    }
+    let course = platform.ask(json!({"cmd": "prepare", "role": "learner"}));
+    let mut browser = Browser::open(course["course"].as_str().unwrap(), (1100, 760));
+    browser.expect(
+        "window.vl && vl.link === 'open' && vl.user === 'learner-1@127.0.0.1'",
+        Duration::from_secs(20),
+    );
+    browser.expect(
+        "document.getElementById('login').hidden",
+        Duration::from_secs(2),
+    );
+    browser.expect(
+        "document.getElementById('assignment').textContent.includes('goal at 720,80 mm')",
+        Duration::from_secs(2),
+    );
+    let shot = scratch("lti-browser").join("launched.png");
+    browser.screenshot(&shot);
+    println!("the launched page: {}", shot.display());
+    assert_eq!(browser.errors(), Vec::<String>::new());
+}
+
+/// A learner's launch: the login redirects as OIDC says, and the page
+/// carries the session, framed only by the platform.
+fn learner_launch(platform: &mut Platform) -> String {
+    let launched = platform.ask(json!({"cmd": "launch", "role": "learner"}));
+    for (check, ok) in launched["login"].as_object().unwrap() {
+        assert_eq!(ok, true, "login {check}: {launched}");
+    }
+    assert_eq!(launched["status"], 200, "{launched}");
+    let page = launched["body"].as_str().unwrap();
+    assert!(page.contains("<meta name=\"vl-drives\" content=\"yes\">"));
+    assert!(page.contains("the navigation experiment, goal at 720,80 mm"));
+    let csp = launched["csp"].as_str().unwrap();
+    let issuer = platform.at("issuer").to_owned();
+    assert!(
+        csp.contains(&format!("frame-ancestors 'self' {issuer}")),
+        "framed by the platform only: {csp}"
+    );
+    session_of(page).expect("the page carries its session")
+}
+
+/// Tampered and replayed launches: 4xx, no session, an audit line each.
+fn refused_launches(platform: &mut Platform, audit: &std::path::Path) {
+    for (tamper, status, why) in [
+        ("signature", 403, "InvalidSignature"),
+        ("audience", 403, "InvalidAudience"),
+        ("expired", 403, "ExpiredSignature"),
+        ("deployment", 403, "deployment-unknown"),
+    ] {
+        let refused = platform.ask(json!({"cmd": "launch", "role": "learner", "tamper": tamper}));
+        let body = refused["body"].as_str().unwrap();
+        assert_eq!(refused["status"], status, "{tamper}: {refused}");
+        assert!(session_of(body).is_none(), "{tamper} logged someone in");
+        assert!(body.contains(why), "{tamper}: says why: {body}");
+    }
+    let replay = platform.ask(json!({"cmd": "launch", "role": "learner", "replay": true}));
+    assert_eq!(replay["status"], 200);
+    assert_eq!(replay["replayed"]["status"], 403, "{replay}");
+    assert!(
+        replay["replayed"]["body"]
+            .as_str()
+            .unwrap()
+            .contains("nonce"),
+        "{replay}"
+    );
+    assert_eq!(replay["state_again"]["status"], 400, "{replay}");
+    assert!(session_of(replay["replayed"]["body"].as_str().unwrap()).is_none());
+    // The audit log has a line for each refusal (written by its own task).
+    let deadline = Instant::now() + Duration::from_secs(5);
+    loop {
+        let text = std::fs::read_to_string(audit).unwrap_or_default();
+        let refusals = text
+            .lines()
+            .filter(|l| l.contains("\"lti_refused\""))
+            .count();
+        if refusals >= 6 {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "{refusals} refusals logged: {text}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// An instructor's launch: admin rights (ends the learner's turn) and
+/// the course's roster with the learner's graded run.
+async fn instructor(platform: &mut Platform, url: &str, tool: &str, learner: &Value) {
+    let launched = platform.ask(json!({"cmd": "launch", "role": "instructor"}));
+    let page = launched["body"].as_str().unwrap();
+    let session = session_of(page).expect("an instructor's page");
+    let (mut teacher, welcome) = hello_with_session(url, &session, "observer").await;
+    assert_eq!(welcome["user"], "teacher-1@127.0.0.1", "{welcome}");
+    teacher
+        .send(json!({"type": "kick", "session": learner["session"]}))
+        .await;
+    // A kick is an administrator's; the Host would refuse anyone else's.
+    let refused = teacher.next_of("error", Duration::from_secs(2)).await;
+    assert!(
+        refused.is_none(),
+        "the instructor may end turns: {refused:?}"
+    );
+    let roster = page
+        .split("<meta name=\"vl-roster\" content=\"")
+        .nth(1)
+        .and_then(|r| r.split('"').next())
+        .expect("an instructor's page links the roster")
+        .replace("&amp;", "&");
+    let out = page_at(tool, &roster);
+    assert!(
+        out.contains("Ada Learner") && out.contains("Tom Teacher"),
+        "{out}"
+    );
+    assert!(out.contains("<td>Learner</td><td>1</td>"), "one run: {out}");
+    assert!(out.contains("posted"), "{out}");
+}
+
+/// The page at `path` of the Host at `tool` (http://127.0.0.1:PORT).
+fn page_at(tool: &str, path: &str) -> String {
+    let port = tool.trim_end_matches('/').rsplit(':').next().unwrap();
+    crate::common::chromium::http_get(port.parse().unwrap(), path)
+}
+
+/// Deep linking: the platform verifies the answer by the tool's JWKS.
+fn deep_linking(platform: &mut Platform) {
+    let linked = platform.ask(json!({"cmd": "deep_link"}));
+    assert_eq!(linked["status"], 200, "{linked}");
+    assert_eq!(linked["action"], linked["expected_action"]);
+    let claims = &linked["claims"];
+    assert_eq!(
+        claims["https://purl.imsglobal.org/spec/lti/claim/message_type"],
+        "LtiDeepLinkingResponse"
+    );
+    assert_eq!(claims["iss"], platform.at("client_id"));
+    assert_eq!(
+        claims["https://purl.imsglobal.org/spec/lti-dl/claim/data"],
+        "opaque-data-42"
+    );
+    let item = &claims["https://purl.imsglobal.org/spec/lti-dl/claim/content_items"][0];
+    assert_eq!(item["type"], "ltiResourceLink");
+    assert_eq!(item["custom"]["experiment"], "navigation");
+    assert_eq!(item["custom"]["goal"], "720,80");
+    assert_eq!(item["lineItem"]["scoreMaximum"], 100.0);
+    let csp = linked["csp"].as_str().unwrap();
+    assert!(
+        csp.contains(&format!("form-action {}", platform.at("issuer"))),
+        "{csp}"
+    );
+    // A learner may not choose what a link opens.
+    let learner = platform.ask(json!({"cmd": "deep_link", "role": "learner"}));
+    assert_eq!(learner["status"], 403, "{learner}");
+}
+
+#[test]
+fn vl_lti_keeps_platforms_and_prints_the_tool_s_configuration() {
+    let dir = scratch("lti-cli");
+    let users = dir.join("users.toml");
+    let add = |issuer: &str, deployment: &str| {
+        vl_command()
+            .args([
+                "lti",
+                "add-platform",
+                "--users",
+                s(&users),
+                "--issuer",
+                issuer,
+            ])
+            .args(["--client-id", "c1", "--deployment-id", deployment])
+            .args(["--auth-url", "https://lms.example.edu/auth"])
+            .args(["--token-url", "https://lms.example.edu/token"])
+            .args(["--jwks-url", "https://lms.example.edu/jwks"])
+            .output()
+            .unwrap()
+    };
+    assert!(add("https://lms.example.edu", "d1").status.success());
+    assert!(add("https://lms.example.edu", "d2").status.success());
+    let bad = add("not a url", "d1");
+    assert!(!bad.status.success());
+    assert!(
+        common::stderr(&bad).contains("--issuer 'not a url'"),
+        "{}",
+        common::stderr(&bad)
+    );
+    let list = common::vl_json(&["lti", "list", "--users", s(&users), "--json"]);
+    assert_eq!(list["platform"][0]["deployment_ids"], json!(["d1", "d2"]));
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let kept = dir.join("users.lti.toml");
+        let mode = std::fs::metadata(&kept).unwrap().permissions().mode();
+        assert_eq!(mode & 0o777, 0o600, "the platforms are the owner's only");
+    }
+    tool_config(&users);
+    let removed = vl(&[
+        "lti",
+        "remove",
+        "--users",
+        s(&users),
+        "--issuer",
+        "https://lms.example.edu",
+    ]);
+    assert!(removed.status.success());
+    let list = common::vl_json(&["lti", "list", "--users", s(&users), "--json"]);
+    assert_eq!(list["platform"], json!([]));
+    let gone = vl(&[
+        "lti",
+        "remove",
+        "--users",
+        s(&users),
+        "--issuer",
+        "https://lms.example.edu",
+    ]);
+    assert!(common::stderr(&gone).contains("no platform 'https://lms.example.edu'"));
+}
+
+/// `tool-config`: the URLs and key an LMS administrator enters, the key
+/// made once and kept.
+fn tool_config(users: &std::path::Path) {
+    let config = common::vl_json(&[
+        "lti",
+        "tool-config",
+        "--users",
+        s(users),
+        "--url",
+        "https://lab.example.org:7400",
+        "--json",
+    ]);
+    assert_eq!(
+        config["target_link_uri"],
+        "https://lab.example.org:7400/lti/launch"
+    );
+    assert_eq!(
+        config["oidc_initiation_url"],
+        "https://lab.example.org:7400/lti/login"
+    );
+    assert_eq!(config["jwks_url"], "https://lab.example.org:7400/lti/jwks");
+    assert_eq!(config["public_jwk"]["kty"], "RSA");
+    assert!(
+        config["public_key"]
+            .as_str()
+            .unwrap()
+            .starts_with("-----BEGIN PUBLIC KEY-----")
+    );
+    // The key is made once and kept.
+    let again = common::vl_json(&[
+        "lti",
+        "tool-config",
+        "--users",
+        s(users),
+        "--url",
+        "https://lab.example.org:7400",
+        "--json",
+    ]);
+    assert_eq!(again["public_jwk"], config["public_jwk"]);
+    let text = vl(&[
+        "lti",
+        "tool-config",
+        "--users",
+        s(users),
+        "--url",
+        "https://lab.example.org",
+    ]);
+    let text = common::stdout(&text);
+    assert!(
+        text.contains("Initiate login URL") && text.contains("https://lab.example.org/lti/login"),
+        "{text}"
+    );
+}
