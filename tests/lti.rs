@@ -123,6 +123,7 @@ async fn an_lms_launches_the_lab_and_gets_grades_from_runs() {
     let users = dir.join("users.toml");
     let audit = dir.join("audit.jsonl");
     register(&users, &platform);
+    common::account(&users, "root", "admin", "root-secret-1");
     let (_host, url) = start_host(&["--users", s(&users), "--audit", s(&audit), "--no-record"]);
     let tool = url.replace("ws://", "http://");
     platform.ask(json!({"cmd": "tool", "url": tool}));
@@ -140,17 +141,64 @@ async fn an_lms_launches_the_lab_and_gets_grades_from_runs() {
         "{unknown}"
     );
 
-    // The learner's run ends: the platform has its score within 10 s.
+    // The learner's run ends: the platform has its score within 10 s,
+    // though its gradebook refused the first try.
+    platform.ask(json!({"cmd": "fail_scores", "n": 1}));
+    let score = graded_run(&mut platform, &mut learner).await;
+    assert_eq!(platform.ask(json!({"cmd": "scores"}))["refused"], 1);
+    assert_eq!(score["userId"], "learner-1");
+    assert_eq!(score["scoreMaximum"], 100.0);
+    assert_eq!(score["activityProgress"], "Completed");
+    assert_eq!(score["gradingProgress"], "FullyGraded");
+    let given = score["scoreGiven"].as_f64().unwrap();
+    assert!((0.0..=100.0).contains(&given), "{score}");
+    let comment = score["comment"].as_str().unwrap();
+    assert!(
+        comment.contains("goal: not reached (stopped)") && comment.contains("collisions: 0"),
+        "the comment explains the grade: {comment}"
+    );
+    assert!(score["timestamp"].as_str().unwrap().ends_with('Z'));
+    hostile_requests(&tool);
+
+    in_a_browser(&mut platform);
+    instructor(&mut platform, &url, &tool, &welcome).await;
+    deep_linking(&mut platform);
+    gradebook_down(&mut platform, &url, &session, &audit).await;
+    let status = http(&tool, "GET /status", &[AS_ROOT], "");
+    let status: Value = serde_json::from_str(&status.1).expect("the status as JSON");
+    let grades = &status["grades"];
+    assert_eq!(
+        (&grades["posted"], &grades["failed"]),
+        (&json!(1), &json!(1)),
+        "{status}"
+    );
+    assert!(
+        grades["last_failure"].as_str().unwrap().contains("503"),
+        "{status}"
+    );
+}
+
+/// The lab's administrator, for its status.
+const AS_ROOT: &str = "Authorization: Basic cm9vdDpyb290LXNlY3JldC0x";
+
+/// Runs a short teleoperation run as `learner`; the score the platform
+/// gets for it, within 10 s of its end.
+async fn graded_run(platform: &mut Platform, learner: &mut Peer) -> Value {
+    let before = platform.ask(json!({"cmd": "scores"}))["scores"]
+        .as_array()
+        .unwrap()
+        .len();
     learner.start("teleoperation").await;
     for event in 1..=20 {
         learner.command(event, json!({"v": 60.0, "w": 0.0})).await;
     }
     learner.send(json!({"type": "stop"})).await;
     let done = learner.expect("done").await;
+    assert_eq!(done["summary"]["reason"], "stopped");
     let ended = Instant::now();
     let score = loop {
         let scores = platform.ask(json!({"cmd": "scores"}));
-        if let Some(score) = scores["scores"].as_array().and_then(|s| s.first()) {
+        if let Some(score) = scores["scores"].as_array().and_then(|s| s.get(before)) {
             break score.clone();
         }
         assert!(
@@ -166,28 +214,122 @@ async fn an_lms_launches_the_lab_and_gets_grades_from_runs() {
         ended.elapsed().as_secs_f64(),
         score["comment"]
     );
-    assert_eq!(score["userId"], "learner-1");
-    assert_eq!(score["scoreMaximum"], 100.0);
-    assert_eq!(score["activityProgress"], "Completed");
-    assert_eq!(score["gradingProgress"], "FullyGraded");
-    let given = score["scoreGiven"].as_f64().unwrap();
-    assert!((0.0..=100.0).contains(&given), "{score}");
-    let comment = score["comment"].as_str().unwrap();
-    assert!(
-        comment.contains("goal: not reached (stopped)") && comment.contains("collisions: 0"),
-        "the comment explains the grade: {comment}"
-    );
-    assert_eq!(done["summary"]["reason"], "stopped");
-    assert!(score["timestamp"].as_str().unwrap().ends_with('Z'));
+    score
+}
 
-    in_a_browser(&mut platform);
-    instructor(&mut platform, &url, &tool, &welcome).await;
-    deep_linking(&mut platform);
-    let audit = std::fs::read_to_string(&audit).unwrap();
-    assert!(
-        audit.lines().any(|l| l.contains("\"grade_posted\"")),
-        "{audit}"
+/// A gradebook that refuses every try: after its back-off the tool gives
+/// up, and says so in the audit log (the status says it too).
+async fn gradebook_down(
+    platform: &mut Platform,
+    url: &str,
+    session: &str,
+    audit: &std::path::Path,
+) {
+    platform.ask(json!({"cmd": "fail_scores", "n": 100}));
+    // The instructor ended the learner's turn: they come back by their session.
+    let (mut learner, welcome) = hello_with_session(url, session, "operator").await;
+    assert_eq!(welcome["role"], "operator", "{welcome}");
+    learner.start("teleoperation").await;
+    learner.command(1, json!({"v": 60.0, "w": 0.0})).await;
+    learner.send(json!({"type": "stop"})).await;
+    learner.expect("done").await;
+    let deadline = Instant::now() + Duration::from_secs(40);
+    loop {
+        let text = std::fs::read_to_string(audit).unwrap_or_default();
+        if let Some(line) = text.lines().find(|l| l.contains("\"grade_failed\"")) {
+            assert!(line.contains("503"), "says why: {line}");
+            break;
+        }
+        assert!(Instant::now() < deadline, "no grade_failed in 40 s: {text}");
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+    let tries = platform.ask(json!({"cmd": "scores"}))["refused"]
+        .as_u64()
+        .unwrap();
+    assert_eq!(
+        tries,
+        1 + 5,
+        "the first run's refused try, then five for this one"
     );
+}
+
+/// One HTTP/1.1 request (`line`: method and path) to the Host at `tool`:
+/// its status and body.
+fn http(tool: &str, line: &str, headers: &[&str], body: &str) -> (u16, String) {
+    use std::io::Read;
+    let port: u16 = tool
+        .trim_end_matches('/')
+        .rsplit(':')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let mut stream = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+    let mut request = format!("{line} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n");
+    for header in headers {
+        request.push_str(&format!("{header}\r\n"));
+    }
+    request.push_str(&format!("Content-Length: {}\r\n\r\n{body}", body.len()));
+    stream.write_all(request.as_bytes()).unwrap();
+    stream
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    let mut reply = Vec::new();
+    let _ = stream.read_to_end(&mut reply);
+    let reply = String::from_utf8_lossy(&reply).into_owned();
+    let status = reply
+        .split(' ')
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    let body = reply
+        .split_once("\r\n\r\n")
+        .map(|(_, b)| b.to_owned())
+        .unwrap_or_default();
+    (status, body)
+}
+
+/// What a careless or hostile client sends the LTI pages: a 4xx each,
+/// nobody logged in, the Host still serving.
+fn hostile_requests(tool: &str) {
+    let form = "Content-Type: application/x-www-form-urlencoded";
+    let huge = format!("id_token={}&state=x", "A".repeat(100_000));
+    let cases: [(&str, &[&str], String); 9] = [
+        ("GET /lti/login", &[], String::new()),
+        (
+            "GET /lti/login?iss=https://stranger.example&login_hint=x&target_link_uri=http://x/lti/launch",
+            &[],
+            String::new(),
+        ),
+        ("POST /lti/launch", &[form], String::new()),
+        (
+            "POST /lti/launch",
+            &[form],
+            "id_token=a.b.c&state=made-up".into(),
+        ),
+        ("POST /lti/launch", &[form], huge),
+        (
+            "POST /lti/launch",
+            &["Content-Type: text/plain"],
+            "\u{0}\u{1}garbage".into(),
+        ),
+        (
+            "POST /lti/deep-link",
+            &[form],
+            "session=x&title=t&experiment=navigation".into(),
+        ),
+        ("GET /lti/roster?session=nobody", &[], String::new()),
+        ("GET /lti/roster", &[], String::new()),
+    ];
+    for (line, headers, body) in cases {
+        let (status, page) = http(tool, line, headers, &body);
+        assert!((400..500).contains(&status), "{line}: {status} {page}");
+        assert!(session_of(&page).is_none(), "{line} logged someone in");
+    }
+    let (status, jwks) = http(tool, "GET /lti/jwks", &[], "");
+    assert_eq!(status, 200);
+    let jwks: Value = serde_json::from_str(&jwks).unwrap();
+    assert_eq!(jwks["keys"][0]["alg"], "RS256");
 }
 
 /// A browser sent by the course's page to the lab: the page logs in with
@@ -414,15 +556,18 @@ fn vl_lti_keeps_platforms_and_prints_the_tool_s_configuration() {
 /// `tool-config`: the URLs and key an LMS administrator enters, the key
 /// made once and kept.
 fn tool_config(users: &std::path::Path) {
-    let config = common::vl_json(&[
-        "lti",
-        "tool-config",
-        "--users",
-        s(users),
-        "--url",
-        "https://lab.example.org:7400",
-        "--json",
-    ]);
+    let json = || {
+        common::vl_json(&[
+            "lti",
+            "tool-config",
+            "--users",
+            s(users),
+            "--url",
+            "https://lab.example.org:7400",
+            "--json",
+        ])
+    };
+    let config = json();
     assert_eq!(
         config["target_link_uri"],
         "https://lab.example.org:7400/lti/launch"
@@ -440,15 +585,7 @@ fn tool_config(users: &std::path::Path) {
             .starts_with("-----BEGIN PUBLIC KEY-----")
     );
     // The key is made once and kept.
-    let again = common::vl_json(&[
-        "lti",
-        "tool-config",
-        "--users",
-        s(users),
-        "--url",
-        "https://lab.example.org:7400",
-        "--json",
-    ]);
+    let again = json();
     assert_eq!(again["public_jwk"], config["public_jwk"]);
     let text = vl(&[
         "lti",
@@ -462,5 +599,61 @@ fn tool_config(users: &std::path::Path) {
     assert!(
         text.contains("Initiate login URL") && text.contains("https://lab.example.org/lti/login"),
         "{text}"
+    );
+}
+
+/// README's steps for an LMS administrator, run as written: the tool's
+/// configuration, the platform registered, listed; and its `[rubric]`
+/// table taken by `vl host --config` as the lab's rubric.
+#[test]
+fn readme_s_lms_steps_run_as_written() {
+    let readme = include_str!("../README.md");
+    let dir = scratch("lti-readme");
+    for command in crate::readme::commands_under(readme, "In a teacher's LMS") {
+        let out = vl_command()
+            .args(crate::readme::vl_args(&command))
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{command}: {}", common::stderr(&out));
+        if command.starts_with("vl lti list") {
+            let listed = common::stdout(&out);
+            assert!(listed.contains("https://moodle.example.edu"), "{listed}");
+        }
+    }
+    assert!(dir.join("lab-users.lti.toml").exists());
+    assert!(dir.join("lab-users.lti-key.pem").exists());
+    let section = readme.split("## In a teacher's LMS").nth(1).unwrap();
+    let rubric = section
+        .split("```toml\n")
+        .nth(1)
+        .and_then(|b| b.split("```").next())
+        .expect("README shows a [rubric] table");
+    std::fs::write(
+        dir.join("lab.toml"),
+        format!("users = \"lab-users.toml\"\nno-record = true\n{rubric}"),
+    )
+    .unwrap();
+    let (_host, url) = common::start_vl_in(
+        Some(&dir),
+        &["host", "--config", "lab.toml", "--listen", "127.0.0.1:0"],
+        "vl host listening on ",
+    );
+    assert!(url.starts_with("ws://"), "{url}");
+    std::fs::write(
+        dir.join("bad.toml"),
+        "users = \"lab-users.toml\"\n[rubric]\ngoal = -5\n",
+    )
+    .unwrap();
+    let bad = vl_command()
+        .args(["host", "--config", "bad.toml", "--listen", "127.0.0.1:0"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(
+        common::stderr(&bad).contains("'goal' is -5"),
+        "{}",
+        common::stderr(&bad)
     );
 }

@@ -23,7 +23,7 @@ use common::{VlProcess, scratch, start_vl_in, stderr, stdout};
 
 /// The shell commands of README's ```sh block under `heading`, with
 /// continuation lines joined and comments dropped.
-fn commands_under(readme: &str, heading: &str) -> Vec<String> {
+pub(crate) fn commands_under(readme: &str, heading: &str) -> Vec<String> {
     let section = readme
         .split("\n## ")
         .find(|s| s.starts_with(heading))
@@ -93,7 +93,7 @@ fn words(command: &str) -> Vec<String> {
 }
 
 /// The arguments to `vl` in a README command.
-fn vl_args(command: &str) -> Vec<String> {
+pub(crate) fn vl_args(command: &str) -> Vec<String> {
     let w = words(command);
     if w.len() > 4 && w[..4] == ["cargo", "run", "--release", "--"] {
         w[4..].to_vec()

@@ -11,6 +11,7 @@ on stdout:
   {"cmd": "launch", "role": R, ...}          a launch, as a browser makes it
   {"cmd": "deep_link"}                       an instructor's deep linking
   {"cmd": "scores"}                          the scores received so far
+  {"cmd": "fail_scores", "n": N}             refuse the next N score posts (503)
   {"cmd": "prepare", "role": R}              a course page whose form
                                              launches the lab in a browser
 """
@@ -48,7 +49,8 @@ SUBS = {"learner": "learner-1", "instructor": "teacher-1"}
 KEY = rsa.generate_private_key(public_exponent=65537, key_size=2048)
 OTHER_KEY = rsa.generate_private_key(public_exponent=65537, key_size=2048)
 
-state = {"tool": None, "scores": [], "tokens": {}, "token_errors": [], "auth": {}, "pages": {}}
+state = {"tool": None, "scores": [], "tokens": {}, "token_errors": [], "auth": {}, "pages": {},
+         "fail_scores": 0, "refused_scores": 0}
 
 
 def jwks():
@@ -113,6 +115,10 @@ class Platform(BaseHTTPRequestHandler):
                 return self.answer(401, {"error": "no valid token"})
             if kind != "application/vnd.ims.lis.v1.score+json":
                 return self.answer(415, {"error": "not a score: " + kind})
+            if state["fail_scores"] > 0:
+                state["fail_scores"] -= 1
+                state["refused_scores"] += 1
+                return self.answer(503, {"error": "the gradebook is down for maintenance"})
             score = json.loads(body)
             score["received_at"] = time.time()
             state["scores"].append(score)
@@ -303,10 +309,14 @@ def main():
                 answer = launch(command)
             elif command["cmd"] == "deep_link":
                 answer = deep_link(command)
+            elif command["cmd"] == "fail_scores":
+                state["fail_scores"] = command["n"]
+                answer = {"ok": True}
             elif command["cmd"] == "prepare":
                 answer = prepare(command)
             elif command["cmd"] == "scores":
-                answer = {"scores": state["scores"], "token_errors": state["token_errors"]}
+                answer = {"scores": state["scores"], "token_errors": state["token_errors"],
+                          "refused": state["refused_scores"]}
             else:
                 answer = {"error": "unknown command"}
         except Exception as e:  # noqa: BLE001 - the test shows what failed

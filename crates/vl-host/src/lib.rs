@@ -7,7 +7,8 @@
 //! experiment control loop (`lab`) and serves Guests over WebSocket
 //! (`server`), letting in whom its accounts and token say (`accounts`:
 //! Argon2id accounts, the gate every hello passes with its delays and
-//! limits on failures, the audit log); and the Media, a relay that puts a
+//! limits on failures, the audit log; and people an LMS vouched for,
+//! `lti`); and the Media, a relay that puts a
 //! modelled Internet link between Guests and a Host (`media`). Every run
 //! is recorded as an MCAP file Foxglove opens, through `vl-record`.
 //!
@@ -70,6 +71,9 @@
 //!   ROS 2 node on Zenoh as rmw_zenoh speaks it, no ROS installed: its
 //!   topics, `/cmd_vel` as an operator, and any ROS 2 base as the lab's
 //!   robot (`ros2`); velocities paced into commands (`server::pacing`)
+//! - the lab as an LTI 1.3 tool of a teacher's LMS (`lti`): platforms and
+//!   the tool's key, checked launches that log people in by a session,
+//!   deep linking, grades posted from runs by the rubric, the roster
 
 mod accounts;
 mod cells;

@@ -1,5 +1,6 @@
 //! Who a hello proves its sender is: an account by name and password, a
-//! script by the lab's token, or no one. Wrong credentials are answered
+//! script by the lab's token, a person by the session their LMS launch
+//! opened, or no one. Wrong credentials are answered
 //! only after [`FAILURE_DELAY`]; each address, and each account from each
 //! address, may fail [`FAILURES_BURST`] times and then once per
 //! [`FAILURE_REFILL`], beyond which attempts are refused without the cost

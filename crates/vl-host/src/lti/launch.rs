@@ -182,40 +182,22 @@ impl Lti {
                 query.append_pair("lti_message_hint", hint);
             }
         }
-        let mut pending = self
-            .logins
-            .pending
-            .lock()
-            .unwrap_or_else(|p| p.into_inner());
+        let mut pending = super::locked(&self.logins.pending);
         pending.retain(|_, p| p.at.elapsed() < LOGIN_LIFETIME);
-        if pending.len() >= MAX_PENDING {
-            let oldest = pending
-                .iter()
-                .min_by_key(|(_, p)| p.at)
-                .map(|(k, _)| k.clone());
-            if let Some(oldest) = oldest {
-                pending.remove(&oldest);
-            }
-        }
-        pending.insert(
-            state.clone(),
-            Pending {
-                issuer: platform.issuer.clone(),
-                client_id: platform.client_id.clone(),
-                nonce,
-                at: Instant::now(),
-            },
-        );
+        let login = Pending {
+            issuer: platform.issuer.clone(),
+            client_id: platform.client_id.clone(),
+            nonce,
+            at: Instant::now(),
+        };
+        super::insert_bounded(&mut pending, MAX_PENDING, state.clone(), login, |p| p.at);
+        drop(pending);
         Ok((auth.into(), state))
     }
 
     /// Checks a launch's `id_token` against the login `state` it answers.
     pub(crate) async fn launch(&self, id_token: &str, state: &str) -> Result<Launched, Refused> {
-        let pending = self
-            .logins
-            .pending
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
+        let pending = super::locked(&self.logins.pending)
             .remove(state)
             .filter(|p| p.at.elapsed() < LOGIN_LIFETIME)
             .ok_or_else(|| {
@@ -290,7 +272,7 @@ impl Lti {
     /// Whether the token carries the login's nonce, used for the first time.
     fn check_nonce(&self, claims: &Value, expected: &str) -> Result<(), Refused> {
         let nonce = text(claims, "nonce").ok_or_else(|| forbidden("the id_token has no nonce"))?;
-        let mut used = self.logins.used.lock().unwrap_or_else(|p| p.into_inner());
+        let mut used = super::locked(&self.logins.used);
         if used.contains_key(&nonce) {
             return Err(forbidden(
                 "the id_token's nonce was used before: a replayed launch",

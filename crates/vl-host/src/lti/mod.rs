@@ -17,6 +17,8 @@ mod registry;
 mod roster;
 mod services;
 pub(crate) mod sessions;
+#[cfg(test)]
+mod tests;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -70,6 +72,35 @@ fn secret() -> String {
     let mut bytes = [0u8; 32];
     rsa::rand_core::OsRng.fill_bytes(&mut bytes);
     base64::engine::general_purpose::URL_SAFE_NO_PAD.encode(bytes)
+}
+
+/// `m`'s lock, even if a thread panicked holding it (what it guards is
+/// bookkeeping, whole after each change).
+fn locked<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Puts `value` in `map` under `key`, first making room when `map` holds
+/// `most`: the entry `age` finds oldest goes.
+fn insert_bounded<K, V, A: Ord>(
+    map: &mut std::collections::HashMap<K, V>,
+    most: usize,
+    key: K,
+    value: V,
+    age: impl Fn(&V) -> A,
+) where
+    K: std::hash::Hash + Eq + Clone,
+{
+    if map.len() >= most && !map.contains_key(&key) {
+        let oldest = map
+            .iter()
+            .min_by_key(|(_, v)| age(v))
+            .map(|(k, _)| k.clone());
+        if let Some(oldest) = oldest {
+            map.remove(&oldest);
+        }
+    }
+    map.insert(key, value);
 }
 
 /// What a lab's LMS side is set up with.

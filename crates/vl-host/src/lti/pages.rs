@@ -77,7 +77,12 @@ fn page(
         escape(title),
         escape(title)
     );
-    let policy = web::policy(frame_ancestors, form_action);
+    html_page(status, web::policy(frame_ancestors, form_action), html)
+}
+
+/// An HTML answer of the LTI pages: never kept by a cache, nor its address
+/// (which may carry a session) told to a page it links.
+fn html_page(status: StatusCode, policy: String, html: String) -> Response {
     (
         status,
         [
@@ -238,16 +243,7 @@ fn lab_page(asked: &Asked, session: &str, launch: &Launch) -> Response {
     }
     let html = web::index().replacen("<head>", &format!("<head>\n{meta}"), 1);
     let policy = web::policy(&asked.frame_ancestors(), "'none'");
-    (
-        [
-            (header::CONTENT_TYPE, "text/html; charset=utf-8".to_owned()),
-            (header::CACHE_CONTROL, "no-store".to_owned()),
-            (header::CONTENT_SECURITY_POLICY, policy),
-            (header::REFERRER_POLICY, "no-referrer".to_owned()),
-        ],
-        html,
-    )
-        .into_response()
+    html_page(StatusCode::OK, policy, html)
 }
 
 /// What an instructor chooses a link to open: an experiment, and a goal.

@@ -84,10 +84,6 @@ async fn json(what: &str, mut response: reqwest::Response) -> Result<Value, LtiE
     serde_json::from_slice(&body).map_err(|e| LtiError::Platform(format!("{what}: not JSON: {e}")))
 }
 
-fn locked<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|p| p.into_inner())
-}
-
 impl Lti {
     /// The key `kid` of `platform` (its only key when no kid is named).
     pub(super) async fn platform_key(
@@ -101,7 +97,7 @@ impl Lti {
             None => None,
         };
         let (known, fetch) = {
-            let keys = locked(&self.tokens.keys);
+            let keys = super::locked(&self.tokens.keys);
             let set = keys.get(&platform.jwks_url);
             let known = set
                 .filter(|s| s.at.elapsed() < JWKS_LIFETIME)
@@ -126,7 +122,7 @@ impl Lti {
                     serde_json::from_value(json(&what, answer).await?)
                         .map_err(|e| LtiError::Platform(format!("{what}: not a JWK set: {e}")))?;
                 let found = pick(&set);
-                locked(&self.tokens.keys).insert(
+                super::locked(&self.tokens.keys).insert(
                     platform.jwks_url.clone(),
                     KeySet {
                         keys: set,
@@ -156,7 +152,7 @@ impl Lti {
             format!("{}\n{}", platform.issuer, platform.client_id),
             scope.to_owned(),
         );
-        if let Some((token, until)) = locked(&self.tokens.tokens).get(&key)
+        if let Some((token, until)) = super::locked(&self.tokens.tokens).get(&key)
             && *until > Instant::now()
         {
             return Ok(token.clone());
@@ -191,7 +187,7 @@ impl Lti {
             .map_err(|e| LtiError::Platform(format!("{what}: {e}")))?;
         // Kept a minute less than it lasts, so it is never used expired.
         let lasts = Duration::from_secs(answer.expires_in.unwrap_or(3600).clamp(60, 86_400) - 59);
-        locked(&self.tokens.tokens)
+        super::locked(&self.tokens.tokens)
             .insert(key, (answer.access_token.clone(), Instant::now() + lasts));
         Ok(answer.access_token)
     }

@@ -5,7 +5,7 @@
 //! role, course, line item and roster service — for grades and the roster.
 
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tokio::time::Instant;
@@ -79,10 +79,6 @@ pub struct Sessions {
     latest: Mutex<HashMap<String, Arc<Launch>>>,
 }
 
-fn locked<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
-}
-
 impl Sessions {
     /// Opens a session for `launch`: its secret.
     pub(crate) fn open(&self, launch: Launch) -> String {
@@ -90,26 +86,15 @@ impl Sessions {
         let launch = Arc::new(launch);
         let now = Instant::now();
         {
-            let mut open = locked(&self.open);
+            let mut open = super::locked(&self.open);
             open.retain(|_, e| e.until > now);
-            if open.len() >= MAX_SESSIONS {
-                let oldest = open
-                    .iter()
-                    .min_by_key(|(_, e)| e.until)
-                    .map(|(k, _)| k.clone());
-                if let Some(oldest) = oldest {
-                    open.remove(&oldest);
-                }
-            }
-            open.insert(
-                secret.clone(),
-                Entry {
-                    launch: launch.clone(),
-                    until: now + LIFETIME,
-                },
-            );
+            let entry = Entry {
+                launch: launch.clone(),
+                until: now + LIFETIME,
+            };
+            super::insert_bounded(&mut open, MAX_SESSIONS, secret.clone(), entry, |e| e.until);
         }
-        let mut latest = locked(&self.latest);
+        let mut latest = super::locked(&self.latest);
         if latest.len() >= MAX_SESSIONS && !latest.contains_key(&launch.user) {
             latest.clear();
         }
@@ -119,7 +104,7 @@ impl Sessions {
 
     /// The launch of the session `secret`, while it lasts.
     pub(crate) fn launch(&self, secret: &str) -> Option<Arc<Launch>> {
-        let open = locked(&self.open);
+        let open = super::locked(&self.open);
         open.get(secret)
             .filter(|e| e.until > Instant::now())
             .map(|e| e.launch.clone())
@@ -130,8 +115,14 @@ impl Sessions {
         self.launch(secret).map(|l| l.identity())
     }
 
+    /// How many sessions are open.
+    #[cfg(test)]
+    pub(crate) fn open_count(&self) -> usize {
+        super::locked(&self.open).len()
+    }
+
     /// `user`'s latest launch.
     pub(crate) fn latest(&self, user: &str) -> Option<Arc<Launch>> {
-        locked(&self.latest).get(user).cloned()
+        super::locked(&self.latest).get(user).cloned()
     }
 }
