@@ -657,3 +657,61 @@ fn readme_s_lms_steps_run_as_written() {
         common::stderr(&bad)
     );
 }
+
+/// Through a gateway: the launch at its address lets the learner in, a
+/// cell runs their run, and the gateway posts its grade.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_gateway_launches_and_grades_its_cells_runs() {
+    let Some(python) = common::python_with("jwt, cryptography") else {
+        return;
+    };
+    let mut platform = Platform::start(python);
+    let dir = scratch("lti-gateway");
+    let users = dir.join("users.toml");
+    register(&users, &platform);
+    let zenoh = format!("tcp/127.0.0.1:{}", common::free_port());
+    let gateway_args = [
+        "gateway",
+        "--listen",
+        "127.0.0.1:0",
+        "--zenoh-listen",
+        &zenoh,
+    ];
+    let (_gateway, url) = common::start_vl(
+        &[&gateway_args[..], &["--users", s(&users)]].concat(),
+        "vl gateway listening on ",
+    );
+    let cell_args = [
+        "host",
+        "--listen",
+        "127.0.0.1:0",
+        "--no-record",
+        "--gateway",
+    ];
+    let (_cell, _) = common::start_vl(
+        &[&cell_args[..], &[&zenoh, "--cell", "a"]].concat(),
+        "vl host listening on ",
+    );
+    let tool = url.replace("ws://", "http://");
+    platform.ask(json!({"cmd": "tool", "url": tool}));
+    let session = learner_launch(&mut platform);
+    // The cell joins within seconds: until then the gateway has none to give.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let mut learner = loop {
+        let (peer, welcome) = hello_with_session(&url, &session, "operator").await;
+        if welcome["type"] == "welcome" {
+            assert_eq!(welcome["user"], "learner-1@127.0.0.1", "{welcome}");
+            assert_eq!(welcome["role"], "operator", "{welcome}");
+            break peer;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "no cell took the learner: {welcome}"
+        );
+        tokio::time::sleep(Duration::from_millis(300)).await;
+    };
+    let score = graded_run(&mut platform, &mut learner).await;
+    assert_eq!(score["userId"], "learner-1");
+    let comment = score["comment"].as_str().unwrap();
+    assert!(comment.starts_with("A run, stopped."), "{comment}");
+}

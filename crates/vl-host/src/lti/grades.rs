@@ -53,7 +53,12 @@ impl Sent {
 /// One graded run of a person.
 #[derive(Debug, Clone, Serialize)]
 pub(crate) struct Graded {
-    pub run: u64,
+    /// The grade's number at this lab (a gateway grades runs of cells
+    /// whose run numbers are their own).
+    #[serde(skip)]
+    id: u64,
+    /// The run's number, at a lab that runs it.
+    pub run: Option<u64>,
     pub given: f64,
     pub maximum: f64,
     pub ending: String,
@@ -63,6 +68,7 @@ pub(crate) struct Graded {
 
 #[derive(Default)]
 struct Book {
+    graded: u64,
     status: GradesStatus,
     runs: HashMap<String, VecDeque<Graded>>,
 }
@@ -90,8 +96,12 @@ impl GradeBook {
         super::locked(&self.book)
     }
 
-    fn keep(&self, user: &str, graded: Graded) {
+    /// Keeps `graded` as `user`'s, numbered: its number.
+    fn keep(&self, user: &str, mut graded: Graded) -> u64 {
         let mut book = self.book();
+        book.graded += 1;
+        graded.id = book.graded;
+        let id = graded.id;
         if book.runs.len() >= MAX_PEOPLE && !book.runs.contains_key(user) {
             book.runs.clear();
         }
@@ -100,9 +110,10 @@ impl GradeBook {
             runs.pop_front();
         }
         runs.push_back(graded);
+        id
     }
 
-    fn mark(&self, user: &str, run: u64, sent: Sent) {
+    fn mark(&self, user: &str, id: u64, sent: Sent) {
         let mut book = self.book();
         match &sent {
             Sent::Posted => book.status.posted += 1,
@@ -116,7 +127,7 @@ impl GradeBook {
         if let Some(graded) = book
             .runs
             .get_mut(user)
-            .and_then(|r| r.iter_mut().find(|g| g.run == run))
+            .and_then(|r| r.iter_mut().find(|g| g.id == id))
         {
             graded.sent = sent;
         }
@@ -133,22 +144,25 @@ impl GradeBook {
 }
 
 impl Lti {
-    /// Grades, and sends, a run `user` drove, if they came from an LMS.
-    pub fn run_ended(self: &Arc<Self>, run: u64, user: &str, summary: &Summary) {
+    /// Grades, and sends, a run `user` drove (run `run` of this lab, when
+    /// it is this lab's), if they came from an LMS.
+    pub fn run_ended(self: &Arc<Self>, run: Option<u64>, user: &str, summary: &Summary) {
         let Some(launch) = self.sessions.latest(user) else {
             return;
         };
         let grade = self.grades.rubric.grade(summary);
-        let comment = format!("Run {run}, {}. {}", summary.ending(), grade.comment());
+        let named = run.map_or_else(|| "A run".to_owned(), |run| format!("Run {run}"));
+        let comment = format!("{named}, {}. {}", summary.ending(), grade.comment());
         let sent = if launch.lineitem.is_some() {
             self.grades.book().status.sending += 1;
             Sent::Sending
         } else {
             Sent::NoLineItem
         };
-        self.grades.keep(
+        let id = self.grades.keep(
             user,
             Graded {
+                id: 0,
                 run,
                 given: grade.given,
                 maximum: grade.maximum,
@@ -171,10 +185,10 @@ impl Lti {
         });
         let lti = self.clone();
         let user = user.to_owned();
-        tokio::spawn(async move { lti.send_score(run, &user, &launch, &score).await });
+        tokio::spawn(async move { lti.send_score(id, &user, &launch, &score).await });
     }
 
-    async fn send_score(&self, run: u64, user: &str, launch: &Launch, score: &serde_json::Value) {
+    async fn send_score(&self, id: u64, user: &str, launch: &Launch, score: &serde_json::Value) {
         let Some(lineitem) = &launch.lineitem else {
             return;
         };
@@ -191,20 +205,17 @@ impl Lti {
             };
             match self.post_score(&platform, lineitem, score).await {
                 Ok(()) => {
-                    info!(run, user, "score posted to the LMS");
-                    self.audit
-                        .record(
-                            AuditEntry::new("grade_posted")
-                                .user(Some(user))
-                                .detail(format!(
-                                    "run {run}: {} of {}",
-                                    score["scoreGiven"], score["scoreMaximum"]
-                                )),
-                        );
-                    return self.grades.mark(user, run, Sent::Posted);
+                    info!(grade = id, user, "score posted to the LMS");
+                    let comment = score["comment"].as_str().unwrap_or_default();
+                    self.audit.record(
+                        AuditEntry::new("grade_posted")
+                            .user(Some(user))
+                            .detail(comment.to_owned()),
+                    );
+                    return self.grades.mark(user, id, Sent::Posted);
                 }
                 Err(e) => {
-                    warn!(run, user, "the LMS did not take the score: {e}");
+                    warn!(grade = id, user, "the LMS did not take the score: {e}");
                     why = e.to_string();
                 }
             }
@@ -212,9 +223,12 @@ impl Lti {
         self.audit.record(
             AuditEntry::new("grade_failed")
                 .user(Some(user))
-                .detail(format!("run {run}: {why}")),
+                .detail(format!(
+                    "{}: {why}",
+                    score["comment"].as_str().unwrap_or_default()
+                )),
         );
-        self.grades.mark(user, run, Sent::Failed(why));
+        self.grades.mark(user, id, Sent::Failed(why));
     }
 
     /// What was sent, is waiting and failed, for the Host's status.

@@ -119,9 +119,13 @@ impl Asked {
                 .address(self.address)
                 .detail(refused.why.clone()),
         );
+        let mut why = refused.why.clone();
+        if let Some(first) = why.get(..1) {
+            why.replace_range(..1, &first.to_uppercase());
+        }
         let body = format!(
-            "<p class=\"error\">{}</p><p>Nothing was opened. Go back to your course and open the lab from there again; if this stays, tell the lab's administrator.</p>",
-            escape(&refused.why)
+            "<p class=\"error\">{}.</p><p>Nothing was opened. Go back to your course and open the lab from there again; if this stays, tell the lab's administrator.</p>",
+            escape(&why)
         );
         page(
             refused.status,

@@ -38,12 +38,17 @@ pub(crate) async fn serve(listener: TcpListener, config: HostConfig, zenoh: Zeno
     };
     info!(zid = %session.zid(), "the gateway is on Zenoh");
     let config = Arc::new(config);
-    let gate = Arc::new(Gate::new(
+    let gate = Gate::new(
         config.users.clone(),
         config.token.clone(),
         config.observers,
         config.audit.clone(),
-    ));
+    );
+    // People an LMS launched here are let in as they are at a lone Host.
+    let gate = Arc::new(match &config.lti {
+        Some(lti) => gate.with_sessions(lti.sessions()),
+        None => gate,
+    });
     let (hub_tx, hub_rx) = mpsc::channel(HUB_QUEUE);
     let (events_tx, events_rx) = mpsc::channel(EVENTS);
     // A gateway's connections are given their cell's feedback and frames

@@ -349,7 +349,7 @@ impl Hub {
         info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
         let driver = self.run_log.last_ended().and_then(|r| r.user);
         if let (Some(lti), Some(driver)) = (&self.config.lti, &driver) {
-            lti.run_ended(run, driver, &summary);
+            lti.run_ended(Some(run), driver, &summary);
         }
         self.config.audit.record(
             AuditEntry::new("run_ended")

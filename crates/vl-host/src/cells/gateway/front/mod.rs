@@ -13,6 +13,7 @@ use tokio_tungstenite::tungstenite::Message;
 use tracing::{debug, info, warn};
 use vl_core::{CellInfo, CellName, ErrorCode, GuestMessage, HostMessage, Role, Wire};
 
+mod grades;
 mod line;
 mod status;
 
@@ -69,6 +70,8 @@ struct Link {
     /// Given to a Guest already watching (from the line, or asking
     /// control): its cell's welcome is told as the role it grants.
     promoted: bool,
+    /// Whether the cell has the Guest drive now (its runs are graded).
+    driving: bool,
 }
 
 impl Drop for Link {
@@ -452,6 +455,7 @@ impl Front {
             listening,
             welcomed: false,
             promoted,
+            driving: false,
         });
         let hello = LinkUp::Hello {
             admitted: guest.admitted.clone(),
@@ -580,6 +584,9 @@ impl Front {
         };
         match said {
             LinkDown::Send { text } => {
+                if let Some(ended) = grades::follow(link, &text) {
+                    grades::grade(&self.config, &guest.admitted, &ended);
+                }
                 // Read only what decides where the Guest stands: a refusal
                 // of its hello, and the welcome of one already watching,
                 // told as the role it grants.
