@@ -539,7 +539,8 @@ function render() {
   const who = vl.user ? ` as ${vl.user}` : "";
   text("link", vl.link === "open" ? `connected${who} · ${ROLES[vl.role] || "…"}` :
     vl.link === "closed" ? "disconnected: connecting again…" :
-    vl.link === "refused" ? "not let in: log in below" : "connecting…");
+    vl.link === "refused" ? (launched ? "not let in: open the lab from your course again" : "not let in: log in below") :
+    "connecting…");
   $("link").className = vl.link === "open" ? "ok" : "bad";
   text("rtt", vl.rttMs === null ? "round trip …" : `round trip ${vl.rttMs.toFixed(0)} ms`);
   // An image is as old as the pose plus how much earlier the Host
@@ -614,7 +615,8 @@ $("stop").onclick = () => send(VL.guest.stop());
 $("estop").onclick = () => {
   if (vl.link === "open" && send(VL.guest.emergency_stop())) return;
   const message = vl.link === "refused" ?
-    "STOP was not sent: this lab lets only those who log in watch, and STOP is theirs. Log in below to watch." :
+    (launched ? "STOP was not sent: the lab no longer knows this page's session. Open the lab from your course again." :
+      "STOP was not sent: this lab lets only those who log in watch, and STOP is theirs. Log in below to watch.") :
     "STOP was not sent: the page has no link to the Host now (connecting again). " +
       "The Host holds the robot still while its operator's link is down.";
   vl.error = { code: "not_sent", at: performance.now(), message };

@@ -185,6 +185,16 @@ impl Report for HostStatus {
         if let Some(why) = &self.recording_stopped {
             table = table.note(format!("recording stopped: {why}"));
         }
+        if let Some(g) = &self.grades {
+            let mut grades = format!(
+                "grades to the LMS: {} posted, {} being sent, {} failed",
+                g.posted, g.sending, g.failed
+            );
+            if let Some(why) = &g.last_failure {
+                grades.push_str(&format!(" (the last: {why})"));
+            }
+            table = table.note(grades);
+        }
         for (i, person) in self.queue.iter().enumerate() {
             table = table.note(format!("in line {}: {person}", i + 1));
         }

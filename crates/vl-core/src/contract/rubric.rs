@@ -265,6 +265,35 @@ mod tests {
     }
 
     #[test]
+    fn a_navigation_run_earns_for_its_path_and_forecast() {
+        let mut run = summary(true, 0, 30.0, 800.0);
+        run.path = Some(crate::PathAnalysis {
+            tracking_error_mm: Some(crate::ErrorMm {
+                mean: 4.0,
+                max: 9.0,
+                rms: 5.0,
+            }),
+            estimated: Vec::new(),
+            truth: Vec::new(),
+            path_error_mm: None,
+            estimate_error_mm: None,
+        });
+        run.forecast = Some(crate::Gap {
+            forecast_s: Some(29.0),
+            run_s: 30.0,
+            path_mean_mm: 12.0,
+            path_max_mm: 30.0,
+            forecast_closest_mm: None,
+            run_closest_mm: None,
+        });
+        let grade = Rubric::default().grade(&run);
+        // Tracking within its 10 mm: in full; the forecast 12 mm off where
+        // 10 is full and 20 nothing: 8 of 10.
+        assert_eq!(grade.given, 50.0 + 20.0 + 10.0 + 10.0 + 8.0);
+        assert!(grade.comment().contains("forecast: 12.0 mm"), "{}", grade.comment());
+    }
+
+    #[test]
     fn bad_rubrics_are_refused_by_name() {
         let nan = Rubric {
             time: f64::NAN,
