@@ -229,6 +229,11 @@ async fn gradebook_down(
     // The instructor ended the learner's turn: they come back by their session.
     let (mut learner, welcome) = hello_with_session(url, session, "operator").await;
     assert_eq!(welcome["role"], "operator", "{welcome}");
+    // A learner runs no one else's turn.
+    learner
+        .send(json!({"type": "kick", "session": welcome["session"]}))
+        .await;
+    learner.expect_error("unauthorized").await;
     learner.start("teleoperation").await;
     learner.command(1, json!({"v": 60.0, "w": 0.0})).await;
     learner.send(json!({"type": "stop"})).await;

@@ -174,13 +174,18 @@ def fetch(request):
         return e.code, e.headers, e.read().decode()
 
 
-def login(message_hint="resource"):
-    """The third-party login initiation, then the tool's redirect to /auth."""
-    query = urllib.parse.urlencode({
+def login(message_hint="resource", method="GET"):
+    """The third-party login initiation (GET or POST, as platforms do),
+    then the tool's redirect to /auth."""
+    fields = {
         "iss": issuer(), "login_hint": "hint-1", "target_link_uri": state["tool"] + "/lti/launch",
         "lti_message_hint": message_hint, "client_id": CLIENT_ID, "lti_deployment_id": DEPLOYMENT,
-    })
-    status, headers, body = fetch(urllib.request.Request(state["tool"] + "/lti/login?" + query))
+    }
+    if method == "POST":
+        status, headers, body = post_form(state["tool"] + "/lti/login", fields)
+    else:
+        query = urllib.parse.urlencode(fields)
+        status, headers, body = fetch(urllib.request.Request(state["tool"] + "/lti/login?" + query))
     if status != 303 and status != 302 and status != 307:
         return None, {"status": status, "body": body}
     location = headers.get("Location")
@@ -274,7 +279,9 @@ def prepare(command):
 
 
 def deep_link(command):
-    auth, checks = login("deep-link")
+    auth, checks = login("deep-link", "POST")
+    if auth is None:
+        return {"login": checks}
     token = id_token(auth, command.get("role", "instructor"), "LtiDeepLinkingRequest")
     status, _, page = post_form(state["tool"] + "/lti/launch", {"id_token": token, "state": auth["state"]})
     if status != 200 or "/lti/deep-link" not in page:

@@ -290,7 +290,11 @@ mod tests {
         // Tracking within its 10 mm: in full; the forecast 12 mm off where
         // 10 is full and 20 nothing: 8 of 10.
         assert_eq!(grade.given, 50.0 + 20.0 + 10.0 + 10.0 + 8.0);
-        assert!(grade.comment().contains("forecast: 12.0 mm"), "{}", grade.comment());
+        assert!(
+            grade.comment().contains("forecast: 12.0 mm"),
+            "{}",
+            grade.comment()
+        );
     }
 
     #[test]
