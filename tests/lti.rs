@@ -95,6 +95,16 @@ fn register(users: &std::path::Path, platform: &Platform) {
     assert!(out.status.success(), "{}", common::stderr(&out));
 }
 
+/// The outside platform, registered at a lab's accounts file in scratch
+/// folder `name`; none where Python lacks PyJWT or cryptography (said why).
+fn registered(name: &str) -> Option<(Platform, std::path::PathBuf)> {
+    let python = common::python_with("jwt, cryptography")?;
+    let platform = Platform::start(python);
+    let users = scratch(name).join("users.toml");
+    register(&users, &platform);
+    Some((platform, users))
+}
+
 /// The session a launched page carries, if it carries one.
 fn session_of(page: &str) -> Option<String> {
     let at = page.find("<meta name=\"vl-session\" content=\"")?;
@@ -115,14 +125,10 @@ async fn hello_with_session(url: &str, session: &str, role: &str) -> (Peer, Valu
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_lms_launches_the_lab_and_gets_grades_from_runs() {
-    let Some(python) = common::python_with("jwt, cryptography") else {
+    let Some((mut platform, users)) = registered("lti") else {
         return;
     };
-    let mut platform = Platform::start(python);
-    let dir = scratch("lti");
-    let users = dir.join("users.toml");
-    let audit = dir.join("audit.jsonl");
-    register(&users, &platform);
+    let audit = users.with_file_name("audit.jsonl");
     common::account(&users, "root", "admin", "root-secret-1");
     let (_host, url) = start_host(&["--users", s(&users), "--audit", s(&audit), "--no-record"]);
     let tool = url.replace("ws://", "http://");
@@ -667,13 +673,9 @@ fn readme_s_lms_steps_run_as_written() {
 /// cell runs their run, and the gateway posts its grade.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_gateway_launches_and_grades_its_cells_runs() {
-    let Some(python) = common::python_with("jwt, cryptography") else {
+    let Some((mut platform, users)) = registered("lti-gateway") else {
         return;
     };
-    let mut platform = Platform::start(python);
-    let dir = scratch("lti-gateway");
-    let users = dir.join("users.toml");
-    register(&users, &platform);
     let zenoh = format!("tcp/127.0.0.1:{}", common::free_port());
     let gateway_args = [
         "gateway",
