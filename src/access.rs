@@ -84,8 +84,9 @@ impl AccessArgs {
         };
         if let Some(path) = &self.users {
             let users = users_from(path)?;
+            let lms = Lti::registered(path).map_err(bad_input)?;
             anyhow::ensure!(
-                !users.is_empty() || Lti::registered(path),
+                !users.is_empty() || lms,
                 BadInput(format!(
                     "{} holds no account: add one with vl users add (or register an LMS with vl lti add-platform)",
                     path.display()
@@ -120,7 +121,11 @@ impl AccessArgs {
             config.audit = Audit::open(&path)
                 .with_context(|| format!("cannot open the audit log {}", path.display()))?;
         }
-        if let Some(users) = self.users.as_ref().filter(|u| Lti::registered(u)) {
+        if let Some(users) = self
+            .users
+            .as_ref()
+            .filter(|u| Lti::registered(u).unwrap_or(false))
+        {
             let options = LtiOptions {
                 users: users.clone(),
                 rubric: self.rubric.unwrap_or_default(),

@@ -562,6 +562,15 @@ fn vl_lti_keeps_platforms_and_prints_the_tool_s_configuration() {
         "https://lms.example.edu",
     ]);
     assert!(common::stderr(&gone).contains("no platform 'https://lms.example.edu'"));
+    // A platforms file that does not read stops the Host, naming it.
+    std::fs::write(dir.join("users.lti.toml"), "[[platform]]\nissuer = 3\n").unwrap();
+    let broken = vl(&["host", "--users", s(&users), "--listen", "127.0.0.1:0"]);
+    assert!(!broken.status.success());
+    assert!(
+        common::stderr(&broken).contains("users.lti.toml"),
+        "{}",
+        common::stderr(&broken)
+    );
 }
 
 /// `tool-config`: the URLs and key an LMS administrator enters, the key

@@ -152,9 +152,10 @@ impl Lti {
         Registry::load(&self.registry)
     }
 
-    /// Whether the lab has an LMS side at `users`: a platform registered.
-    pub fn registered(users: &Path) -> bool {
-        Registry::load(&registry_path(users)).is_ok_and(|r| !r.platforms.is_empty())
+    /// Whether the lab has an LMS side at `users`: a platform registered
+    /// (a platforms file that does not read is an error, never no LMS).
+    pub fn registered(users: &Path) -> Result<bool, LtiError> {
+        Registry::load(&registry_path(users)).map(|r| !r.platforms.is_empty())
     }
 }
 
