@@ -542,25 +542,21 @@ fn vl_lti_keeps_platforms_and_prints_the_tool_s_configuration() {
         assert_eq!(mode & 0o777, 0o600, "the platforms are the owner's only");
     }
     tool_config(&users);
-    let removed = vl(&[
-        "lti",
-        "remove",
-        "--users",
-        s(&users),
-        "--issuer",
-        "https://lms.example.edu",
-    ]);
+    let remove = || {
+        vl(&[
+            "lti",
+            "remove",
+            "--users",
+            s(&users),
+            "--issuer",
+            "https://lms.example.edu",
+        ])
+    };
+    let removed = remove();
     assert!(removed.status.success());
     let list = common::vl_json(&["lti", "list", "--users", s(&users), "--json"]);
     assert_eq!(list["platform"], json!([]));
-    let gone = vl(&[
-        "lti",
-        "remove",
-        "--users",
-        s(&users),
-        "--issuer",
-        "https://lms.example.edu",
-    ]);
+    let gone = remove();
     assert!(common::stderr(&gone).contains("no platform 'https://lms.example.edu'"));
     // A platforms file that does not read stops the Host, naming it.
     std::fs::write(dir.join("users.lti.toml"), "[[platform]]\nissuer = 3\n").unwrap();

@@ -184,14 +184,15 @@ impl Lti {
             "comment": comment,
         });
         let lti = self.clone();
-        let user = user.to_owned();
-        tokio::spawn(async move { lti.send_score(id, &user, &launch, &score).await });
+        tokio::spawn(async move { lti.send_score(id, &launch, &score).await });
     }
 
-    async fn send_score(&self, id: u64, user: &str, launch: &Launch, score: &serde_json::Value) {
+    /// Posts `score` of grade `id` to `launch`'s line item, for its person.
+    async fn send_score(&self, id: u64, launch: &Launch, score: &serde_json::Value) {
         let Some(lineitem) = &launch.lineitem else {
             return;
         };
+        let user = launch.user.as_str();
         let mut why = String::new();
         for wait in std::iter::once(Duration::ZERO).chain(BACK_OFF) {
             tokio::time::sleep(wait).await;

@@ -98,16 +98,19 @@ fn text(claims: &Value, name: &str) -> Option<String> {
     claims.get(name).and_then(Value::as_str).map(str::to_owned)
 }
 
+/// A role's name without its vocabulary: `Learner` of
+/// `http://purl.imsglobal.org/vocab/lis/v2/membership#Learner`.
+pub(super) fn role_name(role: &str) -> &str {
+    role.rsplit(['#', '/']).next().unwrap_or(role)
+}
+
 /// The lab's role for an LMS person: instructors and administrators run
 /// the lab, learners drive in their turn, anyone else watches.
 pub(super) fn role_of(roles: &[String]) -> AccountRole {
-    let named = |r: &String| {
-        r.rsplit(['#', '/'])
-            .next()
-            .unwrap_or_default()
-            .to_ascii_lowercase()
-    };
-    let names: Vec<String> = roles.iter().map(named).collect();
+    let names: Vec<String> = roles
+        .iter()
+        .map(|r| role_name(r).to_ascii_lowercase())
+        .collect();
     if names
         .iter()
         .any(|n| n == "instructor" || n == "administrator")
