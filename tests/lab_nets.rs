@@ -726,3 +726,34 @@ fn a_folder_of_nets_that_cannot_run_is_refused_at_start() {
     let err = common::stderr(&run);
     assert!(err.contains("--nets: navigation: cannot read"), "{err}");
 }
+
+/// No lab's rules may forbid a stop: `vl lab nets` refuses a design whose
+/// controller would, naming the rule (the Host's stop and emergency stop
+/// do not ask the net in any case).
+#[test]
+fn a_design_that_forbids_a_stop_is_refused() {
+    let dir = common::scratch("lab-nets-no-stop");
+    let charts = dir.join("charts");
+    copy_dir(&repo().join("crates/vl-core/nets"), &charts);
+    let lab = charts.join("teleoperation/lab.toml");
+    let mut text = std::fs::read_to_string(&lab).unwrap();
+    text.push_str(
+        "\n[[controller]]\nwhy = \"careless\"\nrule = \"if execute.running then not stop\"\n",
+    );
+    std::fs::write(&lab, text).unwrap();
+    let run = common::vl(&[
+        "lab",
+        "nets",
+        "--charts",
+        common::s(&charts),
+        "--out",
+        common::s(&dir.join("nets")),
+    ]);
+    assert!(!run.status.success());
+    let said = common::stderr(&run);
+    assert!(
+        said.contains("if execute.running then not stop")
+            && said.contains("'stop' is uncontrollable"),
+        "{said}"
+    );
+}

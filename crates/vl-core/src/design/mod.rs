@@ -35,6 +35,10 @@ pub use summary::{LabRow, NetsReport, RuleVerdict};
 /// The access design's folder, beside the labs'.
 pub(crate) const ACCESS: &str = "access";
 
+/// Events no controller may forbid, whatever a lab's file says: a person
+/// can always stop the robot (the emergency stop obeys no net at all).
+const NEVER_FORBIDDEN: &[&str] = &["stop"];
+
 /// One lab's charts and controllers, as written.
 #[derive(Debug, Clone)]
 pub struct LabDesign {
@@ -209,11 +213,17 @@ impl LabDesign {
                 Ok((name.clone(), text))
             })
             .collect::<Result<_, DesignError>>()?;
+        let mut uncontrollable = file.uncontrollable;
+        for event in NEVER_FORBIDDEN {
+            if !uncontrollable.iter().any(|e| e == event) {
+                uncontrollable.push((*event).to_owned());
+            }
+        }
         Ok(LabDesign {
             lab,
             title: file.title,
             charts,
-            uncontrollable: file.uncontrollable,
+            uncontrollable,
             people: file.people,
             controllers: file.controllers,
         })
@@ -243,5 +253,26 @@ mod tests {
             }
             assert!(designed.sound(), "{}", lab.lab);
         }
+    }
+
+    #[test]
+    fn no_rule_may_forbid_a_stop() {
+        let mut lab = LabDesign::shipped()
+            .unwrap()
+            .into_iter()
+            .find(|l| l.lab == "teleoperation")
+            .unwrap();
+        lab.controllers.push(Rule {
+            why: "a careless rule".to_owned(),
+            rule: "if execute.running then not stop".to_owned(),
+        });
+        let Err(e) = design(&lab) else {
+            panic!("a rule forbidding a stop was taken");
+        };
+        let e = e.to_string();
+        assert!(
+            e.contains("_stop' is uncontrollable, so nothing may disable it"),
+            "{e}"
+        );
     }
 }
