@@ -218,6 +218,12 @@ def late_map():
         "resolution": m.info.resolution,
         "cells": len(m.data),
         "taken": sum(1 for c in m.data if c == 100),
+        "edge_free": sum(
+            1
+            for i, c in enumerate(m.data)
+            if c != 100
+            and (i % m.info.width in (0, m.info.width - 1) or i // m.info.width in (0, m.info.height - 1))
+        ),
         "frame": m.header.frame_id,
     }
 

@@ -203,16 +203,23 @@ pub(crate) fn scan(frames: &Frames, feedback: &Feedback, robot: &RobotModel) -> 
 }
 
 /// `/map`: the floor as the camera mapped it, 0 free and 100 taken, rows
-/// from the floor's y = 0 up, in `map`.
+/// from the floor's y = 0 up, in `map`. The arena's walls, its edge, are
+/// taken: a ROS 2 planner keeps off them as the lab's own does.
 pub(crate) fn map(frames: &Frames, arena: &Arena) -> Option<OccupancyGrid> {
     let grid = Grid::from_arena(arena, ARENA_CELL_MM).ok()?;
-    let width = grid.width as usize;
+    let (width, height) = (grid.width as usize, grid.height as usize);
     // `Grid` keeps its top row first; ROS's rows go along +y.
     let data = grid
         .blocked
         .chunks(width)
         .rev()
-        .flat_map(|row| row.iter().map(|&b| if b { 100 } else { 0 }))
+        .enumerate()
+        .flat_map(|(y, row)| {
+            row.iter().enumerate().map(move |(x, &blocked)| {
+                let wall = x == 0 || y == 0 || x + 1 == width || y + 1 == height;
+                if blocked || wall { 100 } else { 0 }
+            })
+        })
         .collect();
     let now = Time::now();
     Some(OccupancyGrid {
