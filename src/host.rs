@@ -247,7 +247,7 @@ pub(crate) struct HostArgs {
     forecast: crate::options::ForecastArgs,
     #[command(flatten)]
     recordings: crate::record::KeepArgs,
-    /// Join the gateway whose Zenoh router is here (tcp/HOST:PORT) as one
+    /// Join the gateway whose Zenoh router is here (tls/HOST:PORT) as one
     /// of its cells (with --cell).
     #[arg(long, requires = "cell")]
     gateway: Vec<vl_host::Endpoint>,
@@ -273,20 +273,32 @@ pub(crate) struct HostArgs {
 /// The Zenoh network the lab's ROS 2 side joins: the one given; else the
 /// gateway's a cell joins; else the router `--robot ros2` opens; else a
 /// router of its own.
-fn ros2_zenoh(args: &HostArgs) -> vl_host::ZenohOptions {
-    let given = args.zenoh.options();
-    if !given.connect.is_empty() {
+fn ros2_zenoh(args: &HostArgs) -> Result<vl_host::ZenohOptions> {
+    let given = args.zenoh.options(args.listen, false)?;
+    Ok(if !given.connect.is_empty() {
         given
     } else if !args.gateway.is_empty() {
-        vl_host::ZenohOptions {
-            connect: args.gateway.clone(),
-            listen: Vec::new(),
-        }
+        gateway_zenoh(args)?
     } else if args.robot == RobotDriver::Ros2 {
         given.local_client()
     } else {
         given
+    })
+}
+
+/// The gateway's network a cell joins, with the credentials its gateway
+/// issued to it (and to no other cell).
+fn gateway_zenoh(args: &HostArgs) -> Result<vl_host::ZenohOptions> {
+    let zenoh = args.zenoh.joining(args.gateway.clone())?;
+    if let (vl_host::ZenohTrust::Member(credentials), Some(cell)) = (&zenoh.trust, &args.cell)
+        && credentials.member != vl_host::ZenohMember::Cell(cell.clone())
+    {
+        bail!(BadInput(format!(
+            "--zenoh-credentials are {}'s, not cell {cell}'s",
+            credentials.member
+        )));
     }
+    Ok(zenoh)
 }
 
 /// Where the Host records: a cell, unless told, in a folder of its own
@@ -320,19 +332,20 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         ..HostConfig::default()
     };
     args.access.apply(&mut config)?;
-    config.ros2 = args.ros2.then(|| vl_host::Ros2Options {
-        domain: args.ros2_domain,
-        zenoh: ros2_zenoh(args),
-        operator: args.ros2_operator,
-        cell: args.cell.clone(),
-    });
-    config.cell = args.cell.clone().map(|name| vl_host::CellOptions {
-        name,
-        zenoh: vl_host::ZenohOptions {
-            connect: args.gateway.clone(),
-            listen: Vec::new(),
-        },
-    });
+    if args.ros2 {
+        config.ros2 = Some(vl_host::Ros2Options {
+            domain: args.ros2_domain,
+            zenoh: ros2_zenoh(args)?,
+            operator: args.ros2_operator,
+            cell: args.cell.clone(),
+        });
+    }
+    if let Some(name) = &args.cell {
+        config.cell = Some(vl_host::CellOptions {
+            name: name.clone(),
+            zenoh: gateway_zenoh(args)?,
+        });
+    }
     // A folder of nets that cannot run is the user's to fix, before anything starts.
     config
         .supervisor()
@@ -360,6 +373,43 @@ fn say_on_ros2(ros2: &vl_host::Ros2Options) {
         "vl host: on ROS 2 as node {node} in domain {}, {zenoh}{drives}",
         ros2.domain
     );
+    warn_if_open(&ros2.zenoh);
+}
+
+/// Says loudly that a router anyone on the network can join is open.
+fn warn_if_open(zenoh: &vl_host::ZenohOptions) {
+    if zenoh.open_beyond_loopback() {
+        let at: Vec<String> = zenoh.listen.iter().map(ToString::to_string).collect();
+        eprintln!(
+            "vl host: WARNING: the Zenoh router on {} takes anyone on the network, unauthenticated: \
+             listen on 127.0.0.1, or put the lab behind a gateway (`vl gateway`) whose network needs certificates",
+            at.join(", ")
+        );
+    }
+}
+
+/// The robot `--robot` names, with what driving it needs.
+fn robot_spec(args: &HostArgs) -> Result<RobotSpec> {
+    Ok(match args.robot {
+        RobotDriver::Sim => RobotSpec::Sim,
+        RobotDriver::Khepera => RobotSpec::Khepera {
+            port: args
+                .port
+                .clone()
+                .context("--robot khepera needs --port DEVICE")?,
+            baud: args.baud,
+            // A guard process holds the line and stops the robot if this one dies.
+            guard: std::env::current_exe().context("cannot find the vl binary")?,
+        },
+        RobotDriver::Ros2 => {
+            let zenoh = args.zenoh.options(args.listen, false)?;
+            warn_if_open(&zenoh);
+            RobotSpec::Ros2(vl_host::Ros2RobotOptions {
+                domain: args.ros2_domain,
+                zenoh,
+            })
+        }
+    })
 }
 
 pub(crate) async fn host(args: HostArgs) -> Result<()> {
@@ -373,22 +423,7 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
     if let Some(ros2) = &config.ros2 {
         say_on_ros2(ros2);
     }
-    let robot = match args.robot {
-        RobotDriver::Sim => RobotSpec::Sim,
-        RobotDriver::Khepera => RobotSpec::Khepera {
-            port: args
-                .port
-                .clone()
-                .context("--robot khepera needs --port DEVICE")?,
-            baud: args.baud,
-            // A guard process holds the line and stops the robot if this one dies.
-            guard: std::env::current_exe().context("cannot find the vl binary")?,
-        },
-        RobotDriver::Ros2 => RobotSpec::Ros2(vl_host::Ros2RobotOptions {
-            domain: args.ros2_domain,
-            zenoh: args.zenoh.options(),
-        }),
-    };
+    let robot = robot_spec(&args)?;
     let spec = LabSpec {
         robot,
         camera: args.camera.clone(),

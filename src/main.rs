@@ -174,9 +174,14 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Host(command) => runtime()?
             .block_on(host::host_command(*command))
             .map(|()| ExitCode::SUCCESS),
-        Command::Gateway(args) => runtime()?
-            .block_on(gateway::gateway_command(args))
-            .map(|()| ExitCode::SUCCESS),
+        Command::Gateway(args) => {
+            let runtime = runtime()?;
+            let result = runtime.block_on(gateway::gateway_command(args));
+            // Zenoh's tasks may still wait on their peers: a second, not
+            // however long they take (Ctrl-C stops the gateway promptly).
+            runtime.shutdown_timeout(std::time::Duration::from_secs(1));
+            result.map(|()| ExitCode::SUCCESS)
+        }
         Command::Guest(args) => guest::guest(&runtime()?, args),
         Command::Demo(args) => guest::demo(&runtime()?, args),
         Command::Media(args) => runtime()?

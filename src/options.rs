@@ -159,27 +159,70 @@ impl ForecastArgs {
 /// existing network joined.
 #[derive(clap::Args, Clone)]
 pub(crate) struct ZenohArgs {
-    /// Where the embedded Zenoh router listens (tcp/HOST:PORT).
-    #[arg(long, default_value = "tcp/0.0.0.0:7447", conflicts_with = "zenoh")]
+    /// Where the embedded Zenoh router listens (tcp/HOST:PORT, or
+    /// tls/HOST:PORT): by default port 7447 on --listen's address.
+    #[arg(long, conflicts_with = "zenoh")]
     zenoh_listen: Vec<vl_host::Endpoint>,
     /// Join an existing Zenoh network here instead (a site's zenohd, a
     /// gateway's router), with no router of its own.
     #[arg(long)]
     zenoh: Vec<vl_host::Endpoint>,
+    /// The certificate to join a tls/ network with: the file `vl gateway
+    /// issue` wrote for this machine.
+    #[arg(long, value_name = "FILE")]
+    zenoh_credentials: Option<std::path::PathBuf>,
 }
 
+/// Zenoh's usual port, where ROS 2's rmw_zenoh looks for a router.
+const ZENOH_PORT: u16 = 7447;
+
 impl ZenohArgs {
-    pub(crate) fn options(&self) -> vl_host::ZenohOptions {
+    /// The network, a router of its own listening on `listen`'s address
+    /// unless told otherwise (`tls/` where `secured`: its caller then says
+    /// who may join it).
+    pub(crate) fn options(
+        &self,
+        listen: std::net::SocketAddr,
+        secured: bool,
+    ) -> anyhow::Result<vl_host::ZenohOptions> {
         if self.zenoh.is_empty() {
-            vl_host::ZenohOptions {
+            let listen = match self.zenoh_listen.as_slice() {
+                [] => vec![vl_host::Endpoint::new(secured, listen.ip(), ZENOH_PORT)],
+                given => given.to_vec(),
+            };
+            Ok(vl_host::ZenohOptions {
                 connect: Vec::new(),
-                listen: self.zenoh_listen.clone(),
-            }
+                listen,
+                trust: vl_host::ZenohTrust::Open,
+            })
         } else {
-            vl_host::ZenohOptions {
-                connect: self.zenoh.clone(),
-                listen: Vec::new(),
-            }
+            self.joining(self.zenoh.clone())
         }
+    }
+
+    /// Joining `connect`, with the credentials given, if any.
+    pub(crate) fn joining(
+        &self,
+        connect: Vec<vl_host::Endpoint>,
+    ) -> anyhow::Result<vl_host::ZenohOptions> {
+        Ok(vl_host::ZenohOptions {
+            connect,
+            listen: Vec::new(),
+            trust: self.credentials()?.map_or(vl_host::ZenohTrust::Open, |c| {
+                vl_host::ZenohTrust::Member(std::sync::Arc::new(c))
+            }),
+        })
+    }
+
+    /// The credentials `--zenoh-credentials` names, read.
+    pub(crate) fn credentials(&self) -> anyhow::Result<Option<vl_host::ZenohCredentials>> {
+        self.zenoh_credentials
+            .as_deref()
+            .map(|file| {
+                vl_host::ZenohCredentials::load(file).map_err(|e| {
+                    anyhow::Error::new(crate::BadInput(format!("--zenoh-credentials: {e}")))
+                })
+            })
+            .transpose()
     }
 }

@@ -1,14 +1,17 @@
 //! Many cells behind one gateway, on Zenoh, driven from outside: a
-//! gateway and three cells as `vl` processes on loopback; an outside Zenoh
-//! client (Python's `eclipse-zenoh`, nothing of vl's) sees the cells'
-//! liveliness tokens; three headless Guests at once through the gateway's
+//! gateway and three cells as `vl` processes on loopback, each cell with
+//! the credentials `vl gateway issue` wrote for it; an outside Zenoh
+//! client (Python's `eclipse-zenoh`, nothing of vl's) is kept off the
+//! network without them, and with a member's gets nothing of the others'
+//! keys; three headless Guests at once through the gateway's
 //! one address each get a cell and reach the goal; 150 watchers of the
 //! gateway cost the cells next to nothing; a frozen cell leaves within 2 s
 //! and comes back; a cell killed with -9 leaves `/status` at once, its
 //! watchers told why, and the next Guest still reaches the goal; operators
 //! wait in one line for all the cells.
 
-use std::process::Command;
+use std::path::Path;
+use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
@@ -18,40 +21,9 @@ use serde_json::{Value, json};
 use tokio_tungstenite::tungstenite::Message;
 
 use crate::alone;
+use crate::common::cells::{Keys, start_cell, start_gateway, start_gateway_on, start_gateway_with};
 use crate::common::peer::Peer;
-use crate::common::{self, VlProcess, free_port, start_vl};
-
-/// A gateway on a free port, its Zenoh router on another: its URL and
-/// the router's endpoint.
-fn start_gateway() -> (VlProcess, String, String) {
-    let zenoh = format!("tcp/127.0.0.1:{}", free_port());
-    let (gateway, url) = start_vl(
-        &[
-            "gateway",
-            "--listen",
-            "127.0.0.1:0",
-            "--zenoh-listen",
-            &zenoh,
-        ],
-        "vl gateway listening on ",
-    );
-    (gateway, url, zenoh)
-}
-
-/// A simulated cell named `name` joining the gateway at `zenoh`.
-fn start_cell(zenoh: &str, name: &str) -> VlProcess {
-    let args = [
-        "host",
-        "--listen",
-        "127.0.0.1:0",
-        "--no-record",
-        "--gateway",
-        zenoh,
-        "--cell",
-        name,
-    ];
-    start_vl(&args, "vl host listening on ").0
-}
+use crate::common::{self, VlProcess};
 
 /// The gateway's `GET /status`.
 fn status(url: &str) -> Value {
@@ -125,13 +97,42 @@ fn until_idle(url: &str) {
     }
 }
 
-/// The liveliness tokens under `vl/cells/*` an outside Zenoh client sees.
-fn tokens_seen_from_python(zenoh: &str) -> Option<Vec<String>> {
+/// Someone else on the gateway's network (`tests/gateway/outside.py`):
+/// what they got, and the process, which stays on the network until
+/// dropped.
+fn outside(
+    zenoh: &str,
+    credentials: Option<&Path>,
+    info: Option<&Path>,
+) -> Option<(Value, Outside)> {
+    use std::io::{BufRead, BufReader};
     let python = common::python_with("zenoh")?;
-    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/gateway/tokens.py");
-    let out = Command::new(python).args([script, zenoh]).output().unwrap();
-    assert!(out.status.success(), "{}", common::stderr(&out));
-    Some(serde_json::from_slice(&out.stdout).expect("the client prints JSON"))
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/gateway/outside.py");
+    let mut command = Command::new(python);
+    command.arg(script).arg(zenoh);
+    command.args(credentials.into_iter().chain(info));
+    let mut child = command
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let got = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line:?}"));
+    Some((got, Outside(child)))
+}
+
+/// The outside client's process, let go when dropped.
+struct Outside(std::process::Child);
+
+impl Drop for Outside {
+    fn drop(&mut self) {
+        drop(self.0.stdin.take());
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
 }
 
 /// Processor seconds `pid` has used.
@@ -192,17 +193,17 @@ async fn watcher(url: String, seeing: Arc<AtomicUsize>) -> tokio::task::JoinHand
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_gateway_serves_three_cells_and_outlives_one() {
     let _alone = alone().await;
-    let (_gateway, url, zenoh) = start_gateway();
-    let cells: Vec<VlProcess> = ["a", "b", "c"]
+    let keys = Keys::new("three");
+    let names = ["a", "b", "c"];
+    let credentials = keys.cells(&names);
+    let (_gateway, url, zenoh) = start_gateway(&keys);
+    let cells: Vec<VlProcess> = names
         .iter()
-        .map(|n| start_cell(&zenoh, n))
+        .zip(&credentials)
+        .map(|(n, c)| start_cell(&zenoh, n, c))
         .collect();
-    let took = until_cells(&url, &["a", "b", "c"], Duration::from_secs(30));
+    let took = until_cells(&url, &names, Duration::from_secs(30));
     eprintln!("the three cells are listed after {took:?}");
-
-    if let Some(tokens) = tokens_seen_from_python(&zenoh) {
-        assert_eq!(tokens, ["vl/cells/a", "vl/cells/b", "vl/cells/c"]);
-    }
 
     // Three operators at once through the one address: a cell each.
     let runs: Vec<_> = (0..3)
@@ -296,14 +297,76 @@ async fn a_gateway_serves_three_cells_and_outlives_one() {
     let gone = until_cells(&url, &["a", "c"], Duration::from_secs(4));
     eprintln!("cell b left /status {gone:?} after kill -9");
     of_b.expect_error("cell_lost").await;
-    if let Some(tokens) = tokens_seen_from_python(&zenoh) {
-        assert_eq!(tokens, ["vl/cells/a", "vl/cells/c"]);
-    }
     for watcher in watchers {
         watcher.abort();
     }
     let next = common::headless_run(&url, 90, &[]);
     assert_eq!(next["reached_goal"], true, "{next}");
+}
+
+/// Someone saying hello as operator at `url` (a cell's) every 100 ms
+/// until told to stop: how often they were welcomed.
+fn pushy(
+    url: String,
+) -> (
+    tokio::sync::watch::Sender<bool>,
+    tokio::task::JoinHandle<u32>,
+) {
+    let (stop_tx, stop) = tokio::sync::watch::channel(false);
+    let pushing = tokio::spawn(async move {
+        let mut welcomed = 0;
+        while !*stop.borrow() {
+            let mut peer = Peer::connect(&url).await;
+            peer.send(json!({"type": "hello", "protocol": 1, "role": "operator"}))
+                .await;
+            if let Some(told) = peer
+                .next_of_any(&["welcome", "error"], Duration::from_secs(2))
+                .await
+                && told["type"] == "welcome"
+            {
+                welcomed += 1;
+            }
+            peer.send(json!({"type": "bye"})).await;
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+        welcomed
+    });
+    (stop_tx, pushing)
+}
+
+/// Strangers do not join the network at `zenoh`: without a certificate,
+/// without TLS, or with another authority's certificate (`foreign`).
+fn strangers_do_not_join(zenoh: &str, foreign: &Path) {
+    let plain = zenoh.replace("tls/", "tcp/");
+    for (who, endpoint, credentials) in [
+        ("no certificate", zenoh, None),
+        ("no TLS", &plain, None),
+        ("another authority's certificate", zenoh, Some(foreign)),
+    ] {
+        let (got, _) = outside(endpoint, credentials, None).unwrap();
+        assert_eq!(got["joined"], false, "a stranger with {who} joined: {got}");
+    }
+}
+
+/// Ctrl-C stops `gateway` within 2 s.
+fn stops_on_ctrl_c(mut gateway: VlProcess) {
+    let pid = gateway.0.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let asked = Instant::now();
+    while gateway.0.try_wait().unwrap().is_none() {
+        assert!(
+            asked.elapsed() < Duration::from_secs(2),
+            "the gateway still runs 2 s after Ctrl-C"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    eprintln!("the gateway stopped {:?} after Ctrl-C", asked.elapsed());
 }
 
 /// Operators wait in one line for all the cells, and the first cell free
@@ -312,8 +375,14 @@ async fn a_gateway_serves_three_cells_and_outlives_one() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn operators_wait_in_one_line_for_every_cell() {
     let _alone = alone().await;
-    let (gateway, url, zenoh) = start_gateway();
-    let _cells: Vec<VlProcess> = ["x", "y"].iter().map(|n| start_cell(&zenoh, n)).collect();
+    let keys = Keys::new("line");
+    let credentials = keys.cells(&["x", "y"]);
+    let (gateway, url, zenoh) = start_gateway(&keys);
+    let _cells: Vec<VlProcess> = ["x", "y"]
+        .iter()
+        .zip(&credentials)
+        .map(|(n, c)| start_cell(&zenoh, n, c))
+        .collect();
     until_cells(&url, &["x", "y"], Duration::from_secs(30));
 
     // Asking for a cell that is not there, or by no cell's name.
@@ -350,6 +419,10 @@ async fn operators_wait_in_one_line_for_every_cell() {
     let place = third.expect("queue").await;
     assert_eq!(place["position"], 1, "{place}");
 
+    // Someone naming a cell as operator every 100 ms passes no one.
+    let (stop_tx, pushy) = pushy(format!("{url}/cells/x"));
+    tokio::time::sleep(Duration::from_millis(300)).await;
+
     // The first leaves: its cell is the third's, who drives there.
     first.send(json!({"type": "bye"})).await;
     let granted = third
@@ -357,6 +430,12 @@ async fn operators_wait_in_one_line_for_every_cell() {
         .await
         .expect("control within 10 s of a cell coming free");
     assert_eq!(granted["role"], "operator", "{granted}");
+    stop_tx.send(true).unwrap();
+    assert_eq!(
+        pushy.await.unwrap(),
+        0,
+        "a hello naming the cell took it ahead of the line"
+    );
     third.start("teleoperation").await;
     let moved = third.command(1, json!({"v": 40.0, "w": 0.0})).await;
     assert_eq!(moved["type"], "feedback", "{moved}");
@@ -376,21 +455,7 @@ async fn operators_wait_in_one_line_for_every_cell() {
     // A gateway restarted on the same router address finds its cells
     // again by itself.
     drop(gateway);
-    let port = zenoh.rsplit_once(':').unwrap().1;
-    let listen = format!("tcp/127.0.0.1:{port}");
-    let (_again, url, _) = {
-        let (g, u) = start_vl(
-            &[
-                "gateway",
-                "--listen",
-                "127.0.0.1:0",
-                "--zenoh-listen",
-                &listen,
-            ],
-            "vl gateway listening on ",
-        );
-        (g, u, ())
-    };
+    let (_again, url) = start_gateway_on(&keys, &zenoh, &[]);
     let back = until_cells(&url, &["x", "y"], Duration::from_secs(15));
     eprintln!("the cells are back at a restarted gateway after {back:?}");
 }
@@ -409,20 +474,10 @@ async fn the_gateway_keeps_the_accounts() {
     common::account(file.as_ref(), "bob", "observer", "battery staple");
     common::account(file.as_ref(), "root", "admin", "root password");
     let admin = Some("root:root password");
-    let zenoh = format!("tcp/127.0.0.1:{}", free_port());
-    let (_gateway, url) = start_vl(
-        &[
-            "gateway",
-            "--listen",
-            "127.0.0.1:0",
-            "--zenoh-listen",
-            &zenoh,
-            "--users",
-            file,
-        ],
-        "vl gateway listening on ",
-    );
-    let _cell = start_cell(&zenoh, "solo");
+    let keys = Keys::new("accounts");
+    let solo = keys.issue("--cell", "solo");
+    let (_gateway, url, zenoh) = start_gateway_with(&keys, &["--users", file]);
+    let _cell = start_cell(&zenoh, "solo", &solo);
     until_cells_as(&url, admin, &["solo"], Duration::from_secs(30));
     let login = |role: &str, user: &str, password: &str| json!({"type": "hello", "protocol": 1, "role": role, "user": user, "password": password});
 
@@ -443,6 +498,20 @@ async fn the_gateway_keeps_the_accounts() {
         "the cell knows who the gateway let in: {welcome}"
     );
     ada.start("teleoperation").await;
+    // One place per account: ada's second connection may not wait too.
+    let mut again = Peer::connect(&url).await;
+    again.send(login("observer", "ada", "correct horse")).await;
+    again.expect("welcome").await;
+    again.send(json!({"type": "queue"})).await;
+    let refused = again.expect_error("not_allowed_now").await;
+    assert!(
+        refused["message"]
+            .as_str()
+            .unwrap()
+            .contains("one place per account"),
+        "{refused}"
+    );
+    again.send(json!({"type": "bye"})).await;
     // The cells tell the gateway how they are twice a second.
     let began = Instant::now();
     while status_as(&url, admin)["cells"][0]["operator"]["user"] != "ada" {
@@ -485,4 +554,118 @@ async fn the_gateway_keeps_the_accounts() {
     }
     bob.send(json!({"type": "ping", "t": 1.0})).await;
     bob.expect("pong").await;
+}
+
+/// The gateway's Zenoh network is nobody else's: a stranger without a
+/// certificate, or with another authority's, does not join; a member (a
+/// cell the gateway issued to) reads none of the others' keys, cannot
+/// speak for cell a (a hello as the lab's administrator, a phishing
+/// message, a 9 MB frame, a forged info) nor for cells that are not
+/// (rogue tokens), and speaks only for itself; a cell with another's
+/// credentials does not start; a member revoked gets nothing.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn strangers_and_members_get_nothing_of_others() {
+    let _alone = alone().await;
+    let keys = Keys::new("strangers");
+    let a = keys.issue("--cell", "a");
+    let b = keys.issue("--cell", "b");
+    let evil = keys.issue("--cell", "evil");
+    let gone = keys.issue("--cell", "gone");
+    let out = common::vl(&["gateway", "revoke", "--cell", "gone", "--keys", keys.dir()]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let elsewhere = Keys::new("strangers-elsewhere");
+    let foreign = elsewhere.issue("--cell", "a");
+
+    // A cell given another's credentials says so and does not start.
+    let (gateway, url, zenoh) = start_gateway(&keys);
+    let out = common::vl(&[
+        "host",
+        "--listen",
+        "127.0.0.1:0",
+        "--no-record",
+        "--gateway",
+        &zenoh,
+        "--cell",
+        "c",
+        "--zenoh-credentials",
+        common::s(&a),
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        common::stderr(&out).contains("are cell a's, not cell c's"),
+        "{}",
+        common::stderr(&out)
+    );
+    let _cells = [start_cell(&zenoh, "a", &a), start_cell(&zenoh, "b", &b)];
+    until_cells(&url, &["a", "b"], Duration::from_secs(30));
+
+    if common::python_with("zenoh").is_none() {
+        return;
+    }
+    strangers_do_not_join(&zenoh, &foreign);
+
+    // A student drives cell a through the gateway; b is free; a watcher
+    // watches a.
+    let mut student = Peer::connect(&format!("{url}/cells/a")).await;
+    student.hello("operator").await;
+    student.start("teleoperation").await;
+    let mut watcher = Peer::connect(&format!("{url}/cells/a")).await;
+    watcher.hello("observer").await;
+
+    // A member, as hostile as it can be, for 3 s while the student drives.
+    let info = keys.0.join("evil-info.json");
+    let mut own: Value = status(&url)["cells"][1].clone();
+    own["name"] = json!("evil");
+    own.as_object_mut().unwrap().remove("watchers");
+    std::fs::write(&info, own.to_string()).unwrap();
+    let trying = {
+        let (zenoh, evil, info) = (zenoh.clone(), evil.clone(), info.clone());
+        tokio::task::spawn_blocking(move || outside(&zenoh, Some(&evil), Some(&info)).unwrap())
+    };
+    let mut event = 0;
+    while !trying.is_finished() {
+        event += 1;
+        let fed = student.command(event, json!({"v": 0.0, "w": 0.3})).await;
+        assert_eq!(fed["type"], "feedback", "{fed}");
+    }
+    let (got, member) = trying.await.unwrap();
+    eprintln!("a member's try, the student driving on ({event} commands): {got}");
+    assert_eq!(got["joined"], true, "{got}");
+    assert_eq!(got["read"], 0, "a member read others' keys: {got}");
+    assert_eq!(got["listed"], json!([]), "a member listed the cells: {got}");
+    // The control: the member is a cell on its own keys. Nothing else.
+    let listed = until_cells(&url, &["a", "b", "evil"], Duration::from_secs(5));
+    eprintln!("the member's own cell listed after {listed:?}");
+    let now = status(&url);
+    let cell = |n: usize| now["cells"][n].clone();
+    assert!(
+        !cell(0)["operator"].is_null() && cell(0)["operator"]["user"].is_null(),
+        "cell a's operator is the student, no administrator: {now}"
+    );
+    assert!(cell(1)["operator"].is_null(), "cell b is free: {now}");
+    assert_eq!(cell(0)["line"], 0, "{now}");
+    // The student and the watcher were told nothing forged and still are.
+    let fed = student
+        .command(event + 1, json!({"v": 0.0, "w": 0.0}))
+        .await;
+    assert_eq!(fed["type"], "feedback", "{fed}");
+    watcher.send(json!({"type": "ping", "t": 2.0})).await;
+    let told = watcher
+        .next_of_any(&["error", "pong"], Duration::from_secs(5))
+        .await
+        .expect("the watcher still hears");
+    assert_eq!(told["type"], "pong", "the watcher was told {told}");
+    drop(member);
+    until_cells(&url, &["a", "b"], Duration::from_secs(5));
+
+    // Revoked: it joins (its certificate is still good) but may do nothing.
+    let gone_info = keys.0.join("gone-info.json");
+    own["name"] = json!("gone");
+    std::fs::write(&gone_info, own.to_string()).unwrap();
+    let (got, _gone) = outside(&zenoh, Some(&gone), Some(&gone_info)).unwrap();
+    assert_eq!(got["read"], 0, "{got}");
+    assert_eq!(cell_names(&status(&url)), ["a", "b"]);
+
+    // Ctrl-C stops the gateway within 2 s, cells joined.
+    stops_on_ctrl_c(gateway);
 }

@@ -681,29 +681,10 @@ async fn a_gateway_launches_and_grades_its_cells_runs() {
     let Some((mut platform, users)) = registered("lti-gateway") else {
         return;
     };
-    let zenoh = format!("tcp/127.0.0.1:{}", common::free_port());
-    let gateway_args = [
-        "gateway",
-        "--listen",
-        "127.0.0.1:0",
-        "--zenoh-listen",
-        &zenoh,
-    ];
-    let (_gateway, url) = common::start_vl(
-        &[&gateway_args[..], &["--users", s(&users)]].concat(),
-        "vl gateway listening on ",
-    );
-    let cell_args = [
-        "host",
-        "--listen",
-        "127.0.0.1:0",
-        "--no-record",
-        "--gateway",
-    ];
-    let (_cell, _) = common::start_vl(
-        &[&cell_args[..], &[&zenoh, "--cell", "a"]].concat(),
-        "vl host listening on ",
-    );
+    let keys = common::cells::Keys::new("lti");
+    let a = keys.issue("--cell", "a");
+    let (_gateway, url, zenoh) = common::cells::start_gateway_with(&keys, &["--users", s(&users)]);
+    let _cell = common::cells::start_cell(&zenoh, "a", &a);
     let tool = url.replace("ws://", "http://");
     platform.ask(json!({"cmd": "tool", "url": tool}));
     let session = learner_launch(&mut platform);

@@ -10,6 +10,7 @@
 //! robot's own ROS 2 camera; a gateway's cells are namespaces of their own.
 
 use std::io::{BufRead, BufReader};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -18,6 +19,7 @@ use std::time::Duration;
 use serde_json::Value;
 
 use crate::alone;
+use crate::common::cells::{Keys, start_cell_with, start_gateway};
 use crate::common::peer::Peer;
 use crate::common::{self, free_port, scratch, start_vl};
 
@@ -48,12 +50,33 @@ fn start_host(zenoh: &str, extra: &[&str]) -> (common::VlProcess, String) {
 
 /// One step of the outside client against the router at `port`.
 fn step(python: &str, port: u16, args: &[&str]) -> Value {
-    let port = port.to_string();
-    let out = Command::new(python)
-        .args([LAB, MSGS, &port])
-        .args(args)
-        .output()
-        .expect("python runs");
+    step_with(python, port, args, None)
+}
+
+/// One step, as the ROS 2 machine `credentials` name on a gateway's
+/// network: the SDK's session configured as rmw_zenoh's is, by
+/// `ZENOH_CONFIG_OVERRIDE` (mutual TLS to the gateway's router).
+fn step_with(python: &str, port: u16, args: &[&str], credentials: Option<&Path>) -> Value {
+    let mut command = Command::new(python);
+    command.args([LAB, MSGS, &port.to_string()]).args(args);
+    if let Some(file) = credentials {
+        use base64::Engine;
+        let kept: toml::Table = toml::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
+        let pem = |key: &str| {
+            base64::engine::general_purpose::STANDARD.encode(kept[key].as_str().unwrap())
+        };
+        let tls = serde_json::json!({
+            "root_ca_certificate_base64": pem("authority"),
+            "connect_certificate_base64": pem("certificate"),
+            "connect_private_key_base64": pem("key"),
+            "enable_mtls": true,
+        });
+        command.env(
+            "ZENOH_CONFIG_OVERRIDE",
+            format!("transport/link/tls={tls};connect/endpoints=[\"tls/127.0.0.1:{port}\"]"),
+        );
+    }
+    let out = command.output().expect("python runs");
     let stdout = String::from_utf8_lossy(&out.stdout);
     let line = stdout.lines().last().unwrap_or_default();
     serde_json::from_str(line).unwrap_or_else(|e| {
@@ -186,6 +209,7 @@ fn streamed(python: &str, port: u16) {
         "the map shows obstacles: {map}"
     );
     assert_eq!(map["frame"], "map");
+    assert_eq!(map["edge_free"], 0, "the arena's walls are taken: {map}");
 }
 
 /// Twists drive; silence stops; a Twist toward a wall for 5 s stops short;
@@ -330,35 +354,23 @@ async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
 async fn a_gateway_s_cells_are_ros_2_namespaces() {
     let Some(python) = python() else { return };
     let _alone = alone().await;
-    let port = free_port();
-    let zenoh = format!("tcp/127.0.0.1:{port}");
-    let gateway = [
-        "gateway",
-        "--listen",
-        "127.0.0.1:0",
-        "--zenoh-listen",
-        &zenoh,
-    ];
-    let (_gateway, _) = start_vl(&gateway, "vl gateway listening on ");
+    let keys = Keys::new("ros2");
+    let credentials = keys.cells(&["a", "b"]);
+    let rviz = keys.issue("--ros2", "rviz");
+    let (_gateway, _, zenoh) = start_gateway(&keys);
+    let port: u16 = zenoh.rsplit_once(':').unwrap().1.parse().unwrap();
     let mut cells = Vec::new();
-    for name in ["a", "b"] {
-        let cell = [
-            "host",
-            "--listen",
-            "127.0.0.1:0",
-            "--no-record",
-            "--gateway",
-            &zenoh,
-            "--cell",
-            name,
-            "--ros2",
-        ];
-        cells.push(start_vl(&cell, "vl host listening on ").0);
+    for (name, credentials) in ["a", "b"].into_iter().zip(&credentials) {
+        let args = ["--ros2"];
+        cells.push(start_cell_with(&zenoh, name, credentials, &args));
     }
-    let listed = step(
+    // A ROS 2 machine joins the gateway's network with the credentials
+    // the gateway issued it (tests/gateway.rs: strangers do not).
+    let listed = step_with(
         python,
         port,
         &["list", "20", "/a/odom", "/b/odom", "/a/map", "/b/map"],
+        Some(&rviz),
     );
     for cell in ["a", "b"] {
         for (topic, ty) in &TYPES[..6] {

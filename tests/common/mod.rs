@@ -2,6 +2,7 @@
 //! long-running `vl` processes (a Host, the Khepera emulator) alive for a
 //! test and killing them however it ends, and scratch directories.
 
+pub(crate) mod cells;
 pub(crate) mod chromium;
 pub(crate) mod peer;
 

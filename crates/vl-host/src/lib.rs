@@ -67,7 +67,9 @@
 //!   refuses connections during a scheduled disconnect, keeps for a client
 //!   that does not read only the newest 2 MiB of frames, records each leg's
 //!   delays and measures its own cost (`media`)
-//! - many cells behind one gateway on Zenoh (`cells`), and the lab as a
+//! - many cells behind one gateway on Zenoh (`cells`), on a network that
+//!   takes only the certificates the gateway's authority issued, each
+//!   member its own keys (`cells::trust`), and the lab as a
 //!   ROS 2 node on Zenoh as rmw_zenoh speaks it, no ROS installed: its
 //!   topics, `/cmd_vel` as an operator, and any ROS 2 base as the lab's
 //!   robot (`ros2`); velocities paced into commands (`server::pacing`)
@@ -82,6 +84,7 @@ mod drivers;
 #[cfg(test)]
 mod dummy;
 mod footage;
+mod hush;
 mod khepera;
 mod lab;
 mod line;
@@ -111,7 +114,10 @@ pub use accounts::gate::{
 };
 pub use accounts::users::{AccountRole, Member, Roster, Users, UsersError};
 pub use accounts::{SecretError, secret_from_file};
-pub use cells::{CellOptions, Endpoint, ZenohError, ZenohOptions};
+pub use cells::{
+    CellOptions, Endpoint, RouterTrust, TrustError, ZenohAuthority, ZenohCredentials, ZenohError,
+    ZenohMember, ZenohOptions, ZenohTrust,
+};
 pub use characterise::{CharacteriseError, characterise};
 pub use drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness};
 pub use footage::FootageCamera;

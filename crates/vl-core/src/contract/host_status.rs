@@ -40,6 +40,10 @@ pub struct HostStatus {
     /// Scores sent to the LMS, at a lab launched from one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub grades: Option<GradesStatus>,
+    /// The Zenoh endpoints this lab's own router opens, beyond this
+    /// machine, to anyone unauthenticated (`--ros2` listening widely).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub open_to_anyone: Vec<String>,
 }
 
 /// The scores a lab sent to its LMS: posted, still being tried, given up
@@ -184,6 +188,12 @@ impl Report for HostStatus {
         .title("the Host now:");
         if let Some(why) = &self.recording_stopped {
             table = table.note(format!("recording stopped: {why}"));
+        }
+        if !self.open_to_anyone.is_empty() {
+            table = table.note(format!(
+                "WARNING: the Zenoh router on {} takes anyone on the network, unauthenticated",
+                self.open_to_anyone.join(", ")
+            ));
         }
         if let Some(g) = &self.grades {
             let mut grades = format!(

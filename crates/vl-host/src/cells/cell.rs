@@ -14,8 +14,9 @@ use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::SampleKind;
 
 use super::link::{LinkDown, LinkUp};
-use super::{CellOptions, ZenohError, keys};
+use super::{CellOptions, ZenohError, keys, within};
 use crate::accounts::gate::Admitted;
+use crate::hush::Hush;
 use crate::lab::Watching;
 use crate::server::hub::{OUTBOX, Status, ToConnection, ToHub};
 
@@ -24,6 +25,8 @@ const INFO_EVERY: Duration = Duration::from_millis(500);
 /// The cell's own clients for the gateway are numbered from here, apart
 /// from the connections it accepts itself.
 const FIRST_ID: u64 = 1 << 48;
+/// Links a cell holds at once: as many Guests as a gateway serves.
+const MOST_LINKS: usize = 4096;
 
 /// What a cell's side takes from the Host it is part of.
 pub(crate) struct Cell {
@@ -204,6 +207,7 @@ async fn links(
         .declare_subscriber(keys::links(name))
         .await?;
     let mut open: HashMap<String, (u64, tokio::task::JoinHandle<()>)> = HashMap::new();
+    let hush = Hush::default();
     loop {
         tokio::select! {
             sample = ups.recv_async() => {
@@ -211,10 +215,15 @@ async fn links(
                 let Some(link) = keys::link_of(sample.key_expr().as_str()).map(str::to_owned) else {
                     continue;
                 };
+                if !within(&sample, keys::MOST_TEXT, &hush) {
+                    continue;
+                }
                 let up: LinkUp = match serde_json::from_slice(&sample.payload().to_bytes()) {
                     Ok(up) => up,
                     Err(e) => {
-                        warn!("cell {name}: link {link} sent what is no link message: {e}");
+                        if hush.speak() {
+                            warn!("cell {name}: link {link} sent what is no link message: {e}");
+                        }
                         continue;
                     }
                 };
@@ -222,6 +231,12 @@ async fn links(
                     LinkUp::Hello { admitted, protocol, role, resume } => {
                         let id = match open.get(&link) {
                             Some((id, _)) => *id,
+                            None if open.len() >= MOST_LINKS => {
+                                if hush.speak() {
+                                    warn!("cell {name}: {MOST_LINKS} links open, link {link} refused");
+                                }
+                                continue;
+                            }
                             None => {
                                 let id = ids.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                                 let (to_me, inbox) = mpsc::channel(OUTBOX);

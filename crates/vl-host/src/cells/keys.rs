@@ -12,7 +12,16 @@
 //! | `vl/cells/NAME/links/LINK/up` | gateway | the Guest's side of a link (`LinkUp`, JSON) |
 //! | `vl/cells/NAME/links/LINK/down` | cell | the cell's side of a link (`LinkDown`, JSON) |
 
-use vl_core::CellName;
+use vl_core::{CellName, MAX_TEXT_BYTES};
+
+/// The most a sample on a cell's keys may hold, checked before it is read:
+/// a protocol message (and a link's, which wraps one) at most what a
+/// Guest's socket takes, with room for the wrapping.
+pub(crate) const MOST_TEXT: usize = 2 * MAX_TEXT_BYTES;
+/// A camera frame: a JPEG of a large camera, with room to spare.
+pub(crate) const MOST_FRAME: usize = 8 << 20;
+/// What a late observer is told: several messages.
+pub(crate) const MOST_CATCH_UP: usize = 16 << 20;
 
 /// Every cell's liveliness token.
 pub(crate) const CELLS: &str = "vl/cells/*";

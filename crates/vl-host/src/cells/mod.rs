@@ -15,28 +15,66 @@ mod cell;
 mod gateway;
 pub(crate) mod keys;
 mod link;
+mod trust;
 
 pub(crate) use cell::{Cell, join};
 pub(crate) use gateway::serve as serve_gateway;
+pub use trust::{RouterTrust, TrustError, ZenohAuthority, ZenohCredentials, ZenohMember};
 
+use std::sync::Arc;
 use std::time::Duration;
 
-/// A Zenoh endpoint on the lab's network: `tcp/HOST:PORT`.
+/// A Zenoh endpoint on the lab's network: `tcp/HOST:PORT`, or
+/// `tls/HOST:PORT` where every peer shows a certificate.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Endpoint(String);
+
+impl Endpoint {
+    /// `tcp/HOST:PORT` or `tls/HOST:PORT`, `host` written as a URL would.
+    pub fn new(tls: bool, host: std::net::IpAddr, port: u16) -> Endpoint {
+        let scheme = if tls { "tls" } else { "tcp" };
+        Endpoint(format!(
+            "{scheme}/{}",
+            std::net::SocketAddr::new(host, port)
+        ))
+    }
+
+    fn is_tls(&self) -> bool {
+        self.0.starts_with("tls/")
+    }
+
+    /// The host part: a name or an address (without an IPv6 one's brackets).
+    pub fn host(&self) -> &str {
+        let address = &self.0[4..];
+        let host = address.rsplit_once(':').map_or(address, |(host, _)| host);
+        host.trim_start_matches('[').trim_end_matches(']')
+    }
+
+    /// Whether only this machine can reach it.
+    pub fn is_loopback(&self) -> bool {
+        let host = self.host();
+        host == "localhost"
+            || host
+                .parse::<std::net::IpAddr>()
+                .is_ok_and(|ip| ip.is_loopback())
+    }
+}
 
 impl std::str::FromStr for Endpoint {
     type Err = ZenohError;
 
     fn from_str(text: &str) -> Result<Endpoint, ZenohError> {
-        let fits = text.strip_prefix("tcp/").and_then(|address| {
-            let (host, port) = address.rsplit_once(':')?;
-            (!host.is_empty() && port.parse::<u16>().is_ok()).then_some(())
-        });
+        let fits = text
+            .strip_prefix("tcp/")
+            .or_else(|| text.strip_prefix("tls/"))
+            .and_then(|address| {
+                let (host, port) = address.rsplit_once(':')?;
+                (!host.is_empty() && port.parse::<u16>().is_ok()).then_some(())
+            });
         match fits {
             Some(()) => Ok(Endpoint(text.to_owned())),
             None => Err(ZenohError(format!(
-                "{text:?} is no Zenoh endpoint: give tcp/HOST:PORT, e.g. tcp/127.0.0.1:7447"
+                "{text:?} is no Zenoh endpoint: give tls/HOST:PORT (or tcp/HOST:PORT), e.g. tls/127.0.0.1:7447"
             ))),
         }
     }
@@ -56,6 +94,29 @@ pub struct ZenohOptions {
     /// Endpoints an embedded router listens on (a gateway's, with no
     /// `connect`).
     pub listen: Vec<Endpoint>,
+    /// Who may join, and as whom this session joins.
+    pub trust: ZenohTrust,
+}
+
+/// How peers on a Zenoh network know each other.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum ZenohTrust {
+    /// Anyone who reaches the endpoints (ROS 2's default): for a network on
+    /// this machine alone, or one a site secures itself.
+    #[default]
+    Open,
+    /// A gateway's router: members' certificates only, each its own keys.
+    Router(Arc<RouterTrust>),
+    /// A member joining with the credentials a gateway issued.
+    Member(Arc<ZenohCredentials>),
+}
+
+impl ZenohOptions {
+    /// Whether it opens a router anyone beyond this machine can join
+    /// unauthenticated: said loudly at start and in `/status`.
+    pub fn open_beyond_loopback(&self) -> bool {
+        self.trust == ZenohTrust::Open && self.listen.iter().any(|e| !e.is_loopback())
+    }
 }
 
 impl ZenohOptions {
@@ -78,6 +139,7 @@ impl ZenohOptions {
         ZenohOptions {
             connect,
             listen: Vec::new(),
+            trust: ZenohTrust::Open,
         }
     }
 }
@@ -118,6 +180,36 @@ pub(crate) async fn open(options: &ZenohOptions) -> Result<zenoh::Session, Zenoh
             .insert_json5(key, value)
             .map_err(|e| ZenohError(format!("{key} = {value}: {e}")))
     };
+    let endpoints = options.connect.iter().chain(&options.listen);
+    match &options.trust {
+        ZenohTrust::Open => {}
+        ZenohTrust::Router(trust) => {
+            set(&mut config, "transport/link/tls", &trust.tls().to_string())?;
+            set(
+                &mut config,
+                "access_control",
+                &trust.access_control().to_string(),
+            )?;
+        }
+        ZenohTrust::Member(credentials) => {
+            set(
+                &mut config,
+                "transport/link/tls",
+                &credentials.tls().to_string(),
+            )?;
+        }
+    }
+    let secured = options.trust != ZenohTrust::Open;
+    if let Some(wrong) = endpoints.clone().find(|e| e.is_tls() != secured) {
+        return Err(ZenohError(if secured {
+            format!("{wrong} is not TLS: a network of certificates takes tls/HOST:PORT")
+        } else {
+            format!("{wrong} needs certificates (--zenoh-credentials), or give tcp/HOST:PORT")
+        }));
+    }
+    // Only the protocol given: scouting would open others.
+    let protocol = if secured { "[\"tls\"]" } else { "[\"tcp\"]" };
+    set(&mut config, "transport/link/protocols", protocol)?;
     if options.connect.is_empty() {
         set(&mut config, "mode", "\"router\"")?;
         set(&mut config, "listen/endpoints", &json(&options.listen))?;
@@ -129,6 +221,7 @@ pub(crate) async fn open(options: &ZenohOptions) -> Result<zenoh::Session, Zenoh
         set(&mut config, "connect/exit_on_failure", "false")?;
     }
     set(&mut config, "scouting/multicast/enabled", "false")?;
+    set(&mut config, "scouting/gossip/enabled", "false")?;
     set(
         &mut config,
         "transport/link/tx/lease",
@@ -136,4 +229,24 @@ pub(crate) async fn open(options: &ZenohOptions) -> Result<zenoh::Session, Zenoh
     )?;
     set(&mut config, "transport/link/tx/keep_alive", "4")?;
     Ok(zenoh::open(config).await?)
+}
+
+/// Whether `sample` holds at most `most` bytes, checked before it is read;
+/// one that holds more is dropped, said at most once a second.
+pub(crate) fn within(
+    sample: &zenoh::sample::Sample,
+    most: usize,
+    hush: &crate::hush::Hush,
+) -> bool {
+    let size = sample.payload().len();
+    if size <= most {
+        return true;
+    }
+    if hush.speak() {
+        tracing::warn!(
+            "{} carried {size} bytes, over the {most} it may: dropped",
+            sample.key_expr()
+        );
+    }
+    false
 }

@@ -18,6 +18,7 @@ use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig, Mis
 use super::Ros2Error;
 use super::messages::Message;
 use super::msg::{Catalogue, dds_name};
+use crate::hush::Hush;
 
 /// The largest sample taken from a subscription (a camera's frame is far
 /// smaller): a larger one is dropped before it is decoded.
@@ -235,21 +236,6 @@ impl Node {
             _subscriber: subscriber,
             _token: token,
         })
-    }
-}
-
-/// Lets a warning about what others send through once a second.
-#[derive(Default)]
-pub(crate) struct Hush(std::sync::Mutex<Option<std::time::Instant>>);
-
-impl Hush {
-    pub(crate) fn speak(&self) -> bool {
-        let mut last = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        let quiet = last.is_none_or(|at| at.elapsed() >= std::time::Duration::from_secs(1));
-        if quiet {
-            *last = Some(std::time::Instant::now());
-        }
-        quiet
     }
 }
 

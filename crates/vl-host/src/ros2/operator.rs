@@ -16,9 +16,10 @@ use tracing::{info, warn};
 use vl_core::{Drive, Experiment, GuestMessage, HostMessage, PROTOCOL_VERSION, Role, Wire};
 
 use super::Ros2Error;
-use super::graph::{Hush, Node, Qos};
+use super::graph::{Node, Qos};
 use super::messages::Twist;
 use crate::accounts::gate::{Admitted, Identity};
+use crate::hush::Hush;
 use crate::server::hub::{OUTBOX, ToConnection, ToHub};
 use crate::server::pacing::Pacer;
 

@@ -44,6 +44,8 @@ pub enum BenchError {
     Timeout(Duration, &'static str),
     #[error("cannot start the guessers' runtime: {0}")]
     Runtime(std::io::Error),
+    #[error("cannot issue the cells' credentials: {0}")]
+    Trust(#[from] crate::cells::TrustError),
 }
 
 /// Command → feedback of its event, ms, and what the observers got.

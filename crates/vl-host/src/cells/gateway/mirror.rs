@@ -11,7 +11,8 @@ use tracing::warn;
 use vl_core::{CellName, HostMessage, Wire};
 
 use super::event::Event;
-use crate::cells::{ZenohError, keys};
+use crate::cells::{ZenohError, keys, within};
+use crate::hush::Hush;
 use crate::server::hub::Streams;
 
 /// How long after a cell's last message the gateway asks it again what a
@@ -97,13 +98,18 @@ async fn take_feedback(
 ) {
     let taken = async {
         let samples = session.declare_subscriber(keys::feedback(&name)).await?;
+        let hush = Hush::default();
         while let Ok(sample) = samples.recv_async().await {
+            if !within(&sample, keys::MOST_TEXT, &hush) {
+                continue;
+            }
             let bytes = sample.payload().to_bytes();
             match std::str::from_utf8(&bytes).map(HostMessage::decode) {
-                Ok(Ok(message)) => {
+                Ok(Ok(message @ HostMessage::Feedback(_))) => {
                     newest.send_replace(Some(message));
                 }
-                _ => warn!("cell {name} sent feedback that is no protocol message"),
+                _ if hush.speak() => warn!("cell {name} sent feedback that is no feedback message"),
+                _ => {}
             }
         }
         Ok::<_, ZenohError>(())
@@ -120,7 +126,11 @@ async fn take_frames(
 ) {
     let taken = async {
         let samples = session.declare_subscriber(keys::frames(&name)).await?;
+        let hush = Hush::default();
         while let Ok(sample) = samples.recv_async().await {
+            if !within(&sample, keys::MOST_FRAME, &hush) {
+                continue;
+            }
             newest.send_replace(Some(Bytes::from(sample.payload().to_bytes().into_owned())));
         }
         Ok::<_, ZenohError>(())
@@ -135,13 +145,19 @@ async fn take_frames(
 async fn take_messages(session: zenoh::Session, name: CellName, events: mpsc::Sender<Event>) {
     let taken = async {
         let samples = session.declare_subscriber(keys::messages(&name)).await?;
+        let hush = Hush::default();
         let mut asking = Some(tokio::time::Instant::now());
         loop {
             tokio::select! {
                 sample = samples.recv_async() => {
                     let Ok(sample) = sample else { return Ok(()) };
+                    if !within(&sample, keys::MOST_TEXT, &hush) {
+                        continue;
+                    }
                     let Ok(text) = Utf8Bytes::try_from(Bytes::from(sample.payload().to_bytes().into_owned())) else {
-                        warn!("cell {name} told its observers what is no text");
+                        if hush.speak() {
+                            warn!("cell {name} told its observers what is no text");
+                        }
                         continue;
                     };
                     asking.get_or_insert_with(|| tokio::time::Instant::now() + CATCH_UP_AFTER);
@@ -183,6 +199,9 @@ async fn catch_up(
         .await?;
     while let Ok(reply) = replies.recv_async().await {
         let Ok(sample) = reply.result() else { continue };
+        if !within(sample, keys::MOST_CATCH_UP, &Hush::default()) {
+            continue;
+        }
         let texts: Vec<String> =
             serde_json::from_slice(&sample.payload().to_bytes()).unwrap_or_default();
         let told: Vec<HostMessage> = texts

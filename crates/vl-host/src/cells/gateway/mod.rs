@@ -12,12 +12,13 @@ use std::sync::Arc;
 
 use tokio::net::TcpListener;
 use tokio::sync::{mpsc, watch};
-use tracing::{error, info};
+use tracing::{error, info, warn};
 use vl_core::CellName;
 use zenoh::sample::SampleKind;
 
-use super::{ZenohError, ZenohOptions, keys};
+use super::{ZenohError, ZenohOptions, ZenohTrust, keys, within};
 use crate::accounts::gate::Gate;
+use crate::hush::Hush;
 use crate::server::{Admission, HUB_QUEUE, HostConfig, Outlets, accept, watch_accounts};
 use event::Event;
 use front::Front;
@@ -69,13 +70,17 @@ pub(crate) async fn serve(listener: TcpListener, config: HostConfig, zenoh: Zeno
         () = front.run(hub_rx, events_rx) => {}
         () = accept(listener, hub_tx.clone(), outlets, config, gate.clone(), Admission::with_capacity(CONNECTIONS)) => {}
         () = watch_accounts(gate, hub_tx) => {}
-        Err(e) = watch_cells(&session, events_tx) => error!("the gateway no longer sees its cells: {e}"),
+        Err(e) = watch_cells(&session, &zenoh.trust, events_tx) => error!("the gateway no longer sees its cells: {e}"),
     }
 }
 
-/// Tells the front which cells come and go, and what each says of itself.
+/// Tells the front which cells come and go, and what each says of itself:
+/// on a network of certificates, only the cells its authority issued to
+/// (Zenoh's access control keeps others off; this keeps the gateway's
+/// own view so too), each speaking of itself only.
 async fn watch_cells(
     session: &zenoh::Session,
+    trust: &ZenohTrust,
     events: mpsc::Sender<Event>,
 ) -> Result<(), ZenohError> {
     let tokens = session
@@ -84,11 +89,21 @@ async fn watch_cells(
         .history(true)
         .await?;
     let infos = session.declare_subscriber(keys::INFOS).await?;
+    let member = |name: &CellName| match trust {
+        ZenohTrust::Router(router) => router.is_cell(name),
+        ZenohTrust::Open | ZenohTrust::Member(_) => true,
+    };
+    let hush = Hush::default();
     loop {
         let event = tokio::select! {
             token = tokens.recv_async() => {
                 let Ok(token) = token else { return Ok(()) };
-                let Some(name) = keys::cell_of(token.key_expr().as_str()) else { continue };
+                let Some(name) = keys::cell_of(token.key_expr().as_str()).filter(member) else {
+                    if hush.speak() {
+                        warn!("{} is no cell of this gateway's: ignored", token.key_expr());
+                    }
+                    continue;
+                };
                 match token.kind() {
                     SampleKind::Put => Event::Up(name),
                     SampleKind::Delete => Event::Gone(name),
@@ -96,12 +111,21 @@ async fn watch_cells(
             }
             sample = infos.recv_async() => {
                 let Ok(sample) = sample else { return Ok(()) };
-                match serde_json::from_slice(&sample.payload().to_bytes()) {
-                    Ok(info) => Event::Info(info),
-                    Err(e) => {
-                        tracing::warn!("{} is no cell's info: {e}", sample.key_expr());
+                if !within(&sample, keys::MOST_TEXT, &hush) {
+                    continue;
+                }
+                let from = keys::cell_of(sample.key_expr().as_str());
+                match serde_json::from_slice::<vl_core::CellInfo>(&sample.payload().to_bytes()) {
+                    Ok(info) if from.as_ref() == Some(&info.name) && member(&info.name) => Event::Info(info),
+                    Ok(info) if hush.speak() => {
+                        warn!("{} speaks for cell {}: ignored", sample.key_expr(), info.name);
                         continue;
                     }
+                    Err(e) if hush.speak() => {
+                        warn!("{} is no cell's info: {e}", sample.key_expr());
+                        continue;
+                    }
+                    _ => continue,
                 }
             }
         };

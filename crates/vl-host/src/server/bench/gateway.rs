@@ -65,18 +65,23 @@ impl GatewayBench {
     /// Runs the bench on processes of the binary at `vl`, saying each
     /// round's figures on standard error as it goes.
     pub async fn run(&self, vl: &Path) -> Result<GatewayCost, BenchError> {
-        let zenoh = format!("tcp/127.0.0.1:{}", free_port()?);
+        let keys = issue_cells(self.cells)?;
+        let keys_arg = keys.display().to_string();
+        let zenoh = format!("tls/127.0.0.1:{}", free_port()?);
         let gateway_args = [
             "gateway",
             "--listen",
             "127.0.0.1:0",
             "--zenoh-listen",
             &zenoh,
+            "--keys",
+            &keys_arg,
         ];
         let (gateway, gateway_url) = Process::start(vl, &gateway_args, "vl gateway listening on ")?;
         let mut cells = Vec::new();
         for n in 0..self.cells {
             let name = format!("c{n}");
+            let credentials = keys.join(format!("{name}.toml")).display().to_string();
             let args = [
                 "host",
                 "--listen",
@@ -88,6 +93,8 @@ impl GatewayBench {
                 &zenoh,
                 "--cell",
                 &name,
+                "--zenoh-credentials",
+                &credentials,
             ];
             cells.push(Process::start(vl, &args, "vl host listening on ")?);
         }
@@ -139,6 +146,7 @@ impl GatewayBench {
         }
         frames_hz.sort_by(f64::total_cmp);
         say_bye(ops).await;
+        let _ = std::fs::remove_dir_all(&keys);
         Ok(GatewayCost {
             cells: self.cells,
             watchers: self.watchers,
@@ -160,6 +168,21 @@ struct Pids {
 }
 
 /// A port nothing listens on now, for the gateway's Zenoh router.
+/// The gateway's network as a lab runs it: a folder with the gateway's
+/// authority and each cell's credentials, `cN.toml`.
+fn issue_cells(cells: usize) -> Result<std::path::PathBuf, BenchError> {
+    let keys = std::env::temp_dir().join(format!("vl-bench-gateway-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&keys);
+    let authority = crate::cells::ZenohAuthority::open(&keys)?;
+    for n in 0..cells {
+        let name = format!("c{n}").parse().expect("a cell's name");
+        authority
+            .issue(crate::cells::ZenohMember::Cell(name))?
+            .save(&keys.join(format!("c{n}.toml")))?;
+    }
+    Ok(keys)
+}
+
 fn free_port() -> Result<u16, BenchError> {
     std::net::TcpListener::bind("127.0.0.1:0")
         .and_then(|l| l.local_addr())

@@ -103,6 +103,13 @@ impl Hub {
                 format!("{}: {} ({kept})", s.name, s.why)
             }),
             grades: self.config.lti.as_ref().map(|lti| lti.grades_status()),
+            open_to_anyone: self
+                .config
+                .ros2
+                .iter()
+                .filter(|ros2| ros2.zenoh.open_beyond_loopback())
+                .flat_map(|ros2| ros2.zenoh.listen.iter().map(ToString::to_string))
+                .collect(),
         }
     }
 

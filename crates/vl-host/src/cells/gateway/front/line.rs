@@ -16,6 +16,26 @@ impl Front {
                 "your account may watch, not drive",
             );
         }
+        // One place per account, as at a Host: more connections of one
+        // person do not make the next person wait longer.
+        let name = |g: &super::Guest| g.admitted.identity.name().map(str::to_owned);
+        if let Some(me) = self.guests.get(&id).and_then(name) {
+            let holds = |other: &u64| {
+                *other != id && self.guests.get(other).and_then(name) == Some(me.clone())
+            };
+            let drives = self
+                .guests
+                .iter()
+                .any(|(other, g)| holds(other) && g.link.as_ref().is_some_and(|l| l.driving));
+            if drives || self.line.iter().any(holds) {
+                let why = if drives {
+                    format!("{me} drives already: one place per account")
+                } else {
+                    format!("{me} has a place in line already: one place per account")
+                };
+                return self.refuse(id, ErrorCode::NotAllowedNow, why);
+            }
+        }
         if !self.line.contains(&id) {
             self.line.push_back(id);
         }

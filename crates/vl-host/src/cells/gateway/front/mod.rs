@@ -288,7 +288,11 @@ impl Front {
         let watching = guest.role.is_some();
         match role {
             Role::Operator => {
-                let cell = asked.or_else(|| self.free_cell());
+                // The line comes first: naming a cell passes no one waiting.
+                let cell = match asked {
+                    Some(name) => self.line.is_empty().then_some(name),
+                    None => self.free_cell(),
+                };
                 match cell {
                     Some(cell) => self.link(id, cell, protocol, resume, watching).await,
                     None if self.cells.is_empty() => {
@@ -365,6 +369,12 @@ impl Front {
                 .user(user.as_deref())
                 .detail(format!("observer of cell {name}")),
         );
+        // Welcomed before the welcome is sent, as at a Host: a Guest that
+        // answers its welcome at once is not told to say hello first.
+        if let Some(cell) = self.cells.get(name) {
+            let streams = cell.mirror.streams();
+            self.send(id, ToConnection::Watch(streams));
+        }
         for message in told {
             let message = match message {
                 HostMessage::Welcome {
@@ -380,10 +390,6 @@ impl Front {
                 other => other,
             };
             self.tell(id, &message);
-        }
-        if let Some(cell) = self.cells.get(name) {
-            let streams = cell.mirror.streams();
-            self.send(id, ToConnection::Watch(streams));
         }
     }
 
