@@ -165,6 +165,15 @@ async fn watcher(url: String, seeing: Arc<AtomicUsize>) -> tokio::task::JoinHand
         .expect("connects");
     let hello = json!({"type": "hello", "protocol": 1, "role": "observer"});
     ws.send(Message::text(hello.to_string())).await.unwrap();
+    // Welcomed before the next comes: a class arrives over seconds, and
+    // the gateway keeps at most 64 of one address waiting for a welcome.
+    while let Some(Ok(message)) = ws.next().await {
+        if let Message::Text(text) = message
+            && serde_json::from_str::<Value>(&text).unwrap()["type"] == "welcome"
+        {
+            break;
+        }
+    }
     tokio::spawn(async move {
         let mut frames = 0;
         while let Some(Ok(message)) = ws.next().await {

@@ -752,8 +752,8 @@ fn a_design_that_forbids_a_stop_is_refused() {
     assert!(!run.status.success());
     let said = common::stderr(&run);
     assert!(
-        said.contains("if execute.running then not stop")
-            && said.contains("'stop' is uncontrollable"),
+        said.contains("if execute.running then not execute.")
+            && said.contains("_stop' is uncontrollable, so nothing may disable it"),
         "{said}"
     );
 }

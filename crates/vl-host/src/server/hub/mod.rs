@@ -199,6 +199,8 @@ pub(crate) struct Hub {
     ),
     /// Who pressed the emergency stop that is ending the run.
     stopper: Option<Stopper>,
+    /// A stop of the run under way was asked of the lab: it is ending.
+    stop_asked: bool,
     /// The run being recorded.
     recording: Option<recording::RunRecording>,
     /// Foxglove's feed, handed every broadcast to make its views of.
@@ -248,6 +250,7 @@ impl Hub {
             reset_run: None,
             reset_routes: mpsc::unbounded_channel(),
             stopper: None,
+            stop_asked: false,
             recording: None,
         }
     }
@@ -334,6 +337,7 @@ impl Hub {
     /// graded for an LMS), its recording closed, the lab made ready again.
     fn run_ended(&mut self, run: u64, mut summary: vl_core::Summary) {
         self.run = None;
+        self.stop_asked = false;
         self.run_log.ended(run, summary.reason);
         if self.supervisor.allows(Action::Finish) {
             self.happened(Action::Finish);

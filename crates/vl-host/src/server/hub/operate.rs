@@ -242,13 +242,22 @@ impl Hub {
     }
 
     /// Ends the run under way; the lab answers with its summary.
-    /// Ends the operator's run. No net may forbid it: the net is told
-    /// (its `stop`, where it has one now), not asked.
+    /// Ends the operator's run. No net may keep a run going: the net's
+    /// `stop` fires where it has one, and where it has none the run ends
+    /// all the same; only a run that is not there, or already ending, is
+    /// refused (saying why, as the net does).
     fn stop(&mut self, id: u64) {
-        if self.run.is_none() {
-            return self.refuse(id, ErrorCode::NotAllowedNow, "no run is under way to stop");
+        match self.supervisor.fire(Action::Stop) {
+            Ok(()) => {}
+            Err(e) if self.run.is_none() || self.stop_asked => {
+                return self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
+            }
+            Err(e) => warn!(
+                "the lab's net would not stop run {:?} ({e}): it stops regardless",
+                self.run
+            ),
         }
-        let _ = self.supervisor.fire(Action::Stop);
+        self.stop_asked = true;
         // The lab answers with the run's summary; `done` follows.
         self.lab.request(LabRequest::Finish(EndReason::Stopped));
     }
@@ -318,6 +327,7 @@ impl Hub {
     pub(super) fn emergency_stop(&mut self, id: u64) {
         warn!(connection = id, "emergency stop");
         if self.run.is_some() {
+            self.stop_asked = true;
             self.stopper = self
                 .clients
                 .get(&id)

@@ -288,9 +288,20 @@ impl Front {
         let watching = guest.role.is_some();
         match role {
             Role::Operator => {
-                // The line comes first: naming a cell passes no one waiting.
+                // The line comes first: naming a cell passes no one waiting,
+                // nor the one a cell was just given to.
                 let cell = match asked {
-                    Some(name) => self.line.is_empty().then_some(name),
+                    Some(name) => {
+                        let free = self.cells.get(&name).is_some_and(Cell::is_free);
+                        if !(free && self.line.is_empty()) {
+                            return self.refuse(
+                                id,
+                                ErrorCode::OperatorTaken,
+                                format!("cell {name} is in use or promised: say hello as an observer and ask for control; the first cell free is yours"),
+                            );
+                        }
+                        Some(name)
+                    }
                     None => self.free_cell(),
                 };
                 match cell {
