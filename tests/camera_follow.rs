@@ -243,9 +243,13 @@ fn a_robot_the_camera_loses_is_stopped_with_the_reason() {
     let run = only_run(&report);
     assert_eq!(run["reached_goal"], false, "{run}");
     assert_eq!(run["end"], "the camera lost the robot", "{run}");
+    // The scene's clock starts with the Host and the run a little later
+    // (its plan and forecast: 0.5–1 s on this VM, old builds as new), so
+    // the hand comes 0–0.5 s into the run, which stops 2 s after its last
+    // sighting: 2–2.6 s measured. A run that did not stop would take 10 s.
     let seconds = run["completion_s"].as_f64().unwrap();
     assert!(
-        (2.5..5.0).contains(&seconds),
+        (1.5..5.0).contains(&seconds),
         "stopped {seconds} s into the run"
     );
     assert_eq!(run["collisions"], 0, "{run}");
