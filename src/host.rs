@@ -262,9 +262,13 @@ pub(crate) struct HostArgs {
     #[arg(long, default_value = "0")]
     ros2_domain: u32,
     /// With --ros2: a Twist on /cmd_vel drives the robot in a teleoperation
-    /// run, when no one else drives.
+    /// run, in its turn, as --ros2-as's account at a lab with accounts.
     #[arg(long, requires = "ros2")]
     ros2_operator: bool,
+    /// The account /cmd_vel drives as, at a lab with accounts: anyone on
+    /// the ROS 2 network drives as it (its turns, its line, the audit).
+    #[arg(long, value_name = "ACCOUNT", requires = "ros2_operator")]
+    ros2_as: Option<String>,
     /// The Zenoh network of --ros2 and --robot ros2.
     #[command(flatten)]
     zenoh: crate::options::ZenohArgs,
@@ -336,7 +340,11 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         config.ros2 = Some(vl_host::Ros2Options {
             domain: args.ros2_domain,
             zenoh: ros2_zenoh(args)?,
-            operator: args.ros2_operator,
+            operator: args
+                .ros2_operator
+                .then(|| vl_host::ros2_operator_as(args.ros2_as.as_deref(), config.users.as_ref()))
+                .transpose()
+                .map_err(|e| BadInput(e.to_string()))?,
             cell: args.cell.clone(),
         });
     }
@@ -364,10 +372,10 @@ fn say_on_ros2(ros2: &vl_host::Ros2Options) {
         Some(cell) => format!("/{cell}/vl_host"),
         None => "/vl_host".to_owned(),
     };
-    let drives = if ros2.operator {
-        "; /cmd_vel drives"
-    } else {
-        ""
+    let drives = match ros2.operator.as_ref().map(|a| a.identity.name()) {
+        Some(Some(name)) => format!("; /cmd_vel drives as {name}"),
+        Some(None) => "; /cmd_vel drives".to_owned(),
+        None => String::new(),
     };
     eprintln!(
         "vl host: on ROS 2 as node {node} in domain {}, {zenoh}{drives}",

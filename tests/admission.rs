@@ -162,3 +162,45 @@ async fn a_class_behind_one_router_gets_in_at_once() {
         .count();
     assert_eq!((welcomed, informed), (30, 30));
 }
+
+/// More handshakes at once than a Host lets wait (64 from one address):
+/// those pushed out are told so, HTTP 503 with `Retry-After`, and a page
+/// that tries again itself, never a connection cut with no word (issue
+/// 55, item 10); those still waiting are served.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_host_with_no_room_says_503_and_when_to_try_again() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let (_host, url) = start_host(&["--camera", "sim"]);
+    let target = addr(&url);
+    // Each sends all of a request's head but its end, and waits.
+    let mut told = Vec::new();
+    for _ in 0..100 {
+        let mut socket = tokio::net::TcpStream::connect(target).await.unwrap();
+        socket
+            .write_all(b"GET / HTTP/1.1\r\nHost: lab\r\n")
+            .await
+            .unwrap();
+        told.push(tokio::spawn(async move {
+            let mut heard = Vec::new();
+            let _ =
+                tokio::time::timeout(Duration::from_secs(3), socket.read_to_end(&mut heard)).await;
+            String::from_utf8_lossy(&heard).into_owned()
+        }));
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    let mut busy = 0;
+    let mut waiting = 0;
+    for heard in told {
+        let heard = heard.await.unwrap();
+        if heard.starts_with("HTTP/1.1 503 ") {
+            assert!(heard.contains("\r\nRetry-After: 2\r\n"), "{heard}");
+            assert!(heard.contains("http-equiv=\"refresh\""), "{heard}");
+            busy += 1;
+        } else if heard.is_empty() {
+            waiting += 1;
+        }
+    }
+    println!("of 100 handshakes at once: {busy} told 503, {waiting} still waiting after 3 s");
+    assert_eq!(busy, 36, "the 36 pushed out are told 503");
+    assert_eq!(waiting, 64, "64 from one address may wait");
+}

@@ -107,14 +107,17 @@ async fn ros_2_tools_see_and_drive_the_lab() {
     let port = free_port();
     let audit = scratch("ros2-audit").join("audit.jsonl");
     let zenoh = format!("tcp/127.0.0.1:{port}");
-    // A lab with accounts: the ROS side drives as `ros2`, a Guest watches
-    // as an account.
+    // A lab with accounts: the ROS side drives as the account its staff
+    // named, a Guest watches as another.
     let users = audit.with_file_name("users.toml");
     common::account(&users, "ada", "observer", "ada-secret-1");
+    common::account(&users, "rosie", "operator", "rosie-secret-1");
     let flags = [
         "--no-record",
         "--ros2",
         "--ros2-operator",
+        "--ros2-as",
+        "rosie",
         "--users",
         common::s(&users),
         "--audit",
@@ -124,13 +127,93 @@ async fn ros_2_tools_see_and_drive_the_lab() {
     discovered(python, port);
     streamed(python, port);
     driven(python, port, &url).await;
+    latched(python, port, &url).await;
     let audit = std::fs::read_to_string(&audit).unwrap();
     assert!(
         audit
             .lines()
-            .any(|l| l.contains("\"run_started\"") && l.contains("\"user\":\"ros2\"")),
-        "the audit log names ros2 as the driver: {audit}"
+            .any(|l| l.contains("\"run_started\"") && l.contains("\"user\":\"rosie\"")),
+        "the audit log names the account ROS 2 drives as: {audit}"
     );
+}
+
+/// At a lab with accounts, `/cmd_vel` drives as an account that may
+/// drive, named: anyone on the ROS 2 network is otherwise no one.
+#[test]
+fn ros_2_drives_only_as_an_account_that_may() {
+    let users = scratch("ros2-as").join("users.toml");
+    common::account(&users, "ada", "observer", "ada-secret-1");
+    let refused = |extra: &[&str], why: &str| {
+        let zenoh = format!("tcp/127.0.0.1:{}", free_port());
+        let flags = [
+            &["--ros2", "--ros2-operator", "--users", common::s(&users)],
+            extra,
+        ]
+        .concat();
+        let out = common::vl(
+            &host_args(&zenoh, &flags)
+                .iter()
+                .map(String::as_str)
+                .collect::<Vec<_>>(),
+        );
+        assert_eq!(out.status.code(), Some(2), "{}", common::stderr(&out));
+        assert!(
+            common::stderr(&out).contains(why),
+            "{}",
+            common::stderr(&out)
+        );
+    };
+    refused(&[], "name it (--ros2-as NAME)");
+    refused(
+        &["--ros2-as", "ada"],
+        "account ada is an observer's: it may not drive",
+    );
+    refused(&["--ros2-as", "nobody"], "no account nobody at this lab");
+}
+
+/// A watcher's emergency stop while ROS 2 drives is latched: Twists,
+/// even after a quiet second, start nothing and move nothing.
+async fn latched(python: &str, port: u16, url: &str) {
+    let driving = {
+        let python = python.to_owned();
+        // Backwards: the steps before left it held short of a wall.
+        std::thread::spawn(move || step(&python, port, &["drive", "3", "-0.05"]))
+    };
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let mut watcher = Peer::connect(url).await;
+    let hello = serde_json::json!({
+        "type": "hello", "protocol": 1, "role": "observer", "user": "ada", "password": "ada-secret-1",
+    });
+    watcher.send(hello).await;
+    watcher.expect("welcome").await;
+    watcher
+        .send(serde_json::json!({"type": "emergency_stop"}))
+        .await;
+    let done = watcher.expect("done").await;
+    assert_eq!(done["summary"]["reason"], "emergency_stop", "{done}");
+    let stopped = driving.join().unwrap();
+    let moved = |v: &Value| {
+        let at = |key: &str, axis: &str| v[key][axis].as_f64().unwrap();
+        (at("driven", "x") - at("start", "x")).hypot(at("driven", "y") - at("start", "y"))
+    };
+    assert!(
+        moved(&stopped) > 0.005,
+        "it drove until the emergency stop: {stopped}"
+    );
+    // Quiet for 1.5 s (the second after an ordinary end), then Twists.
+    let again = step(python, port, &["drive", "2", "-0.05"]);
+    assert!(
+        moved(&again) < 0.002,
+        "Twists after an emergency stop drove the robot: {again}"
+    );
+    watcher
+        .send(serde_json::json!({"type": "ping", "t": 1.0}))
+        .await;
+    let told = watcher
+        .next_of_any(&["started", "pong"], Duration::from_secs(5))
+        .await
+        .expect("the watcher hears");
+    assert_eq!(told["type"], "pong", "a run started: {told}");
 }
 
 /// Every topic with its type, and the hash the outside client computes

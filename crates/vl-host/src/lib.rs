@@ -130,7 +130,9 @@ pub use media::{
     bench as media_bench,
 };
 pub use priority::raise_for_control as raise_priority;
-pub use ros2::{MsgError, Ros2Error, Ros2Options, Ros2Robot, Ros2RobotOptions};
+pub use ros2::{
+    MsgError, Ros2Error, Ros2Options, Ros2Robot, Ros2RobotOptions, operator_as as ros2_operator_as,
+};
 pub use server::bench::{
     BenchError, GatewayBench, GatewayCost, Guessing, OperatorLatency, WatchersBench, WatchersCost,
     operator_latency,

@@ -163,8 +163,11 @@ impl From<zenoh::Error> for ZenohError {
 }
 
 /// How long a silent peer (a dead machine, a pulled cable) keeps its
-/// place: its liveliness tokens go after this.
-pub(crate) const LEASE: Duration = Duration::from_millis(1000);
+/// place: its liveliness tokens go after this. Not shorter: a busy machine
+/// (two cores, a gateway pushing frames to 150 watchers) has been seen
+/// to go a second without a keep-alive, and a cell taken for lost ends
+/// its runs. The robot does not wait for it: its leash stops it.
+pub(crate) const LEASE: Duration = Duration::from_secs(3);
 
 /// A Zenoh session: a router listening on `listen` when nothing is given
 /// to connect to, else a client of `connect` (retried until it answers).

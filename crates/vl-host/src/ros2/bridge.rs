@@ -84,8 +84,8 @@ async fn publish(options: &Ros2Options, lab: Lab) -> Result<(), Ros2Error> {
         options.domain
     );
     let driving = async {
-        if options.operator {
-            super::operator::drive(&node, lab.hub.clone(), lab.feedback.clone()).await
+        if let Some(admitted) = options.operator.clone() {
+            super::operator::drive(&node, admitted, lab.hub.clone(), lab.feedback.clone()).await
         } else {
             std::future::pending().await
         }

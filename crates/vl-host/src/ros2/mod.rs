@@ -22,6 +22,8 @@ pub(crate) use bridge::{Lab, serve};
 pub use msg::MsgError;
 pub use robot::{Ros2Robot, Ros2RobotOptions};
 
+use crate::accounts::gate::{Admitted, Identity};
+use crate::accounts::users::Users;
 use crate::cells::{ZenohError, ZenohOptions};
 
 /// The lab as a ROS 2 node.
@@ -32,8 +34,8 @@ pub struct Ros2Options {
     /// The Zenoh network: a `zenohd` or a gateway's router to connect to,
     /// or endpoints to listen on as a router ROS nodes connect to.
     pub zenoh: ZenohOptions,
-    /// `/cmd_vel` drives the robot.
-    pub operator: bool,
+    /// `/cmd_vel` drives the robot, as this identity (`operator_as`).
+    pub operator: Option<Admitted>,
     /// A cell's name: its node's namespace (`/NAME/odom`, …) and its
     /// frames' prefix (`NAME/base_link`, …), so several cells share one
     /// ROS 2 network.
@@ -49,6 +51,50 @@ pub enum Ros2Error {
     Msg(#[from] msg::MsgError),
     #[error("no ROS 2 robot: nothing on /odom within {} s", .0.as_secs())]
     NoRobot(std::time::Duration),
+    #[error("ROS 2 /cmd_vel: {0}")]
+    Operator(String),
+}
+
+/// Who `/cmd_vel` drives as. Whoever can publish on the ROS 2 network
+/// drives, so at a lab with accounts it drives as one of them, named by
+/// the lab's staff (`account`): its turns, its line and its audit entries
+/// are that account's, and it ends when the account does. At a lab
+/// without accounts, where anyone may drive, it is `ros2`.
+pub fn operator_as(account: Option<&str>, users: Option<&Users>) -> Result<Admitted, Ros2Error> {
+    let identity = match (account, users) {
+        (None, None) => Identity::Ros2,
+        (Some(name), None) => {
+            return Err(Ros2Error::Operator(format!(
+                "it drives as account {name}, but this lab has no accounts (--users)"
+            )));
+        }
+        (None, Some(_)) => {
+            return Err(Ros2Error::Operator(
+                "a lab with accounts drives from ROS 2 as one of them: name it (--ros2-as NAME)"
+                    .to_owned(),
+            ));
+        }
+        (Some(name), Some(users)) => match users.role_of(name) {
+            None => {
+                return Err(Ros2Error::Operator(format!(
+                    "no account {name} at this lab"
+                )));
+            }
+            Some(role) if !role.may_drive() => {
+                return Err(Ros2Error::Operator(format!(
+                    "account {name} is an {role}'s: it may not drive"
+                )));
+            }
+            Some(role) => Identity::Account {
+                name: name.to_owned(),
+                role,
+            },
+        },
+    };
+    Ok(Admitted {
+        identity,
+        may_drive: true,
+    })
 }
 
 impl From<zenoh::Error> for Ros2Error {

@@ -1,24 +1,29 @@
 //! `--ros2-operator`: a Twist on `/cmd_vel` drives the robot as the
-//! Guests' stick does. The first Twist takes the operator's role when no
-//! one else holds it (as `ros2`, in the audit log), mounts a
-//! teleoperation run and starts it; Twists then become commands paced by
-//! feedback (`server::pacing`), through the supervisor, the safety layer,
-//! the leash and the watchdog, which stops the robot 0.5 s after the last
-//! Twist. The role is let go after `RELEASE_AFTER` without a Twist. After
-//! a run ends (an emergency stop, a fault, a Guest's stop) no new run
-//! starts until `/cmd_vel` has been quiet for `QUIET_TO_RESTART`: a
-//! stream of Twists never undoes an emergency stop by itself.
+//! Guests' stick does. The first Twist asks for the operator's role as
+//! the identity the lab's staff named (`ros2::operator_as`), as a Guest's
+//! hello does: refused while someone drives or others wait in line; then
+//! it mounts a teleoperation run and starts it. Twists then become
+//! commands paced by feedback (`server::pacing`), through the supervisor,
+//! the safety layer, the leash and the watchdog, which stops the robot
+//! 0.5 s after the last Twist. The role is let go after `RELEASE_AFTER`
+//! without a Twist. After a run ends (its time, a fault, an
+//! administrator's stop) no new run starts until `/cmd_vel` has been
+//! quiet for `QUIET_TO_RESTART`. An emergency stop is latched: someone
+//! saw something wrong, so no Twist drives again until `vl host` is
+//! started again, by the lab's staff.
 
 use std::time::{Duration, Instant};
 
 use tokio::sync::{mpsc, watch};
 use tracing::{info, warn};
-use vl_core::{Drive, Experiment, GuestMessage, HostMessage, PROTOCOL_VERSION, Role, Wire};
+use vl_core::{
+    Drive, EndReason, Experiment, GuestMessage, HostMessage, PROTOCOL_VERSION, Role, Wire,
+};
 
 use super::Ros2Error;
 use super::graph::{Node, Qos};
 use super::messages::Twist;
-use crate::accounts::gate::{Admitted, Identity};
+use crate::accounts::gate::Admitted;
 use crate::hush::Hush;
 use crate::server::hub::{OUTBOX, ToConnection, ToHub};
 use crate::server::pacing::Pacer;
@@ -46,6 +51,7 @@ struct AtHub {
 /// Drives the lab from `/cmd_vel` for as long as the Host runs.
 pub(super) async fn drive(
     node: &Node,
+    admitted: Admitted,
     hub: mpsc::Sender<ToHub>,
     mut feedback: watch::Receiver<Option<HostMessage>>,
 ) -> Result<(), Ros2Error> {
@@ -56,11 +62,13 @@ pub(super) async fn drive(
         })
         .await?;
     let mut driver = Driver {
+        admitted,
         hub,
         next_id: FIRST_ID,
         at_hub: None,
         last_twist: None,
         quiet_needed: false,
+        latched: false,
         refused_at: None,
         hush: Hush::default(),
     };
@@ -95,12 +103,16 @@ pub(super) async fn drive(
 }
 
 struct Driver {
+    /// Who the lab's staff let `/cmd_vel` drive as.
+    admitted: Admitted,
     hub: mpsc::Sender<ToHub>,
     next_id: u64,
     at_hub: Option<AtHub>,
     last_twist: Option<Instant>,
     /// A run ended: the next starts only after a quiet `/cmd_vel`.
     quiet_needed: bool,
+    /// An emergency stop ended a run: nothing drives again.
+    latched: bool,
     /// When the role or the run was last refused.
     refused_at: Option<Instant>,
     hush: Hush,
@@ -139,6 +151,14 @@ impl Driver {
             }
             return;
         };
+        if self.latched {
+            if self.hush.speak() {
+                warn!(
+                    "ROS 2 {CMD_VEL}: ignored since the emergency stop; start vl host again to drive from ROS 2"
+                );
+            }
+            return;
+        }
         let recently_refused = self.refused_at.is_some_and(|at| at.elapsed() < RETRY_EVERY);
         if self.quiet_needed || recently_refused {
             return;
@@ -152,17 +172,14 @@ impl Driver {
         }
     }
 
-    /// Asks the hub for the operator's role as `ros2`.
+    /// Asks the hub for the operator's role, as whom the staff named.
     async fn join(&mut self) {
         let id = self.next_id;
         self.next_id += 1;
         let (out, inbox) = mpsc::channel(OUTBOX);
         let hello = ToHub::Hello {
             id,
-            admitted: Admitted {
-                identity: Identity::Ros2,
-                may_drive: true,
-            },
+            admitted: self.admitted.clone(),
             protocol: PROTOCOL_VERSION,
             role: Role::Operator,
             resume: None,
@@ -212,7 +229,13 @@ impl Driver {
                 self.tell(mount).await;
             }
             HostMessage::Mounted(_) => self.start().await,
-            HostMessage::Done { .. } => {
+            HostMessage::Done { summary } => {
+                if summary.reason == EndReason::EmergencyStop {
+                    warn!(
+                        "ROS 2 {CMD_VEL}: an emergency stop ended the run; no Twist drives until vl host starts again"
+                    );
+                    self.latched = true;
+                }
                 self.quiet_needed = true;
                 self.leave().await;
             }

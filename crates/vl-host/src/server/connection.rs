@@ -257,6 +257,7 @@ impl ConnectionTask {
             lti: self.config.lti.clone(),
         };
         let origins = self.config.allow_origins.clone();
+        let spare = super::busy::spare(&stream, tls.is_some());
         let handshake = handshake(stream, tls, ws_config, asking, &origins);
         let mut evicted = self.ticket.evicted.clone();
         let ws = tokio::select! {
@@ -271,8 +272,14 @@ impl ConnectionTask {
                 }
             },
             // A newer connection needed the slot of one still shaking hands.
-            _ = evicted.wait_for(|out| *out) => return Ok(()),
+            _ = evicted.wait_for(|out| *out) => {
+                if let Some(spare) = spare {
+                    super::busy::refuse_spare(spare);
+                }
+                return Ok(());
+            }
         };
+        drop(spare);
         self.ticket.upgraded();
         let (ws, path) = match ws {
             Client::Guest(ws, path) => (ws, path),

@@ -15,6 +15,7 @@
 pub(crate) mod admission;
 pub(crate) mod bench;
 mod bucket;
+mod busy;
 mod connection;
 mod foxglove;
 mod http;
@@ -285,6 +286,7 @@ pub(crate) async fn accept(
         next_id += 1;
         let Some(ticket) = admission.admit(id, peer.ip()) else {
             debug!(%peer, "refused: the Host holds as many connections as it serves");
+            busy::refuse(stream, config.tls.as_ref().map(|tls| tls.config.clone()));
             continue;
         };
         let connection = ConnectionTask {
