@@ -147,8 +147,20 @@ async fn an_lms_launches_the_lab_and_gets_grades_from_runs() {
         "{unknown}"
     );
 
-    // The learner's run ends: the platform has its score within 10 s,
-    // though its gradebook refused the first try.
+    // The course's link asks for a navigation run to 720,80: a
+    // teleoperation run does not count, and nothing is posted.
+    let withheld = run_of(&mut learner, None).await;
+    assert_eq!(withheld["summary"]["experiment"], "teleoperation");
+    not_posted(
+        &mut platform,
+        &audit,
+        "the assignment is navigation, the run was teleoperation",
+    )
+    .await;
+    // Launched from a link that asks for nothing in particular, the
+    // learner's run ends: the platform has its score within 10 s, though
+    // its gradebook refused the first try.
+    platform.ask(json!({"cmd": "launch", "role": "learner", "custom": {}}));
     platform.ask(json!({"cmd": "fail_scores", "n": 1}));
     let score = graded_run(&mut platform, &mut learner).await;
     assert_eq!(platform.ask(json!({"cmd": "scores"}))["refused"], 1);
@@ -164,12 +176,20 @@ async fn an_lms_launches_the_lab_and_gets_grades_from_runs() {
         "the comment explains the grade: {comment}"
     );
     assert!(score["timestamp"].as_str().unwrap().ends_with('Z'));
+    // Someone else's emergency stop ends the learner's run: it does not
+    // count (a score posted would replace the last).
+    let (mut root, _) = hello_as_root(&url).await;
+    let stopped = run_of(&mut learner, Some(&mut root)).await;
+    assert_eq!(stopped["summary"]["stopped_by"]["role"], "observer");
+    not_posted(&mut platform, &audit, "the emergency stop of an observer").await;
     hostile_requests(&tool);
 
     in_a_browser(&mut platform);
-    instructor(&mut platform, &url, &tool, &welcome).await;
+    let teacher = instructor(&mut platform, &url, &tool, &welcome).await;
     deep_linking(&mut platform);
     gradebook_down(&mut platform, &url, &session, &audit).await;
+    course_roles_only(&mut platform);
+    relaunches_end_only_their_own(&mut platform, &url, &session, &teacher).await;
     let status = http(&tool, "GET /status", &[AS_ROOT], "");
     let status: Value = serde_json::from_str(&status.1).expect("the status as JSON");
     let grades = &status["grades"];
@@ -223,6 +243,107 @@ async fn graded_run(platform: &mut Platform, learner: &mut Peer) -> Value {
     score
 }
 
+/// The lab's administrator, as an observer.
+async fn hello_as_root(url: &str) -> (Peer, Value) {
+    let mut root = Peer::connect(url).await;
+    root.send(json!({
+        "type": "hello", "protocol": 1, "role": "observer", "user": "root", "password": "root-secret-1",
+    }))
+    .await;
+    let welcome = root.expect("welcome").await;
+    (root, welcome)
+}
+
+/// A short teleoperation run of `learner`, ended by their own stop or by
+/// `stopper`'s emergency stop: its `done`.
+async fn run_of(learner: &mut Peer, stopper: Option<&mut Peer>) -> Value {
+    learner.start("teleoperation").await;
+    for event in 1..=5 {
+        learner.command(event, json!({"v": 60.0, "w": 0.0})).await;
+    }
+    match stopper {
+        Some(stopper) => stopper.send(json!({"type": "emergency_stop"})).await,
+        None => learner.send(json!({"type": "stop"})).await,
+    }
+    learner.expect("done").await
+}
+
+/// A run that does not count: the audit log says why, and the platform
+/// is sent nothing for it.
+async fn not_posted(platform: &mut Platform, audit: &std::path::Path, why: &str) {
+    let scores = |platform: &mut Platform| {
+        let scores = platform.ask(json!({"cmd": "scores"}));
+        scores["scores"].as_array().unwrap().len() + scores["refused"].as_u64().unwrap() as usize
+    };
+    let before = scores(platform);
+    let deadline = Instant::now() + Duration::from_secs(5);
+    loop {
+        let text = std::fs::read_to_string(audit).unwrap_or_default();
+        let said = text
+            .lines()
+            .filter(|l| l.contains("\"grade_withheld\""))
+            .any(|l| l.contains(why));
+        if said {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "no grade_withheld for {why}: {text}"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    // As long as a score takes to be posted when it is.
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    assert_eq!(
+        scores(platform),
+        before,
+        "a run that does not count was posted ({why})"
+    );
+}
+
+/// Lab roles come from the course's roles only: a learner here who
+/// teaches elsewhere is a learner here.
+fn course_roles_only(platform: &mut Platform) {
+    let launched = platform.ask(json!({"cmd": "launch", "role": "learner_teaching_elsewhere"}));
+    assert_eq!(launched["status"], 200, "{launched}");
+    let page = launched["body"].as_str().unwrap();
+    assert!(
+        page.contains("<meta name=\"vl-drives\" content=\"yes\">"),
+        "{page}"
+    );
+    assert!(
+        !page.contains("vl-roster"),
+        "an administrator's page: {page}"
+    );
+}
+
+/// One learner launching again and again ends their own oldest sessions,
+/// never anyone else's.
+async fn relaunches_end_only_their_own(
+    platform: &mut Platform,
+    url: &str,
+    first: &str,
+    teacher: &str,
+) {
+    let mut last = String::new();
+    for _ in 0..12 {
+        let launched = platform.ask(json!({"cmd": "launch", "role": "learner", "custom": {}}));
+        last = session_of(launched["body"].as_str().unwrap()).expect("a session");
+    }
+    let (_, old) = hello_with_session(url, first, "observer").await;
+    assert_eq!(
+        old["type"], "error",
+        "their first session outlived 12 launches: {old}"
+    );
+    let (_, new) = hello_with_session(url, &last, "observer").await;
+    assert_eq!(new["type"], "welcome", "{new}");
+    let (_, theirs) = hello_with_session(url, teacher, "observer").await;
+    assert_eq!(
+        theirs["type"], "welcome",
+        "another's session ended: {theirs}"
+    );
+}
+
 /// A gradebook that refuses every try: after its back-off the tool gives
 /// up, and says so in the audit log (the status says it too).
 async fn gradebook_down(
@@ -232,6 +353,9 @@ async fn gradebook_down(
     audit: &std::path::Path,
 ) {
     platform.ask(json!({"cmd": "fail_scores", "n": 100}));
+    // From a link asking for nothing in particular (the browser's launch
+    // asked for a navigation run).
+    platform.ask(json!({"cmd": "launch", "role": "learner", "custom": {}}));
     // The instructor ended the learner's turn: they come back by their session.
     let (mut learner, welcome) = hello_with_session(url, session, "operator").await;
     assert_eq!(welcome["role"], "operator", "{welcome}");
@@ -329,7 +453,7 @@ fn hostile_requests(tool: &str) {
             &[form],
             "session=x&title=t&experiment=navigation".into(),
         ),
-        ("GET /lti/roster?session=nobody", &[], String::new()),
+        ("POST /lti/roster", &[form], "session=nobody".into()),
         ("GET /lti/roster", &[], String::new()),
     ];
     for (line, headers, body) in cases {
@@ -436,7 +560,7 @@ fn refused_launches(platform: &mut Platform, audit: &std::path::Path) {
 
 /// An instructor's launch: admin rights (ends the learner's turn) and
 /// the course's roster with the learner's graded run.
-async fn instructor(platform: &mut Platform, url: &str, tool: &str, learner: &Value) {
+async fn instructor(platform: &mut Platform, url: &str, tool: &str, learner: &Value) -> String {
     let launched = platform.ask(json!({"cmd": "launch", "role": "instructor"}));
     let page = launched["body"].as_str().unwrap();
     let session = session_of(page).expect("an instructor's page");
@@ -455,21 +579,30 @@ async fn instructor(platform: &mut Platform, url: &str, tool: &str, learner: &Va
         .split("<meta name=\"vl-roster\" content=\"")
         .nth(1)
         .and_then(|r| r.split('"').next())
-        .expect("an instructor's page links the roster")
-        .replace("&amp;", "&");
-    let out = page_at(tool, &roster);
+        .expect("an instructor's page links the roster");
+    // No session in any address: the roster is posted to.
+    assert!(!roster.contains("session"), "{roster}");
+    let form = "Content-Type: application/x-www-form-urlencoded";
+    let (status, out) = http(
+        tool,
+        &format!("POST {roster}"),
+        &[form],
+        &format!("session={session}"),
+    );
+    assert_eq!(status, 200, "{out}");
     assert!(
         out.contains("Ada Learner") && out.contains("Tom Teacher"),
         "{out}"
     );
-    assert!(out.contains("<td>Learner</td><td>1</td>"), "one run: {out}");
-    assert!(out.contains("posted"), "{out}");
-}
-
-/// The page at `path` of the Host at `tool` (http://127.0.0.1:PORT).
-fn page_at(tool: &str, path: &str) -> String {
-    let port = tool.trim_end_matches('/').rsplit(':').next().unwrap();
-    crate::common::chromium::http_get(port.parse().unwrap(), path)
+    assert!(
+        out.contains("<td>Learner</td><td>3</td>"),
+        "three runs: {out}"
+    );
+    assert!(
+        out.contains("not sent: the emergency stop of an observer"),
+        "{out}"
+    );
+    session
 }
 
 /// Deep linking: the platform verifies the answer by the tool's JWKS.
@@ -703,6 +836,8 @@ async fn a_gateway_launches_and_grades_its_cells_runs() {
         );
         tokio::time::sleep(Duration::from_millis(300)).await;
     };
+    // From a link asking for nothing in particular: a teleoperation run counts.
+    platform.ask(json!({"cmd": "launch", "role": "learner", "custom": {}}));
     let score = graded_run(&mut platform, &mut learner).await;
     assert_eq!(score["userId"], "learner-1");
     let comment = score["comment"].as_str().unwrap();

@@ -253,6 +253,7 @@ fn summary() -> BoxedStrategy<Summary> {
                 (held_back, forecast, recording),
             )| {
                 Summary {
+                    experiment: None,
                     reason,
                     reached_goal,
                     events,

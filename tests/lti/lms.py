@@ -43,8 +43,14 @@ MEMBERS = [
 ROLES = {
     "learner": ["http://purl.imsglobal.org/vocab/lis/v2/membership#Learner"],
     "instructor": ["http://purl.imsglobal.org/vocab/lis/v2/membership#Instructor"],
+    # A learner of this course who teaches elsewhere: an institution's role.
+    "learner_teaching_elsewhere": ["http://purl.imsglobal.org/vocab/lis/v2/membership#Learner",
+                                   "http://purl.imsglobal.org/vocab/lis/v2/institution/person#Instructor"],
 }
-SUBS = {"learner": "learner-1", "instructor": "teacher-1"}
+SUBS = {"learner": "learner-1", "instructor": "teacher-1", "learner_teaching_elsewhere": "learner-2"}
+NAMES = {"learner": "Ada Learner", "instructor": "Tom Teacher", "learner_teaching_elsewhere": "Eve Learner"}
+# What the course's link asks for, unless a launch says otherwise.
+CUSTOM = {"experiment": "navigation", "goal": "720,80"}
 
 KEY = rsa.generate_private_key(public_exponent=65537, key_size=2048)
 OTHER_KEY = rsa.generate_private_key(public_exponent=65537, key_size=2048)
@@ -202,12 +208,12 @@ def login(message_hint="resource", method="GET"):
     return auth, checks
 
 
-def id_token(auth, role, message_type="LtiResourceLinkRequest", tamper=None):
+def id_token(auth, role, message_type="LtiResourceLinkRequest", tamper=None, custom=None):
     now = int(time.time())
     claims = {
         "iss": issuer(), "aud": CLIENT_ID, "azp": CLIENT_ID, "sub": SUBS[role],
         "iat": now, "exp": now + 300, "nonce": auth["nonce"],
-        "name": {"learner": "Ada Learner", "instructor": "Tom Teacher"}[role],
+        "name": NAMES[role],
         "https://purl.imsglobal.org/spec/lti/claim/message_type": message_type,
         "https://purl.imsglobal.org/spec/lti/claim/version": "1.3.0",
         "https://purl.imsglobal.org/spec/lti/claim/deployment_id": DEPLOYMENT,
@@ -215,7 +221,7 @@ def id_token(auth, role, message_type="LtiResourceLinkRequest", tamper=None):
         "https://purl.imsglobal.org/spec/lti/claim/roles": ROLES[role],
         "https://purl.imsglobal.org/spec/lti/claim/context": COURSE,
         "https://purl.imsglobal.org/spec/lti/claim/resource_link": {"id": "link-1", "title": "Lab"},
-        "https://purl.imsglobal.org/spec/lti/claim/custom": {"experiment": "navigation", "goal": "720,80"},
+        "https://purl.imsglobal.org/spec/lti/claim/custom": CUSTOM if custom is None else custom,
         "https://purl.imsglobal.org/spec/lti-ags/claim/endpoint": {
             "scope": ["https://purl.imsglobal.org/spec/lti-ags/scope/lineitem",
                       "https://purl.imsglobal.org/spec/lti-ags/scope/score"],
@@ -253,7 +259,7 @@ def launch(command):
     auth, checks = login()
     if auth is None:
         return {"login": checks}
-    token = id_token(auth, role, tamper=command.get("tamper"))
+    token = id_token(auth, role, tamper=command.get("tamper"), custom=command.get("custom"))
     status, headers, body = post_form(state["tool"] + "/lti/launch",
                                       {"id_token": token, "state": auth["state"]})
     result = {"login": checks, "status": status, "body": body,

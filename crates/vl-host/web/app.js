@@ -54,7 +54,9 @@ if (launched) {
   const goal = (meta("vl-goal") || "").split(",").map(Number);
   if (goal.length === 2 && goal.every(Number.isFinite)) { $("goal-x").value = goal[0]; $("goal-y").value = goal[1]; }
   const roster = meta("vl-roster");
-  if (roster) { $("roster").href = roster; show("roster", true); }
+  // Posted, the session in the form's body: a link's query would leave it
+  // in the history, logs and the referrer.
+  if (roster) { $("roster").action = roster; $("roster-session").value = launched; show("roster", true); }
   show("login", false);
 }
 

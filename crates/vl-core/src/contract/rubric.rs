@@ -224,6 +224,7 @@ mod tests {
 
     fn summary(reached: bool, collisions: u64, seconds: f64, distance_mm: f64) -> Summary {
         Summary {
+            experiment: None,
             reason: if reached {
                 EndReason::GoalReached
             } else {

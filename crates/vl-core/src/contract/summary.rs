@@ -61,6 +61,9 @@ impl std::fmt::Display for EndReason {
 /// What a finished run achieved.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Summary {
+    /// The experiment the run was of (its id), as the hub mounted it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub experiment: Option<String>,
     pub reason: EndReason,
     pub reached_goal: bool,
     /// Commands executed in the run (the last event number).
@@ -124,6 +127,26 @@ pub struct RecordingNote {
 }
 
 impl Summary {
+    /// Whether the one who drove the run ended it — the goal, the time
+    /// limit, their own stop or emergency stop, the safety layer holding
+    /// back what they drove — so that it may count for their grade; if
+    /// not, who or what did (another's emergency stop, a fault, the robot
+    /// lost, their turn taken away, a lost link).
+    pub fn ended_by_driver(&self) -> Result<(), String> {
+        match (self.reason, &self.stopped_by) {
+            (
+                EndReason::GoalReached
+                | EndReason::TimeLimit
+                | EndReason::Stopped
+                | EndReason::HeldBack,
+                _,
+            ) => Ok(()),
+            (EndReason::EmergencyStop, Some(by)) if by.role == Role::Operator => Ok(()),
+            (EndReason::EmergencyStop, Some(by)) => Err(format!("the emergency stop of {by}")),
+            (reason, _) => Err(reason.to_string()),
+        }
+    }
+
     /// How the run ended, in words.
     pub fn ending(&self) -> String {
         match (&self.held_back, &self.fault) {

@@ -194,7 +194,9 @@ impl Run {
             speed_kept: self.kept.share(),
             pose_source: source,
             path: Some(self.record.finish()),
-            // The hub, which sees the commands' events, fills these in.
+            // The hub, which mounts and sees the commands' events, fills
+            // these in.
+            experiment: None,
             max_event_gap: 0,
             sync_violations: 0,
             stopped_by: None,

@@ -1,8 +1,13 @@
 //! Grades from runs: when a person who came from an LMS ends a run, the
 //! lab's rubric grades its summary and the score goes to their launch's
 //! line item (AGS), tried again with back-off when the platform does not
-//! take it. What was sent, is waiting or failed is kept for the status,
-//! the instructor's roster page and the audit log.
+//! take it. A run counts only when its driver ended it, and only as the
+//! assignment the teacher linked (its experiment, its goal: the learner
+//! cannot change them); one that does not count is kept, with why, and not
+//! posted — a score posted replaces the learner's last, so another's
+//! emergency stop or a fault would otherwise take a grade away. What was
+//! sent, is waiting, failed or did not count is kept for the status, the
+//! instructor's roster page and the audit log.
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -10,10 +15,10 @@ use std::time::{Duration, SystemTime};
 
 use serde::Serialize;
 use tracing::{info, warn};
-use vl_core::{GradesStatus, Rubric, Summary};
+use vl_core::{Goal, GradesStatus, Rubric, Summary};
 
 use super::Lti;
-use super::sessions::Launch;
+use super::sessions::{Assignment, Launch};
 use crate::accounts::audit::AuditEntry;
 
 /// How long to wait before each try again after the first.
@@ -36,6 +41,8 @@ pub(crate) enum Sent {
     Failed(String),
     /// The launch gave no line item the tool may score.
     NoLineItem,
+    /// The run does not count for a grade: why.
+    NotCounted(String),
 }
 
 impl Sent {
@@ -46,6 +53,7 @@ impl Sent {
             Sent::Posted => "posted".into(),
             Sent::Failed(why) => format!("failed: {why}"),
             Sent::NoLineItem => "no grade column for it".into(),
+            Sent::NotCounted(why) => format!("not sent: {why}"),
         }
     }
 }
@@ -143,6 +151,34 @@ impl GradeBook {
     }
 }
 
+/// The summary to grade a run by for `assignment`, or why it does not
+/// count: ended by someone or something other than its driver, or of
+/// another experiment than the assignment's. With an assignment's goal,
+/// the goal is reached when the run ends within the usual tolerance of
+/// it, whatever goal the learner defined.
+pub(super) fn judged(summary: &Summary, assignment: &Assignment) -> Result<Summary, String> {
+    summary.ended_by_driver()?;
+    if let Some(wanted) = &assignment.experiment
+        && summary.experiment.as_ref() != Some(wanted)
+    {
+        return Err(format!(
+            "the assignment is {wanted}, the run was {}",
+            summary.experiment.as_deref().unwrap_or("of no experiment")
+        ));
+    }
+    let mut judged = summary.clone();
+    if let Some(goal) = &assignment.goal {
+        let (x, y) = goal
+            .split_once(',')
+            .and_then(|(x, y)| Some((x.trim().parse::<f64>().ok()?, y.trim().parse::<f64>().ok()?)))
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .ok_or_else(|| format!("the assignment's goal {goal:?} is no x,y in mm"))?;
+        let at = summary.final_pose;
+        judged.reached_goal = (at.x_mm - x).hypot(at.y_mm - y) <= Goal::DEFAULT_TOLERANCE_MM;
+    }
+    Ok(judged)
+}
+
 impl Lti {
     /// Grades, and sends, a run `user` drove (run `run` of this lab, when
     /// it is this lab's), if they came from an LMS.
@@ -150,33 +186,50 @@ impl Lti {
         let Some(launch) = self.sessions.latest(user) else {
             return;
         };
-        let grade = self.grades.rubric.grade(summary);
         let named = run.map_or_else(|| "A run".to_owned(), |run| format!("Run {run}"));
-        let comment = format!("{named}, {}. {}", summary.ending(), grade.comment());
-        let sent = if launch.lineitem.is_some() {
-            self.grades.book().status.sending += 1;
-            Sent::Sending
-        } else {
-            Sent::NoLineItem
+        let judged = judged(summary, &launch.assignment);
+        let graded = judged.as_ref().map(|s| self.grades.rubric.grade(s));
+        let (given, maximum, comment, sent) = match &graded {
+            Ok(grade) => {
+                let comment = format!("{named}, {}. {}", summary.ending(), grade.comment());
+                let sent = if launch.lineitem.is_some() {
+                    self.grades.book().status.sending += 1;
+                    Sent::Sending
+                } else {
+                    Sent::NoLineItem
+                };
+                (grade.given, grade.maximum, comment, sent)
+            }
+            Err(why) => {
+                info!(user, "a run that does not count for a grade: {why}");
+                self.audit.record(
+                    AuditEntry::new("grade_withheld")
+                        .user(Some(user))
+                        .detail(format!("{named}: {why}")),
+                );
+                let maximum = self.grades.maximum();
+                let comment = format!("{named}, {}: not counted, {why}.", summary.ending());
+                (0.0, maximum, comment, Sent::NotCounted(why.to_string()))
+            }
         };
         let id = self.grades.keep(
             user,
             Graded {
                 id: 0,
                 run,
-                given: grade.given,
-                maximum: grade.maximum,
+                given,
+                maximum,
                 ending: summary.ending(),
                 comment: comment.clone(),
                 sent: sent.clone(),
             },
         );
-        if sent == Sent::NoLineItem {
+        if sent != Sent::Sending {
             return;
         }
         let score = serde_json::json!({
-            "scoreGiven": grade.given,
-            "scoreMaximum": grade.maximum,
+            "scoreGiven": given,
+            "scoreMaximum": maximum,
             "activityProgress": "Completed",
             "gradingProgress": "FullyGraded",
             "userId": launch.sub,
@@ -235,5 +288,78 @@ impl Lti {
     /// What was sent, is waiting and failed, for the Host's status.
     pub fn grades_status(&self) -> GradesStatus {
         self.grades.book().status.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vl_core::{EndReason, Pose, Role, Stopper};
+
+    fn summary(reason: EndReason, experiment: &str, at: (f64, f64)) -> Summary {
+        let json = serde_json::json!({
+            "experiment": experiment, "reason": reason, "reached_goal": true, "events": 3,
+            "final_pose": Pose { x_mm: at.0, y_mm: at.1, theta_rad: 0.0 },
+            "seconds": 2.0, "distance_mm": 60.0, "collisions": 0,
+        });
+        serde_json::from_value(json).unwrap()
+    }
+
+    fn assignment(experiment: &str, goal: &str) -> Assignment {
+        Assignment {
+            experiment: Some(experiment.into()),
+            goal: Some(goal.into()),
+        }
+    }
+
+    /// The learner's own goal, 60 mm ahead and reached, is not the
+    /// assignment's: graded against the link's goal, it is not reached.
+    #[test]
+    fn a_run_is_graded_against_the_assignment_s_goal() {
+        let own = summary(EndReason::GoalReached, "navigation", (160.0, 120.0));
+        assert!(!judged_reached(&own, "680,470"));
+        let there = summary(EndReason::GoalReached, "navigation", (675.0, 466.0));
+        assert!(judged_reached(&there, "680,470"));
+        let teleoperated = summary(EndReason::Stopped, "teleoperation", (675.0, 466.0));
+        let why = judged(&teleoperated, &assignment("navigation", "680,470")).unwrap_err();
+        assert_eq!(
+            why,
+            "the assignment is navigation, the run was teleoperation"
+        );
+        assert!(judged(&there, &assignment("navigation", "680;470")).is_err());
+    }
+
+    fn judged_reached(summary: &Summary, goal: &str) -> bool {
+        judged(summary, &assignment("navigation", goal))
+            .unwrap()
+            .reached_goal
+    }
+
+    /// Only its driver's ending counts: another's emergency stop, a fault,
+    /// a lost robot do not.
+    #[test]
+    fn only_runs_their_driver_ended_count() {
+        let none = Assignment::default();
+        let mut run = summary(EndReason::EmergencyStop, "teleoperation", (0.0, 0.0));
+        run.stopped_by = Some(Stopper {
+            role: Role::Operator,
+            session: 3,
+        });
+        assert!(judged(&run, &none).is_ok(), "their own emergency stop");
+        run.stopped_by = Some(Stopper {
+            role: Role::Observer,
+            session: 4,
+        });
+        assert!(judged(&run, &none).is_err(), "another's");
+        for reason in [EndReason::Fault, EndReason::RobotLost, EndReason::Kicked] {
+            assert!(judged(&summary(reason, "navigation", (0.0, 0.0)), &none).is_err());
+        }
+        for reason in [
+            EndReason::GoalReached,
+            EndReason::TimeLimit,
+            EndReason::Stopped,
+        ] {
+            assert!(judged(&summary(reason, "navigation", (0.0, 0.0)), &none).is_ok());
+        }
     }
 }

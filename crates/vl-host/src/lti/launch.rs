@@ -98,18 +98,28 @@ fn text(claims: &Value, name: &str) -> Option<String> {
     claims.get(name).and_then(Value::as_str).map(str::to_owned)
 }
 
-/// A role's name without its vocabulary: `Learner` of
-/// `http://purl.imsglobal.org/vocab/lis/v2/membership#Learner`.
-pub(super) fn role_name(role: &str) -> &str {
-    role.rsplit(['#', '/']).next().unwrap_or(role)
+/// The name of a course's (context) role: `Learner` of
+/// `http://purl.imsglobal.org/vocab/lis/v2/membership#Learner`, or the
+/// simple name LTI 1.3 still allows for one. None for an institution's or
+/// the system's role (`…/institution/person#Instructor`): those say what
+/// someone is elsewhere, not in this course, so they give no lab role.
+pub(super) fn context_role(role: &str) -> Option<&str> {
+    const CONTEXT: &str = "http://purl.imsglobal.org/vocab/lis/v2/membership#";
+    match role.strip_prefix(CONTEXT) {
+        Some(name) => Some(name),
+        None if !role.contains(['/', '#', ':']) => Some(role),
+        None => None,
+    }
 }
 
-/// The lab's role for an LMS person: instructors and administrators run
-/// the lab, learners drive in their turn, anyone else watches.
+/// The lab's role for an LMS person, from their course roles only:
+/// instructors and administrators run the lab, learners drive in their
+/// turn, anyone else watches.
 pub(super) fn role_of(roles: &[String]) -> AccountRole {
     let names: Vec<String> = roles
         .iter()
-        .map(|r| role_name(r).to_ascii_lowercase())
+        .filter_map(|r| context_role(r))
+        .map(str::to_ascii_lowercase)
         .collect();
     if names
         .iter()
@@ -426,10 +436,19 @@ mod tests {
             ]),
             AccountRole::Admin
         );
+        // An institution's roles are not the course's.
         assert_eq!(
             role(&["http://purl.imsglobal.org/vocab/lis/v2/institution/person#Administrator"]),
-            AccountRole::Admin
+            AccountRole::Observer
         );
+        assert_eq!(
+            role(&[
+                "http://purl.imsglobal.org/vocab/lis/v2/membership#Learner",
+                "http://purl.imsglobal.org/vocab/lis/v2/institution/person#Instructor"
+            ]),
+            AccountRole::Operator
+        );
+        assert_eq!(role(&["Instructor"]), AccountRole::Admin);
         assert_eq!(
             role(&["http://purl.imsglobal.org/vocab/lis/v2/membership#Mentor"]),
             AccountRole::Observer

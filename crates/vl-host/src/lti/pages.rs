@@ -40,7 +40,7 @@ pub(crate) fn routes<S: Clone + Send + Sync + 'static>(
         .route("/lti/login", get(login_get).post(login_post))
         .route("/lti/launch", post(launch))
         .route("/lti/deep-link", post(deep_link))
-        .route("/lti/roster", get(roster))
+        .route("/lti/roster", post(roster))
         .route("/lti/jwks", get(jwks))
         .route("/lti/submit.js", get(submit_js))
         .with_state(Asked { lti, address })
@@ -239,14 +239,14 @@ fn lab_page(asked: &Asked, session: &str, launch: &Launch) -> Response {
             escape(goal)
         ));
     }
-    if launch.role == AccountRole::Admin && launch.memberships.is_some() {
-        meta.push_str(&format!(
-            "<meta name=\"vl-roster\" content=\"/lti/roster?session={}\">",
-            escape(session)
-        ));
+    let roster = launch.role == AccountRole::Admin && launch.memberships.is_some();
+    if roster {
+        meta.push_str("<meta name=\"vl-roster\" content=\"/lti/roster\">");
     }
     let html = web::index().replacen("<head>", &format!("<head>\n{meta}"), 1);
-    let policy = web::policy(&asked.frame_ancestors(), "'none'");
+    // The roster is posted to, from this page.
+    let forms = if roster { "'self'" } else { "'none'" };
+    let policy = web::policy(&asked.frame_ancestors(), forms);
     html_page(StatusCode::OK, policy, html)
 }
 
@@ -351,19 +351,20 @@ async fn jwks(State(asked): State<Asked>) -> impl IntoResponse {
     )
 }
 
+/// The roster's form: the instructor's session, in the body, never in a URL.
 #[derive(Deserialize)]
-struct RosterQuery {
+struct RosterForm {
     session: String,
 }
 
 /// The course's members, and each one's runs here.
 async fn roster(
     State(asked): State<Asked>,
-    query: Result<Query<RosterQuery>, axum::extract::rejection::QueryRejection>,
+    form: Result<Form<RosterForm>, axum::extract::rejection::FormRejection>,
 ) -> Response {
-    let launch = query
+    let launch = form
         .ok()
-        .and_then(|q| asked.lti.sessions.launch(&q.session));
+        .and_then(|f| asked.lti.sessions.launch(&f.session));
     let Some(launch) = launch.filter(|l| l.role == AccountRole::Admin) else {
         return asked.refuse(Refused {
             status: StatusCode::FORBIDDEN,

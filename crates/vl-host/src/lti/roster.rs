@@ -6,7 +6,7 @@ use std::sync::Arc;
 use serde_json::Value;
 
 use super::grades::Graded;
-use super::launch::{role_name, user_name};
+use super::launch::{context_role, user_name};
 use super::sessions::Launch;
 use super::{Lti, LtiError};
 
@@ -62,7 +62,7 @@ fn short_roles(member: &Value) -> String {
             roles
                 .iter()
                 .filter_map(Value::as_str)
-                .map(role_name)
+                .filter_map(context_role)
                 .collect::<Vec<_>>()
                 .join(", ")
         })

@@ -15,6 +15,10 @@ use crate::accounts::users::AccountRole;
 
 /// Sessions kept at once, at most; the oldest go first.
 const MAX_SESSIONS: usize = 10_000;
+/// Sessions one person keeps at once (a page per browser and device, and
+/// some): launching again past this ends their own oldest, never anyone
+/// else's.
+const MAX_PER_PERSON: usize = 8;
 /// How long a launch's session lasts.
 const LIFETIME: Duration = Duration::from_secs(8 * 3600);
 
@@ -76,7 +80,7 @@ struct Entry {
 #[derive(Default)]
 pub struct Sessions {
     open: Mutex<HashMap<String, Entry>>,
-    latest: Mutex<HashMap<String, Arc<Launch>>>,
+    latest: Mutex<HashMap<String, Entry>>,
 }
 
 impl Sessions {
@@ -88,6 +92,17 @@ impl Sessions {
         {
             let mut open = super::locked(&self.open);
             open.retain(|_, e| e.until > now);
+            let theirs = |e: &Entry| e.launch.user == launch.user;
+            if open.values().filter(|e| theirs(e)).count() >= MAX_PER_PERSON {
+                let oldest = open
+                    .iter()
+                    .filter(|(_, e)| theirs(e))
+                    .min_by_key(|(_, e)| e.until)
+                    .map(|(k, _)| k.clone());
+                if let Some(oldest) = oldest {
+                    open.remove(&oldest);
+                }
+            }
             let entry = Entry {
                 launch: launch.clone(),
                 until: now + LIFETIME,
@@ -95,10 +110,13 @@ impl Sessions {
             super::insert_bounded(&mut open, MAX_SESSIONS, secret.clone(), entry, |e| e.until);
         }
         let mut latest = super::locked(&self.latest);
-        if latest.len() >= MAX_SESSIONS && !latest.contains_key(&launch.user) {
-            latest.clear();
-        }
-        latest.insert(launch.user.clone(), launch);
+        let entry = Entry {
+            launch: launch.clone(),
+            until: now + LIFETIME,
+        };
+        super::insert_bounded(&mut latest, MAX_SESSIONS, launch.user.clone(), entry, |e| {
+            e.until
+        });
         secret
     }
 
@@ -123,6 +141,8 @@ impl Sessions {
 
     /// `user`'s latest launch.
     pub(crate) fn latest(&self, user: &str) -> Option<Arc<Launch>> {
-        super::locked(&self.latest).get(user).cloned()
+        super::locked(&self.latest)
+            .get(user)
+            .map(|e| e.launch.clone())
     }
 }

@@ -346,6 +346,7 @@ impl Hub {
         if self.supervisor.allows(Action::Finish) {
             self.happened(Action::Finish);
         }
+        summary.experiment = self.experiment.map(|e| e.to_string());
         summary.max_event_gap = self.max_event_gap;
         summary.sync_violations = self.sync_violations;
         summary.stopped_by = self
