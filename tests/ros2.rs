@@ -14,7 +14,7 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
@@ -396,10 +396,20 @@ async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
         common::s(&recordings),
     ];
     let (_host, url) = start_host(&zenoh, &camera);
-    let report = tokio::task::spawn_blocking(move || common::headless_run(&url, 90, &[]))
+    // A stranger says the robot stands at its start, 400 times a second,
+    // through the run: the lab takes its robot's own /odom only.
+    let forging = {
+        let python = python.to_owned();
+        std::thread::spawn(move || step(&python, port, &["forge_odom", "8", "own"]))
+    };
+    let run_url = url.clone();
+    let report = tokio::task::spawn_blocking(move || common::headless_run(&run_url, 90, &[]))
         .await
         .unwrap();
-    let _ = robot.kill();
+    // Where the robot says it is as the run ends (it is driven back next).
+    let last: Value = serde_json::from_str(&said.lock().unwrap()).unwrap();
+    let forged = forging.join().unwrap();
+    assert!(forged["sent"].as_u64().unwrap() > 1000, "{forged}");
     let summary = &report["summary"];
     assert_eq!(report["reached_goal"], true, "{summary}");
     assert_eq!(summary["collisions"], 0, "{summary}");
@@ -415,7 +425,6 @@ async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
         report["forecast"]["forecast_s"].as_f64().unwrap() > 0.0,
         "the forecast was in the loop"
     );
-    let last: Value = serde_json::from_str(&said.lock().unwrap()).unwrap();
     assert!(
         last["twists"].as_u64().unwrap() > 50,
         "the robot took the lab's Twists: {last}"
@@ -429,6 +438,43 @@ async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
         .filter_map(Result::ok)
         .any(|f| f.path().extension().is_some_and(|e| e == "mcap"));
     assert!(recorded, "the run was recorded in {}", recordings.display());
+    untrusted_while_forged(python, port, &url).await;
+    let _ = robot.kill();
+}
+
+/// Whether `watcher` is told the robot is `state` within 8 s.
+async fn robot_is(watcher: &mut Peer, state: &str) -> bool {
+    let deadline = Instant::now() + Duration::from_secs(8);
+    while Instant::now() < deadline {
+        if let Some(status) = watcher.next_of("status", Duration::from_millis(500)).await
+            && status["robot"] == state
+        {
+            return true;
+        }
+    }
+    false
+}
+
+/// A stranger writing as the robot (its GID, numbers ahead of its own):
+/// the odometry contradicts itself, and the lab stops driving the robot
+/// (offline) until it is the robot's own again.
+async fn untrusted_while_forged(python: &str, port: u16, url: &str) {
+    let mut watcher = Peer::connect(url).await;
+    watcher.hello("observer").await;
+    let forging = {
+        let python = python.to_owned();
+        std::thread::spawn(move || step(&python, port, &["forge_odom", "3", "copy"]))
+    };
+    assert!(
+        robot_is(&mut watcher, "offline").await,
+        "the forged robot is still driven"
+    );
+    let forged = forging.join().unwrap();
+    assert!(forged["sent"].as_u64().unwrap() > 300, "{forged}");
+    assert!(
+        robot_is(&mut watcher, "online").await,
+        "the robot is not trusted again"
+    );
 }
 
 /// Cells behind a gateway each publish in a namespace of their own, on

@@ -3,7 +3,7 @@ zenoh-ros2-sdk (rmw_zenoh's wire format, nothing of vl's), given the
 vendored .msg folder as its registry so it never downloads. Prints one
 JSON object with what it saw; tests/ros2.rs asserts on it.
 
-    python3 lab.py MSG_DIR ROUTER_PORT STEP [SECONDS [SPEED | TOPIC...]]
+    python3 lab.py MSG_DIR ROUTER_PORT STEP [SECONDS [SPEED | MODE | TOPIC...]]
 
 STEP is one of:
   discover  the topics, their types, hashes and QoS, and the hashes the
@@ -15,6 +15,8 @@ STEP is one of:
   map       /map as a subscriber joining late (transient local)
   drive     Twists on /cmd_vel at 20 Hz: SECONDS forward at SPEED m/s, then
             the odometry after a second of silence
+  forge_odom  for SECONDS at 400 Hz, /odom saying the robot stands where
+            it stood, as a publisher of its own or (MODE copy) as the robot
   hostile   for SECONDS, as fast as it can, on /cmd_vel's key: random bytes,
             cut Twists, Twists of NaN, of ±1e300 and of a turn at 1e9 rad/s;
             the fastest the robot went meanwhile
@@ -309,5 +311,54 @@ def hostile():
     }
 
 
-STEPS = {"discover": discover, "list": listing, "watch": watch, "map": late_map, "drive": drive, "hostile": hostile}
+def forge_odom():
+    """A stranger on /odom for SECONDS at 400 Hz, saying the robot stands
+    where it stood when this began (the robot's own sample, sent again):
+    as a publisher of its own (MODE "own"), or writing as the robot, its
+    GID and numbers ahead of its own (MODE "copy")."""
+    import os
+
+    import zenoh
+
+    from zenoh_ros2_sdk.utils import ros2_to_dds_type
+
+    mode = sys.argv[5] if len(sys.argv) > 5 else "own"
+    msg_type = TOPICS["/odom"]
+    key = f"0/odom/{ros2_to_dds_type(msg_type)}/{sdk_hash(msg_type)}"
+    # A plain Zenoh session: a stranger needs nothing of ROS's.
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{PORT}"]))
+    session = zenoh.open(conf)
+    robot = {}
+
+    def heard(sample):
+        if sample.attachment is not None and "payload" not in robot:
+            robot["payload"] = bytes(sample.payload.to_bytes())
+            robot["attachment"] = bytes(sample.attachment.to_bytes())
+
+    sub = session.declare_subscriber(key, heard)
+    deadline = time.monotonic() + 5
+    while "payload" not in robot and time.monotonic() < deadline:
+        time.sleep(0.01)
+    if "payload" not in robot:
+        session.close()
+        return {"sent": 0, "why": "no /odom heard"}
+    sequence, _ = struct.unpack("<qq", robot["attachment"][:16])
+    gid = robot["attachment"][17:] if mode == "copy" else os.urandom(16)
+    number = sequence + 100_000 if mode == "copy" else 1
+    sent = 0
+    began = time.monotonic()
+    while time.monotonic() - began < SECONDS:
+        attachment = struct.pack("<qqB", number, time.time_ns(), len(gid)) + gid
+        session.put(key, robot["payload"], attachment=attachment)
+        number += 1
+        sent += 1
+        time.sleep(0.0025)
+    sub.undeclare()
+    session.close()
+    return {"sent": sent, "mode": mode}
+
+
+STEPS = {"forge_odom": forge_odom, "discover": discover, "list": listing, "watch": watch, "map": late_map, "drive": drive, "hostile": hostile}
 print(json.dumps(STEPS[STEP]()), flush=True)

@@ -19,6 +19,9 @@ pub enum RobotError {
     Garbled { sent: String, got: String },
     #[error("the robot's line failed: {0}")]
     Io(std::io::Error),
+    /// What it reports contradicts what it reported before.
+    #[error("the robot's odometry cannot be trusted: {0}")]
+    Untrusted(String),
 }
 
 /// Why a camera gives no frame. Each says which camera, and why, in words.

@@ -55,7 +55,7 @@ impl Ros2Camera {
         }
         let into = slot.clone();
         let subscription = node
-            .subscribe(topic, Qos::SENSOR, move |image: CompressedImage| {
+            .subscribe(topic, Qos::SENSOR, move |image: CompressedImage, _| {
                 keep(&into, image)
             })
             .await

@@ -191,9 +191,10 @@ impl Node {
         })
     }
 
-    /// Every sample of `M` on `topic`, decoded, into `deliver`; one that
-    /// does not decode is dropped with a warning naming the topic (at most
-    /// one a second: a publisher of garbage does not flood the log).
+    /// Every sample of `M` on `topic`, decoded, into `deliver` with who
+    /// says it sent it (its attachment's); one that does not decode is
+    /// dropped with a warning naming the topic (at most one a second: a
+    /// publisher of garbage does not flood the log).
     pub(crate) async fn subscribe<M, F>(
         &self,
         topic: &str,
@@ -202,7 +203,7 @@ impl Node {
     ) -> Result<Subscription, Ros2Error>
     where
         M: Message + Send + 'static,
-        F: Fn(M) + Send + Sync + 'static,
+        F: Fn(M, Option<Origin>) + Send + Sync + 'static,
     {
         let keys = self.keys::<M>(topic, "MS", qos)?;
         let topic = topic.to_owned();
@@ -223,7 +224,10 @@ impl Node {
                     return;
                 }
                 match M::decode(&payload.to_bytes()) {
-                    Ok(message) => deliver(message),
+                    Ok(message) => {
+                        let origin = sample.attachment().and_then(|a| Origin::of(&a.to_bytes()));
+                        deliver(message, origin);
+                    }
                     Err(e) if hush.speak() => {
                         tracing::warn!("ROS 2 {topic}: a {} that does not decode: {e}", M::TYPE)
                     }
@@ -263,6 +267,26 @@ pub(crate) fn attachment(sequence: i64, source_ns: i64, gid: &[u8; 16]) -> Vec<u
     out.push(16);
     out.extend(gid);
     out
+}
+
+/// Who a sample says sent it, by its attachment: the publisher's GID
+/// and the sample's number in its stream. Anyone may write any GID; a
+/// publisher's numbers only ever grow, so a second source writing the
+/// same GID shows.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct Origin {
+    pub(crate) gid: Vec<u8>,
+    pub(crate) sequence: i64,
+}
+
+impl Origin {
+    /// Reads an attachment as `attachment` writes it.
+    pub(crate) fn of(attachment: &[u8]) -> Option<Origin> {
+        let sequence = i64::from_le_bytes(attachment.get(..8)?.try_into().ok()?);
+        let length = usize::from(*attachment.get(16)?);
+        let gid = attachment.get(17..17 + length)?.to_vec();
+        Some(Origin { gid, sequence })
+    }
 }
 
 enum Sender {

@@ -53,6 +53,8 @@ pub enum Ros2Error {
     NoRobot(std::time::Duration),
     #[error("ROS 2 /cmd_vel: {0}")]
     Operator(String),
+    #[error("ROS 2 robot: {0}")]
+    Robot(String),
 }
 
 /// Who `/cmd_vel` drives as. Whoever can publish on the ROS 2 network

@@ -57,7 +57,7 @@ pub(super) async fn drive(
 ) -> Result<(), Ros2Error> {
     let (twists_in, mut twists) = watch::channel(None::<Twist>);
     let _subscription = node
-        .subscribe(CMD_VEL, Qos::STATE, move |twist: Twist| {
+        .subscribe(CMD_VEL, Qos::STATE, move |twist: Twist, _| {
             twists_in.send_replace(Some(twist));
         })
         .await?;

@@ -6,7 +6,7 @@
 use proptest::prelude::*;
 
 use super::cdr::{CdrError, Reader, Writer};
-use super::graph::{Qos, attachment};
+use super::graph::{Origin, Qos, attachment};
 use super::messages::*;
 use super::msg::{Catalogue, Element, MsgDef, Primitive, Shape, parse};
 
@@ -281,6 +281,22 @@ fn attachments_and_qos_are_rmw_zenoh_s() {
     assert_eq!(&bytes[8..16], &1_700_000_000_000_000_000i64.to_le_bytes());
     assert_eq!(bytes[16], 16);
     assert_eq!(&bytes[17..], &gid);
+    let origin = Origin::of(&bytes).unwrap();
+    assert_eq!((origin.sequence, origin.gid.as_slice()), (5, &gid[..]));
+    assert_eq!(Origin::of(&bytes[..20]), None, "cut short");
+    assert_eq!(Origin::of(&[]), None);
     assert_eq!(Qos::LATCHED.token_chunk(), "1:1:1,1:,:,:,,");
     assert_eq!(Qos::SENSOR.token_chunk(), "2:2:1,5:,:,:,,");
+}
+
+proptest! {
+    /// Any bytes as an attachment: an origin or none, never a panic; one
+    /// written as rmw_zenoh writes it reads back.
+    #[test]
+    fn attachments_read_back(bytes in proptest::collection::vec(any::<u8>(), 0..64),
+                             sequence in any::<i64>(), gid in proptest::array::uniform16(any::<u8>())) {
+        let _ = Origin::of(&bytes);
+        let origin = Origin::of(&attachment(sequence, 0, &gid)).unwrap();
+        prop_assert_eq!((origin.sequence, origin.gid), (sequence, gid.to_vec()));
+    }
 }
