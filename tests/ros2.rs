@@ -384,7 +384,8 @@ async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
     // The arena as the camera sees it, which the robot draws itself on.
     let backdrop = scratch("ros2-robot").join("backdrop.png");
     common::render_arena(&backdrop, &[]);
-    let (mut robot, said) = start_robot(python, port, &backdrop);
+    let (robot, said) = start_robot(python, port, &backdrop);
+    let _robot = common::VlProcess(robot);
     let zenoh = format!("tcp/127.0.0.1:{port}");
     let recordings = scratch("ros2-recordings");
     let camera = [
@@ -439,7 +440,6 @@ async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
         .any(|f| f.path().extension().is_some_and(|e| e == "mcap"));
     assert!(recorded, "the run was recorded in {}", recordings.display());
     untrusted_while_forged(python, port, &url).await;
-    let _ = robot.kill();
 }
 
 /// Whether `watcher` is told the robot is `state` within 8 s.

@@ -131,7 +131,7 @@ pub use contract::recording::{
     PART_BYTES, PartError, PartHeader, RecordedRun, RecordingName, RecordingNameError,
 };
 pub use contract::rubric::{Grade, GradeLine, Rubric, RubricError};
-pub use contract::summary::{EndReason, HeldBack, RecordingNote, Stopper, Summary};
+pub use contract::summary::{EndReason, EndedByOther, HeldBack, RecordingNote, Stopper, Summary};
 pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use contract::transport::Io;
 pub use design::{

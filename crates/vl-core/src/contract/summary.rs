@@ -58,6 +58,11 @@ impl std::fmt::Display for EndReason {
     }
 }
 
+/// Who or what, other than its driver, ended a run.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct EndedByOther(String);
+
 /// What a finished run achieved.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Summary {
@@ -132,7 +137,7 @@ impl Summary {
     /// back what they drove — so that it may count for their grade; if
     /// not, who or what did (another's emergency stop, a fault, the robot
     /// lost, their turn taken away, a lost link).
-    pub fn ended_by_driver(&self) -> Result<(), String> {
+    pub fn ended_by_driver(&self) -> Result<(), EndedByOther> {
         match (self.reason, &self.stopped_by) {
             (
                 EndReason::GoalReached
@@ -142,8 +147,10 @@ impl Summary {
                 _,
             ) => Ok(()),
             (EndReason::EmergencyStop, Some(by)) if by.role == Role::Operator => Ok(()),
-            (EndReason::EmergencyStop, Some(by)) => Err(format!("the emergency stop of {by}")),
-            (reason, _) => Err(reason.to_string()),
+            (EndReason::EmergencyStop, Some(by)) => {
+                Err(EndedByOther(format!("the emergency stop of {by}")))
+            }
+            (reason, _) => Err(EndedByOther(reason.to_string())),
         }
     }
 

@@ -286,6 +286,12 @@ impl Gate {
         Some((current.clone(), read))
     }
 
+    /// Whether `admitted`, let in before, is still let in as it was: its
+    /// account not removed since, nor barred from driving.
+    pub(crate) fn still_admits(&self, admitted: &Admitted) -> bool {
+        self.users().is_none_or(|users| !admitted.ended_by(&users))
+    }
+
     /// Whether the lab has accounts (so some things are an administrator's).
     pub(crate) fn has_accounts(&self) -> bool {
         self.users.is_some()

@@ -157,7 +157,7 @@ impl GradeBook {
 /// the goal is reached when the run ends within the usual tolerance of
 /// it, whatever goal the learner defined.
 pub(super) fn judged(summary: &Summary, assignment: &Assignment) -> Result<Summary, String> {
-    summary.ended_by_driver()?;
+    summary.ended_by_driver().map_err(|e| e.to_string())?;
     if let Some(wanted) = &assignment.experiment
         && summary.experiment.as_ref() != Some(wanted)
     {

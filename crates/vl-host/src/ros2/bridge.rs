@@ -32,6 +32,8 @@ const LOOK_EVERY: Duration = Duration::from_millis(200);
 /// What the bridge takes from the Host it is part of.
 pub(crate) struct Lab {
     pub(crate) hub: mpsc::Sender<ToHub>,
+    /// Whether the account `/cmd_vel` drives as is still the lab's.
+    pub(crate) gate: Arc<crate::accounts::gate::Gate>,
     pub(crate) feedback: watch::Receiver<Option<HostMessage>>,
     pub(crate) frames: watch::Receiver<Option<Bytes>>,
     pub(crate) watchers: Arc<AtomicUsize>,
@@ -85,7 +87,12 @@ async fn publish(options: &Ros2Options, lab: Lab) -> Result<(), Ros2Error> {
     );
     let driving = async {
         if let Some(admitted) = options.operator.clone() {
-            super::operator::drive(&node, admitted, lab.hub.clone(), lab.feedback.clone()).await
+            let at_hub = super::operator::AtLab {
+                admitted,
+                gate: lab.gate.clone(),
+                hub: lab.hub.clone(),
+            };
+            super::operator::drive(&node, at_hub, lab.feedback.clone()).await
         } else {
             std::future::pending().await
         }

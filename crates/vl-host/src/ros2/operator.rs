@@ -12,6 +12,7 @@
 //! saw something wrong, so no Twist drives again until `vl host` is
 //! started again, by the lab's staff.
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use tokio::sync::{mpsc, watch};
@@ -23,7 +24,7 @@ use vl_core::{
 use super::Ros2Error;
 use super::graph::{Node, Qos};
 use super::messages::Twist;
-use crate::accounts::gate::Admitted;
+use crate::accounts::gate::{ACCOUNT_ENDED, Admitted, Gate};
 use crate::hush::Hush;
 use crate::server::hub::{OUTBOX, ToConnection, ToHub};
 use crate::server::pacing::Pacer;
@@ -48,11 +49,18 @@ struct AtHub {
     start_asked: Option<Instant>,
 }
 
+/// Who `/cmd_vel` drives as, and the lab it drives.
+pub(super) struct AtLab {
+    pub(super) admitted: Admitted,
+    /// Asked before each hello: an account removed drives no more.
+    pub(super) gate: Arc<Gate>,
+    pub(super) hub: mpsc::Sender<ToHub>,
+}
+
 /// Drives the lab from `/cmd_vel` for as long as the Host runs.
 pub(super) async fn drive(
     node: &Node,
-    admitted: Admitted,
-    hub: mpsc::Sender<ToHub>,
+    lab: AtLab,
     mut feedback: watch::Receiver<Option<HostMessage>>,
 ) -> Result<(), Ros2Error> {
     let (twists_in, mut twists) = watch::channel(None::<Twist>);
@@ -62,8 +70,9 @@ pub(super) async fn drive(
         })
         .await?;
     let mut driver = Driver {
-        admitted,
-        hub,
+        admitted: lab.admitted,
+        gate: lab.gate,
+        hub: lab.hub,
         next_id: FIRST_ID,
         at_hub: None,
         last_twist: None,
@@ -105,6 +114,7 @@ pub(super) async fn drive(
 struct Driver {
     /// Who the lab's staff let `/cmd_vel` drive as.
     admitted: Admitted,
+    gate: Arc<Gate>,
     hub: mpsc::Sender<ToHub>,
     next_id: u64,
     at_hub: Option<AtHub>,
@@ -174,6 +184,13 @@ impl Driver {
 
     /// Asks the hub for the operator's role, as whom the staff named.
     async fn join(&mut self) {
+        if !self.gate.still_admits(&self.admitted) {
+            self.refused_at = Some(Instant::now());
+            if self.hush.speak() {
+                warn!("ROS 2 {CMD_VEL}: ignored: {ACCOUNT_ENDED}");
+            }
+            return;
+        }
         let id = self.next_id;
         self.next_id += 1;
         let (out, inbox) = mpsc::channel(OUTBOX);

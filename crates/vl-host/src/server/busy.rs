@@ -76,9 +76,10 @@ pub(crate) fn spare(stream: &TcpStream, tls: bool) -> Option<std::net::TcpStream
         .map(Into::into)
 }
 
-/// Answers the spare handle of a connection pushed out while shaking hands.
-pub(crate) fn refuse_spare(spare: std::net::TcpStream) {
-    if let Ok(stream) = TcpStream::from_std(spare) {
+/// Answers the spare handle, if any, of a connection pushed out while
+/// shaking hands.
+pub(crate) fn refuse_spare(spare: Option<std::net::TcpStream>) {
+    if let Some(Ok(stream)) = spare.map(TcpStream::from_std) {
         refuse(stream, None);
     }
 }

@@ -273,9 +273,7 @@ impl ConnectionTask {
             },
             // A newer connection needed the slot of one still shaking hands.
             _ = evicted.wait_for(|out| *out) => {
-                if let Some(spare) = spare {
-                    super::busy::refuse_spare(spare);
-                }
+                super::busy::refuse_spare(spare);
                 return Ok(());
             }
         };

@@ -203,6 +203,7 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         Some(options) => {
             let side = crate::ros2::Lab {
                 hub: hub_tx.clone(),
+                gate: gate.clone(),
                 feedback: lab.feedback.clone(),
                 frames: lab.frames.clone(),
                 watchers: lab.watchers.clone(),

@@ -10,7 +10,7 @@ use vl_core::{
 
 use super::{Away, Hub, ToConnection};
 use crate::accounts::audit::AuditEntry;
-use crate::accounts::gate::{ACCOUNT_ENDED, Admitted};
+use crate::accounts::gate::Admitted;
 use crate::lab::LabRequest;
 
 /// A secret no client can guess: SipHash keyed afresh from the operating
@@ -51,11 +51,6 @@ impl Hub {
                 return self.refuse(id, ErrorCode::NotAllowedNow, "already said hello");
             }
             None => return,
-        }
-        if let Some(users) = &self.accounts
-            && admitted.ended_by(users)
-        {
-            return self.refuse_hello(id, ErrorCode::Unauthorized, ACCOUNT_ENDED);
         }
         if let Some(client) = self.clients.get_mut(&id) {
             client.admitted = admitted;

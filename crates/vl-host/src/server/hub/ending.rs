@@ -50,8 +50,7 @@ impl Hub {
     /// that is gone, or that drove and may no longer, ends (its turn and
     /// place first); a turn or place held for one whose link is down is
     /// given up too.
-    pub(super) fn accounts_changed(&mut self, users: &std::sync::Arc<Users>) {
-        self.accounts = Some(users.clone());
+    pub(super) fn accounts_changed(&mut self, users: &Users) {
         let mut ended: Vec<String> = self
             .clients
             .values()

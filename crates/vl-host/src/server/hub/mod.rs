@@ -205,16 +205,12 @@ pub(crate) struct Hub {
     recording: Option<recording::RunRecording>,
     /// Foxglove's feed, handed every broadcast to make its views of.
     views: Option<mpsc::Sender<HostMessage>>,
-    /// The accounts as last read: a hello of one since ended (the ROS 2
-    /// side's account, a cell's link vouched for before) is refused.
-    accounts: Option<Arc<crate::accounts::users::Users>>,
 }
 
 impl Hub {
     pub(crate) fn new(lab: Lab, config: Arc<HostConfig>, supervisor: Supervisor) -> Hub {
         let devices = *lab.status.borrow();
         Hub {
-            accounts: config.users.clone().map(Arc::new),
             map: Map::new(&lab),
             lab,
             config,
