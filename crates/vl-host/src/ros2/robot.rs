@@ -90,32 +90,46 @@ impl Odometer {
         if *robot != origin.gid {
             return self.ignore("a sample of another publisher than the robot's");
         }
-        if let Some((last, number, at)) = &self.newest {
-            if origin.sequence <= *number {
-                let why = format!(
-                    "sample {} came after {number}: someone else writes as the robot",
-                    origin.sequence
-                );
-                // Numbered from here on: once only one writes, it holds.
-                self.newest = Some((odometry, origin.sequence, now));
-                return self.contradicted(now, why);
-            }
-            let seconds = now.saturating_duration_since(*at).as_secs_f64();
-            let (from, to) = (pose_of(last), pose_of(&odometry));
-            let moved = (to.x_mm - from.x_mm).hypot(to.y_mm - from.y_mm);
-            let turned = vl_core::wrap_angle(to.theta_rad - from.theta_rad).abs();
-            if moved > 2.0 * self.top_mm_s * seconds + LEAP_MM
-                || turned > 2.0 * self.top_rad_s * seconds + LEAP_RAD
-            {
-                let why = format!(
+        let contradiction = self.newest.as_ref().and_then(|(last, number, at)| {
+            self.contradiction(last, *number, *at, &odometry, &origin, now)
+        });
+        // Numbered from here on even when contradicted: once only one
+        // writes, its samples hold again.
+        self.newest = Some((odometry, origin.sequence, now));
+        if let Some(why) = contradiction {
+            self.contradicted(now, why);
+        }
+    }
+
+    /// How a sample contradicts the robot's last: a number not after its
+    /// number, or a leap beyond what the robot can do in the time between.
+    fn contradiction(
+        &self,
+        last: &Odometry,
+        number: i64,
+        at: Instant,
+        odometry: &Odometry,
+        origin: &Origin,
+        now: Instant,
+    ) -> Option<String> {
+        if origin.sequence <= number {
+            return Some(format!(
+                "sample {} came after {number}: someone else writes as the robot",
+                origin.sequence
+            ));
+        }
+        let seconds = now.saturating_duration_since(at).as_secs_f64();
+        let (from, to) = (pose_of(last), pose_of(odometry));
+        let moved = (to.x_mm - from.x_mm).hypot(to.y_mm - from.y_mm);
+        let turned = vl_core::wrap_angle(to.theta_rad - from.theta_rad).abs();
+        (moved > 2.0 * self.top_mm_s * seconds + LEAP_MM
+            || turned > 2.0 * self.top_rad_s * seconds + LEAP_RAD)
+            .then(|| {
+                format!(
                     "it leapt {moved:.0} mm and {turned:.2} rad in {:.0} ms, faster than it goes",
                     seconds * 1e3
-                );
-                self.newest = Some((odometry, origin.sequence, now));
-                return self.contradicted(now, why);
-            }
-        }
-        self.newest = Some((odometry, origin.sequence, now));
+                )
+            })
     }
 
     fn ignore(&self, what: &str) {
