@@ -171,39 +171,52 @@ fn ros_2_drives_only_as_an_account_that_may() {
     refused(&["--ros2-as", "nobody"], "no account nobody at this lab");
 }
 
+/// Ada, logged in to watch: her connection and its welcome.
+async fn ada_watching(url: &str) -> (Peer, Value) {
+    let mut ada = Peer::connect(url).await;
+    let hello = serde_json::json!({
+        "type": "hello", "protocol": 1, "role": "observer", "user": "ada", "password": "ada-secret-1",
+    });
+    ada.send(hello).await;
+    let welcome = ada.expect("welcome").await;
+    (ada, welcome)
+}
+
 /// A watcher's emergency stop while ROS 2 drives is latched: Twists,
 /// even after a quiet second, start nothing and move nothing.
 async fn latched(python: &str, port: u16, url: &str) {
     let driving = {
         let python = python.to_owned();
-        // Backwards: the steps before left it held short of a wall.
-        std::thread::spawn(move || step(&python, port, &["drive", "3", "-0.05"]))
+        // On the spot: the steps before left it by a wall, facing anywhere.
+        std::thread::spawn(move || step(&python, port, &["turn", "3", "1.0"]))
     };
     tokio::time::sleep(Duration::from_millis(1500)).await;
-    let mut watcher = Peer::connect(url).await;
-    let hello = serde_json::json!({
-        "type": "hello", "protocol": 1, "role": "observer", "user": "ada", "password": "ada-secret-1",
-    });
-    watcher.send(hello).await;
-    watcher.expect("welcome").await;
+    let (mut watcher, _) = ada_watching(url).await;
     watcher
         .send(serde_json::json!({"type": "emergency_stop"}))
         .await;
     let done = watcher.expect("done").await;
     assert_eq!(done["summary"]["reason"], "emergency_stop", "{done}");
     let stopped = driving.join().unwrap();
+    // How far it turned, rad: the quaternion's z is sin(θ/2).
     let moved = |v: &Value| {
-        let at = |key: &str, axis: &str| v[key][axis].as_f64().unwrap();
-        (at("driven", "x") - at("start", "x")).hypot(at("driven", "y") - at("start", "y"))
+        let heading = |key: &str| {
+            2.0 * v[key]["qz"]
+                .as_f64()
+                .unwrap()
+                .atan2(v[key]["qw"].as_f64().unwrap())
+        };
+        let turned = heading("driven") - heading("start");
+        turned.sin().atan2(turned.cos()).abs()
     };
     assert!(
-        moved(&stopped) > 0.005,
+        moved(&stopped) > 0.1,
         "it drove until the emergency stop: {stopped}"
     );
     // Quiet for 1.5 s (the second after an ordinary end), then Twists.
-    let again = step(python, port, &["drive", "2", "-0.05"]);
+    let again = step(python, port, &["turn", "2", "1.0"]);
     assert!(
-        moved(&again) < 0.002,
+        moved(&again) < 0.01,
         "Twists after an emergency stop drove the robot: {again}"
     );
     watcher
@@ -300,12 +313,7 @@ fn streamed(python: &str, port: u16) {
 /// contacts all the while.
 async fn driven(python: &str, port: u16, url: &str) {
     let contacts = Arc::new(AtomicUsize::new(0));
-    let mut observer = Peer::connect(url).await;
-    let hello = serde_json::json!({
-        "type": "hello", "protocol": 1, "role": "observer", "user": "ada", "password": "ada-secret-1",
-    });
-    observer.send(hello).await;
-    let welcome = observer.expect("welcome").await;
+    let (mut observer, welcome) = ada_watching(url).await;
     assert_eq!(welcome["user"], "ada", "{welcome}");
     let counting = contacts.clone();
     let watching = tokio::spawn(async move {

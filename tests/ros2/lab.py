@@ -15,6 +15,7 @@ STEP is one of:
   map       /map as a subscriber joining late (transient local)
   drive     Twists on /cmd_vel at 20 Hz: SECONDS forward at SPEED m/s, then
             the odometry after a second of silence
+  turn      as drive, turning on the spot at SPEED rad/s
   forge_odom  for SECONDS at 400 Hz, /odom saying the robot stands where
             it stood, as a publisher of its own or (MODE copy) as the robot
   hostile   for SECONDS, as fast as it can, on /cmd_vel's key: random bytes,
@@ -30,7 +31,7 @@ import time
 
 MSG_DIR, PORT, STEP = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 SECONDS = float(sys.argv[4]) if len(sys.argv) > 4 else 3.0
-SPEED = float(sys.argv[5]) if len(sys.argv) > 5 and STEP == "drive" else 0.05
+SPEED = float(sys.argv[5]) if len(sys.argv) > 5 and STEP in ("drive", "turn") else 0.05
 
 from zenoh_ros2_sdk import get_registry  # noqa: E402
 
@@ -230,7 +231,7 @@ def late_map():
     }
 
 
-def drive():
+def drive(turn=False):
     odoms = []
     sub = ROS2Subscriber(
         topic="/odom", msg_type=TOPICS["/odom"], callback=lambda m: odoms.append(odom_of(m)), router_port=PORT
@@ -242,7 +243,8 @@ def drive():
     began = time.monotonic()
     sent = 0
     while time.monotonic() - began < SECONDS:
-        pub.publish(linear=Vector3(x=SPEED, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0))
+        v, w = (0.0, SPEED) if turn else (SPEED, 0.0)
+        pub.publish(linear=Vector3(x=v, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=w))
         sent += 1
         time.sleep(0.05)
     driven = odoms[-1] if odoms else None
@@ -360,5 +362,5 @@ def forge_odom():
     return {"sent": sent, "mode": mode}
 
 
-STEPS = {"forge_odom": forge_odom, "discover": discover, "list": listing, "watch": watch, "map": late_map, "drive": drive, "hostile": hostile}
+STEPS = {"forge_odom": forge_odom, "discover": discover, "list": listing, "watch": watch, "map": late_map, "drive": drive, "turn": lambda: drive(turn=True), "hostile": hostile}
 print(json.dumps(STEPS[STEP]()), flush=True)
