@@ -210,6 +210,11 @@ struct Mirror {
     /// The lab whose net answers: the mounted one, or the first.
     lab: String,
     states: usize,
+    /// Whether the lab is ready for a run, as the Host last said in a
+    /// `status` (none heard on this connection yet: unknown). Between runs
+    /// the robot drives back to its start, and a start then is refused
+    /// whatever the net allows.
+    ready: Option<bool>,
 }
 
 fn initial(net: &Net) -> Vec<u32> {
@@ -223,6 +228,17 @@ impl Mirror {
             nets: nets.clone(),
             lab: LABS[0].into(),
             states: 0,
+            ready: None,
+        }
+    }
+
+    /// Follows what the Host says: a `state`, or a `status` (the lab's
+    /// readiness); anything else is not the mirror's.
+    fn hear(&mut self, v: &Value) {
+        match v["type"].as_str() {
+            Some("state") => self.follow(v),
+            Some("status") => self.ready = Some(v["lab"] == "ready"),
+            _ => {}
         }
     }
 
@@ -375,6 +391,8 @@ async fn operator(url: &str, mirror: &mut Mirror, resume: Option<&str>) -> Opera
     };
     let state = peer.expect("state").await;
     mirror.follow(&state);
+    // What this connection was told of the lab's readiness comes after.
+    mirror.ready = None;
     Operator {
         peer,
         resume: welcome["resume"].as_str().unwrap_or_default().to_owned(),
@@ -415,6 +433,15 @@ async fn answer(op: &mut Operator, mirror: &mut Mirror, act: &Act, allowed: bool
                     "a command was executed though not enabled"
                 );
                 return refused;
+            }
+            "status" => mirror.hear(&v),
+            "error"
+                if v["code"] == "not_allowed_now"
+                    && matches!(act, Act::Start)
+                    && v["message"].as_str().unwrap().contains("getting ready") =>
+            {
+                assert_ne!(mirror.ready, Some(true), "refused though ready: {v}");
+                return true;
             }
             "error" if v["code"] == "not_allowed_now" => {
                 let e = event(act).unwrap_or_else(|| panic!("{act:?} refused: {v}"));
@@ -467,11 +494,9 @@ async fn play(url: &str, nets: &HashMap<String, Net>, acts: &[Act]) {
                 if mirror.allows("stop") {
                     loop {
                         let v = op.peer.next_any().await.expect("the Host stays up");
-                        if v["type"] == "state" {
-                            mirror.follow(&v);
-                            if !mirror.allows("command") {
-                                break;
-                            }
+                        mirror.hear(&v);
+                        if v["type"] == "state" && !mirror.allows("command") {
+                            break;
                         }
                     }
                 }
