@@ -202,11 +202,11 @@ fn issue(authority: &ZenohAuthority, member: ZenohMember, out: &Path) -> Result<
     );
     match &member {
         ZenohMember::Cell(name) => println!(
-            "on the cell: vl host --gateway tls/GATEWAY:7447 --cell {name} --zenoh-credentials {}",
+            "on the cell: vl host --gateway quic/GATEWAY:7447 --cell {name} --zenoh-credentials {}",
             out.display()
         ),
         ZenohMember::Ros2(_) => println!(
-            "on the ROS 2 machine: a Zenoh session config with transport/link/tls (enable_mtls) from this file, connecting to tls/GATEWAY:7447"
+            "on the ROS 2 machine: a Zenoh session config with transport/link/tls (enable_mtls) from this file, connecting to quic/GATEWAY:7447"
         ),
     }
     println!("a running gateway admits it from its next start");

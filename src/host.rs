@@ -247,7 +247,7 @@ pub(crate) struct HostArgs {
     forecast: crate::options::ForecastArgs,
     #[command(flatten)]
     recordings: crate::record::KeepArgs,
-    /// Join the gateway whose Zenoh router is here (tls/HOST:PORT) as one
+    /// Join the gateway whose Zenoh router is here (quic/HOST:PORT) as one
     /// of its cells (with --cell).
     #[arg(long, requires = "cell")]
     gateway: Vec<vl_host::Endpoint>,

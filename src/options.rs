@@ -160,14 +160,14 @@ impl ForecastArgs {
 #[derive(clap::Args, Clone)]
 pub(crate) struct ZenohArgs {
     /// Where the embedded Zenoh router listens (tcp/HOST:PORT, or
-    /// tls/HOST:PORT): by default port 7447 on --listen's address.
+    /// quic/HOST:PORT): by default port 7447 on --listen's address.
     #[arg(long, conflicts_with = "zenoh")]
     zenoh_listen: Vec<vl_host::Endpoint>,
     /// Join an existing Zenoh network here instead (a site's zenohd, a
     /// gateway's router), with no router of its own.
     #[arg(long)]
     zenoh: Vec<vl_host::Endpoint>,
-    /// The certificate to join a tls/ network with: the file `vl gateway
+    /// The certificate to join a quic/ network with: the file `vl gateway
     /// issue` wrote for this machine.
     #[arg(long, value_name = "FILE")]
     zenoh_credentials: Option<std::path::PathBuf>,
@@ -178,7 +178,7 @@ const ZENOH_PORT: u16 = 7447;
 
 impl ZenohArgs {
     /// The network, a router of its own listening on `listen`'s address
-    /// unless told otherwise (`tls/` where `secured`: its caller then says
+    /// unless told otherwise (`quic/` where `secured`: its caller then says
     /// who may join it).
     pub(crate) fn options(
         &self,

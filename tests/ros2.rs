@@ -73,7 +73,7 @@ fn step_with(python: &str, port: u16, args: &[&str], credentials: Option<&Path>)
         });
         command.env(
             "ZENOH_CONFIG_OVERRIDE",
-            format!("transport/link/tls={tls};connect/endpoints=[\"tls/127.0.0.1:{port}\"]"),
+            format!("transport/link/tls={tls};connect/endpoints=[\"quic/127.0.0.1:{port}\"]"),
         );
     }
     let out = command.output().expect("python runs");

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{VlProcess, free_port, start_vl};
+use super::{VlProcess, free_udp_port, start_vl};
 
 /// A gateway's authority in a folder of its own, and the credentials it
 /// issued, through `vl gateway issue`.
@@ -51,7 +51,7 @@ pub(crate) fn start_gateway(keys: &Keys) -> (VlProcess, String, String) {
 }
 
 pub(crate) fn start_gateway_with(keys: &Keys, extra: &[&str]) -> (VlProcess, String, String) {
-    let zenoh = format!("tls/127.0.0.1:{}", free_port());
+    let zenoh = format!("quic/127.0.0.1:{}", free_udp_port());
     let (gateway, url) = start_gateway_on(keys, &zenoh, extra);
     (gateway, url, zenoh)
 }

@@ -288,6 +288,14 @@ pub(crate) fn free_port() -> u16 {
         .port()
 }
 
+/// A UDP port nothing listens on now: a Zenoh router's over QUIC.
+pub(crate) fn free_udp_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("a free UDP port")
+        .port()
+}
+
 /// A definition's virtual obstacles: one 256-vertex polygon, a disc of `r`
 /// mm about (x, y) (its edges within r·(1 − cos(π/256)) of the circle).
 pub(crate) fn big_polygon(x: f64, y: f64, r: f64) -> serde_json::Value {

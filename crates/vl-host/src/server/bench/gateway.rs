@@ -67,7 +67,7 @@ impl GatewayBench {
     pub async fn run(&self, vl: &Path) -> Result<GatewayCost, BenchError> {
         let keys = issue_cells(self.cells)?;
         let keys_arg = keys.display().to_string();
-        let zenoh = format!("tls/127.0.0.1:{}", free_port()?);
+        let zenoh = format!("quic/127.0.0.1:{}", free_udp_port()?);
         let gateway_args = [
             "gateway",
             "--listen",
@@ -167,7 +167,8 @@ struct Pids {
     gateway: u32,
 }
 
-/// A port nothing listens on now, for the gateway's Zenoh router.
+/// A UDP port nothing listens on now, for the gateway's Zenoh router
+/// (QUIC).
 /// The gateway's network as a lab runs it: a folder with the gateway's
 /// authority and each cell's credentials, `cN.toml`.
 fn issue_cells(cells: usize) -> Result<std::path::PathBuf, BenchError> {
@@ -183,8 +184,8 @@ fn issue_cells(cells: usize) -> Result<std::path::PathBuf, BenchError> {
     Ok(keys)
 }
 
-fn free_port() -> Result<u16, BenchError> {
-    std::net::TcpListener::bind("127.0.0.1:0")
+fn free_udp_port() -> Result<u16, BenchError> {
+    std::net::UdpSocket::bind("127.0.0.1:0")
         .and_then(|l| l.local_addr())
         .map(|a| a.port())
         .map_err(|e| BenchError::Connect(e.to_string()))
