@@ -94,6 +94,7 @@ mod memory;
 mod priority;
 mod reach;
 mod ros2;
+mod secret;
 mod server;
 mod setup;
 mod sim;

@@ -63,7 +63,7 @@ impl Lti {
             "aud": [launch.issuer],
             "iat": now,
             "exp": now + 600,
-            "nonce": super::secret(),
+            "nonce": crate::secret::secret(),
             (claim::MESSAGE_TYPE): "LtiDeepLinkingResponse",
             (claim::VERSION): "1.3.0",
             (claim::DEPLOYMENT_ID): launch.deployment_id,

@@ -176,7 +176,7 @@ impl Lti {
                 "target_link_uri is not this tool's launch URL (/lti/launch)",
             ));
         }
-        let (state, nonce) = (super::secret(), super::secret());
+        let (state, nonce) = (crate::secret::secret(), crate::secret::secret());
         let mut auth = url::Url::parse(&platform.auth_url)
             .map_err(|e| refused(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
         {

@@ -64,16 +64,6 @@ mod claim {
         "https://purl.imsglobal.org/spec/lti-nrps/scope/contextmembership.readonly";
 }
 
-/// 32 random bytes from the system, base64url: a session, a login's
-/// state and nonce, a token request's id.
-fn secret() -> String {
-    use base64::Engine;
-    use rsa::rand_core::RngCore;
-    let mut bytes = [0u8; 32];
-    rsa::rand_core::OsRng.fill_bytes(&mut bytes);
-    base64::engine::general_purpose::URL_SAFE_NO_PAD.encode(bytes)
-}
-
 /// `m`'s lock, even if a thread panicked holding it (what it guards is
 /// bookkeeping, whole after each change).
 fn locked<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {

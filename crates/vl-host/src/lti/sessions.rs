@@ -86,7 +86,7 @@ pub struct Sessions {
 impl Sessions {
     /// Opens a session for `launch`: its secret.
     pub(crate) fn open(&self, launch: Launch) -> String {
-        let secret = super::secret();
+        let secret = crate::secret::secret();
         let launch = Arc::new(launch);
         let now = Instant::now();
         {

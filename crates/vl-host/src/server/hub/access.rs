@@ -12,26 +12,7 @@ use super::{Away, Hub, ToConnection};
 use crate::accounts::audit::AuditEntry;
 use crate::accounts::gate::Admitted;
 use crate::lab::LabRequest;
-
-/// A secret no client can guess: SipHash keyed afresh from the operating
-/// system's randomness by the standard library, over a counter and the
-/// clock, twice over for 128 bits.
-pub(super) fn secret() -> String {
-    use std::hash::{BuildHasher, Hasher};
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static DRAWN: AtomicU64 = AtomicU64::new(0);
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos());
-    (0..2)
-        .map(|_| {
-            let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-            h.write_u64(DRAWN.fetch_add(1, Ordering::Relaxed));
-            h.write_u128(now);
-            format!("{:016x}", h.finish())
-        })
-        .collect()
-}
+use crate::secret::secret;
 
 impl Hub {
     /// A hello the gate let through: a first one, or an observer (or an

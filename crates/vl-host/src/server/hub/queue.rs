@@ -15,10 +15,10 @@ use std::time::Instant;
 use tracing::{info, warn};
 use vl_core::{AccessEvent, Action, EndReason, ErrorCode, HostMessage, Role, Seat};
 
-use super::access::secret;
 use super::{Hub, ToConnection};
 use crate::accounts::audit::AuditEntry;
 use crate::lab::LabRequest;
+use crate::secret::secret;
 
 /// The line is told of its changes at most this often.
 const TELL_LINE_EVERY: std::time::Duration = std::time::Duration::from_millis(200);
