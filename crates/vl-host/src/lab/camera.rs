@@ -10,10 +10,10 @@ use std::thread;
 use std::time::{Duration, Instant};
 use vl_record::Feed;
 
+use bytes::Bytes;
 use image::RgbImage;
 use image::codecs::jpeg::JpegEncoder;
 use tokio::sync::watch;
-use tokio_tungstenite::tungstenite::Bytes;
 use tracing::{debug, info, warn};
 use vl_core::{
     Arena, CameraModel, DeviceState, FrameHeader, Grid, ImageFormat, Look, Pose, arena_of,

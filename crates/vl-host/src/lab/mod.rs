@@ -17,8 +17,8 @@ use std::sync::mpsc;
 use std::thread;
 use std::time::{Duration, Instant};
 
+use bytes::Bytes;
 use tokio::sync::{mpsc as async_mpsc, watch};
-use tokio_tungstenite::tungstenite::Bytes;
 use vl_core::{
     Arena, CameraModel, Definition, DeviceState, Drive, EndReason, Experiment, HostMessage,
     MapField, Priorities, Readiness, RobotModel, Summary,

@@ -9,8 +9,8 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicUsize;
 use std::time::{Duration, Instant};
 
+use bytes::Bytes;
 use tokio::sync::{mpsc, watch};
-use tokio_tungstenite::tungstenite::Bytes;
 use tracing::{info, warn};
 use vl_core::{Feedback, FrameHeader, HostMessage, ImageFormat, LabScene};
 

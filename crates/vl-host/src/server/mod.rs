@@ -255,7 +255,7 @@ pub(crate) async fn watch_accounts(gate: Arc<Gate>, hub: mpsc::Sender<hub::ToHub
 /// What every connection takes from the lab directly, not through the hub.
 pub(crate) struct Outlets {
     pub(crate) feedback: tokio::sync::watch::Receiver<Option<vl_core::HostMessage>>,
-    pub(crate) frames: tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
+    pub(crate) frames: tokio::sync::watch::Receiver<Option<bytes::Bytes>>,
     pub(crate) watchers: Arc<std::sync::atomic::AtomicUsize>,
     pub(crate) record: vl_record::Feed,
     pub(crate) foxglove: Option<foxglove::Feed>,

@@ -8,8 +8,8 @@ use std::collections::HashMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
+use bytes::Bytes;
 use tokio::sync::{broadcast, mpsc, watch};
-use tokio_tungstenite::tungstenite::Bytes;
 use vl_core::{HostMessage, LabScene};
 use vl_record::{Level, Topic, View, Views, now_ns};
 

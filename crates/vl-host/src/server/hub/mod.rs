@@ -86,7 +86,7 @@ pub(crate) enum ToConnection {
 /// A cell's newest feedback and frame, as a gateway mirrors them.
 pub(crate) struct Streams {
     pub(crate) feedback: tokio::sync::watch::Receiver<Option<HostMessage>>,
-    pub(crate) frames: tokio::sync::watch::Receiver<Option<tokio_tungstenite::tungstenite::Bytes>>,
+    pub(crate) frames: tokio::sync::watch::Receiver<Option<bytes::Bytes>>,
 }
 
 /// What `GET /status` shows: a Host's state, or a gateway's.
