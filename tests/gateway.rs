@@ -374,7 +374,7 @@ fn pushy(
 }
 
 /// Strangers do not join the network at `zenoh`: without a certificate,
-/// without TLS, or with another authority's certificate (`foreign`).
+/// over plain TCP, or with another authority's certificate (`foreign`).
 fn strangers_do_not_join(zenoh: &str, foreign: &Path) {
     let plain = zenoh.replace("quic/", "tcp/");
     for (who, endpoint, credentials) in [

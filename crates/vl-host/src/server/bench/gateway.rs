@@ -167,8 +167,6 @@ struct Pids {
     gateway: u32,
 }
 
-/// A UDP port nothing listens on now, for the gateway's Zenoh router
-/// (QUIC).
 /// The gateway's network as a lab runs it: a folder with the gateway's
 /// authority and each cell's credentials, `cN.toml`.
 fn issue_cells(cells: usize) -> Result<std::path::PathBuf, BenchError> {
@@ -184,6 +182,8 @@ fn issue_cells(cells: usize) -> Result<std::path::PathBuf, BenchError> {
     Ok(keys)
 }
 
+/// A UDP port nothing listens on now, for the gateway's Zenoh router
+/// (QUIC).
 fn free_udp_port() -> Result<u16, BenchError> {
     std::net::UdpSocket::bind("127.0.0.1:0")
         .and_then(|l| l.local_addr())
