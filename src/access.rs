@@ -9,8 +9,8 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::ValueHint;
+use vl_client::Login;
 use vl_core::Rubric;
-use vl_guest::Login;
 use vl_host::{AccountRole, Audit, HostConfig, Lti, LtiOptions, Observers, Tls, Users};
 
 use crate::report::emit;

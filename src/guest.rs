@@ -6,8 +6,9 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
+use vl_client::{Login, Script, ScriptError, ScriptReport as RunReport};
 use vl_core::{Arena, Experiment, Role};
-use vl_guest::{Login, PadChoice, Script, ScriptError, ScriptReport as RunReport, WindowError};
+use vl_guest::{PadChoice, WindowError};
 use vl_host::{Host, HostConfig, Media, SimLab};
 
 use crate::access::LoginArgs;
@@ -96,10 +97,10 @@ pub(crate) struct RunArgs {
     /// Run the task saved under this name (its experiment and definition)
     /// instead of planning one.
     #[arg(long)]
-    task: Option<vl_guest::TaskName>,
+    task: Option<vl_client::TaskName>,
     /// Save this run's definition as a task of this name.
     #[arg(long)]
-    save_task: Option<vl_guest::TaskName>,
+    save_task: Option<vl_client::TaskName>,
 }
 
 /// A Guest error: an address that cannot be a Host's is the user's input.
@@ -123,20 +124,20 @@ pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Resul
     if let Some(file) = &args.replay {
         let bad = |e: vl_record::RecordError| BadInput(format!("--replay: {e}"));
         match args.headless {
-            true => emit(&vl_guest::replay_headless(file).map_err(bad)?, args.json)?,
-            false => vl_guest::run_replay_window(vl_guest::Replay::open(file).map_err(bad)?)?,
+            true => emit(&vl_client::replay_headless(file).map_err(bad)?, args.json)?,
+            false => vl_guest::run_replay_window(vl_client::Replay::open(file).map_err(bad)?)?,
         }
         return Ok(ExitCode::SUCCESS);
     }
     if args.headless {
         let script = script(&args.run, args.login.login()?, !args.json);
         if role == Role::Observer {
-            let watched = interruptible(runtime, vl_guest::watch(&args.connect, &script))?
+            let watched = interruptible(runtime, vl_client::watch(&args.connect, &script))?
                 .map_err(guest_error)?;
             emit(&watched, args.json)?;
             return Ok(ExitCode::SUCCESS);
         }
-        let report = interruptible(runtime, vl_guest::run_script(&args.connect, &script))?
+        let report = interruptible(runtime, vl_client::run_script(&args.connect, &script))?
             .map_err(guest_error)?;
         return finish(&report, args.json);
     }
@@ -157,7 +158,7 @@ fn interruptible<T>(
         tokio::select! {
             done = guest => Ok(done),
             _ = tokio::signal::ctrl_c() => {
-                tokio::time::sleep(vl_guest::GOODBYE_WAIT).await;
+                tokio::time::sleep(vl_client::GOODBYE_WAIT).await;
                 eprintln!("vl guest: interrupted; said goodbye to the Host");
                 std::process::exit(130);
             }
@@ -187,7 +188,7 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
     }
     if args.headless || !has_display {
         let script = script(&args.run, Login::default(), !args.json);
-        let report = interruptible(runtime, vl_guest::run_script(&url, &script))??;
+        let report = interruptible(runtime, vl_client::run_script(&url, &script))??;
         return finish(&report, args.json);
     }
     eprintln!("vl demo: simulated lab at {url}");
@@ -205,7 +206,7 @@ fn script(run: &RunArgs, login: Login, progress: bool) -> Script {
         timeout: Duration::from_secs_f64(run.timeout.clamp(0.0, 1e6)),
         progress,
         download_to: run.download_to.clone(),
-        task: vl_guest::TaskChoice {
+        task: vl_client::TaskChoice {
             task: run.task.clone(),
             save_task: run.save_task.clone(),
         },

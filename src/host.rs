@@ -137,7 +137,7 @@ pub(crate) async fn host_command(command: HostCommand) -> Result<()> {
             emit(&cost, bench.json)
         }
         Some(HostTool::Status { url, login, json }) => {
-            emit(&vl_guest::host_status(&url, &login.login()?).await?, json)
+            emit(&vl_client::host_status(&url, &login.login()?).await?, json)
         }
         None => host(command.serve).await,
     }

@@ -107,7 +107,7 @@ pub(crate) fn record(args: RecordArgs) -> Result<ExitCode> {
         RecordCommand::Export { file, out } => {
             let recording = Recording::open(&file).map_err(bad)?;
             let mut exported = vl_record::export(&recording, &out).map_err(bad)?;
-            let plots = vl_guest::Replay::open(&file)
+            let plots = vl_client::Replay::open(&file)
                 .map_err(bad)?
                 .results
                 .save(&out)?;

@@ -10,8 +10,9 @@ use std::time::{Duration, Instant};
 use egui::Vec2;
 use egui_kittest::kittest::Queryable;
 use serde_json::{Value, json};
+use vl_client::Login;
 use vl_core::{Experiment, Role};
-use vl_guest::{GuestApp, Login};
+use vl_guest::GuestApp;
 use vl_host::{AccountRole, Audit, HostConfig, Users};
 
 use crate::common::chromium::{self, Browser};

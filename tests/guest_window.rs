@@ -10,8 +10,9 @@ use egui::Vec2;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 
+use vl_client::{LinkState, Login, check_path, drag_path};
 use vl_core::{Arena, Point, Role};
-use vl_guest::{GuestApp, LinkState, Login, check_path, drag_path};
+use vl_guest::GuestApp;
 use vl_host::{Host, HostConfig, SimCamera, SimLab};
 
 /// The simulated camera paints the robot's body this colour.
@@ -78,7 +79,7 @@ fn host_with_camera(runtime: &tokio::runtime::Runtime, config: HostConfig) -> Ho
 /// until `seen` holds of the session.
 fn mount_navigation(
     harness: &mut Harness<'_, GuestApp>,
-    seen: impl Fn(&vl_guest::Session) -> bool,
+    seen: impl Fn(&vl_client::Session) -> bool,
 ) {
     step_until(harness, "be welcomed", |app| app.session().role.is_some());
     harness
@@ -1335,15 +1336,15 @@ fn a_downloaded_run_replays_in_the_window_and_scrubbing_moves_the_robot() {
             config,
         ))
         .unwrap();
-    let script = vl_guest::Script {
+    let script = vl_client::Script {
         download_to: Some(dir.join("guest")),
-        ..vl_guest::Script::default()
+        ..vl_client::Script::default()
     };
     let report = runtime
-        .block_on(vl_guest::run_script(&host.url(), &script))
+        .block_on(vl_client::run_script(&host.url(), &script))
         .unwrap();
     let file = report.downloaded.expect("the run's file was downloaded");
-    let replay = vl_guest::Replay::open(&file).unwrap();
+    let replay = vl_client::Replay::open(&file).unwrap();
     let mut harness = harness_of(GuestApp::replaying(replay), Vec2::new(1100.0, 720.0));
     harness.step();
     harness.get_by_label("Pause").click();
@@ -1451,7 +1452,7 @@ fn a_task_is_saved_and_loaded_back_in_the_window() {
     let tasks_dir = common::scratch("window-tasks");
     let app = GuestApp::new(&host.url(), Role::Operator, Login::default())
         .unwrap()
-        .with_tasks(vl_guest::Tasks::at(&tasks_dir));
+        .with_tasks(vl_client::Tasks::at(&tasks_dir));
     let mut harness = harness_of(app, Vec2::new(1100.0, 720.0));
     mount_navigation(&mut harness, |s| s.lab.is_some() && s.robot.is_some());
     harness
@@ -1483,7 +1484,7 @@ fn a_task_is_saved_and_loaded_back_in_the_window() {
     harness.get_by_label("Save").click();
     harness.step();
     harness.get_by_label_contains("Saved the definition as \"first lap\"");
-    let saved: vl_guest::Task =
+    let saved: vl_client::Task =
         serde_json::from_slice(&std::fs::read(tasks_dir.join("first lap.json")).unwrap()).unwrap();
     assert_eq!(saved.definition, defined);
 

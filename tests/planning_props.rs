@@ -8,7 +8,8 @@ use std::collections::VecDeque;
 
 use proptest::prelude::*;
 use vl_core::{
-    CSpace, Cell, Connectivity, Footprint, Grid, Nf1, NoPath, Plan, Point, Pose, clearance, plan,
+    CSpace, CSpaceCell, Connectivity, Footprint, Grid, Nf1, NoPath, Plan, Point, Pose, clearance,
+    plan,
 };
 
 const CELL_MM: f64 = 10.0;
@@ -64,7 +65,7 @@ fn pose_on(cs: &CSpace, (fx, fy, theta): (f64, f64, f64), snap: bool) -> Pose {
 
 /// Cells one step from `cell`, by the rules the planner states, found by
 /// looking at every cell of the C-space.
-fn steps(cs: &CSpace, conn: Connectivity, (c, r, k): Cell) -> Vec<Cell> {
+fn steps(cs: &CSpace, conn: Connectivity, (c, r, k): CSpaceCell) -> Vec<CSpaceCell> {
     let n = cs.slices.len() as u32;
     let free = |c: i64, r: i64, k: u32| {
         let g = &cs.slices[k as usize];
@@ -102,7 +103,11 @@ fn steps(cs: &CSpace, conn: Connectivity, (c, r, k): Cell) -> Vec<Cell> {
 }
 
 /// Breadth-first distances from `from` over free cells, as a map.
-fn bfs(cs: &CSpace, conn: Connectivity, from: Cell) -> std::collections::HashMap<Cell, u32> {
+fn bfs(
+    cs: &CSpace,
+    conn: Connectivity,
+    from: CSpaceCell,
+) -> std::collections::HashMap<CSpaceCell, u32> {
     let mut dist = std::collections::HashMap::from([(from, 0)]);
     let mut queue = VecDeque::from([from]);
     while let Some(cell) = queue.pop_front() {
@@ -118,7 +123,7 @@ fn bfs(cs: &CSpace, conn: Connectivity, from: Cell) -> std::collections::HashMap
 }
 
 /// Whether a depth-first flood fill from `from` meets `to`.
-fn flood_connected(cs: &CSpace, conn: Connectivity, from: Cell, to: Cell) -> bool {
+fn flood_connected(cs: &CSpace, conn: Connectivity, from: CSpaceCell, to: CSpaceCell) -> bool {
     let mut seen = std::collections::HashSet::from([from]);
     let mut stack = vec![from];
     while let Some(cell) = stack.pop() {
@@ -134,12 +139,12 @@ fn flood_connected(cs: &CSpace, conn: Connectivity, from: Cell, to: Cell) -> boo
     false
 }
 
-fn cell_of(cs: &CSpace, pose: Pose) -> Option<Cell> {
+fn cell_of(cs: &CSpace, pose: Pose) -> Option<CSpaceCell> {
     let (c, r) = cs.grid().cell_of(pose.point())?;
     Some((c, r, cs.slice_of(pose.theta_rad) as u32))
 }
 
-fn is_free(cs: &CSpace, cell: Cell) -> bool {
+fn is_free(cs: &CSpace, cell: CSpaceCell) -> bool {
     !cs.slices[cell.2 as usize].is_blocked(cell.0, cell.1)
 }
 

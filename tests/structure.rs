@@ -2,8 +2,9 @@
 //! that point one way (command lines only in the binary, a Guest that does
 //! not link the Host, the crate graph ARCHITECTURE.md draws), nothing under
 //! `src/` that embeds documentation or test fixtures, no source file over
-//! 700 lines, no two files that import each other, no public function that
-//! says what went wrong as a bare `String`.
+//! 700 lines, no files that import each other around a circle of any
+//! length, no type name shown beyond its file in two crates, no public
+//! function that says what went wrong as a bare `String`.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -270,9 +271,64 @@ fn named_paths(text: &str, module: &[String]) -> Vec<Vec<String>> {
     paths
 }
 
-#[test]
-fn no_two_files_import_each_other() {
-    let mut pairs = Vec::new();
+/// The circles in a graph of files: each strongly connected set of more
+/// than one file (Tarjan's algorithm), whatever the circle's length.
+fn circles(edges: &BTreeSet<(PathBuf, PathBuf)>) -> Vec<Vec<PathBuf>> {
+    struct Walk<'a> {
+        next: BTreeMap<&'a PathBuf, Vec<&'a PathBuf>>,
+        index: BTreeMap<&'a PathBuf, usize>,
+        low: BTreeMap<&'a PathBuf, usize>,
+        stack: Vec<&'a PathBuf>,
+        circles: Vec<Vec<PathBuf>>,
+    }
+    impl<'a> Walk<'a> {
+        fn visit(&mut self, file: &'a PathBuf) {
+            let i = self.index.len();
+            self.index.insert(file, i);
+            self.low.insert(file, i);
+            self.stack.push(file);
+            for to in self.next.get(file).cloned().unwrap_or_default() {
+                if !self.index.contains_key(to) {
+                    self.visit(to);
+                    let low = self.low[file].min(self.low[to]);
+                    self.low.insert(file, low);
+                } else if self.stack.contains(&to) {
+                    let low = self.low[file].min(self.index[to]);
+                    self.low.insert(file, low);
+                }
+            }
+            if self.low[file] == self.index[file] {
+                let at = self.stack.iter().rposition(|f| *f == file).unwrap();
+                let set: Vec<PathBuf> = self.stack.drain(at..).map(PathBuf::clone).collect();
+                if set.len() > 1 {
+                    self.circles.push(set);
+                }
+            }
+        }
+    }
+    let mut walk = Walk {
+        next: BTreeMap::new(),
+        index: BTreeMap::new(),
+        low: BTreeMap::new(),
+        stack: Vec::new(),
+        circles: Vec::new(),
+    };
+    for (a, b) in edges {
+        walk.next.entry(a).or_default().push(b);
+    }
+    let files: Vec<&PathBuf> = walk.next.keys().copied().collect();
+    for file in files {
+        if !walk.index.contains_key(file) {
+            walk.visit(file);
+        }
+    }
+    walk.circles
+}
+
+/// Which file imports which, within each crate (and the binary), by the
+/// paths each names through `crate::`, `super::` and `self::`.
+fn imports() -> BTreeSet<(PathBuf, PathBuf)> {
+    let mut edges = BTreeSet::new();
     for root in roots() {
         let files: BTreeMap<Vec<String>, PathBuf> = sources(&root)
             .into_iter()
@@ -283,7 +339,6 @@ fn no_two_files_import_each_other() {
                 .rev()
                 .find_map(|n| files.get(&path[..n]).cloned())
         };
-        let mut edges = BTreeSet::new();
         for (module, file) in &files {
             for path in named_paths(&code(file), module) {
                 if let Some(target) = file_of(&path)
@@ -293,13 +348,92 @@ fn no_two_files_import_each_other() {
                 }
             }
         }
-        for (a, b) in &edges {
-            if a < b && edges.contains(&(b.clone(), a.clone())) {
-                pairs.push(format!("{} ↔ {}", a.display(), b.display()));
+    }
+    edges
+}
+
+#[test]
+fn no_files_import_each_other_in_a_circle() {
+    let found: Vec<String> = circles(&imports())
+        .iter()
+        .map(|set| {
+            set.iter()
+                .map(|f| f.display().to_string())
+                .collect::<Vec<_>>()
+                .join(" → ")
+        })
+        .collect();
+    assert!(
+        found.is_empty(),
+        "files that import each other, around a circle: {found:#?}"
+    );
+}
+
+/// Files whose types mirror an outside schema field by field and keep its
+/// names (ROS 2's `.msg` files, Foxglove's schemas): a `Pose` there is the
+/// schema's, whichever crate speaks it.
+const SCHEMA_MIRRORS: [&str; 2] = [
+    "crates/vl-host/src/ros2/messages.rs",
+    "crates/vl-record/src/foxglove/messages.rs",
+];
+
+/// The types each crate shows beyond their file (`pub`, `pub(crate)`,
+/// `pub(super)`), by name: which crates define each name.
+fn shown_types() -> BTreeMap<String, BTreeSet<String>> {
+    let top = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut names: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for root in roots() {
+        let krate = root
+            .parent()
+            .unwrap()
+            .strip_prefix(top)
+            .unwrap()
+            .display()
+            .to_string();
+        for file in sources(&root) {
+            let relative = file.strip_prefix(top).unwrap();
+            if SCHEMA_MIRRORS.iter().any(|m| relative == Path::new(m)) {
+                continue;
+            }
+            for line in code(&file).lines() {
+                let Some(rest) = line.strip_prefix("pub") else {
+                    continue;
+                };
+                let rest = match rest.strip_prefix('(') {
+                    Some(r) => r.split_once(')').map_or("", |(_, r)| r),
+                    None => rest,
+                };
+                let mut words = rest.split_whitespace();
+                if let (Some("struct" | "enum" | "trait" | "type"), Some(name)) =
+                    (words.next(), words.next())
+                {
+                    let name: String = name
+                        .chars()
+                        .take_while(|c| c.is_alphanumeric() || *c == '_')
+                        .collect();
+                    names.entry(name).or_default().insert(krate.clone());
+                }
             }
         }
     }
-    assert!(pairs.is_empty(), "files that import each other: {pairs:#?}");
+    names
+}
+
+#[test]
+fn no_type_name_means_two_things() {
+    let twice: Vec<String> = shown_types()
+        .into_iter()
+        .filter(|(_, crates)| crates.len() > 1)
+        .map(|(name, crates)| format!("{name} in {crates:?}"))
+        .collect();
+    assert!(
+        twice.is_empty(),
+        "type names defined in two crates (name one of them for what it is): {twice:#?}"
+    );
+    // The check sees what it looks for.
+    let shown = shown_types();
+    assert!(shown["Arena"].contains("crates/vl-core"));
+    assert!(shown["GuestApp"].contains("crates/vl-guest"));
 }
 
 #[test]
@@ -342,4 +476,16 @@ fn the_checks_see_what_they_look_for() {
     let paths = named_paths("use crate::lab::{Lab, map_field};", &module);
     assert!(paths.contains(&vec!["lab".into(), "map_field".into()]));
     assert!(named_paths("my_crate::x", &module).is_empty());
+    // A circle of three is found, and a chain is not a circle.
+    let edge = |a: &str, b: &str| (PathBuf::from(a), PathBuf::from(b));
+    let mut edges = BTreeSet::from([
+        edge("a", "b"),
+        edge("b", "c"),
+        edge("c", "a"),
+        edge("c", "d"),
+    ]);
+    assert_eq!(circles(&edges).len(), 1);
+    assert_eq!(circles(&edges)[0].len(), 3);
+    edges.remove(&edge("c", "a"));
+    assert!(circles(&edges).is_empty());
 }

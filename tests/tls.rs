@@ -143,10 +143,10 @@ fn kept_tls_host(data: &std::path::Path, port: u16, extra: &[&str]) -> (common::
 }
 
 /// The next welcome `connection` gets, within `wait`.
-async fn welcomed(connection: &mut vl_guest::Connection, wait: Duration) -> bool {
+async fn welcomed(connection: &mut vl_client::Connection, wait: Duration) -> bool {
     let deadline = tokio::time::Instant::now() + wait;
     while let Ok(Some(incoming)) = tokio::time::timeout_at(deadline, connection.recv()).await {
-        if let vl_guest::Incoming::Message(m) = incoming
+        if let vl_client::Incoming::Message(m) = incoming
             && matches!(*m, vl_core::HostMessage::Welcome { .. })
         {
             return true;
@@ -161,10 +161,10 @@ async fn a_restarted_self_signed_host_keeps_its_pin_and_a_pinned_guest_comes_bac
     let port = common::free_port();
     let (host, url) = kept_tls_host(&data, port, &[]);
     assert!(url.contains("#pin="), "{url}");
-    let mut guest = vl_guest::open(&url).unwrap();
+    let mut guest = vl_client::open(&url).unwrap();
     guest
         .outgoing
-        .send(vl_guest::Login::default().hello(vl_core::Role::Observer))
+        .send(vl_client::Login::default().hello(vl_core::Role::Observer))
         .unwrap();
     assert!(
         welcomed(&mut guest, Duration::from_secs(20)).await,

@@ -1,5 +1,5 @@
 //! `vl experiment report`: the whole matrix of links × experiments ×
-//! pacing × seeds, with its progress on the console; `vl_guest::experiment`
+//! pacing × seeds, with its progress on the console; `vl_campaign`
 //! runs it and writes the report.
 
 use std::path::PathBuf;

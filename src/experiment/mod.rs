@@ -1,5 +1,5 @@
 //! `vl experiment`: the lab's experiments run headless and measured (thesis
-//! ch. 7), by `vl_guest::experiment`; this parses what to run and prints
+//! ch. 7), by `vl_campaign`; this parses what to run and prints
 //! how it went.
 
 mod matrix;
@@ -10,8 +10,8 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use vl_campaign::{RunSeries, RunSpec};
+use vl_client::Pacing;
 use vl_core::{Arena, Experiment};
-use vl_guest::Pacing;
 
 use crate::input::{SceneArgs, load_arena, seconds};
 use crate::named;

@@ -6,8 +6,8 @@
 //! follows the path (navigation) or a scripted operator steers along it
 //! from the delayed feedback (teleoperation). The matrix (`matrix`) runs
 //! every link profile × pacing × seeds and writes the report (`markdown`,
-//! drawn by `vl_guest::plots`). It needs both ends of the lab, so it is a
-//! crate above the Guest and the Host, which know nothing of each other.
+//! drawn by `vl_client::plots`). It needs both ends of the lab, so it is a
+//! crate above the client and the Host, which know nothing of each other.
 
 mod markdown;
 mod matrix;
@@ -27,8 +27,8 @@ pub use markdown::{headline, write_report};
 pub use matrix::{Matrix, MatrixCell, Timing, cells_of, run_all};
 pub use runs::RunSeries;
 pub use stats::Interval;
-use vl_guest::plots;
-use vl_guest::{MeanMax, Pacing, RoundTripMs, Script, ScriptError, ScriptReport, run_script};
+use vl_client::plots;
+use vl_client::{MeanMax, Pacing, RoundTripMs, Script, ScriptError, ScriptReport, run_script};
 
 /// Why an experiment could not be run or reported.
 #[derive(Debug, thiserror::Error)]
@@ -53,7 +53,7 @@ pub enum CampaignError {
         source: std::io::Error,
     },
     #[error(transparent)]
-    Draw(#[from] vl_guest::plots::PlotError),
+    Draw(#[from] vl_client::plots::PlotError),
 }
 
 /// Writes `contents` to `path`, saying which file could not be written.

@@ -25,7 +25,7 @@ pub fn write_report(dir: &Path, m: &Matrix, arena: &Arena) -> Result<(), Campaig
     let pictures = draw(dir, m, arena)?;
     write(dir, m, &pictures)?;
     let json = serde_json::to_string_pretty(m).map_err(|e| {
-        CampaignError::Draw(vl_guest::plots::PlotError {
+        CampaignError::Draw(vl_client::plots::PlotError {
             what: "report.json".into(),
             why: e.to_string(),
         })

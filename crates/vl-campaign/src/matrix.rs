@@ -13,8 +13,8 @@ use vl_host::{Delays, FramePolicy};
 use vl_sim::{LinkModel, Optics};
 
 use super::{CampaignError, Interval, Leg, MeasuredRun, Pacing, RunSpec, overall, run_one};
-use vl_guest::MeanMax;
-use vl_guest::plots::{self, EVENT, Marks, TIME};
+use vl_client::MeanMax;
+use vl_client::plots::{self, EVENT, Marks, TIME};
 
 /// One cell of the matrix, over its seeds.
 #[derive(Serialize, Clone)]
@@ -442,8 +442,8 @@ fn profile_pictures(
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
+    use vl_client::RoundTripMs;
     use vl_core::{ErrorMm, PoseSource};
-    use vl_guest::RoundTripMs;
 
     /// A run on `profile` that reached its goal or not, with a tracking
     /// error of mean `track` (max twice that) and a round trip of `rtt` ms.

@@ -159,8 +159,8 @@ impl RunSeries {
 mod tests {
     use super::*;
     use crate::matrix::tests::run;
+    use vl_client::Pacing;
     use vl_core::Experiment;
-    use vl_guest::Pacing;
 
     #[test]
     fn one_failed_run_fails_the_series_and_its_errors_count() {

@@ -33,7 +33,7 @@
 //!   places fused; the PNML, DOT and Markdown report `vl lab nets` writes
 //!
 //! - `model/` `robot`, `proximity`, `response_fit`, `khepera`, `camera`,
-//!   `lens`, `arena/` (`shape`, `material`, `map`, `load`): poses, points,
+//!   `lens`, `arena` (`shape`, `material`, `map`, `load`): poses, points,
 //!   wheel speeds, the robot model and differential-drive kinematics, its
 //!   measured `wheel_slip` (how fast odometry grows uncertain), its
 //!   `SpeedResponse` (gain, time constant, acceleration limit, dead time: the
@@ -165,7 +165,7 @@ pub use navigation::distance::FAR;
 pub use navigation::follow::{Follower, Following, Steer};
 pub use navigation::grid::{CSpaceError, Grid};
 pub use navigation::localise::{Fold, Localiser, Uncertainty};
-pub use navigation::nf1::{Cell, Nf1};
+pub use navigation::nf1::{CSpaceCell, Nf1};
 pub use navigation::plan::{
     ARENA_CELL_MM, ArenaPlanError, NoPath, PathEnd, Plan, Smoothing, clearance, disc_cspace, plan,
     plan_route, plan_route_with_margin,

@@ -39,8 +39,9 @@
 //!   command, ends a followed run that comes no further for 5 s saying where
 //!   and why (`held_back`), turns in place to a heading at a run's goal when
 //!   asked, and records the run's paths (`control`); the WebSocket server
-//!   (`server/`): who gets a connection, at most 256 of which 32 not yet
-//!   welcomed and 8 of those from one address, a newcomer pushing out the
+//!   (`server/`): who gets a connection, at most 256 (`MAX_CONNECTIONS`) of
+//!   which 128 (`MAX_UNWELCOMED`) not yet welcomed and 64
+//!   (`MAX_UNWELCOMED_PER_ADDRESS`) of those from one address, a newcomer pushing out the
 //!   oldest silent one of its own address, or else of the address holding the
 //!   most, bare sockets before upgraded ones — idle sockets from one machine
 //!   only push out each other (`admission`, which the Media uses too); one
@@ -111,7 +112,7 @@ use vl_sim::{Optics, Scheduled};
 pub use accounts::audit::{Audit, AuditEntry};
 pub use accounts::gate::{
     Admitted, Credentials, FAILURE_DELAY, FAILURE_REFILL, FAILURES_BURST, Gate, Identity,
-    Observers, Purpose, Refusal,
+    Observers, Purpose, Refusal, SessionCheck, SessionId,
 };
 pub use accounts::users::{AccountRole, Member, Roster, Users, UsersError};
 pub use accounts::{SecretError, secret_from_file};
@@ -127,8 +128,8 @@ pub use lab::{Devices, FramePolicy};
 pub use line::run_guard;
 pub use lti::{Lti, LtiError, LtiOptions, Platform, Registry, ToolKey, key_path, registry_path};
 pub use media::{
-    Delays, Media, MediaBench, MediaBenchError, MediaConfig, MediaError, Reproduced, RoundTrip,
-    bench as media_bench,
+    Delays, Media, MediaBench, MediaBenchError, MediaConfig, MediaError, RelayRoundTrip,
+    Reproduced, bench as media_bench,
 };
 pub use priority::raise_for_control as raise_priority;
 pub use ros2::{
@@ -138,6 +139,7 @@ pub use server::bench::{
     BenchError, GatewayBench, GatewayCost, Guessing, OperatorLatency, WatchersBench, WatchersCost,
     operator_latency,
 };
+pub use server::events::{LabEvent, LabEvents, RunDriver, RunEnded};
 pub use server::origin::{AllowedOrigins, NotAnOrigin};
 pub use server::{ForecastSettings, HostConfig, MOST_FORECAST_SEEDS};
 pub use setup::{LabSpec, RobotSpec, SetupError};

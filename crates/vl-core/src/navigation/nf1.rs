@@ -10,7 +10,7 @@
 use crate::{CSpace, Connectivity};
 
 /// A cell of the C-space: column, row, θ slice.
-pub type Cell = (u32, u32, u32);
+pub type CSpaceCell = (u32, u32, u32);
 
 /// Value of a cell the wavefront never reached.
 const UNREACHED: u32 = u32::MAX;
@@ -32,7 +32,7 @@ pub struct Nf1 {
 impl Nf1 {
     /// Breadth-first wavefront from `goal` over every cell it reaches. A
     /// goal in an obstacle reaches nothing.
-    pub fn from_goal(cspace: &CSpace, goal: Cell, connectivity: Connectivity) -> Nf1 {
+    pub fn from_goal(cspace: &CSpace, goal: CSpaceCell, connectivity: Connectivity) -> Nf1 {
         Nf1::wave(cspace, goal, connectivity, None)
     }
 
@@ -40,11 +40,21 @@ impl Nf1 {
     /// wave that reaches the start, which fixes every value the descent from
     /// there reads (all lower); cells farther out are left unreached. A
     /// start near the goal costs a small ball, not the whole map.
-    pub fn toward(cspace: &CSpace, goal: Cell, start: Cell, connectivity: Connectivity) -> Nf1 {
+    pub fn toward(
+        cspace: &CSpace,
+        goal: CSpaceCell,
+        start: CSpaceCell,
+        connectivity: Connectivity,
+    ) -> Nf1 {
         Nf1::wave(cspace, goal, connectivity, Some(start))
     }
 
-    fn wave(cspace: &CSpace, goal: Cell, connectivity: Connectivity, until: Option<Cell>) -> Nf1 {
+    fn wave(
+        cspace: &CSpace,
+        goal: CSpaceCell,
+        connectivity: Connectivity,
+        until: Option<CSpaceCell>,
+    ) -> Nf1 {
         let grid = cspace.grid();
         let (width, height) = (grid.width, grid.height);
         let mut nf1 = Nf1 {
@@ -162,7 +172,7 @@ impl Nf1 {
 
     /// The number of steps from `cell` to the goal, or None when it cannot
     /// reach the goal (or is blocked).
-    pub fn value(&self, cell: Cell) -> Option<u32> {
+    pub fn value(&self, cell: CSpaceCell) -> Option<u32> {
         let v = self.values[self.index(cell)];
         (v < BLOCKED).then_some(v)
     }
@@ -171,7 +181,7 @@ impl Nf1 {
     /// to a neighbour one value lower, preferring the one nearest the goal
     /// in the plane so the staircase hugs the straight line. None when the
     /// start cannot reach the goal.
-    pub fn descend(&self, start: Cell, goal: Cell) -> Option<Vec<Cell>> {
+    pub fn descend(&self, start: CSpaceCell, goal: CSpaceCell) -> Option<Vec<CSpaceCell>> {
         let mut value = self.value(start)?;
         let mut path = Vec::with_capacity(value as usize + 1);
         let mut i = self.index(start);
@@ -206,11 +216,11 @@ impl Nf1 {
         self.stride() * (self.height as usize + 2)
     }
 
-    fn index(&self, (c, r, k): Cell) -> usize {
+    fn index(&self, (c, r, k): CSpaceCell) -> usize {
         k as usize * self.plane() + (r as usize + 1) * self.stride() + c as usize + 1
     }
 
-    fn cell(&self, i: usize) -> Cell {
+    fn cell(&self, i: usize) -> CSpaceCell {
         let (k, rest) = (i / self.plane(), i % self.plane());
         let (r, c) = (rest / self.stride(), rest % self.stride());
         ((c - 1) as u32, (r - 1) as u32, k as u32)

@@ -9,7 +9,7 @@ use thiserror::Error;
 use super::follow::PLAN_MARGIN_MM;
 use super::spline::{Knot, Spline};
 use crate::{
-    Arena, CSpace, CSpaceError, Cell, Connectivity, FAR, Footprint, Grid, Nf1, Point, Pose,
+    Arena, CSpace, CSpaceCell, CSpaceError, Connectivity, FAR, Footprint, Grid, Nf1, Point, Pose,
     RobotModel, Shape, Surroundings, wrap_angle,
 };
 
@@ -70,7 +70,7 @@ pub struct Plan {
     /// The start cell's NF1 value: grid steps to the goal.
     pub nf1_start_value: u32,
     /// The descent, start cell to goal cell.
-    pub grid_path: Vec<Cell>,
+    pub grid_path: Vec<CSpaceCell>,
     /// The smooth path's samples, start to goal, at most a quarter cell
     /// apart. θ is the planned heading for a polygon robot, and the path's
     /// direction for a disc.
@@ -90,7 +90,7 @@ impl Plan {
 }
 
 /// The cell the robot stands in at `pose`, if it is free.
-pub(crate) fn locate(cspace: &CSpace, pose: Pose, which: PathEnd) -> Result<Cell, NoPath> {
+pub(crate) fn locate(cspace: &CSpace, pose: Pose, which: PathEnd) -> Result<CSpaceCell, NoPath> {
     let grid = cspace.grid();
     let (w, h) = grid.size_mm();
     let (c, r) = grid.cell_of(pose.point()).ok_or(NoPath::OffMap {
@@ -111,7 +111,7 @@ pub(crate) fn locate(cspace: &CSpace, pose: Pose, which: PathEnd) -> Result<Cell
     Ok((c, r, k as u32))
 }
 
-/// Cell size for planning on an arena's obstacle list.
+/// CSpaceCell size for planning on an arena's obstacle list.
 pub const ARENA_CELL_MM: f64 = 5.0;
 
 /// Why a path in an arena could not be planned.
@@ -339,7 +339,7 @@ fn heading_mm(cspace: &CSpace) -> f64 {
 
 /// Spline knots (x, y, scaled unwrapped θ) for each cell of the descent,
 /// with the real start and goal poses in place of their cells' centres.
-fn knots(cspace: &CSpace, start: Pose, goal: Pose, cells: &[Cell]) -> Vec<Knot> {
+fn knots(cspace: &CSpace, start: Pose, goal: Pose, cells: &[CSpaceCell]) -> Vec<Knot> {
     let grid = cspace.grid();
     let rho = heading_mm(cspace);
     let mut theta = start.theta_rad;
@@ -370,7 +370,7 @@ pub(crate) fn smooth(
     cspace: &CSpace,
     start: Pose,
     goal: Pose,
-    cells: &[Cell],
+    cells: &[CSpaceCell],
 ) -> (Vec<Pose>, Smoothing) {
     let all = knots(cspace, start, goal, cells);
     let step = cspace.grid().cell_mm / SAMPLES_PER_CELL;

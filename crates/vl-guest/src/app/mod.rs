@@ -16,16 +16,17 @@ use vl_core::{
     Shape, Teleop, Vector,
 };
 
-use crate::client::GOODBYE_WAIT;
-use crate::client::{ClientError, Connection, Incoming, open};
 use crate::gamepad::Pad;
-use crate::login::Login;
-use crate::session::{LinkState, Session};
-use crate::settings::Settings;
+use vl_client::GOODBYE_WAIT;
+use vl_client::Login;
+use vl_client::Settings;
+use vl_client::{ClientError, Connection, Incoming, open};
+use vl_client::{LinkState, Session};
 
 mod panels;
 mod preview;
 mod recordings;
+mod replay;
 mod tasks;
 mod view;
 
@@ -117,16 +118,16 @@ pub struct GuestApp {
     /// Where the forecast's preview is.
     preview: preview::Preview,
     /// The recorded run played back instead of a Host's live one.
-    replay: Option<crate::replay::Replay>,
+    replay: Option<vl_client::Replay>,
     /// Where saved definitions are kept (none: nowhere), the name typed
     /// for the next, and what the last save or load did.
-    tasks: Option<crate::tasks::Tasks>,
+    tasks: Option<vl_client::Tasks>,
     task_name: String,
     task_note: Option<String>,
     /// Where downloaded runs go (none: no downloads), the one coming, and
     /// what the last download or replay did.
     downloads: Option<PathBuf>,
-    download: Option<crate::recordings::Downloading>,
+    download: Option<vl_client::Downloading>,
     recordings_note: Option<String>,
 }
 
@@ -187,7 +188,7 @@ impl GuestApp {
     }
 
     /// Plays `replay` in place of the live view; `Back to the lab` ends it.
-    fn play(&mut self, replay: crate::replay::Replay) {
+    fn play(&mut self, replay: vl_client::Replay) {
         self.connection = Connection::detached();
         self.session = Session::default();
         self.forget_the_host();
@@ -195,13 +196,13 @@ impl GuestApp {
     }
 
     /// The window keeping its tasks in `tasks`.
-    pub fn with_tasks(mut self, tasks: crate::tasks::Tasks) -> Self {
+    pub fn with_tasks(mut self, tasks: vl_client::Tasks) -> Self {
         self.tasks = Some(tasks);
         self
     }
 
     /// A window playing `replay` back, connected to no Host.
-    pub fn replaying(replay: crate::replay::Replay) -> Self {
+    pub fn replaying(replay: vl_client::Replay) -> Self {
         let address = Destination {
             url: replay.file.clone(),
             role: Role::Observer,
@@ -213,7 +214,7 @@ impl GuestApp {
     }
 
     /// The replay, when the window plays one back.
-    pub fn replay(&mut self) -> Option<&mut crate::replay::Replay> {
+    pub fn replay(&mut self) -> Option<&mut vl_client::Replay> {
         self.replay.as_mut()
     }
 
@@ -263,7 +264,7 @@ impl GuestApp {
             let from_lab = self.address.url.starts_with("ws");
             let mut back = false;
             egui::Panel::top("replay").show(ui, |ui| {
-                replay.controls(ui);
+                replay::controls(replay, ui);
                 back = from_lab && ui.button("Back to the lab").clicked();
             });
             if back {
@@ -294,7 +295,7 @@ impl GuestApp {
             egui::Panel::bottom("view legend").show(ui, |ui| self.view_legend(ui));
         }
         if let Some(replay) = &self.replay {
-            replay.results_panel(ui);
+            replay::results_panel(replay, ui);
         }
         egui::CentralPanel::default().show(ui, |ui| self.camera_view(ui));
         // Repaint when something moves; an idle window only keeps its
@@ -605,17 +606,17 @@ pub fn run_window(
     if let Some(pad) = pad {
         app = app.with_pad(pad);
     }
-    if let Ok(tasks) = crate::tasks::Tasks::of_user() {
+    if let Ok(tasks) = vl_client::Tasks::of_user() {
         app = app.with_tasks(tasks);
     }
-    if let Some(dir) = crate::recordings::downloads_dir() {
+    if let Some(dir) = vl_client::downloads_dir() {
         app = app.with_downloads(dir);
     }
     show_window(app)
 }
 
 /// Opens the Guest window playing the recorded run `replay` back.
-pub fn run_replay_window(replay: crate::replay::Replay) -> Result<(), WindowError> {
+pub fn run_replay_window(replay: vl_client::Replay) -> Result<(), WindowError> {
     show_window(GuestApp::replaying(replay))
 }
 

@@ -7,10 +7,10 @@ use vl_core::{
 };
 
 use super::{FORCE_COLOUR, GuestApp, JOYSTICK_PX, ROBOT_COLOUR};
-use crate::login::Login;
 use crate::netview;
-use crate::route::Route;
-use crate::settings::{MARGIN_MM, MAX_SPEED_MM_S};
+use vl_client::Login;
+use vl_client::Route;
+use vl_client::{MARGIN_MM, MAX_SPEED_MM_S};
 
 impl GuestApp {
     pub(super) fn controls(&mut self, ui: &mut egui::Ui) {

@@ -8,9 +8,9 @@ use std::time::Instant;
 use egui::{Color32, Pos2, Stroke, Vec2};
 use vl_core::{ForecastVerdict, LabScene, Point, SeedRun};
 
+use super::replay::time_slider;
 use super::view::OnScreen;
 use super::{FORECAST_COLOUR, GuestApp};
-use crate::replay::time_slider;
 
 /// Where a refused forecast fails.
 const REFUSED_COLOUR: Color32 = Color32::from_rgb(230, 40, 40);

@@ -9,8 +9,8 @@ use std::time::{Duration, Instant};
 use vl_core::{ErrorCode, GuestMessage, HostMessage, PartHeader, RecordedRun};
 
 use super::GuestApp;
-use crate::recordings::Downloading;
-use crate::replay::Replay;
+use vl_client::Downloading;
+use vl_client::Replay;
 
 /// The line a run is listed with.
 fn describe(run: &RecordedRun) -> String {

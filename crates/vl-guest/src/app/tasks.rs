@@ -4,7 +4,7 @@
 use vl_core::{Action, Experiment, GuestMessage};
 
 use super::GuestApp;
-use crate::tasks::{Task, TaskName};
+use vl_client::{Task, TaskName};
 
 impl GuestApp {
     /// Save the definition in force as a task; load one saved and define it.

@@ -14,8 +14,8 @@ use super::{
     GHOST_COLOUR, GOAL_COLOUR, GuestApp, OBSTACLE_COLOUR, PATH_COLOUR, ROBOT_COLOUR, TRAIL_COLOUR,
     VIRTUAL_COLOUR, colour,
 };
-use crate::route::{check_path, drag_path};
-use crate::session::LinkState;
+use vl_client::LinkState;
+use vl_client::{check_path, drag_path};
 
 /// How near the pointer must be to a path sample to grab it, px.
 const GRAB_PX: f32 = 10.0;

@@ -110,7 +110,7 @@ pub struct Lti {
     http: reqwest::Client,
     audit: Audit,
     grades: grades::GradeBook,
-    tokens: services::Tokens,
+    tokens: services::AccessTokens,
 }
 
 impl Lti {
@@ -128,7 +128,7 @@ impl Lti {
             http: services::client()?,
             audit,
             grades: grades::GradeBook::new(options.rubric),
-            tokens: services::Tokens::default(),
+            tokens: services::AccessTokens::default(),
         }))
     }
 

@@ -46,7 +46,7 @@ struct KeySet {
 
 /// Access tokens by platform and scope, and the key sets by URL.
 #[derive(Default)]
-pub(super) struct Tokens {
+pub(super) struct AccessTokens {
     tokens: Mutex<HashMap<(String, String), (String, Instant)>>,
     keys: Mutex<HashMap<String, KeySet>>,
 }

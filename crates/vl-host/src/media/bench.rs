@@ -34,16 +34,16 @@ const MESSAGE_BYTES: usize = 100;
 
 /// Round-trip percentiles, ms.
 #[derive(Debug, Clone, Copy, Serialize)]
-pub struct RoundTrip {
+pub struct RelayRoundTrip {
     pub p50_ms: f64,
     pub p99_ms: f64,
 }
 
-impl RoundTrip {
-    fn of(mut ms: Vec<f64>) -> RoundTrip {
+impl RelayRoundTrip {
+    fn of(mut ms: Vec<f64>) -> RelayRoundTrip {
         ms.sort_by(f64::total_cmp);
         let at = |q: f64| vl_core::nearest_rank(&ms, q).unwrap_or(f64::NAN);
-        RoundTrip {
+        RelayRoundTrip {
             p50_ms: at(0.5),
             p99_ms: at(0.99),
         }
@@ -86,10 +86,10 @@ pub struct Reproduced {
 #[derive(Debug, Clone, Serialize)]
 pub struct MediaBench {
     pub messages: usize,
-    pub direct: RoundTrip,
-    pub relayed: RoundTrip,
+    pub direct: RelayRoundTrip,
+    pub relayed: RelayRoundTrip,
     /// Relayed minus direct, at each percentile.
-    pub added: RoundTrip,
+    pub added: RelayRoundTrip,
     pub profiles: Vec<Reproduced>,
 }
 
@@ -324,7 +324,7 @@ pub async fn bench(
         direct.push(round_trip(&mut direct_ws, &text).await?);
         relayed.push(round_trip(&mut relayed_ws, &text).await?);
     }
-    let (direct, relayed) = (RoundTrip::of(direct), RoundTrip::of(relayed));
+    let (direct, relayed) = (RelayRoundTrip::of(direct), RelayRoundTrip::of(relayed));
     let mut reproduced = Vec::new();
     for (name, model) in profiles {
         // The relay's own cost on this profile's traffic, from a fresh
@@ -362,7 +362,7 @@ pub async fn bench(
     server.abort();
     Ok(MediaBench {
         messages,
-        added: RoundTrip {
+        added: RelayRoundTrip {
             p50_ms: relayed.p50_ms - direct.p50_ms,
             p99_ms: relayed.p99_ms - direct.p99_ms,
         },

@@ -29,7 +29,7 @@ use crate::server::socket::{self, Unwritten};
 
 mod bench;
 
-pub use bench::{MediaBench, MediaBenchError, Reproduced, RoundTrip, bench};
+pub use bench::{MediaBench, MediaBenchError, RelayRoundTrip, Reproduced, bench};
 
 /// Bytes of text (and recordings' parts) one direction of a connection may
 /// hold in flight (besides one message however large): what a slow link

@@ -17,7 +17,7 @@ use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig, Mis
 
 use super::Ros2Error;
 use super::messages::Message;
-use super::msg::{Catalogue, dds_name};
+use super::msg::{MessageDefinitions, dds_name};
 use crate::hush::Hush;
 
 /// The largest sample taken from a subscription (a camera's frame is far
@@ -81,7 +81,7 @@ pub(crate) struct Node {
     /// Node and entity ids, unique within the session.
     ids: Arc<AtomicU32>,
     nid: u32,
-    catalogue: Arc<Catalogue>,
+    catalogue: Arc<MessageDefinitions>,
     _token: LivelinessToken,
 }
 
@@ -93,7 +93,7 @@ impl Node {
         domain: u32,
         namespace: Option<&str>,
         name: &str,
-        catalogue: Arc<Catalogue>,
+        catalogue: Arc<MessageDefinitions>,
     ) -> Result<Node, Ros2Error> {
         let namespace = match namespace {
             Some(inner) => format!("/{inner}"),

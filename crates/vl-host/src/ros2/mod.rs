@@ -96,6 +96,7 @@ pub fn operator_as(account: Option<&str>, users: Option<&Users>) -> Result<Admit
     Ok(Admitted {
         identity,
         may_drive: true,
+        session: None,
     })
 }
 
@@ -115,7 +116,7 @@ async fn node(
     namespace: Option<&str>,
     name: &str,
 ) -> Result<graph::Node, Ros2Error> {
-    let catalogue = std::sync::Arc::new(msg::Catalogue::vendored()?);
+    let catalogue = std::sync::Arc::new(msg::MessageDefinitions::vendored()?);
     let session = crate::cells::open(zenoh).await?;
     graph::Node::new(session, domain, namespace, name, catalogue).await
 }

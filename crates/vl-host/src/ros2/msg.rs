@@ -182,7 +182,7 @@ pub(crate) enum Element {
 
 /// One, a fixed number, or a sequence of elements.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Shape {
+pub(crate) enum Multiplicity {
     Single,
     Array(u32),
     Sequence(Option<u32>),
@@ -192,7 +192,7 @@ pub(crate) enum Shape {
 pub(crate) struct Field {
     pub(crate) name: String,
     pub(crate) element: Element,
-    pub(crate) shape: Shape,
+    pub(crate) shape: Multiplicity,
 }
 
 /// A message: its full type name and its fields (constants left out, as
@@ -243,9 +243,9 @@ pub(crate) fn parse(name: &str, text: &str) -> Result<MsgDef, MsgError> {
 }
 
 /// `T`, `T[N]`, `T[]` or `T[<=N]`.
-fn shape_of(kind: &str) -> Result<(&str, Shape), String> {
+fn shape_of(kind: &str) -> Result<(&str, Multiplicity), String> {
     let Some((base, bracket)) = kind.split_once('[') else {
-        return Ok((kind, Shape::Single));
+        return Ok((kind, Multiplicity::Single));
     };
     let inside = bracket
         .strip_suffix(']')
@@ -255,9 +255,9 @@ fn shape_of(kind: &str) -> Result<(&str, Shape), String> {
             .map_err(|_| format!("'{kind}': '{n}' is no size"))
     };
     let shape = match inside.strip_prefix("<=") {
-        _ if inside.is_empty() => Shape::Sequence(None),
-        Some(bound) => Shape::Sequence(Some(number(bound)?)),
-        None => Shape::Array(number(inside)?),
+        _ if inside.is_empty() => Multiplicity::Sequence(None),
+        Some(bound) => Multiplicity::Sequence(Some(number(bound)?)),
+        None => Multiplicity::Array(number(inside)?),
     };
     Ok((base, shape))
 }
@@ -289,17 +289,17 @@ fn element_of(base: &str, package: &str) -> Result<Element, String> {
 
 /// The vendored messages, read once.
 #[derive(Debug, Clone)]
-pub(crate) struct Catalogue {
+pub(crate) struct MessageDefinitions {
     defs: BTreeMap<String, MsgDef>,
 }
 
-impl Catalogue {
-    pub(crate) fn vendored() -> Result<Catalogue, MsgError> {
+impl MessageDefinitions {
+    pub(crate) fn vendored() -> Result<MessageDefinitions, MsgError> {
         let mut defs = BTreeMap::new();
         for (name, text) in VENDORED {
             defs.insert((*name).to_owned(), parse(name, text)?);
         }
-        Ok(Catalogue { defs })
+        Ok(MessageDefinitions { defs })
     }
 
     pub(crate) fn get(&self, name: &str) -> Result<&MsgDef, MsgError> {
@@ -359,7 +359,7 @@ fn describe(json: &mut String, def: &MsgDef) {
     let placeholder = [Field {
         name: "structure_needs_at_least_one_member".into(),
         element: Element::Primitive(Primitive::UInt8),
-        shape: Shape::Single,
+        shape: Multiplicity::Single,
     }];
     let fields = if def.fields.is_empty() {
         &placeholder[..]
@@ -377,10 +377,10 @@ fn describe(json: &mut String, def: &MsgDef) {
             Element::Nested(name) => (1, 0, name.as_str()),
         };
         let (offset, capacity) = match field.shape {
-            Shape::Single => (0, 0),
-            Shape::Array(n) => (48, n),
-            Shape::Sequence(Some(n)) => (96, n),
-            Shape::Sequence(None) => (144, 0),
+            Multiplicity::Single => (0, 0),
+            Multiplicity::Array(n) => (48, n),
+            Multiplicity::Sequence(Some(n)) => (96, n),
+            Multiplicity::Sequence(None) => (144, 0),
         };
         let _ = write!(
             json,

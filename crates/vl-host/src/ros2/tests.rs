@@ -8,21 +8,21 @@ use proptest::prelude::*;
 use super::cdr::{CdrError, Reader, Writer};
 use super::graph::{Origin, Qos, attachment};
 use super::messages::*;
-use super::msg::{Catalogue, Element, MsgDef, Primitive, Shape, parse};
+use super::msg::{Element, MessageDefinitions, MsgDef, Multiplicity, Primitive, parse};
 
 /// Reads one value of `def` from `r` by the definition alone, writing the
 /// same to `w`.
 fn walk(
-    catalogue: &Catalogue,
+    catalogue: &MessageDefinitions,
     def: &MsgDef,
     r: &mut Reader<'_>,
     w: &mut Writer,
 ) -> Result<(), CdrError> {
     for field in &def.fields {
         let n = match field.shape {
-            Shape::Single => 1,
-            Shape::Array(n) => n as usize,
-            Shape::Sequence(_) => {
+            Multiplicity::Single => 1,
+            Multiplicity::Array(n) => n as usize,
+            Multiplicity::Sequence(_) => {
                 let n = r.count(1, "sequence")?;
                 w.count(n);
                 n
@@ -36,7 +36,7 @@ fn walk(
 }
 
 fn element(
-    catalogue: &Catalogue,
+    catalogue: &MessageDefinitions,
     element: &Element,
     r: &mut Reader<'_>,
     w: &mut Writer,
@@ -61,7 +61,7 @@ fn element(
 
 /// `message` walked by its definition: the same bytes, all of them.
 fn walked<M: Message>(message: &M) -> Result<Vec<u8>, CdrError> {
-    let catalogue = Catalogue::vendored().expect("the vendored definitions parse");
+    let catalogue = MessageDefinitions::vendored().expect("the vendored definitions parse");
     let bytes = message.encode();
     let mut r = Reader::new(&bytes)?;
     let mut w = Writer::new();
@@ -217,7 +217,7 @@ proptest! {
 /// Jazzy) for types whose definitions have not changed since.
 #[test]
 fn type_hashes_are_ros_s() {
-    let catalogue = Catalogue::vendored().expect("the vendored definitions parse");
+    let catalogue = MessageDefinitions::vendored().expect("the vendored definitions parse");
     assert_eq!(
         catalogue
             .type_hash("geometry_msgs/msg/Twist")
@@ -243,7 +243,7 @@ fn definitions_are_read_as_rosidl_reads_them() {
         "# a comment\nint32 A_CONSTANT=3\nstring<=8 name  # trailing\nfloat64[9] k\nuint8[] data\nHeader header\nOther[<=4] others\nbool flag false\n",
     )
     .expect("parses");
-    let shapes: Vec<(&str, &Shape)> = def
+    let shapes: Vec<(&str, &Multiplicity)> = def
         .fields
         .iter()
         .map(|f| (f.name.as_str(), &f.shape))
@@ -251,12 +251,12 @@ fn definitions_are_read_as_rosidl_reads_them() {
     assert_eq!(
         shapes,
         [
-            ("name", &Shape::Single),
-            ("k", &Shape::Array(9)),
-            ("data", &Shape::Sequence(None)),
-            ("header", &Shape::Single),
-            ("others", &Shape::Sequence(Some(4))),
-            ("flag", &Shape::Single),
+            ("name", &Multiplicity::Single),
+            ("k", &Multiplicity::Array(9)),
+            ("data", &Multiplicity::Sequence(None)),
+            ("header", &Multiplicity::Single),
+            ("others", &Multiplicity::Sequence(Some(4))),
+            ("flag", &Multiplicity::Single),
         ]
     );
     assert_eq!(def.fields[0].element, Element::String(Some(8)));

@@ -76,7 +76,7 @@ pub(crate) struct ConnectionTask {
     pub(crate) identity: Option<Identity>,
     /// The lab's views, made once for every Foxglove client (none at a
     /// gateway, whose Foxglove clients connect to a cell's Host).
-    pub(crate) foxglove: Option<foxglove::Feed>,
+    pub(crate) foxglove: Option<foxglove::LiveFeed>,
     /// One per Host start, for Foxglove's clients.
     pub(crate) session: Arc<str>,
 }
@@ -226,7 +226,7 @@ fn from_allowed_origin(
 
 impl ConnectionTask {
     /// This connection as a Foxglove client's: what it takes from the lab.
-    fn foxglove(self, feed: foxglove::Feed) -> foxglove::Watcher {
+    fn foxglove(self, feed: foxglove::LiveFeed) -> foxglove::Watcher {
         foxglove::Watcher {
             id: self.id,
             hub: self.hub,

@@ -20,7 +20,7 @@ const INBOX: usize = 256;
 
 /// What every Foxglove client shares.
 #[derive(Clone)]
-pub(crate) struct Feed {
+pub(crate) struct LiveFeed {
     views: broadcast::Sender<Arc<View>>,
     latched: Arc<Mutex<HashMap<Topic, Vec<Arc<View>>>>>,
     /// Clients subscribed to the camera or its annotations: frames are
@@ -37,18 +37,18 @@ pub(crate) struct Sources {
     pub log: broadcast::Sender<(Level, String)>,
 }
 
-impl Feed {
+impl LiveFeed {
     /// The feed, the sender the hub hands its broadcasts to, and the task
     /// that makes the views.
     pub(crate) fn start(
         sources: Sources,
     ) -> (
-        Feed,
+        LiveFeed,
         mpsc::Sender<HostMessage>,
         impl std::future::Future<Output = ()>,
     ) {
         let (inbox_tx, inbox) = mpsc::channel(INBOX);
-        let feed = Feed {
+        let feed = LiveFeed {
             views: broadcast::channel(FANOUT).0,
             latched: Arc::default(),
             camera: Arc::default(),

@@ -33,8 +33,8 @@ use crate::accounts::gate::{Credentials, Gate, Purpose};
 use crate::lab::Watching;
 use crate::server::pacing::Pacer;
 use drive::{CMD_VEL, SERVICES};
-pub(crate) use feed::{Feed, Sources};
-use ops::{CHANNELS, ClientOp, Level, ServiceCall, status};
+pub(crate) use feed::{LiveFeed, Sources};
+use ops::{CHANNELS, ClientOp, ServiceCall, StatusLevel, status};
 
 /// The protocol's two names: Foxglove's SDK and foxglove_bridge 3.x ask
 /// for the first only, older clients and Lichtblick before 2026 for the
@@ -154,7 +154,7 @@ async fn send_within(out: &mut Bucket, sink: &mut Sink, id: u32, view: &View) ->
 pub(super) struct Watcher {
     pub id: u64,
     pub hub: tokio::sync::mpsc::Sender<ToHub>,
-    pub feed: Feed,
+    pub feed: LiveFeed,
     pub feedback: tokio::sync::watch::Receiver<Option<HostMessage>>,
     pub watchers: std::sync::Arc<std::sync::atomic::AtomicUsize>,
     pub gate: std::sync::Arc<Gate>,
@@ -181,11 +181,11 @@ impl Watcher {
             Ok(admitted) if self.ticket.seat(admitted.may_drive) => admitted,
             Ok(_) => {
                 let why = "the lab is full: every place to watch from is taken";
-                let _ = put(&mut sink, status(Level::Error, why)).await;
+                let _ = put(&mut sink, status(StatusLevel::Error, why)).await;
                 return close(&mut sink, Ending::Normal).await;
             }
             Err(refused) => {
-                let _ = put(&mut sink, status(Level::Error, &refused.why)).await;
+                let _ = put(&mut sink, status(StatusLevel::Error, &refused.why)).await;
                 return close(&mut sink, Ending::Normal).await;
             }
         };
@@ -289,7 +289,7 @@ impl Watcher {
                 out = inbox.recv() => match out {
                     Some(ToConnection::Send(message)) => self.hub_said(sink, client, &message).await,
                     Some(ToConnection::End(_, why)) => {
-                        let _ = put(sink, status(Level::Error, &why)).await;
+                        let _ = put(sink, status(StatusLevel::Error, &why)).await;
                         return Ending::Normal;
                     }
                     Some(ToConnection::Subscribe | ToConnection::Watch(_)) => {
@@ -301,7 +301,7 @@ impl Watcher {
                     // client fell too far behind.
                     None if self.hub.is_closed() => return Ending::Away,
                     None => {
-                        let _ = put(sink, status(Level::Error, ErrorCode::SlowReader.to_string().as_str())).await;
+                        let _ = put(sink, status(StatusLevel::Error, ErrorCode::SlowReader.to_string().as_str())).await;
                         return Ending::Normal;
                     }
                 },
@@ -360,7 +360,11 @@ impl Watcher {
         client.driver.heard(&message);
         match message {
             HostMessage::Error { code, message } => {
-                put(sink, status(Level::Error, &format!("{code}: {message}"))).await
+                put(
+                    sink,
+                    status(StatusLevel::Error, &format!("{code}: {message}")),
+                )
+                .await
             }
             HostMessage::Role { role, ended, .. } => {
                 let text = match (role, ended) {
@@ -371,7 +375,7 @@ impl Watcher {
                     (_, Some(why)) => format!("you are no longer the operator: {why}"),
                     _ => "you are watching".to_owned(),
                 };
-                put(sink, status(Level::Info, &text)).await
+                put(sink, status(StatusLevel::Info, &text)).await
             }
             _ => Ok(()),
         }
@@ -390,9 +394,9 @@ impl Watcher {
                 Some(&ops::CLIENT_MESSAGE_DATA) => self.published(sink, client, &bytes).await,
                 Some(&ops::SERVICE_CALL_REQUEST) => match ServiceCall::parse(&bytes) {
                     Some(call) => self.call(sink, &call).await,
-                    None => put(sink, status(Level::Error, "a service call request too short for its lengths")).await,
+                    None => put(sink, status(StatusLevel::Error, "a service call request too short for its lengths")).await,
                 },
-                _ => put(sink, status(Level::Warning, "unknown binary opcode: this server takes client messages (1) and service calls (2)")).await,
+                _ => put(sink, status(StatusLevel::Warning, "unknown binary opcode: this server takes client messages (1) and service calls (2)")).await,
             },
             _ => Ok(()),
         }
@@ -409,7 +413,7 @@ impl Watcher {
             return put(
                 sink,
                 status(
-                    Level::Error,
+                    StatusLevel::Error,
                     "a client message too short for its channel id",
                 ),
             )
@@ -419,21 +423,21 @@ impl Watcher {
             let why = format!(
                 "channel {channel} is not {CMD_VEL} in json: only Twists on {CMD_VEL} may be published"
             );
-            return put(sink, status(Level::Error, &why)).await;
+            return put(sink, status(StatusLevel::Error, &why)).await;
         }
         if !client.driver.operator() {
             let why = format!(
                 "only the operator drives: call {} first (as the account that may drive, at a lab with accounts)",
                 drive::CONTROL
             );
-            return put(sink, status(Level::Error, &why)).await;
+            return put(sink, status(StatusLevel::Error, &why)).await;
         }
         match drive::twist(&payload) {
             Ok(drive) => match client.driver.drive(drive) {
                 Some(command) => self.tell_hub(command).await,
                 None => Ok(()),
             },
-            Err(why) => put(sink, status(Level::Error, &why)).await,
+            Err(why) => put(sink, status(StatusLevel::Error, &why)).await,
         }
     }
 
@@ -536,7 +540,7 @@ impl Watcher {
                         send_within(&mut client.out, sink, s.id, &view).await?;
                     }
                 }
-                (!refused.is_empty()).then(|| status(Level::Warning, &refused.join("; ")))
+                (!refused.is_empty()).then(|| status(StatusLevel::Warning, &refused.join("; ")))
             }
             Ok(ClientOp::Unsubscribe { subscription_ids }) => {
                 let camera_before = client.watches_camera();
@@ -553,7 +557,7 @@ impl Watcher {
                 }
                 (!unknown.is_empty()).then(|| {
                     status(
-                        Level::Warning,
+                        StatusLevel::Warning,
                         &format!("no subscription {}", unknown.join(", ")),
                     )
                 })
@@ -573,7 +577,7 @@ impl Watcher {
                         client.cmd_vel.insert(channel.id);
                     }
                 }
-                refused.map(|why| status(Level::Warning, &why))
+                refused.map(|why| status(StatusLevel::Warning, &why))
             }
             Ok(ClientOp::Unadvertise { channel_ids }) => {
                 for id in channel_ids {
@@ -582,7 +586,7 @@ impl Watcher {
                 None
             }
             Err(e) => Some(status(
-                Level::Warning,
+                StatusLevel::Warning,
                 &format!(
                     "this server takes subscribe, unsubscribe, advertise and unadvertise: {e}"
                 ),

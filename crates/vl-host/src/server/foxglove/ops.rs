@@ -119,13 +119,13 @@ fn text(value: Value) -> Message {
 
 /// How a status speaks: 0 info, 1 warning, 2 error.
 #[derive(Debug, Clone, Copy)]
-pub(super) enum Level {
+pub(super) enum StatusLevel {
     Info = 0,
     Warning = 1,
     Error = 2,
 }
 
-pub(super) fn status(level: Level, message: &str) -> Message {
+pub(super) fn status(level: StatusLevel, message: &str) -> Message {
     text(json!({"op": "status", "level": level as u8, "message": message}))
 }
 

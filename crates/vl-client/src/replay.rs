@@ -14,9 +14,6 @@ use crate::client::Incoming;
 use crate::results::Results;
 use crate::session::Session;
 
-/// The speeds a replay plays at.
-const SPEEDS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
-
 /// A recorded run and where its playback is.
 pub struct Replay {
     pub file: String,
@@ -143,68 +140,6 @@ impl Replay {
             self.applied += 1;
         }
     }
-
-    /// The run's results, at the side of the window (beside the camera
-    /// view, not over it) while they are asked for.
-    pub fn results_panel(&self, ui: &mut egui::Ui) {
-        if !self.show_results {
-            return;
-        }
-        // A third of the window at most: the camera view keeps the most.
-        let width = (ui.available_width() * 0.3).clamp(200.0, 420.0);
-        egui::Panel::right("results")
-            .default_size(width)
-            .max_size(width)
-            .show(ui, |ui| {
-                ui.heading("Results");
-                egui::ScrollArea::vertical().show(ui, |ui| self.results.show(ui, self.at_s));
-            });
-    }
-
-    /// The replay's controls: play or pause, the time slider, the speed.
-    pub fn controls(&mut self, ui: &mut egui::Ui) {
-        // Wrapped, so a narrow window keeps every control in view; the
-        // file's name here, its whole path on hover.
-        ui.horizontal_wrapped(|ui| {
-            let name = Path::new(&self.file)
-                .file_name()
-                .map_or_else(|| self.file.clone(), |n| n.to_string_lossy().into_owned());
-            ui.label(format!("Replay of {name}"))
-                .on_hover_text(&self.file);
-            let play = if self.playing { "Pause" } else { "Play" };
-            if ui.button(play).clicked() {
-                if !self.playing && self.at_s >= self.duration_s {
-                    self.at_s = 0.0;
-                }
-                self.playing = !self.playing;
-            }
-            let mut at = self.at_s;
-            if ui
-                .add(time_slider(&mut at, self.duration_s, "time"))
-                .changed()
-            {
-                self.seek(at);
-            }
-            egui::ComboBox::from_label("speed")
-                .selected_text(format!("{}×", self.speed))
-                .show_ui(ui, |ui| {
-                    for speed in SPEEDS {
-                        ui.selectable_value(&mut self.speed, speed, format!("{speed}×"));
-                    }
-                });
-            ui.toggle_value(&mut self.show_results, "Results");
-        });
-    }
-}
-
-/// A slider over a span of time from 0 to `end_s`, shown to a tenth of a
-/// second but not rounded to one (as `fixed_decimals` would): a run of
-/// 4.73 s must reach its last moment, where its end is.
-pub(crate) fn time_slider<'a>(t_s: &'a mut f64, end_s: f64, text: &str) -> egui::Slider<'a> {
-    egui::Slider::new(t_s, 0.0..=end_s.max(0.001))
-        .custom_formatter(|t, _| format!("{t:.1}"))
-        .suffix(" s")
-        .text(text)
 }
 
 /// What a replay to the end showed.
@@ -265,40 +200,5 @@ impl Report for ReplayReport {
             ));
         }
         Table::pairs(rows).title("replayed")
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use egui_kittest::Harness;
-    use egui_kittest::kittest::Queryable;
-
-    use super::time_slider;
-
-    /// Dragged to its end, the slider gives the span's very end, not the
-    /// tenth below it.
-    #[test]
-    fn the_time_slider_reaches_a_span_end_between_tenths() {
-        for end_s in [4.73, 4.71, 0.04, 12.349] {
-            let mut harness = Harness::new_ui_state(
-                |ui, t_s: &mut f64| {
-                    ui.add(time_slider(t_s, end_s, "time"));
-                },
-                0.0,
-            );
-            let rail = harness
-                .get_by_role_and_label(egui::accesskit::Role::Slider, "time")
-                .rect();
-            let from = rail.center();
-            harness.hover_at(from);
-            harness.step();
-            harness.drag_at(from);
-            harness.step();
-            harness.hover_at(egui::pos2(rail.right() + 20.0, from.y));
-            harness.step();
-            harness.drop_at(egui::pos2(rail.right() + 20.0, from.y));
-            harness.step();
-            assert_eq!(*harness.state(), end_s, "dragged to the end of {end_s} s");
-        }
     }
 }

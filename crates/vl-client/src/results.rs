@@ -3,10 +3,7 @@
 //! the force over time, and the round trip — what a student hands in and a
 //! teacher grades, beside the replay.
 
-use egui_plot::{Legend, Line, Plot, PlotPoints, Points, VLine};
-use vl_core::{Feedback, HostMessage, Mark, Point, distance_to_polyline};
-
-use crate::app::colour;
+use vl_core::{Feedback, HostMessage, Point, distance_to_polyline};
 
 use std::path::PathBuf;
 
@@ -14,7 +11,7 @@ use crate::client::Incoming;
 use crate::plots::{self, Marks, PlotError};
 
 /// A series of (x, y) points.
-type Series = Vec<[f64; 2]>;
+pub type Series = Vec<[f64; 2]>;
 
 /// What the plots draw, read once from the recording.
 #[derive(Debug, Clone, Default)]
@@ -144,65 +141,5 @@ impl Results {
             }
         }
         Ok(saved)
-    }
-
-    /// The plots, with the replay's time `at_s` marked on those over time.
-    pub fn show(&self, ui: &mut egui::Ui, at_s: f64) {
-        let line = |name: &str, series: &Series| Line::new(name, PlotPoints::from(series.clone()));
-        ui.label("the floor, mm");
-        Plot::new("paths")
-            .height(220.0)
-            .data_aspect(1.0)
-            .legend(Legend::default())
-            .show(ui, |plot| {
-                for (i, run) in self.forecast.iter().enumerate() {
-                    let name = if i == 0 { "forecast" } else { "" };
-                    plot.line(line(name, run).color(colour(Mark::Forecast)));
-                }
-                plot.line(line("planned", &self.planned).color(colour(Mark::Path)));
-                plot.line(line("followed", &self.followed).color(colour(Mark::Robot)));
-            });
-        let over_time = |ui: &mut egui::Ui, id: &str, title: &str, series: &[(&str, &Series)]| {
-            ui.label(title);
-            let mut plot = Plot::new(id).height(110.0);
-            // One series is named by the title: a legend would only cover it.
-            if series.len() > 1 {
-                plot = plot.legend(Legend::default().background_alpha(0.6));
-            }
-            plot.show(ui, |plot| {
-                for (name, s) in series {
-                    plot.line(line(name, s));
-                }
-                plot.vline(VLine::new("now", at_s));
-            });
-        };
-        over_time(
-            ui,
-            "tracking",
-            "off the planned path, mm, against s",
-            &[("error", &self.tracking_error_mm)],
-        );
-        over_time(
-            ui,
-            "wheels",
-            "wheel speeds, mm/s, against s",
-            &[("left", &self.left_mm_s), ("right", &self.right_mm_s)],
-        );
-        if !self.force.is_empty() {
-            over_time(
-                ui,
-                "force",
-                "force fed back, against s",
-                &[("force", &self.force)],
-            );
-        }
-        // Pinged every 200 ms: points, not a line between them.
-        ui.label("round trip, ms, against s");
-        Plot::new("rtt").height(110.0).show(ui, |plot| {
-            plot.points(
-                Points::new("round trip", PlotPoints::from(self.round_trip_ms.clone())).radius(2.5),
-            );
-            plot.vline(VLine::new("now", at_s));
-        });
     }
 }

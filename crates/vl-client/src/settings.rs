@@ -23,8 +23,8 @@ pub struct Settings {
 }
 
 /// The ranges the settings panel offers.
-pub(crate) const MAX_SPEED_MM_S: std::ops::RangeInclusive<f64> = 20.0..=1000.0;
-pub(crate) const MARGIN_MM: std::ops::RangeInclusive<f64> = 0.0..=60.0;
+pub const MAX_SPEED_MM_S: std::ops::RangeInclusive<f64> = 20.0..=1000.0;
+pub const MARGIN_MM: std::ops::RangeInclusive<f64> = 0.0..=60.0;
 
 impl Default for Settings {
     fn default() -> Self {

@@ -52,20 +52,20 @@ pub(crate) async fn download_run(
 }
 
 /// A download under way: the file so far, and how long the whole is.
-pub(crate) struct Downloading {
-    pub(crate) name: RecordingName,
+pub struct Downloading {
+    pub name: RecordingName,
     part: PathBuf,
     file: std::fs::File,
-    pub(crate) have: u64,
+    pub have: u64,
     /// The file's length, once a part has said it.
-    pub(crate) total: Option<u64>,
+    pub total: Option<u64>,
     /// When to ask again for a file the Host was still writing.
-    pub(crate) retry_at: Option<std::time::Instant>,
+    pub retry_at: Option<std::time::Instant>,
 }
 
 impl Downloading {
     /// Starts, or resumes from the part file `dir` already holds.
-    pub(crate) fn open(name: &RecordingName, dir: &Path) -> Result<Downloading, DownloadError> {
+    pub fn open(name: &RecordingName, dir: &Path) -> Result<Downloading, DownloadError> {
         std::fs::create_dir_all(dir).map_err(|e| DownloadError::Io(dir.to_owned(), e))?;
         let part = dir.join(format!("{name}.part"));
         let io = |e| DownloadError::Io(part.clone(), e);
@@ -86,7 +86,7 @@ impl Downloading {
     }
 
     /// The message asking for the next part.
-    pub(crate) fn ask(&self) -> GuestMessage {
+    pub fn ask(&self) -> GuestMessage {
         GuestMessage::Download {
             name: self.name.clone(),
             offset: self.have,
@@ -94,11 +94,7 @@ impl Downloading {
     }
 
     /// Takes a part in; true once the file is whole.
-    pub(crate) fn take(
-        &mut self,
-        header: &PartHeader,
-        bytes: &[u8],
-    ) -> Result<bool, DownloadError> {
+    pub fn take(&mut self, header: &PartHeader, bytes: &[u8]) -> Result<bool, DownloadError> {
         if header.offset != self.have {
             return Err(DownloadError::OutOfPlace {
                 got: header.offset,
@@ -114,7 +110,7 @@ impl Downloading {
     }
 
     /// The whole file, in `dir` under its name.
-    pub(crate) fn finish(self) -> Result<PathBuf, DownloadError> {
+    pub fn finish(self) -> Result<PathBuf, DownloadError> {
         let whole = self.part.with_file_name(self.name.as_str());
         std::fs::rename(&self.part, &whole).map_err(|e| DownloadError::Io(whole.clone(), e))?;
         Ok(whole)
@@ -123,7 +119,7 @@ impl Downloading {
 
 /// Where this user's downloaded runs go: vl/downloads in their data
 /// directory.
-pub(crate) fn downloads_dir() -> Option<PathBuf> {
+pub fn downloads_dir() -> Option<PathBuf> {
     Some(vl_record::data_dir()?.join("downloads"))
 }
 
