@@ -157,12 +157,14 @@ async fn an_lms_launches_the_lab_and_gets_grades_from_runs() {
         "the assignment is navigation, the run was teleoperation",
     )
     .await;
-    // Launched from a link that asks for nothing in particular, the
-    // learner's run ends: the platform has its score within 10 s, though
-    // its gradebook refused the first try.
-    platform.ask(json!({"cmd": "launch", "role": "learner", "custom": {}}));
+    // Launched from a second link that asks for nothing in particular (its
+    // own line item), the learner's run there ends: the platform has its
+    // score within 10 s, though its gradebook refused the first try.
+    let other = launch_link(&mut platform, 2);
+    let (mut learner, _) = switch_tab(&url, learner, &other).await;
     platform.ask(json!({"cmd": "fail_scores", "n": 1}));
     let score = graded_run(&mut platform, &mut learner).await;
+    assert_eq!(score["lineitem"], 2, "graded in the link's own column");
     assert_eq!(platform.ask(json!({"cmd": "scores"}))["refused"], 1);
     assert_eq!(score["userId"], "learner-1");
     assert_eq!(score["scoreMaximum"], 100.0);
@@ -176,6 +178,7 @@ async fn an_lms_launches_the_lab_and_gets_grades_from_runs() {
         "the comment explains the grade: {comment}"
     );
     assert!(score["timestamp"].as_str().unwrap().ends_with('Z'));
+    let (mut learner, welcome) = two_tabs(&mut platform, &url, learner).await;
     // Someone else's emergency stop ends the learner's run: it does not
     // count (a score posted would replace the last).
     let (mut root, _) = hello_as_root(&url).await;
@@ -187,7 +190,7 @@ async fn an_lms_launches_the_lab_and_gets_grades_from_runs() {
     in_a_browser(&mut platform);
     let teacher = instructor(&mut platform, &url, &tool, &welcome).await;
     deep_linking(&mut platform);
-    gradebook_down(&mut platform, &url, &session, &audit).await;
+    gradebook_down(&mut platform, &url, &audit).await;
     course_roles_only(&mut platform);
     relaunches_end_only_their_own(&mut platform, &url, &session, &teacher).await;
     let status = http(&tool, "GET /status", &[AS_ROOT], "");
@@ -241,6 +244,40 @@ async fn graded_run(platform: &mut Platform, learner: &mut Peer) -> Value {
         score["comment"]
     );
     score
+}
+
+/// A learner's launch of the course's link `link`, which asks for nothing
+/// in particular and has a line item of its own: the tab's session.
+fn launch_link(platform: &mut Platform, link: u32) -> String {
+    let launched =
+        platform.ask(json!({"cmd": "launch", "role": "learner", "custom": {}, "link": link}));
+    assert_eq!(launched["status"], 200, "{launched}");
+    session_of(launched["body"].as_str().unwrap()).expect("the page's session")
+}
+
+/// `learner` leaves, and the tab of `session` says hello as operator:
+/// its connection and welcome.
+async fn switch_tab(url: &str, mut learner: Peer, session: &str) -> (Peer, Value) {
+    learner.send(json!({"type": "bye"})).await;
+    drop(learner);
+    let (peer, welcome) = hello_with_session(url, session, "operator").await;
+    assert_eq!(welcome["role"], "operator", "{welcome}");
+    (peer, welcome)
+}
+
+/// One learner opens two of the course's links, each with its own line
+/// item, in two tabs, and drives a run in each, the first tab first: each
+/// line item gets its own run's score (not the latest launch's).
+async fn two_tabs(platform: &mut Platform, url: &str, learner: Peer) -> (Peer, Value) {
+    let first = launch_link(platform, 3);
+    let second = launch_link(platform, 4);
+    let (mut learner, _) = switch_tab(url, learner, &first).await;
+    let score = graded_run(platform, &mut learner).await;
+    assert_eq!(score["lineitem"], 3, "the first tab's run: {score}");
+    let (mut learner, welcome) = switch_tab(url, learner, &second).await;
+    let score = graded_run(platform, &mut learner).await;
+    assert_eq!(score["lineitem"], 4, "the second tab's run: {score}");
+    (learner, welcome)
 }
 
 /// The lab's administrator, as an observer.
@@ -346,18 +383,13 @@ async fn relaunches_end_only_their_own(
 
 /// A gradebook that refuses every try: after its back-off the tool gives
 /// up, and says so in the audit log (the status says it too).
-async fn gradebook_down(
-    platform: &mut Platform,
-    url: &str,
-    session: &str,
-    audit: &std::path::Path,
-) {
+async fn gradebook_down(platform: &mut Platform, url: &str, audit: &std::path::Path) {
     platform.ask(json!({"cmd": "fail_scores", "n": 100}));
-    // From a link asking for nothing in particular (the browser's launch
-    // asked for a navigation run).
-    platform.ask(json!({"cmd": "launch", "role": "learner", "custom": {}}));
-    // The instructor ended the learner's turn: they come back by their session.
-    let (mut learner, welcome) = hello_with_session(url, session, "operator").await;
+    // The instructor ended the learner's turn: they come back from a link
+    // asking for nothing in particular (the browser's launch asked for a
+    // navigation run).
+    let session = launch_link(platform, 1);
+    let (mut learner, welcome) = hello_with_session(url, &session, "operator").await;
     assert_eq!(welcome["role"], "operator", "{welcome}");
     // A learner runs no one else's turn.
     learner
@@ -820,7 +852,10 @@ async fn a_gateway_launches_and_grades_its_cells_runs() {
     let _cell = common::cells::start_cell(&zenoh, "a", &a);
     let tool = url.replace("ws://", "http://");
     platform.ask(json!({"cmd": "tool", "url": tool}));
-    let session = learner_launch(&mut platform);
+    learner_launch(&mut platform);
+    // From a link asking for nothing in particular: a teleoperation run
+    // counts, in that link's column.
+    let session = launch_link(&mut platform, 2);
     // The cell joins within seconds: until then the gateway has none to give.
     let deadline = Instant::now() + Duration::from_secs(20);
     let mut learner = loop {
@@ -836,10 +871,9 @@ async fn a_gateway_launches_and_grades_its_cells_runs() {
         );
         tokio::time::sleep(Duration::from_millis(300)).await;
     };
-    // From a link asking for nothing in particular: a teleoperation run counts.
-    platform.ask(json!({"cmd": "launch", "role": "learner", "custom": {}}));
     let score = graded_run(&mut platform, &mut learner).await;
     assert_eq!(score["userId"], "learner-1");
+    assert_eq!(score["lineitem"], 2, "{score}");
     let comment = score["comment"].as_str().unwrap();
     assert!(comment.starts_with("A run, stopped."), "{comment}");
 }

@@ -17,6 +17,7 @@ on stdout:
 """
 
 import json
+import re
 import sys
 import threading
 import time
@@ -114,7 +115,8 @@ class Platform(BaseHTTPRequestHandler):
         url = urllib.parse.urlparse(self.path)
         if url.path == "/token":
             return self.token(dict(urllib.parse.parse_qsl(body.decode())))
-        if url.path == "/lineitems/1/lineitem/scores":
+        item = re.fullmatch(r"/lineitems/(\d+)/lineitem/scores", url.path)
+        if item:
             ok = self.bearer("https://purl.imsglobal.org/spec/lti-ags/scope/score")
             kind = self.headers.get("Content-Type", "")
             if not ok:
@@ -127,6 +129,7 @@ class Platform(BaseHTTPRequestHandler):
                 return self.answer(503, {"error": "the gradebook is down for maintenance"})
             score = json.loads(body)
             score["received_at"] = time.time()
+            score["lineitem"] = int(item.group(1))
             state["scores"].append(score)
             return self.answer(200, {})
         self.answer(404, {"error": "no such page"})
@@ -208,7 +211,7 @@ def login(message_hint="resource", method="GET"):
     return auth, checks
 
 
-def id_token(auth, role, message_type="LtiResourceLinkRequest", tamper=None, custom=None):
+def id_token(auth, role, message_type="LtiResourceLinkRequest", tamper=None, custom=None, link=1):
     now = int(time.time())
     claims = {
         "iss": issuer(), "aud": CLIENT_ID, "azp": CLIENT_ID, "sub": SUBS[role],
@@ -220,12 +223,12 @@ def id_token(auth, role, message_type="LtiResourceLinkRequest", tamper=None, cus
         "https://purl.imsglobal.org/spec/lti/claim/target_link_uri": state["tool"] + "/lti/launch",
         "https://purl.imsglobal.org/spec/lti/claim/roles": ROLES[role],
         "https://purl.imsglobal.org/spec/lti/claim/context": COURSE,
-        "https://purl.imsglobal.org/spec/lti/claim/resource_link": {"id": "link-1", "title": "Lab"},
+        "https://purl.imsglobal.org/spec/lti/claim/resource_link": {"id": "link-%d" % link, "title": "Lab %d" % link},
         "https://purl.imsglobal.org/spec/lti/claim/custom": CUSTOM if custom is None else custom,
         "https://purl.imsglobal.org/spec/lti-ags/claim/endpoint": {
             "scope": ["https://purl.imsglobal.org/spec/lti-ags/scope/lineitem",
                       "https://purl.imsglobal.org/spec/lti-ags/scope/score"],
-            "lineitem": issuer() + "/lineitems/1/lineitem",
+            "lineitem": issuer() + "/lineitems/%d/lineitem" % link,
             "lineitems": issuer() + "/lineitems",
         },
         "https://purl.imsglobal.org/spec/lti-nrps/claim/namesroleservice": {
@@ -259,7 +262,8 @@ def launch(command):
     auth, checks = login()
     if auth is None:
         return {"login": checks}
-    token = id_token(auth, role, tamper=command.get("tamper"), custom=command.get("custom"))
+    token = id_token(auth, role, tamper=command.get("tamper"), custom=command.get("custom"),
+                     link=command.get("link", 1))
     status, headers, body = post_form(state["tool"] + "/lti/launch",
                                       {"id_token": token, "state": auth["state"]})
     result = {"login": checks, "status": status, "body": body,

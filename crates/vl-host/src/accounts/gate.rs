@@ -26,7 +26,21 @@ use super::audit::{Audit, AuditEntry};
 use super::limits::Failures;
 pub use super::limits::{FAILURE_REFILL, FAILURES_BURST};
 use super::users::{AccountRole, Users};
-use crate::lti::Sessions;
+
+/// The sessions something outside the accounts opened (an LMS's launches):
+/// the gate asks them who a hello's `session` speaks for, and knows no more
+/// of them.
+pub trait SessionCheck: Send + Sync {
+    /// Who the session `secret` speaks for, and which session it is, while
+    /// it lasts.
+    fn vouch(&self, secret: &str) -> Option<(Identity, SessionId)>;
+}
+
+/// One session a [`SessionCheck`] opened, named without its secret: what a
+/// run remembers of how its driver came in (a grade goes to the launch
+/// that opened it), safe to tell a gateway's cells.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub struct SessionId(pub u64);
 
 /// How long a wrong password, name or token waits for its answer.
 pub const FAILURE_DELAY: Duration = Duration::from_secs(1);
@@ -107,6 +121,9 @@ pub struct Admitted {
     pub identity: Identity,
     /// Whether they may take the operator's role, now or in their turn.
     pub may_drive: bool,
+    /// The session that vouched for them, if one did.
+    #[serde(default)]
+    pub session: Option<SessionId>,
 }
 
 impl Admitted {
@@ -127,6 +144,7 @@ impl Admitted {
         Admitted {
             identity: Identity::Anonymous,
             may_drive: true,
+            session: None,
         }
     }
 }
@@ -206,7 +224,7 @@ pub struct Gate {
     checker: std::sync::mpsc::Sender<Check>,
     audit: Audit,
     /// The sessions LMS launches opened, at a lab launched from one.
-    sessions: Option<Arc<Sessions>>,
+    sessions: Option<Arc<dyn SessionCheck>>,
 }
 
 impl Gate {
@@ -229,7 +247,7 @@ impl Gate {
     }
 
     /// The gate that also lets in whom `sessions` (LMS launches) vouch for.
-    pub fn with_sessions(mut self, sessions: Arc<Sessions>) -> Gate {
+    pub fn with_sessions(mut self, sessions: Arc<dyn SessionCheck>) -> Gate {
         self.sessions = Some(sessions);
         self
     }
@@ -326,7 +344,7 @@ impl Gate {
             }
         };
         let shown = hello.user.is_some() || hello.token.is_some() || hello.session.is_some();
-        let identity = if shown {
+        let (identity, session) = if shown {
             if !self.failures().take(address, account) {
                 self.audit.record(log("rate_limited"));
                 tokio::time::sleep(FAILURE_DELAY).await;
@@ -337,14 +355,14 @@ impl Gate {
                 ));
             }
             match self.prove(hello, users).await {
-                Ok(identity) => {
+                Ok((identity, session)) => {
                     self.failures().refund(address, account);
                     let login = log("login").user(identity.name());
                     self.audit.record(login.detail(match hello.purpose {
                         Purpose::Session => hello.role.to_string(),
                         Purpose::Status => "status".to_owned(),
                     }));
-                    identity
+                    (identity, session)
                 }
                 Err(why) => {
                     let failed = log("login_failed");
@@ -358,7 +376,7 @@ impl Gate {
                 }
             }
         } else {
-            Identity::Anonymous
+            (Identity::Anonymous, None)
         };
         self.admits(&identity, hello.role).map_err(|why| {
             self.audit.record(log("refused").detail(why.clone()));
@@ -368,6 +386,7 @@ impl Gate {
         Ok(Admitted {
             identity,
             may_drive,
+            session,
         })
     }
 
@@ -377,12 +396,13 @@ impl Gate {
         &self,
         hello: Credentials<'_>,
         users: Option<Arc<Users>>,
-    ) -> Result<Identity, String> {
+    ) -> Result<(Identity, Option<SessionId>), String> {
         if let Some(secret) = hello.session {
             return self
                 .sessions
                 .as_ref()
-                .and_then(|sessions| sessions.identity(secret))
+                .and_then(|sessions| sessions.vouch(secret))
+                .map(|(identity, id)| (identity, Some(id)))
                 .ok_or_else(|| {
                     "this LMS session is unknown or has expired: open the lab from your course again"
                         .into()
@@ -406,12 +426,14 @@ impl Gate {
                 Ok(()) => checked.await.ok().flatten(),
                 Err(_) => None,
             };
-            return checked.ok_or_else(|| "wrong user name or password".into());
+            return checked
+                .map(|identity| (identity, None))
+                .ok_or_else(|| "wrong user name or password".into());
         }
         let given = hello.token.unwrap_or_default();
         match &self.token {
             Some(token) if bool::from(token.as_bytes().ct_eq(given.as_bytes())) => {
-                Ok(Identity::Token)
+                Ok((Identity::Token, None))
             }
             Some(_) => Err("the operator token is wrong".into()),
             None => Err("this lab has no token: leave it out".into()),

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicUsize;
 use std::time::Duration;
 
-use tokio::sync::{mpsc, oneshot, watch};
+use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use tokio_tungstenite::tungstenite::{Bytes, Message};
 use tracing::{debug, info, warn};
 use vl_core::{CellInfo, CellName, Experiment, HostMessage, PROTOCOL_VERSION, Role, Wire};
@@ -18,6 +18,7 @@ use super::{CellOptions, ZenohError, keys, within};
 use crate::accounts::gate::Admitted;
 use crate::hush::Hush;
 use crate::lab::Watching;
+use crate::server::events::{LabEvent, LabEvents};
 use crate::server::hub::{OUTBOX, Status, ToConnection, ToHub};
 
 /// How often a cell tells the gateway how it is.
@@ -35,6 +36,7 @@ pub(crate) struct Cell {
     pub(crate) frames: watch::Receiver<Option<Bytes>>,
     pub(crate) watchers: Arc<AtomicUsize>,
     pub(crate) experiments: Vec<Experiment>,
+    pub(crate) events: LabEvents,
 }
 
 /// Joins the gateway of `options` and serves it for as long as the Host
@@ -62,7 +64,7 @@ async fn serve(session: &zenoh::Session, name: &CellName, cell: Cell) -> Result<
         watched(session, name, &cell, ids.clone()),
         tell_info(session, name, &cell),
         catch_ups(session, name, &cell.hub),
-        links(session, name, &cell.hub, ids),
+        links(session, name, &cell, ids),
     )?;
     Ok(())
 }
@@ -198,9 +200,10 @@ async fn catch_ups(
 async fn links(
     session: &zenoh::Session,
     name: &CellName,
-    hub: &mpsc::Sender<ToHub>,
+    cell: &Cell,
     ids: Arc<std::sync::atomic::AtomicU64>,
 ) -> Result<(), ZenohError> {
+    let hub = &cell.hub;
     let ups = session.declare_subscriber(keys::ups(name)).await?;
     let tokens = session
         .liveliness()
@@ -244,7 +247,8 @@ async fn links(
                                     return Ok(());
                                 }
                                 let down = session.declare_publisher(keys::down(name, &link)).await?;
-                                open.insert(link.clone(), (id, tokio::spawn(relay_down(inbox, down))));
+                                let relay = relay_down(inbox, down, id, cell.events.listen());
+                                open.insert(link.clone(), (id, tokio::spawn(relay)));
                                 id
                             }
                         };
@@ -278,12 +282,35 @@ async fn links(
     }
 }
 
-/// What the hub tells a link's client, down to the gateway.
+/// What the hub tells a link's client `id`, down to the gateway, and the
+/// end of each run it drove.
 async fn relay_down(
     mut inbox: mpsc::Receiver<ToConnection>,
     down: zenoh::pubsub::Publisher<'static>,
+    id: u64,
+    mut events: broadcast::Receiver<LabEvent>,
 ) {
-    while let Some(out) = inbox.recv().await {
+    loop {
+        let out = tokio::select! {
+            out = inbox.recv() => match out {
+                Some(out) => out,
+                None => return,
+            },
+            event = events.recv() => {
+                let ended = match event {
+                    Ok(LabEvent::RunEnded(ended)) => ended,
+                    Err(broadcast::error::RecvError::Lagged(_)) => continue,
+                    Err(broadcast::error::RecvError::Closed) => return,
+                };
+                if ended.driver.as_ref().is_some_and(|d| d.connection == id) {
+                    let said = LinkDown::RunEnded { summary: Box::new(ended.summary.clone()) };
+                    if down.put(said.encode()).await.is_err() {
+                        return;
+                    }
+                }
+                continue;
+            }
+        };
         let (said, last) = match out {
             ToConnection::Send(message) => match message {
                 Message::Text(text) => (

@@ -2,7 +2,7 @@
 //! who they are; the cell's hub takes them as one of its own clients.
 
 use serde::{Deserialize, Serialize};
-use vl_core::{ErrorCode, GuestMessage, Role};
+use vl_core::{ErrorCode, GuestMessage, Role, Summary};
 
 use crate::accounts::gate::Admitted;
 
@@ -33,6 +33,8 @@ pub(crate) enum LinkDown {
     Welcomed,
     /// The cell ends the link, saying why.
     End { code: ErrorCode, why: String },
+    /// A run the Guest drove ended (the gateway grades it as them).
+    RunEnded { summary: Box<Summary> },
 }
 
 impl LinkUp {

@@ -17,9 +17,13 @@ use serde::Serialize;
 use tracing::{info, warn};
 use vl_core::{Goal, GradesStatus, Rubric, Summary};
 
+use tokio::sync::broadcast;
+
 use super::Lti;
 use super::sessions::{Assignment, Launch};
 use crate::accounts::audit::AuditEntry;
+use crate::accounts::gate::Admitted;
+use crate::server::events::LabEvent;
 
 /// How long to wait before each try again after the first.
 const BACK_OFF: [Duration; 4] = [
@@ -180,12 +184,38 @@ pub(super) fn judged(summary: &Summary, assignment: &Assignment) -> Result<Summa
 }
 
 impl Lti {
-    /// Grades, and sends, a run `user` drove (run `run` of this lab, when
-    /// it is this lab's), if they came from an LMS.
-    pub fn run_ended(self: &Arc<Self>, run: Option<u64>, user: &str, summary: &Summary) {
-        let Some(launch) = self.sessions.latest(user) else {
+    /// Grades the runs of this lab as they end, for as long as it runs.
+    pub(crate) async fn grade_runs(self: Arc<Self>, mut events: broadcast::Receiver<LabEvent>) {
+        loop {
+            match events.recv().await {
+                Ok(LabEvent::RunEnded(ended)) => {
+                    if let Some(driver) = &ended.driver {
+                        self.run_ended(Some(ended.run), &driver.admitted, &ended.summary);
+                    }
+                }
+                Err(broadcast::error::RecvError::Lagged(missed)) => {
+                    warn!(
+                        "{missed} of the lab's events went by ungraded: the LMS side fell behind"
+                    );
+                }
+                Err(broadcast::error::RecvError::Closed) => return,
+            }
+        }
+    }
+
+    /// Grades, and sends, a run `admitted` drove (run `run` of this lab,
+    /// when it is this lab's), if an LMS launch's session let them in: for
+    /// that launch, its assignment and its line item.
+    pub(crate) fn run_ended(
+        self: &Arc<Self>,
+        run: Option<u64>,
+        admitted: &Admitted,
+        summary: &Summary,
+    ) {
+        let Some(launch) = admitted.session.and_then(|id| self.sessions.launch_of(id)) else {
             return;
         };
+        let user = launch.user.as_str();
         let named = run.map_or_else(|| "A run".to_owned(), |run| format!("Run {run}"));
         let judged = judged(summary, &launch.assignment);
         let graded = judged.as_ref().map(|s| self.grades.rubric.grade(s));

@@ -5,12 +5,13 @@
 //! role, course, line item and roster service — for grades and the roster.
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tokio::time::Instant;
 
-use crate::accounts::gate::Identity;
+use crate::accounts::gate::{Identity, SessionCheck, SessionId};
 use crate::accounts::users::AccountRole;
 
 /// Sessions kept at once, at most; the oldest go first.
@@ -72,15 +73,17 @@ impl Launch {
 }
 
 struct Entry {
+    id: SessionId,
     launch: Arc<Launch>,
     until: Instant,
 }
 
-/// The open sessions, and each person's latest launch.
+/// The open sessions, by their secrets.
 #[derive(Default)]
 pub struct Sessions {
     open: Mutex<HashMap<String, Entry>>,
-    latest: Mutex<HashMap<String, Entry>>,
+    /// The last session's number.
+    opened: AtomicU64,
 }
 
 impl Sessions {
@@ -88,35 +91,27 @@ impl Sessions {
     pub(crate) fn open(&self, launch: Launch) -> String {
         let secret = crate::secret::secret();
         let launch = Arc::new(launch);
+        let id = SessionId(self.opened.fetch_add(1, Ordering::Relaxed) + 1);
         let now = Instant::now();
-        {
-            let mut open = super::locked(&self.open);
-            open.retain(|_, e| e.until > now);
-            let theirs = |e: &Entry| e.launch.user == launch.user;
-            if open.values().filter(|e| theirs(e)).count() >= MAX_PER_PERSON {
-                let oldest = open
-                    .iter()
-                    .filter(|(_, e)| theirs(e))
-                    .min_by_key(|(_, e)| e.until)
-                    .map(|(k, _)| k.clone());
-                if let Some(oldest) = oldest {
-                    open.remove(&oldest);
-                }
+        let mut open = super::locked(&self.open);
+        open.retain(|_, e| e.until > now);
+        let theirs = |e: &Entry| e.launch.user == launch.user;
+        if open.values().filter(|e| theirs(e)).count() >= MAX_PER_PERSON {
+            let oldest = open
+                .iter()
+                .filter(|(_, e)| theirs(e))
+                .min_by_key(|(_, e)| e.until)
+                .map(|(k, _)| k.clone());
+            if let Some(oldest) = oldest {
+                open.remove(&oldest);
             }
-            let entry = Entry {
-                launch: launch.clone(),
-                until: now + LIFETIME,
-            };
-            super::insert_bounded(&mut open, MAX_SESSIONS, secret.clone(), entry, |e| e.until);
         }
-        let mut latest = super::locked(&self.latest);
         let entry = Entry {
-            launch: launch.clone(),
+            id,
+            launch,
             until: now + LIFETIME,
         };
-        super::insert_bounded(&mut latest, MAX_SESSIONS, launch.user.clone(), entry, |e| {
-            e.until
-        });
+        super::insert_bounded(&mut open, MAX_SESSIONS, secret.clone(), entry, |e| e.until);
         secret
     }
 
@@ -128,21 +123,27 @@ impl Sessions {
             .map(|e| e.launch.clone())
     }
 
-    /// Who the session `secret` speaks for, while it lasts.
-    pub fn identity(&self, secret: &str) -> Option<Identity> {
-        self.launch(secret).map(|l| l.identity())
-    }
-
     /// How many sessions are open.
     #[cfg(test)]
     pub(crate) fn open_count(&self) -> usize {
         super::locked(&self.open).len()
     }
 
-    /// `user`'s latest launch.
-    pub(crate) fn latest(&self, user: &str) -> Option<Arc<Launch>> {
-        super::locked(&self.latest)
-            .get(user)
+    /// The launch that opened session `id`, while the session lasts.
+    pub(crate) fn launch_of(&self, id: SessionId) -> Option<Arc<Launch>> {
+        let now = Instant::now();
+        super::locked(&self.open)
+            .values()
+            .find(|e| e.id == id && e.until > now)
             .map(|e| e.launch.clone())
+    }
+}
+
+impl SessionCheck for Sessions {
+    fn vouch(&self, secret: &str) -> Option<(Identity, SessionId)> {
+        let open = super::locked(&self.open);
+        open.get(secret)
+            .filter(|e| e.until > Instant::now())
+            .map(|e| (e.launch.identity(), e.id))
     }
 }

@@ -17,6 +17,7 @@ pub(crate) mod bench;
 mod bucket;
 mod busy;
 mod connection;
+pub(crate) mod events;
 mod foxglove;
 mod http;
 pub(crate) mod hub;
@@ -149,7 +150,7 @@ pub(crate) const HUB_QUEUE: usize = 256;
 /// Accepts connections on `listener` and serves the lab until the task is dropped.
 pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
     let (hub_tx, hub_rx) = mpsc::channel(HUB_QUEUE);
-    let (feed, views, feeding) = foxglove::Feed::start(foxglove::Sources {
+    let (feed, views, feeding) = foxglove::LiveFeed::start(foxglove::Sources {
         scene: vl_core::LabScene {
             arena: lab.info.arena.clone(),
             robot: lab.info.robot.clone(),
@@ -186,6 +187,11 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         Some(lti) => gate.with_sessions(lti.sessions()),
         None => gate,
     });
+    let events = events::LabEvents::default();
+    let grading = match config.lti.clone() {
+        Some(lti) => futures_util::future::Either::Left(lti.grade_runs(events.listen())),
+        None => futures_util::future::Either::Right(std::future::pending()),
+    };
     let joined = match config.cell.clone() {
         Some(cell) => {
             let side = crate::cells::Cell {
@@ -194,6 +200,7 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
                 frames: lab.frames.clone(),
                 watchers: lab.watchers.clone(),
                 experiments: config.experiments.clone(),
+                events: events.clone(),
             };
             futures_util::future::Either::Left(crate::cells::join(cell, side))
         }
@@ -217,7 +224,7 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         }
         None => futures_util::future::Either::Right(std::future::pending()),
     };
-    let hub = Hub::new(lab, config.clone(), supervisor).with_views(views);
+    let hub = Hub::new(lab, config.clone(), supervisor, events).with_views(views);
     let accounts = watch_accounts(gate.clone(), hub_tx.clone());
     // The hub lives exactly as long as the server: dropping this future
     // drops the lab, which stops the robot.
@@ -228,6 +235,7 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         () = feeding => {}
         () = joined => {}
         () = on_ros2 => {}
+        () = grading => {}
     }
 }
 
@@ -258,7 +266,7 @@ pub(crate) struct Outlets {
     pub(crate) frames: tokio::sync::watch::Receiver<Option<bytes::Bytes>>,
     pub(crate) watchers: Arc<std::sync::atomic::AtomicUsize>,
     pub(crate) record: vl_record::Feed,
-    pub(crate) foxglove: Option<foxglove::Feed>,
+    pub(crate) foxglove: Option<foxglove::LiveFeed>,
     pub(crate) session: Arc<str>,
 }
 

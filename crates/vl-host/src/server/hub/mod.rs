@@ -205,10 +205,19 @@ pub(crate) struct Hub {
     recording: Option<recording::RunRecording>,
     /// Foxglove's feed, handed every broadcast to make its views of.
     views: Option<mpsc::Sender<HostMessage>>,
+    /// Who drives the run under way, told with its end.
+    driver: Option<super::events::RunDriver>,
+    /// Where the lab's events are told.
+    events: super::events::LabEvents,
 }
 
 impl Hub {
-    pub(crate) fn new(lab: Lab, config: Arc<HostConfig>, supervisor: Supervisor) -> Hub {
+    pub(crate) fn new(
+        lab: Lab,
+        config: Arc<HostConfig>,
+        supervisor: Supervisor,
+        events: super::events::LabEvents,
+    ) -> Hub {
         let devices = *lab.status.borrow();
         Hub {
             map: Map::new(&lab),
@@ -252,6 +261,8 @@ impl Hub {
             stopper: None,
             stop_asked: false,
             recording: None,
+            driver: None,
+            events,
         }
     }
 
@@ -353,9 +364,13 @@ impl Hub {
         self.note_recording(&mut summary);
         info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
         let driver = self.run_log.last_ended().and_then(|r| r.user);
-        if let (Some(lti), Some(driver)) = (&self.config.lti, &driver) {
-            lti.run_ended(Some(run), driver, &summary);
-        }
+        self.events.tell(super::events::LabEvent::RunEnded(Arc::new(
+            super::events::RunEnded {
+                run,
+                driver: self.driver.take(),
+                summary: summary.clone(),
+            },
+        )));
         self.config.audit.record(
             AuditEntry::new("run_ended")
                 .user(driver.as_deref())

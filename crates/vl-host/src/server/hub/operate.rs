@@ -221,6 +221,13 @@ impl Hub {
             self.runs += 1;
             self.run = Some(self.runs);
             let user = self.user_of(id);
+            self.driver = self
+                .clients
+                .get(&id)
+                .map(|c| super::super::events::RunDriver {
+                    connection: id,
+                    admitted: c.admitted.clone(),
+                });
             self.run_log.started(self.runs, experiment, user.clone());
             self.config.audit.record(
                 AuditEntry::new("run_started")

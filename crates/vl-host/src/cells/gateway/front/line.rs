@@ -1,9 +1,26 @@
 //! One line for all the cells: operators wait at the gateway, and the
 //! first cell free is the first in line's.
 
-use vl_core::{ErrorCode, HostMessage};
+use vl_core::{ErrorCode, HostMessage, Role, Wire};
 
-use super::Front;
+use super::{Front, Link, WELCOME};
+
+const ROLE: &str = r#"{"type":"role""#;
+
+impl Link {
+    /// Follows whether the Guest drives at its cell, from what the cell
+    /// tells it (a welcome or a role; the rest is not read).
+    pub(super) fn follow_role(&mut self, text: &str) {
+        if !text.starts_with(WELCOME) && !text.starts_with(ROLE) {
+            return;
+        }
+        if let Ok(HostMessage::Welcome { role, .. } | HostMessage::Role { role, .. }) =
+            HostMessage::decode(text)
+        {
+            self.driving = role == Role::Operator;
+        }
+    }
+}
 
 impl Front {
     /// Guest `id`, watching, asks for control.
@@ -82,5 +99,22 @@ impl Front {
                 .await;
             self.tell_line();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_role_is_told_by_its_start() {
+        let role = HostMessage::Role {
+            role: Role::Operator,
+            resume: None,
+            slot_s: None,
+            ended: None,
+        };
+        assert!(role.encode().starts_with(ROLE));
+        assert!(!HostMessage::Bye.encode().starts_with(ROLE));
     }
 }

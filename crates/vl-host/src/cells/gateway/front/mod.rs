@@ -70,7 +70,7 @@ struct Link {
     /// Given to a Guest already watching (from the line, or asking
     /// control): its cell's welcome is told as the role it grants.
     promoted: bool,
-    /// Whether the cell has the Guest drive now (its runs are graded).
+    /// Whether the cell has the Guest drive now (one place per account).
     driving: bool,
 }
 
@@ -600,10 +600,11 @@ impl Front {
             return;
         };
         match said {
+            LinkDown::RunEnded { summary } => {
+                grades::grade(&self.config, &guest.admitted, &summary);
+            }
             LinkDown::Send { text } => {
-                if let Some(ended) = grades::follow(link, &text) {
-                    grades::grade(&self.config, &guest.admitted, &ended);
-                }
+                link.follow_role(&text);
                 // Read only what decides where the Guest stands: a refusal
                 // of its hello, and the welcome of one already watching,
                 // told as the role it grants.

@@ -45,7 +45,7 @@ impl HubRig {
         let lab = Lab::spawn(devices, arena, FramePolicy::EveryFrame, true, None);
         let feedback = lab.feedback.clone();
         let supervisor = config.supervisor().expect("the shipped nets load");
-        let hub = Hub::new(lab, Arc::new(config), supervisor);
+        let hub = Hub::new(lab, Arc::new(config), supervisor, Default::default());
         let (tx, rx) = mpsc::channel(super::super::HUB_QUEUE);
         tokio::spawn(hub.run(rx));
         HubRig {
@@ -155,6 +155,7 @@ impl Client {
                 role: account,
             },
             may_drive: account.may_drive(),
+            session: None,
         };
         self.greet_as(admitted, PROTOCOL_VERSION, role, None).await;
     }
