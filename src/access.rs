@@ -1,18 +1,21 @@
 //! Who may use the lab, from the command line: the Host's accounts, token
-//! and audit log (`AccessArgs`), a Guest's login (`LoginArgs`), and `vl
-//! users`, which keeps the accounts file. Secrets come from a file, the
-//! environment or a prompt, so no other user of the machine reads them
-//! in the process list.
+//! and audit log (`AccessArgs`), and `vl users`, which keeps the accounts
+//! file. Secrets come from a file, the environment or a prompt
+//! (`crate::login`), so no other user of the machine reads them in the
+//! process list.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::ValueHint;
-use vl_client::Login;
+#[cfg(feature = "lti")]
 use vl_core::Rubric;
-use vl_host::{AccountRole, Audit, HostConfig, Lti, LtiOptions, Observers, Tls, Users};
+use vl_host::{AccountRole, Audit, HostConfig, Observers, Tls, Users};
+#[cfg(feature = "lti")]
+use vl_lti::{Lti, LtiOptions};
 
+use crate::login::{first_line, password};
 use crate::report::emit;
 use crate::{BadInput, bad_input, named};
 
@@ -62,13 +65,9 @@ pub(crate) struct AccessArgs {
     /// --config's file). Unset ones keep their defaults: goal=50,
     /// no_collisions=20, per_collision=10, tracking=10, tracking_mm=10,
     /// time=10, time_s=60, forecast=10, forecast_mm=10.
+    #[cfg(feature = "lti")]
     #[arg(long, value_parser = crate::lti::rubric, requires = "users")]
     rubric: Option<Rubric>,
-}
-
-/// The first line of `path`: a secret kept in a file.
-fn first_line(path: &Path) -> Result<String> {
-    vl_host::secret_from_file(path).map_err(|e| BadInput(e.to_string()).into())
 }
 
 fn users_from(path: &Path) -> Result<Users> {
@@ -84,7 +83,10 @@ impl AccessArgs {
         };
         if let Some(path) = &self.users {
             let users = users_from(path)?;
+            #[cfg(feature = "lti")]
             let lms = Lti::registered(path).map_err(bad_input)?;
+            #[cfg(not(feature = "lti"))]
+            let lms = false;
             anyhow::ensure!(
                 !users.is_empty() || lms,
                 BadInput(format!(
@@ -121,6 +123,14 @@ impl AccessArgs {
             config.audit = Audit::open(&path)
                 .with_context(|| format!("cannot open the audit log {}", path.display()))?;
         }
+        #[cfg(feature = "lti")]
+        self.lms(config)?;
+        Ok(())
+    }
+
+    /// The LMS side of a lab whose accounts file has a platform beside it.
+    #[cfg(feature = "lti")]
+    fn lms(&self, config: &mut HostConfig) -> Result<()> {
         if let Some(users) = self
             .users
             .as_ref()
@@ -130,52 +140,11 @@ impl AccessArgs {
                 users: users.clone(),
                 rubric: self.rubric.unwrap_or_default(),
             };
-            config.lti = Some(Lti::new(options, config.audit.clone()).map_err(bad_input)?);
+            let lti = Lti::new(options, config.audit.clone()).map_err(bad_input)?;
+            config.extensions.push(lti);
         }
         Ok(())
     }
-}
-
-/// How a Guest logs in.
-#[derive(clap::Args)]
-pub(crate) struct LoginArgs {
-    /// Log in with this account; the password comes from VL_PASSWORD or a prompt.
-    #[arg(long)]
-    user: Option<String>,
-    /// The operator token the Host asks for (or VL_TOKEN, or --token-file).
-    #[arg(
-        long,
-        env = "VL_TOKEN",
-        hide_env_values = true,
-        conflicts_with = "user"
-    )]
-    token: Option<String>,
-    /// A file whose first line is the operator token.
-    #[arg(long, conflicts_with_all = ["token", "user"])]
-    token_file: Option<PathBuf>,
-}
-
-impl LoginArgs {
-    pub(crate) fn login(&self) -> Result<Login> {
-        if let Some(user) = &self.user {
-            return Ok(Login::user(
-                user,
-                password(&format!("{user}'s password: "))?,
-            ));
-        }
-        Ok(Login::token(match &self.token_file {
-            Some(file) => Some(first_line(file)?),
-            None => self.token.clone(),
-        }))
-    }
-}
-
-/// A password: VL_PASSWORD when set, else asked for on the terminal.
-fn password(prompt: &str) -> Result<String> {
-    if let Ok(password) = std::env::var("VL_PASSWORD") {
-        return Ok(password);
-    }
-    rpassword::prompt_password(prompt).context("no password: set VL_PASSWORD or run on a terminal")
 }
 
 /// `vl users`: keep a lab's accounts file.

@@ -1,17 +1,18 @@
 //! `vl guest`: the window, or a scripted Guest without one; `vl demo`
 //! runs a Guest against a simulated Host in the same process.
 
-use std::net::SocketAddr;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use vl_client::{Login, Script, ScriptError, ScriptReport as RunReport};
-use vl_core::{Arena, Experiment, Role};
+use vl_core::{Experiment, Role};
 use vl_guest::{PadChoice, WindowError};
+#[cfg(feature = "host")]
 use vl_host::{Host, HostConfig, Media, SimLab};
 
-use crate::access::LoginArgs;
+use crate::login::LoginArgs;
+#[cfg(feature = "host")]
 use crate::media::LinkArgs;
 use crate::report::emit;
 use crate::{BadInput, bad_input, named};
@@ -63,6 +64,7 @@ fn gamepad(choice: &PadChoice, dead_man: bool) -> Result<Option<Box<dyn vl_guest
     Ok(pad)
 }
 
+#[cfg(feature = "host")]
 #[derive(clap::Args)]
 pub(crate) struct DemoArgs {
     /// No window: a scripted Guest drives the robot to the goal and reports.
@@ -166,14 +168,16 @@ fn interruptible<T>(
     })
 }
 
+#[cfg(feature = "host")]
 pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<ExitCode> {
-    let listen: SocketAddr = ([127, 0, 0, 1], 0).into();
+    use anyhow::Context;
+    let listen: std::net::SocketAddr = ([127, 0, 0, 1], 0).into();
     let host = runtime
         .block_on(Host::start_sim(
             listen,
             SimLab {
                 seed: args.seed,
-                ..SimLab::new(Arena::navigation())
+                ..SimLab::new(vl_core::Arena::navigation())
             },
             HostConfig::default(),
         ))

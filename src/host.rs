@@ -106,7 +106,7 @@ enum HostTool {
         #[arg(default_value = "ws://127.0.0.1:7400")]
         url: String,
         #[command(flatten)]
-        login: crate::access::LoginArgs,
+        login: crate::login::LoginArgs,
         #[arg(long)]
         json: bool,
     },

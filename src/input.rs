@@ -3,10 +3,14 @@
 //! a duration. Any problem with them is the user's input (exit code 2).
 
 use std::path::{Path, PathBuf};
+#[cfg(feature = "host")]
 use std::time::Duration;
 
 use anyhow::Result;
-use vl_core::{Arena, CameraModel, DotTarget, RobotKind, RobotModel};
+#[cfg(feature = "host")]
+use vl_core::CameraModel;
+use vl_core::{Arena, DotTarget, RobotKind, RobotModel};
+#[cfg(feature = "host")]
 use vl_host::CameraSource;
 use vl_sim::Scheduled;
 
@@ -72,6 +76,7 @@ pub(crate) fn read_json<T: serde::de::DeserializeOwned>(path: &Path, kind: &str)
 }
 
 /// The camera a calibration file (what `vl camera calibrate -o` writes) holds.
+#[cfg(feature = "host")]
 pub(crate) fn load_calibration(path: &Path) -> Result<CameraModel> {
     let kind = "calibration file (as `vl camera calibrate -o` writes)";
     Ok(read_json::<vl_core::Calibration>(path, kind)?.camera)
@@ -86,6 +91,7 @@ pub(crate) fn load_target(path: &Path) -> Result<DotTarget> {
     Ok(target)
 }
 
+#[cfg(feature = "host")]
 /// The real camera `source` names (see [`CameraSource::open`]); footage
 /// that cannot be read is the user's input.
 pub(crate) fn real_camera(
@@ -115,6 +121,7 @@ pub(crate) fn positive(what: &str, v: f64) -> Result<f64, BadInput> {
 }
 
 /// A duration the user gave, in seconds: above 0 and at most a day.
+#[cfg(feature = "host")]
 pub(crate) fn seconds(what: &str, s: f64) -> Result<Duration, BadInput> {
     if s.is_finite() && s > 0.0 && s <= 86_400.0 {
         Ok(Duration::from_secs_f64(s))
@@ -136,6 +143,7 @@ pub(crate) struct SceneArgs {
 }
 
 /// The arena `name` (shipped, or a JSON file), started at `start` if given.
+#[cfg(feature = "host")]
 pub(crate) fn arena_from(name: &str, start: Option<vl_core::Pose>) -> Result<Arena> {
     let arena = load_arena(name)?;
     match start {

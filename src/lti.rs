@@ -12,7 +12,7 @@ use anyhow::Result;
 use clap::ValueHint;
 use serde::Serialize;
 use vl_core::Rubric;
-use vl_host::{Platform, Registry, ToolKey};
+use vl_lti::{Platform, Registry, ToolKey};
 use vl_report::table::{Report, Table};
 
 use crate::bad_input;
@@ -83,7 +83,7 @@ pub(crate) struct AddPlatform {
 pub(crate) fn run(command: LtiCommand) -> Result<ExitCode> {
     match command {
         LtiCommand::AddPlatform(add) => {
-            let path = vl_host::registry_path(&add.users);
+            let path = vl_lti::registry_path(&add.users);
             let mut registry = Registry::load(&path).map_err(bad_input)?;
             registry
                 .add(Platform {
@@ -100,7 +100,7 @@ pub(crate) fn run(command: LtiCommand) -> Result<ExitCode> {
             eprintln!("{}: {} platforms", path.display(), registry.platforms.len());
         }
         LtiCommand::List { users, json } => {
-            let registry = Registry::load(&vl_host::registry_path(&users)).map_err(bad_input)?;
+            let registry = Registry::load(&vl_lti::registry_path(&users)).map_err(bad_input)?;
             emit(&registry, json)?;
         }
         LtiCommand::Remove {
@@ -108,7 +108,7 @@ pub(crate) fn run(command: LtiCommand) -> Result<ExitCode> {
             issuer,
             client_id,
         } => {
-            let path = vl_host::registry_path(&users);
+            let path = vl_lti::registry_path(&users);
             let mut registry = Registry::load(&path).map_err(bad_input)?;
             registry
                 .remove(&issuer, client_id.as_deref())
@@ -117,7 +117,7 @@ pub(crate) fn run(command: LtiCommand) -> Result<ExitCode> {
             eprintln!("{}: {} platforms", path.display(), registry.platforms.len());
         }
         LtiCommand::ToolConfig { users, url, json } => {
-            let key = ToolKey::load_or_make(&vl_host::key_path(&users)).map_err(bad_input)?;
+            let key = ToolKey::load_or_make(&vl_lti::key_path(&users)).map_err(bad_input)?;
             emit(&ToolConfig::new(&url, &key), json)?;
             if !json {
                 println!(

@@ -3,16 +3,26 @@
 //! simulated lab; the tool subcommands reach the libraries' algorithms.
 //! This crate only parses, dispatches and prints.
 
+#[cfg(feature = "host")]
 mod access;
+#[cfg(feature = "host")]
 mod camera;
+#[cfg(feature = "host")]
 mod experiment;
 mod flag_file;
+#[cfg(feature = "host")]
 mod gateway;
+#[cfg(feature = "guest")]
 mod guest;
+#[cfg(feature = "host")]
 mod host;
 mod input;
+#[cfg(feature = "host")]
 mod khepera;
+mod login;
+#[cfg(feature = "lti")]
 mod lti;
+#[cfg(feature = "host")]
 mod media;
 mod named;
 mod nets;
@@ -45,16 +55,37 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Serve the lab to Guests over WebSocket (on the lab machine).
+    #[cfg(feature = "host")]
     Host(Box<host::HostCommand>),
+    /// Serve the lab to Guests over WebSocket (on the lab machine).
+    #[cfg(not(feature = "host"))]
+    Host(Missing),
     /// The lab's one public address in front of many cells (each a `vl
     /// host --gateway … --cell NAME`), on Zenoh.
+    #[cfg(feature = "host")]
     Gateway(gateway::GatewayCommand),
+    /// The lab's one public address in front of many cells (each a `vl
+    /// host --gateway … --cell NAME`), on Zenoh.
+    #[cfg(not(feature = "host"))]
+    Gateway(Missing),
     /// Open the Guest window on a Host (on the user's desktop).
+    #[cfg(feature = "guest")]
     Guest(guest::GuestArgs),
+    /// Open the Guest window on a Host (on the user's desktop).
+    #[cfg(not(feature = "guest"))]
+    Guest(Missing),
     /// Run a Host on the simulated lab and a Guest against it, in one process.
+    #[cfg(all(feature = "guest", feature = "host"))]
     Demo(guest::DemoArgs),
+    /// Run a Host on the simulated lab and a Guest against it, in one process.
+    #[cfg(not(all(feature = "guest", feature = "host")))]
+    Demo(Missing),
     /// Relay Guests to a Host through a modelled Internet link (the Media).
+    #[cfg(feature = "host")]
     Media(media::MediaCommand),
+    /// Relay Guests to a Host through a modelled Internet link (the Media).
+    #[cfg(not(feature = "host"))]
+    Media(Missing),
     /// The labs' own nets: statecharts to the controlled nets the Host runs.
     #[command(subcommand)]
     Lab(nets::LabCommand),
@@ -62,13 +93,26 @@ enum Command {
     #[command(subcommand)]
     Petri(petri::PetriCommand),
     /// Emulate a Khepera II on a pseudo-terminal, backed by the simulator.
+    #[cfg(feature = "host")]
     KheperaEmu(khepera::KheperaArgs),
+    /// Emulate a Khepera II on a pseudo-terminal, backed by the simulator.
+    #[cfg(not(feature = "host"))]
+    KheperaEmu(Missing),
     /// Tools for a real Khepera on its serial line.
     #[command(subcommand)]
+    #[cfg(feature = "host")]
     Khepera(khepera::KheperaTool),
+    /// Tools for a real Khepera on its serial line.
+    #[cfg(not(feature = "host"))]
+    Khepera(Missing),
     /// Holds a robot's serial line for `vl host` (started by it).
     #[command(hide = true)]
+    #[cfg(feature = "host")]
     SerialGuard(khepera::GuardArgs),
+    /// Holds a robot's serial line for `vl host` (started by it).
+    #[command(hide = true)]
+    #[cfg(not(feature = "host"))]
+    SerialGuard(Missing),
     /// The simulator's tools: scripted runs, camera frames, link models, speed.
     #[command(subcommand)]
     Sim(sim::SimCommand),
@@ -79,18 +123,66 @@ enum Command {
     Plan(plan::PlanArgs),
     /// Calibrate the overhead camera: its map from floor mm to pixels.
     #[command(subcommand)]
+    #[cfg(feature = "host")]
     Camera(camera::CameraCommand),
+    /// Calibrate the overhead camera: its map from floor mm to pixels.
+    #[cfg(not(feature = "host"))]
+    Camera(Missing),
     /// Keep a lab's accounts file: add, remove, passwd, list.
     #[command(subcommand)]
+    #[cfg(feature = "host")]
     Users(access::UsersCommand),
+    /// Keep a lab's accounts file: add, remove, passwd, list.
+    #[cfg(not(feature = "host"))]
+    Users(Missing),
     /// The lab inside a teacher's LMS (LTI 1.3): platforms, the tool's configuration.
     #[command(subcommand)]
+    #[cfg(feature = "lti")]
     Lti(lti::LtiCommand),
+    /// The lab inside a teacher's LMS (LTI 1.3): platforms, the tool's configuration.
+    #[cfg(not(feature = "lti"))]
+    Lti(Missing),
     /// Run the lab's experiments headless on the simulator and measure them.
     #[command(subcommand)]
+    #[cfg(feature = "host")]
     Experiment(experiment::ExperimentCommand),
+    /// Run the lab's experiments headless on the simulator and measure them.
+    #[cfg(not(feature = "host"))]
+    Experiment(Missing),
     /// The recorded runs: list, describe, export, repair.
     Record(record::RecordArgs),
+}
+
+/// What a command this `vl` was built without takes: anything, to say
+/// which feature it needs rather than that it does not exist.
+#[derive(clap::Args)]
+struct Missing {
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
+    _anything: Vec<std::ffi::OsString>,
+}
+
+/// Why `command` cannot run: the cargo feature this `vl` was built without.
+fn missing(command: &Command) -> anyhow::Error {
+    let (name, feature) = match command {
+        Command::Guest(_) => ("guest", "guest"),
+        Command::Demo(_) => ("demo", "guest,host"),
+        Command::Lti(_) => ("lti", "lti"),
+        Command::Host(_) => ("host", "host"),
+        Command::Gateway(_) => ("gateway", "host"),
+        Command::Media(_) => ("media", "host"),
+        Command::KheperaEmu(_) => ("khepera-emu", "host"),
+        Command::Khepera(_) => ("khepera", "host"),
+        Command::SerialGuard(_) => ("serial-guard", "host"),
+        Command::Camera(_) => ("camera", "host"),
+        Command::Users(_) => ("users", "host"),
+        Command::Experiment(_) => ("experiment", "host"),
+        _ => ("this command", "default"),
+    };
+    BadInput(format!(
+        "`vl {name}` is not in this vl, built without the cargo feature `{feature}`: \
+         build it with `cargo build --release --features {feature}`"
+    ))
+    .into()
 }
 
 /// Installed for every subcommand but counting only for the Petri commands,
@@ -109,6 +201,7 @@ pub(crate) fn bad_input(e: impl std::fmt::Display) -> BadInput {
 }
 
 pub(crate) use named::named_parser as named;
+#[cfg(feature = "host")]
 pub(crate) use vl_core::{duration, duration_or_none};
 
 fn main() -> ExitCode {
@@ -171,6 +264,32 @@ fn report(e: &anyhow::Error) -> ExitCode {
 fn run(cli: Cli) -> Result<ExitCode> {
     let runtime = || tokio::runtime::Runtime::new().context("cannot start the async runtime");
     match cli.command {
+        Command::Lab(command) => nets::run(command),
+        Command::Petri(command) => petri::run(command),
+        Command::Sim(command) => sim::run(command),
+        Command::Vision(command) => vision::run(command),
+        Command::Plan(args) => plan::run(args),
+        Command::Record(command) => record::record(command),
+        #[cfg(feature = "guest")]
+        Command::Guest(args) => guest::guest(&runtime()?, args),
+        #[cfg(all(feature = "guest", feature = "host"))]
+        Command::Demo(args) => guest::demo(&runtime()?, args),
+        #[cfg(feature = "lti")]
+        Command::Lti(command) => lti::run(command),
+        #[cfg(feature = "host")]
+        command => run_host(command, runtime),
+        #[cfg(not(feature = "host"))]
+        command => Err(missing(&command)),
+    }
+}
+
+/// The lab machine's commands.
+#[cfg(feature = "host")]
+fn run_host(
+    command: Command,
+    runtime: impl Fn() -> Result<tokio::runtime::Runtime>,
+) -> Result<ExitCode> {
+    match command {
         Command::Host(command) => runtime()?
             .block_on(host::host_command(*command))
             .map(|()| ExitCode::SUCCESS),
@@ -182,23 +301,15 @@ fn run(cli: Cli) -> Result<ExitCode> {
             runtime.shutdown_timeout(std::time::Duration::from_secs(1));
             result.map(|()| ExitCode::SUCCESS)
         }
-        Command::Guest(args) => guest::guest(&runtime()?, args),
-        Command::Demo(args) => guest::demo(&runtime()?, args),
         Command::Media(args) => runtime()?
             .block_on(media::run(args))
             .map(|()| ExitCode::SUCCESS),
-        Command::Lab(command) => nets::run(command),
-        Command::Petri(command) => petri::run(command),
         Command::KheperaEmu(args) => khepera::khepera_emu(args),
         Command::Khepera(tool) => khepera::khepera(tool),
         Command::SerialGuard(args) => khepera::serial_guard(args),
-        Command::Sim(command) => sim::run(command),
-        Command::Vision(command) => vision::run(command),
-        Command::Plan(args) => plan::run(args),
         Command::Camera(command) => camera::run(command),
         Command::Experiment(command) => experiment::run(&runtime()?, command),
         Command::Users(command) => access::users(command),
-        Command::Lti(command) => lti::run(command),
-        Command::Record(command) => record::record(command),
+        command => Err(missing(&command)),
     }
 }

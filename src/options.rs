@@ -2,8 +2,10 @@
 //! simulated camera's optics, which frames the Host sends, what a forecast
 //! must show. Each turns into the library's own type here, and only here.
 
+#[cfg(feature = "host")]
 use std::time::Duration;
 
+#[cfg(feature = "host")]
 use vl_host::{ForecastSettings, FramePolicy, MOST_FORECAST_SEEDS};
 use vl_sim::{Optics, OpticsPreset};
 
@@ -77,6 +79,7 @@ impl OpticsArgs {
     }
 }
 
+#[cfg(feature = "host")]
 /// Which camera frames the Host sends (thesis appendix G), as `vl host`
 /// and `vl experiment` take it from flags.
 #[derive(Debug, Clone, clap::Args)]
@@ -92,12 +95,14 @@ pub(crate) struct FrameArgs {
     frame_interval: Duration,
 }
 
+#[cfg(feature = "host")]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum FrameChoice {
     EveryFrame,
     OnChange,
 }
 
+#[cfg(feature = "host")]
 impl vl_core::Named for FrameChoice {
     const KIND: &'static str = "frames";
     const ALL: &'static [FrameChoice] = &[FrameChoice::EveryFrame, FrameChoice::OnChange];
@@ -110,6 +115,7 @@ impl vl_core::Named for FrameChoice {
     }
 }
 
+#[cfg(feature = "host")]
 impl FrameArgs {
     pub(crate) fn policy(&self) -> FramePolicy {
         match self.frames {
@@ -121,6 +127,7 @@ impl FrameArgs {
     }
 }
 
+#[cfg(feature = "host")]
 /// What a lab asks of a navigation definition's forecast before a run
 /// may start, besides reaching the goal without contact (`vl host` flags,
 /// or keys of its lab file).
@@ -137,6 +144,7 @@ pub(crate) struct ForecastArgs {
     forecast_seeds: u32,
 }
 
+#[cfg(feature = "host")]
 /// A clearance in mm: a finite number from 0 to a metre.
 fn clearance(text: &str) -> Result<f64, String> {
     text.parse::<f64>()
@@ -145,6 +153,7 @@ fn clearance(text: &str) -> Result<f64, String> {
         .ok_or_else(|| format!("{text:?} is not a clearance from 0 to 1000 mm"))
 }
 
+#[cfg(feature = "host")]
 impl ForecastArgs {
     pub(crate) fn settings(&self) -> ForecastSettings {
         ForecastSettings {
@@ -155,6 +164,7 @@ impl ForecastArgs {
     }
 }
 
+#[cfg(feature = "host")]
 /// Where `vl` meets a Zenoh network: its own router listening, or an
 /// existing network joined.
 #[derive(clap::Args, Clone)]
@@ -173,9 +183,11 @@ pub(crate) struct ZenohArgs {
     zenoh_credentials: Option<std::path::PathBuf>,
 }
 
+#[cfg(feature = "host")]
 /// Zenoh's usual port, where ROS 2's rmw_zenoh looks for a router.
 const ZENOH_PORT: u16 = 7447;
 
+#[cfg(feature = "host")]
 impl ZenohArgs {
     /// The network, a router of its own listening on `listen`'s address
     /// unless told otherwise (`quic/` where `secured`: its caller then says

@@ -5,7 +5,9 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::ValueHint::{DirPath, FilePath};
-use vl_record::{Catalogue, RecordError, RecordSettings, Recording};
+#[cfg(feature = "host")]
+use vl_record::RecordSettings;
+use vl_record::{Catalogue, RecordError, Recording};
 
 use crate::BadInput;
 use crate::report::emit;
@@ -34,6 +36,7 @@ pub(crate) struct KeepArgs {
 }
 
 impl KeepArgs {
+    #[cfg(feature = "host")]
     pub(crate) fn settings(&self) -> RecordSettings {
         RecordSettings {
             recordings: self.recordings.clone(),

@@ -2,7 +2,9 @@
 //! `--json` the same report as JSON for programs.
 
 use anyhow::Result;
-pub(crate) use vl_report::table::{Report, Table, count};
+#[cfg(feature = "host")]
+pub(crate) use vl_report::table::Table;
+pub(crate) use vl_report::table::{Report, count};
 
 /// Prints `report` as JSON when `json`, else as its table.
 pub(crate) fn emit(report: &impl Report, json: bool) -> Result<()> {

@@ -299,7 +299,7 @@ fn circles(edges: &BTreeSet<(PathBuf, PathBuf)>) -> Vec<Vec<PathBuf>> {
             }
             if self.low[file] == self.index[file] {
                 let at = self.stack.iter().rposition(|f| *f == file).unwrap();
-                let set: Vec<PathBuf> = self.stack.drain(at..).map(PathBuf::clone).collect();
+                let set: Vec<PathBuf> = self.stack.drain(at..).cloned().collect();
                 if set.len() > 1 {
                     self.circles.push(set);
                 }

@@ -7,8 +7,8 @@
 //! experiment control loop (`lab`) and serves Guests over WebSocket
 //! (`server`), letting in whom its accounts and token say (`accounts`:
 //! Argon2id accounts, the gate every hello passes with its delays and
-//! limits on failures, the audit log; and people an LMS vouched for,
-//! `lti`); and the Media, a relay that puts a
+//! limits on failures, the audit log; and whom an extension's sessions
+//! vouch for, as an LMS's launches do in `vl-lti`); and the Media, a relay that puts a
 //! modelled Internet link between Guests and a Host (`media`). Every run
 //! is recorded as an MCAP file Foxglove opens, through `vl-record`.
 //!
@@ -74,9 +74,10 @@
 //!   ROS 2 node on Zenoh as rmw_zenoh speaks it, no ROS installed: its
 //!   topics, `/cmd_vel` as an operator, and any ROS 2 base as the lab's
 //!   robot (`ros2`); velocities paced into commands (`server::pacing`)
-//! - the lab as an LTI 1.3 tool of a teacher's LMS (`lti`): platforms and
-//!   the tool's key, checked launches that log people in by a session,
-//!   deep linking, grades posted from runs by the rubric, the roster
+//! - what plugs into the lab (`server::extension`: its pages on the lab's
+//!   port, the sessions it opens for the gate, its part of the status, a
+//!   task hearing the lab's events, `server::events`), as the LMS side
+//!   (`vl-lti`) does; every secret the lab hands out (`secret`)
 
 mod accounts;
 mod cells;
@@ -89,7 +90,6 @@ mod hush;
 mod khepera;
 mod lab;
 mod line;
-mod lti;
 mod media;
 mod memory;
 mod priority;
@@ -115,7 +115,7 @@ pub use accounts::gate::{
     Observers, Purpose, Refusal, SessionCheck, SessionId,
 };
 pub use accounts::users::{AccountRole, Member, Roster, Users, UsersError};
-pub use accounts::{SecretError, secret_from_file};
+pub use accounts::write_private;
 pub use cells::{
     CellOptions, Endpoint, RouterTrust, TrustError, ZenohAuthority, ZenohCredentials, ZenohError,
     ZenohMember, ZenohOptions, ZenohTrust,
@@ -126,7 +126,6 @@ pub use footage::FootageCamera;
 pub use khepera::KheperaSerial;
 pub use lab::{Devices, FramePolicy};
 pub use line::run_guard;
-pub use lti::{Lti, LtiError, LtiOptions, Platform, Registry, ToolKey, key_path, registry_path};
 pub use media::{
     Delays, Media, MediaBench, MediaBenchError, MediaConfig, MediaError, RelayRoundTrip,
     Reproduced, bench as media_bench,
@@ -135,12 +134,15 @@ pub use priority::raise_for_control as raise_priority;
 pub use ros2::{
     MsgError, Ros2Error, Ros2Options, Ros2Robot, Ros2RobotOptions, operator_as as ros2_operator_as,
 };
+pub use secret::secret;
 pub use server::bench::{
     BenchError, GatewayBench, GatewayCost, Guessing, OperatorLatency, WatchersBench, WatchersCost,
     operator_latency,
 };
 pub use server::events::{LabEvent, LabEvents, RunDriver, RunEnded};
+pub use server::extension::{Extension, ExtensionTask};
 pub use server::origin::{AllowedOrigins, NotAnOrigin};
+pub use server::web;
 pub use server::{ForecastSettings, HostConfig, MOST_FORECAST_SEEDS};
 pub use setup::{LabSpec, RobotSpec, SetupError};
 pub use source::CameraSource;

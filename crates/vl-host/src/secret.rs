@@ -5,7 +5,7 @@ use base64::Engine;
 
 /// 32 bytes from the operating system's generator, base64url (43
 /// characters): nothing a client sees or the clock says predicts it.
-pub(crate) fn secret() -> String {
+pub fn secret() -> String {
     let mut bytes = [0u8; 32];
     // Without the system's randomness no secret may be made at all; on the
     // systems the lab runs on (Linux's getrandom) this does not fail.

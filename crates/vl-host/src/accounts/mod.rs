@@ -9,30 +9,10 @@ pub(crate) mod users;
 
 use std::path::{Path, PathBuf};
 
-/// Why a secret could not be read from its file.
-#[derive(Debug, thiserror::Error)]
-pub enum SecretError {
-    #[error("cannot read {0}: {1}")]
-    Read(PathBuf, std::io::Error),
-    #[error("{0} is empty")]
-    Empty(PathBuf),
-}
-
-/// The first line of `path`: a secret (a token) kept in a file rather
-/// than on a command line, where anyone on the machine reads it.
-pub fn secret_from_file(path: &Path) -> Result<String, SecretError> {
-    let text = std::fs::read_to_string(path).map_err(|e| SecretError::Read(path.into(), e))?;
-    let line = text.lines().next().unwrap_or("").trim();
-    if line.is_empty() {
-        return Err(SecretError::Empty(path.into()));
-    }
-    Ok(line.to_owned())
-}
-
 /// Writes `bytes` to `path`, readable by its owner only, through a
 /// temporary file so a crash leaves the old file or the new one: how the
 /// accounts, the LMS platforms and the tool's key are kept.
-pub(crate) fn write_private(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+pub fn write_private(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     use std::io::Write;
     let mut temporary = path.as_os_str().to_owned();
     temporary.push(".new");

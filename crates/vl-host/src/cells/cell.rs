@@ -3,13 +3,12 @@
 
 use std::collections::HashMap;
 use std::sync::Arc;
-use std::sync::atomic::AtomicUsize;
 use std::time::Duration;
 
-use tokio::sync::{broadcast, mpsc, oneshot, watch};
-use tokio_tungstenite::tungstenite::{Bytes, Message};
+use tokio::sync::{broadcast, mpsc, oneshot};
+use tokio_tungstenite::tungstenite::Message;
 use tracing::{debug, info, warn};
-use vl_core::{CellInfo, CellName, Experiment, HostMessage, PROTOCOL_VERSION, Role, Wire};
+use vl_core::{CellInfo, CellName, Experiment, PROTOCOL_VERSION, Role, Wire};
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::SampleKind;
 
@@ -18,7 +17,8 @@ use super::{CellOptions, ZenohError, keys, within};
 use crate::accounts::gate::Admitted;
 use crate::hush::Hush;
 use crate::lab::Watching;
-use crate::server::events::{LabEvent, LabEvents};
+use crate::server::LabHandle;
+use crate::server::events::LabEvent;
 use crate::server::hub::{OUTBOX, Status, ToConnection, ToHub};
 
 /// How often a cell tells the gateway how it is.
@@ -29,19 +29,16 @@ const FIRST_ID: u64 = 1 << 48;
 /// Links a cell holds at once: as many Guests as a gateway serves.
 const MOST_LINKS: usize = 4096;
 
-/// What a cell's side takes from the Host it is part of.
-pub(crate) struct Cell {
-    pub(crate) hub: mpsc::Sender<ToHub>,
-    pub(crate) feedback: watch::Receiver<Option<HostMessage>>,
-    pub(crate) frames: watch::Receiver<Option<Bytes>>,
-    pub(crate) watchers: Arc<AtomicUsize>,
-    pub(crate) experiments: Vec<Experiment>,
-    pub(crate) events: LabEvents,
+/// A cell's side of its Host: the lab, and what it offers.
+struct Cell {
+    lab: LabHandle,
+    experiments: Vec<Experiment>,
 }
 
 /// Joins the gateway of `options` and serves it for as long as the Host
 /// runs (never returning: a cell that cannot join still serves alone).
-pub(crate) async fn join(options: CellOptions, cell: Cell) {
+pub(crate) async fn join(options: CellOptions, lab: LabHandle, experiments: Vec<Experiment>) {
+    let cell = Cell { lab, experiments };
     let name = options.name.clone();
     let session = match super::open(&options.zenoh).await {
         Ok(session) => session,
@@ -63,7 +60,7 @@ async fn serve(session: &zenoh::Session, name: &CellName, cell: Cell) -> Result<
     tokio::try_join!(
         watched(session, name, &cell, ids.clone()),
         tell_info(session, name, &cell),
-        catch_ups(session, name, &cell.hub),
+        catch_ups(session, name, &cell.lab.hub),
         links(session, name, &cell, ids),
     )?;
     Ok(())
@@ -90,7 +87,7 @@ async fn watched(
     // Frames are made only while someone watches: the gateway takes them
     // only while one of its Guests is on this cell.
     let looked_at = frames_out.matching_listener().await?;
-    let (mut feedback, mut frames) = (cell.feedback.clone(), cell.frames.clone());
+    let (mut feedback, mut frames) = (cell.lab.feedback.clone(), cell.lab.frames.clone());
     let mut watching = None;
     loop {
         let id = ids.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -102,8 +99,13 @@ async fn watched(
             role: Role::Observer,
             resume: None,
         };
-        if cell.hub.send(ToHub::Join(id, to_me, None)).await.is_err()
-            || cell.hub.send(hello).await.is_err()
+        if cell
+            .lab
+            .hub
+            .send(ToHub::Join(id, to_me, None))
+            .await
+            .is_err()
+            || cell.lab.hub.send(hello).await.is_err()
         {
             return Ok(());
         }
@@ -124,7 +126,7 @@ async fn watched(
                 },
                 status = looked_at.recv_async() => {
                     let Ok(status) = status else { return Ok(()) };
-                    watching = status.matching().then(|| Watching::new(&cell.watchers));
+                    watching = status.matching().then(|| Watching::new(&cell.lab.watchers));
                 }
                 Ok(()) = feedback.changed(), if welcomed => {
                     let latest = feedback.borrow_and_update().clone();
@@ -141,7 +143,7 @@ async fn watched(
             }
         }
         debug!("cell {name}: its watchers' observer joins again");
-        let _ = cell.hub.send(ToHub::Leave(id, false)).await;
+        let _ = cell.lab.hub.send(ToHub::Leave(id, false)).await;
     }
 }
 
@@ -156,7 +158,7 @@ async fn tell_info(
     loop {
         every.tick().await;
         let (tx, rx) = oneshot::channel();
-        if cell.hub.send(ToHub::Status(tx)).await.is_err() {
+        if cell.lab.hub.send(ToHub::Status(tx)).await.is_err() {
             return Ok(());
         }
         let Ok(Status::Host(status)) = rx.await else {
@@ -203,7 +205,7 @@ async fn links(
     cell: &Cell,
     ids: Arc<std::sync::atomic::AtomicU64>,
 ) -> Result<(), ZenohError> {
-    let hub = &cell.hub;
+    let hub = &cell.lab.hub;
     let ups = session.declare_subscriber(keys::ups(name)).await?;
     let tokens = session
         .liveliness()
@@ -247,7 +249,7 @@ async fn links(
                                     return Ok(());
                                 }
                                 let down = session.declare_publisher(keys::down(name, &link)).await?;
-                                let relay = relay_down(inbox, down, id, cell.events.listen());
+                                let relay = relay_down(inbox, down, id, cell.lab.events.listen());
                                 open.insert(link.clone(), (id, tokio::spawn(relay)));
                                 id
                             }

@@ -17,7 +17,7 @@ pub(crate) mod keys;
 mod link;
 mod trust;
 
-pub(crate) use cell::{Cell, join};
+pub(crate) use cell::join;
 pub(crate) use gateway::serve as serve_gateway;
 pub use trust::{RouterTrust, TrustError, ZenohAuthority, ZenohCredentials, ZenohMember};
 

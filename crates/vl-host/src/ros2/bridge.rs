@@ -6,11 +6,8 @@
 //! and `/map` latched — and, with `--ros2-operator`, driven by `/cmd_vel`.
 
 use std::sync::Arc;
-use std::sync::atomic::AtomicUsize;
 use std::time::{Duration, Instant};
 
-use bytes::Bytes;
-use tokio::sync::{mpsc, watch};
 use tracing::{info, warn};
 use vl_core::{Feedback, FrameHeader, HostMessage, ImageFormat, LabScene};
 
@@ -18,8 +15,9 @@ use super::graph::{Publisher, Qos};
 use super::messages::{CameraInfo, CompressedImage, LaserScan, OccupancyGrid, Odometry, TfMessage};
 use super::views::{self, Frames};
 use super::{NODE, Ros2Error, Ros2Options};
+use crate::accounts::gate::Gate;
 use crate::lab::Watching;
-use crate::server::hub::ToHub;
+use crate::server::LabHandle;
 
 /// The fastest `/odom` and `/tf` go, and `/scan`.
 const ODOM_EVERY: Duration = Duration::from_millis(20);
@@ -30,20 +28,27 @@ const SLOW_EVERY: Duration = Duration::from_secs(1);
 const LOOK_EVERY: Duration = Duration::from_millis(200);
 
 /// What the bridge takes from the Host it is part of.
-pub(crate) struct Lab {
-    pub(crate) hub: mpsc::Sender<ToHub>,
+struct Lab {
+    handle: LabHandle,
     /// Whether the account `/cmd_vel` drives as is still the lab's.
-    pub(crate) gate: Arc<crate::accounts::gate::Gate>,
-    pub(crate) feedback: watch::Receiver<Option<HostMessage>>,
-    pub(crate) frames: watch::Receiver<Option<Bytes>>,
-    pub(crate) watchers: Arc<AtomicUsize>,
-    pub(crate) scene: LabScene,
+    gate: Arc<Gate>,
+    scene: LabScene,
 }
 
 /// Serves the lab on ROS 2 for as long as the Host runs (never
 /// returning: a lab that cannot reach its Zenoh network still serves its
 /// Guests).
-pub(crate) async fn serve(options: Ros2Options, lab: Lab) {
+pub(crate) async fn serve(
+    options: Ros2Options,
+    handle: LabHandle,
+    gate: Arc<Gate>,
+    scene: LabScene,
+) {
+    let lab = Lab {
+        handle,
+        gate,
+        scene,
+    };
     if let Err(e) = publish(&options, lab).await {
         warn!("the lab is not on ROS 2: {e}");
     }
@@ -90,9 +95,9 @@ async fn publish(options: &Ros2Options, lab: Lab) -> Result<(), Ros2Error> {
             let at_hub = super::operator::AtLab {
                 admitted,
                 gate: lab.gate.clone(),
-                hub: lab.hub.clone(),
+                hub: lab.handle.hub.clone(),
             };
-            super::operator::drive(&node, at_hub, lab.feedback.clone()).await
+            super::operator::drive(&node, at_hub, lab.handle.feedback.clone()).await
         } else {
             std::future::pending().await
         }
@@ -105,7 +110,7 @@ async fn publish(options: &Ros2Options, lab: Lab) -> Result<(), Ros2Error> {
 async fn state(topics: &Topics, lab: &Lab) -> Result<(), Ros2Error> {
     let pinhole = lab.scene.camera.pinhole();
     let robot = &lab.scene.robot;
-    let mut feedback = lab.feedback.clone();
+    let mut feedback = lab.handle.feedback.clone();
     let mut slow = tokio::time::interval(SLOW_EVERY);
     let (mut odom_at, mut scan_at) = (Instant::now(), Instant::now());
     let mut latest: Option<Feedback> = None;
@@ -142,7 +147,7 @@ async fn state(topics: &Topics, lab: &Lab) -> Result<(), Ros2Error> {
 
 /// The camera's frames, made only while a subscriber takes them.
 async fn camera(topics: &Topics, lab: &Lab) -> Result<(), Ros2Error> {
-    let mut frames = lab.frames.clone();
+    let mut frames = lab.handle.frames.clone();
     let mut look = tokio::time::interval(LOOK_EVERY);
     let mut watching: Option<Watching> = None;
     loop {
@@ -150,7 +155,7 @@ async fn camera(topics: &Topics, lab: &Lab) -> Result<(), Ros2Error> {
             _ = look.tick() => {
                 let wanted = topics.image.matched().await;
                 if wanted != watching.is_some() {
-                    watching = wanted.then(|| Watching::new(&lab.watchers));
+                    watching = wanted.then(|| Watching::new(&lab.handle.watchers));
                 }
             }
             changed = frames.changed(), if watching.is_some() => {

@@ -18,7 +18,7 @@ mod robot;
 mod tests;
 mod views;
 
-pub(crate) use bridge::{Lab, serve};
+pub(crate) use bridge::serve;
 pub use msg::MsgError;
 pub use robot::{Ros2Robot, Ros2RobotOptions};
 

@@ -254,7 +254,7 @@ impl ConnectionTask {
             address: self.peer.ip(),
             gate: self.gate.clone(),
             hub: self.hub.clone(),
-            lti: self.config.lti.clone(),
+            extensions: self.config.extensions.clone(),
         };
         let origins = self.config.allow_origins.clone();
         let spare = super::busy::spare(&stream, tls.is_some());

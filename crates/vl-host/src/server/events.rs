@@ -25,7 +25,9 @@ pub enum LabEvent {
 /// every Guest was told it.
 #[derive(Debug)]
 pub struct RunEnded {
-    pub run: u64,
+    /// Its number at this lab; none for a run at a gateway's cell, which
+    /// numbers its own.
+    pub run: Option<u64>,
     /// None for a run no one drove to its end as operator (the lab's own
     /// drive back to the start pose is never told).
     pub driver: Option<RunDriver>,

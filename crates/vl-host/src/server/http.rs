@@ -139,23 +139,26 @@ pub(super) struct Asking {
     pub address: IpAddr,
     pub gate: Arc<Gate>,
     pub hub: mpsc::Sender<ToHub>,
-    /// The LMS side (`/lti/…`), at a lab registered with a platform.
-    pub lti: Option<Arc<crate::lti::Lti>>,
+    /// What plugs into the lab, with pages of its own (an LMS's `/lti/…`).
+    pub extensions: Vec<Arc<dyn super::extension::Extension>>,
 }
 
 /// Answers the one request on `stream` (its head read again), then closes:
 /// a page connection holds its place among the Host's connections only
 /// as long as one answer takes.
 pub(super) async fn answer(stream: Box<dyn Io>, asking: Asking) -> io::Result<()> {
-    let lti = match &asking.lti {
-        Some(lti) => crate::lti::pages::routes(lti.clone(), asking.address),
-        None => Router::new(),
-    };
+    let extended: Vec<Router> = asking
+        .extensions
+        .iter()
+        .map(|e| e.clone().routes(asking.address))
+        .collect();
     let router = web::routes()
-        .merge(lti)
         .merge(Router::new().route("/status", get(status)))
-        .fallback(not_found)
         .with_state(asking);
+    let router = extended
+        .into_iter()
+        .fold(router, Router::merge)
+        .fallback(not_found);
     hyper::server::conn::http1::Builder::new()
         .keep_alive(false)
         .max_buf_size(MAX_HEAD)

@@ -18,13 +18,14 @@ mod bucket;
 mod busy;
 mod connection;
 pub(crate) mod events;
+pub(crate) mod extension;
 mod foxglove;
 mod http;
 pub(crate) mod hub;
 pub(crate) mod origin;
 pub(crate) mod pacing;
 pub(crate) mod socket;
-pub(crate) mod web;
+pub mod web;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -98,9 +99,8 @@ pub struct HostConfig {
     pub cell: Option<crate::cells::CellOptions>,
     /// The lab as a ROS 2 node on Zenoh.
     pub ros2: Option<crate::ros2::Ros2Options>,
-    /// The lab as an LTI 1.3 tool of its LMS platforms: launches, grades,
-    /// the roster.
-    pub lti: Option<Arc<crate::lti::Lti>>,
+    /// What plugs into the lab: an LMS's launches and grades, …
+    pub extensions: Vec<Arc<dyn extension::Extension>>,
 }
 
 impl HostConfig {
@@ -139,7 +139,7 @@ impl Default for HostConfig {
             recordings: None,
             cell: None,
             ros2: None,
-            lti: None,
+            extensions: Vec::new(),
         }
     }
 }
@@ -161,12 +161,14 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         frames: lab.frames.clone(),
         log: lab.log.clone(),
     });
-    let outlets = Outlets {
+    let events = events::LabEvents::default();
+    let handle = LabHandle {
+        hub: hub_tx.clone(),
         feedback: lab.feedback.clone(),
         frames: lab.frames.clone(),
         watchers: lab.watchers.clone(),
         record: lab.record.clone(),
-        foxglove: Some(feed),
+        events: events.clone(),
         session: lab.since_ns.to_string().into(),
     };
     let config = Arc::new(config);
@@ -177,66 +179,57 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
             return;
         }
     };
+    let gate = Arc::new(gate_of(&config));
+    let extended = extension::run_all(config.extensions.clone(), events.clone());
+    let joined = match config.cell.clone() {
+        Some(cell) => futures_util::future::Either::Left(crate::cells::join(
+            cell,
+            handle.clone(),
+            config.experiments.clone(),
+        )),
+        None => futures_util::future::Either::Right(std::future::pending()),
+    };
+    let on_ros2 = match config.ros2.clone() {
+        Some(options) => {
+            let scene = vl_core::LabScene {
+                arena: lab.info.arena.clone(),
+                robot: lab.info.robot.clone(),
+                camera: lab.info.camera,
+            };
+            let side = crate::ros2::serve(options, handle.clone(), gate.clone(), scene);
+            futures_util::future::Either::Left(side)
+        }
+        None => futures_util::future::Either::Right(std::future::pending()),
+    };
+    let hub = Hub::new(lab, config.clone(), supervisor, events).with_views(views);
+    let accounts = watch_accounts(gate.clone(), hub_tx);
+    // The hub lives exactly as long as the server: dropping this future
+    // drops the lab, which stops the robot.
+    tokio::select! {
+        () = hub.run(hub_rx) => {}
+        () = accept(listener, handle, Some(feed), config, gate, Admission::new()) => {}
+        () = accounts => {}
+        () = feeding => {}
+        () = joined => {}
+        () = on_ros2 => {}
+        () = extended => {}
+    }
+}
+
+/// The gate `config` asks for: its accounts, token and observers, and
+/// the sessions its extensions open.
+pub(crate) fn gate_of(config: &HostConfig) -> Gate {
     let gate = Gate::new(
         config.users.clone(),
         config.token.clone(),
         config.observers,
         config.audit.clone(),
     );
-    let gate = Arc::new(match &config.lti {
-        Some(lti) => gate.with_sessions(lti.sessions()),
-        None => gate,
-    });
-    let events = events::LabEvents::default();
-    let grading = match config.lti.clone() {
-        Some(lti) => futures_util::future::Either::Left(lti.grade_runs(events.listen())),
-        None => futures_util::future::Either::Right(std::future::pending()),
-    };
-    let joined = match config.cell.clone() {
-        Some(cell) => {
-            let side = crate::cells::Cell {
-                hub: hub_tx.clone(),
-                feedback: lab.feedback.clone(),
-                frames: lab.frames.clone(),
-                watchers: lab.watchers.clone(),
-                experiments: config.experiments.clone(),
-                events: events.clone(),
-            };
-            futures_util::future::Either::Left(crate::cells::join(cell, side))
-        }
-        None => futures_util::future::Either::Right(std::future::pending()),
-    };
-    let on_ros2 = match config.ros2.clone() {
-        Some(options) => {
-            let side = crate::ros2::Lab {
-                hub: hub_tx.clone(),
-                gate: gate.clone(),
-                feedback: lab.feedback.clone(),
-                frames: lab.frames.clone(),
-                watchers: lab.watchers.clone(),
-                scene: vl_core::LabScene {
-                    arena: lab.info.arena.clone(),
-                    robot: lab.info.robot.clone(),
-                    camera: lab.info.camera,
-                },
-            };
-            futures_util::future::Either::Left(crate::ros2::serve(options, side))
-        }
-        None => futures_util::future::Either::Right(std::future::pending()),
-    };
-    let hub = Hub::new(lab, config.clone(), supervisor, events).with_views(views);
-    let accounts = watch_accounts(gate.clone(), hub_tx.clone());
-    // The hub lives exactly as long as the server: dropping this future
-    // drops the lab, which stops the robot.
-    tokio::select! {
-        () = hub.run(hub_rx) => {}
-        () = accept(listener, hub_tx, outlets, config, gate, Admission::new()) => {}
-        () = accounts => {}
-        () = feeding => {}
-        () = joined => {}
-        () = on_ros2 => {}
-        () = grading => {}
-    }
+    config
+        .extensions
+        .iter()
+        .filter_map(|e| e.sessions())
+        .fold(gate, Gate::with_sessions)
 }
 
 /// How often the accounts file is looked at while the lab runs.
@@ -260,22 +253,29 @@ pub(crate) async fn watch_accounts(gate: Arc<Gate>, hub: mpsc::Sender<hub::ToHub
     }
 }
 
-/// What every connection takes from the lab directly, not through the hub.
-pub(crate) struct Outlets {
+/// How every part of the server reaches the lab: its hub, and what each
+/// client takes from the lab directly, not through the hub — the newest
+/// feedback and frames, the count of those watching, the run's recording
+/// — and the lab's events. One handle for a Host's connections (and a
+/// gateway's, whose lab is its cells), a cell's side and the ROS 2 bridge.
+#[derive(Clone)]
+pub(crate) struct LabHandle {
+    pub(crate) hub: mpsc::Sender<hub::ToHub>,
     pub(crate) feedback: tokio::sync::watch::Receiver<Option<vl_core::HostMessage>>,
     pub(crate) frames: tokio::sync::watch::Receiver<Option<bytes::Bytes>>,
     pub(crate) watchers: Arc<std::sync::atomic::AtomicUsize>,
     pub(crate) record: vl_record::Feed,
-    pub(crate) foxglove: Option<foxglove::LiveFeed>,
+    pub(crate) events: events::LabEvents,
+    /// The lab's session: when it started, ns, as its clients' names say.
     pub(crate) session: Arc<str>,
 }
 
 /// Accepts connections on `listener`, each a task of its own speaking to
-/// `hub` (a Host's, or a gateway's).
+/// `lab`'s hub (a Host's, or a gateway's); Foxglove's clients get `foxglove`.
 pub(crate) async fn accept(
     listener: TcpListener,
-    hub: mpsc::Sender<hub::ToHub>,
-    outlets: Outlets,
+    lab: LabHandle,
+    foxglove: Option<foxglove::LiveFeed>,
     config: Arc<HostConfig>,
     gate: Arc<Gate>,
     admission: Admission,
@@ -300,18 +300,18 @@ pub(crate) async fn accept(
         };
         let connection = ConnectionTask {
             id,
-            hub: hub.clone(),
-            feedback: outlets.feedback.clone(),
-            frames: outlets.frames.clone(),
-            watchers: outlets.watchers.clone(),
+            hub: lab.hub.clone(),
+            feedback: lab.feedback.clone(),
+            frames: lab.frames.clone(),
+            watchers: lab.watchers.clone(),
             config: config.clone(),
             gate: gate.clone(),
             peer,
             ticket,
-            record: outlets.record.clone(),
+            record: lab.record.clone(),
             identity: None,
-            foxglove: outlets.foxglove.clone(),
-            session: outlets.session.clone(),
+            foxglove: foxglove.clone(),
+            session: lab.session.clone(),
         };
         tokio::spawn(async move {
             if let Err(e) = connection.run(stream).await {

@@ -56,7 +56,7 @@ static POLICY: std::sync::LazyLock<String> =
 
 /// The content policy of a page that `frame_ancestors` may frame (an LMS
 /// launch's: the registered platforms) and whose forms go to `form_action`.
-pub(crate) fn policy(frame_ancestors: &str, form_action: &str) -> String {
+pub fn policy(frame_ancestors: &str, form_action: &str) -> String {
     format!(
         "default-src 'self'; connect-src 'self'; img-src 'self' blob: data:; \
          style-src 'self'; script-src 'self'; object-src 'none'; base-uri 'none'; \
@@ -65,7 +65,7 @@ pub(crate) fn policy(frame_ancestors: &str, form_action: &str) -> String {
 }
 
 /// The web Guest's page.
-pub(crate) fn index() -> &'static str {
+pub fn index() -> &'static str {
     FILES[0].2
 }
 

@@ -17,9 +17,9 @@ use vl_core::CellName;
 use zenoh::sample::SampleKind;
 
 use super::{ZenohError, ZenohOptions, ZenohTrust, keys, within};
-use crate::accounts::gate::Gate;
 use crate::hush::Hush;
-use crate::server::{Admission, HUB_QUEUE, HostConfig, Outlets, accept, watch_accounts};
+use crate::server::events::LabEvents;
+use crate::server::{Admission, HUB_QUEUE, HostConfig, LabHandle, accept, watch_accounts};
 use event::Event;
 use front::Front;
 
@@ -39,17 +39,8 @@ pub(crate) async fn serve(listener: TcpListener, config: HostConfig, zenoh: Zeno
     };
     info!(zid = %session.zid(), "the gateway is on Zenoh");
     let config = Arc::new(config);
-    let gate = Gate::new(
-        config.users.clone(),
-        config.token.clone(),
-        config.observers,
-        config.audit.clone(),
-    );
     // People an LMS launched here are let in as they are at a lone Host.
-    let gate = Arc::new(match &config.lti {
-        Some(lti) => gate.with_sessions(lti.sessions()),
-        None => gate,
-    });
+    let gate = Arc::new(crate::server::gate_of(&config));
     let (hub_tx, hub_rx) = mpsc::channel(HUB_QUEUE);
     let (events_tx, events_rx) = mpsc::channel(EVENTS);
     // A gateway's connections are given their cell's feedback and frames
@@ -57,19 +48,29 @@ pub(crate) async fn serve(listener: TcpListener, config: HostConfig, zenoh: Zeno
     let (_no_feedback, feedback) = watch::channel(None);
     let (_no_frames, frames) = watch::channel(None);
     let since = vl_record::now_ns();
-    let outlets = Outlets {
+    let lab_events = LabEvents::default();
+    let lab = LabHandle {
+        hub: hub_tx.clone(),
         feedback,
         frames,
         watchers: Arc::default(),
         record: vl_record::Feed::default(),
-        foxglove: None,
+        events: lab_events.clone(),
         session: since.to_string().into(),
     };
-    let front = Front::new(config.clone(), session.clone(), events_tx.clone(), since);
+    let front = Front::new(
+        config.clone(),
+        session.clone(),
+        events_tx.clone(),
+        lab_events.clone(),
+        since,
+    );
+    let extended = crate::server::extension::run_all(config.extensions.clone(), lab_events);
     tokio::select! {
         () = front.run(hub_rx, events_rx) => {}
-        () = accept(listener, hub_tx.clone(), outlets, config, gate.clone(), Admission::with_capacity(CONNECTIONS)) => {}
+        () = accept(listener, lab, None, config, gate.clone(), Admission::with_capacity(CONNECTIONS)) => {}
         () = watch_accounts(gate, hub_tx) => {}
+        () = extended => {}
         Err(e) = watch_cells(&session, &zenoh.trust, events_tx) => error!("the gateway no longer sees its cells: {e}"),
     }
 }

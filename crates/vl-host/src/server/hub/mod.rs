@@ -366,7 +366,7 @@ impl Hub {
         let driver = self.run_log.last_ended().and_then(|r| r.user);
         self.events.tell(super::events::LabEvent::RunEnded(Arc::new(
             super::events::RunEnded {
-                run,
+                run: Some(run),
                 driver: self.driver.take(),
                 summary: summary.clone(),
             },

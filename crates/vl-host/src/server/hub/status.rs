@@ -72,7 +72,7 @@ impl Hub {
     pub(super) fn host_status(&self) -> HostStatus {
         let devices = *self.lab.status.borrow();
         let person = |id: Option<u64>, user: Option<String>| Person { session: id, user };
-        HostStatus {
+        let mut status = HostStatus {
             robot: devices.robot,
             camera: devices.camera,
             lab: self.readiness,
@@ -102,7 +102,7 @@ impl Hub {
                 };
                 format!("{}: {} ({kept})", s.name, s.why)
             }),
-            grades: self.config.lti.as_ref().map(|lti| lti.grades_status()),
+            grades: None,
             open_to_anyone: self
                 .config
                 .ros2
@@ -110,7 +110,11 @@ impl Hub {
                 .filter(|ros2| ros2.zenoh.open_beyond_loopback())
                 .flat_map(|ros2| ros2.zenoh.listen.iter().map(ToString::to_string))
                 .collect(),
+        };
+        for extension in &self.config.extensions {
+            extension.status(&mut status);
         }
+        status
     }
 
     /// Records in the audit log a device that went offline or came back.

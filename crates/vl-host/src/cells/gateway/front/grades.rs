@@ -1,16 +1,25 @@
 //! Grades for an LMS from runs at cells: a cell tells the link of the
 //! Guest who drove a run that it ended (`LinkDown::RunEnded`, from its
-//! lab's event), and the gateway grades it as the person it let in, for
-//! the launch whose session let them in (`Lti::run_ended`).
+//! lab's event), and the gateway tells it as its own lab's event, driven
+//! by the Guest it let in — whom the LMS side grades, for the launch whose
+//! session let them in.
+
+use std::sync::Arc;
 
 use vl_core::Summary;
 
 use crate::accounts::gate::Admitted;
-use crate::server::HostConfig;
+use crate::server::events::{LabEvent, LabEvents, RunDriver, RunEnded};
 
-/// Grades the run that `admitted` drove at its cell, if an LMS sent them.
-pub(super) fn grade(config: &HostConfig, admitted: &Admitted, summary: &Summary) {
-    if let Some(lti) = &config.lti {
-        lti.run_ended(None, admitted, summary);
-    }
+/// The run that `admitted`, on connection `id`, drove at its cell ended.
+pub(super) fn ended(events: &LabEvents, id: u64, admitted: &Admitted, summary: Summary) {
+    events.tell(LabEvent::RunEnded(Arc::new(RunEnded {
+        // Numbered by its cell, not by the gateway.
+        run: None,
+        driver: Some(RunDriver {
+            connection: id,
+            admitted: admitted.clone(),
+        }),
+        summary,
+    })));
 }

@@ -26,6 +26,7 @@ use crate::accounts::users::Users;
 use crate::cells::keys;
 use crate::cells::link::{LinkDown, LinkUp};
 use crate::server::HostConfig;
+use crate::server::events::LabEvents;
 use crate::server::hub::{Status, ToConnection, ToHub};
 
 /// How long a gone Guest's link token outlives its `leave`.
@@ -93,6 +94,8 @@ pub(super) struct Front {
     config: Arc<HostConfig>,
     session: zenoh::Session,
     events: mpsc::Sender<Event>,
+    /// The gateway's own lab events: its cells' runs its Guests drove.
+    lab_events: LabEvents,
     /// This gateway's start, naming its links apart from an earlier one's.
     since: u64,
     links: u64,
@@ -109,12 +112,14 @@ impl Front {
         config: Arc<HostConfig>,
         session: zenoh::Session,
         events: mpsc::Sender<Event>,
+        lab_events: LabEvents,
         since: u64,
     ) -> Front {
         Front {
             config,
             session,
             events,
+            lab_events,
             since,
             links: 0,
             guests: HashMap::new(),
@@ -601,7 +606,7 @@ impl Front {
         };
         match said {
             LinkDown::RunEnded { summary } => {
-                grades::grade(&self.config, &guest.admitted, &summary);
+                grades::ended(&self.lab_events, id, &guest.admitted, *summary);
             }
             LinkDown::Send { text } => {
                 link.follow_role(&text);

@@ -20,9 +20,9 @@ use serde::Deserialize;
 use super::Lti;
 use super::launch::{LoginRequest, Refused};
 use super::sessions::Launch;
-use crate::accounts::audit::AuditEntry;
-use crate::accounts::users::AccountRole;
-use crate::server::web;
+use vl_host::AccountRole;
+use vl_host::AuditEntry;
+use vl_host::web;
 
 /// Who asks, for the audit.
 #[derive(Clone)]

@@ -21,9 +21,9 @@ use tokio::sync::broadcast;
 
 use super::Lti;
 use super::sessions::{Assignment, Launch};
-use crate::accounts::audit::AuditEntry;
-use crate::accounts::gate::Admitted;
-use crate::server::events::LabEvent;
+use vl_host::Admitted;
+use vl_host::AuditEntry;
+use vl_host::LabEvent;
 
 /// How long to wait before each try again after the first.
 const BACK_OFF: [Duration; 4] = [
@@ -190,7 +190,7 @@ impl Lti {
             match events.recv().await {
                 Ok(LabEvent::RunEnded(ended)) => {
                     if let Some(driver) = &ended.driver {
-                        self.run_ended(Some(ended.run), &driver.admitted, &ended.summary);
+                        self.run_ended(ended.run, &driver.admitted, &ended.summary);
                     }
                 }
                 Err(broadcast::error::RecvError::Lagged(missed)) => {

@@ -9,7 +9,7 @@ use serde_json::json;
 
 use super::launch::{Refused, now_s};
 use super::{Lti, claim};
-use crate::accounts::users::AccountRole;
+use vl_host::AccountRole;
 
 /// What the link opens.
 pub(crate) struct Item {
@@ -63,7 +63,7 @@ impl Lti {
             "aud": [launch.issuer],
             "iat": now,
             "exp": now + 600,
-            "nonce": crate::secret::secret(),
+            "nonce": vl_host::secret(),
             (claim::MESSAGE_TYPE): "LtiDeepLinkingResponse",
             (claim::VERSION): "1.3.0",
             (claim::DEPLOYMENT_ID): launch.deployment_id,

@@ -8,7 +8,7 @@ use proptest::prelude::*;
 
 use super::launch::LoginRequest;
 use super::{Lti, LtiOptions, Platform, Registry, registry_path};
-use crate::accounts::audit::Audit;
+use vl_host::Audit;
 
 /// A lab registered with a platform whose keys cannot be fetched (port 9
 /// answers nothing): no token can be proved.

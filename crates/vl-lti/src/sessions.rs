@@ -11,8 +11,8 @@ use std::time::Duration;
 
 use tokio::time::Instant;
 
-use crate::accounts::gate::{Identity, SessionCheck, SessionId};
-use crate::accounts::users::AccountRole;
+use vl_host::AccountRole;
+use vl_host::{Identity, SessionCheck, SessionId};
 
 /// Sessions kept at once, at most; the oldest go first.
 const MAX_SESSIONS: usize = 10_000;
@@ -80,7 +80,7 @@ struct Entry {
 
 /// The open sessions, by their secrets.
 #[derive(Default)]
-pub struct Sessions {
+pub(crate) struct Sessions {
     open: Mutex<HashMap<String, Entry>>,
     /// The last session's number.
     opened: AtomicU64,
@@ -89,7 +89,7 @@ pub struct Sessions {
 impl Sessions {
     /// Opens a session for `launch`: its secret.
     pub(crate) fn open(&self, launch: Launch) -> String {
-        let secret = crate::secret::secret();
+        let secret = vl_host::secret();
         let launch = Arc::new(launch);
         let id = SessionId(self.opened.fetch_add(1, Ordering::Relaxed) + 1);
         let now = Instant::now();

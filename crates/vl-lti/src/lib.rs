@@ -27,7 +27,14 @@ pub use registry::{Platform, Registry, ToolKey, key_path, registry_path};
 pub(crate) use sessions::Sessions;
 use vl_core::Rubric;
 
-use crate::accounts::audit::Audit;
+use std::net::IpAddr;
+
+use vl_core::HostStatus;
+
+use vl_host::Audit;
+use vl_host::LabEvents;
+use vl_host::SessionCheck;
+use vl_host::{Extension, ExtensionTask};
 
 /// Why the LMS side of a lab cannot be set up or used.
 #[derive(Debug, thiserror::Error)]
@@ -132,11 +139,6 @@ impl Lti {
         }))
     }
 
-    /// The sessions launches open, for the gate that checks hellos.
-    pub fn sessions(&self) -> Arc<Sessions> {
-        self.sessions.clone()
-    }
-
     /// The platforms as their file has them now (changes count at once).
     fn platforms(&self) -> Result<Registry, LtiError> {
         Registry::load(&self.registry)
@@ -155,5 +157,23 @@ impl std::fmt::Debug for Lti {
             .field("registry", &self.registry)
             .field("kid", &self.key.kid)
             .finish_non_exhaustive()
+    }
+}
+
+impl Extension for Lti {
+    fn routes(self: Arc<Self>, address: IpAddr) -> axum::Router {
+        pages::routes(self, address)
+    }
+
+    fn sessions(&self) -> Option<Arc<dyn SessionCheck>> {
+        Some(self.sessions.clone())
+    }
+
+    fn status(&self, status: &mut HostStatus) {
+        status.grades = Some(self.grades_status());
+    }
+
+    fn run(self: Arc<Self>, events: LabEvents) -> ExtensionTask {
+        Box::pin(self.grade_runs(events.listen()))
     }
 }

@@ -18,7 +18,7 @@ use tokio::time::Instant;
 
 use super::sessions::{Assignment, DeepLinking, Launch};
 use super::{Lti, Platform, claim};
-use crate::accounts::users::AccountRole;
+use vl_host::AccountRole;
 
 /// Logins waiting for their launch, at most; the oldest go first.
 const MAX_PENDING: usize = 10_000;
@@ -176,7 +176,7 @@ impl Lti {
                 "target_link_uri is not this tool's launch URL (/lti/launch)",
             ));
         }
-        let (state, nonce) = (crate::secret::secret(), crate::secret::secret());
+        let (state, nonce) = (vl_host::secret(), vl_host::secret());
         let mut auth = url::Url::parse(&platform.auth_url)
             .map_err(|e| refused(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
         {

@@ -132,7 +132,7 @@ impl Registry {
 
     pub fn save(&self, path: &Path) -> Result<(), LtiError> {
         let text = toml::to_string(self).map_err(|e| LtiError::File(path.into(), e.to_string()))?;
-        crate::accounts::write_private(path, text.as_bytes())
+        vl_host::write_private(path, text.as_bytes())
             .map_err(|e| LtiError::File(path.into(), e.to_string()))
     }
 
@@ -233,8 +233,7 @@ impl ToolKey {
                 let pem = key
                     .to_pkcs8_pem(LineEnding::LF)
                     .map_err(|e| file(e.to_string()))?;
-                crate::accounts::write_private(path, pem.as_bytes())
-                    .map_err(|e| file(e.to_string()))?;
+                vl_host::write_private(path, pem.as_bytes()).map_err(|e| file(e.to_string()))?;
                 key
             }
             Err(e) => return Err(file(e.to_string())),

@@ -164,7 +164,7 @@ impl Lti {
             "aud": platform.audience.as_deref().unwrap_or(&platform.token_url),
             "iat": now,
             "exp": now + 300,
-            "jti": crate::secret::secret(),
+            "jti": vl_host::secret(),
         }))?;
         let form = [
             ("grant_type", "client_credentials"),
