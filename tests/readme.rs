@@ -134,7 +134,7 @@ fn for_test(args: &mut Vec<String>, ports: &[(String, String)], link: &str) {
             args.extend(["--messages", "200", "--profiles", "lan"].map(String::from));
         }
         Some("host") if args.get(1).map(String::as_str) == Some("bench") => {
-            args.extend(["--commands", "200"].map(String::from));
+            args.extend(["--commands", "50"].map(String::from));
         }
         Some("host") if args.get(1).map(String::as_str) == Some("bench-watchers") => {
             args.extend(["--commands", "100", "--rounds", "1"].map(String::from));
