@@ -57,33 +57,32 @@ enum Command {
     /// Serve the lab to Guests over WebSocket (on the lab machine).
     #[cfg(feature = "host")]
     Host(Box<host::HostCommand>),
-    /// Serve the lab to Guests over WebSocket (on the lab machine).
+    /// Not in this vl: it was built without the `host` feature.
     #[cfg(not(feature = "host"))]
     Host(Missing),
     /// The lab's one public address in front of many cells (each a `vl
     /// host --gateway … --cell NAME`), on Zenoh.
     #[cfg(feature = "host")]
     Gateway(gateway::GatewayCommand),
-    /// The lab's one public address in front of many cells (each a `vl
-    /// host --gateway … --cell NAME`), on Zenoh.
+    /// Not in this vl: it was built without the `host` feature.
     #[cfg(not(feature = "host"))]
     Gateway(Missing),
     /// Open the Guest window on a Host (on the user's desktop).
     #[cfg(feature = "guest")]
     Guest(guest::GuestArgs),
-    /// Open the Guest window on a Host (on the user's desktop).
+    /// Not in this vl: it was built without the `guest` feature.
     #[cfg(not(feature = "guest"))]
     Guest(Missing),
     /// Run a Host on the simulated lab and a Guest against it, in one process.
     #[cfg(all(feature = "guest", feature = "host"))]
     Demo(guest::DemoArgs),
-    /// Run a Host on the simulated lab and a Guest against it, in one process.
+    /// Not in this vl: it was built without the `guest` and `host` features.
     #[cfg(not(all(feature = "guest", feature = "host")))]
     Demo(Missing),
     /// Relay Guests to a Host through a modelled Internet link (the Media).
     #[cfg(feature = "host")]
     Media(media::MediaCommand),
-    /// Relay Guests to a Host through a modelled Internet link (the Media).
+    /// Not in this vl: it was built without the `host` feature.
     #[cfg(not(feature = "host"))]
     Media(Missing),
     /// The labs' own nets: statecharts to the controlled nets the Host runs.
@@ -95,21 +94,21 @@ enum Command {
     /// Emulate a Khepera II on a pseudo-terminal, backed by the simulator.
     #[cfg(feature = "host")]
     KheperaEmu(khepera::KheperaArgs),
-    /// Emulate a Khepera II on a pseudo-terminal, backed by the simulator.
+    /// Not in this vl: it was built without the `host` feature.
     #[cfg(not(feature = "host"))]
     KheperaEmu(Missing),
     /// Tools for a real Khepera on its serial line.
     #[command(subcommand)]
     #[cfg(feature = "host")]
     Khepera(khepera::KheperaTool),
-    /// Tools for a real Khepera on its serial line.
+    /// Not in this vl: it was built without the `host` feature.
     #[cfg(not(feature = "host"))]
     Khepera(Missing),
     /// Holds a robot's serial line for `vl host` (started by it).
     #[command(hide = true)]
     #[cfg(feature = "host")]
     SerialGuard(khepera::GuardArgs),
-    /// Holds a robot's serial line for `vl host` (started by it).
+    /// Not in this vl: it was built without the `host` feature.
     #[command(hide = true)]
     #[cfg(not(feature = "host"))]
     SerialGuard(Missing),
@@ -125,28 +124,28 @@ enum Command {
     #[command(subcommand)]
     #[cfg(feature = "host")]
     Camera(camera::CameraCommand),
-    /// Calibrate the overhead camera: its map from floor mm to pixels.
+    /// Not in this vl: it was built without the `host` feature.
     #[cfg(not(feature = "host"))]
     Camera(Missing),
     /// Keep a lab's accounts file: add, remove, passwd, list.
     #[command(subcommand)]
     #[cfg(feature = "host")]
     Users(access::UsersCommand),
-    /// Keep a lab's accounts file: add, remove, passwd, list.
+    /// Not in this vl: it was built without the `host` feature.
     #[cfg(not(feature = "host"))]
     Users(Missing),
     /// The lab inside a teacher's LMS (LTI 1.3): platforms, the tool's configuration.
     #[command(subcommand)]
     #[cfg(feature = "lti")]
     Lti(lti::LtiCommand),
-    /// The lab inside a teacher's LMS (LTI 1.3): platforms, the tool's configuration.
+    /// Not in this vl: it was built without the `lti` feature.
     #[cfg(not(feature = "lti"))]
     Lti(Missing),
     /// Run the lab's experiments headless on the simulator and measure them.
     #[command(subcommand)]
     #[cfg(feature = "host")]
     Experiment(experiment::ExperimentCommand),
-    /// Run the lab's experiments headless on the simulator and measure them.
+    /// Not in this vl: it was built without the `host` feature.
     #[cfg(not(feature = "host"))]
     Experiment(Missing),
     /// The recorded runs: list, describe, export, repair.
@@ -179,8 +178,8 @@ fn missing(command: &Command) -> anyhow::Error {
         _ => ("this command", "default"),
     };
     BadInput(format!(
-        "`vl {name}` is not in this vl, built without the cargo feature `{feature}`: \
-         build it with `cargo build --release --features {feature}`"
+        "`vl {name}` is not in this vl, built without it: \
+         build vl with `cargo build --release --features {feature}`"
     ))
     .into()
 }
