@@ -20,6 +20,7 @@ use crate::accounts::users::AccountRole;
 use crate::dummy::{DummyHandle, DummyRobot};
 use crate::lab::{Devices, FramePolicy, Lab};
 use crate::server::HostConfig;
+use crate::server::events::{LabEvent, LabEvents};
 
 /// Longer than anything here should take.
 const PATIENCE: Duration = Duration::from_secs(2);
@@ -29,6 +30,8 @@ struct HubRig {
     hub: mpsc::Sender<ToHub>,
     robot: DummyHandle,
     feedback: watch::Receiver<Option<HostMessage>>,
+    /// What the hub tells its listeners (the LMS side, a cell's links).
+    events: LabEvents,
     next_id: u64,
 }
 
@@ -45,13 +48,15 @@ impl HubRig {
         let lab = Lab::spawn(devices, arena, FramePolicy::EveryFrame, true, None);
         let feedback = lab.feedback.clone();
         let supervisor = config.supervisor().expect("the shipped nets load");
-        let hub = Hub::new(lab, Arc::new(config), supervisor, Default::default());
+        let events = LabEvents::default();
+        let hub = Hub::new(lab, Arc::new(config), supervisor, events.clone());
         let (tx, rx) = mpsc::channel(super::super::HUB_QUEUE);
         tokio::spawn(hub.run(rx));
         HubRig {
             hub: tx,
             robot: handle,
             feedback,
+            events,
             next_id: 0,
         }
     }
@@ -321,6 +326,26 @@ async fn another_protocol_is_refused_with_the_hosts() {
     let (code, why) = client.refused().await;
     assert_eq!(code, ErrorCode::ProtocolMismatch);
     assert!(why.contains(&PROTOCOL_VERSION.to_string()), "{why}");
+}
+
+/// A run's end is told to the lab's listeners with its driver's connection
+/// and admission (whom an LMS grades), not only to its Guests.
+#[tokio::test]
+async fn a_run_s_end_is_told_with_who_drove_it() {
+    let mut rig = HubRig::plain();
+    let mut events = rig.events.listen();
+    let mut op = rig.running("teleoperation").await;
+    op.say(GuestMessage::Stop).await;
+    let summary = op.done().await;
+    let told = tokio::time::timeout(PATIENCE, events.recv()).await;
+    let Ok(Ok(LabEvent::RunEnded(ended))) = told else {
+        panic!("no run's end told: {told:?}");
+    };
+    assert_eq!(ended.run, Some(1));
+    assert_eq!(ended.summary.reason, summary.reason);
+    let driver = ended.driver.as_ref().expect("the run had a driver");
+    assert_eq!(driver.connection, op.id);
+    assert_eq!(driver.admitted.identity, Identity::Anonymous);
 }
 
 #[tokio::test]
