@@ -6,29 +6,13 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use crate::structure::{roots, sources};
+
 /// Zenoh's link schemes, which look like folders in backquotes.
 const SCHEMES: [&str; 4] = ["quic/", "tls/", "tcp/", "udp/"];
 
 fn top() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// Every file under `dir` whose name ends with `ext`.
-fn files(dir: &Path, ext: &str) -> Vec<PathBuf> {
-    let mut found = Vec::new();
-    let mut stack = vec![dir.to_owned()];
-    while let Some(dir) = stack.pop() {
-        for entry in std::fs::read_dir(&dir).into_iter().flatten().flatten() {
-            let path = entry.path();
-            if path.is_dir() {
-                stack.push(path);
-            } else if path.to_string_lossy().ends_with(ext) {
-                found.push(path);
-            }
-        }
-    }
-    found.sort();
-    found
 }
 
 /// The crates' folders, `crates/NAME`.
@@ -110,7 +94,7 @@ fn has_module_or_item(krate: &Path, name: &str) -> bool {
     if src.join(format!("{name}.rs")).exists() || src.join(name).is_dir() {
         return true;
     }
-    files(&src, ".rs").iter().any(|f| {
+    sources(&src).iter().any(|f| {
         let text = std::fs::read_to_string(f).unwrap();
         [
             "fn ", "mod ", "const ", "static ", "struct ", "enum ", "trait ",
@@ -152,9 +136,7 @@ fn missing_modules(docs: &[(PathBuf, String)]) -> Vec<String> {
 /// Every `const NAME: T = VALUE;` in the workspace's sources, by name.
 fn constants() -> BTreeMap<String, Vec<String>> {
     let mut constants: BTreeMap<String, Vec<String>> = BTreeMap::new();
-    let mut sources = files(&top().join("src"), ".rs");
-    sources.extend(crates().iter().flat_map(|c| files(&c.join("src"), ".rs")));
-    for file in sources {
+    for file in roots().iter().flat_map(|root| sources(root)) {
         let text = std::fs::read_to_string(&file).unwrap();
         for (at, _) in text.match_indices("const ") {
             let rest = &text[at + "const ".len()..];

@@ -16,7 +16,7 @@ use serde_json::Value;
 const MOST_LINES: usize = 700;
 
 /// Every `.rs` file under `dir`.
-fn sources(dir: &Path) -> Vec<PathBuf> {
+pub(crate) fn sources(dir: &Path) -> Vec<PathBuf> {
     let mut found = Vec::new();
     let mut stack = vec![dir.to_owned()];
     while let Some(dir) = stack.pop() {
@@ -34,7 +34,7 @@ fn sources(dir: &Path) -> Vec<PathBuf> {
 }
 
 /// The source roots: the binary's and each crate's.
-fn roots() -> Vec<PathBuf> {
+pub(crate) fn roots() -> Vec<PathBuf> {
     let top = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut roots = vec![top.join("src")];
     for entry in std::fs::read_dir(top.join("crates")).unwrap().flatten() {

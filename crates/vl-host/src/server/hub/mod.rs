@@ -363,19 +363,20 @@ impl Hub {
         self.compare_with_forecast(&mut summary);
         self.note_recording(&mut summary);
         info!(run, reason = %summary.reason, reached_goal = summary.reached_goal, "run ended");
-        let driver = self.run_log.last_ended().and_then(|r| r.user);
+        let driver = self.driver.take();
+        let user = driver.as_ref().and_then(|d| d.admitted.identity.name());
+        self.config.audit.record(
+            AuditEntry::new("run_ended")
+                .user(user)
+                .detail(format!("run {run}: {}", summary.ending())),
+        );
         self.events.tell(super::events::LabEvent::RunEnded(Arc::new(
             super::events::RunEnded {
                 run: Some(run),
-                driver: self.driver.take(),
+                driver,
                 summary: summary.clone(),
             },
         )));
-        self.config.audit.record(
-            AuditEntry::new("run_ended")
-                .user(driver.as_deref())
-                .detail(format!("run {run}: {}", summary.ending())),
-        );
         let reset = resets_after(summary.reason);
         self.broadcast(&HostMessage::Done {
             summary: Box::new(summary),

@@ -220,7 +220,6 @@ impl Hub {
             self.last_command = Instant::now();
             self.runs += 1;
             self.run = Some(self.runs);
-            let user = self.user_of(id);
             self.driver = self
                 .clients
                 .get(&id)
@@ -228,6 +227,7 @@ impl Hub {
                     connection: id,
                     admitted: c.admitted.clone(),
                 });
+            let user = self.user_of(id);
             self.run_log.started(self.runs, experiment, user.clone());
             self.config.audit.record(
                 AuditEntry::new("run_started")
