@@ -7,7 +7,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use vl_host::{Endpoint, Gateway, HostConfig, ZenohAuthority, ZenohMember, ZenohTrust};
+use vl_cells::{Endpoint, Gateway, ZenohAuthority, ZenohMember, ZenohTrust};
+use vl_host::HostConfig;
 
 use crate::access::AccessArgs;
 use crate::{BadInput, bad_input};
@@ -216,7 +217,7 @@ fn issue(authority: &ZenohAuthority, member: ZenohMember, out: &Path) -> Result<
 /// The names the gateway's router certificate holds: where it listens
 /// (this machine's names, for an address of every interface), and those
 /// given.
-fn router_names(zenoh: &vl_host::ZenohOptions, given: &[String]) -> Vec<String> {
+fn router_names(zenoh: &vl_cells::ZenohOptions, given: &[String]) -> Vec<String> {
     let mut names: Vec<String> = ["localhost", "127.0.0.1", "::1"].map(String::from).to_vec();
     for endpoint in &zenoh.listen {
         let host = endpoint.host();

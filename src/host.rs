@@ -16,6 +16,8 @@ use crate::media::LinkArgs;
 use crate::report::emit;
 use crate::{BadInput, bad_input, named};
 
+mod plugs;
+
 /// Which robot `vl host` drives.
 #[derive(Clone, Copy, PartialEq)]
 enum RobotDriver {
@@ -39,6 +41,21 @@ impl vl_core::Named for RobotDriver {
             RobotDriver::Khepera => "khepera",
             RobotDriver::Ros2 => "ros2",
         }
+    }
+}
+
+/// Which camera `--camera` names: one the lab opens, or a ROS 2 robot's
+/// own (`ros2:/TOPIC`, read on the robot's network).
+#[derive(Clone)]
+enum CameraArg {
+    Source(CameraSource),
+    Ros2(String),
+}
+
+fn camera_arg(text: &str) -> Result<CameraArg> {
+    match text.strip_prefix("ros2:") {
+        Some(topic) => plugs::ros2_camera(topic).map(CameraArg::Ros2),
+        None => Ok(CameraArg::Source(text.parse().map_err(bad_input)?)),
     }
 }
 
@@ -126,9 +143,11 @@ pub(crate) async fn host_command(command: HostCommand) -> Result<()> {
                     began.elapsed().as_secs_f64()
                 );
             };
-            let latency = vl_host::operator_latency(observers as usize, commands as usize, step)
-                .await
-                .context("the operator bench failed")?;
+            let extensions = plugs::always();
+            let latency =
+                vl_host::operator_latency(observers as usize, commands as usize, extensions, step)
+                    .await
+                    .context("the operator bench failed")?;
             emit(&latency, json)
         }
         Some(HostTool::BenchWatchers(bench)) => {
@@ -168,12 +187,12 @@ pub(crate) struct HostArgs {
     /// the default there is none.
     #[arg(
         long,
-        value_parser = str::parse::<CameraSource>,
+        value_parser = camera_arg,
         default_value_if("robot", "khepera", "none"),
         default_value_if("robot", "ros2", "none"),
         default_value = "sim"
     )]
-    camera: CameraSource,
+    camera: CameraArg,
     /// The arena the robot is in: a shipped one or a JSON file. A real robot
     /// starts dead reckoning at its start pose.
     #[arg(long, default_value = "navigation", value_hint = ValueHint::AnyPath)]
@@ -250,7 +269,7 @@ pub(crate) struct HostArgs {
     /// Join the gateway whose Zenoh router is here (quic/HOST:PORT) as one
     /// of its cells (with --cell).
     #[arg(long, requires = "cell")]
-    gateway: Vec<vl_host::Endpoint>,
+    gateway: Vec<crate::options::ZenohEndpoint>,
     /// This cell's name at its gateway: 1–32 of a-z, 0-9, '-' and '_'.
     #[arg(long, requires = "gateway")]
     cell: Option<vl_core::CellName>,
@@ -272,37 +291,6 @@ pub(crate) struct HostArgs {
     /// The Zenoh network of --ros2 and --robot ros2.
     #[command(flatten)]
     zenoh: crate::options::ZenohArgs,
-}
-
-/// The Zenoh network the lab's ROS 2 side joins: the one given; else the
-/// gateway's a cell joins; else the router `--robot ros2` opens; else a
-/// router of its own.
-fn ros2_zenoh(args: &HostArgs) -> Result<vl_host::ZenohOptions> {
-    let given = args.zenoh.options(args.listen, false)?;
-    Ok(if !given.connect.is_empty() {
-        given
-    } else if !args.gateway.is_empty() {
-        gateway_zenoh(args)?
-    } else if args.robot == RobotDriver::Ros2 {
-        given.local_client()
-    } else {
-        given
-    })
-}
-
-/// The gateway's network a cell joins, with the credentials its gateway
-/// issued to it (and to no other cell).
-fn gateway_zenoh(args: &HostArgs) -> Result<vl_host::ZenohOptions> {
-    let zenoh = args.zenoh.joining(args.gateway.clone())?;
-    if let (vl_host::ZenohTrust::Member(credentials), Some(cell)) = (&zenoh.trust, &args.cell)
-        && credentials.member != vl_host::ZenohMember::Cell(cell.clone())
-    {
-        bail!(BadInput(format!(
-            "--zenoh-credentials are {}'s, not cell {cell}'s",
-            credentials.member
-        )));
-    }
-    Ok(zenoh)
 }
 
 /// Where the Host records: a cell, unless told, in a folder of its own
@@ -336,64 +324,12 @@ fn host_config(args: &HostArgs) -> Result<HostConfig> {
         ..HostConfig::default()
     };
     args.access.apply(&mut config)?;
-    if args.ros2 {
-        config.ros2 = Some(vl_host::Ros2Options {
-            domain: args.ros2_domain,
-            zenoh: ros2_zenoh(args)?,
-            operator: args
-                .ros2_operator
-                .then(|| vl_host::ros2_operator_as(args.ros2_as.as_deref(), config.users.as_ref()))
-                .transpose()
-                .map_err(|e| BadInput(e.to_string()))?,
-            cell: args.cell.clone(),
-        });
-    }
-    if let Some(name) = &args.cell {
-        config.cell = Some(vl_host::CellOptions {
-            name: name.clone(),
-            zenoh: gateway_zenoh(args)?,
-        });
-    }
+    plugs::plug_in(args, &mut config)?;
     // A folder of nets that cannot run is the user's to fix, before anything starts.
     config
         .supervisor()
         .map_err(|e| BadInput(format!("--nets: {e}")))?;
     Ok(config)
-}
-
-/// Where the lab is on ROS 2, for the person who started it.
-fn say_on_ros2(ros2: &vl_host::Ros2Options) {
-    let zenoh = match (ros2.zenoh.connect.first(), ros2.zenoh.listen.first()) {
-        (Some(router), _) => format!("joining the Zenoh router at {router}"),
-        (None, Some(listen)) => format!("its Zenoh router listening on {listen}"),
-        (None, None) => "on Zenoh".to_owned(),
-    };
-    let node = match &ros2.cell {
-        Some(cell) => format!("/{cell}/vl_host"),
-        None => "/vl_host".to_owned(),
-    };
-    let drives = match ros2.operator.as_ref().map(|a| a.identity.name()) {
-        Some(Some(name)) => format!("; /cmd_vel drives as {name}"),
-        Some(None) => "; /cmd_vel drives".to_owned(),
-        None => String::new(),
-    };
-    eprintln!(
-        "vl host: on ROS 2 as node {node} in domain {}, {zenoh}{drives}",
-        ros2.domain
-    );
-    warn_if_open(&ros2.zenoh);
-}
-
-/// Says loudly that a router anyone on the network can join is open.
-fn warn_if_open(zenoh: &vl_host::ZenohOptions) {
-    if zenoh.open_beyond_loopback() {
-        let at: Vec<String> = zenoh.listen.iter().map(ToString::to_string).collect();
-        eprintln!(
-            "vl host: WARNING: the Zenoh router on {} takes anyone on the network, unauthenticated: \
-             listen on 127.0.0.1, or put the lab behind a gateway (`vl gateway`) whose network needs certificates",
-            at.join(", ")
-        );
-    }
 }
 
 /// The robot `--robot` names, with what driving it needs.
@@ -409,14 +345,7 @@ fn robot_spec(args: &HostArgs) -> Result<RobotSpec> {
             // A guard process holds the line and stops the robot if this one dies.
             guard: std::env::current_exe().context("cannot find the vl binary")?,
         },
-        RobotDriver::Ros2 => {
-            let zenoh = args.zenoh.options(args.listen, false)?;
-            warn_if_open(&zenoh);
-            RobotSpec::Ros2(vl_host::Ros2RobotOptions {
-                domain: args.ros2_domain,
-                zenoh,
-            })
-        }
+        RobotDriver::Ros2 => plugs::ros2_robot(args)?,
     })
 }
 
@@ -428,13 +357,15 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
     if let Some(kept) = &config.recordings {
         eprintln!("vl host: recording every run in {}", kept.dir().display());
     }
-    if let Some(ros2) = &config.ros2 {
-        say_on_ros2(ros2);
-    }
     let robot = robot_spec(&args)?;
+    plugs::camera_fits(&args, &robot)?;
     let spec = LabSpec {
         robot,
-        camera: args.camera.clone(),
+        camera: match &args.camera {
+            CameraArg::Source(source) => source.clone(),
+            // The robot brings it (`plugs::ros2_robot`).
+            CameraArg::Ros2(_) => CameraSource::None,
+        },
         arena: arena_from(&args.arena, args.start)?,
         model: match &args.robot_model {
             Some(file) => load_robot_model(file)?,

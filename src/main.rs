@@ -10,7 +10,7 @@ mod camera;
 #[cfg(feature = "host")]
 mod experiment;
 mod flag_file;
-#[cfg(feature = "host")]
+#[cfg(feature = "gateway")]
 mod gateway;
 #[cfg(feature = "guest")]
 mod guest;
@@ -62,10 +62,10 @@ enum Command {
     Host(Missing),
     /// The lab's one public address in front of many cells (each a `vl
     /// host --gateway … --cell NAME`), on Zenoh.
-    #[cfg(feature = "host")]
+    #[cfg(feature = "gateway")]
     Gateway(gateway::GatewayCommand),
-    /// Not in this vl: it was built without the `host` feature.
-    #[cfg(not(feature = "host"))]
+    /// Not in this vl: it was built without the `gateway` feature.
+    #[cfg(not(feature = "gateway"))]
     Gateway(Missing),
     /// Open the Guest window on a Host (on the user's desktop).
     #[cfg(feature = "guest")]
@@ -167,7 +167,7 @@ fn missing(command: &Command) -> anyhow::Error {
         Command::Demo(_) => ("demo", "guest,host"),
         Command::Lti(_) => ("lti", "lti"),
         Command::Host(_) => ("host", "host"),
-        Command::Gateway(_) => ("gateway", "host"),
+        Command::Gateway(_) => ("gateway", "gateway"),
         Command::Media(_) => ("media", "host"),
         Command::KheperaEmu(_) => ("khepera-emu", "host"),
         Command::Khepera(_) => ("khepera", "host"),
@@ -177,8 +177,13 @@ fn missing(command: &Command) -> anyhow::Error {
         Command::Experiment(_) => ("experiment", "host"),
         _ => ("this command", "default"),
     };
+    without(&format!("`vl {name}`"), feature)
+}
+
+/// Why `what` cannot be done: this `vl` was built without `feature`.
+pub(crate) fn without(what: &str, feature: &str) -> anyhow::Error {
     BadInput(format!(
-        "`vl {name}` is not in this vl, built without it: \
+        "{what} is not in this vl, built without it: \
          build vl with `cargo build --release --features {feature}`"
     ))
     .into()
@@ -292,6 +297,7 @@ fn run_host(
         Command::Host(command) => runtime()?
             .block_on(host::host_command(*command))
             .map(|()| ExitCode::SUCCESS),
+        #[cfg(feature = "gateway")]
         Command::Gateway(args) => {
             let runtime = runtime()?;
             let result = runtime.block_on(gateway::gateway_command(args));

@@ -164,6 +164,13 @@ impl ForecastArgs {
     }
 }
 
+/// A Zenoh endpoint as the flags take it: read by the gateway's crate in a
+/// vl that has one, else kept as given, to say which feature it needs.
+#[cfg(feature = "zenoh")]
+pub(crate) type ZenohEndpoint = vl_cells::Endpoint;
+#[cfg(all(feature = "host", not(feature = "zenoh")))]
+pub(crate) type ZenohEndpoint = String;
+
 #[cfg(feature = "host")]
 /// Where `vl` meets a Zenoh network: its own router listening, or an
 /// existing network joined.
@@ -172,22 +179,22 @@ pub(crate) struct ZenohArgs {
     /// Where the embedded Zenoh router listens (tcp/HOST:PORT, or
     /// quic/HOST:PORT): by default port 7447 on --listen's address.
     #[arg(long, conflicts_with = "zenoh")]
-    zenoh_listen: Vec<vl_host::Endpoint>,
+    zenoh_listen: Vec<ZenohEndpoint>,
     /// Join an existing Zenoh network here instead (a site's zenohd, a
     /// gateway's router), with no router of its own.
     #[arg(long)]
-    zenoh: Vec<vl_host::Endpoint>,
+    zenoh: Vec<ZenohEndpoint>,
     /// The certificate to join a quic/ network with: the file `vl gateway
     /// issue` wrote for this machine.
     #[arg(long, value_name = "FILE")]
     zenoh_credentials: Option<std::path::PathBuf>,
 }
 
-#[cfg(feature = "host")]
+#[cfg(feature = "zenoh")]
 /// Zenoh's usual port, where ROS 2's rmw_zenoh looks for a router.
 const ZENOH_PORT: u16 = 7447;
 
-#[cfg(feature = "host")]
+#[cfg(feature = "zenoh")]
 impl ZenohArgs {
     /// The network, a router of its own listening on `listen`'s address
     /// unless told otherwise (`quic/` where `secured`: its caller then says
@@ -196,16 +203,16 @@ impl ZenohArgs {
         &self,
         listen: std::net::SocketAddr,
         secured: bool,
-    ) -> anyhow::Result<vl_host::ZenohOptions> {
+    ) -> anyhow::Result<vl_cells::ZenohOptions> {
         if self.zenoh.is_empty() {
             let listen = match self.zenoh_listen.as_slice() {
-                [] => vec![vl_host::Endpoint::new(secured, listen.ip(), ZENOH_PORT)],
+                [] => vec![vl_cells::Endpoint::new(secured, listen.ip(), ZENOH_PORT)],
                 given => given.to_vec(),
             };
-            Ok(vl_host::ZenohOptions {
+            Ok(vl_cells::ZenohOptions {
                 connect: Vec::new(),
                 listen,
-                trust: vl_host::ZenohTrust::Open,
+                trust: vl_cells::ZenohTrust::Open,
             })
         } else {
             self.joining(self.zenoh.clone())
@@ -215,23 +222,23 @@ impl ZenohArgs {
     /// Joining `connect`, with the credentials given, if any.
     pub(crate) fn joining(
         &self,
-        connect: Vec<vl_host::Endpoint>,
-    ) -> anyhow::Result<vl_host::ZenohOptions> {
-        Ok(vl_host::ZenohOptions {
+        connect: Vec<vl_cells::Endpoint>,
+    ) -> anyhow::Result<vl_cells::ZenohOptions> {
+        Ok(vl_cells::ZenohOptions {
             connect,
             listen: Vec::new(),
-            trust: self.credentials()?.map_or(vl_host::ZenohTrust::Open, |c| {
-                vl_host::ZenohTrust::Member(std::sync::Arc::new(c))
+            trust: self.credentials()?.map_or(vl_cells::ZenohTrust::Open, |c| {
+                vl_cells::ZenohTrust::Member(std::sync::Arc::new(c))
             }),
         })
     }
 
     /// The credentials `--zenoh-credentials` names, read.
-    pub(crate) fn credentials(&self) -> anyhow::Result<Option<vl_host::ZenohCredentials>> {
+    pub(crate) fn credentials(&self) -> anyhow::Result<Option<vl_cells::ZenohCredentials>> {
         self.zenoh_credentials
             .as_deref()
             .map(|file| {
-                vl_host::ZenohCredentials::load(file).map_err(|e| {
+                vl_cells::ZenohCredentials::load(file).map_err(|e| {
                     anyhow::Error::new(crate::BadInput(format!("--zenoh-credentials: {e}")))
                 })
             })

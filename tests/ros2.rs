@@ -24,7 +24,7 @@ use crate::common::peer::Peer;
 use crate::common::{self, free_port, scratch, start_vl};
 
 /// The vendored definitions, the outside client's registry.
-const MSGS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/crates/vl-host/ros2-msgs");
+const MSGS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/crates/vl-ros2/ros2-msgs");
 const LAB: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2/lab.py");
 const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2/robot.py");
 

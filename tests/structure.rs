@@ -146,6 +146,38 @@ fn the_guest_links_no_server() {
 }
 
 #[test]
+fn the_lab_core_links_no_integration_and_measuring_no_window() {
+    let host = linked_by("vl-host");
+    for integration in [
+        "vl-foxglove",
+        "vl-cells",
+        "vl-ros2",
+        "vl-lti",
+        "zenoh",
+        "zenoh-ext",
+        "jsonwebtoken",
+        "rsa",
+        "reqwest",
+    ] {
+        assert!(
+            !host.contains(integration),
+            "vl-host links {integration}: an integration plugs into the lab (an \
+             Extension, a RobotPlug) from its own crate"
+        );
+    }
+    let campaign = linked_by("vl-campaign");
+    for window in ["eframe", "egui", "wgpu", "winit"] {
+        assert!(
+            !campaign.contains(window),
+            "vl-campaign links {window}: measuring needs the client, not the window"
+        );
+    }
+    // The checks see what they look for.
+    assert!(linked_by("vl-cells").contains("zenoh") && host.contains("axum"));
+    assert!(linked_by("vl-guest").contains("egui") && campaign.contains("vl-client"));
+}
+
+#[test]
 fn architecture_draws_the_crate_graph_cargo_resolves() {
     let drawn: BTreeSet<(String, String)> =
         std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("ARCHITECTURE.md"))
@@ -373,7 +405,7 @@ fn no_files_import_each_other_in_a_circle() {
 /// names (ROS 2's `.msg` files, Foxglove's schemas): a `Pose` there is the
 /// schema's, whichever crate speaks it.
 const SCHEMA_MIRRORS: [&str; 2] = [
-    "crates/vl-host/src/ros2/messages.rs",
+    "crates/vl-ros2/src/messages.rs",
     "crates/vl-record/src/foxglove/messages.rs",
 ];
 

@@ -115,7 +115,7 @@ pub trait Camera: Send {
 /// How a real camera is believed to see the floor: as `calibration` says,
 /// or without one as looking straight down on a `floor_mm` floor, across
 /// its `width_px` columns, at `fps`.
-pub(crate) fn believed(
+pub fn believed(
     calibration: Option<CameraModel>,
     floor_mm: (f64, f64),
     width_px: u32,

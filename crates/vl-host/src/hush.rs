@@ -3,10 +3,11 @@
 
 /// Lets a warning about what others send through once a second.
 #[derive(Default)]
-pub(crate) struct Hush(std::sync::Mutex<Option<std::time::Instant>>);
+pub struct Hush(std::sync::Mutex<Option<std::time::Instant>>);
 
 impl Hush {
-    pub(crate) fn speak(&self) -> bool {
+    /// Whether this warning may be said now (none was this last second).
+    pub fn speak(&self) -> bool {
         let mut last = self.0.lock().unwrap_or_else(|e| e.into_inner());
         let quiet = last.is_none_or(|at| at.elapsed() >= std::time::Duration::from_secs(1));
         if quiet {

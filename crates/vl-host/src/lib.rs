@@ -68,19 +68,17 @@
 //!   refuses connections during a scheduled disconnect, keeps for a client
 //!   that does not read only the newest 2 MiB of frames, records each leg's
 //!   delays and measures its own cost (`media`)
-//! - many cells behind one gateway on Zenoh (`cells`), on a network that
-//!   takes only the certificates the gateway's authority issued, each
-//!   member its own keys (`cells::trust`), and the lab as a
-//!   ROS 2 node on Zenoh as rmw_zenoh speaks it, no ROS installed: its
-//!   topics, `/cmd_vel` as an operator, and any ROS 2 base as the lab's
-//!   robot (`ros2`); velocities paced into commands (`server::pacing`)
-//! - what plugs into the lab (`server::extension`: its pages on the lab's
-//!   port, the sessions it opens for the gate, its part of the status, a
-//!   task hearing the lab's events, `server::events`), as the LMS side
-//!   (`vl-lti`) does; every secret the lab hands out (`secret`)
+//! - velocities paced into commands (`server::pacing`, for Foxglove and
+//!   ROS 2); the one handle every part reaches the lab by (`LabHandle`,
+//!   the hub's client messages in `hub`); what plugs into the lab
+//!   (`server::extension`: its pages on the lab's port, the sessions it
+//!   opens for the gate, its part of the status, a task given the lab's
+//!   handle, hearing its events, `server::events`), as a gateway's cell
+//!   (`vl-cells`), the lab on ROS 2 (`vl-ros2`) and the LMS side
+//!   (`vl-lti`) do; a robot driver from outside (`setup::RobotPlug`, as a
+//!   ROS 2 base is); every secret the lab hands out (`secret`)
 
 mod accounts;
-mod cells;
 mod characterise;
 mod drivers;
 #[cfg(test)]
@@ -94,7 +92,6 @@ mod media;
 mod memory;
 mod priority;
 mod reach;
-mod ros2;
 mod secret;
 mod server;
 mod setup;
@@ -111,45 +108,57 @@ use vl_sim::{Optics, Scheduled};
 
 pub use accounts::audit::{Audit, AuditEntry};
 pub use accounts::gate::{
-    Admitted, Credentials, FAILURE_DELAY, FAILURE_REFILL, FAILURES_BURST, Gate, Identity,
-    Observers, Purpose, Refusal, SessionCheck, SessionId,
+    ACCOUNT_ENDED, Admitted, Credentials, FAILURE_DELAY, FAILURE_REFILL, FAILURES_BURST, Gate,
+    Identity, Observers, Purpose, Refusal, SessionCheck, SessionId,
 };
 pub use accounts::users::{AccountRole, Member, Roster, Users, UsersError};
 pub use accounts::write_private;
-pub use cells::{
-    CellOptions, Endpoint, RouterTrust, TrustError, ZenohAuthority, ZenohCredentials, ZenohError,
-    ZenohMember, ZenohOptions, ZenohTrust,
-};
 pub use characterise::{CharacteriseError, characterise};
-pub use drivers::{Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness};
+pub use drivers::{
+    Camera, CameraError, Captured, Robot, RobotError, RobotReading, Witness, believed,
+};
 pub use footage::FootageCamera;
+pub use hush::Hush;
 pub use khepera::KheperaSerial;
-pub use lab::{Devices, FramePolicy};
+pub use lab::{Devices, FramePolicy, Watching};
 pub use line::run_guard;
 pub use media::{
     Delays, Media, MediaBench, MediaBenchError, MediaConfig, MediaError, RelayRoundTrip,
     Reproduced, bench as media_bench,
 };
 pub use priority::raise_for_control as raise_priority;
-pub use ros2::{
-    MsgError, Ros2Error, Ros2Options, Ros2Robot, Ros2RobotOptions, operator_as as ros2_operator_as,
-};
 pub use secret::secret;
+pub use server::admission::Ticket;
 pub use server::bench::{
     BenchError, GatewayBench, GatewayCost, Guessing, OperatorLatency, WatchersBench, WatchersCost,
     operator_latency,
 };
-pub use server::events::{LabEvent, LabEvents, RunDriver, RunEnded};
-pub use server::extension::{Extension, ExtensionTask};
+pub use server::bucket::Bucket;
+pub use server::events::{LabEvent, LabEvents, LiveEvent, LiveEvents, RunDriver, RunEnded};
+pub use server::extension::{
+    Extension, ExtensionTask, SocketClient, SocketProtocol, run_all as run_extensions,
+};
 pub use server::origin::{AllowedOrigins, NotAnOrigin};
-pub use server::web;
-pub use server::{ForecastSettings, HostConfig, MOST_FORECAST_SEEDS};
-pub use setup::{LabSpec, RobotSpec, SetupError};
+pub use server::pacing::Pacer;
+pub use server::{
+    Admission, ForecastSettings, HUB_QUEUE, HostConfig, LabHandle, MOST_FORECAST_SEEDS, accept,
+    gate_of, watch_accounts,
+};
+pub use server::{socket, web};
+pub use setup::{LabSpec, PluggedRobot, RobotPlug, RobotSpec, SetupError};
 pub use source::CameraSource;
 pub use tls::{Tls, TlsError};
 #[cfg(target_os = "linux")]
 pub use webcam::{DeviceInfo, V4l2Camera, V4l2Spec, Webcams, list_devices};
-pub use webcam::{HttpCamera, PixelFormat, decode as decode_pixels};
+pub use webcam::{
+    FrameSlot, HttpCamera, MAX_CAMERA_SIDE, PixelFormat, declared_size, decode as decode_pixels,
+};
+
+/// What a client of the hub (a connection, a cell's link, ROS 2's
+/// operator) says to it and hears from it.
+pub mod hub {
+    pub use crate::server::hub::{OUTBOX, Status, Streams, ToConnection, ToHub};
+}
 
 /// Why a Host could not start.
 #[derive(Debug, thiserror::Error)]
@@ -332,7 +341,7 @@ impl Host {
 }
 
 /// Binds `listen`: the listener and the address it took (port 0 picks one).
-async fn bind(listen: SocketAddr) -> Result<(TcpListener, SocketAddr), HostError> {
+pub async fn bind(listen: SocketAddr) -> Result<(TcpListener, SocketAddr), HostError> {
     let listener = TcpListener::bind(listen)
         .await
         .map_err(|e| HostError::Bind(listen, e))?;
@@ -340,38 +349,6 @@ async fn bind(listen: SocketAddr) -> Result<(TcpListener, SocketAddr), HostError
         .local_addr()
         .map_err(|e| HostError::Bind(listen, e))?;
     Ok((listener, addr))
-}
-
-/// A gateway, bound and serving Guests in front of the cells that join it.
-pub struct Gateway {
-    pub addr: SocketAddr,
-    task: tokio::task::JoinHandle<()>,
-}
-
-impl Gateway {
-    /// Binds `listen` for Guests and meets cells on Zenoh by `zenoh`;
-    /// `config` is a Host's: accounts, TLS, timeouts (its lab's own fields
-    /// are the cells').
-    pub async fn start(
-        listen: SocketAddr,
-        config: HostConfig,
-        zenoh: ZenohOptions,
-    ) -> Result<Gateway, HostError> {
-        let (listener, addr) = bind(listen).await?;
-        let task = tokio::spawn(cells::serve_gateway(listener, config, zenoh));
-        Ok(Gateway { addr, task })
-    }
-
-    /// Serves until the process ends (or Zenoh cannot open).
-    pub async fn wait(mut self) {
-        let _ = (&mut self.task).await;
-    }
-}
-
-impl Drop for Gateway {
-    fn drop(&mut self) {
-        self.task.abort();
-    }
 }
 
 impl Drop for Host {

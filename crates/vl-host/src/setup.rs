@@ -3,20 +3,23 @@
 //! the simulated camera watches only the simulated robot, a real camera
 //! only a real one.
 
+use std::future::Future;
 use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::pin::Pin;
+use std::sync::Arc;
 
 use vl_core::{Arena, CameraModel, RobotModel};
 use vl_sim::{Optics, Scheduled};
 
-use crate::drivers::{CameraError, RobotError};
+use crate::drivers::{Camera, CameraError, Robot, RobotError};
 use crate::khepera::KheperaSerial;
 use crate::lab::Devices;
 use crate::source::CameraSource;
 use crate::{Host, HostConfig, HostError, SimCamera, SimLab};
 
 /// Which robot the lab drives.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub enum RobotSpec {
     /// The simulated Khepera II.
     Sim,
@@ -27,8 +30,48 @@ pub enum RobotSpec {
         baud: u32,
         guard: PathBuf,
     },
-    /// A ROS 2 differential-drive robot on a Zenoh network.
-    Ros2(crate::ros2::Ros2RobotOptions),
+    /// A robot a plug-in connects (a ROS 2 base, `vl-ros2`), with the
+    /// camera it brings, if any.
+    Plugged(Arc<dyn RobotPlug>),
+}
+
+impl PartialEq for RobotSpec {
+    fn eq(&self, other: &RobotSpec) -> bool {
+        match (self, other) {
+            (RobotSpec::Sim, RobotSpec::Sim) => true,
+            (
+                RobotSpec::Khepera { port, baud, guard },
+                RobotSpec::Khepera {
+                    port: p,
+                    baud: b,
+                    guard: g,
+                },
+            ) => (port, baud, guard) == (p, b, g),
+            (RobotSpec::Plugged(a), RobotSpec::Plugged(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        }
+    }
+}
+
+/// A robot, and the camera that came with it.
+pub struct PluggedRobot {
+    pub robot: Box<dyn Robot>,
+    /// The robot's own camera (a topic on its network), if it brings one.
+    pub camera: Option<Box<dyn Camera>>,
+}
+
+/// A robot driver that plugs into the lab from outside it, as the ROS 2
+/// side does a ROS 2 base: the lab's drivers behind one call.
+pub trait RobotPlug: Send + Sync + std::fmt::Debug {
+    /// Connects the robot (`model`, starting at `arena`'s start pose) and
+    /// its own camera, seen through `calibration` (or looking straight
+    /// down on `arena`).
+    fn connect<'a>(
+        &'a self,
+        model: RobotModel,
+        calibration: Option<CameraModel>,
+        arena: &'a Arena,
+    ) -> Pin<Box<dyn Future<Output = Result<PluggedRobot, SetupError>> + Send + 'a>>;
 }
 
 /// A lab to serve.
@@ -71,8 +114,9 @@ pub enum SetupError {
     Footage(#[source] CameraError),
     #[error("no Khepera to drive: {0}")]
     Robot(#[source] RobotError),
+    /// A plugged robot that would not connect.
     #[error("{0}")]
-    Ros2(#[source] crate::ros2::Ros2Error),
+    Plugged(#[source] Box<dyn std::error::Error + Send + Sync>),
     #[error("cannot start the Host: {0}")]
     Host(#[from] HostError),
 }
@@ -113,27 +157,21 @@ impl Host {
                 Ok(Host::start_sim(listen, lab, config).await?)
             }
             (RobotSpec::Sim, _) => Err(SetupError::RealCameraOnTheSimulator),
-            (RobotSpec::Khepera { .. } | RobotSpec::Ros2(_), CameraSource::Sim) => {
+            (RobotSpec::Khepera { .. } | RobotSpec::Plugged(_), CameraSource::Sim) => {
                 Err(SetupError::SimulatedCameraOnARobot)
             }
-            (RobotSpec::Ros2(options), camera) => {
-                let robot = crate::ros2::Ros2Robot::connect(&options, spec.model)
-                    .await
-                    .map_err(SetupError::Ros2)?;
-                let camera = match camera {
-                    CameraSource::Ros2(topic) => Some(Box::new(
-                        robot
-                            .camera(&topic, spec.calibration, &spec.arena)
-                            .await
-                            .map_err(SetupError::Camera)?,
-                    )
-                        as Box<dyn crate::drivers::Camera>),
-                    camera => camera
+            (RobotSpec::Plugged(plug), camera) => {
+                let plugged = plug
+                    .connect(spec.model, spec.calibration, &spec.arena)
+                    .await?;
+                let camera = match plugged.camera {
+                    Some(own) => Some(own),
+                    None => camera
                         .open(spec.calibration, &spec.arena)
                         .map_err(SetupError::Camera)?,
                 };
                 let devices = Devices {
-                    robot: Box::new(robot),
+                    robot: plugged.robot,
                     camera,
                     witness: None,
                 };

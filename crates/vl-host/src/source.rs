@@ -27,8 +27,6 @@ pub enum CameraSource {
     /// A webcam on Video4Linux2.
     #[cfg(target_os = "linux")]
     V4l2(crate::V4l2Spec),
-    /// A ROS 2 camera's JPEGs on this topic (with `--robot ros2`).
-    Ros2(String),
 }
 
 impl FromStr for CameraSource {
@@ -39,9 +37,6 @@ impl FromStr for CameraSource {
             "sim" => Ok(CameraSource::Sim),
             "none" => Ok(CameraSource::None),
             _ if text.starts_with("http://") => Ok(CameraSource::Http(text.to_owned())),
-            _ if text.starts_with("ros2:") => {
-                ros2_topic(&text["ros2:".len()..]).map(CameraSource::Ros2)
-            }
             #[cfg(target_os = "linux")]
             _ if text.starts_with("v4l2:") => text["v4l2:".len()..].parse().map(CameraSource::V4l2),
             _ => match text.strip_prefix("dir:") {
@@ -49,25 +44,10 @@ impl FromStr for CameraSource {
                 _ => Err(CameraError::Address(format!(
                     "'{text}' is no camera: use sim, none, http://… (an MJPEG stream), \
                      v4l2:/dev/videoN (a webcam), dir:PATH (recorded footage) or \
-                     ros2:/TOPIC (a ROS 2 camera's sensor_msgs/CompressedImage)"
+                     ros2:/TOPIC (a ROS 2 robot's camera)"
                 ))),
             },
         }
-    }
-}
-
-/// A ROS 2 topic name: `/` and then names of letters, digits and `_`.
-fn ros2_topic(topic: &str) -> Result<String, CameraError> {
-    let fits = topic.strip_prefix('/').is_some_and(|rest| {
-        rest.split('/').all(|name| {
-            !name.is_empty() && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
-        })
-    });
-    match fits {
-        true => Ok(topic.to_owned()),
-        false => Err(CameraError::Address(format!(
-            "ros2:{topic}: a ROS 2 topic is /name/name…, each name of letters, digits and _"
-        ))),
     }
 }
 
@@ -83,11 +63,6 @@ impl CameraSource {
         let floor = (arena.width_mm, arena.height_mm);
         Ok(Some(match self {
             CameraSource::Sim | CameraSource::None => return Ok(None),
-            CameraSource::Ros2(topic) => {
-                return Err(CameraError::Address(format!(
-                    "ros2:{topic}: a ROS 2 camera is read with --robot ros2, on the robot's network"
-                )));
-            }
             CameraSource::Replay(dir) => {
                 Box::new(FootageCamera::open(&dir, calibration, floor, ASSUMED_FPS)?)
             }

@@ -32,7 +32,7 @@ use std::net::IpAddr;
 use vl_core::HostStatus;
 
 use vl_host::Audit;
-use vl_host::LabEvents;
+use vl_host::LabHandle;
 use vl_host::SessionCheck;
 use vl_host::{Extension, ExtensionTask};
 
@@ -173,7 +173,7 @@ impl Extension for Lti {
         status.grades = Some(self.grades_status());
     }
 
-    fn run(self: Arc<Self>, events: LabEvents) -> ExtensionTask {
-        Box::pin(self.grade_runs(events.listen()))
+    fn run(self: Arc<Self>, lab: LabHandle) -> ExtensionTask {
+        Box::pin(self.grade_runs(lab.events.listen()))
     }
 }

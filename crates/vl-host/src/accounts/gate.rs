@@ -112,8 +112,7 @@ impl Identity {
 }
 
 /// What a person whose account ended (`ended_by`) is told as they are let go.
-pub(crate) const ACCOUNT_ENDED: &str =
-    "your account at this lab was removed or may no longer drive";
+pub const ACCOUNT_ENDED: &str = "your account at this lab was removed or may no longer drive";
 
 /// Who a hello proved its sender is, and whether they may drive.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -129,7 +128,7 @@ pub struct Admitted {
 impl Admitted {
     /// Whether `users`, read again, no longer let this person in as they
     /// were let in: their account gone, or no longer allowed to drive.
-    pub(crate) fn ended_by(&self, users: &Users) -> bool {
+    pub fn ended_by(&self, users: &Users) -> bool {
         match &self.identity {
             Identity::Account { name, .. } => match users.role_of(name) {
                 None => true,
@@ -306,7 +305,7 @@ impl Gate {
 
     /// Whether `admitted`, let in before, is still let in as it was: its
     /// account not removed since, nor barred from driving.
-    pub(crate) fn still_admits(&self, admitted: &Admitted) -> bool {
+    pub fn still_admits(&self, admitted: &Admitted) -> bool {
         self.users().is_none_or(|users| !admitted.ended_by(&users))
     }
 

@@ -314,10 +314,10 @@ impl Publisher {
 }
 
 /// A client watching the frames, counted while it lives.
-pub(crate) struct Watching(Arc<AtomicUsize>);
+pub struct Watching(Arc<AtomicUsize>);
 
 impl Watching {
-    pub(crate) fn new(watchers: &Arc<AtomicUsize>) -> Watching {
+    pub fn new(watchers: &Arc<AtomicUsize>) -> Watching {
         watchers.fetch_add(1, Ordering::Relaxed);
         Watching(watchers.clone())
     }

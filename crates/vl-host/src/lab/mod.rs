@@ -26,7 +26,7 @@ use vl_core::{
 
 use crate::drivers::{Camera, Robot, Witness};
 pub use camera::FramePolicy;
-pub(crate) use camera::Watching;
+pub use camera::Watching;
 use camera::{CameraLoop, SIGHTINGS, first_look};
 pub(crate) use control::map_field;
 use control::{Control, Wiring};

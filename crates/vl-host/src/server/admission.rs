@@ -109,16 +109,16 @@ impl Counts {
 
 /// The Host's connection slots.
 #[derive(Clone)]
-pub(crate) struct Admission {
+pub struct Admission {
     counts: Arc<Mutex<Counts>>,
 }
 
 /// A connection's slot; dropping it frees the slot.
-pub(crate) struct Ticket {
+pub struct Ticket {
     id: u64,
     counts: Arc<Mutex<Counts>>,
     /// Becomes true when the connection is pushed out.
-    pub(crate) evicted: watch::Receiver<bool>,
+    pub evicted: watch::Receiver<bool>,
 }
 
 fn lock(counts: &Mutex<Counts>) -> MutexGuard<'_, Counts> {
@@ -134,7 +134,7 @@ impl Admission {
 
     /// Slots for `capacity` connections at once (a gateway serves a
     /// class of hundreds: its watchers cost its cells nothing).
-    pub(crate) fn with_capacity(capacity: usize) -> Admission {
+    pub fn with_capacity(capacity: usize) -> Admission {
         let counts = Counts {
             capacity,
             ..Counts::default()
@@ -198,14 +198,14 @@ impl Ticket {
     }
 
     /// The connection was welcomed: it no longer counts as silent.
-    pub(crate) fn welcomed(&self) {
+    pub fn welcomed(&self) {
         lock(&self.counts).unwelcomed.retain(|s| s.id != self.id);
     }
 
     /// Takes a place for this connection's person: any place for one who
     /// may drive, one not kept for drivers for one who only watches.
     /// Whether there was one.
-    pub(crate) fn seat(&self, may_drive: bool) -> bool {
+    pub fn seat(&self, may_drive: bool) -> bool {
         let mut counts = lock(&self.counts);
         if may_drive || counts.watching.contains(&self.id) {
             return true;

@@ -45,7 +45,7 @@ pub enum BenchError {
     #[error("cannot start the guessers' runtime: {0}")]
     Runtime(std::io::Error),
     #[error("cannot issue the cells' credentials: {0}")]
-    Trust(#[from] crate::cells::TrustError),
+    Trust(String),
 }
 
 /// Command → feedback of its event, ms, and what the observers got.
@@ -317,11 +317,13 @@ async fn observe(mut ws: Socket, mut stop: tokio::sync::watch::Receiver<bool>) -
     }
 }
 
-/// Runs the bench: `observers` reading, `commands` timed; `step` is told
-/// each stage as it begins (the whole takes minutes).
+/// Runs the bench on a Host with `extensions` plugged in (as `vl host`
+/// has them): `observers` reading, `commands` timed; `step` is told each
+/// stage as it begins (the whole takes minutes).
 pub async fn operator_latency(
     observers: usize,
     commands: usize,
+    extensions: Vec<std::sync::Arc<dyn crate::Extension>>,
     mut step: impl FnMut(&str),
 ) -> Result<OperatorLatency, BenchError> {
     step(&format!("a Host with {observers} observers watching"));
@@ -333,6 +335,7 @@ pub async fn operator_latency(
         .expect("a good account");
     let config = HostConfig {
         users: Some(users),
+        extensions,
         ..HostConfig::default()
     };
     let host = Host::start_sim(listen, lab, config).await?;

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 /// A token bucket, `rate` a second and `burst` at once, that may be
 /// overdrawn: the overdraft says how long to wait before taking more.
-pub(crate) struct Bucket {
+pub struct Bucket {
     rate: f64,
     burst: f64,
     tokens: f64,
@@ -14,7 +14,7 @@ pub(crate) struct Bucket {
 }
 
 impl Bucket {
-    pub(crate) fn new(rate: f64, burst: f64) -> Bucket {
+    pub fn new(rate: f64, burst: f64) -> Bucket {
         Bucket {
             rate,
             burst,
@@ -24,12 +24,12 @@ impl Bucket {
     }
 
     /// Gives back `amount` taken for something that never went ahead.
-    pub(crate) fn refund(&mut self, amount: f64) {
+    pub fn refund(&mut self, amount: f64) {
         self.tokens = (self.tokens + amount).min(self.burst);
     }
 
     /// Takes `amount`; how long until the bucket is out of debt.
-    pub(crate) fn take(&mut self, amount: f64) -> Duration {
+    pub fn take(&mut self, amount: f64) -> Duration {
         let now = Instant::now();
         let refill = now.duration_since(self.last).as_secs_f64() * self.rate;
         self.tokens = (self.tokens + refill).min(self.burst) - amount;

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use futures_util::StreamExt;
 use tokio::net::TcpStream;
-use tokio::sync::{mpsc, watch};
+use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::tungstenite::{self, Bytes, Message};
 use tracing::debug;
@@ -16,20 +16,21 @@ use vl_core::{
     ErrorCode, GuestMessage, HostMessage, MAX_TEXT_BYTES, PartHeader, RecordingName, Wire,
 };
 
-use super::HostConfig;
 use super::admission::Ticket;
-use super::foxglove;
+use super::events::LiveEvent;
+use super::extension::{Extension, SocketClient};
 use super::http::{self, Opening};
 use super::hub::{ToConnection, ToHub};
 use super::socket::{self, Sink, Socket, Unwritten};
-use crate::accounts::gate::{Credentials, Gate, Identity, Purpose};
+use super::{HostConfig, LabHandle};
+use crate::accounts::gate::{Credentials, Identity, Purpose};
 use crate::lab::Watching;
 use tokio_tungstenite::tungstenite::handshake::server::{Request, Response};
 
 use super::bucket::Bucket;
 use super::origin::AllowedOrigins;
 use vl_core::Io;
-use vl_record::{Feed, RecordError, Recordable};
+use vl_record::{RecordError, Recordable};
 
 /// The WebSocket handshake must be done within this.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
@@ -60,32 +61,23 @@ const MAX_BEFORE_HELLO_BYTES: usize = 4096;
 /// A connection's task and what it shares.
 pub(crate) struct ConnectionTask {
     pub(crate) id: u64,
-    pub(crate) hub: mpsc::Sender<ToHub>,
-    pub(crate) feedback: watch::Receiver<Option<HostMessage>>,
-    pub(crate) frames: watch::Receiver<Option<Bytes>>,
-    /// Counted among the frames' watchers once welcomed.
-    pub(crate) watchers: Arc<std::sync::atomic::AtomicUsize>,
+    /// The lab: its hub, the feedback and frames (counted among the
+    /// frames' watchers once welcomed), the gate each hello passes, the
+    /// recorder and the live views each round trip measured goes to.
+    pub(crate) lab: LabHandle,
     pub(crate) config: Arc<HostConfig>,
-    /// Who each hello proves its sender is.
-    pub(crate) gate: Arc<Gate>,
     pub(crate) peer: std::net::SocketAddr,
     pub(crate) ticket: Ticket,
-    /// The recorder, handed each round trip measured.
-    pub(crate) record: Feed,
     /// Who the gate let in (for the recordings they may see).
     pub(crate) identity: Option<Identity>,
-    /// The lab's views, made once for every Foxglove client (none at a
-    /// gateway, whose Foxglove clients connect to a cell's Host).
-    pub(crate) foxglove: Option<foxglove::LiveFeed>,
-    /// One per Host start, for Foxglove's clients.
-    pub(crate) session: Arc<str>,
 }
 
 /// Who a connection's WebSocket is for.
 enum Client {
     /// With the path it opened (`/cells/NAME` asks a gateway for a cell).
     Guest(Socket, Option<String>),
-    Foxglove(Socket),
+    /// A client of a protocol an extension serves.
+    Extension(Socket, Arc<dyn Extension>),
 }
 
 /// How a connection ends.
@@ -166,7 +158,7 @@ async fn handshake(
         }
         None => Box::new(stream),
     };
-    match http::opening(stream).await? {
+    match http::opening(stream, &asking.extensions).await? {
         Opening::Guest(stream) => {
             let mut path = None;
             // tungstenite's callback type fixes the error's size.
@@ -181,23 +173,23 @@ async fn handshake(
                     .await?;
             Ok(Some(Client::Guest(socket, path)))
         }
-        Opening::Foxglove(stream, subprotocol) => {
+        Opening::Extension(stream, extension, protocol) => {
             // tungstenite's callback type fixes the error's size.
             #[allow(clippy::result_large_err)]
             let answer = |request: &Request, mut response: Response| {
                 from_allowed_origin(request, origins)?;
                 response.headers_mut().insert(
                     "sec-websocket-protocol",
-                    tungstenite::http::HeaderValue::from_static(subprotocol.name()),
+                    tungstenite::http::HeaderValue::from_static(protocol.name),
                 );
                 Ok(response)
             };
             let config = ws_config
-                .max_message_size(Some(foxglove::MAX_MESSAGE))
-                .max_frame_size(Some(foxglove::MAX_MESSAGE));
+                .max_message_size(Some(protocol.max_message))
+                .max_frame_size(Some(protocol.max_message));
             tokio_tungstenite::accept_hdr_async_with_config(stream, answer, Some(config))
                 .await
-                .map(|socket| Some(Client::Foxglove(socket)))
+                .map(|socket| Some(Client::Extension(socket, extension)))
         }
         Opening::Page(stream) => {
             http::answer(stream, asking).await?;
@@ -225,22 +217,6 @@ fn from_allowed_origin(
 }
 
 impl ConnectionTask {
-    /// This connection as a Foxglove client's: what it takes from the lab.
-    fn foxglove(self, feed: foxglove::LiveFeed) -> foxglove::Watcher {
-        foxglove::Watcher {
-            id: self.id,
-            hub: self.hub,
-            feedback: self.feedback,
-            feed,
-            watchers: self.watchers,
-            gate: self.gate,
-            peer: self.peer,
-            ticket: self.ticket,
-            ping_timeout: self.config.ping_timeout,
-            session: self.session.to_string(),
-        }
-    }
-
     pub(crate) async fn run(mut self, stream: TcpStream) -> Result<(), tungstenite::Error> {
         let _ = stream.set_nodelay(true);
         // Guests send only text: nothing larger than a text message may come.
@@ -252,8 +228,8 @@ impl ConnectionTask {
         let asking = http::Asking {
             connection: self.id,
             address: self.peer.ip(),
-            gate: self.gate.clone(),
-            hub: self.hub.clone(),
+            gate: self.lab.gate.clone(),
+            hub: self.lab.hub.clone(),
             extensions: self.config.extensions.clone(),
         };
         let origins = self.config.allow_origins.clone();
@@ -281,24 +257,22 @@ impl ConnectionTask {
         self.ticket.upgraded();
         let (ws, path) = match ws {
             Client::Guest(ws, path) => (ws, path),
-            Client::Foxglove(mut ws) => {
-                match self.foxglove.clone() {
-                    Some(feed) => self.foxglove(feed).serve(ws).await,
-                    None => {
-                        let why = "Foxglove connects to a cell's own Host, not to the gateway";
-                        let frame = tungstenite::protocol::CloseFrame {
-                            code: tungstenite::protocol::frame::coding::CloseCode::Policy,
-                            reason: why.into(),
-                        };
-                        let _ = ws.close(Some(frame)).await;
-                    }
-                }
+            Client::Extension(ws, extension) => {
+                let client = SocketClient {
+                    id: self.id,
+                    peer: self.peer,
+                    ticket: self.ticket,
+                    lab: self.lab,
+                    ping_timeout: self.config.ping_timeout,
+                };
+                extension.serve_socket(ws, client).await;
                 return Ok(());
             }
         };
         let (mut sink, mut source) = ws.split();
         let (to_me, mut inbox) = mpsc::channel(super::hub::OUTBOX);
         if self
+            .lab
             .hub
             .send(ToHub::Join(self.id, to_me, path))
             .await
@@ -308,7 +282,7 @@ impl ConnectionTask {
         }
         let end = self.serve(&mut sink, &mut source, &mut inbox).await;
         let left = matches!(end, End::Left);
-        let _ = self.hub.send(ToHub::Leave(self.id, left)).await;
+        let _ = self.lab.hub.send(ToHub::Leave(self.id, left)).await;
         match end {
             End::Closed | End::Left => {}
             End::Refused(code, why) => {
@@ -385,8 +359,8 @@ impl ConnectionTask {
                     }
                     Some(ToConnection::End(code, why)) => return End::Refused(code, why),
                     Some(ToConnection::Watch(streams)) => {
-                        self.feedback = streams.feedback;
-                        self.frames = streams.frames;
+                        self.lab.feedback = streams.feedback;
+                        self.lab.frames = streams.frames;
                         self.subscribed(&mut r, &mut watching);
                     }
                     Some(ToConnection::Subscribe) => self.subscribed(&mut r, &mut watching),
@@ -395,16 +369,16 @@ impl ConnectionTask {
                         return End::Refused(ErrorCode::SlowReader, "messages for you piled up unread".into());
                     }
                 },
-                Ok(()) = self.feedback.changed(), if r.welcomed => {
-                    let latest = self.feedback.borrow_and_update().clone();
+                Ok(()) = self.lab.feedback.changed(), if r.welcomed => {
+                    let latest = self.lab.feedback.borrow_and_update().clone();
                     if let Some(message) = latest
                         && let Err(end) = put(sink, text_of(&message)).await
                     {
                         return end;
                     }
                 }
-                Ok(()) = self.frames.changed(), if r.welcomed => {
-                    let latest = self.frames.borrow_and_update().clone();
+                Ok(()) = self.lab.frames.changed(), if r.welcomed => {
+                    let latest = self.lab.frames.borrow_and_update().clone();
                     if let Some(frame) = latest
                         && let Err(end) = put(sink, Message::Binary(frame)).await
                     {
@@ -420,7 +394,7 @@ impl ConnectionTask {
                         return End::Refused(ErrorCode::Timeout, "pushed out by a newer connection: say hello sooner".into());
                     }
                 }
-                () = self.hub.closed() => {
+                () = self.lab.hub.closed() => {
                     let _ = put(sink, text_of(&HostMessage::Bye)).await;
                     return End::Closed;
                 }
@@ -441,10 +415,10 @@ impl ConnectionTask {
     /// Welcomed: the newest feedback and frame are for this client now.
     fn subscribed(&mut self, r: &mut Reading, watching: &mut Option<Watching>) {
         r.welcomed = true;
-        watching.get_or_insert_with(|| Watching::new(&self.watchers));
+        watching.get_or_insert_with(|| Watching::new(&self.lab.watchers));
         self.ticket.welcomed();
-        self.feedback.mark_changed();
-        self.frames.mark_changed();
+        self.lab.feedback.mark_changed();
+        self.lab.frames.mark_changed();
     }
 
     /// Takes in what the client sent, within its rates.
@@ -508,7 +482,8 @@ impl ConnectionTask {
 
     /// Passes `message` to the hub; the connection ends with the hub.
     async fn to_hub(&self, message: GuestMessage) -> Result<(), End> {
-        self.hub
+        self.lab
+            .hub
             .send(ToHub::Message(self.id, message))
             .await
             .map_err(|_| End::Closed)
@@ -521,13 +496,15 @@ impl ConnectionTask {
         let rtt_ms = r.clock.elapsed().as_secs_f64() * 1e3 - t;
         debug!(connection = self.id, rtt_ms, "round trip");
         if r.welcomed && (0.0..=PING_TIMEOUT_MS).contains(&rtt_ms) {
-            self.record.send(Recordable::RoundTrip {
+            self.lab.record.send(Recordable::RoundTrip {
                 connection: self.id,
                 ms: rtt_ms,
             });
-            if let Some(feed) = &self.foxglove {
-                feed.round_trip(self.id, rtt_ms);
-            }
+            let connection = self.id;
+            self.lab.live.tell(|| LiveEvent::RoundTrip {
+                connection,
+                ms: rtt_ms,
+            });
         }
     }
 
@@ -565,7 +542,7 @@ impl ConnectionTask {
                     session: session.as_ref().map(|s| s.0.as_str()),
                     purpose: Purpose::Session,
                 };
-                match self.gate.check(self.id, self.peer.ip(), hello).await {
+                match self.lab.gate.check(self.id, self.peer.ip(), hello).await {
                     Ok(admitted) if !self.ticket.seat(admitted.may_drive) => {
                         return Err(End::Refused(
                             ErrorCode::LabFull,
@@ -581,7 +558,7 @@ impl ConnectionTask {
                             role,
                             resume,
                         };
-                        self.hub.send(hello).await.map_err(|_| End::Closed)?;
+                        self.lab.hub.send(hello).await.map_err(|_| End::Closed)?;
                         None
                     }
                     Err(refused) => {

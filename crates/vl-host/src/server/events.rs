@@ -6,7 +6,7 @@
 use std::sync::Arc;
 
 use tokio::sync::broadcast;
-use vl_core::Summary;
+use vl_core::{HostMessage, Summary};
 
 use crate::accounts::gate::Admitted;
 
@@ -42,6 +42,43 @@ pub struct RunDriver {
     pub admitted: Admitted,
 }
 
+/// What the lab's live views (Foxglove's) are made of besides its feeds:
+/// each message the hub tells every client, and each round trip a
+/// connection measures.
+#[derive(Debug, Clone)]
+pub enum LiveEvent {
+    Told(Arc<HostMessage>),
+    RoundTrip { connection: u64, ms: f64 },
+}
+
+/// Live events kept for the slowest listener, which skips the oldest.
+const LIVE_KEPT: usize = 256;
+
+/// The lab's live events: made only while someone listens, so a lab with
+/// no live views pays nothing for them.
+#[derive(Debug, Clone)]
+pub struct LiveEvents(broadcast::Sender<LiveEvent>);
+
+impl Default for LiveEvents {
+    fn default() -> Self {
+        LiveEvents(broadcast::channel(LIVE_KEPT).0)
+    }
+}
+
+impl LiveEvents {
+    /// Tells the event `made` makes, if anyone listens.
+    pub fn tell(&self, made: impl FnOnce() -> LiveEvent) {
+        if self.0.receiver_count() > 0 {
+            let _ = self.0.send(made());
+        }
+    }
+
+    /// The events from now on.
+    pub fn listen(&self) -> broadcast::Receiver<LiveEvent> {
+        self.0.subscribe()
+    }
+}
+
 /// The lab's events, for anyone to listen to.
 #[derive(Debug, Clone)]
 pub struct LabEvents(broadcast::Sender<LabEvent>);
@@ -54,7 +91,7 @@ impl Default for LabEvents {
 
 impl LabEvents {
     /// Tells `event` to everyone listening now (no one may be).
-    pub(crate) fn tell(&self, event: LabEvent) {
+    pub fn tell(&self, event: LabEvent) {
         let _ = self.0.send(event);
     }
 

@@ -4,13 +4,16 @@
 //! lab does, hearing the lab's events. The LMS side (`vl-lti`) is one.
 
 use std::future::Future;
-use std::net::IpAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::pin::Pin;
 use std::sync::Arc;
+use std::time::Duration;
 
 use vl_core::HostStatus;
 
-use super::events::LabEvents;
+use super::LabHandle;
+use super::admission::Ticket;
+use super::socket::Socket;
 use crate::accounts::gate::SessionCheck;
 
 /// A task that runs for as long as the lab does.
@@ -34,16 +37,51 @@ pub trait Extension: Send + Sync + std::fmt::Debug {
         let _ = status;
     }
 
-    /// What it runs for as long as the lab does, hearing `events`.
-    fn run(self: Arc<Self>, events: LabEvents) -> ExtensionTask {
-        let _ = events;
+    /// The WebSocket protocol it serves on the lab's port, if a client's
+    /// upgrade offers it (`offered`: its `Sec-WebSocket-Protocol`).
+    fn socket_protocol(&self, offered: &str) -> Option<SocketProtocol> {
+        let _ = offered;
+        None
+    }
+
+    /// Serves one client of its `socket_protocol`, until it leaves.
+    fn serve_socket(self: Arc<Self>, socket: Socket, client: SocketClient) -> ExtensionTask {
+        let _ = (socket, client);
+        Box::pin(async {})
+    }
+
+    /// What it runs for as long as the lab does, reaching it by `lab`
+    /// (its hub, feeds, events and gate).
+    fn run(self: Arc<Self>, lab: LabHandle) -> ExtensionTask {
+        let _ = lab;
         Box::pin(std::future::pending())
     }
 }
 
+/// A WebSocket protocol an extension serves on the lab's port, told apart
+/// from a Guest's by its subprotocol.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SocketProtocol {
+    /// The subprotocol the upgrade is answered with.
+    pub name: &'static str,
+    /// The largest message its clients may send.
+    pub max_message: usize,
+}
+
+/// One client of an extension's WebSocket protocol: its connection, the
+/// slot admission gave it (which says when it is pushed out), and the lab.
+pub struct SocketClient {
+    pub id: u64,
+    pub peer: SocketAddr,
+    pub ticket: Ticket,
+    pub lab: LabHandle,
+    /// A client that answers no ping for this long is let go.
+    pub ping_timeout: Duration,
+}
+
 /// The extensions of a lab, run together.
-pub(crate) async fn run_all(extensions: Vec<Arc<dyn Extension>>, events: LabEvents) {
-    let tasks = extensions.into_iter().map(|e| e.run(events.clone()));
+pub async fn run_all(extensions: Vec<Arc<dyn Extension>>, lab: LabHandle) {
+    let tasks = extensions.into_iter().map(|e| e.run(lab.clone()));
     futures_util::future::join_all(tasks).await;
     // None left running (or none at all): the lab runs on.
     std::future::pending().await

@@ -26,7 +26,7 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, ReadBuf};
 use tokio::sync::{mpsc, oneshot};
 use vl_core::{ErrorCode, Role};
 
-use super::foxglove::Subprotocol;
+use super::extension::{Extension, SocketProtocol};
 use super::hub::ToHub;
 use super::web;
 use crate::accounts::gate::{Credentials, Gate, Purpose};
@@ -40,8 +40,9 @@ const MAX_HEADERS: usize = 32;
 pub(super) enum Opening {
     /// A Guest's WebSocket upgrade: the protocol of `docs/protocol.md`.
     Guest(Box<dyn Io>),
-    /// A Foxglove client's upgrade, answered with the subprotocol it asked for.
-    Foxglove(Box<dyn Io>, Subprotocol),
+    /// An upgrade to a protocol an extension serves (Foxglove's), answered
+    /// with the subprotocol it chose.
+    Extension(Box<dyn Io>, Arc<dyn Extension>, SocketProtocol),
     /// A plain request, for a page.
     Page(Box<dyn Io>),
 }
@@ -94,19 +95,26 @@ fn header<'a>(request: &httparse::Request<'_, 'a>, name: &str) -> Option<&'a str
 }
 
 /// Reads the request head from `stream` and says what it asks for.
-pub(super) async fn opening(mut stream: Box<dyn Io>) -> io::Result<Opening> {
+pub(super) async fn opening(
+    mut stream: Box<dyn Io>,
+    extensions: &[Arc<dyn Extension>],
+) -> io::Result<Opening> {
     let head = read_head(&mut stream).await?;
     let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
     let request = parse(&head, &mut headers)?;
     let upgrade = header(&request, "upgrade").is_some_and(|v| v.eq_ignore_ascii_case("websocket"));
-    let foxglove = header(&request, "sec-websocket-protocol").and_then(Subprotocol::chosen);
+    let chosen = header(&request, "sec-websocket-protocol").and_then(|offered| {
+        extensions
+            .iter()
+            .find_map(|e| Some((e.clone(), e.socket_protocol(offered)?)))
+    });
     let stream = Box::new(Rewind {
         head,
         read: 0,
         stream,
     });
-    Ok(match (upgrade, foxglove) {
-        (true, Some(subprotocol)) => Opening::Foxglove(stream, subprotocol),
+    Ok(match (upgrade, chosen) {
+        (true, Some((extension, protocol))) => Opening::Extension(stream, extension, protocol),
         (true, None) => Opening::Guest(stream),
         (false, _) => Opening::Page(stream),
     })

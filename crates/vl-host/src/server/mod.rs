@@ -14,17 +14,16 @@
 
 pub(crate) mod admission;
 pub(crate) mod bench;
-mod bucket;
+pub(crate) mod bucket;
 mod busy;
 mod connection;
 pub(crate) mod events;
 pub(crate) mod extension;
-mod foxglove;
 mod http;
 pub(crate) mod hub;
 pub(crate) mod origin;
 pub(crate) mod pacing;
-pub(crate) mod socket;
+pub mod socket;
 pub mod web;
 
 use std::path::PathBuf;
@@ -41,7 +40,7 @@ use crate::accounts::gate::{Gate, Observers};
 use crate::accounts::users::Users;
 use crate::lab::{FramePolicy, Lab};
 use crate::tls::Tls;
-pub(crate) use admission::Admission;
+pub use admission::Admission;
 use connection::ConnectionTask;
 use hub::Hub;
 pub use hub::{ForecastSettings, MOST_FORECAST_SEEDS};
@@ -95,11 +94,8 @@ pub struct HostConfig {
     pub forecast: ForecastSettings,
     /// Where every run is recorded; none: nowhere.
     pub recordings: Option<vl_record::Catalogue>,
-    /// The gateway this Host joins as one of its cells; none: alone.
-    pub cell: Option<crate::cells::CellOptions>,
-    /// The lab as a ROS 2 node on Zenoh.
-    pub ros2: Option<crate::ros2::Ros2Options>,
-    /// What plugs into the lab: an LMS's launches and grades, …
+    /// What plugs into the lab: a gateway it joins as a cell, ROS 2, an
+    /// LMS's launches and grades, …
     pub extensions: Vec<Arc<dyn extension::Extension>>,
 }
 
@@ -137,40 +133,19 @@ impl Default for HostConfig {
             compensate_latency: true,
             forecast: ForecastSettings::default(),
             recordings: None,
-            cell: None,
-            ros2: None,
             extensions: Vec::new(),
         }
     }
 }
 
 /// Messages waiting for the hub, from every connection together.
-pub(crate) const HUB_QUEUE: usize = 256;
+pub const HUB_QUEUE: usize = 256;
 
 /// Accepts connections on `listener` and serves the lab until the task is dropped.
 pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
     let (hub_tx, hub_rx) = mpsc::channel(HUB_QUEUE);
-    let (feed, views, feeding) = foxglove::LiveFeed::start(foxglove::Sources {
-        scene: vl_core::LabScene {
-            arena: lab.info.arena.clone(),
-            robot: lab.info.robot.clone(),
-            camera: lab.info.camera,
-        },
-        since_ns: lab.since_ns,
-        feedback: lab.feedback.clone(),
-        frames: lab.frames.clone(),
-        log: lab.log.clone(),
-    });
     let events = events::LabEvents::default();
-    let handle = LabHandle {
-        hub: hub_tx.clone(),
-        feedback: lab.feedback.clone(),
-        frames: lab.frames.clone(),
-        watchers: lab.watchers.clone(),
-        record: lab.record.clone(),
-        events: events.clone(),
-        session: lab.since_ns.to_string().into(),
-    };
+    let live = events::LiveEvents::default();
     let config = Arc::new(config);
     let supervisor = match config.supervisor() {
         Ok(supervisor) => supervisor,
@@ -180,45 +155,40 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
         }
     };
     let gate = Arc::new(gate_of(&config));
-    let extended = extension::run_all(config.extensions.clone(), events.clone());
-    let joined = match config.cell.clone() {
-        Some(cell) => futures_util::future::Either::Left(crate::cells::join(
-            cell,
-            handle.clone(),
-            config.experiments.clone(),
-        )),
-        None => futures_util::future::Either::Right(std::future::pending()),
+    let handle = LabHandle {
+        hub: hub_tx.clone(),
+        feedback: lab.feedback.clone(),
+        frames: lab.frames.clone(),
+        watchers: lab.watchers.clone(),
+        record: lab.record.clone(),
+        events: events.clone(),
+        live: live.clone(),
+        log: lab.log.clone(),
+        since_ns: lab.since_ns,
+        gate: gate.clone(),
+        scene: Some(vl_core::LabScene {
+            arena: lab.info.arena.clone(),
+            robot: lab.info.robot.clone(),
+            camera: lab.info.camera,
+        }),
+        experiments: config.experiments.clone().into(),
     };
-    let on_ros2 = match config.ros2.clone() {
-        Some(options) => {
-            let scene = vl_core::LabScene {
-                arena: lab.info.arena.clone(),
-                robot: lab.info.robot.clone(),
-                camera: lab.info.camera,
-            };
-            let side = crate::ros2::serve(options, handle.clone(), gate.clone(), scene);
-            futures_util::future::Either::Left(side)
-        }
-        None => futures_util::future::Either::Right(std::future::pending()),
-    };
-    let hub = Hub::new(lab, config.clone(), supervisor, events).with_views(views);
-    let accounts = watch_accounts(gate.clone(), hub_tx);
+    let extended = extension::run_all(config.extensions.clone(), handle.clone());
+    let hub = Hub::new(lab, config.clone(), supervisor, events).with_live(live);
+    let accounts = watch_accounts(gate, hub_tx);
     // The hub lives exactly as long as the server: dropping this future
     // drops the lab, which stops the robot.
     tokio::select! {
         () = hub.run(hub_rx) => {}
-        () = accept(listener, handle, Some(feed), config, gate, Admission::new()) => {}
+        () = accept(listener, handle, config, Admission::new()) => {}
         () = accounts => {}
-        () = feeding => {}
-        () = joined => {}
-        () = on_ros2 => {}
         () = extended => {}
     }
 }
 
 /// The gate `config` asks for: its accounts, token and observers, and
 /// the sessions its extensions open.
-pub(crate) fn gate_of(config: &HostConfig) -> Gate {
+pub fn gate_of(config: &HostConfig) -> Gate {
     let gate = Gate::new(
         config.users.clone(),
         config.token.clone(),
@@ -238,7 +208,7 @@ const ACCOUNTS_CHECK: Duration = Duration::from_secs(1);
 /// Reads the accounts file again when it changes, and tells the hub: an
 /// account removed on the running lab (`vl users remove`) loses its
 /// connections within a second, not at its next hello.
-pub(crate) async fn watch_accounts(gate: Arc<Gate>, hub: mpsc::Sender<hub::ToHub>) {
+pub async fn watch_accounts(gate: Arc<Gate>, hub: mpsc::Sender<hub::ToHub>) {
     if !gate.has_accounts() {
         return std::future::pending().await;
     }
@@ -256,28 +226,41 @@ pub(crate) async fn watch_accounts(gate: Arc<Gate>, hub: mpsc::Sender<hub::ToHub
 /// How every part of the server reaches the lab: its hub, and what each
 /// client takes from the lab directly, not through the hub — the newest
 /// feedback and frames, the count of those watching, the run's recording
-/// — and the lab's events. One handle for a Host's connections (and a
-/// gateway's, whose lab is its cells), a cell's side and the ROS 2 bridge.
+/// — the lab's events, its gate and what it is. One handle for a Host's
+/// connections (and a gateway's, whose lab is its cells) and every
+/// extension (a cell's side, the ROS 2 bridge).
 #[derive(Clone)]
-pub(crate) struct LabHandle {
-    pub(crate) hub: mpsc::Sender<hub::ToHub>,
-    pub(crate) feedback: tokio::sync::watch::Receiver<Option<vl_core::HostMessage>>,
-    pub(crate) frames: tokio::sync::watch::Receiver<Option<bytes::Bytes>>,
-    pub(crate) watchers: Arc<std::sync::atomic::AtomicUsize>,
-    pub(crate) record: vl_record::Feed,
-    pub(crate) events: events::LabEvents,
-    /// The lab's session: when it started, ns, as its clients' names say.
-    pub(crate) session: Arc<str>,
+pub struct LabHandle {
+    pub hub: mpsc::Sender<hub::ToHub>,
+    pub feedback: tokio::sync::watch::Receiver<Option<vl_core::HostMessage>>,
+    pub frames: tokio::sync::watch::Receiver<Option<bytes::Bytes>>,
+    /// Welcomed clients watching the frames (`Watching` counts one).
+    pub watchers: Arc<std::sync::atomic::AtomicUsize>,
+    pub record: vl_record::Feed,
+    pub events: events::LabEvents,
+    /// What the hub tells everyone and the round trips measured, for live
+    /// views.
+    pub live: events::LiveEvents,
+    /// The lab's log as it is written (firings, refusals, faults).
+    pub log: tokio::sync::broadcast::Sender<(vl_record::Level, String)>,
+    /// When the lab's session started, ns since the epoch: its clients'
+    /// names and its views' clock.
+    pub since_ns: u64,
+    /// Who is let in, by accounts, token and extensions' sessions.
+    pub gate: Arc<Gate>,
+    /// The arena, robot and camera; none at a gateway, whose labs are its
+    /// cells.
+    pub scene: Option<vl_core::LabScene>,
+    /// What the lab offers, in the order Guests list it.
+    pub experiments: Arc<[Experiment]>,
 }
 
 /// Accepts connections on `listener`, each a task of its own speaking to
-/// `lab`'s hub (a Host's, or a gateway's); Foxglove's clients get `foxglove`.
-pub(crate) async fn accept(
+/// `lab`'s hub (a Host's, or a gateway's, whose lab is its cells).
+pub async fn accept(
     listener: TcpListener,
     lab: LabHandle,
-    foxglove: Option<foxglove::LiveFeed>,
     config: Arc<HostConfig>,
-    gate: Arc<Gate>,
     admission: Admission,
 ) {
     let mut next_id = 1u64;
@@ -300,18 +283,11 @@ pub(crate) async fn accept(
         };
         let connection = ConnectionTask {
             id,
-            hub: lab.hub.clone(),
-            feedback: lab.feedback.clone(),
-            frames: lab.frames.clone(),
-            watchers: lab.watchers.clone(),
+            lab: lab.clone(),
             config: config.clone(),
-            gate: gate.clone(),
             peer,
             ticket,
-            record: lab.record.clone(),
             identity: None,
-            foxglove: foxglove.clone(),
-            session: lab.session.clone(),
         };
         tokio::spawn(async move {
             if let Err(e) = connection.run(stream).await {

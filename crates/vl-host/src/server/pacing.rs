@@ -10,7 +10,7 @@ use vl_core::{Drive, GuestMessage, HostMessage, Role, WATCHDOG};
 
 /// What a client's driving stands at.
 #[derive(Default)]
-pub(crate) struct Pacer {
+pub struct Pacer {
     operator: bool,
     /// The run's last command sent, and the newest feedback's event.
     sent: u64,
@@ -22,7 +22,7 @@ pub(crate) struct Pacer {
 
 impl Pacer {
     /// Takes what the hub told this client.
-    pub(crate) fn heard(&mut self, message: &HostMessage) {
+    pub fn heard(&mut self, message: &HostMessage) {
         match message {
             HostMessage::Welcome { role, .. } | HostMessage::Role { role, .. } => {
                 self.operator = *role == Role::Operator;
@@ -35,23 +35,23 @@ impl Pacer {
         }
     }
 
-    pub(crate) fn operator(&self) -> bool {
+    pub fn operator(&self) -> bool {
         self.operator
     }
 
-    pub(crate) fn running(&self) -> bool {
+    pub fn running(&self) -> bool {
         self.running
     }
 
     /// The operator asks for `drive`: a command now, when none is in
     /// flight; else it waits for the feedback.
-    pub(crate) fn drive(&mut self, drive: Drive) -> Option<GuestMessage> {
+    pub fn drive(&mut self, drive: Drive) -> Option<GuestMessage> {
         self.pending = Some((drive, Instant::now()));
         self.next()
     }
 
     /// The newest feedback is of `event`: the next command, if one waits.
-    pub(crate) fn feedback(&mut self, event: u64) -> Option<GuestMessage> {
+    pub fn feedback(&mut self, event: u64) -> Option<GuestMessage> {
         self.seen = self.seen.max(event);
         self.next()
     }

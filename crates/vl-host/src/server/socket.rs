@@ -12,20 +12,20 @@ use tokio_tungstenite::tungstenite::{self, Message};
 use vl_core::Io;
 
 /// A client must take each message within this, or it is too slow to serve.
-pub(crate) const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
+pub const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
 
-pub(super) type Socket = WebSocketStream<Box<dyn Io>>;
-pub(super) type Sink = SplitSink<Socket, Message>;
+pub type Socket = WebSocketStream<Box<dyn Io>>;
+pub type Sink = SplitSink<Socket, Message>;
 
 /// Why a message was not written.
-pub(crate) enum Unwritten {
+pub enum Unwritten {
     /// The client took nothing for the write timeout.
     TimedOut,
     Failed(tungstenite::Error),
 }
 
 /// Writes `message`, within the write timeout.
-pub(crate) async fn write<S>(sink: &mut S, message: Message) -> Result<(), Unwritten>
+pub async fn write<S>(sink: &mut S, message: Message) -> Result<(), Unwritten>
 where
     S: futures_util::Sink<Message, Error = tungstenite::Error> + Unpin,
 {

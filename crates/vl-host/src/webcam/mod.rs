@@ -11,8 +11,8 @@ mod slot;
 mod v4l2;
 
 pub use http::HttpCamera;
-pub(crate) use pixels::{MAX_CAMERA_SIDE, declared_size};
+pub use pixels::{MAX_CAMERA_SIDE, declared_size};
 pub use pixels::{PixelFormat, decode};
-pub(crate) use slot::FrameSlot;
+pub use slot::FrameSlot;
 #[cfg(target_os = "linux")]
 pub use v4l2::{DeviceInfo, V4l2Camera, V4l2Spec, Webcams, list_devices};

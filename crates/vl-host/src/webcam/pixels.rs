@@ -174,11 +174,11 @@ fn segments(jpeg: &[u8]) -> impl Iterator<Item = (u8, usize)> + '_ {
 
 /// The widest or tallest camera a lab takes, px: a first frame declaring
 /// more is refused before it is decoded.
-pub(crate) const MAX_CAMERA_SIDE: u32 = 4096;
+pub const MAX_CAMERA_SIDE: u32 = 4096;
 
 /// The size a JPEG declares in its frame header (width, height), read
 /// without decoding anything.
-pub(crate) fn declared_size(jpeg: &[u8]) -> Option<(u32, u32)> {
+pub fn declared_size(jpeg: &[u8]) -> Option<(u32, u32)> {
     // SOF0–SOF15, but for DHT (C4), JPG (C8) and DAC (CC).
     let (_, at) = segments(jpeg)
         .find(|&(m, _)| (0xC0..=0xCF).contains(&m) && !matches!(m, 0xC4 | 0xC8 | 0xCC))?;

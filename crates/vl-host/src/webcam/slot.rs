@@ -17,36 +17,36 @@ const GRAB_WAIT: Duration = Duration::from_secs(1);
 
 /// The newest frame, and what went wrong last.
 #[derive(Default)]
-pub(crate) struct Newest {
-    pub(crate) jpeg: Option<(Vec<u8>, Instant)>,
+pub struct Newest {
+    pub jpeg: Option<(Vec<u8>, Instant)>,
     /// Frames kept so far: `grab` waits for this to pass what it had.
-    pub(crate) count: u64,
-    pub(crate) error: Option<String>,
+    pub count: u64,
+    pub error: Option<String>,
     /// The camera's size once known: a frame declaring another is dropped
     /// as it arrives, never kept in place of the last good one.
-    pub(crate) size: Option<(u32, u32)>,
+    pub size: Option<(u32, u32)>,
 }
 
 /// Where the frames' reader and `grab` meet.
 #[derive(Default)]
-pub(crate) struct FrameSlot {
+pub struct FrameSlot {
     newest: Mutex<Newest>,
     arrived: Condvar,
 }
 
 impl FrameSlot {
-    pub(crate) fn lock(&self) -> MutexGuard<'_, Newest> {
+    pub fn lock(&self) -> MutexGuard<'_, Newest> {
         self.newest.lock().unwrap_or_else(|p| p.into_inner())
     }
 
     /// Tells whoever waits that the slot changed (a frame, an error).
-    pub(crate) fn notify(&self) {
+    pub fn notify(&self) {
         self.arrived.notify_all();
     }
 
     /// Keeps `jpeg`, taken at `taken`, as the newest frame, unless it is
     /// not of the camera's size; whether it was kept.
-    pub(crate) fn keep(&self, jpeg: Vec<u8>, taken: Instant) -> bool {
+    pub fn keep(&self, jpeg: Vec<u8>, taken: Instant) -> bool {
         {
             let mut newest = self.lock();
             if let Some(size) = newest.size
@@ -62,7 +62,7 @@ impl FrameSlot {
     }
 
     /// Waits at most `wait` for what `ready` looks for in the slot.
-    pub(crate) fn wait_for(
+    pub fn wait_for(
         &self,
         wait: Duration,
         ready: impl Fn(&Newest) -> bool,
@@ -82,7 +82,7 @@ impl FrameSlot {
     /// The first frame newer than the `seen`th (which it becomes),
     /// waiting a second at most, decoded as a frame of camera `model`
     /// called `name`.
-    pub(crate) fn grab(
+    pub fn grab(
         &self,
         seen: &mut u64,
         model: &CameraModel,

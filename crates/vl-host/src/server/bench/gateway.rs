@@ -65,7 +65,7 @@ impl GatewayBench {
     /// Runs the bench on processes of the binary at `vl`, saying each
     /// round's figures on standard error as it goes.
     pub async fn run(&self, vl: &Path) -> Result<GatewayCost, BenchError> {
-        let keys = issue_cells(self.cells)?;
+        let keys = issue_cells(vl, self.cells)?;
         let keys_arg = keys.display().to_string();
         let zenoh = format!("quic/127.0.0.1:{}", free_udp_port()?);
         let gateway_args = [
@@ -168,16 +168,27 @@ struct Pids {
 }
 
 /// The gateway's network as a lab runs it: a folder with the gateway's
-/// authority and each cell's credentials, `cN.toml`.
-fn issue_cells(cells: usize) -> Result<std::path::PathBuf, BenchError> {
+/// authority and each cell's credentials, `cN.toml`, issued as its staff
+/// issue them (`vl gateway issue`).
+fn issue_cells(vl: &Path, cells: usize) -> Result<std::path::PathBuf, BenchError> {
     let keys = std::env::temp_dir().join(format!("vl-bench-gateway-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&keys);
-    let authority = crate::cells::ZenohAuthority::open(&keys)?;
     for n in 0..cells {
-        let name = format!("c{n}").parse().expect("a cell's name");
-        authority
-            .issue(crate::cells::ZenohMember::Cell(name))?
-            .save(&keys.join(format!("c{n}.toml")))?;
+        let name = format!("c{n}");
+        let out = keys.join(format!("{name}.toml"));
+        let issued = std::process::Command::new(vl)
+            .args(["gateway", "issue", "--cell", &name, "--out"])
+            .arg(&out)
+            .arg("--keys")
+            .arg(&keys)
+            .stdout(std::process::Stdio::null())
+            .output()
+            .map_err(|e| BenchError::Trust(format!("cannot start {}: {e}", vl.display())))?;
+        if !issued.status.success() {
+            return Err(BenchError::Trust(
+                String::from_utf8_lossy(&issued.stderr).trim().to_owned(),
+            ));
+        }
     }
     Ok(keys)
 }

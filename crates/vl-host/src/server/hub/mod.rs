@@ -41,12 +41,12 @@ mod worker;
 
 /// Messages waiting for one client, at most; feedback and frames are not
 /// queued (each connection takes only the newest).
-pub(crate) const OUTBOX: usize = 64;
+pub const OUTBOX: usize = 64;
 /// How often the hub looks at the operator's lease.
 const LEASE_CHECK: Duration = Duration::from_millis(250);
 
 /// What a connection tells the hub.
-pub(crate) enum ToHub {
+pub enum ToHub {
     /// A new connection, with the path its WebSocket opened.
     Join(u64, mpsc::Sender<ToConnection>, Option<String>),
     /// A hello whose sender the gate identified.
@@ -71,7 +71,7 @@ pub(crate) enum ToHub {
 }
 
 /// What the hub tells a connection.
-pub(crate) enum ToConnection {
+pub enum ToConnection {
     /// A message, encoded once for every client it goes to.
     Send(Message),
     /// The client was welcomed: start streaming feedback and frames.
@@ -84,15 +84,15 @@ pub(crate) enum ToConnection {
 }
 
 /// A cell's newest feedback and frame, as a gateway mirrors them.
-pub(crate) struct Streams {
-    pub(crate) feedback: tokio::sync::watch::Receiver<Option<HostMessage>>,
-    pub(crate) frames: tokio::sync::watch::Receiver<Option<bytes::Bytes>>,
+pub struct Streams {
+    pub feedback: tokio::sync::watch::Receiver<Option<HostMessage>>,
+    pub frames: tokio::sync::watch::Receiver<Option<bytes::Bytes>>,
 }
 
 /// What `GET /status` shows: a Host's state, or a gateway's.
 #[derive(serde::Serialize)]
 #[serde(untagged)]
-pub(crate) enum Status {
+pub enum Status {
     Host(Box<vl_core::HostStatus>),
     Gateway(vl_core::GatewayStatus),
 }
@@ -203,8 +203,8 @@ pub(crate) struct Hub {
     stop_asked: bool,
     /// The run being recorded.
     recording: Option<recording::RunRecording>,
-    /// Foxglove's feed, handed every broadcast to make its views of.
-    views: Option<mpsc::Sender<HostMessage>>,
+    /// Every broadcast, for live views made of it (Foxglove's).
+    live: super::events::LiveEvents,
     /// Who drives the run under way, told with its end.
     driver: Option<super::events::RunDriver>,
     /// Where the lab's events are told.
@@ -248,7 +248,7 @@ impl Hub {
             runs: 0,
             operator_user: None,
             run_log: status::RunLog::default(),
-            views: None,
+            live: super::events::LiveEvents::default(),
             devices,
             cspace: None,
             field: None,
@@ -440,19 +440,17 @@ impl Hub {
         client.admitted.identity.name().map(str::to_owned)
     }
 
-    /// Hands every broadcast to `views` (Foxglove's feed) too.
-    pub(crate) fn with_views(mut self, views: mpsc::Sender<HostMessage>) -> Hub {
-        self.views = Some(views);
+    /// Tells every broadcast to `live` too.
+    pub(crate) fn with_live(mut self, live: super::events::LiveEvents) -> Hub {
+        self.live = live;
         self
     }
 
     /// Sends to every welcomed client, encoded once.
     fn broadcast(&mut self, message: &HostMessage) {
         self.record_sent(message);
-        if let Some(views) = &self.views {
-            // A feed that fell this far behind loses a view, not the lab's pace.
-            let _ = views.try_send(message.clone());
-        }
+        self.live
+            .tell(|| super::events::LiveEvent::Told(Arc::new(message.clone())));
         let encoded = Message::text(message.encode());
         let welcomed: Vec<u64> = self
             .clients

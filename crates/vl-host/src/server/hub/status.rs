@@ -103,13 +103,7 @@ impl Hub {
                 format!("{}: {} ({kept})", s.name, s.why)
             }),
             grades: None,
-            open_to_anyone: self
-                .config
-                .ros2
-                .iter()
-                .filter(|ros2| ros2.zenoh.open_beyond_loopback())
-                .flat_map(|ros2| ros2.zenoh.listen.iter().map(ToString::to_string))
-                .collect(),
+            open_to_anyone: Vec::new(),
         };
         for extension in &self.config.extensions {
             extension.status(&mut status);

@@ -9,14 +9,13 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use bytes::Bytes;
-use tokio::sync::{broadcast, mpsc, watch};
+use tokio::sync::{broadcast, watch};
 use vl_core::{HostMessage, LabScene};
+use vl_host::LiveEvent;
 use vl_record::{Level, Topic, View, Views, now_ns};
 
 /// Views waiting for the slowest client: past this it skips to the newest.
 const FANOUT: usize = 512;
-/// Broadcasts waiting for the feed.
-const INBOX: usize = 256;
 
 /// What every Foxglove client shares.
 #[derive(Clone)]
@@ -35,26 +34,20 @@ pub(crate) struct Sources {
     pub feedback: watch::Receiver<Option<HostMessage>>,
     pub frames: watch::Receiver<Option<Bytes>>,
     pub log: broadcast::Sender<(Level, String)>,
+    /// What the hub tells everyone, and the round trips measured.
+    pub live: broadcast::Receiver<LiveEvent>,
 }
 
 impl LiveFeed {
-    /// The feed, the sender the hub hands its broadcasts to, and the task
-    /// that makes the views.
-    pub(crate) fn start(
-        sources: Sources,
-    ) -> (
-        LiveFeed,
-        mpsc::Sender<HostMessage>,
-        impl std::future::Future<Output = ()>,
-    ) {
-        let (inbox_tx, inbox) = mpsc::channel(INBOX);
+    /// The feed, and the task that makes the views.
+    pub(crate) fn start(sources: Sources) -> (LiveFeed, impl std::future::Future<Output = ()>) {
         let feed = LiveFeed {
             views: broadcast::channel(FANOUT).0,
             latched: Arc::default(),
             camera: Arc::default(),
         };
-        let task = feed.clone().run(sources, inbox);
-        (feed, inbox_tx, task)
+        let task = feed.clone().run(sources);
+        (feed, task)
     }
 
     pub(super) fn subscribe(&self) -> broadcast::Receiver<Arc<View>> {
@@ -77,7 +70,7 @@ impl LiveFeed {
     }
 
     /// A Guest's round trip, as the Host's pings measured it.
-    pub(crate) fn round_trip(&self, connection: u64, ms: f64) {
+    fn round_trip(&self, connection: u64, ms: f64) {
         if self.watched() {
             let round_trip = vl_record::RoundTrip { connection, ms };
             self.publish(vec![View::round_trip(now_ns(), round_trip)]);
@@ -105,15 +98,18 @@ impl LiveFeed {
         }
     }
 
-    async fn run(self, mut sources: Sources, mut inbox: mpsc::Receiver<HostMessage>) {
+    async fn run(self, mut sources: Sources) {
         let mut views = Views::new(sources.since_ns, Some(sources.scene), Default::default());
         self.publish(views.lab(now_ns()));
         let mut log = sources.log.subscribe();
         loop {
             tokio::select! {
-                message = inbox.recv() => match message {
-                    Some(message) => self.publish(views.sent(now_ns(), &message)),
-                    None => return,
+                event = sources.live.recv() => match event {
+                    Ok(LiveEvent::Told(message)) => self.publish(views.sent(now_ns(), &message)),
+                    Ok(LiveEvent::RoundTrip { connection, ms }) => self.round_trip(connection, ms),
+                    // Fallen behind: a view is lost, not the lab's pace.
+                    Err(broadcast::error::RecvError::Lagged(_)) => {}
+                    Err(broadcast::error::RecvError::Closed) => return,
                 },
                 // Feedback and the log change often and latch nothing:
                 // made into views only while a client is there to take them.

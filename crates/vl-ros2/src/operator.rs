@@ -24,10 +24,10 @@ use vl_core::{
 use super::Ros2Error;
 use super::graph::{Node, Qos};
 use super::messages::Twist;
-use crate::accounts::gate::{ACCOUNT_ENDED, Admitted, Gate};
-use crate::hush::Hush;
-use crate::server::hub::{OUTBOX, ToConnection, ToHub};
-use crate::server::pacing::Pacer;
+use vl_host::Hush;
+use vl_host::Pacer;
+use vl_host::hub::{OUTBOX, ToConnection, ToHub};
+use vl_host::{ACCOUNT_ENDED, Admitted, Gate};
 
 const CMD_VEL: &str = "/cmd_vel";
 /// The ROS side's clients of the hub are numbered from here, apart from

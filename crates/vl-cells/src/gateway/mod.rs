@@ -17,11 +17,11 @@ use vl_core::CellName;
 use zenoh::sample::SampleKind;
 
 use super::{ZenohError, ZenohOptions, ZenohTrust, keys, within};
-use crate::hush::Hush;
-use crate::server::events::LabEvents;
-use crate::server::{Admission, HUB_QUEUE, HostConfig, LabHandle, accept, watch_accounts};
 use event::Event;
 use front::Front;
+use vl_host::Hush;
+use vl_host::LabEvents;
+use vl_host::{Admission, HUB_QUEUE, HostConfig, LabHandle, accept, watch_accounts};
 
 /// Connections a gateway serves at once: a class or several, watching
 /// cells that each send every frame once.
@@ -40,7 +40,7 @@ pub(crate) async fn serve(listener: TcpListener, config: HostConfig, zenoh: Zeno
     info!(zid = %session.zid(), "the gateway is on Zenoh");
     let config = Arc::new(config);
     // People an LMS launched here are let in as they are at a lone Host.
-    let gate = Arc::new(crate::server::gate_of(&config));
+    let gate = Arc::new(vl_host::gate_of(&config));
     let (hub_tx, hub_rx) = mpsc::channel(HUB_QUEUE);
     let (events_tx, events_rx) = mpsc::channel(EVENTS);
     // A gateway's connections are given their cell's feedback and frames
@@ -56,7 +56,12 @@ pub(crate) async fn serve(listener: TcpListener, config: HostConfig, zenoh: Zeno
         watchers: Arc::default(),
         record: vl_record::Feed::default(),
         events: lab_events.clone(),
-        session: since.to_string().into(),
+        live: vl_host::LiveEvents::default(),
+        log: tokio::sync::broadcast::channel(1).0,
+        since_ns: since,
+        gate: gate.clone(),
+        scene: None,
+        experiments: config.experiments.clone().into(),
     };
     let front = Front::new(
         config.clone(),
@@ -65,10 +70,10 @@ pub(crate) async fn serve(listener: TcpListener, config: HostConfig, zenoh: Zeno
         lab_events.clone(),
         since,
     );
-    let extended = crate::server::extension::run_all(config.extensions.clone(), lab_events);
+    let extended = vl_host::run_extensions(config.extensions.clone(), lab.clone());
     tokio::select! {
         () = front.run(hub_rx, events_rx) => {}
-        () = accept(listener, lab, None, config, gate.clone(), Admission::with_capacity(CONNECTIONS)) => {}
+        () = accept(listener, lab, config, Admission::with_capacity(CONNECTIONS)) => {}
         () = watch_accounts(gate, hub_tx) => {}
         () = extended => {}
         Err(e) = watch_cells(&session, &zenoh.trust, events_tx) => error!("the gateway no longer sees its cells: {e}"),

@@ -15,6 +15,8 @@
 //! the robot; a leap faster than it goes) makes the robot untrusted for a
 //! second: the lab stops driving it and its run ends.
 
+use std::future::Future;
+use std::pin::Pin;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -23,10 +25,10 @@ use tracing::warn;
 use vl_core::{Leash, Pose, RobotModel, WheelSpeeds};
 
 use super::Ros2Error;
-use super::graph::{Node, Origin, Publisher, Qos, Subscription};
+use super::graph::{Node, Origin, Publisher, Qos, TopicSubscription};
 use super::messages::{Odometry, Twist, Vector3};
-use crate::cells::ZenohOptions;
-use crate::drivers::{Robot, RobotError, RobotReading};
+use vl_cells::ZenohOptions;
+use vl_host::{PluggedRobot, Robot, RobotError, RobotPlug, RobotReading, SetupError};
 
 /// An `/odom` older than this means the robot is gone.
 const ODOM_SILENT: Duration = Duration::from_secs(1);
@@ -46,6 +48,37 @@ const LEAP_RAD: f64 = 0.3;
 pub struct Ros2RobotOptions {
     pub domain: u32,
     pub zenoh: ZenohOptions,
+    /// The robot's camera's JPEGs on this topic (`--camera ros2:/TOPIC`),
+    /// if the lab watches the arena through it.
+    pub camera: Option<String>,
+}
+
+impl RobotPlug for Ros2RobotOptions {
+    fn connect<'a>(
+        &'a self,
+        model: RobotModel,
+        calibration: Option<vl_core::CameraModel>,
+        arena: &'a vl_core::Arena,
+    ) -> Pin<Box<dyn Future<Output = Result<PluggedRobot, SetupError>> + Send + 'a>> {
+        Box::pin(async move {
+            let robot = Ros2Robot::connect(self, model)
+                .await
+                .map_err(|e| SetupError::Plugged(Box::new(e)))?;
+            let camera = match &self.camera {
+                Some(topic) => Some(Box::new(
+                    robot
+                        .camera(topic, calibration, arena)
+                        .await
+                        .map_err(SetupError::Camera)?,
+                ) as Box<dyn vl_host::Camera>),
+                None => None,
+            };
+            Ok(PluggedRobot {
+                robot: Box::new(robot),
+                camera,
+            })
+        })
+    }
 }
 
 /// Which `/odom` samples are the robot's, and the newest of them.
@@ -61,7 +94,7 @@ pub(crate) struct Odometer {
     /// The most the robot moves and turns a second.
     top_mm_s: f64,
     top_rad_s: f64,
-    hush: crate::hush::Hush,
+    hush: vl_host::Hush,
 }
 
 impl Odometer {
@@ -74,7 +107,7 @@ impl Odometer {
             untrusted: None,
             top_mm_s,
             top_rad_s: 2.0 * top_mm_s / model.wheel_base_mm.max(1.0),
-            hush: crate::hush::Hush::default(),
+            hush: vl_host::Hush::default(),
         }
     }
 
@@ -179,7 +212,7 @@ pub struct Ros2Robot {
     /// Each wheel's travel, mm, summed from the odometry's motion.
     travel_mm: [f64; 2],
     last_pose: Option<Pose>,
-    _odom: Subscription,
+    _odom: TopicSubscription,
     node: Node,
 }
 
@@ -231,7 +264,7 @@ impl Ros2Robot {
         topic: &str,
         calibration: Option<vl_core::CameraModel>,
         arena: &vl_core::Arena,
-    ) -> Result<super::camera::Ros2Camera, crate::drivers::CameraError> {
+    ) -> Result<super::camera::Ros2Camera, vl_host::CameraError> {
         let floor = (arena.width_mm, arena.height_mm);
         super::camera::Ros2Camera::open(&self.node, topic, calibration, floor).await
     }

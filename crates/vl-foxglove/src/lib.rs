@@ -9,12 +9,17 @@
 //! SDK runs a server of its own on its own listener, with its own TLS
 //! (aws-lc-rs) and admission; here the lab's port, TLS, admission and
 //! gate stay one, and the views are the recorder's own.
+//!
+//! It plugs into the Host as an extension (`Foxglove`): a WebSocket
+//! protocol on the lab's port, and the task that makes the views.
 
 mod drive;
 mod feed;
 mod ops;
+mod subprotocol;
 
 use std::collections::{HashMap, HashSet};
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 use futures_util::StreamExt;
@@ -25,50 +30,81 @@ use tokio_tungstenite::tungstenite::{Bytes, Message};
 use vl_core::{ErrorCode, GuestMessage, HostMessage, PROTOCOL_VERSION, Role, Wire};
 use vl_record::{Topic, View, now_ns};
 
-use super::admission::Ticket;
-use super::bucket::Bucket;
-use super::hub::{ToConnection, ToHub};
-use super::socket::{self, Sink, Socket};
-use crate::accounts::gate::{Credentials, Gate, Purpose};
-use crate::lab::Watching;
-use crate::server::pacing::Pacer;
 use drive::{CMD_VEL, SERVICES};
-pub(crate) use feed::{LiveFeed, Sources};
+use feed::{LiveFeed, Sources};
+use subprotocol::Subprotocol;
+use vl_host::hub::{OUTBOX, ToConnection, ToHub};
+use vl_host::socket::{self, Sink, Socket};
+use vl_host::{
+    Bucket, Credentials, Extension, ExtensionTask, Gate, LabHandle, Pacer, Purpose, SocketClient,
+    SocketProtocol, Ticket, Watching,
+};
+
+/// Foxglove's live server on the lab's port. At a gateway, whose lab is
+/// its cells, it has no views: Foxglove connects to a cell's own Host.
+#[derive(Default)]
+pub struct Foxglove {
+    /// The lab's views, made once for every client, from the lab's start.
+    feed: OnceLock<LiveFeed>,
+}
+
+impl std::fmt::Debug for Foxglove {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Foxglove")
+    }
+}
+
+impl Extension for Foxglove {
+    fn socket_protocol(&self, offered: &str) -> Option<SocketProtocol> {
+        Subprotocol::chosen(offered).map(|chosen| SocketProtocol {
+            name: chosen.name(),
+            max_message: MAX_MESSAGE,
+        })
+    }
+
+    fn serve_socket(self: Arc<Self>, mut socket: Socket, client: SocketClient) -> ExtensionTask {
+        Box::pin(async move {
+            match self.feed.get() {
+                Some(feed) => Watcher::new(client, feed.clone()).serve(socket).await,
+                None => {
+                    let why = "Foxglove connects to a cell's own Host, not to the gateway";
+                    let frame = CloseFrame {
+                        code: CloseCode::Policy,
+                        reason: why.into(),
+                    };
+                    let _ = socket.close(Some(frame)).await;
+                }
+            }
+        })
+    }
+
+    /// Makes the lab's views from its start, for as long as it runs.
+    fn run(self: Arc<Self>, lab: LabHandle) -> ExtensionTask {
+        let Some(scene) = lab.scene.clone() else {
+            return Box::pin(std::future::pending());
+        };
+        let (feed, making) = LiveFeed::start(Sources {
+            scene,
+            since_ns: lab.since_ns,
+            feedback: lab.feedback.clone(),
+            frames: lab.frames.clone(),
+            log: lab.log.clone(),
+            live: lab.live.listen(),
+        });
+        // Set before the lab takes its first connection: `run` is called
+        // as the lab starts, the feed's task polled after.
+        let _ = self.feed.set(feed);
+        Box::pin(making)
+    }
+}
 use ops::{CHANNELS, ClientOp, ServiceCall, StatusLevel, status};
-
-/// The protocol's two names: Foxglove's SDK and foxglove_bridge 3.x ask
-/// for the first only, older clients and Lichtblick before 2026 for the
-/// second.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Subprotocol {
-    Sdk,
-    Websocket,
-}
-
-impl Subprotocol {
-    pub(crate) fn name(self) -> &'static str {
-        match self {
-            Subprotocol::Sdk => "foxglove.sdk.v1",
-            Subprotocol::Websocket => "foxglove.websocket.v1",
-        }
-    }
-
-    /// The one to answer a client offering `offered` (a
-    /// `Sec-WebSocket-Protocol` header) with, the current name first.
-    pub(super) fn chosen(offered: &str) -> Option<Subprotocol> {
-        let offers: Vec<&str> = offered.split(',').map(str::trim).collect();
-        [Subprotocol::Sdk, Subprotocol::Websocket]
-            .into_iter()
-            .find(|s| offers.contains(&s.name()))
-    }
-}
 
 /// Subscriptions one client may hold, and channels it may advertise.
 const MAX_SUBSCRIPTIONS: usize = 64;
 const MAX_CLIENT_CHANNELS: usize = 16;
 /// The largest message a Foxglove client may send (a subscribe to every
 /// channel is a few hundred bytes).
-pub(super) const MAX_MESSAGE: usize = 64 << 10;
+const MAX_MESSAGE: usize = 64 << 10;
 /// How often the Host pings a Foxglove client (WebSocket pings, which
 /// every client answers by itself), and tells it the time.
 const PING_EVERY: Duration = Duration::from_secs(1);
@@ -151,23 +187,38 @@ async fn send_within(out: &mut Bucket, sink: &mut Sink, id: u32, view: &View) ->
 }
 
 /// A Foxglove client's connection, and what it takes from the lab.
-pub(super) struct Watcher {
-    pub id: u64,
-    pub hub: tokio::sync::mpsc::Sender<ToHub>,
-    pub feed: LiveFeed,
-    pub feedback: tokio::sync::watch::Receiver<Option<HostMessage>>,
-    pub watchers: std::sync::Arc<std::sync::atomic::AtomicUsize>,
-    pub gate: std::sync::Arc<Gate>,
-    pub peer: std::net::SocketAddr,
-    pub ticket: Ticket,
-    pub ping_timeout: Duration,
+struct Watcher {
+    id: u64,
+    hub: tokio::sync::mpsc::Sender<ToHub>,
+    feed: LiveFeed,
+    feedback: tokio::sync::watch::Receiver<Option<HostMessage>>,
+    watchers: Arc<std::sync::atomic::AtomicUsize>,
+    gate: Arc<Gate>,
+    peer: std::net::SocketAddr,
+    ticket: Ticket,
+    ping_timeout: Duration,
     /// One per Host start.
-    pub session: String,
+    session: String,
 }
 
 impl Watcher {
+    fn new(client: SocketClient, feed: LiveFeed) -> Watcher {
+        Watcher {
+            id: client.id,
+            hub: client.lab.hub,
+            feed,
+            feedback: client.lab.feedback,
+            watchers: client.lab.watchers,
+            gate: client.lab.gate,
+            peer: client.peer,
+            ticket: client.ticket,
+            ping_timeout: client.ping_timeout,
+            session: client.lab.since_ns.to_string(),
+        }
+    }
+
     /// Serves a Foxglove client until it leaves or cannot be served.
-    pub(super) async fn serve(mut self, socket: Socket) {
+    async fn serve(mut self, socket: Socket) {
         let (mut sink, mut source) = socket.split();
         let anyone = Credentials {
             role: Role::Observer,
@@ -189,7 +240,7 @@ impl Watcher {
                 return close(&mut sink, Ending::Normal).await;
             }
         };
-        let (to_me, mut inbox) = tokio::sync::mpsc::channel(super::hub::OUTBOX);
+        let (to_me, mut inbox) = tokio::sync::mpsc::channel(OUTBOX);
         if self
             .hub
             .send(ToHub::Join(self.id, to_me, None))
@@ -613,23 +664,4 @@ async fn close(sink: &mut Sink, ending: Ending) {
     // tungstenite queued in answer goes out with the flush.
     let _ = put(sink, Message::Close(Some(frame))).await;
     let _ = tokio::time::timeout(socket::WRITE_TIMEOUT, futures_util::SinkExt::close(sink)).await;
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_current_name_is_chosen_first_and_others_are_not_foxglove() {
-        assert_eq!(
-            Subprotocol::chosen("foxglove.websocket.v1, foxglove.sdk.v1"),
-            Some(Subprotocol::Sdk)
-        );
-        assert_eq!(
-            Subprotocol::chosen("foxglove.websocket.v1"),
-            Some(Subprotocol::Websocket)
-        );
-        assert_eq!(Subprotocol::chosen("vl.v1"), None);
-        assert_eq!(Subprotocol::chosen(""), None);
-    }
 }

@@ -11,9 +11,9 @@ use tracing::warn;
 use vl_core::{CellName, HostMessage, Wire};
 
 use super::event::Event;
-use crate::cells::{ZenohError, keys, within};
-use crate::hush::Hush;
-use crate::server::hub::Streams;
+use crate::{ZenohError, keys, within};
+use vl_host::Hush;
+use vl_host::hub::Streams;
 
 /// How long after a cell's last message the gateway asks it again what a
 /// late observer is told: a burst of messages costs one asking.

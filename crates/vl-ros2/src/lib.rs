@@ -4,7 +4,9 @@
 //! (`messages`), the graph's key expressions, tokens and attachments
 //! (`graph`), the lab as ROS messages (`views`), the Host publishing them
 //! and taking `/cmd_vel` (`bridge`, `operator`), and any ROS 2
-//! differential-drive robot as the lab's robot (`robot`).
+//! differential-drive robot as the lab's robot (`robot`, a `RobotPlug`,
+//! with its camera, `camera`). The Host runs the side as an extension
+//! (`Ros2Side`), on the Zenoh network of `vl-cells`.
 
 mod bridge;
 mod camera;
@@ -18,13 +20,48 @@ mod robot;
 mod tests;
 mod views;
 
-pub(crate) use bridge::serve;
 pub use msg::MsgError;
 pub use robot::{Ros2Robot, Ros2RobotOptions};
 
-use crate::accounts::gate::{Admitted, Identity};
-use crate::accounts::users::Users;
-use crate::cells::{ZenohError, ZenohOptions};
+use std::sync::Arc;
+
+use vl_cells::{ZenohError, ZenohOptions};
+use vl_host::{Admitted, Extension, ExtensionTask, Identity, LabHandle, Users};
+
+/// The lab's side on ROS 2, plugged into its Host.
+#[derive(Debug)]
+pub struct Ros2Side(pub Ros2Options);
+
+impl Extension for Ros2Side {
+    /// A router anyone beyond this machine can join, unauthenticated.
+    fn status(&self, status: &mut vl_core::HostStatus) {
+        let zenoh = &self.0.zenoh;
+        if zenoh.open_beyond_loopback() {
+            let listen = zenoh.listen.iter().map(ToString::to_string);
+            status.open_to_anyone.extend(listen);
+        }
+    }
+
+    fn run(self: Arc<Self>, lab: LabHandle) -> ExtensionTask {
+        Box::pin(bridge::serve(self.0.clone(), lab))
+    }
+}
+
+/// A ROS 2 topic's name as `--camera ros2:/TOPIC` gives it: `/` and then
+/// names of letters, digits and `_`.
+pub fn topic(text: &str) -> Result<String, Ros2Error> {
+    let fits = text.strip_prefix('/').is_some_and(|rest| {
+        rest.split('/').all(|name| {
+            !name.is_empty() && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+        })
+    });
+    match fits {
+        true => Ok(text.to_owned()),
+        false => Err(Ros2Error::Topic(format!(
+            "ros2:{text}: a ROS 2 topic is /name/name…, each name of letters, digits and _"
+        ))),
+    }
+}
 
 /// The lab as a ROS 2 node.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -55,6 +92,8 @@ pub enum Ros2Error {
     Operator(String),
     #[error("ROS 2 robot: {0}")]
     Robot(String),
+    #[error("{0}")]
+    Topic(String),
 }
 
 /// Who `/cmd_vel` drives as. Whoever can publish on the ROS 2 network
@@ -117,6 +156,6 @@ async fn node(
     name: &str,
 ) -> Result<graph::Node, Ros2Error> {
     let catalogue = std::sync::Arc::new(msg::MessageDefinitions::vendored()?);
-    let session = crate::cells::open(zenoh).await?;
+    let session = vl_cells::open(zenoh).await?;
     graph::Node::new(session, domain, namespace, name, catalogue).await
 }

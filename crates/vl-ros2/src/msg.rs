@@ -13,79 +13,79 @@ use thiserror::Error;
 const VENDORED: &[(&str, &str)] = &[
     (
         "builtin_interfaces/msg/Time",
-        include_str!("../../ros2-msgs/builtin_interfaces/msg/Time.msg"),
+        include_str!("../ros2-msgs/builtin_interfaces/msg/Time.msg"),
     ),
     (
         "std_msgs/msg/Header",
-        include_str!("../../ros2-msgs/std_msgs/msg/Header.msg"),
+        include_str!("../ros2-msgs/std_msgs/msg/Header.msg"),
     ),
     (
         "geometry_msgs/msg/Point",
-        include_str!("../../ros2-msgs/geometry_msgs/msg/Point.msg"),
+        include_str!("../ros2-msgs/geometry_msgs/msg/Point.msg"),
     ),
     (
         "geometry_msgs/msg/Quaternion",
-        include_str!("../../ros2-msgs/geometry_msgs/msg/Quaternion.msg"),
+        include_str!("../ros2-msgs/geometry_msgs/msg/Quaternion.msg"),
     ),
     (
         "geometry_msgs/msg/Pose",
-        include_str!("../../ros2-msgs/geometry_msgs/msg/Pose.msg"),
+        include_str!("../ros2-msgs/geometry_msgs/msg/Pose.msg"),
     ),
     (
         "geometry_msgs/msg/PoseWithCovariance",
-        include_str!("../../ros2-msgs/geometry_msgs/msg/PoseWithCovariance.msg"),
+        include_str!("../ros2-msgs/geometry_msgs/msg/PoseWithCovariance.msg"),
     ),
     (
         "geometry_msgs/msg/Vector3",
-        include_str!("../../ros2-msgs/geometry_msgs/msg/Vector3.msg"),
+        include_str!("../ros2-msgs/geometry_msgs/msg/Vector3.msg"),
     ),
     (
         "geometry_msgs/msg/Twist",
-        include_str!("../../ros2-msgs/geometry_msgs/msg/Twist.msg"),
+        include_str!("../ros2-msgs/geometry_msgs/msg/Twist.msg"),
     ),
     (
         "geometry_msgs/msg/TwistWithCovariance",
-        include_str!("../../ros2-msgs/geometry_msgs/msg/TwistWithCovariance.msg"),
+        include_str!("../ros2-msgs/geometry_msgs/msg/TwistWithCovariance.msg"),
     ),
     (
         "geometry_msgs/msg/Transform",
-        include_str!("../../ros2-msgs/geometry_msgs/msg/Transform.msg"),
+        include_str!("../ros2-msgs/geometry_msgs/msg/Transform.msg"),
     ),
     (
         "geometry_msgs/msg/TransformStamped",
-        include_str!("../../ros2-msgs/geometry_msgs/msg/TransformStamped.msg"),
+        include_str!("../ros2-msgs/geometry_msgs/msg/TransformStamped.msg"),
     ),
     (
         "nav_msgs/msg/Odometry",
-        include_str!("../../ros2-msgs/nav_msgs/msg/Odometry.msg"),
+        include_str!("../ros2-msgs/nav_msgs/msg/Odometry.msg"),
     ),
     (
         "nav_msgs/msg/MapMetaData",
-        include_str!("../../ros2-msgs/nav_msgs/msg/MapMetaData.msg"),
+        include_str!("../ros2-msgs/nav_msgs/msg/MapMetaData.msg"),
     ),
     (
         "nav_msgs/msg/OccupancyGrid",
-        include_str!("../../ros2-msgs/nav_msgs/msg/OccupancyGrid.msg"),
+        include_str!("../ros2-msgs/nav_msgs/msg/OccupancyGrid.msg"),
     ),
     (
         "sensor_msgs/msg/CompressedImage",
-        include_str!("../../ros2-msgs/sensor_msgs/msg/CompressedImage.msg"),
+        include_str!("../ros2-msgs/sensor_msgs/msg/CompressedImage.msg"),
     ),
     (
         "sensor_msgs/msg/RegionOfInterest",
-        include_str!("../../ros2-msgs/sensor_msgs/msg/RegionOfInterest.msg"),
+        include_str!("../ros2-msgs/sensor_msgs/msg/RegionOfInterest.msg"),
     ),
     (
         "sensor_msgs/msg/CameraInfo",
-        include_str!("../../ros2-msgs/sensor_msgs/msg/CameraInfo.msg"),
+        include_str!("../ros2-msgs/sensor_msgs/msg/CameraInfo.msg"),
     ),
     (
         "sensor_msgs/msg/LaserScan",
-        include_str!("../../ros2-msgs/sensor_msgs/msg/LaserScan.msg"),
+        include_str!("../ros2-msgs/sensor_msgs/msg/LaserScan.msg"),
     ),
     (
         "tf2_msgs/msg/TFMessage",
-        include_str!("../../ros2-msgs/tf2_msgs/msg/TFMessage.msg"),
+        include_str!("../ros2-msgs/tf2_msgs/msg/TFMessage.msg"),
     ),
 ];
 

@@ -15,9 +15,7 @@ use super::graph::{Publisher, Qos};
 use super::messages::{CameraInfo, CompressedImage, LaserScan, OccupancyGrid, Odometry, TfMessage};
 use super::views::{self, Frames};
 use super::{NODE, Ros2Error, Ros2Options};
-use crate::accounts::gate::Gate;
-use crate::lab::Watching;
-use crate::server::LabHandle;
+use vl_host::{Gate, LabHandle, Watching};
 
 /// The fastest `/odom` and `/tf` go, and `/scan`.
 const ODOM_EVERY: Duration = Duration::from_millis(20);
@@ -38,15 +36,14 @@ struct Lab {
 /// Serves the lab on ROS 2 for as long as the Host runs (never
 /// returning: a lab that cannot reach its Zenoh network still serves its
 /// Guests).
-pub(crate) async fn serve(
-    options: Ros2Options,
-    handle: LabHandle,
-    gate: Arc<Gate>,
-    scene: LabScene,
-) {
+pub(crate) async fn serve(options: Ros2Options, handle: LabHandle) {
+    let Some(scene) = handle.scene.clone() else {
+        warn!("the lab is not on ROS 2: a gateway has no lab of its own to publish");
+        return std::future::pending().await;
+    };
     let lab = Lab {
+        gate: handle.gate.clone(),
         handle,
-        gate,
         scene,
     };
     if let Err(e) = publish(&options, lab).await {

@@ -14,12 +14,12 @@ use zenoh::sample::SampleKind;
 
 use super::link::{LinkDown, LinkUp};
 use super::{CellOptions, ZenohError, keys, within};
-use crate::accounts::gate::Admitted;
-use crate::hush::Hush;
-use crate::lab::Watching;
-use crate::server::LabHandle;
-use crate::server::events::LabEvent;
-use crate::server::hub::{OUTBOX, Status, ToConnection, ToHub};
+use vl_host::Admitted;
+use vl_host::Hush;
+use vl_host::LabEvent;
+use vl_host::LabHandle;
+use vl_host::Watching;
+use vl_host::hub::{OUTBOX, Status, ToConnection, ToHub};
 
 /// How often a cell tells the gateway how it is.
 const INFO_EVERY: Duration = Duration::from_millis(500);
@@ -37,7 +37,8 @@ struct Cell {
 
 /// Joins the gateway of `options` and serves it for as long as the Host
 /// runs (never returning: a cell that cannot join still serves alone).
-pub(crate) async fn join(options: CellOptions, lab: LabHandle, experiments: Vec<Experiment>) {
+pub(crate) async fn join(options: CellOptions, lab: LabHandle) {
+    let experiments = lab.experiments.to_vec();
     let cell = Cell { lab, experiments };
     let name = options.name.clone();
     let session = match super::open(&options.zenoh).await {

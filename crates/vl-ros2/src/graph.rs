@@ -18,7 +18,7 @@ use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig, Mis
 use super::Ros2Error;
 use super::messages::Message;
 use super::msg::{MessageDefinitions, dds_name};
-use crate::hush::Hush;
+use vl_host::Hush;
 
 /// The largest sample taken from a subscription (a camera's frame is far
 /// smaller): a larger one is dropped before it is decoded.
@@ -200,7 +200,7 @@ impl Node {
         topic: &str,
         qos: Qos,
         deliver: F,
-    ) -> Result<Subscription, Ros2Error>
+    ) -> Result<TopicSubscription, Ros2Error>
     where
         M: Message + Send + 'static,
         F: Fn(M, Option<Origin>) + Send + Sync + 'static,
@@ -236,7 +236,7 @@ impl Node {
             })
             .await?;
         let token = self.session.liveliness().declare_token(keys.token).await?;
-        Ok(Subscription {
+        Ok(TopicSubscription {
             _subscriber: subscriber,
             _token: token,
         })
@@ -362,7 +362,7 @@ impl<M: Message> Publisher<M> {
 }
 
 /// A subscription, announced while it lives.
-pub(crate) struct Subscription {
+pub(crate) struct TopicSubscription {
     _subscriber: zenoh::pubsub::Subscriber<()>,
     _token: LivelinessToken,
 }

@@ -10,10 +10,10 @@ use std::time::{Duration, Instant};
 
 use vl_core::CameraModel;
 
-use super::graph::{Node, Qos, Subscription};
+use super::graph::{Node, Qos, TopicSubscription};
 use super::messages::CompressedImage;
-use crate::drivers::{Camera, CameraError, Captured, believed};
-use crate::webcam::{FrameSlot, MAX_CAMERA_SIDE, declared_size};
+use vl_host::{Camera, CameraError, Captured, believed};
+use vl_host::{FrameSlot, MAX_CAMERA_SIDE, declared_size};
 
 /// How long opening waits for the first frame, which gives the size.
 const FIRST_FRAME: Duration = Duration::from_secs(5);
@@ -36,7 +36,7 @@ pub(crate) struct Ros2Camera {
     model: CameraModel,
     slot: Arc<FrameSlot>,
     seen: u64,
-    _subscription: Subscription,
+    _subscription: TopicSubscription,
 }
 
 impl Ros2Camera {

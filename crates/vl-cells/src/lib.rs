@@ -10,6 +10,12 @@
 //!
 //! The key expressions (`keys`) and the links' messages (`link`) are the
 //! whole of what the two say to each other: docs/protocol.md lists them.
+//!
+//! The network takes only the certificates the gateway's authority issued,
+//! each member its own keys (`trust`). A cell is an extension of its Host
+//! (`CellSide`, given the lab's `LabHandle`); a gateway runs a Host's
+//! connections over its front in place of a hub. The Zenoh session and
+//! endpoints here are the ones the lab's ROS 2 side (`vl-ros2`) shares.
 
 mod cell;
 mod gateway;
@@ -17,12 +23,57 @@ pub(crate) mod keys;
 mod link;
 mod trust;
 
-pub(crate) use cell::join;
-pub(crate) use gateway::serve as serve_gateway;
 pub use trust::{RouterTrust, TrustError, ZenohAuthority, ZenohCredentials, ZenohMember};
 
+use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
+
+use vl_host::{Extension, ExtensionTask, HostConfig, HostError, LabHandle};
+
+/// A Host's side as one of a gateway's cells: joins the gateway and
+/// serves it for as long as the lab runs (a cell that cannot join still
+/// serves alone).
+#[derive(Debug)]
+pub struct CellSide(pub CellOptions);
+
+impl Extension for CellSide {
+    fn run(self: Arc<Self>, lab: LabHandle) -> ExtensionTask {
+        Box::pin(cell::join(self.0.clone(), lab))
+    }
+}
+
+/// A gateway, bound and serving Guests in front of the cells that join it.
+pub struct Gateway {
+    pub addr: SocketAddr,
+    task: tokio::task::JoinHandle<()>,
+}
+
+impl Gateway {
+    /// Binds `listen` for Guests and meets cells on Zenoh by `zenoh`;
+    /// `config` is a Host's: accounts, TLS, timeouts (its lab's own fields
+    /// are the cells').
+    pub async fn start(
+        listen: SocketAddr,
+        config: HostConfig,
+        zenoh: ZenohOptions,
+    ) -> Result<Gateway, HostError> {
+        let (listener, addr) = vl_host::bind(listen).await?;
+        let task = tokio::spawn(gateway::serve(listener, config, zenoh));
+        Ok(Gateway { addr, task })
+    }
+
+    /// Serves until the process ends (or Zenoh cannot open).
+    pub async fn wait(mut self) {
+        let _ = (&mut self.task).await;
+    }
+}
+
+impl Drop for Gateway {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}
 
 /// A Zenoh endpoint on the lab's network: `tcp/HOST:PORT`, or
 /// `quic/HOST:PORT` where every peer shows a certificate.
@@ -197,7 +248,7 @@ pub(crate) const LEASE: Duration = Duration::from_secs(3);
 /// A Zenoh session: a router listening on `listen` when nothing is given
 /// to connect to, else a client of `connect` (retried until it answers).
 /// No multicast scouting: a lab's cells join the gateway they are told.
-pub(crate) async fn open(options: &ZenohOptions) -> Result<zenoh::Session, ZenohError> {
+pub async fn open(options: &ZenohOptions) -> Result<zenoh::Session, ZenohError> {
     let mut config = zenoh::Config::default();
     let json = |v: &[Endpoint]| {
         let v: Vec<String> = v.iter().map(Endpoint::for_zenoh).collect();
@@ -261,11 +312,7 @@ pub(crate) async fn open(options: &ZenohOptions) -> Result<zenoh::Session, Zenoh
 
 /// Whether `sample` holds at most `most` bytes, checked before it is read;
 /// one that holds more is dropped, said at most once a second.
-pub(crate) fn within(
-    sample: &zenoh::sample::Sample,
-    most: usize,
-    hush: &crate::hush::Hush,
-) -> bool {
+pub fn within(sample: &zenoh::sample::Sample, most: usize, hush: &vl_host::Hush) -> bool {
     let size = sample.payload().len();
     if size <= most {
         return true;

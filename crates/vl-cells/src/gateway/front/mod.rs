@@ -20,14 +20,14 @@ mod status;
 use super::asked_cell;
 use super::event::Event;
 use super::mirror::Mirror;
-use crate::accounts::audit::AuditEntry;
-use crate::accounts::gate::{ACCOUNT_ENDED, Admitted};
-use crate::accounts::users::Users;
-use crate::cells::keys;
-use crate::cells::link::{LinkDown, LinkUp};
-use crate::server::HostConfig;
-use crate::server::events::LabEvents;
-use crate::server::hub::{Status, ToConnection, ToHub};
+use crate::keys;
+use crate::link::{LinkDown, LinkUp};
+use vl_host::AuditEntry;
+use vl_host::HostConfig;
+use vl_host::LabEvents;
+use vl_host::Users;
+use vl_host::hub::{Status, ToConnection, ToHub};
+use vl_host::{ACCOUNT_ENDED, Admitted};
 
 /// How long a gone Guest's link token outlives its `leave`.
 const RETIRE: Duration = Duration::from_secs(1);

@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 use vl_core::{ErrorCode, GuestMessage, Role, Summary};
 
-use crate::accounts::gate::Admitted;
+use vl_host::Admitted;
 
 /// The gateway's side of a link.
 #[derive(Debug, Serialize, Deserialize)]

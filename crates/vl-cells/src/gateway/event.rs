@@ -3,7 +3,7 @@
 use tokio_tungstenite::tungstenite::Utf8Bytes;
 use vl_core::{CellInfo, CellName, HostMessage};
 
-use crate::cells::link::LinkDown;
+use crate::link::LinkDown;
 
 /// What the cells tell the front.
 pub(super) enum Event {

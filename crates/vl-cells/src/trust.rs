@@ -119,7 +119,7 @@ impl ZenohCredentials {
             self.member,
             toml::to_string(self).unwrap_or_default()
         );
-        crate::accounts::write_private(path, text.as_bytes()).map_err(|why| TrustError::Write {
+        vl_host::write_private(path, text.as_bytes()).map_err(|why| TrustError::Write {
             path: path.to_owned(),
             why,
         })
@@ -171,11 +171,9 @@ impl ZenohAuthority {
             let key = KeyPair::generate()?;
             let certificate = authority_params()?.self_signed(&key)?;
             let pem = format!("{}{}", certificate.pem(), key.serialize_pem());
-            crate::accounts::write_private(&path, pem.as_bytes()).map_err(|why| {
-                TrustError::Write {
-                    path: path.clone(),
-                    why,
-                }
+            vl_host::write_private(&path, pem.as_bytes()).map_err(|why| TrustError::Write {
+                path: path.clone(),
+                why,
             })?;
         }
         let text = std::fs::read_to_string(&path).map_err(|e| TrustError::Read {
@@ -224,7 +222,7 @@ impl ZenohAuthority {
         members.dedup();
         let text = toml::to_string(&Members { members }).unwrap_or_default();
         let path = self.dir.join(MEMBERS);
-        crate::accounts::write_private(&path, text.as_bytes())
+        vl_host::write_private(&path, text.as_bytes())
             .map_err(|why| TrustError::Write { path, why })
     }
 

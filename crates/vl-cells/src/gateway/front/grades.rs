@@ -8,8 +8,8 @@ use std::sync::Arc;
 
 use vl_core::Summary;
 
-use crate::accounts::gate::Admitted;
-use crate::server::events::{LabEvent, LabEvents, RunDriver, RunEnded};
+use vl_host::Admitted;
+use vl_host::{LabEvent, LabEvents, RunDriver, RunEnded};
 
 /// The run that `admitted`, on connection `id`, drove at its cell ended.
 pub(super) fn ended(events: &LabEvents, id: u64, admitted: &Admitted, summary: Summary) {
