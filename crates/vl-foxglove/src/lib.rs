@@ -91,8 +91,9 @@ impl Extension for Foxglove {
             log: lab.log.clone(),
             live: lab.live.listen(),
         });
-        // Set before the lab takes its first connection: `run` is called
-        // as the lab starts, the feed's task polled after.
+        // Set, and listening to the hub, before the lab takes its first
+        // connection or its hub says anything: `run` is called as the lab
+        // starts (`vl_host::run_extensions`), the feed's task polled after.
         let _ = self.feed.set(feed);
         Box::pin(making)
     }

@@ -51,7 +51,9 @@ pub trait Extension: Send + Sync + std::fmt::Debug {
     }
 
     /// What it runs for as long as the lab does, reaching it by `lab`
-    /// (its hub, feeds, events and gate).
+    /// (its hub, feeds, events and gate). Called as the lab starts, before
+    /// its first connection: what it listens to here, it hears from the
+    /// start.
     fn run(self: Arc<Self>, lab: LabHandle) -> ExtensionTask {
         let _ = lab;
         Box::pin(std::future::pending())
@@ -79,10 +81,17 @@ pub struct SocketClient {
     pub ping_timeout: Duration,
 }
 
-/// The extensions of a lab, run together.
-pub async fn run_all(extensions: Vec<Arc<dyn Extension>>, lab: LabHandle) {
-    let tasks = extensions.into_iter().map(|e| e.run(lab.clone()));
-    futures_util::future::join_all(tasks).await;
-    // None left running (or none at all): the lab runs on.
-    std::future::pending().await
+/// The extensions of a lab, run together. Each `run` is called now,
+/// before the lab takes its first connection or its hub says anything,
+/// so what an extension listens to it hears from the start.
+pub fn run_all(
+    extensions: Vec<Arc<dyn Extension>>,
+    lab: LabHandle,
+) -> impl Future<Output = ()> + Send {
+    let tasks: Vec<ExtensionTask> = extensions.into_iter().map(|e| e.run(lab.clone())).collect();
+    async move {
+        futures_util::future::join_all(tasks).await;
+        // None left running (or none at all): the lab runs on.
+        std::future::pending().await
+    }
 }
