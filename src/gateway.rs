@@ -264,6 +264,9 @@ async fn gateway(args: GatewayArgs) -> Result<()> {
     raise_file_limit();
     let mut config = HostConfig {
         ping_timeout: args.ping_timeout,
+        // Foxglove's server tells a client at the gateway to go to a
+        // cell's own Host, rather than leaving it unanswered.
+        extensions: crate::host::plugs::always(),
         ..HostConfig::default()
     };
     args.access.apply(&mut config)?;

@@ -16,7 +16,7 @@ use crate::media::LinkArgs;
 use crate::report::emit;
 use crate::{BadInput, bad_input, named};
 
-mod plugs;
+pub(crate) mod plugs;
 
 /// Which robot `vl host` drives.
 #[derive(Clone, Copy, PartialEq)]

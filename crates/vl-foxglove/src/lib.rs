@@ -93,7 +93,7 @@ impl Extension for Foxglove {
         });
         // Set, and listening to the hub, before the lab takes its first
         // connection or its hub says anything: `run` is called as the lab
-        // starts (`vl_host::run_extensions`), the feed's task polled after.
+        // starts (`run_extensions`), the feed's task polled after.
         let _ = self.feed.set(feed);
         Box::pin(making)
     }
