@@ -35,24 +35,6 @@ pub enum RobotSpec {
     Plugged(Arc<dyn RobotPlug>),
 }
 
-impl PartialEq for RobotSpec {
-    fn eq(&self, other: &RobotSpec) -> bool {
-        match (self, other) {
-            (RobotSpec::Sim, RobotSpec::Sim) => true,
-            (
-                RobotSpec::Khepera { port, baud, guard },
-                RobotSpec::Khepera {
-                    port: p,
-                    baud: b,
-                    guard: g,
-                },
-            ) => (port, baud, guard) == (p, b, g),
-            (RobotSpec::Plugged(a), RobotSpec::Plugged(b)) => Arc::ptr_eq(a, b),
-            _ => false,
-        }
-    }
-}
-
 /// A robot, and the camera that came with it.
 pub struct PluggedRobot {
     pub robot: Box<dyn Robot>,
