@@ -360,15 +360,18 @@ async fn driven(python: &str, port: u16, url: &str) {
 }
 
 /// The simulated ROS 2 robot, started at the lab's start pose with its
-/// overhead camera over `backdrop`, and a thread keeping its last report.
+/// overhead camera over `backdrop` (its body stuck once its wheels have
+/// rolled `stuck_after_m`, if given), and a thread keeping its last report.
 fn start_robot(
     python: &str,
     port: u16,
     backdrop: &std::path::Path,
+    stuck_after_m: Option<f64>,
 ) -> (Child, Arc<std::sync::Mutex<String>>) {
     let mut robot = Command::new(python)
         .args([ROBOT, MSGS, &port.to_string(), "0.1", "0.12", "0"])
         .args([common::s(backdrop), "800"])
+        .args(stuck_after_m.map(|m| m.to_string()))
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -392,7 +395,7 @@ async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
     // The arena as the camera sees it, which the robot draws itself on.
     let backdrop = scratch("ros2-robot").join("backdrop.png");
     common::render_arena(&backdrop, &[]);
-    let (robot, said) = start_robot(python, port, &backdrop);
+    let (robot, said) = start_robot(python, port, &backdrop, None);
     let _robot = common::VlProcess(robot);
     let zenoh = format!("tcp/127.0.0.1:{port}");
     let recordings = scratch("ros2-recordings");
@@ -448,6 +451,52 @@ async fn the_lab_drives_a_ros_2_robot_to_its_goal() {
         .any(|f| f.path().extension().is_some_and(|e| e == "mcap"));
     assert!(recorded, "the run was recorded in {}", recordings.display());
     untrusted_while_forged(python, port, &url).await;
+}
+
+/// A robot whose wheels spin while its body is stuck: its own /odom says
+/// it goes on, the camera says it does not. The lab believes the camera
+/// and stops the run as a fault, saying why; the robot is no longer driven.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn odometry_the_camera_contradicts_stops_the_robot() {
+    let Some(python) = python() else { return };
+    let _alone = alone().await;
+    let port = free_port();
+    let backdrop = scratch("ros2-stuck").join("backdrop.png");
+    common::render_arena(&backdrop, &[]);
+    let (robot, said) = start_robot(python, port, &backdrop, Some(0.08));
+    let _robot = common::VlProcess(robot);
+    let zenoh = format!("tcp/127.0.0.1:{port}");
+    // Not driven back to the start after the run: nothing drives it then.
+    let camera = [
+        "--robot",
+        "ros2",
+        "--camera",
+        "ros2:/camera/image_raw/compressed",
+        "--no-reset",
+    ];
+    let (_host, url) = start_host(&zenoh, &camera);
+    let run_url = url.clone();
+    let report = tokio::task::spawn_blocking(move || common::headless_run(&run_url, 90, &[]))
+        .await
+        .unwrap();
+    let summary = &report["summary"];
+    assert_eq!(summary["reason"], "fault", "{summary}");
+    let fault = summary["fault"].as_str().unwrap_or_default();
+    assert!(
+        fault.contains("camera keeps seeing the robot elsewhere"),
+        "{summary}"
+    );
+    // Stopped: the robot takes no more Twists (it reports once a second).
+    let twists = |said: &str| serde_json::from_str::<Value>(said).unwrap()["twists"].as_u64();
+    tokio::time::sleep(Duration::from_millis(2500)).await;
+    let then = twists(&said.lock().unwrap());
+    tokio::time::sleep(Duration::from_millis(2500)).await;
+    let now = twists(&said.lock().unwrap());
+    assert_eq!(then, now, "the stuck robot is still driven");
+    // It stuck at 8 cm, and odometry went no further than the lab let it.
+    let last: Value = serde_json::from_str(&said.lock().unwrap()).unwrap();
+    let odometry = (last["x"].as_f64().unwrap() - 0.1).hypot(last["y"].as_f64().unwrap() - 0.12);
+    assert!(odometry < 0.4, "the wheels were stopped soon: {last}");
 }
 
 /// Whether `watcher` is told the robot is `state` within 8 s.

@@ -9,9 +9,11 @@ times a second it paints the floor over the robot's start and draws the
 robot where it is (a red body, a white marker ahead of its centre, as the
 lab's vision knows a Khepera from above), and publishes the JPEG on
 /camera/image_raw/compressed. Prints one JSON line a second: its pose and
-the Twists it has taken.
+the Twists it has taken. Given STUCK_AFTER_M, its body sticks once its
+wheels have rolled that far: the wheels spin on and /odom counts them, but
+the camera shows the robot where it stuck.
 
-    python3 robot.py MSG_DIR ROUTER_PORT X_M Y_M THETA_RAD [BACKDROP.png ARENA_WIDTH_MM]
+    python3 robot.py MSG_DIR ROUTER_PORT X_M Y_M THETA_RAD [BACKDROP.png ARENA_WIDTH_MM [STUCK_AFTER_M]]
 """
 
 import json
@@ -121,6 +123,8 @@ def toward(now, target, dt):
     return now + max(-step, min(step, target - now))
 
 
+STUCK_AFTER = float(sys.argv[8]) if len(sys.argv) > 8 else math.inf
+rolled = 0.0
 left = right = 0.0
 last_said = time.monotonic()
 while True:
@@ -133,8 +137,10 @@ while True:
     x += v * math.cos(theta) * PERIOD
     y += v * math.sin(theta) * PERIOD
     theta = math.atan2(math.sin(theta + w * PERIOD), math.cos(theta + w * PERIOD))
-    with lock:
-        pose = (x, y, theta)
+    rolled += abs(v) * PERIOD
+    if rolled < STUCK_AFTER:
+        with lock:
+            pose = (x, y, theta)
     now = time.time()
     stamp = Time(sec=int(now), nanosec=int((now % 1) * 1e9))
     odom.publish(
@@ -155,5 +161,6 @@ while True:
     if time.monotonic() - last_said >= 1.0:
         last_said = time.monotonic()
         with lock:
-            print(json.dumps({"x": x, "y": y, "theta": theta, "twists": twists}), flush=True)
+            seen_x, seen_y, _ = pose
+            print(json.dumps({"x": x, "y": y, "theta": theta, "twists": twists, "seen": [seen_x, seen_y]}), flush=True)
     time.sleep(PERIOD)

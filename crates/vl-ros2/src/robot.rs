@@ -13,7 +13,8 @@
 //! another's samples are dropped, and a sample that contradicts the
 //! robot's own history (a number not after the last: someone writing as
 //! the robot; a leap faster than it goes) makes the robot untrusted for a
-//! second: the lab stops driving it and its run ends.
+//! second: the lab stops driving it and its run ends. Odometry the camera
+//! keeps contradicting ends the run too (the lab's, for any robot).
 
 use std::future::Future;
 use std::pin::Pin;

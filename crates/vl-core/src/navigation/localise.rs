@@ -19,6 +19,8 @@ const GATE: f64 = 25.0;
 /// …unless this many come in a row: then the robot was moved (or the
 /// estimate lost), and the camera is believed outright.
 const REJECTS_BEFORE_RESET: u32 = 3;
+/// How long a reset counts in `overruled`, s.
+const OVERRULED_S: f64 = 3.0;
 
 /// A proximity reading is compared with the map only above this (the
 /// sensor's noise floor is about 10)…
@@ -87,6 +89,9 @@ pub struct Localiser {
     history: VecDeque<(f64, Vector3<f64>)>,
     last_sighting: Option<f64>,
     rejects: u32,
+    /// Each reset after the first sighting within `OVERRULED_S` of the
+    /// newest: when, and how far it moved and turned the estimate.
+    overruled: VecDeque<(f64, f64, f64)>,
     /// Wheel travel since the proximity readings were last folded in, mm.
     rolled_mm: f64,
 }
@@ -103,6 +108,7 @@ impl Localiser {
             history: VecDeque::new(),
             last_sighting: None,
             rejects: 0,
+            overruled: VecDeque::new(),
             rolled_mm: 0.0,
         }
     }
@@ -134,6 +140,19 @@ impl Localiser {
         );
         let largest = (a + c) / 2.0 + (((a - c) / 2.0).powi(2) + b * b).sqrt();
         largest.max(0.0).sqrt()
+    }
+
+    /// How far, mm, and how much, rad, the camera moved and turned the
+    /// estimate in its resets of the last three seconds up to the newest:
+    /// odometry that keeps disagreeing with the camera adds up here (wheels
+    /// spinning on the spot, a robot carried away, odometry that lies),
+    /// where slip and jitter are folded in and add nothing.
+    pub fn overruled(&self) -> (f64, f64) {
+        self.overruled
+            .iter()
+            .fold((0.0, 0.0), |(mm, rad), &(_, moved, turned)| {
+                (mm + moved, rad + turned)
+            })
     }
 
     /// Seconds from the last sighting folded in to `now_s`; None before any.
@@ -303,10 +322,23 @@ impl Localiser {
             .map_or(self.state, |&(_, s)| s);
         // What odometry added since the frame, kept on top of the sighting.
         let since = self.state - then;
+        let before = self.state;
         self.state = z;
         self.state.x += since.x;
         self.state.y += since.y;
         self.state.z = wrap_angle(z.z + since.z);
+        if self.last_sighting.is_some() {
+            let moved = (self.state.x - before.x).hypot(self.state.y - before.y);
+            let turned = wrap_angle(self.state.z - before.z).abs();
+            self.overruled.push_back((taken_s, moved, turned));
+        }
+        while self
+            .overruled
+            .front()
+            .is_some_and(|&(t, _, _)| t < taken_s - OVERRULED_S)
+        {
+            self.overruled.pop_front();
+        }
         let u = &self.uncertainty;
         self.covariance = Matrix3::from_diagonal(&Vector3::new(
             u.camera_mm.powi(2) * 4.0,
@@ -401,11 +433,44 @@ mod tests {
                 }
                 let p = fused.pose();
                 prop_assert!(p.x_mm.is_finite() && p.y_mm.is_finite() && p.theta_rad.is_finite());
+                // Slip, noise and lateness are folded in: the camera never
+                // has to overrule the odometry.
+                prop_assert_eq!(fused.overruled(), (0.0, 0.0));
                 err_fused = err_fused.max(p.point().distance(truth.point()));
                 err_blind = err_blind.max(blind.pose().point().distance(truth.point()));
             }
             prop_assert!(err_fused < 4.0, "fused {err_fused:.2} mm");
             prop_assert!(err_blind > 3.0 * err_fused, "blind {err_blind:.2} mm, fused {err_fused:.2} mm");
+        }
+    }
+
+    proptest! {
+        /// Wheels that spin while the robot stays (stuck, held, or
+        /// odometry that lies): the camera keeps resetting the estimate,
+        /// and what it overruled adds up past 5 cm within three seconds,
+        /// however fast the wheels go (from a crawl) and the frames come.
+        #[test]
+        fn spinning_wheels_add_up_to_overruled(
+            speed in 40.0f64..400.0,
+            frame_ticks in 5usize..10,
+            late_ticks in 0usize..5,
+        ) {
+            let held = pose(300.0, 200.0, 0.4);
+            let mut odometry = held;
+            let mut loc = Localiser::new(held, uncertainty());
+            loc.sighting(0.0, held);
+            let wheels = WheelSpeeds { left_mm_s: speed, right_mm_s: speed };
+            let mut contradicted = false;
+            for k in 1..=300 {
+                let t = k as f64 * 0.01;
+                odometry = odometry.advance(wheels, 53.0, 0.01);
+                loc.odometry(t, odometry);
+                if k % frame_ticks == 0 && k > late_ticks {
+                    loc.sighting(t - late_ticks as f64 * 0.01, held);
+                }
+                contradicted |= loc.overruled().0 > 50.0;
+            }
+            prop_assert!(contradicted, "overruled {:?}", loc.overruled());
         }
     }
 

@@ -28,6 +28,10 @@ use crate::drivers::{Camera, Captured};
 pub(crate) struct Sighting {
     pub taken: Instant,
     pub pose: Pose,
+    /// Whether `taken` is when the frame was taken, not when it was seen:
+    /// an undated sighting is behind the odometry by the camera's latency,
+    /// so disagreeing with it proves nothing.
+    pub dated: bool,
 }
 
 /// Sightings waiting for the control loop, at most: it takes them every
@@ -205,12 +209,9 @@ impl CameraLoop {
                     if let Some(pose) = seen.robot {
                         // A full queue means the control loop is behind: this
                         // sighting would be stale by the time it is read.
-                        let taken = if self.compensate_latency {
-                            taken
-                        } else {
-                            Instant::now()
-                        };
-                        let _ = self.sightings.try_send(Sighting { taken, pose });
+                        let dated = self.compensate_latency;
+                        let taken = if dated { taken } else { Instant::now() };
+                        let _ = self.sightings.try_send(Sighting { taken, pose, dated });
                     }
                     let _ = to_publish.try_send(Taken {
                         image,

@@ -13,9 +13,9 @@ use std::time::{Duration, Instant};
 use tokio::sync::{mpsc as async_mpsc, watch};
 use tracing::{debug, info, warn};
 use vl_core::{
-    CSpace, DeviceState, EndReason, Experiment, Feedback, HeldBack, HostMessage, Leash, Localiser,
-    MapField, Pose, PoseSource, Priorities, RobotModel, Safety, Situation, Surroundings, Teleop,
-    Told, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
+    CSpace, DeviceState, EndReason, Experiment, Feedback, Fold, HeldBack, HostMessage, Leash,
+    Localiser, MapField, Pose, PoseSource, Priorities, RobotModel, Safety, Situation, Surroundings,
+    Teleop, Told, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
 };
 
 use super::camera::Sighting;
@@ -58,6 +58,12 @@ const FACE_MIN_WHEEL_MM_S: f64 = 8.0;
 /// A run whose robot the camera has not seen for this long, s, stops: the
 /// odometry it drove on meanwhile drifts too far to keep it off obstacles.
 const ROBOT_LOST_S: f64 = 2.0;
+/// The camera, disagreeing with the odometry frame after frame, moved the
+/// estimate this far or turned it this much in three seconds: beyond slip and
+/// jitter, so the odometry (or the robot's wheels) cannot be trusted and
+/// the run stops.
+const CONTRADICTION_MM: f64 = 50.0;
+const CONTRADICTION_RAD: f64 = 0.5;
 /// A followed run that comes no further than `HeldBack::CREEP_MM` along
 /// its path in this long, s, is held back for good: it ends, saying why.
 const HELD_BACK: Duration = Duration::from_secs(5);
@@ -427,7 +433,19 @@ impl Control {
         let seen: Vec<Sighting> = sightings.try_iter().collect();
         for sighting in seen {
             let at = self.clock(sighting.taken);
-            self.localiser.sighting(at, sighting.pose);
+            let fold = self.localiser.sighting(at, sighting.pose);
+            let (moved, turned) = self.localiser.overruled();
+            if fold == Fold::Reset
+                && sighting.dated
+                && self.run.is_some()
+                && (moved > CONTRADICTION_MM || turned > CONTRADICTION_RAD)
+            {
+                let why = format!(
+                    "the camera keeps seeing the robot elsewhere: it moved the estimate {moved:.0} mm and turned it {turned:.2} rad in 3 s"
+                );
+                warn!("{why}; stopping the run");
+                self.fail(&RobotError::Untrusted(why));
+            }
         }
     }
 
