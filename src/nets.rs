@@ -1,13 +1,14 @@
 //! `vl lab nets`: the labs' statecharts through the thesis's pipeline to
 //! the controlled nets the Host runs, written (or checked) beside each
 //! lab's charts, `crates/vl-core/nets/<lab>/`, where the Host builds them in.
+//! `vl lab check`: an experiment folder through the same pipeline, verified.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Subcommand;
-use vl_core::{LabDesign, NetsReport};
+use vl_core::{CheckReport, FolderCheck, LabDesign, NetsReport};
 
 use crate::bad_input;
 use crate::report::emit;
@@ -31,15 +32,30 @@ pub(crate) enum LabCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Design and verify experiment folders (each an experiment.toml beside
+    /// its charts): composed with the shared charts, given its controllers,
+    /// and checked bounded, safe, free of dead ends, able to return to its
+    /// start, every rule kept. Fails naming the file and line, or the
+    /// firing sequence that shows what is wrong.
+    Check {
+        /// The experiment folders.
+        #[arg(required = true, value_hint = clap::ValueHint::DirPath)]
+        folders: Vec<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
-    let LabCommand::Nets {
-        out,
-        charts,
-        check,
-        json,
-    } = command;
+    let (out, charts, check, json) = match command {
+        LabCommand::Nets {
+            out,
+            charts,
+            check,
+            json,
+        } => (out, charts, check, json),
+        LabCommand::Check { folders, json } => return check_folders(&folders, json),
+    };
     let designs = match &charts {
         Some(dir) => LabDesign::load(dir),
         None => LabDesign::shipped(),
@@ -49,7 +65,7 @@ pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
     let mut labs = Vec::new();
     for lab in &designs {
         let designed = vl_core::design(lab).map_err(bad_input)?;
-        let dir = out.join(lab.lab);
+        let dir = out.join(&lab.lab);
         let files = if check {
             designed.differing(&dir)
         } else {
@@ -73,5 +89,18 @@ pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
         ExitCode::FAILURE
     } else {
         ExitCode::SUCCESS
+    })
+}
+
+/// `vl lab check`: every folder's verdict; fails if any is refused or fails.
+fn check_folders(folders: &[PathBuf], json: bool) -> Result<ExitCode> {
+    let report = CheckReport {
+        folders: folders.iter().map(|f| FolderCheck::of(f)).collect(),
+    };
+    emit(&report, json)?;
+    Ok(if report.folders.iter().all(FolderCheck::passed) {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
     })
 }

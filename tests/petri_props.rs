@@ -9,7 +9,7 @@ use proptest::prelude::*;
 use vl_petri::{
     Analysis, ArcKind, Constraint, Limits, Liveness, Marking, Net, OMEGA, Options, analyze,
     analyze_net, compose, count_states, coverability, explore, from_pnml, fuse_parallel_places,
-    p_invariants, synthesize, t_invariants, to_pnml,
+    no_way_back, p_invariants, synthesize, t_invariants, to_pnml,
 };
 
 /// A random net: 1–5 places, 1–5 transitions, weights 1–3.
@@ -238,6 +238,16 @@ proptest! {
         let on_the_fly = analyze_net(&net, Options::default()).unwrap();
         prop_assert_eq!(&Analysis { bytes_per_marking: a.bytes_per_marking, ..on_the_fly }, &a);
         prop_assert_eq!(a.reversible, (0..markings.len()).all(|x| reach[x][m0]));
+        // The state shown for no way back cannot reach the start; there is
+        // one exactly when the net is not reversible.
+        let space = explore(&net, Options::default()).unwrap();
+        match no_way_back(&space) {
+            Some(s) => {
+                let stuck = id(&space.marking(s));
+                prop_assert!(!reach[stuck][m0] && !a.reversible);
+            }
+            None => prop_assert!(a.reversible),
+        }
         for t in 0..net.transitions.len() {
             let fires_at = |x: usize| edges[x].iter().any(|&(u, _)| u == t);
             let l4 = (0..markings.len()).all(|x| (0..markings.len()).any(|y| reach[x][y] && fires_at(y)));

@@ -25,6 +25,7 @@ mod gamepad;
 mod guest_window;
 mod host_socket;
 mod khepera_emu;
+mod lab_check;
 mod lab_nets;
 mod lab_ready;
 mod lti;

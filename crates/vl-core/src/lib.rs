@@ -135,7 +135,8 @@ pub use contract::summary::{EndReason, EndedByOther, HeldBack, RecordingNote, St
 pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use contract::transport::Io;
 pub use design::{
-    DesignError, Designed, Interleaving, LabDesign, LabRow, NetsReport, Rule, RuleVerdict, design,
+    CheckReport, DesignError, Designed, FolderCheck, Interleaving, LabDesign, LabRow, NetsReport,
+    Rule, RuleVerdict, design,
 };
 pub use images::{ImageError, MAX_IMAGE_SIDE, decode_image, load_image};
 pub use model::arena::{

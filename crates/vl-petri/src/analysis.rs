@@ -165,6 +165,32 @@ pub fn firing_sequence(space: &StateSpace, target: usize) -> Vec<usize> {
     path
 }
 
+/// The nearest state from which the initial one can never be reached
+/// again (a dead end, or a corner of the graph with no way back), if any:
+/// what makes a net not reversible, to show with [`firing_sequence`].
+pub fn no_way_back(space: &StateSpace) -> Option<usize> {
+    let states = space.states();
+    let mut into: Vec<Vec<usize>> = vec![Vec::new(); states];
+    for s in 0..states {
+        for (_, to) in space.successors(s) {
+            into[to].push(s);
+        }
+    }
+    let mut back = vec![false; states];
+    let mut stack = vec![0];
+    back[0] = true;
+    while let Some(s) = stack.pop() {
+        for &from in &into[s] {
+            if !back[from] {
+                back[from] = true;
+                stack.push(from);
+            }
+        }
+    }
+    // States are numbered breadth-first: the lowest is the nearest.
+    back.iter().position(|&b| !b)
+}
+
 /// What the strongly connected components of the reachability graph say:
 /// how many there are, and each transition's liveness level.
 struct Components {

@@ -49,7 +49,7 @@ mod report;
 mod scxml;
 mod verdict;
 
-pub use analysis::{Analysis, analyze, analyze_net, firing_sequence, incidence_rank};
+pub use analysis::{Analysis, analyze, analyze_net, firing_sequence, incidence_rank, no_way_back};
 pub use bench::{
     BenchLine, BenchReport, BenchRow, CorpusModel, Manifest, ManifestError, bench_model,
 };

@@ -30,7 +30,7 @@ use thiserror::Error;
 use crate::{Experiment, Named};
 
 pub use pipeline::{Designed, Interleaving, design};
-pub use summary::{LabRow, NetsReport, RuleVerdict};
+pub use summary::{CheckReport, FolderCheck, LabRow, NetsReport, RuleVerdict};
 
 /// The access design's folder, beside the labs'.
 pub(crate) const ACCESS: &str = "access";
@@ -42,8 +42,10 @@ const NEVER_FORBIDDEN: &[&str] = &["stop"];
 /// One lab's charts and controllers, as written.
 #[derive(Debug, Clone)]
 pub struct LabDesign {
-    /// Its folder: a lab's id, or [`ACCESS`].
-    pub lab: &'static str,
+    /// Its folder's name: a lab's id, or [`ACCESS`].
+    pub lab: String,
+    /// Where it was read from, as messages name it.
+    pub source: String,
     pub title: String,
     /// Each chart's name and SCXML text, in composition order.
     pub charts: Vec<(String, String)>,
@@ -62,6 +64,13 @@ pub struct Rule {
     pub rule: String,
 }
 
+/// An experiment folder's file of its design (beside its charts).
+pub(crate) const EXPERIMENT_FILE: &str = "experiment.toml";
+
+/// The most bytes a design's file or chart may have: the shipped ones
+/// have a few kilobytes.
+pub(crate) const MAX_FILE_BYTES: u64 = 256 * 1024;
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct LabFile {
@@ -79,11 +88,13 @@ struct LabFile {
 pub enum DesignError {
     #[error("cannot read {path}: {why}")]
     Read { path: String, why: String },
+    #[error("{path}: no such file")]
+    Missing { path: String },
     #[error("cannot write {path}: {why}")]
     Write { path: String, why: String },
     #[error("{path}: {why}")]
     LabFile { path: String, why: String },
-    #[error("{lab}: chart '{chart}': {why}")]
+    #[error("{lab}/{chart}.scxml: {why}")]
     Chart {
         lab: String,
         chart: String,
@@ -97,6 +108,10 @@ pub enum DesignError {
         rule: String,
         why: String,
     },
+    #[error("{path}: {why}")]
+    Folder { path: String, why: String },
+    #[error("{lab}: uncontrollable event '{event}' is no chart's")]
+    UnknownEvent { lab: String, event: String },
     #[error("{lab}: exploring the {which} net: {why}")]
     Explore {
         lab: String,
@@ -162,54 +177,154 @@ const SHIPPED: &[(&str, &str)] = &[
     ),
 ];
 
+/// A shipped file by its path in `crates/vl-core/nets/`.
+fn shipped(path: &str) -> Result<String, DesignError> {
+    SHIPPED
+        .iter()
+        .find(|(p, _)| *p == path)
+        .map(|(_, text)| (*text).to_owned())
+        .ok_or_else(|| DesignError::Missing {
+            path: path.to_owned(),
+        })
+}
+
+/// The shared charts' names, which any lab may compose with its own.
+fn shared_charts() -> Vec<&'static str> {
+    SHIPPED
+        .iter()
+        .filter_map(|(p, _)| p.strip_prefix("common/")?.strip_suffix(".scxml"))
+        .collect()
+}
+
+/// Whether `id` may name an experiment: what URLs, recordings and
+/// commands carry it as (a lowercase word, `-` and `_` allowed), and not a
+/// folder the shipped designs keep for themselves.
+fn checked_id(id: &str) -> Result<(), String> {
+    let word = id.len() <= 32
+        && id.starts_with(|c: char| c.is_ascii_lowercase())
+        && id
+            .chars()
+            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-' || c == '_');
+    if !word {
+        return Err(format!(
+            "'{id}' is no experiment id: a lowercase word of at most 32 letters, digits, '-' or '_', starting with a letter"
+        ));
+    }
+    if id == ACCESS || id == "common" {
+        return Err(format!(
+            "'{id}' is the shipped {id} charts' folder, no experiment's"
+        ));
+    }
+    Ok(())
+}
+
+/// A file's text, refused unread when larger than [`MAX_FILE_BYTES`].
+fn read_bounded(file: &Path) -> Result<String, DesignError> {
+    use std::io::Read;
+    let failed = |why: String| DesignError::Read {
+        path: file.display().to_string(),
+        why,
+    };
+    let opened = std::fs::File::open(file).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => DesignError::Missing {
+            path: file.display().to_string(),
+        },
+        _ => failed(e.to_string()),
+    })?;
+    let mut bytes = Vec::new();
+    opened
+        .take(MAX_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| failed(e.to_string()))?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return Err(failed(format!(
+            "larger than the {} KiB a design's file may have",
+            MAX_FILE_BYTES / 1024
+        )));
+    }
+    String::from_utf8(bytes).map_err(|_| failed("is not UTF-8 text".to_owned()))
+}
+
 impl LabDesign {
     /// Every lab's design as shipped.
     pub fn shipped() -> Result<Vec<LabDesign>, DesignError> {
-        let read = |path: &str| {
-            SHIPPED
-                .iter()
-                .find(|(p, _)| *p == path)
-                .map(|(_, text)| (*text).to_owned())
-                .ok_or_else(|| DesignError::Read {
-                    path: path.to_owned(),
-                    why: "not among the shipped charts".to_owned(),
-                })
-        };
+        let read = |path: &str| shipped(path);
         designs()
-            .map(|lab| LabDesign::from_files(lab, &read))
+            .map(|lab| {
+                LabDesign::from_files(
+                    lab,
+                    &format!("{lab}/lab.toml"),
+                    "crates/vl-core/nets",
+                    &read,
+                )
+            })
             .collect()
     }
 
     /// Every lab's design from the charts folder `dir` (laid out as
     /// `crates/vl-core/nets/`).
     pub fn load(dir: &Path) -> Result<Vec<LabDesign>, DesignError> {
-        let read = |path: &str| {
-            let file = dir.join(path);
-            std::fs::read_to_string(&file).map_err(|e| DesignError::Read {
-                path: file.display().to_string(),
-                why: e.to_string(),
-            })
-        };
+        let read = |path: &str| read_bounded(&dir.join(path));
+        let source = dir.display().to_string();
         designs()
-            .map(|lab| LabDesign::from_files(lab, &read))
+            .map(|lab| LabDesign::from_files(lab, &format!("{lab}/lab.toml"), &source, &read))
             .collect()
     }
 
+    /// An experiment folder's design: its `experiment.toml`, its charts
+    /// beside it or else among the shipped shared ones (`common/`). Every
+    /// file is read only up to [`MAX_FILE_BYTES`]; the folder's name is the
+    /// experiment's id.
+    pub fn from_folder(dir: &Path) -> Result<LabDesign, DesignError> {
+        let folder = |why: String| DesignError::Folder {
+            path: dir.display().to_string(),
+            why,
+        };
+        let lab = dir
+            .file_name()
+            .and_then(|n| n.to_str())
+            .ok_or_else(|| folder("is no folder with a name".to_owned()))?;
+        checked_id(lab).map_err(folder)?;
+        if !dir.join(EXPERIMENT_FILE).is_file() {
+            return Err(folder(format!("has no {EXPERIMENT_FILE}")));
+        }
+        let read = |path: &str| match path.strip_prefix(&format!("{lab}/")) {
+            Some(own) => read_bounded(&dir.join(own)),
+            None => shipped(path),
+        };
+        let source = dir.display().to_string();
+        LabDesign::from_files(lab, &format!("{lab}/{EXPERIMENT_FILE}"), &source, &read)
+    }
+
     fn from_files(
-        lab: &'static str,
+        lab: &str,
+        path: &str,
+        source: &str,
         read: &dyn Fn(&str) -> Result<String, DesignError>,
     ) -> Result<LabDesign, DesignError> {
-        let path = format!("{lab}/lab.toml");
-        let file: LabFile = toml::from_str(&read(&path)?).map_err(|e| DesignError::LabFile {
-            path: path.clone(),
+        let shown = format!("{source}/{}", path.split_once('/').map_or(path, |(_, p)| p));
+        let file: LabFile = toml::from_str(&read(path)?).map_err(|e| DesignError::LabFile {
+            path: shown.clone(),
             why: e.to_string(),
         })?;
         let charts = file
             .charts
             .iter()
             .map(|name| {
-                let own = read(&format!("{lab}/{name}.scxml"));
-                let text = own.or_else(|_| read(&format!("common/{name}.scxml")))?;
+                let text = match read(&format!("{lab}/{name}.scxml")) {
+                    Err(DesignError::Missing { .. }) => read(&format!("common/{name}.scxml")),
+                    own => own,
+                }
+                .map_err(|e| match e {
+                    DesignError::Missing { .. } => DesignError::LabFile {
+                        path: shown.clone(),
+                        why: format!(
+                            "chart '{name}': no {name}.scxml beside it, nor among the shared charts ({})",
+                            shared_charts().join(", ")
+                        ),
+                    },
+                    other => other,
+                })?;
                 Ok((name.clone(), text))
             })
             .collect::<Result<_, DesignError>>()?;
@@ -220,7 +335,8 @@ impl LabDesign {
             }
         }
         Ok(LabDesign {
-            lab,
+            lab: lab.to_owned(),
+            source: source.to_owned(),
             title: file.title,
             charts,
             uncontrollable,

@@ -5,10 +5,10 @@
 
 use vl_petri::{
     Added, Analysis, Constraint, Limits, Liveness, Net, Options, StateSpace, analyze, compose,
-    explore, firing_sequence, from_scxml, fuse_parallel_places, synthesize,
+    explore, firing_sequence, from_scxml, fuse_parallel_places, no_way_back, synthesize,
 };
 
-use super::{DesignError, LabDesign, Rule};
+use super::{DesignError, LabDesign, NEVER_FORBIDDEN, Rule};
 
 /// Reachable markings a lab's net may have before exploring gives up: the
 /// labs' nets have a few dozen.
@@ -20,6 +20,15 @@ pub struct Interleaving {
     /// The events, in order; the last breaks the rule (or reaches the
     /// marking that does).
     pub events: Vec<String>,
+}
+
+/// A firing sequence after which the session can never come back to
+/// where it started.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Stuck {
+    pub after: Interleaving,
+    /// Whether nothing at all can happen then.
+    pub dead_end: bool,
 }
 
 /// Everything the pipeline made of one lab's design.
@@ -42,6 +51,8 @@ pub struct Designed {
     /// For each rule, a firing sequence of the controlled net that breaks
     /// it: none, if the controllers work.
     pub still_bad: Vec<(Rule, Option<Interleaving>)>,
+    /// How the controlled net gets stuck, if it can.
+    pub stuck: Option<Stuck>,
     /// The controlled net, parallel places fused: what the Host runs.
     pub controlled: Net,
     pub controlled_analysis: Analysis,
@@ -49,7 +60,8 @@ pub struct Designed {
 
 /// Runs the whole pipeline on one lab's design.
 pub fn design(design: &LabDesign) -> Result<Designed, DesignError> {
-    let lab = design.lab.to_owned();
+    // Messages name where the design came from; nets are named by its id.
+    let lab = design.source.clone();
     let charts = design
         .charts
         .iter()
@@ -75,7 +87,15 @@ pub fn design(design: &LabDesign) -> Result<Designed, DesignError> {
         lab: lab.clone(),
         why: e.to_string(),
     })?;
-    composed.id = format!("{lab}-uncontrolled");
+    composed.id = format!("{}-uncontrolled", design.lab);
+    if let Some(event) = design.uncontrollable.iter().find(|event| {
+        labelled(&composed, event).is_empty() && !NEVER_FORBIDDEN.contains(&event.as_str())
+    }) {
+        return Err(DesignError::UnknownEvent {
+            lab,
+            event: event.clone(),
+        });
+    }
     for t in &mut composed.transitions {
         t.name = t.label.clone().unwrap_or_else(|| t.id.clone());
     }
@@ -113,12 +133,16 @@ pub fn design(design: &LabDesign) -> Result<Designed, DesignError> {
             rule: "(all)".to_owned(),
             why: e.to_string(),
         })?;
-    synthesised.id = format!("{lab}-controlled");
+    synthesised.id = format!("{}-controlled", design.lab);
     let added = per_rule(&mut synthesised, design, &constraints, added);
     let (_, analysis) = analysed(&synthesised, &lab, "controlled")?;
     let (checked, disabled) = without_dead(&synthesised, &analysis);
     let (space, _) = analysed(&checked, &lab, "controlled")?;
     let still_bad = breaks(&checked, &space, design, &constraints);
+    let stuck = no_way_back(&space).map(|s| Stuck {
+        after: events(&checked, &firing_sequence(&space, s)),
+        dead_end: space.successors(s).next().is_none(),
+    });
     let controlled = fuse_parallel_places(&checked);
     let (_, controlled_analysis) = analysed(&controlled, &lab, "controlled")?;
     Ok(Designed {
@@ -131,6 +155,7 @@ pub fn design(design: &LabDesign) -> Result<Designed, DesignError> {
         added,
         disabled,
         still_bad,
+        stuck,
         controlled,
         controlled_analysis,
     })
@@ -299,14 +324,19 @@ fn broken(net: &Net, space: &StateSpace, constraints: &[Constraint]) -> Option<I
                 }
             };
             let fired: Vec<usize> = firing_sequence(space, s).into_iter().chain(last).collect();
-            let tr = |t: &usize| &net.transitions[*t];
-            return Some(Interleaving {
-                events: fired
-                    .iter()
-                    .map(|t| tr(t).label.clone().unwrap_or_else(|| tr(t).id.clone()))
-                    .collect(),
-            });
+            return Some(events(net, &fired));
         }
     }
     None
+}
+
+/// The events of the transitions `fired` (a transition's label, or its id).
+fn events(net: &Net, fired: &[usize]) -> Interleaving {
+    let tr = |t: &usize| &net.transitions[*t];
+    Interleaving {
+        events: fired
+            .iter()
+            .map(|t| tr(t).label.clone().unwrap_or_else(|| tr(t).id.clone()))
+            .collect(),
+    }
 }

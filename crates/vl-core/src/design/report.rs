@@ -6,7 +6,7 @@ use std::path::Path;
 
 use vl_petri::{Added, Analysis, net_to_dot, render_svg, to_pnml};
 
-use super::pipeline::Interleaving;
+use super::pipeline::{Interleaving, Stuck};
 use super::{DesignError, Designed};
 
 impl Designed {
@@ -44,21 +44,61 @@ impl Designed {
     }
 
     /// Whether the controlled net has every property a lab needs, and no
-    /// rule can be broken in it. A chart that is several people's at once
-    /// holds several tokens, so only one-person designs need be safe.
+    /// rule can be broken in it.
     pub fn sound(&self) -> bool {
+        self.findings().is_empty()
+    }
+
+    /// What keeps the controlled net from being a lab's, each in words with
+    /// the firing sequence that shows it: a dead end or no way back to the
+    /// start (it is not reversible), an event that can never happen again,
+    /// a chart in two states at once (not safe: only a chart several
+    /// people share may hold more than one token), a rule still broken.
+    pub fn findings(&self) -> Vec<String> {
         let a = &self.controlled_analysis;
-        a.bounded
-            && (a.safe || !self.design.people.is_empty())
-            && a.live
-            && a.reversible
-            && !a.deadlock
-            && self.still_bad.iter().all(|(_, b)| b.is_none())
+        let mut found = Vec::new();
+        let shown = |i: &Interleaving| match i.events.is_empty() {
+            true => "at the start".to_owned(),
+            false => format!("after {}", i.events.join(" → ")),
+        };
+        match &self.stuck {
+            Some(Stuck {
+                after,
+                dead_end: true,
+            }) => found.push(format!("a dead end: {}, nothing can happen", shown(after))),
+            Some(Stuck { after, .. }) => found.push(format!(
+                "no way back: {}, the session can never return to where it started",
+                shown(after)
+            )),
+            None if !a.live => {
+                found.push("an event can never happen again once the session has begun".to_owned())
+            }
+            None => {}
+        }
+        if !a.bounded {
+            found.push("a place can hold ever more tokens".to_owned());
+        } else if !a.safe && self.design.people.is_empty() {
+            found.push(format!(
+                "a chart can be in {} states at once",
+                a.max_tokens_in_place
+            ));
+        }
+        for (rule, broken) in &self.still_bad {
+            if let Some(broken) = broken {
+                found.push(format!(
+                    "the rule '{}' ({}) is still broken {}",
+                    rule.rule,
+                    rule.why,
+                    shown(broken)
+                ));
+            }
+        }
+        found
     }
 
     fn report(&self) -> String {
         let d = &self.design;
-        let lab = d.lab;
+        let lab = &d.lab;
         let mut out = String::new();
         let _ = writeln!(out, "# {}: the lab's nets\n", d.title);
         let _ = writeln!(

@@ -12,7 +12,7 @@ use vl_report::table::{Report, Table};
 /// One lab's outcome, as the table and `--json` show it.
 #[derive(Debug, Serialize, schemars::JsonSchema)]
 pub struct LabRow {
-    pub lab: &'static str,
+    pub lab: String,
     pub charts: usize,
     /// Rules the uncontrolled composition can break.
     pub broken_without: usize,
@@ -75,7 +75,7 @@ impl Report for NetsReport {
         ]);
         for l in &self.labs {
             table.row(vec![
-                l.lab.to_owned(),
+                l.lab.clone(),
                 l.charts.to_string(),
                 format!("{} of {}", l.broken_without, l.rules),
                 l.places.to_string(),
@@ -114,7 +114,7 @@ impl Report for NetsReport {
             }
         }
         for l in &self.labs {
-            let dir = self.out.join(l.lab);
+            let dir = self.out.join(&l.lab);
             table = table.note(if self.check {
                 match l.files.is_empty() {
                     true => format!("{}: up to date", dir.display()),
@@ -131,6 +131,103 @@ impl Report for NetsReport {
     }
 }
 
+/// `vl lab check`: each experiment folder, designed and verified, or
+/// refused.
+#[derive(Debug, Serialize, schemars::JsonSchema)]
+pub struct CheckReport {
+    pub folders: Vec<FolderCheck>,
+}
+
+/// One folder's verdict.
+#[derive(Debug, Serialize, schemars::JsonSchema)]
+pub struct FolderCheck {
+    pub folder: PathBuf,
+    /// Its id and title, once its files were read.
+    pub id: Option<String>,
+    pub title: Option<String>,
+    pub charts: usize,
+    pub rules: usize,
+    /// Reachable markings of its controlled net.
+    pub markings: usize,
+    /// Why it could not be designed at all (a file, a chart, a rule).
+    pub refused: Option<String>,
+    /// What keeps its controlled net from being a lab's, each with the
+    /// firing sequence that shows it.
+    pub findings: Vec<String>,
+}
+
+impl FolderCheck {
+    pub fn passed(&self) -> bool {
+        self.refused.is_none() && self.findings.is_empty()
+    }
+
+    /// The verdict on `folder`, whatever became of it.
+    pub fn of(folder: &Path) -> FolderCheck {
+        let mut check = FolderCheck {
+            folder: folder.to_path_buf(),
+            id: None,
+            title: None,
+            charts: 0,
+            rules: 0,
+            markings: 0,
+            refused: None,
+            findings: Vec::new(),
+        };
+        let designed = super::LabDesign::from_folder(folder).and_then(|lab| {
+            check.id = Some(lab.lab.clone());
+            check.title = Some(lab.title.clone());
+            check.charts = lab.charts.len();
+            check.rules = lab.controllers.len();
+            super::design(&lab)
+        });
+        match designed {
+            Ok(designed) => {
+                check.markings = designed.controlled_analysis.states;
+                check.findings = designed.findings();
+            }
+            Err(e) => check.refused = Some(e.to_string()),
+        }
+        check
+    }
+}
+
+impl Report for CheckReport {
+    fn table(&self) -> Table {
+        let mut table = Table::columns(&["folder", "id", "charts", "rules", "markings", "verdict"]);
+        for f in &self.folders {
+            table.row(vec![
+                f.folder.display().to_string(),
+                f.id.clone().unwrap_or_default(),
+                f.charts.to_string(),
+                f.rules.to_string(),
+                f.markings.to_string(),
+                match (&f.refused, f.findings.len()) {
+                    (Some(_), _) => "refused".to_owned(),
+                    (None, 0) => "passes".to_owned(),
+                    (None, n) => format!("fails ({n})"),
+                },
+            ]);
+        }
+        let mut table = table.title(
+            "each experiment folder's charts through the pipeline: composed with the shared \
+             charts, given its controllers, and verified (bounded, safe, no dead end, a way \
+             back to the start from everywhere, every rule kept):",
+        );
+        for f in &self.folders {
+            let name =
+                f.id.clone()
+                    .unwrap_or_else(|| f.folder.display().to_string());
+            if let Some(why) = &f.refused {
+                table = table.note(format!("{name}: refused: {why}"));
+            }
+            for finding in &f.findings {
+                table = table.note(format!("{name}: {finding}"));
+            }
+        }
+        table
+    }
+}
+
 impl Designed {
     /// The lab's outcome, with the `files` written (or found different).
     pub fn summary(&self, files: Vec<String>) -> LabRow {
@@ -138,7 +235,7 @@ impl Designed {
         let count =
             |v: &[(Rule, Option<Interleaving>)]| v.iter().filter(|(_, bad)| bad.is_some()).count();
         LabRow {
-            lab: self.design.lab,
+            lab: self.design.lab.clone(),
             charts: self.design.charts.len(),
             broken_without: count(&self.bad),
             rules: self.bad.len(),
