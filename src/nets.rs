@@ -3,10 +3,10 @@
 //! lab's charts, `crates/vl-core/nets/<lab>/`, where the Host builds them in.
 //! `vl lab check`: an experiment folder through the same pipeline, verified.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Subcommand;
 use vl_core::{CheckReport, FolderCheck, LabDesign, NetsReport};
 
@@ -44,6 +44,15 @@ pub(crate) enum LabCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Make a new experiment folder ID in DIR, from the mobile-robotics
+    /// lab's charts and controllers: it passes `vl lab check` as made.
+    New {
+        /// The experiment's id: a lowercase word (`-` and `_` allowed).
+        id: String,
+        /// Where the folder is made.
+        #[arg(long, default_value = ".", value_hint = clap::ValueHint::DirPath)]
+        dir: PathBuf,
+    },
 }
 
 pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
@@ -55,6 +64,7 @@ pub(crate) fn run(command: LabCommand) -> Result<ExitCode> {
             json,
         } => (out, charts, check, json),
         LabCommand::Check { folders, json } => return check_folders(&folders, json),
+        LabCommand::New { id, dir } => return new_folder(&id, &dir),
     };
     let designs = match &charts {
         Some(dir) => LabDesign::load(dir),
@@ -103,4 +113,27 @@ fn check_folders(folders: &[PathBuf], json: bool) -> Result<ExitCode> {
     } else {
         ExitCode::FAILURE
     })
+}
+
+/// `vl lab new`: the folder, written only where nothing is yet.
+fn new_folder(id: &str, dir: &Path) -> Result<ExitCode> {
+    let files = LabDesign::scaffold(id).map_err(bad_input)?;
+    let folder = dir.join(id);
+    if folder.exists() {
+        return Err(bad_input(format!(
+            "{} is there already: give another id or --dir",
+            folder.display()
+        ))
+        .into());
+    }
+    std::fs::create_dir_all(&folder)
+        .with_context(|| format!("cannot make {}", folder.display()))?;
+    for (name, text) in &files {
+        let file = folder.join(name);
+        std::fs::write(&file, text).with_context(|| format!("cannot write {}", file.display()))?;
+    }
+    let names: Vec<&str> = files.iter().map(|(n, _)| n.as_str()).collect();
+    println!("made {}: {}", folder.display(), names.join(", "));
+    println!("check it with: vl lab check {}", folder.display());
+    Ok(ExitCode::SUCCESS)
 }

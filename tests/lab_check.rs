@@ -2,7 +2,8 @@
 //! charts) through the thesis's pipeline, verified from outside as a lab
 //! developer would: a sound folder passes, one whose chart can wedge the
 //! session is refused with the firing sequence that does it, and bad
-//! folders are refused naming the file and the line or the event.
+//! folders are refused naming the file and the line or the event; `vl lab
+//! new` makes a folder that passes as made.
 
 use std::path::{Path, PathBuf};
 
@@ -191,4 +192,26 @@ fn bad_folders_are_refused_naming_the_file_and_the_line_or_the_event() {
             folder.display()
         );
     }
+}
+
+#[test]
+fn a_new_folder_passes_the_check_as_made_and_is_never_made_over_another() {
+    let root = scratch("lab-new");
+    let out = vl(&["lab", "new", "shuttle", "--dir", common::s(&root)]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let made = root.join("shuttle");
+    let toml = std::fs::read_to_string(made.join("experiment.toml")).unwrap();
+    assert!(toml.contains("title = \"shuttle: "), "{toml}");
+    let (code, report) = check(&[&made]);
+    assert_eq!(code, Some(0), "{report}");
+    assert_eq!(report["folders"][0]["id"], "shuttle");
+    common::refused(
+        &["lab", "new", "shuttle", "--dir", common::s(&root)],
+        "is there already",
+    );
+    common::refused(
+        &["lab", "new", "Shuttle", "--dir", common::s(&root)],
+        "'Shuttle' is no experiment id",
+    );
+    assert!(!root.join("Shuttle").exists());
 }

@@ -296,6 +296,40 @@ impl LabDesign {
         LabDesign::from_files(lab, &format!("{lab}/{EXPERIMENT_FILE}"), &source, &read)
     }
 
+    /// The files of a new experiment folder `id`: the mobile-robotics lab's
+    /// own charts and its `experiment.toml`, retitled, to change from there.
+    /// It passes `vl lab check` as it is.
+    pub fn scaffold(id: &str) -> Result<Vec<(String, String)>, DesignError> {
+        checked_id(id).map_err(|why| DesignError::Folder {
+            path: id.to_owned(),
+            why,
+        })?;
+        let from = Experiment::Navigation.id();
+        let mut files = Vec::new();
+        for (path, text) in SHIPPED {
+            let Some(name) = path.strip_prefix(&format!("{from}/")) else {
+                continue;
+            };
+            if name == "lab.toml" {
+                let retitled: String = text
+                    .lines()
+                    .map(|line| match line.starts_with("title = ") {
+                        true => format!("title = \"{id}: plan a path and follow it\"\n"),
+                        false => format!("{line}\n"),
+                    })
+                    .collect();
+                let header = format!(
+                    "# The experiment `{id}`, made by `vl lab new` from the mobile-robotics lab:\n\
+                     # change its charts and controllers, then `vl lab check` this folder.\n"
+                );
+                files.push((EXPERIMENT_FILE.to_owned(), header + &retitled));
+            } else {
+                files.push((name.to_owned(), (*text).to_owned()));
+            }
+        }
+        Ok(files)
+    }
+
     fn from_files(
         lab: &str,
         path: &str,
