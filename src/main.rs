@@ -85,7 +85,8 @@ enum Command {
     /// Not in this vl: it was built without the `host` feature.
     #[cfg(not(feature = "host"))]
     Media(Missing),
-    /// The labs' own nets: statecharts to the controlled nets the Host runs.
+    /// The labs' own nets, and experiment folders: statecharts to the
+    /// controlled nets the Host runs, checked.
     #[command(subcommand)]
     Lab(nets::LabCommand),
     /// Analyse Petri nets (PNML).

@@ -32,11 +32,12 @@ pub(crate) enum LabCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Design and verify experiment folders (each an experiment.toml beside
-    /// its charts): composed with the shared charts, given its controllers,
-    /// and checked bounded, safe, free of dead ends, able to return to its
-    /// start, every rule kept. Fails naming the file and line, or the
-    /// firing sequence that shows what is wrong.
+    /// Design and verify experiment folders, saying what is wrong with each.
+    ///
+    /// Each folder (an experiment.toml beside its charts) is composed with
+    /// the shared charts, given its controllers, and checked bounded, safe,
+    /// free of dead ends, able to return to its start, every rule kept. A
+    /// refusal names the file and the line, or the firing sequence.
     Check {
         /// The experiment folders.
         #[arg(required = true, value_hint = clap::ValueHint::DirPath)]
