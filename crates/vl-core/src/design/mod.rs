@@ -248,15 +248,10 @@ fn read_bounded(file: &Path) -> Result<String, DesignError> {
 impl LabDesign {
     /// Every lab's design as shipped.
     pub fn shipped() -> Result<Vec<LabDesign>, DesignError> {
-        let read = |path: &str| shipped(path);
         designs()
             .map(|lab| {
-                LabDesign::from_files(
-                    lab,
-                    &format!("{lab}/lab.toml"),
-                    "crates/vl-core/nets",
-                    &read,
-                )
+                let source = format!("crates/vl-core/nets/{lab}");
+                LabDesign::from_files(lab, &format!("{lab}/lab.toml"), &source, &shipped)
             })
             .collect()
     }
@@ -265,9 +260,11 @@ impl LabDesign {
     /// `crates/vl-core/nets/`).
     pub fn load(dir: &Path) -> Result<Vec<LabDesign>, DesignError> {
         let read = |path: &str| read_bounded(&dir.join(path));
-        let source = dir.display().to_string();
         designs()
-            .map(|lab| LabDesign::from_files(lab, &format!("{lab}/lab.toml"), &source, &read))
+            .map(|lab| {
+                let source = dir.join(lab).display().to_string();
+                LabDesign::from_files(lab, &format!("{lab}/lab.toml"), &source, &read)
+            })
             .collect()
     }
 
@@ -330,13 +327,15 @@ impl LabDesign {
         Ok(files)
     }
 
+    /// The design in `path` (`LAB/FILE`, as `read` takes it), from the
+    /// folder `source` names in messages.
     fn from_files(
         lab: &str,
         path: &str,
         source: &str,
         read: &dyn Fn(&str) -> Result<String, DesignError>,
     ) -> Result<LabDesign, DesignError> {
-        let shown = format!("{source}/{}", path.split_once('/').map_or(path, |(_, p)| p));
+        let shown = format!("{source}/{}", path.rsplit('/').next().unwrap_or(path));
         let file: LabFile = toml::from_str(&read(path)?).map_err(|e| DesignError::LabFile {
             path: shown.clone(),
             why: e.to_string(),

@@ -434,12 +434,11 @@ impl Control {
         for sighting in seen {
             let at = self.clock(sighting.taken);
             let fold = self.localiser.sighting(at, sighting.pose);
+            if fold != Fold::Reset || !sighting.dated || self.run.is_none() {
+                continue;
+            }
             let (moved, turned) = self.localiser.overruled();
-            if fold == Fold::Reset
-                && sighting.dated
-                && self.run.is_some()
-                && (moved > CONTRADICTION_MM || turned > CONTRADICTION_RAD)
-            {
+            if moved > CONTRADICTION_MM || turned > CONTRADICTION_RAD {
                 let why = format!(
                     "the camera keeps seeing the robot elsewhere: it moved the estimate {moved:.0} mm and turned it {turned:.2} rad in 3 s"
                 );
