@@ -138,7 +138,8 @@ impl AccessArgs {
         {
             let options = LtiOptions {
                 users: users.clone(),
-                rubric: self.rubric.unwrap_or_default(),
+                rubric: self.rubric,
+                experiments: config.experiments.clone(),
             };
             let lti = Lti::new(options, config.audit.clone()).map_err(bad_input)?;
             config.extensions.push(lti);

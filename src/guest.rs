@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use anyhow::Result;
 use vl_client::{Login, Script, ScriptError, ScriptReport as RunReport};
-use vl_core::{Experiment, Role};
+use vl_core::{ExperimentId, Role};
 use vl_guest::{PadChoice, WindowError};
 #[cfg(feature = "host")]
 use vl_host::{Host, HostConfig, Media, SimLab};
@@ -14,8 +14,9 @@ use vl_host::{Host, HostConfig, Media, SimLab};
 use crate::login::LoginArgs;
 #[cfg(feature = "host")]
 use crate::media::LinkArgs;
+use crate::named::ExperimentParser;
 use crate::report::emit;
-use crate::{BadInput, bad_input, named};
+use crate::{BadInput, bad_input};
 
 #[derive(clap::Args)]
 pub(crate) struct GuestArgs {
@@ -46,6 +47,11 @@ pub(crate) struct GuestArgs {
     /// connecting: in the window, or with --headless to its end.
     #[arg(long, value_hint = clap::ValueHint::FilePath)]
     replay: Option<std::path::PathBuf>,
+    /// Experiment to mount for a headless run, by id (a shipped one, or
+    /// one the Host serves from a folder): the first the Host offers when
+    /// not given.
+    #[arg(long, value_parser = ExperimentParser::AnyId)]
+    experiment: Option<ExperimentId>,
     #[command(flatten)]
     run: RunArgs,
 }
@@ -78,21 +84,27 @@ pub(crate) struct DemoArgs {
     seed: u64,
     #[command(flatten)]
     link: LinkArgs,
+    /// Experiment to mount for a headless run: the first shipped when not
+    /// given.
+    #[arg(long, value_parser = ExperimentParser::Shipped)]
+    experiment: Option<ExperimentId>,
     #[command(flatten)]
     run: RunArgs,
 }
 
 #[derive(clap::Args)]
 pub(crate) struct RunArgs {
-    /// Experiment to mount for a headless run.
-    #[arg(long, value_parser = named::<Experiment>(), default_value = "navigation")]
-    experiment: Experiment,
     /// Give up a headless run (stop watching, as an observer) after this many seconds.
     #[arg(long, default_value_t = 60.0)]
     timeout: f64,
     /// Where a headless run drives to, x,y mm (default: the arena's goal).
     #[arg(long, allow_hyphen_values = true)]
     goal: Option<vl_core::Point>,
+    /// The points a headless run visits in order, for an experiment that
+    /// defines waypoints: x,y mm each, separated by `;` (default: the
+    /// fewest it visits, along the path to the goal).
+    #[arg(long, value_delimiter = ';', allow_hyphen_values = true)]
+    waypoints: Vec<vl_core::Point>,
     /// After a headless run, download its recording into this folder.
     #[arg(long, value_hint = clap::ValueHint::DirPath)]
     download_to: Option<std::path::PathBuf>,
@@ -132,7 +144,7 @@ pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Resul
         return Ok(ExitCode::SUCCESS);
     }
     if args.headless {
-        let script = script(&args.run, args.login.login()?, !args.json);
+        let script = script(&args.run, &args.experiment, args.login.login()?, !args.json);
         if role == Role::Observer {
             let watched = interruptible(runtime, vl_client::watch(&args.connect, &script))?
                 .map_err(guest_error)?;
@@ -191,7 +203,7 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
         );
     }
     if args.headless || !has_display {
-        let script = script(&args.run, Login::default(), !args.json);
+        let script = script(&args.run, &args.experiment, Login::default(), !args.json);
         let report = interruptible(runtime, vl_client::run_script(&url, &script))??;
         return finish(&report, args.json);
     }
@@ -202,10 +214,16 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
     Ok(ExitCode::SUCCESS)
 }
 
-fn script(run: &RunArgs, login: Login, progress: bool) -> Script {
+fn script(
+    run: &RunArgs,
+    experiment: &Option<ExperimentId>,
+    login: Login,
+    progress: bool,
+) -> Script {
     Script {
-        experiment: run.experiment,
+        experiment: experiment.clone(),
         goal: run.goal.map(vl_core::Goal::at),
+        waypoints: run.waypoints.clone(),
         login,
         timeout: Duration::from_secs_f64(run.timeout.clamp(0.0, 1e6)),
         progress,

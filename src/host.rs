@@ -2,17 +2,18 @@
 //! measure how it answers (`vl host bench`).
 
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::ValueHint;
-use vl_core::{Experiment, RobotModel};
+use vl_core::{ExperimentId, Experiments, RobotModel};
 use vl_host::{CameraSource, Host, HostConfig, LabSpec, RobotSpec};
 
 use crate::access::AccessArgs;
 use crate::input::{SceneArgs, arena_from, load_calibration, load_robot_model};
 use crate::media::LinkArgs;
+use crate::named::ExperimentParser;
 use crate::report::emit;
 use crate::{BadInput, bad_input, named};
 
@@ -197,14 +198,18 @@ pub(crate) struct HostArgs {
     /// starts dead reckoning at its start pose.
     #[arg(long, default_value = "navigation", value_hint = ValueHint::AnyPath)]
     arena: String,
-    /// The experiments to offer, comma-separated.
+    /// The experiments to offer, comma-separated: ids, and experiment
+    /// folders (or folders of them) to serve beside the shipped ones. With
+    /// ids named, exactly those are offered (a folder's by its id); each
+    /// folder is designed and verified first. Every shipped one when not
+    /// given.
     #[arg(
         long,
         value_delimiter = ',',
-        value_parser = named::<Experiment>(),
-        default_value = "navigation,teleoperation"
+        value_parser = ExperimentChoiceParser,
+        value_hint = ValueHint::AnyPath
     )]
-    experiments: Vec<Experiment>,
+    experiments: Vec<ExperimentChoice>,
     /// Address for Guests, browsers (the web page) and Foxglove alike; port 0 picks a free one.
     #[arg(long, default_value = "127.0.0.1:7400", value_parser = vl_core::listen_address)]
     listen: SocketAddr,
@@ -304,13 +309,70 @@ fn recordings(args: &HostArgs) -> Result<Option<vl_record::Catalogue>> {
     Ok(settings.catalogue().map_err(bad_input)?)
 }
 
+/// An experiment `--experiments` names: a shipped one (or a folder's) by
+/// id, or a folder.
+#[derive(Debug, Clone)]
+enum ExperimentChoice {
+    Id(ExperimentId),
+    Folder(PathBuf),
+}
+
+/// Parses a choice: a folder when it looks like a path or is a directory
+/// here, else an id (a shipped one, or a folder's); the shipped ones are
+/// listed in `--help`.
+#[derive(Clone, Copy)]
+struct ExperimentChoiceParser;
+
+impl clap::builder::TypedValueParser for ExperimentChoiceParser {
+    type Value = ExperimentChoice;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> Result<ExperimentChoice, clap::Error> {
+        let text = value.to_string_lossy();
+        let path = Path::new(value);
+        if text.contains(std::path::MAIN_SEPARATOR) || text.starts_with('.') || path.is_dir() {
+            return Ok(ExperimentChoice::Folder(path.to_path_buf()));
+        }
+        ExperimentParser::AnyId
+            .parse_ref(cmd, arg, value)
+            .map(ExperimentChoice::Id)
+    }
+
+    fn possible_values(
+        &self,
+    ) -> Option<Box<dyn Iterator<Item = clap::builder::PossibleValue> + '_>> {
+        ExperimentParser::AnyId.possible_values()
+    }
+}
+
+/// What `--experiments` offers: the shipped experiments and its folders',
+/// each verified, then only the ids it names if it names any.
+fn offered(choices: &[ExperimentChoice]) -> Result<Experiments> {
+    let (mut ids, mut folders) = (Vec::new(), Vec::new());
+    for choice in choices {
+        match choice {
+            ExperimentChoice::Id(id) => ids.push(id.clone()),
+            ExperimentChoice::Folder(folder) => folders.push(folder.clone()),
+        }
+    }
+    let all = Experiments::shipped()
+        .with_folders(&folders)
+        .map_err(|e| BadInput(format!("--experiments: {e}")))?;
+    if ids.is_empty() {
+        return Ok(all);
+    }
+    all.only(&ids)
+        .map_err(|e| BadInput(format!("--experiments: {e}")).into())
+}
+
 /// The Host's configuration from its flags, checked before anything starts.
 fn host_config(args: &HostArgs) -> Result<HostConfig> {
-    if args.experiments.is_empty() {
-        bail!(BadInput("--experiments names none to offer".into()));
-    }
     let mut config = HostConfig {
-        experiments: args.experiments.clone(),
+        experiments: offered(&args.experiments)?,
         lease: args.lease,
         slot: args.slot,
         ping_timeout: args.ping_timeout,
@@ -357,6 +419,13 @@ pub(crate) async fn host(args: HostArgs) -> Result<()> {
     if let Some(kept) = &config.recordings {
         eprintln!("vl host: recording every run in {}", kept.dir().display());
     }
+    let ids: Vec<String> = config
+        .experiments
+        .ids()
+        .iter()
+        .map(|id| id.to_string())
+        .collect();
+    eprintln!("vl host: offering {}", ids.join(", "));
     let robot = robot_spec(&args)?;
     plugs::camera_fits(&args, &robot)?;
     let spec = LabSpec {

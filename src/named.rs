@@ -6,7 +6,7 @@ use std::marker::PhantomData;
 
 use clap::builder::{PossibleValue, TypedValueParser};
 
-use vl_core::Named;
+use vl_core::{ExperimentId, Experiments, Named};
 
 /// Parses a [`Named`] value by its id, listing the ids in `--help` and in
 /// the error for one that names nothing.
@@ -28,34 +28,87 @@ impl<T: Named + Send + Sync + Clone> TypedValueParser for NamedParser<T> {
     ) -> Result<T, clap::Error> {
         let text = value.to_string_lossy();
         T::from_id(&text).map_err(|e| {
-            let mut error = clap::Error::new(clap::error::ErrorKind::InvalidValue).with_cmd(cmd);
-            if let Some(arg) = arg {
-                error.insert(
-                    clap::error::ContextKind::InvalidArg,
-                    clap::error::ContextValue::String(arg.to_string()),
-                );
-            }
-            error.insert(
-                clap::error::ContextKind::InvalidValue,
-                clap::error::ContextValue::String(text.into_owned()),
-            );
-            error.insert(
-                clap::error::ContextKind::ValidValue,
-                clap::error::ContextValue::Strings(e.known.iter().map(|s| s.to_string()).collect()),
-            );
-            if let Some(now) = e.now {
-                error.insert(
-                    clap::error::ContextKind::Suggested,
-                    clap::error::ContextValue::StyledStrs(vec![
-                        format!("'{}' is called '{now}' now", e.name).into(),
-                    ]),
-                );
-            }
-            error
+            let known: Vec<String> = e.known.iter().map(|s| s.to_string()).collect();
+            unknown(cmd, arg, &e.name, known, e.now)
         })
     }
 
     fn possible_values(&self) -> Option<Box<dyn Iterator<Item = PossibleValue> + '_>> {
         Some(Box::new(T::ALL.iter().map(|v| PossibleValue::new(v.id()))))
     }
+}
+
+/// Parses an experiment's id, listing the ones vl ships in `--help`:
+/// only theirs (`Shipped`, an unknown id refused naming them), or any a
+/// Host may offer from a folder (`AnyId`).
+#[derive(Clone, Copy)]
+pub(crate) enum ExperimentParser {
+    Shipped,
+    AnyId,
+}
+
+impl TypedValueParser for ExperimentParser {
+    type Value = ExperimentId;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> Result<ExperimentId, clap::Error> {
+        let text = value.to_string_lossy();
+        let shipped = Experiments::shipped();
+        match (self, shipped.get(&text)) {
+            (_, Ok(offered)) => Ok(offered.experiment().id.clone()),
+            (ExperimentParser::AnyId, Err(e)) if e.now.is_none() => ExperimentId::new(&text)
+                .map_err(|bad| {
+                    clap::Error::raw(clap::error::ErrorKind::InvalidValue, format!("{bad}\n"))
+                        .with_cmd(cmd)
+                }),
+            (_, Err(e)) => Err(unknown(cmd, arg, &e.name, e.known, e.now.as_deref())),
+        }
+    }
+
+    fn possible_values(&self) -> Option<Box<dyn Iterator<Item = PossibleValue> + '_>> {
+        Some(Box::new(
+            Experiments::shipped()
+                .experiments()
+                .map(|e| PossibleValue::new(e.id.as_str())),
+        ))
+    }
+}
+
+/// clap's error for `name`, which names none of `known`: with what it is
+/// called `now`, if it once named one.
+fn unknown(
+    cmd: &clap::Command,
+    arg: Option<&clap::Arg>,
+    name: &str,
+    known: Vec<String>,
+    now: Option<&str>,
+) -> clap::Error {
+    let mut error = clap::Error::new(clap::error::ErrorKind::InvalidValue).with_cmd(cmd);
+    if let Some(arg) = arg {
+        error.insert(
+            clap::error::ContextKind::InvalidArg,
+            clap::error::ContextValue::String(arg.to_string()),
+        );
+    }
+    error.insert(
+        clap::error::ContextKind::InvalidValue,
+        clap::error::ContextValue::String(name.to_owned()),
+    );
+    error.insert(
+        clap::error::ContextKind::ValidValue,
+        clap::error::ContextValue::Strings(known),
+    );
+    if let Some(now) = now {
+        error.insert(
+            clap::error::ContextKind::Suggested,
+            clap::error::ContextValue::StyledStrs(vec![
+                format!("'{name}' is called '{now}' now").into(),
+            ]),
+        );
+    }
+    error
 }

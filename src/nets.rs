@@ -22,8 +22,10 @@ pub(crate) enum LabCommand {
         /// charts, which is where the Host's built-in nets come from).
         #[arg(long, default_value = "crates/vl-core/nets")]
         out: PathBuf,
-        /// The charts' folder (laid out as crates/vl-core/nets/); the
-        /// shipped charts when not given.
+        /// A folder of designs: experiment folders (each an
+        /// experiment.toml beside its charts), and the access design
+        /// (access/lab.toml) and shared charts (common/) where they differ
+        /// from the shipped ones; everything shipped when not given.
         #[arg(long)]
         charts: Option<PathBuf>,
         /// Compare with what is in --out instead of writing; fail on a difference.
@@ -45,8 +47,8 @@ pub(crate) enum LabCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Make a new experiment folder ID in DIR, from the mobile-robotics
-    /// lab's charts and controllers: it passes `vl lab check` as made.
+    /// Make a new experiment folder ID in DIR, from the first shipped
+    /// experiment's charts and controllers: it passes `vl lab check` as made.
     New {
         /// The experiment's id: a lowercase word (`-` and `_` allowed).
         id: String,

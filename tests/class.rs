@@ -11,7 +11,7 @@ use egui::Vec2;
 use egui_kittest::kittest::Queryable;
 use serde_json::{Value, json};
 use vl_client::Login;
-use vl_core::{Experiment, Role};
+use vl_core::Role;
 use vl_guest::GuestApp;
 use vl_host::{AccountRole, Audit, HostConfig, Users};
 
@@ -102,7 +102,7 @@ fn a_class_takes_turns_without_dead_ends() {
         app.session()
             .lab
             .as_ref()
-            .is_some_and(|l| l.experiment == Experiment::Navigation)
+            .is_some_and(|l| l.experiment == *"navigation")
             && app.session().ready()
     });
     // The window names the next action.

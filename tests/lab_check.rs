@@ -11,11 +11,8 @@ use serde_json::Value;
 
 use crate::common::{self, scratch, vl};
 
-/// The shipped navigation lab's charts and design.
-const NAVIGATION: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/crates/vl-core/nets/navigation"
-);
+/// The shipped navigation experiment's folder.
+const NAVIGATION: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/experiments/navigation");
 
 /// A folder `id` under `root` holding the navigation lab's design as an
 /// experiment folder, then changed by `change` (file name, old, new).
@@ -25,11 +22,6 @@ fn folder(root: &Path, id: &str, change: &[(&str, &str, &str)]) -> PathBuf {
     for entry in std::fs::read_dir(NAVIGATION).unwrap() {
         let path = entry.unwrap().path();
         let name = path.file_name().unwrap().to_str().unwrap().to_owned();
-        let name = match name.as_str() {
-            "lab.toml" => "experiment.toml".to_owned(),
-            n if n.ends_with(".scxml") => name,
-            _ => continue,
-        };
         std::fs::copy(&path, dir.join(name)).unwrap();
     }
     for (file, old, new) in change {
@@ -167,31 +159,17 @@ fn bad_folders_are_refused_naming_the_file_and_the_line_or_the_event() {
         ),
         (root.join("access"), "is the shipped access charts' folder"),
         (root.join("nothing-here"), "has no experiment.toml"),
+        (huge(&root), "huge/following.scxml: larger than the 256 KiB"),
     ];
-    std::fs::create_dir_all(root.join("access")).unwrap();
+    for dir in ["access", "nothing-here"] {
+        std::fs::create_dir_all(root.join(dir)).unwrap();
+    }
     std::fs::write(
         root.join("access/experiment.toml"),
         "title = \"x\"\ncharts = []\n",
     )
     .unwrap();
-    std::fs::create_dir_all(root.join("nothing-here")).unwrap();
-    // A chart of 50 MB is refused unread.
-    let huge = folder(&root, "huge", &[]);
-    let chart = std::fs::File::create(huge.join("following.scxml")).unwrap();
-    chart.set_len(50 << 20).unwrap();
-    let mut cases = cases;
-    cases.push((huge, "huge/following.scxml: larger than the 256 KiB"));
-    let folders: Vec<&Path> = cases.iter().map(|(f, _)| f.as_path()).collect();
-    let (code, report) = check(&folders);
-    assert_eq!(code, Some(1), "{report}");
-    for ((folder, needle), verdict) in cases.iter().zip(report["folders"].as_array().unwrap()) {
-        let refused = verdict["refused"].as_str().unwrap_or_default();
-        assert!(
-            refused.contains(needle),
-            "{}: {needle:?} not in {verdict}",
-            folder.display()
-        );
-    }
+    refused_as(&cases);
 }
 
 #[test]
@@ -214,4 +192,77 @@ fn a_new_folder_passes_the_check_as_made_and_is_never_made_over_another() {
         "'Shuttle' is no experiment id",
     );
     assert!(!root.join("Shuttle").exists());
+}
+
+/// A folder with twenty-four switches nothing orders beside the navigation
+/// charts: more markings than verifying may take.
+fn vast(root: &Path) -> PathBuf {
+    let switches: Vec<String> = (0..24).map(|i| format!("switch{i}")).collect();
+    let quoted: Vec<String> = switches.iter().map(|c| format!("\"{c}\"")).collect();
+    let vast = folder(
+        root,
+        "vast",
+        &[(
+            "experiment.toml",
+            r#""following"]"#,
+            &format!(r#""following", {}]"#, quoted.join(", ")),
+        )],
+    );
+    for chart in &switches {
+        let scxml = format!(
+            "<scxml xmlns=\"http://www.w3.org/2005/07/scxml\" version=\"1.0\" name=\"{chart}\" initial=\"off\">\n\
+             <state id=\"off\"><transition event=\"flip_{chart}\" target=\"on\"/></state>\n\
+             <state id=\"on\"><transition event=\"flip_{chart}\" target=\"off\"/></state>\n</scxml>\n"
+        );
+        std::fs::write(vast.join(format!("{chart}.scxml")), scxml).unwrap();
+    }
+    vast
+}
+
+/// A folder whose chart is 50 MB: refused unread.
+fn huge(root: &Path) -> PathBuf {
+    let huge = folder(root, "huge", &[]);
+    let chart = std::fs::File::create(huge.join("following.scxml")).unwrap();
+    chart.set_len(50 << 20).unwrap();
+    huge
+}
+
+/// Declarations vl cannot run: a definition kind it does not know, a chart
+/// waiting for an event of a component the run lacks, more markings than
+/// verifying may take.
+#[test]
+fn folders_declaring_what_vl_cannot_run_are_refused() {
+    let root = scratch("lab-check-undeclared");
+    let kind = [("experiment.toml", r#"kind = "path""#, r#"kind = "spline""#)];
+    let run = [(
+        "experiment.toml",
+        r#"["plan", "forecast", "follow"]"#,
+        r#"["plan", "follow"]"#,
+    )];
+    refused_as(&[
+        (
+            folder(&root, "bad-kind", &kind),
+            "unknown variant `spline`, expected one of `goal`, `waypoints`, `path`, `obstacles`",
+        ),
+        (
+            folder(&root, "no-forecast", &run),
+            "a chart waits for 'forecast_passed', which only the component forecast fires",
+        ),
+        (vast(&root), "its state space is too large to verify"),
+    ]);
+}
+
+/// `vl lab check` refuses every folder of `cases`, each saying its needle.
+fn refused_as(cases: &[(PathBuf, &str)]) {
+    let folders: Vec<&Path> = cases.iter().map(|(f, _)| f.as_path()).collect();
+    let (code, report) = check(&folders);
+    assert_eq!(code, Some(1), "{report}");
+    for ((folder, needle), verdict) in cases.iter().zip(report["folders"].as_array().unwrap()) {
+        let refused = verdict["refused"].as_str().unwrap_or_default();
+        assert!(
+            refused.contains(needle),
+            "{}: {needle:?} not in {verdict}",
+            folder.display()
+        );
+    }
 }

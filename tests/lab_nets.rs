@@ -589,7 +589,7 @@ fn random_actions_over_the_socket_keep_the_host_and_its_net_in_step() {
 fn an_altered_chart_changes_the_running_supervisor() {
     let dir = common::scratch("lab-nets-altered");
     let charts = dir.join("charts");
-    copy_dir(&repo().join("crates/vl-core/nets"), &charts);
+    copy_designs(&charts);
     let chart = charts.join("common/define.scxml");
     let text = std::fs::read_to_string(&chart).unwrap();
     let altered = text.replace(
@@ -648,7 +648,7 @@ fn an_altered_chart_changes_the_running_supervisor() {
 fn an_altered_access_design_changes_who_the_host_lets_in_line() {
     let dir = common::scratch("lab-nets-access");
     let charts = dir.join("charts");
-    copy_dir(&repo().join("crates/vl-core/nets"), &charts);
+    copy_designs(&charts);
     let design = charts.join("access/lab.toml");
     let mut text = std::fs::read_to_string(&design).unwrap();
     text.push_str(
@@ -730,6 +730,21 @@ fn design_nets(charts: &Path, out: &Path) -> std::process::Output {
     run
 }
 
+/// The shipped designs, as `vl lab nets --charts` takes them: the shared
+/// charts and access design, and the experiment folders beside them.
+fn copy_designs(charts: &Path) {
+    let nets = repo().join("crates/vl-core/nets");
+    for shared in ["common", "access"] {
+        copy_dir(&nets.join(shared), &charts.join(shared));
+    }
+    for lab in LABS {
+        copy_dir(
+            &repo().join("assets/experiments").join(lab),
+            &charts.join(lab),
+        );
+    }
+}
+
 fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
     for entry in std::fs::read_dir(from).unwrap() {
@@ -759,8 +774,8 @@ fn a_folder_of_nets_that_cannot_run_is_refused_at_start() {
 fn a_design_that_forbids_a_stop_is_refused() {
     let dir = common::scratch("lab-nets-no-stop");
     let charts = dir.join("charts");
-    copy_dir(&repo().join("crates/vl-core/nets"), &charts);
-    let lab = charts.join("teleoperation/lab.toml");
+    copy_designs(&charts);
+    let lab = charts.join("teleoperation/experiment.toml");
     let mut text = std::fs::read_to_string(&lab).unwrap();
     text.push_str(
         "\n[[controller]]\nwhy = \"careless\"\nrule = \"if execute.running then not stop\"\n",

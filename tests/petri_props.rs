@@ -112,6 +112,7 @@ fn small(net: &Net) -> Option<vl_petri::StateSpace> {
         Options {
             max_states: LIMIT,
             progress: None,
+            deadline: None,
         },
     )
     .ok()
@@ -164,7 +165,7 @@ proptest! {
     #[test]
     fn the_explorer_agrees_with_the_firing_rule(net in net()) {
         let reference = naive(&net);
-        let explored = explore(&net, Options { max_states: LIMIT, progress: None });
+        let explored = explore(&net, Options { max_states: LIMIT, progress: None, deadline: None });
         match (reference, explored) {
             (Some((markings, edges)), Ok(space)) => {
                 let found: HashSet<Marking> = (0..space.states()).map(|s| space.marking(s)).collect();
@@ -182,8 +183,8 @@ proptest! {
     #[test]
     fn one_hot_packing_agrees_with_the_firing_rule(net in processes()) {
         let reference = naive(&net);
-        let explored = explore(&net, Options { max_states: LIMIT, progress: None });
-        let counted = count_states(&net, Options { max_states: LIMIT, progress: None }, 2);
+        let explored = explore(&net, Options { max_states: LIMIT, progress: None, deadline: None });
+        let counted = count_states(&net, Options { max_states: LIMIT, progress: None, deadline: None }, 2);
         match (reference, explored, counted) {
             (Some((markings, edges)), Ok(space), Ok(count)) => {
                 let found: HashSet<Marking> = (0..space.states()).map(|s| space.marking(s)).collect();
@@ -263,7 +264,7 @@ proptest! {
     #[test]
     fn counting_states_agrees_with_the_firing_rule(net in net(), threads in 1usize..=3) {
         let reference = naive(&net);
-        let counted = count_states(&net, Options { max_states: LIMIT, progress: None }, threads);
+        let counted = count_states(&net, Options { max_states: LIMIT, progress: None, deadline: None }, threads);
         match (reference, counted) {
             (Some((markings, edges)), Ok(count)) => {
                 prop_assert_eq!(count.states, markings.len());
@@ -289,7 +290,7 @@ proptest! {
     /// says, and stops where it does.
     #[test]
     fn analysis_on_the_fly_agrees_with_the_stored_graph(net in prop_oneof![net(), processes()]) {
-        let limit = || Options { max_states: LIMIT, progress: None };
+        let limit = || Options { max_states: LIMIT, progress: None, deadline: None };
         match (explore(&net, limit()), analyze_net(&net, limit())) {
             (Ok(space), Ok(on_the_fly)) => {
                 let a = analyze(&net, &space);
@@ -302,7 +303,7 @@ proptest! {
 
     #[test]
     fn a_deadlock_trace_reaches_a_dead_marking(net in net()) {
-        let Ok(space) = explore(&net, Options { max_states: LIMIT, progress: None }) else {
+        let Ok(space) = explore(&net, Options { max_states: LIMIT, progress: None, deadline: None }) else {
             return Ok(());
         };
         let a = analyze(&net, &space);
@@ -341,7 +342,7 @@ proptest! {
         let maximal = c.maximal();
         // Every marking explored (all of them when bounded, the first few
         // thousand otherwise) is covered by a maximal ω-marking.
-        let space = explore(&net, Options { max_states: LIMIT, progress: None });
+        let space = explore(&net, Options { max_states: LIMIT, progress: None, deadline: None });
         let markings: Vec<Marking> = match &space {
             Ok(space) => (0..space.states()).map(|s| space.marking(s)).collect(),
             Err(_) => naive_prefix(&net),
@@ -385,7 +386,7 @@ proptest! {
             }
         }
         // A P-invariant's weighted token count is the same in every reachable marking.
-        if let Ok(space) = explore(&net, Options { max_states: LIMIT, progress: None }) {
+        if let Ok(space) = explore(&net, Options { max_states: LIMIT, progress: None, deadline: None }) {
             for y in &p {
                 let count = |m: &Marking| y.iter().map(|&(i, k)| k * u64::from(m.0[i])).sum::<u64>();
                 let m0 = count(&net.initial_marking());
@@ -476,7 +477,7 @@ proptest! {
         let (l, constraint) = constraint_for(&net, &coefficients, slack);
         let Constraint::Linear { bound, .. } = constraint else { unreachable!() };
         let (controlled, _) = synthesize(&net, &[constraint], &Limits::default()).unwrap();
-        let Ok(space) = explore(&controlled, Options { max_states: LIMIT, progress: None }) else {
+        let Ok(space) = explore(&controlled, Options { max_states: LIMIT, progress: None, deadline: None }) else {
             return Ok(());
         };
         let Some(expected) = reachable_within(&net, &l, bound) else { return Ok(()) };
@@ -508,7 +509,7 @@ proptest! {
         };
         // Refusal is a valid answer; a controller, when given, must be right.
         let Ok((controlled, _)) = synthesize(&net, &[constraint], &limits) else { return Ok(()) };
-        let Ok(space) = explore(&controlled, Options { max_states: LIMIT, progress: None }) else {
+        let Ok(space) = explore(&controlled, Options { max_states: LIMIT, progress: None, deadline: None }) else {
             return Ok(());
         };
         let plant_places = net.places.len();
@@ -536,7 +537,7 @@ proptest! {
         let transition = net.transitions[t % net.transitions.len()].id.clone();
         let rule = Constraint::IfThenNot { place: place.clone(), transition: transition.clone() };
         let (controlled, _) = synthesize(&net, &[rule], &Limits::default()).unwrap();
-        let Ok(space) = explore(&controlled, Options { max_states: LIMIT, progress: None }) else {
+        let Ok(space) = explore(&controlled, Options { max_states: LIMIT, progress: None, deadline: None }) else {
             return Ok(());
         };
         let (pi, ti) = (controlled.place(&place).unwrap(), controlled.transition(&transition).unwrap());

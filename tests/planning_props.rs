@@ -317,3 +317,72 @@ fn a_start_off_the_map_is_named() {
         "{err}"
     );
 }
+
+/// A point anywhere on the open arena (600 × 600 mm), kept a robot's
+/// width from its walls.
+fn open_point() -> impl Strategy<Value = Point> {
+    (60.0f64..540.0, 60.0f64..540.0).prop_map(|(x_mm, y_mm)| Point { x_mm, y_mm })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// A path planned through points visits each of them in order: a
+    /// robot walking its samples counts them all (`Visited`), the run ends
+    /// there (`Definition::reached`), and its length is its legs'.
+    #[test]
+    fn a_path_through_points_visits_each_in_order(
+        points in proptest::collection::vec(open_point(), 1..5),
+    ) {
+        let arena = vl_core::Arena::load("open").unwrap();
+        let robot = vl_core::RobotModel::khepera_ii();
+        let start = arena.start;
+        let whole = vl_core::plan_route_through(&arena, &[], &robot, start, &points, 25.0).unwrap();
+        let definition = vl_core::Definition {
+            goal: Some(vl_core::Goal::at(*points.last().unwrap())),
+            waypoints: points.clone(),
+            path: whole.points(),
+            ..vl_core::Definition::default()
+        };
+        let mut visited = vl_core::Visited::default();
+        for p in &definition.path {
+            visited = visited.at(&definition, *p);
+        }
+        prop_assert_eq!(visited.0, points.len());
+        prop_assert!(definition.reached(visited, *definition.path.last().unwrap()));
+        let mut from = start;
+        let mut legs = 0.0;
+        for &p in &points {
+            let leg = vl_core::plan_route_with_margin(&arena, &[], &robot, from, p, 25.0).unwrap();
+            from = *leg.path.last().unwrap();
+            legs += leg.length_mm;
+        }
+        prop_assert!((whole.length_mm - legs).abs() < 1e-6, "{} vs {}", whole.length_mm, legs);
+    }
+
+    /// The count of waypoints visited only grows, one at a time, and only
+    /// where the next is within the tolerance; a run ends with all of them.
+    #[test]
+    fn waypoints_are_counted_in_order_only(
+        waypoints in proptest::collection::vec(open_point(), 1..6),
+        walk in proptest::collection::vec(open_point(), 0..60),
+    ) {
+        let definition = vl_core::Definition {
+            waypoints: waypoints.clone(),
+            ..vl_core::Definition::default()
+        };
+        let tolerance = definition.tolerance_mm();
+        let mut visited = vl_core::Visited::default();
+        for p in walk.iter().chain(&waypoints) {
+            let next = visited.at(&definition, *p);
+            match next.0 - visited.0 {
+                0 => prop_assert!(waypoints.get(visited.0).is_none_or(|w| w.distance(*p) > tolerance)),
+                1 => prop_assert!(waypoints[visited.0].distance(*p) <= tolerance),
+                _ => prop_assert!(false, "counted two at once"),
+            }
+            prop_assert_eq!(definition.reached(next, *p), next.0 == waypoints.len());
+            visited = next;
+        }
+        prop_assert_eq!(visited.0, waypoints.len(), "walking them in order visits them all");
+    }
+}

@@ -5,10 +5,10 @@
 use proptest::prelude::*;
 use serde_json::{Value, json};
 use vl_core::{
-    Arena, CameraModel, Definition, Drive, EndReason, ErrorCode, ErrorMm, Experiment,
-    ExperimentInfo, Feedback, Goal, GuestMessage, HostMessage, Material, MountedLab, Named,
-    Obstacle, PathAnalysis, Point, Pose, PoseSource, RobotModel, Role, Secret, SensorMount, Shape,
-    SpeedResponse, Stopper, Summary, WheelSpeeds, Wire,
+    Arena, CameraModel, Definition, Drive, EndReason, ErrorCode, ErrorMm, Experiment, Feedback,
+    Goal, GuestMessage, HostMessage, Material, MountedLab, Obstacle, PathAnalysis, Point, Pose,
+    PoseSource, RobotModel, Role, Secret, SensorMount, Shape, SpeedResponse, Stopper, Summary,
+    WheelSpeeds, Wire,
 };
 
 fn num() -> impl Strategy<Value = f64> {
@@ -75,17 +75,28 @@ fn goal() -> impl Strategy<Value = Goal> {
 fn definition() -> BoxedStrategy<Definition> {
     (
         proptest::option::of(goal()),
-        proptest::collection::vec(point(), 0..4),
+        (
+            proptest::collection::vec(point(), 0..4),
+            proptest::collection::vec(point(), 0..3),
+        ),
         proptest::collection::vec(shape(), 0..3),
         proptest::option::of(num()),
         proptest::option::of(num()),
         proptest::option::of(num()),
     )
         .prop_map(
-            |(goal, path, virtual_obstacles, max_speed_mm_s, time_limit_s, lookahead_mm)| {
+            |(
+                goal,
+                (path, waypoints),
+                virtual_obstacles,
+                max_speed_mm_s,
+                time_limit_s,
+                lookahead_mm,
+            )| {
                 Definition {
                     goal,
                     path,
+                    waypoints,
                     virtual_obstacles,
                     max_speed_mm_s,
                     time_limit_s,
@@ -272,6 +283,10 @@ fn summary() -> BoxedStrategy<Summary> {
                     fault: None,
                     forecast,
                     recording,
+                    waypoints: (events % 3 == 0).then_some(vl_core::WaypointsVisited {
+                        visited: (events % 5) as usize,
+                        of: 5,
+                    }),
                 }
             },
         )
@@ -443,7 +458,11 @@ fn recording_note() -> impl Strategy<Value = vl_core::RecordingNote> {
 }
 
 fn experiment() -> impl Strategy<Value = Experiment> {
-    proptest::sample::select(Experiment::ALL)
+    let shipped: Vec<Experiment> = vl_core::Experiments::shipped()
+        .experiments()
+        .cloned()
+        .collect();
+    proptest::sample::select(shipped)
 }
 
 fn scene() -> impl Strategy<Value = vl_core::LabScene> {
@@ -455,7 +474,11 @@ fn scene() -> impl Strategy<Value = vl_core::LabScene> {
 }
 
 fn host_message() -> impl Strategy<Value = HostMessage> {
-    let info = (experiment(), text()).prop_map(|(id, title)| ExperimentInfo { id, title });
+    let info = (experiment(), text()).prop_map(|(experiment, title)| Experiment {
+        title,
+        help: experiment.title.clone(),
+        ..experiment
+    });
     prop_oneof![
         (
             any::<u64>(),
@@ -478,7 +501,10 @@ fn host_message() -> impl Strategy<Value = HostMessage> {
         num().prop_map(|t| HostMessage::Ping { t }),
         num().prop_map(|t| HostMessage::Pong { t }),
         (experiment(), scene()).prop_map(|(experiment, scene)| {
-            HostMessage::Mounted(Box::new(MountedLab { experiment, scene }))
+            HostMessage::Mounted(Box::new(MountedLab {
+                experiment: experiment.id,
+                scene,
+            }))
         }),
         definition().prop_map(|definition| HostMessage::Defined { definition }),
         verdict().prop_map(|v| HostMessage::Forecast(Box::new(v))),

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use serde_json::json;
-use vl_core::{Experiment, RecordedRun, RecordingName};
+use vl_core::{ExperimentId, RecordedRun, RecordingName};
 use vl_record::{Catalogue, Owner, Recording};
 
 use crate::common::peer::Peer;
@@ -31,7 +31,7 @@ fn old_runs(dir: &Path, count: u64, bytes: usize) -> Vec<RecordingName> {
             let recorded = RecordedRun {
                 name: name.clone(),
                 run,
-                experiment: Some(Experiment::Teleoperation),
+                experiment: Some(ExperimentId::new("teleoperation").unwrap()),
                 started_ms,
                 user: None,
                 ending: None,

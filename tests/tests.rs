@@ -15,6 +15,7 @@ mod class;
 mod cli;
 mod docs_drift;
 mod experiment_media;
+mod experiments;
 mod faults;
 mod following_in_sim;
 mod forecast;

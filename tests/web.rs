@@ -223,6 +223,54 @@ fn a_whole_navigation_run_is_driven_from_the_page() {
     assert!(errors.is_empty(), "the console had errors: {errors:#?}");
 }
 
+/// The page builds its controls from what the experiment declares: on the
+/// waypoint lab, clicks on the floor are numbered points to visit, the
+/// Host plans through them, and the run visits each in order.
+#[test]
+fn a_waypoint_run_is_defined_by_clicks_from_the_page() {
+    if !chromium::available() {
+        return;
+    }
+    let (_host, url) = start_host(&["--no-record", "--token", "lab-secret"]);
+    let mut browser = operating(&url, "tour", "define");
+    browser.expect(
+        "!document.getElementById('waypoints-hint').hidden && document.getElementById('goal-hint').hidden",
+        Duration::from_secs(5),
+    );
+    let points = [(150.0, 320.0), (400.0, 330.0), (680.0, 470.0)];
+    for (x_mm, y_mm) in points {
+        let (x, y) = on_screen(&mut browser, Point { x_mm, y_mm });
+        browser.click_at(x, y);
+    }
+    browser.expect(
+        "vl.waypoints.length === 3 && vl.planned && vl.planned.length > 10",
+        Duration::from_secs(10),
+    );
+    let count = browser.eval("document.getElementById('waypoints-count').innerText");
+    assert!(
+        count.as_str().unwrap().starts_with("3 of 2 to 8 points"),
+        "{count}"
+    );
+    browser.screenshot(&scratch("web-waypoints").join("planned.png"));
+    browser.click("#define");
+    browser.expect(
+        "vl.definition && vl.definition.waypoints.length === 3 && vl.forecast && vl.state.enabled.includes('start')",
+        Duration::from_secs(30),
+    );
+    browser.click("#start");
+    browser.expect("vl.running", Duration::from_secs(10));
+    browser.expect("vl.summary", Duration::from_secs(60));
+    let summary = browser.eval("vl.summary");
+    assert_eq!(summary["reason"], "goal_reached", "{summary}");
+    assert_eq!(
+        summary["waypoints"],
+        json!({"visited": 3, "of": 3}),
+        "{summary}"
+    );
+    let errors = browser.errors();
+    assert!(errors.is_empty(), "the console had errors: {errors:#?}");
+}
+
 #[test]
 fn teleoperation_from_the_keyboard_is_held_back_by_the_safety_layer() {
     if !chromium::available() {

@@ -9,7 +9,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 use vl_campaign::{Matrix, cells_of, progress_line, run_all, write_report};
-use vl_core::Named;
+use vl_core::{ExperimentId, Named};
 use vl_sim::{LinkModel, Profile};
 
 use crate::input::{load_arena, seconds};
@@ -20,6 +20,15 @@ pub(crate) struct ReportArgs {
     /// Where to write report.md, report.json and the plots.
     #[arg(long)]
     out: PathBuf,
+    /// The experiments, comma-separated: each a cell per link (those
+    /// driven by stick two: paced by event and by time).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_parser = crate::named::ExperimentParser::Shipped,
+        default_value = "navigation,teleoperation"
+    )]
+    experiments: Vec<ExperimentId>,
     /// Seeds per cell (profile × experiment × pacing).
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(1..=100))]
     seeds: u64,
@@ -57,7 +66,8 @@ pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Res
     let arena = load_arena(&args.arena)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let specs = cells_of(&links, &arena, args.seed..args.seed + args.seeds, timeout);
+    let seeds = args.seed..args.seed + args.seeds;
+    let specs = cells_of(&args.experiments, &links, &arena, seeds, timeout);
     let total = specs.len();
     let started = Instant::now();
     eprintln!(

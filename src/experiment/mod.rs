@@ -11,7 +11,7 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use vl_campaign::{RunSeries, RunSpec};
 use vl_client::Pacing;
-use vl_core::{Arena, Experiment};
+use vl_core::{Arena, ExperimentId};
 
 use crate::input::{SceneArgs, load_arena, seconds};
 use crate::named;
@@ -31,8 +31,8 @@ pub(crate) struct RunArgs {
     /// navigation: the Host follows a path planned on the camera's map
     /// (thesis ch. 5); teleoperation: a scripted operator steers toward
     /// waypoints along it from the feedback it sees (thesis ch. 6).
-    #[arg(value_parser = crate::named::<Experiment>())]
-    experiment: Experiment,
+    #[arg(value_parser = crate::named::ExperimentParser::Shipped)]
+    experiment: ExperimentId,
     /// Arenas, comma-separated: shipped names or JSON files; `all` for
     /// every shipped one.
     #[arg(long, value_delimiter = ',', default_value = "navigation")]
@@ -99,7 +99,7 @@ pub(crate) fn run(
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
     let template = RunSpec {
-        experiment: args.experiment,
+        experiment: args.experiment.clone(),
         arena: Arena::navigation(),
         seed: args.seed,
         optics: args

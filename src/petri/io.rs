@@ -42,6 +42,7 @@ pub(super) fn with_progress<T>(
     let options = Options {
         max_states,
         progress: show_progress.then_some(&mut report_progress as &mut dyn FnMut(Progress)),
+        deadline: None,
     };
     let result = search(options);
     if show_progress {

@@ -18,7 +18,9 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use serde::Serialize;
-use vl_core::{ARENA_CELL_MM, Arena, ErrorMm, Experiment, PoseSource, run_svg};
+use vl_core::{
+    ARENA_CELL_MM, Arena, ErrorMm, ExperimentId, Experiments, PoseSource, RunComponent, run_svg,
+};
 use vl_host::{Delays, FramePolicy, Host, HostConfig, Media, MediaConfig, SimCamera, SimLab};
 use vl_report::table::count;
 use vl_sim::{LinkModel, Optics, Scheduled};
@@ -107,7 +109,7 @@ pub struct Legs {
 /// One run, as `--json` gives it.
 #[derive(Serialize, Clone, Debug)]
 pub struct MeasuredRun {
-    pub experiment: Experiment,
+    pub experiment: ExperimentId,
     pub arena: String,
     pub seed: u64,
     /// The link between Guest and Host; none for straight loopback.
@@ -152,6 +154,15 @@ impl MeasuredRun {
     }
 }
 
+/// Whether the shipped experiment `id` is driven by stick: its runs are
+/// paced by the operator's events or by time, where the others' are the
+/// Host's.
+pub(crate) fn by_stick(id: &ExperimentId) -> bool {
+    Experiments::shipped()
+        .get(id.as_str())
+        .is_ok_and(|o| o.experiment().run.has(RunComponent::Teleoperate))
+}
+
 pub fn spread(s: MeanMax) -> String {
     if s.count == 0 {
         "–".into()
@@ -163,7 +174,7 @@ pub fn spread(s: MeanMax) -> String {
 /// What one run is: everything `run_one` needs.
 #[derive(Clone)]
 pub struct RunSpec {
-    pub experiment: Experiment,
+    pub experiment: ExperimentId,
     pub arena: Arena,
     pub seed: u64,
     pub optics: Optics,
@@ -214,7 +225,7 @@ pub async fn run_one(spec: &RunSpec) -> Result<MeasuredRun, CampaignError> {
     };
     let url = media.as_ref().map_or_else(|| host.url(), Media::url);
     let script = Script {
-        experiment: spec.experiment,
+        experiment: Some(spec.experiment.clone()),
         timeout: spec.timeout,
         progress: spec.progress,
         pacing: spec.pacing,
@@ -238,7 +249,7 @@ pub async fn run_one(spec: &RunSpec) -> Result<MeasuredRun, CampaignError> {
     });
     let path = report.path.as_ref();
     Ok(MeasuredRun {
-        experiment: spec.experiment,
+        experiment: spec.experiment.clone(),
         arena: spec.arena.name.clone(),
         seed: spec.seed,
         profile: spec.link.as_ref().map(|(name, _)| name.clone()),

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use vl_report::table::{self, Report, Table, yes};
 
-use vl_core::{Arena, Experiment};
+use vl_core::Arena;
 
 use super::Pacing;
 use super::matrix::{Matrix, MatrixCell, draw};
@@ -34,10 +34,10 @@ pub fn write_report(dir: &Path, m: &Matrix, arena: &Arena) -> Result<(), Campaig
 }
 
 fn pacing_of(c: &MatrixCell) -> &'static str {
-    match (c.experiment, c.pacing) {
-        (Experiment::Navigation, _) => "host",
-        (_, Pacing::Event) => "event",
-        (_, Pacing::Time) => "time",
+    match (super::by_stick(&c.experiment), c.pacing) {
+        (false, _) => "host",
+        (true, Pacing::Event) => "event",
+        (true, Pacing::Time) => "time",
     }
 }
 
@@ -246,7 +246,7 @@ fn discussion(md: &mut String, m: &Matrix) {
     let time_lost: Vec<&MatrixCell> = m
         .cells
         .iter()
-        .filter(|c| c.experiment == Experiment::Teleoperation && c.pacing == Pacing::Time)
+        .filter(|c| super::by_stick(&c.experiment) && c.pacing == Pacing::Time)
         .filter(|c| c.sync_violations > 0)
         .collect();
     let _ = writeln!(
@@ -317,9 +317,9 @@ fn discussion(md: &mut String, m: &Matrix) {
 /// beyond the seeds' spread.
 fn tracking_by_pacing(m: &Matrix) -> (Table, Vec<&str>, Vec<&str>) {
     let teleop = |profile: &str, pacing: Pacing| {
-        m.cells.iter().find(|c| {
-            c.experiment == Experiment::Teleoperation && c.pacing == pacing && c.profile == profile
-        })
+        m.cells
+            .iter()
+            .find(|c| super::by_stick(&c.experiment) && c.pacing == pacing && c.profile == profile)
     };
     let mut t = Table::columns(&[
         "profile",
@@ -335,7 +335,7 @@ fn tracking_by_pacing(m: &Matrix) -> (Table, Vec<&str>, Vec<&str>) {
         Interval::of(
             m.runs
                 .iter()
-                .filter(|r| r.experiment == Experiment::Teleoperation && r.pacing == pacing)
+                .filter(|r| super::by_stick(&r.experiment) && r.pacing == pacing)
                 .filter(|r| r.profile.as_deref() == Some(profile) && r.succeeded())
                 .map(|r| r.commands as f64 / r.completion_s.max(1e-3)),
         )

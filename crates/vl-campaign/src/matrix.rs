@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use serde::Serialize;
-use vl_core::{Arena, Experiment};
+use vl_core::{Arena, ExperimentId};
 use vl_host::{Delays, FramePolicy};
 use vl_sim::{LinkModel, Optics};
 
@@ -19,7 +19,7 @@ use vl_client::plots::{self, EVENT, Marks, TIME};
 /// One cell of the matrix, over its seeds.
 #[derive(Serialize, Clone)]
 pub struct MatrixCell {
-    pub experiment: Experiment,
+    pub experiment: ExperimentId,
     pub profile: String,
     pub pacing: Pacing,
     pub runs: usize,
@@ -83,8 +83,18 @@ impl Matrix {
     ) -> Matrix {
         let mut summary = Vec::new();
         let mut timing = Vec::new();
+        // The cells in the order their runs were made.
+        let mut cells: Vec<(ExperimentId, Pacing)> = Vec::new();
+        for r in &runs {
+            if !cells
+                .iter()
+                .any(|(e, p)| *e == r.experiment && *p == r.pacing)
+            {
+                cells.push((r.experiment.clone(), r.pacing));
+            }
+        }
         for name in links {
-            for &(experiment, pacing) in CELLS {
+            for (experiment, pacing) in cells.iter().cloned() {
                 let these: Vec<&MeasuredRun> = runs
                     .iter()
                     .filter(|r| {
@@ -145,7 +155,7 @@ impl Matrix {
     /// The first teleoperation run on `profile` paced so that succeeded.
     fn teleop(&self, profile: &str, pacing: Pacing) -> Option<&MeasuredRun> {
         self.runs.iter().find(|r| {
-            r.experiment == Experiment::Teleoperation
+            super::by_stick(&r.experiment)
                 && r.profile.as_deref() == Some(profile)
                 && r.pacing == pacing
                 && r.succeeded()
@@ -172,7 +182,7 @@ fn cell(all: &[&MeasuredRun]) -> MatrixCell {
     let mut rtts: Vec<f64> = all.iter().map(|r| r.round_trip_ms.p50).collect();
     rtts.sort_by(f64::total_cmp);
     MatrixCell {
-        experiment: first.experiment,
+        experiment: first.experiment.clone(),
         profile: first.profile.clone().unwrap_or_default(),
         pacing: first.pacing,
         runs: all.len(),
@@ -209,16 +219,23 @@ fn mean(values: impl Iterator<Item = f64>) -> Option<f64> {
     (n > 0).then(|| sum / f64::from(n))
 }
 
-/// The cells of the matrix: navigation, and teleoperation paced by event
-/// and by time.
-pub(super) const CELLS: &[(Experiment, Pacing)] = &[
-    (Experiment::Navigation, Pacing::Event),
-    (Experiment::Teleoperation, Pacing::Event),
-    (Experiment::Teleoperation, Pacing::Time),
-];
+/// The cells of the matrix: each of `experiments`, those driven by stick
+/// paced by event and by time.
+fn cells(experiments: &[ExperimentId]) -> Vec<(ExperimentId, Pacing)> {
+    let mut cells = Vec::new();
+    for experiment in experiments {
+        cells.push((experiment.clone(), Pacing::Event));
+        if super::by_stick(experiment) {
+            cells.push((experiment.clone(), Pacing::Time));
+        }
+    }
+    cells
+}
 
-/// The runs of every cell on every link, `seeds` seeds from `seed` each.
+/// The runs of every cell of `experiments` on every link, `seeds` seeds
+/// from `seed` each.
 pub fn cells_of(
+    experiments: &[ExperimentId],
     links: &[(String, LinkModel)],
     arena: &Arena,
     seeds: std::ops::Range<u64>,
@@ -226,10 +243,10 @@ pub fn cells_of(
 ) -> Vec<RunSpec> {
     let mut specs = Vec::new();
     for link in links {
-        for &(experiment, pacing) in CELLS {
+        for (experiment, pacing) in cells(experiments) {
             for seed in seeds.clone() {
                 specs.push(RunSpec {
-                    experiment,
+                    experiment: experiment.clone(),
                     arena: arena.clone(),
                     seed,
                     optics: Optics {
@@ -298,9 +315,7 @@ pub(super) fn draw(
                 m.cells
                     .iter()
                     .find(|c| {
-                        c.experiment == Experiment::Teleoperation
-                            && c.pacing == pacing
-                            && &c.profile == p
+                        super::by_stick(&c.experiment) && c.pacing == pacing && &c.profile == p
                     })
                     .and_then(pick)
                     .map(|i| (i.mean, i.low(), i.high()))
@@ -448,7 +463,7 @@ pub(super) mod tests {
     /// A run on `profile` that reached its goal or not, with a tracking
     /// error of mean `track` (max twice that) and a round trip of `rtt` ms.
     pub(crate) fn run(
-        experiment: Experiment,
+        experiment: &str,
         pacing: Pacing,
         profile: &str,
         reached: bool,
@@ -456,7 +471,7 @@ pub(super) mod tests {
         rtt: f64,
     ) -> MeasuredRun {
         MeasuredRun {
-            experiment,
+            experiment: ExperimentId::new(experiment).unwrap(),
             arena: "open".into(),
             seed: 0,
             profile: Some(profile.into()),
@@ -509,8 +524,8 @@ pub(super) mod tests {
     #[test]
     fn over_all_runs_means_are_averaged_and_maxima_kept() {
         let runs = [
-            run(Experiment::Navigation, Pacing::Event, "lan", true, 2.0, 1.0),
-            run(Experiment::Navigation, Pacing::Event, "lan", true, 4.0, 1.0),
+            run("navigation", Pacing::Event, "lan", true, 2.0, 1.0),
+            run("navigation", Pacing::Event, "lan", true, 4.0, 1.0),
         ];
         let e = overall(&runs, |r| r.tracking_error_mm).expect("errors");
         assert_eq!((e.mean, e.max), (3.0, 8.0));
@@ -521,30 +536,9 @@ pub(super) mod tests {
     #[test]
     fn a_cell_counts_every_run_and_measures_only_those_that_succeeded() {
         let runs = [
-            run(
-                Experiment::Teleoperation,
-                Pacing::Event,
-                "lan",
-                true,
-                2.0,
-                3.0,
-            ),
-            run(
-                Experiment::Teleoperation,
-                Pacing::Event,
-                "lan",
-                false,
-                50.0,
-                5.0,
-            ),
-            run(
-                Experiment::Teleoperation,
-                Pacing::Event,
-                "lan",
-                true,
-                4.0,
-                4.0,
-            ),
+            run("teleoperation", Pacing::Event, "lan", true, 2.0, 3.0),
+            run("teleoperation", Pacing::Event, "lan", false, 50.0, 5.0),
+            run("teleoperation", Pacing::Event, "lan", true, 4.0, 4.0),
         ];
         let c = cell(&runs.iter().collect::<Vec<_>>());
         assert_eq!((c.runs, c.reached_goal, c.collisions), (3, 2, 1));
@@ -560,31 +554,10 @@ pub(super) mod tests {
     #[test]
     fn the_matrix_has_a_cell_per_profile_and_pacing_and_judges_event_pacing() {
         let runs = vec![
-            run(Experiment::Navigation, Pacing::Event, "lan", true, 1.0, 1.0),
-            run(
-                Experiment::Teleoperation,
-                Pacing::Event,
-                "lan",
-                true,
-                2.0,
-                1.0,
-            ),
-            run(
-                Experiment::Teleoperation,
-                Pacing::Time,
-                "lan",
-                true,
-                3.0,
-                1.0,
-            ),
-            run(
-                Experiment::Teleoperation,
-                Pacing::Event,
-                "far",
-                true,
-                5.0,
-                300.0,
-            ),
+            run("navigation", Pacing::Event, "lan", true, 1.0, 1.0),
+            run("teleoperation", Pacing::Event, "lan", true, 2.0, 1.0),
+            run("teleoperation", Pacing::Time, "lan", true, 3.0, 1.0),
+            run("teleoperation", Pacing::Event, "far", true, 5.0, 300.0),
         ];
         let links = ["lan".to_owned(), "far".to_owned()];
         let m = Matrix::of(&links, 1, "open", 1.0, runs.clone());

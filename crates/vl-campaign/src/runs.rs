@@ -160,19 +160,11 @@ mod tests {
     use super::*;
     use crate::matrix::tests::run;
     use vl_client::Pacing;
-    use vl_core::Experiment;
 
     #[test]
     fn one_failed_run_fails_the_series_and_its_errors_count() {
-        let ok = run(Experiment::Navigation, Pacing::Event, "lan", true, 2.0, 1.0);
-        let failed = run(
-            Experiment::Navigation,
-            Pacing::Event,
-            "lan",
-            false,
-            4.0,
-            1.0,
-        );
+        let ok = run("navigation", Pacing::Event, "lan", true, 2.0, 1.0);
+        let failed = run("navigation", Pacing::Event, "lan", false, 4.0, 1.0);
         let runs = RunSeries::of(vec![ok.clone()]);
         assert!(runs.all_succeeded);
         let both = RunSeries::of(vec![ok, failed]);

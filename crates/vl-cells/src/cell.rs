@@ -8,7 +8,7 @@ use std::time::Duration;
 use tokio::sync::{broadcast, mpsc, oneshot};
 use tokio_tungstenite::tungstenite::Message;
 use tracing::{debug, info, warn};
-use vl_core::{CellInfo, CellName, Experiment, PROTOCOL_VERSION, Role, Wire};
+use vl_core::{CellInfo, CellName, ExperimentId, PROTOCOL_VERSION, Role, Wire};
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::SampleKind;
 
@@ -32,13 +32,13 @@ const MOST_LINKS: usize = 4096;
 /// A cell's side of its Host: the lab, and what it offers.
 struct Cell {
     lab: LabHandle,
-    experiments: Vec<Experiment>,
+    experiments: Vec<ExperimentId>,
 }
 
 /// Joins the gateway of `options` and serves it for as long as the Host
 /// runs (never returning: a cell that cannot join still serves alone).
 pub(crate) async fn join(options: CellOptions, lab: LabHandle) {
-    let experiments = lab.experiments.to_vec();
+    let experiments = lab.experiments.iter().map(|e| e.id.clone()).collect();
     let cell = Cell { lab, experiments };
     let name = options.name.clone();
     let session = match super::open(&options.zenoh).await {

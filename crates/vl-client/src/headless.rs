@@ -10,8 +10,8 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 use thiserror::Error;
 use vl_core::{
-    ArenaPlanError, Definition, Drive, EndReason, ErrorCode, Experiment, Goal, GuestMessage,
-    HeldBack, HostMessage, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
+    ArenaPlanError, Definition, Drive, EndReason, ErrorCode, Experiment, ExperimentId, Goal,
+    GuestMessage, HeldBack, HostMessage, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
 };
 use vl_report::table::{Report as _, Table, yes};
 
@@ -26,9 +26,12 @@ use crate::tasks::TaskChoice;
 /// What the scripted session does.
 #[derive(Debug, Clone)]
 pub struct Script {
-    pub experiment: Experiment,
+    /// The experiment to run; the first the Host offers when absent.
+    pub experiment: Option<ExperimentId>,
     /// Where to drive; the arena's suggested goal when absent.
     pub goal: Option<Goal>,
+    /// The points to visit in order, for an experiment that defines them.
+    pub waypoints: Vec<Point>,
     /// Who the Guest says it is.
     pub login: Login,
     /// The whole session must finish within this.
@@ -50,8 +53,9 @@ pub struct Script {
 impl Default for Script {
     fn default() -> Self {
         Script {
-            experiment: Experiment::Navigation,
+            experiment: None,
             goal: None,
+            waypoints: Vec::new(),
             login: Login::default(),
             timeout: Duration::from_secs(60),
             progress: false,
@@ -126,7 +130,9 @@ pub enum ScriptError {
     #[error("gave up waiting to {step} after {seconds:.0} s")]
     Timeout { step: &'static str, seconds: f64 },
     #[error("the {0} experiment's arena suggests no goal and none was given")]
-    NoGoal(Experiment),
+    NoGoal(ExperimentId),
+    #[error("the Host offers no experiment")]
+    NoExperiment,
     #[error("no path to the goal")]
     NoPath(#[from] ArenaPlanError),
     #[error("the definition, tried on the lab's twin, is {0}")]
@@ -147,18 +153,19 @@ impl ScriptError {
 }
 
 /// Runs `script` against the Host at `url`: the Host follows the planned
-/// path in navigation; a scripted operator steers along it in
-/// teleoperation. The one way `demo`, `guest --headless` and the
-/// experiments run a Guest without a window.
+/// path in an experiment whose run follows one; a scripted operator steers
+/// along it in one driven by stick. The one way `demo`, `guest --headless`
+/// and the experiments run a Guest without a window.
 pub async fn run_script(url: &str, script: &Script) -> Result<ScriptReport, ScriptError> {
     let mut script = script.clone();
     if let Some(task) = script.task.to_run()? {
-        script.experiment = task.experiment;
+        script.experiment = Some(task.experiment);
         script.definition = Some(task.definition);
     }
-    match script.experiment {
-        Experiment::Navigation => drive_to_goal(url, &script).await,
-        Experiment::Teleoperation => teleoperate(url, &script).await,
+    let (guest, definition, goal, experiment) = started(url, &script).await?;
+    match experiment.follows() {
+        true => follow_path(guest, definition, goal, &script).await,
+        false => drive_by_stick(guest, definition, goal, &script).await,
     }
 }
 
@@ -340,20 +347,41 @@ pub(crate) async fn welcomed(
 /// Connects to `url` as operator and mounts the experiment; plans a path
 /// from where the robot is seen to the goal on the lab's map, as a user does
 /// on the camera view, defines it and starts the run.
-async fn started(url: &str, script: &Script) -> Result<(Scripted, Definition, Goal), ScriptError> {
+async fn started(
+    url: &str,
+    script: &Script,
+) -> Result<(Scripted, Definition, Goal, Experiment), ScriptError> {
     let mut guest = welcomed(url, Role::Operator, script).await?;
     guest.session.pacing = script.pacing;
     let ignore = |_: &mut Session, _: &Connection| {};
+    let asked = match &script.experiment {
+        Some(id) => id.clone(),
+        None => guest
+            .session
+            .experiments
+            .first()
+            .map(|e| e.id.clone())
+            .ok_or(ScriptError::NoExperiment)?,
+    };
     guest.connection.send(GuestMessage::Mount {
-        experiment: script.experiment.to_string(),
+        experiment: asked.to_string(),
     });
     guest.until("mount", ignore, |s| s.lab.is_some()).await?;
     let lab = guest.session.lab.clone().expect("mounted");
+    let experiment = guest
+        .session
+        .mounted()
+        .cloned()
+        .ok_or(ScriptError::NoExperiment)?;
     let task_goal = script.definition.as_ref().and_then(|d| d.goal);
-    let goal = match (task_goal.or(script.goal), lab.scene.arena.goal) {
+    let last_waypoint = script.waypoints.last().copied().map(Goal::at);
+    let goal = match (
+        task_goal.or(last_waypoint).or(script.goal),
+        lab.scene.arena.goal,
+    ) {
         (Some(goal), _) => goal,
         (None, Some(p)) => Goal::at(p),
-        (None, None) => return Err(ScriptError::NoGoal(script.experiment)),
+        (None, None) => return Err(ScriptError::NoGoal(experiment.id)),
     };
     // A lab getting ready drives the robot back to its start first: the
     // path is planned from where it will start.
@@ -363,11 +391,23 @@ async fn started(url: &str, script: &Script) -> Result<(Scripted, Definition, Go
         })
         .await?;
     let start = guest.session.robot.as_ref().expect("seen").pose;
-    let definition = match &script.definition {
-        Some(definition) => definition.clone(),
-        None => Route::plan(&lab, start, goal, Vec::new(), &Settings::default())?.definition,
+    let settings = Settings::default();
+    let definition = match (&script.definition, experiment.waypoint_bounds()) {
+        (Some(definition), _) => definition.clone(),
+        // Without points given, the fewest it visits along the way to the
+        // goal.
+        (None, Some((min, _))) => {
+            let waypoints = match script.waypoints.is_empty() {
+                true => Route::plan(&lab, start, goal, Vec::new(), &settings)?.along(min),
+                false => script.waypoints.clone(),
+            };
+            let tolerance_mm = goal.tolerance_mm;
+            Route::plan_through(&lab, start, &waypoints, tolerance_mm, Vec::new(), &settings)?
+                .definition
+        }
+        (None, None) => Route::plan(&lab, start, goal, Vec::new(), &settings)?.definition,
     };
-    if let Some(file) = script.task.keep(script.experiment, &definition)?
+    if let Some(file) = script.task.keep(experiment.id.clone(), &definition)?
         && script.progress
     {
         eprintln!("saved the definition as a task: {}", file.display());
@@ -378,7 +418,7 @@ async fn started(url: &str, script: &Script) -> Result<(Scripted, Definition, Go
     guest
         .until("define the goal", ignore, |s| s.definition.is_some())
         .await?;
-    if script.experiment == Experiment::Navigation {
+    if experiment.forecasts() {
         guest
             .until("be told the forecast", ignore, |s| s.forecast.is_some())
             .await?;
@@ -392,17 +432,21 @@ async fn started(url: &str, script: &Script) -> Result<(Scripted, Definition, Go
     }
     guest.connection.send(GuestMessage::Start);
     guest.until("start", ignore, |s| s.running).await?;
-    Ok((guest, definition, goal))
+    Ok((guest, definition, goal, experiment))
 }
 
 /// How long a run that ran out of time is given to report its end.
 const STOP_WAIT: Duration = Duration::from_secs(5);
 
-/// Connects to `url` as operator, defines a path to the goal and starts
-/// the run, which the Host follows; reports the run's end. A run that
-/// outlasts `script.timeout` is stopped and reported as stopped.
-pub async fn drive_to_goal(url: &str, script: &Script) -> Result<ScriptReport, ScriptError> {
-    let (mut guest, definition, goal) = started(url, script).await?;
+/// With the run started on a path to the goal, which the Host follows:
+/// reports the run's end. A run that outlasts `script.timeout` is stopped
+/// and reported as stopped.
+async fn follow_path(
+    mut guest: Scripted,
+    definition: Definition,
+    goal: Goal,
+    script: &Script,
+) -> Result<ScriptReport, ScriptError> {
     let ignore = |_: &mut Session, _: &Connection| {};
 
     // The Host follows the path; the Guest watches it go. No commands, so
@@ -488,13 +532,16 @@ fn steer(seen: Pose, target: Point, to_goal_mm: f64, lag_s: f64) -> Drive {
     }
 }
 
-/// Connects to `url` as operator, plans a path to the goal, defines it and
-/// drives the robot along it by commands — steering toward waypoints on
-/// the path from the feedback as it arrives, paced by `script.pacing` —
-/// and stops the run when the feedback shows the goal reached.
-pub async fn teleoperate(url: &str, script: &Script) -> Result<ScriptReport, ScriptError> {
-    let (mut guest, definition, goal) = started(url, script).await?;
-
+/// With the run started on a path to the goal: drives the robot along it
+/// by commands — steering toward waypoints on the path from the feedback
+/// as it arrives, paced by `script.pacing` — and stops the run when the
+/// feedback shows the goal reached.
+async fn drive_by_stick(
+    mut guest: Scripted,
+    definition: Definition,
+    goal: Goal,
+    script: &Script,
+) -> Result<ScriptReport, ScriptError> {
     let targets = waypoints(&definition.path);
     let mut next = 0;
     let mut tick = tokio::time::interval(OPERATOR_TICK);

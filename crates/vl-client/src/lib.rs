@@ -57,9 +57,7 @@ mod tasks;
 mod watch;
 
 pub use client::{ClientError, Connection, GOODBYE_WAIT, Incoming, open};
-pub use headless::{
-    RoundTripMs, Script, ScriptError, ScriptReport, drive_to_goal, run_script, teleoperate,
-};
+pub use headless::{RoundTripMs, Script, ScriptError, ScriptReport, run_script};
 pub use login::Login;
 pub use predict::Predictor;
 pub use recordings::{DownloadError, Downloading, download, downloads_dir};

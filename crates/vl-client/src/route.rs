@@ -5,7 +5,7 @@
 use thiserror::Error;
 use vl_core::{
     ArenaPlanError, CSpaceError, Definition, Goal, MountedLab, Plan, Point, Pose, Shape,
-    disc_cspace, plan_route_with_margin,
+    disc_cspace, plan_route_through, plan_route_with_margin,
 };
 
 use crate::settings::Settings;
@@ -116,6 +116,61 @@ impl Route {
         Ok(Route { definition, plan })
     }
 
+    /// Plans from `start` through `waypoints` in order, as
+    /// [`Route::plan`] does to one goal: the definition holds the
+    /// waypoints, the last as its goal (`tolerance_mm` around each).
+    pub fn plan_through(
+        lab: &MountedLab,
+        start: Pose,
+        waypoints: &[Point],
+        tolerance_mm: f64,
+        virtual_obstacles: Vec<Shape>,
+        settings: &Settings,
+    ) -> Result<Route, ArenaPlanError> {
+        let plan = plan_route_through(
+            &lab.scene.arena,
+            &virtual_obstacles,
+            &lab.scene.robot,
+            start,
+            waypoints,
+            settings.margin_mm,
+        )?;
+        let last = *waypoints
+            .last()
+            .expect("a plan through no point is refused above");
+        let definition = Definition {
+            goal: Some(Goal {
+                tolerance_mm,
+                ..Goal::at(last)
+            }),
+            waypoints: waypoints.to_vec(),
+            path: plan.points(),
+            virtual_obstacles,
+            max_speed_mm_s: settings.max_speed_mm_s,
+            lookahead_mm: Some(settings.lookahead_mm),
+            ..Definition::default()
+        };
+        Ok(Route { definition, plan })
+    }
+
+    /// `n` points along the path, evenly by length, the last its end: where
+    /// to visit on the way when none are given.
+    pub fn along(&self, n: usize) -> Vec<Point> {
+        let path = &self.definition.path;
+        let mut at = vec![0.0];
+        for pair in path.windows(2) {
+            at.push(at[at.len() - 1] + pair[0].distance(pair[1]));
+        }
+        let length = at[at.len() - 1];
+        (1..=n)
+            .filter_map(|k| {
+                let wanted = length * k as f64 / n as f64;
+                let i = at.iter().position(|&s| s >= wanted - 1e-9)?;
+                path.get(i).copied()
+            })
+            .collect()
+    }
+
     /// How close the robot's body comes to a mapped obstacle along the path, mm.
     pub fn body_clearance_mm(&self, lab: &MountedLab) -> f64 {
         self.definition
@@ -129,12 +184,12 @@ impl Route {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use vl_core::{Arena, CameraModel, Experiment, Point, RobotModel};
+    use vl_core::{Arena, CameraModel, Point, RobotModel};
 
     fn lab() -> MountedLab {
         let arena = Arena::navigation();
         MountedLab {
-            experiment: Experiment::Navigation,
+            experiment: vl_core::ExperimentId::new("navigation").unwrap(),
             scene: vl_core::LabScene {
                 camera: CameraModel::overhead(arena.width_mm, arena.height_mm, 320, 15.0),
                 robot: RobotModel::khepera_ii(),

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
-use vl_core::{Definition, Experiment};
+use vl_core::{Definition, ExperimentId};
 
 /// The longest name a task has.
 const MAX_NAME: usize = 64;
@@ -44,7 +44,7 @@ impl std::fmt::Display for TaskName {
 /// A definition kept to be run again.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Task {
-    pub experiment: Experiment,
+    pub experiment: ExperimentId,
     pub definition: Definition,
 }
 
@@ -151,7 +151,7 @@ impl TaskChoice {
     /// returns the file it went to.
     pub(crate) fn keep(
         &self,
-        experiment: Experiment,
+        experiment: ExperimentId,
         definition: &Definition,
     ) -> Result<Option<PathBuf>, TaskError> {
         let Some(name) = &self.save_task else {
@@ -182,7 +182,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("vl-tasks-{}", std::process::id()));
         let tasks = Tasks::at(&dir);
         let task = Task {
-            experiment: Experiment::Navigation,
+            experiment: ExperimentId::new("navigation").unwrap(),
             definition: Definition {
                 path: vec![vl_core::Point {
                     x_mm: 1.0,

@@ -4,7 +4,7 @@
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
-use vl_core::{Experiment, Role, Summary};
+use vl_core::{Experiment, ExperimentId, Role, Summary};
 use vl_report::table::{Table, count};
 
 use crate::client::Connection;
@@ -15,7 +15,7 @@ use crate::session::Session;
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Watched {
     /// The experiment mounted when it left, if any.
-    pub experiment: Option<Experiment>,
+    pub experiment: Option<ExperimentId>,
     /// How the run it saw end ended, if one did.
     pub run: Option<Summary>,
     pub feedback: u64,
@@ -40,13 +40,10 @@ pub async fn watch(url: &str, script: &Script) -> Result<Watched, ScriptError> {
             last_feedback_ms = Some(robot.t_ms);
             feedback += 1;
         }
-        let now = (
-            session.lab.as_ref().map(|lab| lab.experiment),
-            session.running,
-        );
+        let now = (session.mounted().cloned(), session.running);
         if progress {
-            if let Some(experiment) = now.0.filter(|_| now.0 != shown.0) {
-                eprintln!("mounted: {}", experiment.title());
+            if let Some(experiment) = now.0.as_ref().filter(|_| now.0 != shown.0) {
+                eprintln!("mounted: {}", experiment.title);
             }
             if now.1 && !shown.1 {
                 eprintln!("run started");
@@ -74,7 +71,7 @@ pub async fn watch(url: &str, script: &Script) -> Result<Watched, ScriptError> {
             done.reason, done.seconds, done.events
         );
     }
-    let experiment = guest.session.lab.as_ref().map(|lab| lab.experiment);
+    let experiment = guest.session.lab.as_ref().map(|l| l.experiment.clone());
     let (frames, round_trip_ms) = (
         guest.session.frames_received,
         RoundTripMs::from(&guest.session.round_trips),
@@ -104,7 +101,8 @@ impl vl_report::table::Report for Watched {
             (
                 "mounted",
                 self.experiment
-                    .map_or("nothing".to_owned(), |e| e.title().to_owned()),
+                    .as_ref()
+                    .map_or("nothing".to_owned(), ExperimentId::to_string),
             ),
             ("run", run),
             ("feedback", self.feedback.to_string()),

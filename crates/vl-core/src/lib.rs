@@ -110,8 +110,10 @@ pub use schemars;
 
 pub use contract::access::{AccessEvent, AccessNet, AccessNetError, AccessRefused, Seat};
 pub use contract::cells::{CellInfo, CellName, CellStatus, GatewayStatus, NotACellName};
+pub use contract::definition::{Definition, DefinitionError, Goal, LOOKAHEAD_MM, Visited};
 pub use contract::experiment::{
-    Definition, DefinitionError, Experiment, ExperimentInfo, Goal, LOOKAHEAD_MM,
+    BadExperimentId, DefineKind, Experiment, ExperimentError, ExperimentId, Reach, RunComponent,
+    RunPlan, Success,
 };
 pub use contract::fingerprint::Fingerprint;
 pub use contract::forecast::{
@@ -131,12 +133,14 @@ pub use contract::recording::{
     PART_BYTES, PartError, PartHeader, RecordedRun, RecordingName, RecordingNameError,
 };
 pub use contract::rubric::{Grade, GradeLine, Rubric, RubricError};
-pub use contract::summary::{EndReason, EndedByOther, HeldBack, RecordingNote, Stopper, Summary};
+pub use contract::summary::{
+    EndReason, EndedByOther, HeldBack, RecordingNote, Stopper, Summary, WaypointsVisited,
+};
 pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use contract::transport::Io;
 pub use design::{
-    CheckReport, DesignError, Designed, FolderCheck, Interleaving, LabDesign, LabRow, NetsReport,
-    Rule, RuleVerdict, design,
+    CheckReport, Declared, DesignError, Designed, Experiments, FolderCheck, Interleaving,
+    LabDesign, LabRow, NetsReport, Offered, Rule, RuleVerdict, UnknownExperiment, design,
 };
 pub use images::{ImageError, MAX_IMAGE_SIDE, decode_image, load_image};
 pub use model::arena::{
@@ -163,13 +167,13 @@ pub use navigation::analysis::{
 pub use navigation::bench::{PlanBench, PlanBenchError, bench as bench_planning};
 pub use navigation::cspace::{CSpace, Footprint};
 pub use navigation::distance::FAR;
-pub use navigation::follow::{Follower, Following, Steer};
+pub use navigation::follow::{Follower, Following, PLAN_MARGIN_MM, Steer};
 pub use navigation::grid::{CSpaceError, Grid};
 pub use navigation::localise::{Fold, Localiser, Uncertainty};
 pub use navigation::nf1::{CSpaceCell, Nf1};
 pub use navigation::plan::{
     ARENA_CELL_MM, ArenaPlanError, NoPath, PathEnd, Plan, Smoothing, clearance, disc_cspace, plan,
-    plan_route, plan_route_with_margin,
+    plan_route, plan_route_through, plan_route_with_margin,
 };
 pub use navigation::report::{GridInfo, PlanReport};
 pub use navigation::svg::{plan_svg, run_svg};

@@ -46,7 +46,7 @@ impl Service {
         }
     }
 
-    fn request_schema(self) -> Value {
+    fn request_schema(self, experiments: &[vl_core::Experiment]) -> Value {
         let string = json!({"type": "string"});
         match self {
             Service::Control => json!({
@@ -56,7 +56,10 @@ impl Service {
             }),
             Service::Mount => json!({
                 "type": "object",
-                "properties": {"experiment": {"type": "string", "enum": ["navigation", "teleoperation"]}},
+                "properties": {"experiment": {
+                    "type": "string",
+                    "enum": experiments.iter().map(|e| e.id.as_str()).collect::<Vec<_>>(),
+                }},
                 "required": ["experiment"],
             }),
             _ => json!({"type": "object", "properties": {}}),
@@ -82,8 +85,10 @@ impl Service {
     }
 }
 
-/// The services, for `advertiseServices`.
-pub(super) fn advertise_services() -> tokio_tungstenite::tungstenite::Message {
+/// The services, for `advertiseServices`: mount offers `experiments`.
+pub(super) fn advertise_services(
+    experiments: &[vl_core::Experiment],
+) -> tokio_tungstenite::tungstenite::Message {
     let response = json!({
         "type": "object",
         "properties": {"ok": {"type": "boolean"}, "message": {"type": "string"}},
@@ -92,7 +97,7 @@ pub(super) fn advertise_services() -> tokio_tungstenite::tungstenite::Message {
         .iter()
         .enumerate()
         .map(|(id, service)| {
-            let request = service.request_schema();
+            let request = service.request_schema(experiments);
             json!({
                 "id": id,
                 "name": service.name(),

@@ -200,6 +200,8 @@ struct Watcher {
     ping_timeout: Duration,
     /// One per Host start.
     session: String,
+    /// What the lab offers: what its mount service may be asked for.
+    experiments: Arc<[vl_core::Experiment]>,
 }
 
 impl Watcher {
@@ -210,6 +212,7 @@ impl Watcher {
             feed,
             feedback: client.lab.feedback,
             watchers: client.lab.watchers,
+            experiments: client.lab.experiments,
             gate: client.lab.gate,
             peer: client.peer,
             ticket: client.ticket,
@@ -275,7 +278,7 @@ impl Watcher {
         for opening in [
             ops::server_info(&self.session),
             ops::advertise(),
-            drive::advertise_services(),
+            drive::advertise_services(&self.experiments),
         ] {
             if put(sink, opening).await.is_err() {
                 return Ending::Normal;

@@ -77,7 +77,18 @@ fn place(ui: &mut egui::Ui, marked: bool, ink: Color32) {
     }
 }
 
-pub(crate) fn show(ui: &mut egui::Ui, nets: &Supervisor) {
+/// The mounted experiment's net as `session` runs it; for one whose net
+/// only the Host has (a folder this Guest does not ship), a line saying so.
+pub(crate) fn show(ui: &mut egui::Ui, session: &vl_client::Session) {
+    let mounted = session.lab.as_ref().map(|l| &l.experiment);
+    if !session.has_net(mounted) {
+        ui.label("This experiment's net is the Host's own: it allows what it enables.");
+        return;
+    }
+    show_net(ui, &session.nets);
+}
+
+fn show_net(ui: &mut egui::Ui, nets: &Supervisor) {
     let (net, marking) = nets.marked();
     let mut rows: Vec<(&str, Vec<(&str, bool)>)> = Vec::new();
     let mut rules = 0;

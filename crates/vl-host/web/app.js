@@ -30,7 +30,7 @@ const ROLES = { operator: "driving", observer: "watching" };
 const vl = {
   socket: null, link: "connecting", role: null, session: null, resume: null,
   wanted: "observer", login: {}, user: null, lineAfterWelcome: false, experiments: [], lab: null, scene: null, state: null,
-  status: null, definition: null, forecast: null, planned: null, goal: null,
+  status: null, definition: null, forecast: null, planned: null, goal: null, waypoints: [],
   feedback: null, trail: [], running: false, lastEvent: 0, sentEvent: 0,
   lastCommandAt: 0, summary: null, error: null, rttMs: null,
   frame: null, frames: 0, image: null, keys: new Set(), stick: { v: 0, w: 0 },
@@ -158,7 +158,7 @@ function take(m) {
       clearError();
       break;
     case "mounted":
-      vl.lab = m; vl.definition = null; vl.planned = null; vl.goal = null;
+      vl.lab = m; vl.definition = null; vl.planned = null; vl.goal = null; vl.waypoints = [];
       vl.forecast = null; vl.trail = []; vl.summary = null;
       break;
     case "state": {
@@ -172,7 +172,10 @@ function take(m) {
       break;
     }
     case "status": vl.status = m; vl.lastRun = m.last_run || null; break;
-    case "planned": vl.planned = m.path; vl.goal = m.goal; clearError(); break;
+    case "planned":
+      // A plan through points since clicked again is no longer the one wanted.
+      if (vl.waypoints.length && !(vl.goal && m.goal.x_mm === vl.goal.x_mm && m.goal.y_mm === vl.goal.y_mm)) break;
+      vl.planned = m.path; vl.goal = m.goal; clearError(); break;
     case "defined": vl.definition = m; vl.planned = null; clearError(); break;
     case "forecast": vl.forecast = m; break;
     case "started":
@@ -288,7 +291,7 @@ function drive() {
 // The keys drive only the operator of a teleoperation lab; for everyone
 // else they scroll and move between controls as usual.
 function keysDrive() {
-  return vl.role === "operator" && vl.lab && vl.lab.experiment === "teleoperation";
+  return vl.role === "operator" && runs("teleoperate");
 }
 document.addEventListener("keydown", (e) => {
   if (KEYS[e.code] && keysDrive() && e.target.tagName !== "INPUT") {
@@ -377,6 +380,13 @@ function draw() {
     ctx.strokeStyle = COLOUR.goal; ctx.lineWidth = 3;
     ctx.beginPath(); ctx.arc(x, y, 8, 0, 2 * Math.PI); ctx.stroke();
   }
+  const waypoints = (vl.definition && vl.definition.waypoints) || vl.waypoints;
+  ctx.fillStyle = COLOUR.goal; ctx.font = "13px sans-serif";
+  waypoints.forEach((p, i) => {
+    const [x, y] = VL.toPixel(cam, p);
+    ctx.beginPath(); ctx.arc(x, y, 6, 0, 2 * Math.PI); ctx.stroke();
+    ctx.fillText(String(i + 1), x + 8, y - 8);
+  });
   if (vl.feedback) {
     const pose = vl.feedback.pose;
     const [x, y] = VL.toPixel(cam, pose);
@@ -392,22 +402,53 @@ function draw() {
   }
 }
 
-// A click on the floor is a goal: the Host plans a path to it.
+// The mounted experiment, as the Host's welcome declares it: what its
+// run is made of and what the user defines decide the page's controls.
+function mounted() {
+  return (vl.lab && vl.experiments.find((e) => e.id === vl.lab.experiment)) || null;
+}
+function runs(component) {
+  const e = mounted();
+  return !!(e && e.run && e.run.components.includes(component));
+}
+// How many waypoints the mounted experiment visits, {min, max}; none.
+function waypointBounds() {
+  const e = mounted();
+  return (e && (e.define || []).find((d) => d.kind === "waypoints")) || null;
+}
+
+// A click on the floor is a goal, or the next waypoint: the Host plans a
+// path to it (through the waypoints before it).
 canvas.addEventListener("click", (e) => {
   const cam = camera();
   if (!cam || vl.role !== "operator" || !enabled("define")) return;
-  if (!vl.lab || vl.lab.experiment !== "navigation") return;
+  if (!runs("plan")) return;
   const box = canvas.getBoundingClientRect();
   const c = (e.clientX - box.left) * (canvas.width / box.width);
   const r = (e.clientY - box.top) * (canvas.height / box.height);
-  planTo(VL.toArena(cam, c, r));
+  const p = VL.toArena(cam, c, r);
+  const bounds = waypointBounds();
+  if (!bounds) return planTo(p);
+  if (vl.waypoints.length >= bounds.max) return;
+  vl.waypoints.push(p);
+  // The plan through the points so far is no more: a new one is asked for
+  // once the clicks pause (the Host plans one every quarter second).
+  vl.planned = null; vl.goal = null;
+  clearTimeout(vl.planLater);
+  if (vl.waypoints.length >= bounds.min) {
+    vl.planLater = setTimeout(() => planTo(p, vl.waypoints.slice(0, -1)), PLAN_PAUSE_MS);
+  }
+  render();
 });
+// How long the clicks on the floor pause before the points are planned.
+const PLAN_PAUSE_MS = 400;
 
-// Asks the Host for a path to `goal` (from a click or the goal's fields).
-function planTo(goal) {
+// Asks the Host for a path to `goal` (from a click or the goal's fields),
+// through `through` first.
+function planTo(goal, through) {
   vl.goal = goal;
   $("goal-x").value = Math.round(goal.x_mm); $("goal-y").value = Math.round(goal.y_mm);
-  send(VL.guest.plan(goal));
+  send(VL.guest.plan(goal, through));
   render();
 }
 
@@ -473,7 +514,7 @@ function runWords() {
 function netWords() {
   if (!vl.state) return "…";
   const can = (vl.state.enabled || []).filter((e) => ACTIONS[e]).map((e) => ACTIONS[e]);
-  const lab = vl.lab ? `${vl.lab.experiment} mounted` : "nothing mounted";
+  const lab = vl.lab ? `“${(mounted() || {}).title || vl.lab.experiment}” mounted` : "nothing mounted";
   return `${lab}; the lab's net lets the operator ${can.length ? can.join(", ") : "do nothing now"}`;
 }
 
@@ -497,13 +538,17 @@ function nextWords() {
     return "You watch. Ask for control to drive.";
   }
   if (!vl.lab) return "Next: mount an experiment below.";
-  const navigation = vl.lab.experiment === "navigation";
+  const navigation = runs("follow");
+  const bounds = waypointBounds();
   if (vl.running) {
     return navigation ? "The robot follows the path: Stop ends the run, STOP halts it at once." :
       "Drive with the arrow keys or a gamepad: Stop ends the run, STOP halts it at once.";
   }
   if (vl.status && vl.status.lab === "getting_ready") return "Wait: the robot drives back to its start.";
   const path = vl.definition && vl.definition.path && vl.definition.path.length > 1;
+  if (navigation && !vl.definition && bounds && !vl.planned) {
+    return `Next: click the floor for each point to visit, in order (${bounds.min} to ${bounds.max}).`;
+  }
   if (navigation && !vl.definition) {
     return vl.planned ? "Next: Define, to run along the planned path." :
       "Next: choose a goal (click the floor, or type it below the view).";
@@ -580,13 +625,16 @@ function render() {
   text("line", vl.queue ? "Leave the line" : "Ask for control");
   show("operate", operator);
   mountButtons();
-  const navigation = vl.lab && vl.lab.experiment === "navigation";
-  show("goal-hint", operator && navigation && !vl.running);
+  show("goal-hint", operator && runs("plan") && !waypointBounds() && !vl.running);
+  const bounds = waypointBounds();
+  show("waypoints-hint", operator && !!bounds && !vl.running);
+  text("waypoints-count", bounds ?
+    `${vl.waypoints.length} of ${bounds.min} to ${bounds.max} points: click the floor for each, in order.` : "");
   $("plan").disabled = !enabled("define");
   $("define").disabled = !(vl.planned && vl.goal && enabled("define"));
   $("start").disabled = !enabled("start") || (vl.status && vl.status.lab === "getting_ready");
   $("stop").disabled = !enabled("stop");
-  show("keys", operator && vl.lab && vl.lab.experiment === "teleoperation");
+  show("keys", operator && runs("teleoperate"));
   text("gamepad", vl.gamepad ? `gamepad: ${vl.gamepad.id}` : "no gamepad (press a button on one to use it)");
   draw();
   drawStick();
@@ -610,7 +658,9 @@ $("look").onclick = () => { vl.login = login(); rejoin("observer"); };
 $("line").onclick = () => send(vl.queue ? VL.guest.leave_queue() : VL.guest.queue());
 $("watch").onclick = () => rejoin("observer");
 $("define").onclick = () => {
-  if (vl.planned && vl.goal) send(VL.guest.define(vl.goal, vl.planned));
+  if (vl.planned && vl.goal) {
+    send(VL.guest.define(vl.goal, vl.planned, waypointBounds() ? vl.waypoints : []));
+  }
 };
 $("start").onclick = () => send(VL.guest.start());
 $("stop").onclick = () => send(VL.guest.stop());
@@ -623,6 +673,10 @@ $("estop").onclick = () => {
       "The Host holds the robot still while its operator's link is down.";
   vl.error = { code: "not_sent", at: performance.now(), message };
   render();
+};
+$("clear-points").onclick = () => {
+  clearTimeout(vl.planLater);
+  vl.waypoints = []; vl.planned = null; vl.goal = null; render();
 };
 $("plan").onclick = () => {
   const x = parseFloat($("goal-x").value), y = parseFloat($("goal-y").value);

@@ -23,12 +23,22 @@ const VL = (() => {
     ping: (t) => ({ type: "ping", t }),
     pong: (t) => ({ type: "pong", t }),
     mount: (experiment) => ({ type: "mount", experiment }),
-    plan: (goal) => ({ type: "plan", goal: point(goal) }),
-    define: (goal, path) => ({
-      type: "define",
-      goal: { x_mm: goal.x_mm, y_mm: goal.y_mm, tolerance_mm: 15.0 },
-      path: path.map(point),
-    }),
+    // `through`: the waypoints before the goal, for an experiment that
+    // visits them.
+    plan: (goal, through) => {
+      const m = { type: "plan", goal: point(goal) };
+      if (through && through.length) m.through = through.map(point);
+      return m;
+    },
+    define: (goal, path, waypoints) => {
+      const m = {
+        type: "define",
+        goal: { x_mm: goal.x_mm, y_mm: goal.y_mm, tolerance_mm: 15.0 },
+        path: path.map(point),
+      };
+      if (waypoints && waypoints.length) m.waypoints = waypoints.map(point);
+      return m;
+    },
     start: () => ({ type: "start" }),
     stop: () => ({ type: "stop" }),
     emergency_stop: () => ({ type: "emergency_stop" }),
@@ -53,7 +63,9 @@ const VL = (() => {
       guest.pong(2.5),
       guest.mount("navigation"),
       guest.plan(goal),
+      guest.plan(goal, [{ x_mm: 300.0, y_mm: 200.0 }]),
       guest.define(goal, [{ x_mm: 100.0, y_mm: 120.0 }, goal]),
+      guest.define(goal, [{ x_mm: 100.0, y_mm: 120.0 }, goal], [{ x_mm: 300.0, y_mm: 200.0 }, goal]),
       guest.start(),
       guest.stop(),
       guest.emergency_stop(),

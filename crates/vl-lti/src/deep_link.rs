@@ -47,11 +47,9 @@ impl Lti {
                 "the launch was not a deep-linking request",
             )
         })?;
-        if !matches!(item.experiment.as_str(), "navigation" | "teleoperation") {
-            return Err(refused(
-                StatusCode::BAD_REQUEST,
-                "the experiment is navigation or teleoperation",
-            ));
+        if let Err(unknown) = self.experiments.get(&item.experiment) {
+            let why = format!("the experiment is one of {}", unknown.known.join(", "));
+            return Err(refused(StatusCode::BAD_REQUEST, &why));
         }
         let mut custom = json!({"experiment": item.experiment});
         if let Some((x, y)) = item.goal {
@@ -72,7 +70,7 @@ impl Lti {
                 "title": item.title,
                 "custom": custom,
                 "lineItem": {
-                    "scoreMaximum": self.grades.maximum(),
+                    "scoreMaximum": self.grades.maximum(Some(&item.experiment)),
                     "label": item.title,
                     "resourceId": item.experiment,
                 },

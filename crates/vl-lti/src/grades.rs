@@ -15,7 +15,7 @@ use std::time::{Duration, SystemTime};
 
 use serde::Serialize;
 use tracing::{info, warn};
-use vl_core::{Goal, GradesStatus, Rubric, Summary};
+use vl_core::{Experiments, Goal, GradesStatus, Rubric, Summary};
 
 use tokio::sync::broadcast;
 
@@ -85,23 +85,44 @@ struct Book {
     runs: HashMap<String, VecDeque<Graded>>,
 }
 
-/// The rubric, and the graded runs by person.
+/// The rubrics, and the graded runs by person.
 pub(super) struct GradeBook {
-    rubric: Rubric,
+    /// The lab's rubric for every run, when its config gives one.
+    fixed: Option<Rubric>,
+    /// Each experiment's own, as its folder declares it.
+    declared: HashMap<String, Rubric>,
     book: Mutex<Book>,
 }
 
 impl GradeBook {
-    pub(super) fn new(rubric: Rubric) -> GradeBook {
+    /// Runs graded by `fixed`, else by the rubric their experiment in
+    /// `experiments` declares, else by the default.
+    pub(super) fn new(fixed: Option<Rubric>, experiments: &Experiments) -> GradeBook {
+        let declared = experiments
+            .ids()
+            .into_iter()
+            .filter_map(|id| {
+                let rubric = experiments.get(id.as_str()).ok()?.declared.rubric?;
+                Some((id.to_string(), rubric))
+            })
+            .collect();
         GradeBook {
-            rubric,
+            fixed,
+            declared,
             book: Mutex::new(Book::default()),
         }
     }
 
-    /// The most a run may earn.
-    pub(super) fn maximum(&self) -> f64 {
-        self.rubric.maximum()
+    /// The rubric a run of `experiment` is graded by.
+    pub(super) fn rubric(&self, experiment: Option<&str>) -> Rubric {
+        self.fixed
+            .or_else(|| experiment.and_then(|e| self.declared.get(e).copied()))
+            .unwrap_or_default()
+    }
+
+    /// The most a run of `experiment` may earn.
+    pub(super) fn maximum(&self, experiment: Option<&str>) -> f64 {
+        self.rubric(experiment).maximum()
     }
 
     fn book(&self) -> MutexGuard<'_, Book> {
@@ -218,7 +239,8 @@ impl Lti {
         let user = launch.user.as_str();
         let named = run.map_or_else(|| "A run".to_owned(), |run| format!("Run {run}"));
         let judged = judged(summary, &launch.assignment);
-        let graded = judged.as_ref().map(|s| self.grades.rubric.grade(s));
+        let rubric = self.grades.rubric(summary.experiment.as_deref());
+        let graded = judged.as_ref().map(|s| rubric.grade(s));
         let (given, maximum, comment, sent) = match &graded {
             Ok(grade) => {
                 let comment = format!("{named}, {}. {}", summary.ending(), grade.comment());
@@ -237,7 +259,7 @@ impl Lti {
                         .user(Some(user))
                         .detail(format!("{named}: {why}")),
                 );
-                let maximum = self.grades.maximum();
+                let maximum = rubric.maximum();
                 let comment = format!("{named}, {}: not counted, {why}.", summary.ending());
                 (0.0, maximum, comment, Sent::NotCounted(why.to_string()))
             }

@@ -25,7 +25,7 @@ use std::sync::Arc;
 
 pub use registry::{Platform, Registry, ToolKey, key_path, registry_path};
 pub(crate) use sessions::Sessions;
-use vl_core::Rubric;
+use vl_core::{Experiments, Rubric};
 
 use std::net::IpAddr;
 
@@ -104,8 +104,11 @@ fn insert_bounded<K, V, A: Ord>(
 pub struct LtiOptions {
     /// The lab's accounts file: the platforms and the key are kept beside it.
     pub users: PathBuf,
-    /// How runs are graded.
-    pub rubric: Rubric,
+    /// How every run is graded, whatever its experiment declares.
+    pub rubric: Option<Rubric>,
+    /// What the lab offers: what a link may open, and each experiment's
+    /// rubric.
+    pub experiments: Experiments,
 }
 
 /// The lab's LMS side: its platforms, key, pending logins, sessions and grades.
@@ -118,6 +121,7 @@ pub struct Lti {
     audit: Audit,
     grades: grades::GradeBook,
     tokens: services::AccessTokens,
+    experiments: Experiments,
 }
 
 impl Lti {
@@ -134,7 +138,8 @@ impl Lti {
             sessions: Arc::new(Sessions::default()),
             http: services::client()?,
             audit,
-            grades: grades::GradeBook::new(options.rubric),
+            grades: grades::GradeBook::new(options.rubric, &options.experiments),
+            experiments: options.experiments,
             tokens: services::AccessTokens::default(),
         }))
     }

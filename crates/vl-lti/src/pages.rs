@@ -20,6 +20,7 @@ use serde::Deserialize;
 use super::Lti;
 use super::launch::{LoginRequest, Refused};
 use super::sessions::Launch;
+use vl_core::Experiments;
 use vl_host::AccountRole;
 use vl_host::AuditEntry;
 use vl_host::web;
@@ -209,7 +210,7 @@ async fn launch(
             )),
     );
     match &who.deep_linking {
-        Some(_) => choose_page(&asked, &launched.session),
+        Some(_) => choose_page(&asked, &launched.session, &asked.lti.experiments),
         None => lab_page(&asked, &launched.session, who),
     }
 }
@@ -251,15 +252,22 @@ fn lab_page(asked: &Asked, session: &str, launch: &Launch) -> Response {
 }
 
 /// What an instructor chooses a link to open: an experiment, and a goal.
-fn choose_page(asked: &Asked, session: &str) -> Response {
+fn choose_page(asked: &Asked, session: &str, experiments: &Experiments) -> Response {
+    let options: String = experiments
+        .experiments()
+        .map(|e| {
+            format!(
+                "<option value=\"{id}\">{id}: {title}</option>",
+                id = escape(e.id.as_str()),
+                title = escape(&e.title)
+            )
+        })
+        .collect();
     let body = format!(
         "<form method=\"post\" action=\"/lti/deep-link\" class=\"lti\">\
          <input type=\"hidden\" name=\"session\" value=\"{}\">\
          <label>Title <input name=\"title\" value=\"Mobile robotics lab\" maxlength=\"100\" required></label>\
-         <label>Experiment <select name=\"experiment\">\
-         <option value=\"navigation\">navigation: plan a path and follow it</option>\
-         <option value=\"teleoperation\">teleoperation: drive with force feedback</option>\
-         </select></label>\
+         <label>Experiment <select name=\"experiment\">{options}</select></label>\
          <label>Goal x, mm <input name=\"goal_x\" type=\"number\" min=\"0\" max=\"10000\"></label>\
          <label>Goal y, mm <input name=\"goal_y\" type=\"number\" min=\"0\" max=\"10000\"></label>\
          <button>Add to the course</button></form>",

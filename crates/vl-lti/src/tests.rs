@@ -31,7 +31,8 @@ fn lab(name: &str) -> Arc<Lti> {
     registry.save(&registry_path(&users)).unwrap();
     let options = LtiOptions {
         users,
-        rubric: vl_core::Rubric::default(),
+        rubric: None,
+        experiments: vl_core::Experiments::shipped().clone(),
     };
     Lti::new(options, Audit::default()).unwrap()
 }

@@ -28,6 +28,8 @@ use crate::net::{Marking, Net};
 pub enum ExploreError {
     #[error("stopped at the limit of {limit} states before the state space was complete")]
     TooManyStates { limit: usize },
+    #[error("stopped at its deadline before the state space was complete")]
+    OutOfTime,
     #[error(
         "a place would hold more than {} tokens: the net is unbounded or nearly so",
         u32::MAX
@@ -48,6 +50,9 @@ pub struct Options<'a> {
     pub max_states: usize,
     /// Called every few hundred thousand states.
     pub progress: Option<&'a mut dyn FnMut(Progress)>,
+    /// Stop when still exploring at this time (looked at every
+    /// [`DEADLINE_EVERY`] states).
+    pub deadline: Option<Instant>,
 }
 
 impl Default for Options<'_> {
@@ -55,6 +60,7 @@ impl Default for Options<'_> {
         Options {
             max_states: usize::MAX,
             progress: None,
+            deadline: None,
         }
     }
 }
@@ -137,6 +143,9 @@ impl Labels {
         }
     }
 }
+
+/// How often the deadline is looked at, in expanded states.
+pub(crate) const DEADLINE_EVERY: usize = 1 << 12;
 
 /// How often progress is reported, in expanded states.
 pub(crate) const PROGRESS_EVERY: usize = 1 << 18;
@@ -238,6 +247,7 @@ fn start(net: &Net, options: &mut Options, keep: Keep) -> Result<Found, ExploreE
         Stop::Limit => ExploreError::TooManyStates {
             limit: options.max_states,
         },
+        Stop::OutOfTime => ExploreError::OutOfTime,
     })
 }
 
@@ -316,6 +326,7 @@ enum Keep {
 enum Stop {
     Overflow,
     Limit,
+    OutOfTime,
 }
 
 fn hash_of(m: &[u8]) -> u64 {
@@ -410,6 +421,11 @@ fn run(
         if keep == Keep::GraphUntilDead && edges == edges_before {
             dead = Some(expanded - 1);
             break;
+        }
+        if expanded.is_multiple_of(DEADLINE_EVERY)
+            && options.deadline.is_some_and(|d| Instant::now() >= d)
+        {
+            return Err(Stop::OutOfTime);
         }
         if expanded.is_multiple_of(PROGRESS_EVERY)
             && let Some(report) = options.progress.as_mut()

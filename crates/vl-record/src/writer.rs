@@ -13,8 +13,7 @@ use bytes::Bytes;
 use mcap::records::{MessageHeader, Metadata};
 use tracing::warn;
 use vl_core::{
-    Definition, GuestMessage, HostMessage, MountedLab, Named, Pose, RecordedRun, RecordingName,
-    Wire,
+    Definition, GuestMessage, HostMessage, MountedLab, Pose, RecordedRun, RecordingName, Wire,
 };
 
 use super::Topic;
@@ -409,7 +408,8 @@ impl RunFile {
                     begin
                         .run
                         .experiment
-                        .map_or("between runs", |e| e.id())
+                        .as_ref()
+                        .map_or("between runs", |e| e.as_str())
                         .to_owned(),
                 ),
                 ("arena".to_owned(), begin.lab.scene.arena.name.clone()),
@@ -469,7 +469,7 @@ impl RunFile {
             let views = file.views.sent(ns, &message);
             file.put_all(views)?;
         }
-        let text = match file.run.experiment {
+        let text = match &file.run.experiment {
             Some(experiment) => format!("run {} of {experiment} begins", file.run.run),
             None => "the time between runs".to_owned(),
         };

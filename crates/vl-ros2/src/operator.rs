@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, watch};
 use tracing::{info, warn};
 use vl_core::{
-    Drive, EndReason, Experiment, GuestMessage, HostMessage, PROTOCOL_VERSION, Role, Wire,
+    Drive, EndReason, GuestMessage, HostMessage, PROTOCOL_VERSION, Role, RunComponent, Wire,
 };
 
 use super::Ros2Error;
@@ -237,11 +237,20 @@ impl Driver {
         match message {
             HostMessage::Welcome {
                 role: Role::Operator,
+                experiments,
                 ..
             } => {
-                info!("ROS 2 {CMD_VEL} drives the robot");
+                // The first experiment driven by stick: a Twist is a stick.
+                let Some(driven) = experiments
+                    .iter()
+                    .find(|e| e.run.has(RunComponent::Teleoperate))
+                else {
+                    warn!("ROS 2 {CMD_VEL}: the lab offers no experiment driven by stick");
+                    return self.leave().await;
+                };
+                info!("ROS 2 {CMD_VEL} drives the robot ({})", driven.id);
                 let mount = GuestMessage::Mount {
-                    experiment: Experiment::Teleoperation.to_string(),
+                    experiment: driven.id.to_string(),
                 };
                 self.tell(mount).await;
             }

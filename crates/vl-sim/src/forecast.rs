@@ -13,7 +13,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use thiserror::Error;
 use vl_core::{
     Arena, Closest, Definition, Follower, Forecast, Leash, Point, Pose, RobotModel, Safety,
-    SeedRun, Situation, Steer, Surroundings, Told,
+    SeedRun, Situation, Steer, Surroundings, Told, Visited,
 };
 
 use crate::world::{STEP_S, SimError, World};
@@ -124,6 +124,7 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
         path: vec![start],
     };
     let (mut error_sum, mut steps) = (0.0, 0u64);
+    let mut visited = Visited::default();
     while world.time_s() < limit_s {
         if steps % CANCEL_EVERY_STEPS == 0 && what.cancel.is_some_and(|c| c.load(Ordering::Relaxed))
         {
@@ -133,8 +134,10 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
             proximity = world.proximity();
         }
         let pose = world.pose();
-        // The run ends where the Host ends it: within the goal's tolerance.
-        if definition.at_goal(pose.point()) {
+        // The run ends where the Host ends it: within the goal's tolerance,
+        // or with every waypoint visited in order.
+        visited = visited.at(definition, pose.point());
+        if definition.reached(visited, pose.point()) {
             out.reached_goal = true;
             break;
         }

@@ -61,7 +61,7 @@ pub(crate) async fn serve(listener: TcpListener, config: HostConfig, zenoh: Zeno
         since_ns: since,
         gate: gate.clone(),
         scene: None,
-        experiments: config.experiments.clone().into(),
+        experiments: config.experiments.experiments().cloned().collect(),
     };
     let front = Front::new(
         config.clone(),

@@ -8,14 +8,15 @@ use std::time::{Duration, Instant};
 
 use image::RgbaImage;
 use vl_core::{
-    Action, Definition, DeviceState, Drive, ErrorCode, Experiment, ExperimentInfo, Feedback,
-    FrameHeader, GuestMessage, HostMessage, ImageFormat, MountedLab, Named, Pose, Readiness, Role,
+    Action, Definition, DeviceState, Drive, ErrorCode, Experiment, Experiments, Feedback,
+    FrameHeader, GuestMessage, HostMessage, ImageFormat, MountedLab, Pose, Readiness, Role,
     Summary, Supervisor,
 };
 
 use crate::client::Incoming;
 
 mod figures;
+mod steps;
 use crate::predict::Predictor;
 pub use figures::{MeanMax, RoundTripMs, RoundTrips};
 
@@ -94,7 +95,7 @@ pub struct Session {
     pub user: Option<String>,
     pub role: Option<Role>,
     pub session_id: Option<u64>,
-    pub experiments: Vec<ExperimentInfo>,
+    pub experiments: Vec<Experiment>,
     pub lab: Option<MountedLab>,
     pub definition: Option<Definition>,
     /// The definition tried on the lab's twin, once the Host has.
@@ -149,6 +150,9 @@ pub struct Session {
     pub nets: Supervisor,
     /// Whether the last state the Host told matched the nets run here.
     pub nets_agree: bool,
+    /// The last state the Host told: what its net enables when this Guest
+    /// has no net of the mounted experiment (a folder it does not ship).
+    pub told: Option<vl_core::NetState>,
     /// How many welcomes this Guest has had: each is a new connection,
     /// perhaps to a new Host, and starts what is shown afresh.
     pub welcomes: u64,
@@ -217,9 +221,10 @@ impl Default for Session {
             stale_error: MeanMax::default(),
             feedback_at: None,
             frame_at: None,
-            nets: Supervisor::new(Experiment::ALL)
+            nets: Supervisor::new(Experiments::shipped().nets())
                 .expect("the shipped nets are built in and tested"),
             nets_agree: true,
+            told: None,
             queue: None,
             slot_ends: None,
             welcomes: 0,
@@ -301,9 +306,10 @@ impl Session {
             HostMessage::Forecast(verdict) => self.foreseen(*verdict),
             HostMessage::State(state) => {
                 self.nets_agree = self.nets.follow(&state);
+                self.told = Some(*state);
                 // A run asked to stop takes no more commands, though its
                 // `done` is still to come.
-                if !self.nets.allows(Action::Command) {
+                if !self.net_allows(Action::Command) {
                     self.running = false;
                 }
             }
@@ -371,7 +377,7 @@ impl Session {
         &mut self,
         session: u64,
         role: Role,
-        experiments: Vec<vl_core::ExperimentInfo>,
+        experiments: Vec<Experiment>,
         user: Option<String>,
     ) {
         self.forget_the_host();
@@ -450,6 +456,7 @@ impl Session {
         self.frame_at = None;
         self.nets = fresh.nets;
         self.nets_agree = true;
+        self.told = None;
     }
 
     fn apply_frame(&mut self, header: FrameHeader, bytes: Vec<u8>) {
@@ -545,65 +552,22 @@ impl Session {
     /// Whether the run under way, or the next, follows its path on the Host.
     pub fn host_follows(&self) -> bool {
         match (&self.lab, &self.definition) {
-            (Some(lab), Some(definition)) => definition.host_follows(lab.experiment),
+            (Some(_), Some(definition)) => {
+                definition.host_follows(self.mounted().is_some_and(Experiment::follows))
+            }
             _ => false,
         }
+    }
+
+    /// The mounted experiment, as the Host's welcome declared it.
+    pub fn mounted(&self) -> Option<&Experiment> {
+        let id = &self.lab.as_ref()?.experiment;
+        self.experiments.iter().find(|e| e.id == *id)
     }
 
     /// Whether this Guest may drive.
     pub fn is_operator(&self) -> bool {
         self.role == Some(Role::Operator)
-    }
-
-    /// Whether this Guest may ask for `action` now: it is the operator and
-    /// the lab's net, run here from the Host's firings, enables it; a run
-    /// (and its definition, planned from where the robot stands) waits
-    /// while the lab gets ready.
-    pub fn allows(&self, action: Action) -> bool {
-        let waits = matches!(action, Action::Start | Action::Define) && !self.ready();
-        self.is_operator() && self.nets.allows(action) && !waits
-    }
-
-    /// Whether the lab is ready for a run, as the Host last said.
-    pub fn ready(&self) -> bool {
-        self.devices.is_none_or(|d| d.lab == Readiness::Ready)
-    }
-
-    /// What the operator may do next, in words (a lab's state names its
-    /// next action); none for someone watching, whose place in line says it.
-    pub fn next_step(&self) -> Option<&'static str> {
-        if !self.is_operator() {
-            return None;
-        }
-        let Some(lab) = &self.lab else {
-            return Some("Next: mount an experiment.");
-        };
-        let navigation = lab.experiment == Experiment::Navigation;
-        if self.running {
-            return Some(if navigation {
-                "Running: Stop ends the run, STOP halts the robot at once."
-            } else {
-                "Drive with the stick or the arrow keys: Stop ends the run, STOP halts it at once."
-            });
-        }
-        if !self.ready() {
-            return Some("Wait: the robot drives back to its start.");
-        }
-        let Some(definition) = &self.definition else {
-            return Some(if navigation {
-                "Next: click the view for a goal, then Define."
-            } else {
-                "Next: Define the run (no path: you drive), then Start."
-            });
-        };
-        match &self.forecast {
-            None if definition.path.len() > 1 => Some("The lab's twin tries the definition first…"),
-            Some(f) if !f.passed() => {
-                Some("Next: another goal or path: the twin refused this one.")
-            }
-            _ if self.allows(Action::Start) => Some("Next: Start the run."),
-            _ => None,
-        }
     }
 }
 

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::experiment::Experiment;
+use super::experiment::ExperimentId;
 use super::host_status::Person;
 use super::protocol::Readiness;
 
@@ -69,8 +69,8 @@ impl std::fmt::Display for CellName {
 pub struct CellInfo {
     pub name: CellName,
     /// What the cell offers.
-    pub experiments: Vec<Experiment>,
-    pub mounted: Option<Experiment>,
+    pub experiments: Vec<ExperimentId>,
+    pub mounted: Option<ExperimentId>,
     pub lab: Readiness,
     /// The run under way, by number.
     pub run: Option<u64>,

@@ -1,312 +1,366 @@
-//! Experiments: what the Host offers and what a user defines before a run
-//! (the thesis's "define" functionality), with the checks a definition must
-//! pass before the real robot moves.
+//! Experiments as their folders declare them: what the Host offers, what
+//! a user defines, which of vl's components a run is made of, and what
+//! counts as success.
+
+use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
-use crate::{Arena, Named, Point, RobotModel, Shape, ShapeError, WheelSpeeds};
+use super::definition::{Definition, MAX_WAYPOINTS};
 
-/// The experiments a lab can offer.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Experiment {
-    /// Plan a path to a goal among obstacles and follow it (thesis ch. 5).
-    Navigation,
-    /// Drive by joystick with the obstacles pushing back (thesis ch. 6).
-    Teleoperation,
+/// An experiment's id: the name of the folder that declares it, and what
+/// URLs, recordings, commands and the wire carry (a lowercase word, `-` and
+/// `_` allowed).
+#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub struct ExperimentId(Arc<str>);
+
+/// Why a text cannot be an experiment's id.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "'{0}' is no experiment id: a lowercase word of at most {MAX_ID_CHARS} letters, digits, '-' or '_', starting with a letter"
+)]
+pub struct BadExperimentId(pub String);
+
+/// The longest id an experiment may have.
+const MAX_ID_CHARS: usize = 32;
+
+impl ExperimentId {
+    pub fn new(id: &str) -> Result<ExperimentId, BadExperimentId> {
+        let word = id.len() <= MAX_ID_CHARS
+            && id.starts_with(|c: char| c.is_ascii_lowercase())
+            && id
+                .chars()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-' || c == '_');
+        match word {
+            true => Ok(ExperimentId(id.into())),
+            false => Err(BadExperimentId(id.chars().take(64).collect())),
+        }
+    }
+
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
 }
 
-impl Named for Experiment {
-    const KIND: &'static str = "experiment";
-    const ALL: &'static [Self] = &[Experiment::Navigation, Experiment::Teleoperation];
-    /// `vl experiment run` once had names of its own for them.
-    const FORMERLY: &'static [(&'static str, Self)] = &[
-        ("mobile", Experiment::Navigation),
-        ("teleop", Experiment::Teleoperation),
+impl TryFrom<String> for ExperimentId {
+    type Error = BadExperimentId;
+
+    fn try_from(id: String) -> Result<Self, Self::Error> {
+        ExperimentId::new(&id)
+    }
+}
+
+impl From<ExperimentId> for String {
+    fn from(id: ExperimentId) -> String {
+        id.0.as_ref().to_owned()
+    }
+}
+
+impl std::fmt::Display for ExperimentId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl PartialEq<str> for ExperimentId {
+    fn eq(&self, other: &str) -> bool {
+        &*self.0 == other
+    }
+}
+
+impl schemars::JsonSchema for ExperimentId {
+    fn schema_name() -> std::borrow::Cow<'static, str> {
+        "ExperimentId".into()
+    }
+
+    fn json_schema(_: &mut schemars::SchemaGenerator) -> schemars::Schema {
+        schemars::json_schema!({
+            "type": "string",
+            "pattern": "^[a-z][a-z0-9_-]{0,31}$"
+        })
+    }
+}
+
+/// An experiment as its folder declares it (`experiment.toml`): what the
+/// user is told, what they define, what a run does and what counts as
+/// success. Its charts and controllers are its design (`vl_core::design`);
+/// this is what the Host, the Guests and the tools act on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct Experiment {
+    pub id: ExperimentId,
+    /// What the user sees it called.
+    pub title: String,
+    /// What the user is told to do before a run.
+    #[serde(default)]
+    pub help: String,
+    /// What the user defines before a run.
+    #[serde(default)]
+    pub define: Vec<DefineKind>,
+    /// What a run does, composed from vl's components.
+    pub run: RunPlan,
+    #[serde(default)]
+    pub success: Success,
+}
+
+/// Something a user defines before a run, of a kind vl knows how to show,
+/// check, forecast and record.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum DefineKind {
+    /// A point on the floor, clicked on the view.
+    Goal {
+        /// Whether a run may start without one.
+        #[serde(default)]
+        required: bool,
+    },
+    /// Points to visit in order, clicked on the view: at least `min`, at
+    /// most `max`.
+    Waypoints { min: usize, max: usize },
+    /// A path the robot is to follow, planned by the lab or drawn.
+    Path,
+    /// Obstacles that exist only in software, drawn on the view.
+    Obstacles,
+}
+
+/// vl's components a run is composed of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum RunComponent {
+    /// Plan a path through the defined points on the C-space (the lab's
+    /// net hears `path_planned`).
+    Plan,
+    /// Try the definition on the twin before the robot moves (the net
+    /// hears `forecast_passed` or `forecast_failed`).
+    Forecast,
+    /// Follow the defined path under the safety layer and the leash.
+    Follow,
+    /// The operator drives by stick, under the safety layer and the leash.
+    Teleoperate,
+    /// Add the obstacles' potential field to the operator's commands (the
+    /// net hears `field_built`).
+    Assist,
+    /// Feed the field's push back to the operator as a force.
+    Force,
+}
+
+impl RunComponent {
+    pub const ALL: [RunComponent; 6] = [
+        RunComponent::Plan,
+        RunComponent::Forecast,
+        RunComponent::Follow,
+        RunComponent::Teleoperate,
+        RunComponent::Assist,
+        RunComponent::Force,
     ];
 
-    fn id(self) -> &'static str {
+    /// Its name in `experiment.toml`.
+    pub fn name(self) -> &'static str {
         match self {
-            Experiment::Navigation => "navigation",
-            Experiment::Teleoperation => "teleoperation",
+            RunComponent::Plan => "plan",
+            RunComponent::Forecast => "forecast",
+            RunComponent::Follow => "follow",
+            RunComponent::Teleoperate => "teleoperate",
+            RunComponent::Assist => "assist",
+            RunComponent::Force => "force",
         }
     }
-}
 
-crate::named_by_id!(Experiment);
-
-impl Experiment {
-    /// What the user sees it called.
-    pub fn title(self) -> &'static str {
+    /// The event the lab fires into the experiment's net when this
+    /// component has done its part: the charts must have it, and only
+    /// the experiments whose run has the component may.
+    pub fn event(self) -> Option<&'static str> {
         match self {
-            Experiment::Navigation => "Navigate to a goal among obstacles",
-            Experiment::Teleoperation => "Drive the robot by joystick",
-        }
-    }
-
-    /// Whether the Host adds potential fields to the operator's commands
-    /// and feeds the push back as a force.
-    pub fn assists_the_operator(self) -> bool {
-        self == Experiment::Teleoperation
-    }
-
-    pub fn info(self) -> ExperimentInfo {
-        ExperimentInfo {
-            id: self,
-            title: self.title().to_owned(),
+            RunComponent::Plan => Some("path_planned"),
+            RunComponent::Forecast => Some("forecast_passed"),
+            RunComponent::Assist => Some("field_built"),
+            RunComponent::Follow | RunComponent::Teleoperate | RunComponent::Force => None,
         }
     }
 }
 
-/// An experiment the Host offers, as the Guest lists it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
-pub struct ExperimentInfo {
-    pub id: Experiment,
-    pub title: String,
-}
-
-/// Where the robot should go, and how close counts as there.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
-pub struct Goal {
-    pub x_mm: f64,
-    pub y_mm: f64,
-    pub tolerance_mm: f64,
-}
-
-impl Goal {
-    /// How close to a goal counts as there, unless the user says otherwise.
-    pub const DEFAULT_TOLERANCE_MM: f64 = 15.0;
-
-    /// A goal at `p` with the default tolerance.
-    pub fn at(p: Point) -> Goal {
-        Goal {
-            x_mm: p.x_mm,
-            y_mm: p.y_mm,
-            tolerance_mm: Goal::DEFAULT_TOLERANCE_MM,
-        }
-    }
-
-    pub fn point(&self) -> Point {
-        Point {
-            x_mm: self.x_mm,
-            y_mm: self.y_mm,
-        }
+impl std::fmt::Display for RunComponent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 
-/// The user's settings for one experiment run (the thesis's "define").
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
-pub struct Definition {
-    /// The run ends with success when the robot is within tolerance of it.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub goal: Option<Goal>,
-    /// A planned path, arena mm, for path-following experiments.
-    #[serde(default)]
-    pub path: Vec<Point>,
-    /// Obstacles that exist only in software; the Host keeps the robot out of them.
-    #[serde(default)]
-    pub virtual_obstacles: Vec<Shape>,
-    /// Cap on wheel speed for this run, below the robot's own limit.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub max_speed_mm_s: Option<f64>,
-    /// The run is stopped when it lasts longer than this.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub time_limit_s: Option<f64>,
-    /// How far ahead on the path the Host's follower aims, mm (thesis F.6:
-    /// shorter tracks tighter, longer cuts corners smoother).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub lookahead_mm: Option<f64>,
+/// What a run does: the components it is made of.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RunPlan {
+    pub components: Vec<RunComponent>,
 }
 
-/// The look-ahead a definition may ask for, mm: from a fraction of the
-/// robot to a few bodies ahead.
-pub const LOOKAHEAD_MM: std::ops::RangeInclusive<f64> = 5.0..=200.0;
-
-/// The most path points a definition may carry: a path across the largest
-/// arena at a quarter-cell spacing has a few thousand.
-pub(crate) const MAX_PATH_POINTS: usize = 10_000;
-/// The most virtual obstacles a definition may carry.
-pub(crate) const MAX_VIRTUAL_OBSTACLES: usize = 64;
-/// The most vertices one virtual polygon may have, and all of a
-/// definition's virtual obstacles together (a box or circle counts 4): the
-/// safety layer measures the distance to them every control period, so
-/// their size bounds its time.
-pub(crate) const MAX_POLYGON_VERTICES: usize = 256;
-pub(crate) const MAX_VIRTUAL_VERTICES: usize = 1024;
-
-/// What is wrong with a definition, in words a user can act on.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum DefinitionError {
-    #[error("{what} must be a positive number, got {value}")]
-    NotPositive { what: &'static str, value: f64 },
-    #[error("the path has {0} points, more than the {MAX_PATH_POINTS} a definition may carry")]
-    TooManyPoints(usize),
-    #[error(
-        "there are {0} virtual obstacles, more than the {MAX_VIRTUAL_OBSTACLES} a definition may carry"
-    )]
-    TooManyObstacles(usize),
-    #[error(
-        "the virtual obstacles have {0} vertices in all, more than the {MAX_VIRTUAL_VERTICES} a definition may carry"
-    )]
-    TooManyVertices(usize),
-    #[error(
-        "virtual obstacle {index} has {vertices} vertices, more than the {MAX_POLYGON_VERTICES} a polygon may have"
-    )]
-    PolygonTooBig { index: usize, vertices: usize },
-    #[error("virtual obstacle {index}: {why}")]
-    BadObstacle { index: usize, why: ShapeError },
-    #[error(
-        "virtual obstacle {index} reaches ({:.0}, {:.0})–({:.0}, {:.0}) mm, far off the {:.0} × {:.0} mm arena",
-        lo.x_mm, lo.y_mm, hi.x_mm, hi.y_mm, arena_mm.0, arena_mm.1
-    )]
-    FarOff {
-        index: usize,
-        lo: Point,
-        hi: Point,
-        arena_mm: (f64, f64),
-    },
-    #[error(
-        "the goal ({:.0}, {:.0}) mm is outside the {:.0} × {:.0} mm arena",
-        goal.x_mm, goal.y_mm, arena_mm.0, arena_mm.1
-    )]
-    GoalOutside { goal: Point, arena_mm: (f64, f64) },
-    #[error(
-        "the robot cannot stand at the goal ({:.0}, {:.0}) mm: it overlaps an obstacle or wall",
-        .0.x_mm, .0.y_mm
-    )]
-    GoalBlocked(Point),
-    #[error("path point {0} is not a finite position")]
-    PathNotFinite(usize),
-    #[error(
-        "the look-ahead must be from {lo} to {hi} mm, not {0}",
-        lo = LOOKAHEAD_MM.start(),
-        hi = LOOKAHEAD_MM.end()
-    )]
-    Lookahead(f64),
-}
-
-impl Definition {
-    /// `wheels` within the robot's limits and this definition's speed cap:
-    /// what a run of it may ask of the wheels, live or forecast.
-    pub fn capped(&self, robot: &RobotModel, wheels: WheelSpeeds) -> WheelSpeeds {
-        match self.max_speed_mm_s {
-            Some(limit) => {
-                let mut capped = robot.clone();
-                capped.max_wheel_speed_mm_s = capped.max_wheel_speed_mm_s.min(limit);
-                capped.clamp(wheels)
-            }
-            None => robot.clamp(wheels),
-        }
+impl RunPlan {
+    pub fn has(&self, component: RunComponent) -> bool {
+        self.components.contains(&component)
     }
 
-    /// Whether `p` is within the goal's tolerance: where a navigation run
-    /// ends, live or forecast.
-    pub fn at_goal(&self, p: Point) -> bool {
-        self.goal
-            .is_some_and(|g| p.distance(g.point()) <= g.tolerance_mm)
-    }
-
-    /// Whether the Host follows this definition's path by itself in a run
-    /// of `experiment`: a navigation run with a planned path. The
-    /// operator's commands then only take over while they keep coming.
-    pub fn host_follows(&self, experiment: Experiment) -> bool {
-        experiment == Experiment::Navigation && !self.path.is_empty()
-    }
-
-    /// The points it carries: its path's and its virtual obstacles'
-    /// vertices, what checking, sending and trying it costs.
-    pub fn size(&self) -> usize {
-        self.path.len()
-            + self
-                .virtual_obstacles
-                .iter()
-                .map(Shape::vertices)
-                .sum::<usize>()
-    }
-
-    /// Checks the definition against the arena and robot it will run on,
-    /// saying what is wrong in words a user can act on.
-    pub fn validate(&self, arena: &Arena, robot: &RobotModel) -> Result<(), DefinitionError> {
-        use DefinitionError as E;
-        let positive = |what: &'static str, value: f64| {
-            if value.is_finite() && value > 0.0 {
-                Ok(())
-            } else {
-                Err(E::NotPositive { what, value })
-            }
-        };
-        if self.path.len() > MAX_PATH_POINTS {
-            return Err(E::TooManyPoints(self.path.len()));
+    /// Why these components do not make a run, if they do not.
+    pub fn check(&self, define: &[DefineKind]) -> Result<(), ExperimentError> {
+        use RunComponent as C;
+        let drives = [C::Follow, C::Teleoperate]
+            .into_iter()
+            .filter(|&c| self.has(c))
+            .count();
+        if drives != 1 {
+            return Err(ExperimentError::OneDrive);
         }
-        if self.virtual_obstacles.len() > MAX_VIRTUAL_OBSTACLES {
-            return Err(E::TooManyObstacles(self.virtual_obstacles.len()));
-        }
-        let vertices = self.size() - self.path.len();
-        if vertices > MAX_VIRTUAL_VERTICES {
-            return Err(E::TooManyVertices(vertices));
-        }
-        let arena_mm = (arena.width_mm, arena.height_mm);
-        for (index, o) in self.virtual_obstacles.iter().enumerate() {
-            if o.vertices() > MAX_POLYGON_VERTICES {
-                return Err(E::PolygonTooBig {
-                    index,
-                    vertices: o.vertices(),
-                });
-            }
-            o.check().map_err(|why| E::BadObstacle { index, why })?;
-            // On the floor, give or take the arena's own size: numbers far
-            // beyond it are a mistake, and would only cost time.
-            let (lo, hi) = o.bounds();
-            let (w, h) = arena_mm;
-            if lo.x_mm < -w || lo.y_mm < -h || hi.x_mm > 2.0 * w || hi.y_mm > 2.0 * h {
-                return Err(E::FarOff {
-                    index,
-                    lo,
-                    hi,
-                    arena_mm,
-                });
+        for (needs, what) in [
+            (C::Plan, C::Follow),
+            (C::Forecast, C::Follow),
+            (C::Assist, C::Teleoperate),
+            (C::Force, C::Assist),
+        ] {
+            if self.has(needs) && !self.has(what) {
+                return Err(ExperimentError::Needs { needs, what });
             }
         }
-        if let Some(goal) = self.goal {
-            positive("the goal tolerance", goal.tolerance_mm)?;
-            let p = goal.point();
-            let inside = (0.0..=arena.width_mm).contains(&p.x_mm)
-                && (0.0..=arena.height_mm).contains(&p.y_mm);
-            if !inside {
-                return Err(E::GoalOutside { goal: p, arena_mm });
-            }
-            if !self.is_free(arena, p, robot.radius_mm) {
-                return Err(E::GoalBlocked(p));
-            }
+        let defines = |kind: fn(&DefineKind) -> bool| define.iter().any(kind);
+        if self.has(C::Follow) && !defines(|d| matches!(d, DefineKind::Path)) {
+            return Err(ExperimentError::NoPath);
         }
-        if let Some(i) = self
-            .path
-            .iter()
-            .position(|p| !(p.x_mm.is_finite() && p.y_mm.is_finite()))
-        {
-            return Err(E::PathNotFinite(i));
-        }
-        if let Some(v) = self.max_speed_mm_s {
-            positive("the speed limit", v)?;
-        }
-        if let Some(l) = self.lookahead_mm
-            && !LOOKAHEAD_MM.contains(&l)
-        {
-            return Err(E::Lookahead(l));
-        }
-        if let Some(t) = self.time_limit_s {
-            positive("the time limit", t)?;
+        let points =
+            |d: &DefineKind| matches!(d, DefineKind::Goal { .. } | DefineKind::Waypoints { .. });
+        if self.has(C::Plan) && !define.iter().any(points) {
+            return Err(ExperimentError::NoPoints);
         }
         Ok(())
     }
+}
 
-    /// Whether a disc of `radius_mm` at `p` clears the arena and this
-    /// definition's virtual obstacles.
-    pub fn is_free(&self, arena: &Arena, p: Point, radius_mm: f64) -> bool {
-        arena.is_free(p, radius_mm)
-            && self
-                .virtual_obstacles
-                .iter()
-                .all(|o| o.distance(p) > radius_mm)
+/// What is wrong with what an experiment declares, or with a definition
+/// of it.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ExperimentError {
+    #[error("a run has exactly one of the components follow and teleoperate")]
+    OneDrive,
+    #[error("the component {needs} needs {what}")]
+    Needs {
+        needs: RunComponent,
+        what: RunComponent,
+    },
+    #[error("the component follow needs a path to define ([[define]] kind = \"path\")")]
+    NoPath,
+    #[error(
+        "the component plan needs a goal or waypoints to plan through ([[define]] kind = \"goal\" or \"waypoints\")"
+    )]
+    NoPoints,
+    #[error(
+        "[[define]] waypoints: from min to max, 1 ≤ min ≤ max ≤ {MAX_WAYPOINTS}, not {min} to {max}"
+    )]
+    WaypointBounds { min: usize, max: usize },
+    #[error("[success] reach = \"{0}\" needs one to define ([[define]] kind = \"{0}\")")]
+    Success(&'static str),
+    #[error("this experiment visits {min} to {max} waypoints, and the definition has {n}")]
+    WaypointCount { min: usize, max: usize, n: usize },
+    #[error("this experiment takes no waypoints")]
+    NoWaypoints,
+}
+
+/// What counts as a run's success.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema,
+)]
+#[serde(deny_unknown_fields)]
+pub struct Success {
+    /// What the robot must reach; the run ends with success there.
+    #[serde(default)]
+    pub reach: Reach,
+}
+
+/// Where a run ends with success.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum Reach {
+    /// Nowhere: the run ends when the operator stops it or its time is up.
+    #[default]
+    Nothing,
+    /// The defined goal, within its tolerance.
+    Goal,
+    /// Each defined waypoint, in order, within the goal's tolerance.
+    Waypoints,
+}
+
+impl Experiment {
+    /// Whether the lab follows the defined path by itself.
+    pub fn follows(&self) -> bool {
+        self.run.has(RunComponent::Follow)
+    }
+
+    /// Whether the lab plans the path through the defined points.
+    pub fn plans(&self) -> bool {
+        self.run.has(RunComponent::Plan)
+    }
+
+    /// Whether the lab tries a definition on the twin before a run.
+    pub fn forecasts(&self) -> bool {
+        self.run.has(RunComponent::Forecast)
+    }
+
+    /// Whether the lab adds potential fields to the operator's commands
+    /// and feeds the push back as a force.
+    pub fn assists_the_operator(&self) -> bool {
+        self.run.has(RunComponent::Assist)
+    }
+
+    /// Whether a run ends with success where its definition says
+    /// ([`Definition::reached`]): at the goal, or its waypoints visited.
+    pub fn ends_at_goal(&self) -> bool {
+        self.success.reach != Reach::Nothing
+    }
+
+    /// Why what it declares makes no experiment, if it does not: its
+    /// run's components, the waypoints' bounds, what success needs.
+    pub fn check(&self) -> Result<(), ExperimentError> {
+        self.run.check(&self.define)?;
+        let waypoints = self.waypoint_bounds();
+        if let Some((min, max)) = waypoints
+            && !(1 <= min && min <= max && max <= MAX_WAYPOINTS)
+        {
+            return Err(ExperimentError::WaypointBounds { min, max });
+        }
+        match self.success.reach {
+            Reach::Waypoints if waypoints.is_none() => Err(ExperimentError::Success("waypoints")),
+            Reach::Goal if !self.defines(DefineKind::Goal { required: false }) => {
+                Err(ExperimentError::Success("goal"))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// How many waypoints a definition of it has, at least and at most;
+    /// none when it defines none.
+    pub fn waypoint_bounds(&self) -> Option<(usize, usize)> {
+        self.define.iter().find_map(|d| match *d {
+            DefineKind::Waypoints { min, max } => Some((min, max)),
+            _ => None,
+        })
+    }
+
+    /// Why `definition` is not one of this experiment, if it is not: its
+    /// waypoints, when it declares them, are as many as it allows, and
+    /// none when it does not.
+    pub fn admits(&self, definition: &Definition) -> Result<(), ExperimentError> {
+        let n = definition.waypoints.len();
+        match self.waypoint_bounds() {
+            Some((min, max)) if !(min..=max).contains(&n) => {
+                Err(ExperimentError::WaypointCount { min, max, n })
+            }
+            None if n > 0 => Err(ExperimentError::NoWaypoints),
+            _ => Ok(()),
+        }
+    }
+
+    /// Whether the user defines something of `kind`'s kind (whatever its
+    /// bounds: a goal required or not, any number of waypoints).
+    pub fn defines(&self, kind: DefineKind) -> bool {
+        self.define
+            .iter()
+            .any(|d| std::mem::discriminant(d) == std::mem::discriminant(&kind))
     }
 }
 
@@ -314,54 +368,57 @@ impl Definition {
 mod tests {
     use super::*;
 
-    fn goal(x_mm: f64, y_mm: f64) -> Definition {
-        Definition {
-            goal: Some(Goal {
-                x_mm,
-                y_mm,
-                tolerance_mm: 20.0,
-            }),
-            ..Definition::default()
-        }
-    }
-
     #[test]
-    fn goals_must_be_reachable_places() {
-        let arena = Arena::navigation();
-        let robot = RobotModel::khepera_ii();
-        assert_eq!(goal(680.0, 470.0).validate(&arena, &robot), Ok(()));
-        let outside = goal(900.0, 100.0).validate(&arena, &robot).unwrap_err();
-        assert!(outside.to_string().contains("outside"), "{outside}");
-        let blocked = goal(280.0, 100.0).validate(&arena, &robot).unwrap_err();
-        assert!(blocked.to_string().contains("overlaps"), "{blocked}");
-        let mut virtual_block = goal(680.0, 470.0);
-        virtual_block.virtual_obstacles.push(Shape::Circle {
-            x_mm: 680.0,
-            y_mm: 470.0,
-            radius_mm: 10.0,
-        });
-        assert!(virtual_block.validate(&arena, &robot).is_err());
-        let mut slow = goal(680.0, 470.0);
-        slow.max_speed_mm_s = Some(-1.0);
-        assert!(
-            slow.validate(&arena, &robot)
-                .unwrap_err()
-                .to_string()
-                .contains("speed limit")
-        );
-    }
-
-    #[test]
-    fn experiments_travel_as_their_ids() {
-        for &e in Experiment::ALL {
-            assert_eq!(e.id().parse(), Ok(e));
-            assert_eq!(serde_json::to_string(&e).unwrap(), format!("\"{e}\""));
+    fn experiments_travel_as_their_ids_and_unknown_ones_name_the_known() {
+        let shipped = crate::Experiments::shipped();
+        for e in shipped.experiments() {
+            assert_eq!(shipped.get(e.id.as_str()).unwrap().experiment(), e);
+            let id = serde_json::to_string(&e.id).unwrap();
+            assert_eq!(id, format!("\"{}\"", e.id));
+            assert_eq!(serde_json::from_str::<ExperimentId>(&id).unwrap(), e.id);
         }
-        let e = "juggling".parse::<Experiment>().unwrap_err();
+        let e = shipped.get("juggling").unwrap_err();
         assert_eq!(
             e.to_string(),
             "unknown experiment 'juggling' (known: navigation, teleoperation)"
         );
-        assert!(serde_json::from_str::<Experiment>("\"juggling\"").is_err());
+        let e = shipped.get("mobile").unwrap_err();
+        assert!(
+            e.to_string().contains("it is called 'navigation' now"),
+            "{e}"
+        );
+        for bad in ["\"Juggling\"", "\"\"", "\"💥\"", "\"a/b\""] {
+            assert!(serde_json::from_str::<ExperimentId>(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_run_is_one_drive_with_what_its_components_need() {
+        use RunComponent as C;
+        let plan = |components: &[RunComponent]| RunPlan {
+            components: components.to_vec(),
+        };
+        let goal_and_path = [DefineKind::Goal { required: true }, DefineKind::Path];
+        assert!(
+            plan(&[C::Plan, C::Forecast, C::Follow])
+                .check(&goal_and_path)
+                .is_ok()
+        );
+        assert!(
+            plan(&[C::Teleoperate, C::Assist, C::Force])
+                .check(&[])
+                .is_ok()
+        );
+        for (bad, why) in [
+            (plan(&[]), "exactly one"),
+            (plan(&[C::Follow, C::Teleoperate]), "exactly one"),
+            (plan(&[C::Teleoperate, C::Force]), "force needs assist"),
+            (plan(&[C::Teleoperate, C::Plan]), "plan needs follow"),
+        ] {
+            let e = bad.check(&goal_and_path).unwrap_err().to_string();
+            assert!(e.contains(why), "{e}");
+        }
+        let e = plan(&[C::Follow]).check(&[]).unwrap_err().to_string();
+        assert!(e.contains("needs a path to define"), "{e}");
     }
 }

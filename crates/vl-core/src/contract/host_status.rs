@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use super::protocol::{DeviceState, Readiness};
 use super::summary::EndReason;
-use crate::{Experiment, Named};
+use crate::ExperimentId;
 use vl_report::table::{Report, Table};
 
 /// The Host's state for its administrator.
@@ -16,7 +16,7 @@ pub struct HostStatus {
     pub camera: DeviceState,
     /// Whether a run may start (not while the robot drives back to its start).
     pub lab: Readiness,
-    pub mounted: Option<Experiment>,
+    pub mounted: Option<ExperimentId>,
     /// The run under way, by number.
     pub run: Option<u64>,
     pub operator: Option<Person>,
@@ -122,7 +122,7 @@ pub struct Person {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct RunRecord {
     pub run: u64,
-    pub experiment: Experiment,
+    pub experiment: ExperimentId,
     /// When it started, seconds since 1970 (UTC).
     pub started_unix_s: u64,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -159,7 +159,8 @@ impl Report for HostStatus {
             (
                 "mounted",
                 self.mounted
-                    .map_or("nothing".into(), |e| e.title().to_owned()),
+                    .as_ref()
+                    .map_or("nothing".into(), ExperimentId::to_string),
             ),
             (
                 "run",
@@ -212,7 +213,7 @@ impl Report for HostStatus {
             table = table.note(format!(
                 "run {} ({}) by {}: {}",
                 r.run,
-                r.experiment.id(),
+                r.experiment,
                 r.user.as_deref().unwrap_or("anonymous"),
                 r.ended.map_or("under way".into(), |e| e.to_string())
             ));

@@ -6,6 +6,7 @@
 
 pub(crate) mod access;
 pub(crate) mod cells;
+pub(crate) mod definition;
 pub(crate) mod experiment;
 pub(crate) mod fingerprint;
 pub(crate) mod forecast;

@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::{
-    Arena, CameraModel, Definition, Experiment, ExperimentInfo, NetState, Pose, PoseSource,
+    Arena, CameraModel, Definition, Experiment, ExperimentId, NetState, Pose, PoseSource,
     RobotModel, Summary, WheelSpeeds,
 };
 
@@ -312,10 +312,14 @@ pub enum GuestMessage {
         offset: u64,
     },
     /// Plans a path to `goal` on the Host's map of the mounted lab, from
-    /// where the robot stands, for a Guest that does not plan itself (the
-    /// web page): answered `planned` to it alone, defining nothing.
+    /// where the robot stands (through `through` first, in order, for an
+    /// experiment that visits waypoints), for a Guest that does not plan
+    /// itself (the web page): answered `planned` to it alone, defining
+    /// nothing.
     Plan {
         goal: crate::Point,
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        through: Vec<crate::Point>,
     },
     Bye,
 }
@@ -323,7 +327,7 @@ pub enum GuestMessage {
 /// The lab as mounted: what the Guest needs to show and plan on it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct MountedLab {
-    pub experiment: Experiment,
+    pub experiment: ExperimentId,
     #[serde(flatten)]
     pub scene: LabScene,
 }
@@ -356,7 +360,7 @@ pub enum HostMessage {
     Welcome {
         session: u64,
         role: Role,
-        experiments: Vec<ExperimentInfo>,
+        experiments: Vec<Experiment>,
         /// For an operator: the secret to say hello with after a dropped
         /// link, to get the role and the running experiment back.
         #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -19,7 +19,7 @@
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::{EndReason, Experiment};
+use crate::{EndReason, ExperimentId};
 
 const MAGIC: &[u8; 4] = b"VLR1";
 const FIXED: usize = 22;
@@ -106,7 +106,7 @@ pub struct RecordedRun {
     pub run: u64,
     /// The experiment run; none for the time between runs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub experiment: Option<Experiment>,
+    pub experiment: Option<ExperimentId>,
     /// When it began, ms since 1970 (UTC).
     pub started_ms: u64,
     /// Who drove it, when they had an account.

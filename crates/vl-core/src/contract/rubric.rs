@@ -16,6 +16,9 @@ use crate::Summary;
 pub struct Rubric {
     /// For reaching the goal.
     pub goal: f64,
+    /// For the waypoints visited in order, a share for each (runs whose
+    /// definition has waypoints).
+    pub waypoints: f64,
     /// For a run without collisions…
     pub no_collisions: f64,
     /// …less this much for each one.
@@ -36,6 +39,7 @@ impl Default for Rubric {
     fn default() -> Self {
         Rubric {
             goal: 50.0,
+            waypoints: 0.0,
             no_collisions: 20.0,
             per_collision: 10.0,
             tracking: 10.0,
@@ -110,6 +114,7 @@ impl Rubric {
     pub fn checked(self) -> Result<Rubric, RubricError> {
         let numbers = [
             ("goal", self.goal),
+            ("waypoints", self.waypoints),
             ("no_collisions", self.no_collisions),
             ("per_collision", self.per_collision),
             ("tracking", self.tracking),
@@ -143,7 +148,7 @@ impl Rubric {
 
     /// The most a run may earn.
     pub fn maximum(&self) -> f64 {
-        self.goal + self.no_collisions + self.tracking + self.time + self.forecast
+        self.goal + self.waypoints + self.no_collisions + self.tracking + self.time + self.forecast
     }
 
     /// How `summary`'s run earned its points. A measure the run did not
@@ -168,6 +173,17 @@ impl Rubric {
                 of: self.no_collisions,
             },
         ];
+        let visited = summary.waypoints.map(|w| (w.visited, w.of));
+        if self.waypoints > 0.0 {
+            lines.push(GradeLine {
+                criterion: "waypoints",
+                measured: visited.map_or("none defined".into(), |(v, of)| {
+                    format!("{v} of {of} visited in order")
+                }),
+                points: visited.map_or(0.0, |(v, of)| self.waypoints * v as f64 / of.max(1) as f64),
+                of: self.waypoints,
+            });
+        }
         let tracking = summary
             .path
             .as_ref()
@@ -180,7 +196,7 @@ impl Rubric {
         // Points only for a run that went somewhere: standing still is
         // neither quick nor on the path.
         if !summary.reached_goal && summary.distance_mm < 1.0 {
-            for line in &mut lines[2..] {
+            for line in lines.iter_mut().filter(|l| l.criterion != "collisions") {
                 line.points = 0.0;
             }
         }
@@ -247,6 +263,7 @@ mod tests {
             fault: None,
             forecast: None,
             recording: None,
+            waypoints: None,
         }
     }
 
@@ -332,5 +349,26 @@ mod tests {
                 prop_assert!(fewer.given >= grade.given);
             }
         }
+    }
+
+    #[test]
+    fn waypoints_earn_a_share_each_and_no_line_without_points_for_them() {
+        let rubric = Rubric {
+            waypoints: 40.0,
+            ..Rubric::default()
+        };
+        let mut run = summary(false, 0, 30.0, 800.0);
+        run.waypoints = Some(crate::WaypointsVisited { visited: 3, of: 4 });
+        let grade = rubric.grade(&run);
+        let line = grade
+            .lines
+            .iter()
+            .find(|l| l.criterion == "waypoints")
+            .unwrap();
+        assert_eq!((line.points, line.of), (30.0, 40.0));
+        assert_eq!(line.measured, "3 of 4 visited in order");
+        assert_eq!(grade.maximum, 140.0);
+        let plain = Rubric::default().grade(&run);
+        assert!(plain.lines.iter().all(|l| l.criterion != "waypoints"));
     }
 }

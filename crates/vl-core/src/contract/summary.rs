@@ -117,6 +117,16 @@ pub struct Summary {
     /// Where the Host recorded the run, when it records.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub recording: Option<RecordingNote>,
+    /// For a definition with waypoints: how many the run visited, in order.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub waypoints: Option<WaypointsVisited>,
+}
+
+/// How many of its waypoints a run visited in order, of how many.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct WaypointsVisited {
+    pub visited: usize,
+    pub of: usize,
 }
 
 /// The file a run was recorded to, and what the recorder could not keep

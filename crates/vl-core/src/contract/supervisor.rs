@@ -1,6 +1,5 @@
-//! The session supervisor: each lab's controlled net, as `vl lab nets`
-//! designs it from the lab's statecharts (`crates/vl-core/nets/<lab>/controlled.pnml`,
-//! built in), run live. An action is allowed exactly when a transition
+//! The session supervisor: each experiment's controlled net, as its
+//! design gives it from its statecharts (`vl_core::Experiments`), run live. An action is allowed exactly when a transition
 //! carrying its event is enabled in the mounted lab's net, so the Host and
 //! the Guest never reason about "which messages are valid now" in ad-hoc
 //! code, and changing a chart changes what they allow. On the Host the
@@ -13,7 +12,7 @@ use thiserror::Error;
 use vl_petri::{Marking, Net, TransitionId, from_pnml};
 
 use super::access::{AccessEvent, AccessNet, AccessRefused, Seat};
-use crate::{Experiment, Named};
+use crate::ExperimentId;
 
 /// What the operator or the lab does: each is an event of the labs' nets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -90,7 +89,7 @@ impl std::fmt::Display for Action {
 pub struct NotAllowed {
     pub action: Action,
     pub event: &'static str,
-    pub lab: &'static str,
+    pub lab: String,
     /// The marked places, by id.
     pub marking: Vec<String>,
 }
@@ -99,12 +98,12 @@ pub struct NotAllowed {
 pub enum SupervisorError {
     #[error("{lab}: cannot read {path}: {why}")]
     Read {
-        lab: &'static str,
+        lab: ExperimentId,
         path: String,
         why: String,
     },
     #[error("{lab}: {why}")]
-    Net { lab: &'static str, why: String },
+    Net { lab: ExperimentId, why: String },
     #[error("no lab to supervise")]
     NoLab,
     #[error(transparent)]
@@ -117,7 +116,7 @@ pub enum SupervisorError {
 pub struct NetState {
     /// The lab whose net runs; none before the first mount.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub lab: Option<Experiment>,
+    pub lab: Option<ExperimentId>,
     /// Marked places, by id (every place of these nets holds one token at most).
     pub marking: Vec<String>,
     /// Events with an enabled transition.
@@ -132,7 +131,7 @@ pub struct NetState {
 /// A transition fired in a lab's net.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Fired {
-    pub lab: Experiment,
+    pub lab: ExperimentId,
     /// The transition's id.
     pub transition: String,
 }
@@ -140,22 +139,10 @@ pub struct Fired {
 /// One lab's net and its marking.
 #[derive(Debug, Clone)]
 struct LabNet {
-    lab: Experiment,
+    lab: ExperimentId,
     net: Net,
     marking: Marking,
 }
-
-/// The labs' controlled nets, as `vl lab nets` wrote them.
-const SHIPPED: [(Experiment, &str); 2] = [
-    (
-        Experiment::Navigation,
-        include_str!("../../nets/navigation/controlled.pnml"),
-    ),
-    (
-        Experiment::Teleoperation,
-        include_str!("../../nets/teleoperation/controlled.pnml"),
-    ),
-];
 
 /// The live nets of the labs a Host offers, and which one is mounted.
 #[derive(Debug, Clone)]
@@ -169,41 +156,35 @@ pub struct Supervisor {
 }
 
 impl Supervisor {
-    /// The shipped nets of `labs`.
-    pub fn new(labs: &[Experiment]) -> Result<Supervisor, SupervisorError> {
-        let nets = labs
-            .iter()
-            .map(|&lab| {
-                let text = SHIPPED
-                    .iter()
-                    .find(|(l, _)| *l == lab)
-                    .map(|(_, text)| *text)
-                    .ok_or(SupervisorError::NoLab)?;
-                Ok((lab, parse(lab, text)?))
-            })
-            .collect::<Result<Vec<_>, SupervisorError>>()?;
+    /// A supervisor of each experiment's controlled net, as its design
+    /// gives it (`Experiments::nets`).
+    pub fn new(nets: Vec<(ExperimentId, Net)>) -> Result<Supervisor, SupervisorError> {
         Supervisor::from_nets(nets)
     }
 
     /// The nets of `labs` from `dir/<lab>/controlled.pnml`, as `vl lab nets
     /// --out dir` writes them.
-    pub fn load(dir: &Path, labs: &[Experiment]) -> Result<Supervisor, SupervisorError> {
+    pub fn load(dir: &Path, labs: &[ExperimentId]) -> Result<Supervisor, SupervisorError> {
         let nets = labs
             .iter()
-            .map(|&lab| {
-                let path = dir.join(lab.id()).join("controlled.pnml");
+            .map(|lab| {
+                let path = dir.join(lab.as_str()).join("controlled.pnml");
                 let text = std::fs::read_to_string(&path).map_err(|e| SupervisorError::Read {
-                    lab: lab.id(),
+                    lab: lab.clone(),
                     path: path.display().to_string(),
                     why: e.to_string(),
                 })?;
-                Ok((lab, parse(lab, &text)?))
+                let net = from_pnml(&text).map_err(|e| SupervisorError::Net {
+                    lab: lab.clone(),
+                    why: e.to_string(),
+                })?;
+                Ok((lab.clone(), net))
             })
             .collect::<Result<Vec<_>, SupervisorError>>()?;
         Supervisor::from_nets(nets)
     }
 
-    fn from_nets(nets: Vec<(Experiment, Net)>) -> Result<Supervisor, SupervisorError> {
+    fn from_nets(nets: Vec<(ExperimentId, Net)>) -> Result<Supervisor, SupervisorError> {
         if nets.is_empty() {
             return Err(SupervisorError::NoLab);
         }
@@ -249,8 +230,13 @@ impl Supervisor {
     }
 
     /// The mounted lab.
-    pub fn lab(&self) -> Option<Experiment> {
-        self.mounted.map(|i| self.labs[i].lab)
+    pub fn lab(&self) -> Option<&ExperimentId> {
+        self.mounted.map(|i| &self.labs[i].lab)
+    }
+
+    /// Whether it runs the net of experiment `lab`.
+    pub fn runs(&self, lab: &ExperimentId) -> bool {
+        self.labs.iter().any(|l| l.lab == *lab)
     }
 
     /// The current net and its marking.
@@ -279,7 +265,7 @@ impl Supervisor {
         let access_t = access.carrying(action.event()).map_err(|()| NotAllowed {
             action,
             event: action.event(),
-            lab: "access",
+            lab: "access".to_owned(),
             marking: access.marked(),
         })?;
         Ok((lab, access_t))
@@ -303,9 +289,9 @@ impl Supervisor {
     /// Mounts `lab`: in its net if it is mounted already, else releasing
     /// the one mounted (if its net allows mounting now) and mounting in
     /// `lab`'s.
-    pub fn mount(&mut self, lab: Experiment) -> Result<(), NotAllowed> {
+    pub fn mount(&mut self, lab: &ExperimentId) -> Result<(), NotAllowed> {
         self.check(Action::Mount)?;
-        let Some(to) = self.labs.iter().position(|l| l.lab == lab) else {
+        let Some(to) = self.labs.iter().position(|l| l.lab == *lab) else {
             return Err(self.refusal(Action::Mount));
         };
         if let Some(from) = self.mounted.filter(|&from| from != to) {
@@ -341,7 +327,7 @@ impl Supervisor {
         enabled.sort();
         enabled.dedup();
         NetState {
-            lab: self.lab(),
+            lab: self.lab().cloned(),
             marking: marked(l),
             enabled,
             fired: Vec::new(),
@@ -379,7 +365,8 @@ impl Supervisor {
         }
         self.mounted = state
             .lab
-            .and_then(|lab| self.labs.iter().position(|l| l.lab == lab));
+            .as_ref()
+            .and_then(|lab| self.labs.iter().position(|l| l.lab == *lab));
         let i = self.mounted.unwrap_or(0);
         let l = &mut self.labs[i];
         if marked(l) != state.marking {
@@ -400,17 +387,10 @@ impl Supervisor {
         NotAllowed {
             action,
             event: action.event(),
-            lab: l.lab.id(),
+            lab: l.lab.to_string(),
             marking: marked(l),
         }
     }
-}
-
-fn parse(lab: Experiment, text: &str) -> Result<Net, SupervisorError> {
-    from_pnml(text).map_err(|e| SupervisorError::Net {
-        lab: lab.id(),
-        why: e.to_string(),
-    })
 }
 
 fn marked(l: &LabNet) -> Vec<String> {
@@ -438,7 +418,7 @@ fn fire_at(l: &mut LabNet, t: TransitionId, fired: &mut Vec<Fired>) {
     let before = std::mem::replace(&mut l.marking, after);
     if before != l.marking {
         fired.push(Fired {
-            lab: l.lab,
+            lab: l.lab.clone(),
             transition: l.net.transitions[t.0].id.clone(),
         });
     }
@@ -449,7 +429,11 @@ mod tests {
     use super::*;
 
     fn both() -> Supervisor {
-        Supervisor::new(Experiment::ALL).unwrap()
+        Supervisor::new(crate::Experiments::shipped().nets()).unwrap()
+    }
+
+    fn id(id: &str) -> ExperimentId {
+        ExperimentId::new(id).unwrap()
     }
 
     #[test]
@@ -466,7 +450,7 @@ mod tests {
     fn the_navigation_cycle() {
         let mut s = both();
         assert!(!s.allows(Action::Define), "nothing mounted");
-        s.mount(Experiment::Navigation).unwrap();
+        s.mount(&id("navigation")).unwrap();
         assert!(!s.allows(Action::Define), "the C-space is being built");
         assert!(!s.allows(Action::Start), "the C-space is being built");
         s.fire(Action::CspaceBuilt).unwrap();
@@ -503,11 +487,11 @@ mod tests {
     fn mounting_another_lab_releases_the_first_and_a_follower_keeps_step() {
         let mut host = both();
         let mut guest = both();
-        host.mount(Experiment::Navigation).unwrap();
+        host.mount(&id("navigation")).unwrap();
         host.fire(Action::CspaceBuilt).unwrap();
         assert!(guest.follow(&host.take_state().unwrap()));
-        host.mount(Experiment::Teleoperation).unwrap();
-        assert_eq!(host.lab(), Some(Experiment::Teleoperation));
+        host.mount(&id("teleoperation")).unwrap();
+        assert_eq!(host.lab(), Some(&id("teleoperation")));
         assert!(!host.allows(Action::Start), "no field yet");
         host.fire(Action::CspaceBuilt).unwrap();
         host.fire(Action::FieldBuilt).unwrap();

@@ -1,22 +1,26 @@
-//! The labs designed by their own nets (thesis ch. 4–6): each lab's
-//! functionalities are statecharts (`crates/vl-core/nets/`), turned into
-//! nets, composed by their shared events, given controllers, and analysed;
-//! the controlled net is what the Host's supervisor runs.
+//! The labs designed by their own nets (thesis ch. 4–6): each experiment
+//! is a folder (the shipped ones in `assets/experiments/`) whose
+//! functionalities are statecharts, turned into nets, composed by their
+//! shared events with the shared charts (`crates/vl-core/nets/common/`),
+//! given controllers, and analysed; the controlled net is what the Host's
+//! supervisor runs.
 //!
-//! A lab's design is a `lab.toml` naming its charts (looked up in the lab's
-//! folder, then in `common/`), the events that happen by themselves
-//! (uncontrollable), and its controllers, each a rule with the reason for
-//! it. Rules are `vl petri control` constraints whose transition may also
+//! An experiment's design is its `experiment.toml`: what it is (title,
+//! help, what the user defines, the run's components, success, rubric; an
+//! [`Experiment`]), the charts it is made of (looked up in its folder, then
+//! in `common/`), the events that happen by themselves (uncontrollable),
+//! and its controllers, each a rule with the reason for it. Rules are `vl petri control` constraints whose transition may also
 //! be an event: `if execute.running then not define` forbids every
 //! transition labelled `define` while `execute.running` is marked, and
 //! `grant@access.waiting` names those labelled `grant` that take from
 //! `access.waiting`.
 //!
-//! Beside the labs is the access design (`access/lab.toml`): who watches,
+//! Beside the labs is the access design (`crates/vl-core/nets/access/lab.toml`): who watches,
 //! waits and drives, composed with mount, define and execute. Its chart is
 //! everyone's at once (`[people]` puts one token per person in its initial
 //! state), and the Host runs its controlled net beside the mounted lab's.
 
+mod offered;
 mod pipeline;
 mod report;
 mod summary;
@@ -27,8 +31,9 @@ use std::path::Path;
 use serde::Deserialize;
 use thiserror::Error;
 
-use crate::{Experiment, Named};
+use crate::{DefineKind, Experiment, ExperimentId, Rubric, RunPlan, Success};
 
+pub use offered::{Experiments, Offered, UnknownExperiment};
 pub use pipeline::{Designed, Interleaving, design};
 pub use summary::{CheckReport, FolderCheck, LabRow, NetsReport, RuleVerdict};
 
@@ -55,6 +60,20 @@ pub struct LabDesign {
     /// Events a controller may not forbid.
     pub uncontrollable: Vec<String>,
     pub controllers: Vec<Rule>,
+    /// What the folder declares the experiment to be; none for access.
+    pub experiment: Option<Declared>,
+}
+
+/// An experiment as its folder declares it, with what only the lab uses.
+#[derive(Debug, Clone)]
+pub struct Declared {
+    pub experiment: Experiment,
+    /// The ids it once had: refused, naming it.
+    pub formerly: Vec<String>,
+    /// How its runs are graded, unless the lab's config says otherwise.
+    pub rubric: Option<Rubric>,
+    /// Where it was read from, as messages name it.
+    pub source: String,
 }
 
 /// A controller: the rule it enforces and why the lab needs it.
@@ -75,7 +94,17 @@ pub(crate) const MAX_FILE_BYTES: u64 = 256 * 1024;
 #[serde(deny_unknown_fields)]
 struct LabFile {
     title: String,
+    #[serde(default)]
+    help: String,
+    #[serde(default)]
+    formerly: Vec<String>,
     charts: Vec<String>,
+    #[serde(default)]
+    define: Vec<DefineKind>,
+    run: Option<RunPlan>,
+    #[serde(default)]
+    success: Success,
+    rubric: Option<Rubric>,
     #[serde(default)]
     uncontrollable: Vec<String>,
     #[serde(default)]
@@ -110,6 +139,10 @@ pub enum DesignError {
     },
     #[error("{path}: {why}")]
     Folder { path: String, why: String },
+    #[error("{lab}: {why}")]
+    Component { lab: String, why: String },
+    #[error("{lab}: not sound: {}", findings.join("; "))]
+    Unsound { lab: String, findings: Vec<String> },
     #[error("{lab}: uncontrollable event '{event}' is no chart's")]
     UnknownEvent { lab: String, event: String },
     #[error("{lab}: exploring the {which} net: {why}")]
@@ -120,62 +153,10 @@ pub enum DesignError {
     },
 }
 
-/// The shipped charts and lab files, built in so `vl lab nets` runs from
-/// any directory.
-const SHIPPED: &[(&str, &str)] = &[
-    (
-        "common/mount.scxml",
-        include_str!("../../nets/common/mount.scxml"),
-    ),
-    (
-        "common/define.scxml",
-        include_str!("../../nets/common/define.scxml"),
-    ),
-    (
-        "common/execute.scxml",
-        include_str!("../../nets/common/execute.scxml"),
-    ),
-    (
-        "common/cspace.scxml",
-        include_str!("../../nets/common/cspace.scxml"),
-    ),
-    (
-        "common/access.scxml",
-        include_str!("../../nets/common/access.scxml"),
-    ),
-    (
-        "access/lab.toml",
-        include_str!("../../nets/access/lab.toml"),
-    ),
-    (
-        "navigation/lab.toml",
-        include_str!("../../nets/navigation/lab.toml"),
-    ),
-    (
-        "navigation/planning.scxml",
-        include_str!("../../nets/navigation/planning.scxml"),
-    ),
-    (
-        "navigation/forecast.scxml",
-        include_str!("../../nets/navigation/forecast.scxml"),
-    ),
-    (
-        "navigation/following.scxml",
-        include_str!("../../nets/navigation/following.scxml"),
-    ),
-    (
-        "teleoperation/lab.toml",
-        include_str!("../../nets/teleoperation/lab.toml"),
-    ),
-    (
-        "teleoperation/field.scxml",
-        include_str!("../../nets/teleoperation/field.scxml"),
-    ),
-    (
-        "teleoperation/teleoperation.scxml",
-        include_str!("../../nets/teleoperation/teleoperation.scxml"),
-    ),
-];
+/// The shipped shared charts, access design and experiment folders (by
+/// their path in `crates/vl-core/nets/` or `assets/experiments/`), built in
+/// so `vl` runs from any directory.
+const SHIPPED: &[(&str, &str)] = include!(concat!(env!("OUT_DIR"), "/shipped.rs"));
 
 /// A shipped file by its path in `crates/vl-core/nets/`.
 fn shipped(path: &str) -> Result<String, DesignError> {
@@ -196,26 +177,16 @@ fn shared_charts() -> Vec<&'static str> {
         .collect()
 }
 
-/// Whether `id` may name an experiment: what URLs, recordings and
-/// commands carry it as (a lowercase word, `-` and `_` allowed), and not a
-/// folder the shipped designs keep for themselves.
-fn checked_id(id: &str) -> Result<(), String> {
-    let word = id.len() <= 32
-        && id.starts_with(|c: char| c.is_ascii_lowercase())
-        && id
-            .chars()
-            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-' || c == '_');
-    if !word {
-        return Err(format!(
-            "'{id}' is no experiment id: a lowercase word of at most 32 letters, digits, '-' or '_', starting with a letter"
-        ));
-    }
-    if id == ACCESS || id == "common" {
+/// Whether `id` may name an experiment: a word ([`ExperimentId`]), and
+/// not a folder the shipped designs keep for themselves.
+fn checked_id(id: &str) -> Result<ExperimentId, String> {
+    let id = ExperimentId::new(id).map_err(|e| e.to_string())?;
+    if id == *ACCESS || id == *"common" {
         return Err(format!(
             "'{id}' is the shipped {id} charts' folder, no experiment's"
         ));
     }
-    Ok(())
+    Ok(id)
 }
 
 /// A file's text, refused unread when larger than [`MAX_FILE_BYTES`].
@@ -246,24 +217,45 @@ fn read_bounded(file: &Path) -> Result<String, DesignError> {
 }
 
 impl LabDesign {
-    /// Every lab's design as shipped.
+    /// Every shipped design: the experiments', then access.
     pub fn shipped() -> Result<Vec<LabDesign>, DesignError> {
-        designs()
-            .map(|lab| {
-                let source = format!("crates/vl-core/nets/{lab}");
-                LabDesign::from_files(lab, &format!("{lab}/lab.toml"), &source, &shipped)
+        designs(shipped_experiments())
+            .map(|(lab, file)| {
+                let source = match file {
+                    EXPERIMENT_FILE => format!("assets/experiments/{lab}"),
+                    _ => format!("crates/vl-core/nets/{lab}"),
+                };
+                LabDesign::from_files(lab, &format!("{lab}/{file}"), &source, &shipped)
             })
             .collect()
     }
 
-    /// Every lab's design from the charts folder `dir` (laid out as
-    /// `crates/vl-core/nets/`).
+    /// Every design in `dir`: each folder with an `experiment.toml`, then
+    /// `access/lab.toml`; charts not in a folder are the shared ones of
+    /// `dir/common/`. The shared charts and the access design not in `dir`
+    /// are the shipped ones.
     pub fn load(dir: &Path) -> Result<Vec<LabDesign>, DesignError> {
-        let read = |path: &str| read_bounded(&dir.join(path));
-        designs()
-            .map(|lab| {
+        let shared = |path: &str| path.starts_with("common/") || path.starts_with("access/");
+        let read = |path: &str| match read_bounded(&dir.join(path)) {
+            Err(DesignError::Missing { .. }) if shared(path) => shipped(path),
+            read => read,
+        };
+        let mut ids: Vec<String> = std::fs::read_dir(dir)
+            .map_err(|e| DesignError::Read {
+                path: dir.display().to_string(),
+                why: e.to_string(),
+            })?
+            .filter_map(|entry| {
+                let entry = entry.ok()?;
+                entry.path().join(EXPERIMENT_FILE).is_file().then_some(())?;
+                entry.file_name().into_string().ok()
+            })
+            .collect();
+        ids.sort();
+        designs(ids.iter().map(String::as_str))
+            .map(|(lab, file)| {
                 let source = dir.join(lab).display().to_string();
-                LabDesign::from_files(lab, &format!("{lab}/lab.toml"), &source, &read)
+                LabDesign::from_files(lab, &format!("{lab}/{file}"), &source, &read)
             })
             .collect()
     }
@@ -293,31 +285,41 @@ impl LabDesign {
         LabDesign::from_files(lab, &format!("{lab}/{EXPERIMENT_FILE}"), &source, &read)
     }
 
-    /// The files of a new experiment folder `id`: the mobile-robotics lab's
-    /// own charts and its `experiment.toml`, retitled, to change from there.
-    /// It passes `vl lab check` as it is.
+    /// The files of a new experiment folder `id`: the first shipped
+    /// experiment's charts and its `experiment.toml`, retitled, to change
+    /// from there. It passes `vl lab check` as it is.
     pub fn scaffold(id: &str) -> Result<Vec<(String, String)>, DesignError> {
         checked_id(id).map_err(|why| DesignError::Folder {
             path: id.to_owned(),
             why,
         })?;
-        let from = Experiment::Navigation.id();
+        let from = shipped_experiments().next().expect("vl ships experiments");
         let mut files = Vec::new();
         for (path, text) in SHIPPED {
             let Some(name) = path.strip_prefix(&format!("{from}/")) else {
                 continue;
             };
-            if name == "lab.toml" {
+            if name == EXPERIMENT_FILE {
+                // Retitled, without the ids it once had, and graded by the
+                // default rubric until it says otherwise.
+                let mut in_rubric = false;
                 let retitled: String = text
                     .lines()
-                    .map(|line| match line.starts_with("title = ") {
-                        true => format!("title = \"{id}: plan a path and follow it\"\n"),
-                        false => format!("{line}\n"),
+                    .filter(|line| {
+                        in_rubric = match in_rubric {
+                            true => !line.is_empty(),
+                            false => *line == "[rubric]",
+                        };
+                        !in_rubric && !line.starts_with("formerly = ")
+                    })
+                    .map(|line| match line.strip_prefix("title = \"") {
+                        Some(title) => format!("title = \"{id}: {title}\n"),
+                        None => format!("{line}\n"),
                     })
                     .collect();
                 let header = format!(
-                    "# The experiment `{id}`, made by `vl lab new` from the mobile-robotics lab:\n\
-                     # change its charts and controllers, then `vl lab check` this folder.\n"
+                    "# The experiment `{id}`, made by `vl lab new` from the experiment `{from}`:\n\
+                     # change its charts, controllers and rubric, then `vl lab check` this folder.\n"
                 );
                 files.push((EXPERIMENT_FILE.to_owned(), header + &retitled));
             } else {
@@ -328,18 +330,21 @@ impl LabDesign {
     }
 
     /// The design in `path` (`LAB/FILE`, as `read` takes it), from the
-    /// folder `source` names in messages.
+    /// folder `source` names in messages. An `experiment.toml` declares an
+    /// experiment: its run and definition are checked here.
     fn from_files(
         lab: &str,
         path: &str,
         source: &str,
         read: &dyn Fn(&str) -> Result<String, DesignError>,
     ) -> Result<LabDesign, DesignError> {
-        let shown = format!("{source}/{}", path.rsplit('/').next().unwrap_or(path));
-        let file: LabFile = toml::from_str(&read(path)?).map_err(|e| DesignError::LabFile {
+        let file_name = path.rsplit('/').next().unwrap_or(path);
+        let shown = format!("{source}/{file_name}");
+        let bad = |why: String| DesignError::LabFile {
             path: shown.clone(),
-            why: e.to_string(),
-        })?;
+            why,
+        };
+        let file: LabFile = toml::from_str(&read(path)?).map_err(|e| bad(e.to_string()))?;
         let charts = file
             .charts
             .iter()
@@ -349,18 +354,46 @@ impl LabDesign {
                     own => own,
                 }
                 .map_err(|e| match e {
-                    DesignError::Missing { .. } => DesignError::LabFile {
-                        path: shown.clone(),
-                        why: format!(
-                            "chart '{name}': no {name}.scxml beside it, nor among the shared charts ({})",
-                            shared_charts().join(", ")
-                        ),
-                    },
+                    DesignError::Missing { .. } => bad(format!(
+                        "chart '{name}': no {name}.scxml beside it, nor among the shared charts ({})",
+                        shared_charts().join(", ")
+                    )),
                     other => other,
                 })?;
                 Ok((name.clone(), text))
             })
             .collect::<Result<_, DesignError>>()?;
+        let experiment = match (file_name, file.run) {
+            (EXPERIMENT_FILE, None) => {
+                return Err(bad(
+                    "no [run]: say which of vl's components a run is made of".to_owned(),
+                ));
+            }
+            (EXPERIMENT_FILE, Some(run)) => {
+                let id = checked_id(lab).map_err(&bad)?;
+                let rubric = file
+                    .rubric
+                    .map(Rubric::checked)
+                    .transpose()
+                    .map_err(|e| bad(e.to_string()))?;
+                let experiment = Experiment {
+                    id,
+                    title: file.title.clone(),
+                    help: file.help,
+                    define: file.define,
+                    run,
+                    success: file.success,
+                };
+                experiment.check().map_err(|e| bad(e.to_string()))?;
+                Some(Declared {
+                    experiment,
+                    formerly: file.formerly,
+                    rubric,
+                    source: source.to_owned(),
+                })
+            }
+            (_, _) => None,
+        };
         let mut uncontrollable = file.uncontrollable;
         for event in NEVER_FORBIDDEN {
             if !uncontrollable.iter().any(|e| e == event) {
@@ -375,16 +408,25 @@ impl LabDesign {
             uncontrollable,
             people: file.people,
             controllers: file.controllers,
+            experiment,
         })
     }
 }
 
-/// Each design's folder: the labs', then access.
-fn designs() -> impl Iterator<Item = &'static str> {
-    Experiment::ALL
+/// The shipped experiments' ids, in the order they are listed.
+fn shipped_experiments() -> impl Iterator<Item = &'static str> {
+    SHIPPED
         .iter()
-        .map(|lab| lab.id())
-        .chain(std::iter::once(ACCESS))
+        .filter_map(|(p, _)| p.strip_suffix(&format!("/{EXPERIMENT_FILE}")))
+}
+
+/// Each design's folder and file: the experiments', then access.
+fn designs<'a>(
+    experiments: impl Iterator<Item = &'a str>,
+) -> impl Iterator<Item = (&'a str, &'static str)> {
+    experiments
+        .map(|lab| (lab, EXPERIMENT_FILE))
+        .chain(std::iter::once((ACCESS, "lab.toml")))
 }
 
 #[cfg(test)]

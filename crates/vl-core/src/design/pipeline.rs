@@ -3,16 +3,22 @@
 //! interleaving → synthesise the controllers → analyse the controlled net
 //! and check no rule can be broken → fuse parallel places.
 
+use std::time::{Duration, Instant};
+
 use vl_petri::{
-    Added, Analysis, Constraint, Limits, Liveness, Net, Options, StateSpace, analyze, compose,
-    explore, firing_sequence, from_scxml, fuse_parallel_places, no_way_back, synthesize,
+    Added, Analysis, Constraint, ExploreError, Limits, Liveness, Net, Options, StateSpace, analyze,
+    compose, explore, firing_sequence, from_scxml, fuse_parallel_places, no_way_back, synthesize,
 };
 
 use super::{DesignError, LabDesign, NEVER_FORBIDDEN, Rule};
+use crate::{Experiment, RunComponent};
 
 /// Reachable markings a lab's net may have before exploring gives up: the
 /// labs' nets have a few dozen.
 const MAX_STATES: usize = 1_000_000;
+/// The longest a design's verification may take: a lab whose nets take
+/// longer is refused rather than kept waiting for.
+pub(crate) const VERIFY_WITHIN: Duration = Duration::from_secs(10);
 
 /// A firing sequence that breaks a rule.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -60,6 +66,7 @@ pub struct Designed {
 
 /// Runs the whole pipeline on one lab's design.
 pub fn design(design: &LabDesign) -> Result<Designed, DesignError> {
+    let deadline = Instant::now() + VERIFY_WITHIN;
     // Messages name where the design came from; nets are named by its id.
     let lab = design.source.clone();
     let charts = design
@@ -78,7 +85,7 @@ pub fn design(design: &LabDesign) -> Result<Designed, DesignError> {
                     p.initial = people;
                 }
             }
-            let (_, analysis) = analysed(&net, &lab, "chart's")?;
+            let (_, analysis) = analysed(&net, &lab, "chart's", deadline)?;
             Ok((net, analysis))
         })
         .collect::<Result<Vec<_>, DesignError>>()?;
@@ -88,21 +95,14 @@ pub fn design(design: &LabDesign) -> Result<Designed, DesignError> {
         why: e.to_string(),
     })?;
     composed.id = format!("{}-uncontrolled", design.lab);
-    if let Some(event) = design.uncontrollable.iter().find(|event| {
-        labelled(&composed, event).is_empty() && !NEVER_FORBIDDEN.contains(&event.as_str())
-    }) {
-        return Err(DesignError::UnknownEvent {
-            lab,
-            event: event.clone(),
-        });
-    }
+    events_known(design, &lab, &composed)?;
     for t in &mut composed.transitions {
         t.name = t.label.clone().unwrap_or_else(|| t.id.clone());
     }
-    let (space, analysis) = analysed(&composed, &lab, "uncontrolled")?;
+    let (space, analysis) = analysed(&composed, &lab, "uncontrolled", deadline)?;
     let (uncontrolled, never_fire) = without_dead(&composed, &analysis);
     let (space, uncontrolled_analysis) = if never_fire > 0 {
-        analysed(&uncontrolled, &lab, "uncontrolled")?
+        analysed(&uncontrolled, &lab, "uncontrolled", deadline)?
     } else {
         (space, analysis)
     };
@@ -135,16 +135,16 @@ pub fn design(design: &LabDesign) -> Result<Designed, DesignError> {
         })?;
     synthesised.id = format!("{}-controlled", design.lab);
     let added = per_rule(&mut synthesised, design, &constraints, added);
-    let (_, analysis) = analysed(&synthesised, &lab, "controlled")?;
+    let (_, analysis) = analysed(&synthesised, &lab, "controlled", deadline)?;
     let (checked, disabled) = without_dead(&synthesised, &analysis);
-    let (space, _) = analysed(&checked, &lab, "controlled")?;
+    let (space, _) = analysed(&checked, &lab, "controlled", deadline)?;
     let still_bad = breaks(&checked, &space, design, &constraints);
     let stuck = no_way_back(&space).map(|s| Stuck {
         after: events(&checked, &firing_sequence(&space, s)),
         dead_end: space.successors(s).next().is_none(),
     });
     let controlled = fuse_parallel_places(&checked);
-    let (_, controlled_analysis) = analysed(&controlled, &lab, "controlled")?;
+    let (_, controlled_analysis) = analysed(&controlled, &lab, "controlled", deadline)?;
     Ok(Designed {
         design: design.clone(),
         charts,
@@ -165,18 +165,29 @@ fn analysed(
     net: &Net,
     lab: &str,
     which: &'static str,
+    deadline: Instant,
 ) -> Result<(StateSpace, Analysis), DesignError> {
     let space = explore(
         net,
         Options {
             max_states: MAX_STATES,
             progress: None,
+            deadline: Some(deadline),
         },
     )
     .map_err(|e| DesignError::Explore {
         lab: lab.to_owned(),
         which,
-        why: e.to_string(),
+        why: match e {
+            ExploreError::OutOfTime => format!(
+                "its state space is too large to verify in {} s",
+                VERIFY_WITHIN.as_secs()
+            ),
+            ExploreError::TooManyStates { limit } => {
+                format!("its state space is too large to verify: more than {limit} markings")
+            }
+            other => other.to_string(),
+        },
     })?;
     let analysis = analyze(net, &space);
     Ok((space, analysis))
@@ -339,4 +350,43 @@ fn events(net: &Net, fired: &[usize]) -> Interleaving {
             .map(|t| tr(t).label.clone().unwrap_or_else(|| tr(t).id.clone()))
             .collect(),
     }
+}
+
+/// Every event the design names is some chart's. The lab fires a
+/// component's event when the component has done its part: a chart
+/// waiting for one the run lacks would wait forever, and one the charts
+/// lack would be refused at every run.
+fn events_known(design: &LabDesign, lab: &str, composed: &Net) -> Result<(), DesignError> {
+    if let Some(event) = design.uncontrollable.iter().find(|event| {
+        labelled(composed, event).is_empty() && !NEVER_FORBIDDEN.contains(&event.as_str())
+    }) {
+        return Err(DesignError::UnknownEvent {
+            lab: lab.to_owned(),
+            event: event.clone(),
+        });
+    }
+    let Some(declared) = &design.experiment else {
+        return Ok(());
+    };
+    let experiment: &Experiment = &declared.experiment;
+    for component in RunComponent::ALL {
+        let Some(event) = component.event() else {
+            continue;
+        };
+        let in_charts = !labelled(composed, event).is_empty();
+        let in_run = experiment.run.has(component);
+        if in_charts != in_run {
+            let why = match in_run {
+                true => format!("the component {component} fires '{event}', which no chart has"),
+                false => format!(
+                    "a chart waits for '{event}', which only the component {component} fires, and [run] has no {component}"
+                ),
+            };
+            return Err(DesignError::Component {
+                lab: lab.to_owned(),
+                why,
+            });
+        }
+    }
+    Ok(())
 }

@@ -98,14 +98,14 @@ impl Designed {
 
     fn report(&self) -> String {
         let d = &self.design;
-        let lab = &d.lab;
         let mut out = String::new();
         let _ = writeln!(out, "# {}: the lab's nets\n", d.title);
         let _ = writeln!(
             out,
-            "Written by `vl lab nets` from `crates/vl-core/nets/` (the charts and \
-             `{lab}/lab.toml`); do not edit: change a chart and run it again. The Host \
-             runs `controlled.pnml`.\n"
+            "Written by `vl lab nets` from `{source}` (its charts, beside it or shared, and \
+             its design); do not edit: change a chart and run it again. The Host runs the \
+             controlled net, `controlled.pnml`.\n",
+            source = d.source
         );
         out.push_str("## The charts, each on its own\n\n");
         out.push_str(&table_head("chart"));

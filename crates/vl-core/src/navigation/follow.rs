@@ -10,7 +10,7 @@ use crate::{Definition, Point, Pose, RobotModel, WheelSpeeds, distance_to_polyli
 /// planning a path to follow: there the proximity readings stay under
 /// [`Following::unmapped_above`], so only unmapped obstacles make the
 /// sensors take over.
-pub(crate) const PLAN_MARGIN_MM: f64 = 25.0;
+pub const PLAN_MARGIN_MM: f64 = 25.0;
 
 /// Gains, speeds and distances for a [`Follower`].
 #[derive(Debug, Clone, Copy, PartialEq)]

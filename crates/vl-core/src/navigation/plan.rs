@@ -87,6 +87,23 @@ impl Plan {
     pub fn points(&self) -> Vec<Point> {
         self.path.iter().map(|p| p.point()).collect()
     }
+
+    /// This plan, then `next`, which starts where this one ends: one path.
+    #[must_use]
+    fn then(mut self, next: Plan) -> Plan {
+        self.nf1_start_value += next.nf1_start_value;
+        self.grid_path.extend(next.grid_path.into_iter().skip(1));
+        self.path.extend(next.path.into_iter().skip(1));
+        self.length_mm += next.length_mm;
+        self.min_clearance_mm = self.min_clearance_mm.min(next.min_clearance_mm);
+        self.smoothing = match (self.smoothing, next.smoothing) {
+            (Smoothing::Spline { knots: a }, Smoothing::Spline { knots: b }) => {
+                Smoothing::Spline { knots: a + b }
+            }
+            _ => Smoothing::Polyline,
+        };
+        self
+    }
 }
 
 /// The cell the robot stands in at `pose`, if it is free.
@@ -301,6 +318,29 @@ pub fn plan_route_with_margin(
         start,
         goal,
     )
+}
+
+/// [`plan_route_with_margin`] through `points` in order: each leg from
+/// where the last ended, as it ended (its heading), joined into one path.
+pub fn plan_route_through(
+    arena: &Arena,
+    virtual_obstacles: &[Shape],
+    robot: &RobotModel,
+    start: Pose,
+    points: &[Point],
+    margin_mm: f64,
+) -> Result<Plan, ArenaPlanError> {
+    let mut whole: Option<Plan> = None;
+    let mut from = start;
+    for &to in points {
+        let leg = plan_route_with_margin(arena, virtual_obstacles, robot, from, to, margin_mm)?;
+        from = leg.path.last().copied().unwrap_or(from);
+        whole = Some(match whole {
+            Some(so_far) => so_far.then(leg),
+            None => leg,
+        });
+    }
+    whole.ok_or(ArenaPlanError::NoPath(NoPath::Disconnected))
 }
 
 /// Plans from `start` to `goal`.

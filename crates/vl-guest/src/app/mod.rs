@@ -83,6 +83,9 @@ pub struct GuestApp {
     /// Virtual joystick deflection: x = turn right, y = forward, each in −1..1.
     joystick: Vec2,
     goal: Goal,
+    /// The points clicked to visit in order, for an experiment that
+    /// defines waypoints.
+    waypoints: Vec<Point>,
     /// What planning the defined goal gave: the path's length, or why none.
     plan_note: Option<String>,
     /// What the user tuned, and where it is kept between sessions (none:
@@ -154,6 +157,7 @@ impl GuestApp {
             texture: None,
             joystick: Vec2::ZERO,
             goal: Goal::at(Point::default()),
+            waypoints: Vec::new(),
             plan_note: None,
             settings: Settings::default(),
             settings_file: None,
@@ -341,6 +345,7 @@ impl GuestApp {
             self.plan_note = None;
             self.trail.clear();
             self.dragging_sample = None;
+            self.waypoints.clear();
             if let Some(goal) = lab.scene.arena.goal {
                 self.goal.x_mm = goal.x_mm;
                 self.goal.y_mm = goal.y_mm;

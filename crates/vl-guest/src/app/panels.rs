@@ -3,7 +3,8 @@
 
 use egui::{Color32, Sense, Stroke, Vec2};
 use vl_core::{
-    Action, Definition, EndReason, ErrorCode, Experiment, GuestMessage, LOOKAHEAD_MM, Role,
+    Action, DefineKind, Definition, EndReason, ErrorCode, Experiment, GuestMessage, LOOKAHEAD_MM,
+    Role,
 };
 
 use super::{FORCE_COLOUR, GuestApp, JOYSTICK_PX, ROBOT_COLOUR};
@@ -45,11 +46,11 @@ impl GuestApp {
                 });
             }
         }
-        if let Some(lab) = self.session.lab.clone() {
+        if let Some(experiment) = self.session.mounted().cloned() {
             ui.separator();
             if self.session.is_operator() {
-                self.define_panel(ui, lab.experiment);
-                self.tasks_panel(ui, lab.experiment);
+                self.define_panel(ui, &experiment);
+                self.tasks_panel(ui, &experiment.id);
             } else {
                 ui.heading("Definition");
                 ui.label(
@@ -75,14 +76,17 @@ impl GuestApp {
                 );
             }
             if let Some(done) = &self.session.done {
-                let goal = match (lab.experiment, done.reached_goal) {
-                    (_, true) if done.reason == EndReason::GoalReached => "",
-                    (_, true) => ", goal reached",
-                    (Experiment::Navigation, false) => ", goal not reached",
-                    (Experiment::Teleoperation, false) => "",
+                let goal = match done.reached_goal {
+                    true if done.reason == EndReason::GoalReached => "",
+                    true => ", goal reached",
+                    false if experiment.ends_at_goal() => ", goal not reached",
+                    false => "",
                 };
+                let visited = done.waypoints.map_or(String::new(), |w| {
+                    format!(", {} of {} points visited", w.visited, w.of)
+                });
                 ui.label(format!(
-                    "Last run: {}{goal} after {:.1} s, {:.0} mm driven, {} contacts.",
+                    "Last run: {}{goal}{visited} after {:.1} s, {:.0} mm driven, {} contacts.",
                     done.reason, done.seconds, done.distance_mm, done.collisions
                 ));
                 if let Some(why) = done.held_back {
@@ -97,7 +101,7 @@ impl GuestApp {
             ui.separator();
             egui::CollapsingHeader::new("Lab net")
                 .default_open(false)
-                .show(ui, |ui| netview::show(ui, &self.session.nets));
+                .show(ui, |ui| netview::show(ui, &self.session));
         }
         self.robot_panel(ui);
         // A refused forecast is shown with the forecast, where it fails.
@@ -236,22 +240,65 @@ impl GuestApp {
         self.reconnect();
     }
 
-    /// The operator's definition: the goal (and in navigation the path
-    /// planned to it), virtual obstacles, the settings.
-    fn define_panel(&mut self, ui: &mut egui::Ui, experiment: Experiment) {
+    /// The operator's definition, as the experiment declares it: the goal
+    /// (and the path planned to it, when the run follows one), virtual
+    /// obstacles, the settings.
+    fn define_panel(&mut self, ui: &mut egui::Ui, experiment: &Experiment) {
         ui.heading("Define");
-        ui.label(match experiment {
-            Experiment::Navigation => {
-                "Click the view for a goal; Define plans the path the robot follows."
-            }
-            Experiment::Teleoperation => "Click the view for a target to drive to (optional).",
-        });
+        ui.label(&experiment.help);
+        if let Some((min, max)) = self.waypoint_bounds() {
+            ui.horizontal(|ui| {
+                ui.label(format!(
+                    "{} of {min} to {max} waypoints",
+                    self.waypoints.len()
+                ));
+                if ui
+                    .add_enabled(
+                        !self.waypoints.is_empty(),
+                        egui::Button::new("Clear points"),
+                    )
+                    .clicked()
+                {
+                    self.waypoints.clear();
+                }
+            });
+        } else {
+            self.goal_fields(ui);
+        }
+        self.define_row(ui);
+        if experiment.defines(DefineKind::Obstacles) {
+            ui.horizontal(|ui| {
+                ui.checkbox(&mut self.drawing, "draw obstacles")
+                    .on_hover_text(
+                        "drag on the view to draw a virtual obstacle the robot must keep out of",
+                    );
+                let drawn = self.virtual_obstacles.len();
+                if drawn > 0 {
+                    ui.label(format!("{drawn} drawn"));
+                    if ui.button("Clear").clicked() {
+                        self.virtual_obstacles.clear();
+                    }
+                }
+            });
+        }
+        if let Some(note) = &self.plan_note {
+            ui.label(note);
+        }
+        self.settings_panel(ui);
+    }
+
+    /// The goal's position, typed (a click on the view sets it too).
+    fn goal_fields(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
             ui.label("goal x");
             ui.add(egui::DragValue::new(&mut self.goal.x_mm).suffix(" mm"));
             ui.label("y");
             ui.add(egui::DragValue::new(&mut self.goal.y_mm).suffix(" mm"));
         });
+    }
+
+    /// How close counts as there, and Define.
+    fn define_row(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
             ui.label("within");
             ui.add(
@@ -269,23 +316,12 @@ impl GuestApp {
                 self.define();
             }
         });
-        ui.horizontal(|ui| {
-            ui.checkbox(&mut self.drawing, "draw obstacles")
-                .on_hover_text(
-                    "drag on the view to draw a virtual obstacle the robot must keep out of",
-                );
-            let drawn = self.virtual_obstacles.len();
-            if drawn > 0 {
-                ui.label(format!("{drawn} drawn"));
-                if ui.button("Clear").clicked() {
-                    self.virtual_obstacles.clear();
-                }
-            }
-        });
-        if let Some(note) = &self.plan_note {
-            ui.label(note);
-        }
-        self.settings_panel(ui);
+    }
+
+    /// How many waypoints the mounted experiment visits, at least and at
+    /// most; none when it defines none.
+    pub(super) fn waypoint_bounds(&self) -> Option<(usize, usize)> {
+        self.session.mounted()?.waypoint_bounds()
     }
 
     /// Start, Stop, and the drive back to the start pose.
@@ -307,7 +343,7 @@ impl GuestApp {
             {
                 self.connection.send(GuestMessage::Stop);
             }
-            let between_runs = !self.session.nets.allows(Action::Stop) && self.session.ready();
+            let between_runs = !self.session.net_allows(Action::Stop) && self.session.ready();
             if ui
                 .add_enabled(between_runs, egui::Button::new("Back to start"))
                 .on_hover_text(
@@ -321,8 +357,8 @@ impl GuestApp {
     }
 
     /// Plans a path from the robot to the goal on the lab's map and defines
-    /// both. Navigation needs the path; in teleoperation, without one, the
-    /// goal alone is defined as a target to drive to by hand.
+    /// both. A run that follows needs the path; one driven by stick,
+    /// without one, has the goal alone as a target to drive to by hand.
     fn define(&mut self) {
         let Some(lab) = &self.session.lab else { return };
         let start = self
@@ -331,8 +367,24 @@ impl GuestApp {
             .as_ref()
             .map_or(lab.scene.arena.start, |r| r.pose);
         let obstacles = self.virtual_obstacles.clone();
-        let definition = match Route::plan(lab, start, self.goal, obstacles.clone(), &self.settings)
-        {
+        let planned = match self.waypoint_bounds() {
+            Some((min, _)) if self.waypoints.len() < min => {
+                self.plan_note = Some(format!(
+                    "Not defined: click at least {min} points to visit, in order."
+                ));
+                return;
+            }
+            Some(_) => Route::plan_through(
+                lab,
+                start,
+                &self.waypoints,
+                self.goal.tolerance_mm,
+                obstacles.clone(),
+                &self.settings,
+            ),
+            None => Route::plan(lab, start, self.goal, obstacles.clone(), &self.settings),
+        };
+        let definition = match planned {
             Ok(route) => {
                 self.plan_note = Some(format!(
                     "path {:.0} mm; the body keeps {:.0} mm from obstacles",
@@ -341,7 +393,7 @@ impl GuestApp {
                 ));
                 route.definition
             }
-            Err(e) if lab.experiment == Experiment::Navigation => {
+            Err(e) if self.session.mounted().is_some_and(Experiment::follows) => {
                 self.plan_note = Some(format!(
                     "Not defined: no path to the goal ({e}). Move the goal, or clear the obstacles drawn."
                 ));

@@ -16,6 +16,7 @@ use vl_client::Replay;
 fn describe(run: &RecordedRun) -> String {
     let what = run
         .experiment
+        .as_ref()
         .map_or("between runs".to_owned(), |e| e.to_string());
     let seconds = run.seconds.map_or(String::new(), |s| format!(", {s:.1} s"));
     let ending = run.ending.map_or(String::new(), |e| format!(", {e}"));

@@ -1,14 +1,14 @@
 //! The window's tasks: the definition in force saved under a name, and a
 //! saved one loaded and defined again (thesis A.1.4).
 
-use vl_core::{Action, Experiment, GuestMessage};
+use vl_core::{Action, ExperimentId, GuestMessage};
 
 use super::GuestApp;
 use vl_client::{Task, TaskName};
 
 impl GuestApp {
     /// Save the definition in force as a task; load one saved and define it.
-    pub(super) fn tasks_panel(&mut self, ui: &mut egui::Ui, experiment: Experiment) {
+    pub(super) fn tasks_panel(&mut self, ui: &mut egui::Ui, experiment: &ExperimentId) {
         let Some(tasks) = self.tasks.clone() else {
             return;
         };
@@ -24,7 +24,7 @@ impl GuestApp {
                         let file = tasks.save(
                             &name,
                             &Task {
-                                experiment,
+                                experiment: experiment.clone(),
                                 definition,
                             },
                         )?;
@@ -43,7 +43,7 @@ impl GuestApp {
                 let load = egui::Button::new(format!("Load \"{name}\""));
                 if ui.add_enabled(may_define, load).clicked() {
                     self.task_note = Some(match tasks.load(&name) {
-                        Ok(task) if task.experiment != experiment => format!(
+                        Ok(task) if task.experiment != *experiment => format!(
                             "\"{name}\" is a task of {}: mount it first.",
                             task.experiment
                         ),

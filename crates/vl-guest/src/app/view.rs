@@ -164,8 +164,17 @@ impl GuestApp {
                 {
                     self.edit_path(index, p);
                 } else if response.clicked() {
-                    // A click on the floor places the goal there.
-                    (self.goal.x_mm, self.goal.y_mm) = (p.x_mm.round(), p.y_mm.round());
+                    let p = Point {
+                        x_mm: p.x_mm.round(),
+                        y_mm: p.y_mm.round(),
+                    };
+                    match self.waypoint_bounds() {
+                        // A click adds the next point to visit, up to the most.
+                        Some((_, max)) if self.waypoints.len() < max => self.waypoints.push(p),
+                        Some(_) => {}
+                        // A click on the floor places the goal there.
+                        None => (self.goal.x_mm, self.goal.y_mm) = (p.x_mm, p.y_mm),
+                    }
                 }
             }
         }
@@ -341,13 +350,17 @@ impl GuestApp {
     fn overlay(&self, painter: &egui::Painter, view: &OnScreen, scene: &LabScene) {
         let to_screen = |p: Point| view.to_screen(p);
         let px_per_mm = view.px_per_mm;
-        // The goal being chosen, before it is defined (the operator's only).
-        if self.session.is_operator() {
+        // The goal or the waypoints being chosen, before they are defined
+        // (the operator's only).
+        if self.session.is_operator() && self.waypoint_bounds().is_none() {
             painter.circle_stroke(
                 to_screen(self.goal.point()),
                 4.0,
                 Stroke::new(1.5, GOAL_COLOUR.gamma_multiply(0.7)),
             );
+        }
+        if self.session.is_operator() {
+            waypoint_marks(painter, &self.waypoints, to_screen, 0.7);
         }
         if let Some(definition) = &self.session.definition {
             let path: Vec<Pos2> = definition.path.iter().map(|&p| to_screen(p)).collect();
@@ -368,6 +381,7 @@ impl GuestApp {
             for obstacle in &definition.virtual_obstacles {
                 view.outline(painter, obstacle, Stroke::new(2.0, VIRTUAL_COLOUR));
             }
+            waypoint_marks(painter, &definition.waypoints, to_screen, 1.0);
         }
         self.forecast_overlay(painter, view, scene);
         if let Some(robot) = &self.session.robot {
@@ -397,6 +411,28 @@ impl GuestApp {
                 painter.line_segment([centre, at], Stroke::new(1.0, GHOST_COLOUR));
             }
         }
+    }
+}
+
+/// Each of `waypoints` as a ring with its number, in the goal's colour
+/// (fainter, `alpha` < 1, while only chosen).
+fn waypoint_marks(
+    painter: &egui::Painter,
+    waypoints: &[Point],
+    to_screen: impl Fn(Point) -> Pos2,
+    alpha: f32,
+) {
+    let colour = GOAL_COLOUR.gamma_multiply(alpha);
+    for (i, &p) in waypoints.iter().enumerate() {
+        let at = to_screen(p);
+        painter.circle_stroke(at, 7.0, Stroke::new(2.0, colour));
+        painter.text(
+            at + Vec2::new(9.0, -9.0),
+            egui::Align2::LEFT_BOTTOM,
+            (i + 1).to_string(),
+            egui::FontId::proportional(13.0),
+            colour,
+        );
     }
 }
 

@@ -13,9 +13,9 @@ use std::time::{Duration, Instant};
 use tokio::sync::{mpsc as async_mpsc, watch};
 use tracing::{debug, info, warn};
 use vl_core::{
-    CSpace, DeviceState, EndReason, Experiment, Feedback, Fold, HeldBack, HostMessage, Leash,
-    Localiser, MapField, Pose, PoseSource, Priorities, RobotModel, Safety, Situation, Surroundings,
-    Teleop, Told, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
+    CSpace, DeviceState, EndReason, Feedback, Fold, HeldBack, HostMessage, Leash, Localiser,
+    MapField, Pose, PoseSource, Priorities, RobotModel, Safety, Situation, Surroundings, Teleop,
+    Told, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
 };
 
 use super::camera::Sighting;
@@ -267,13 +267,13 @@ impl Control {
             LabRequest::Start {
                 run,
                 definition,
-                experiment,
+                conduct,
                 field,
                 face,
             } => {
                 self.event.store(0, Ordering::Relaxed);
                 let surroundings = self.surroundings.with(&definition.virtual_obstacles);
-                let started = Run::new(run, definition, experiment, surroundings, field, face);
+                let started = Run::new(run, definition, conduct, surroundings, field, face);
                 if started.follower.is_some() {
                     info!(run, "following the defined path from the camera's estimate");
                 }
@@ -471,10 +471,12 @@ impl Control {
         if let Some(previous) = previous {
             run.distance_mm += previous.pose.point().distance(pose.point());
         }
-        // A navigation run ends at its goal; in teleoperation a goal is a
-        // target the summary reports on, and the operator ends the run.
+        // A run whose success is the goal (or its waypoints) ends there;
+        // otherwise a goal is a target the summary reports on, and the
+        // operator ends the run.
+        run.visited = run.visited.at(&run.definition, pose.point());
         let reached = run.turning
-            || run.experiment == Experiment::Navigation && run.definition.at_goal(pose.point());
+            || run.conduct.ends_at_goal && run.definition.reached(run.visited, pose.point());
         let timed_out = run
             .definition
             .time_limit_s

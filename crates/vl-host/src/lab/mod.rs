@@ -20,8 +20,8 @@ use std::time::{Duration, Instant};
 use bytes::Bytes;
 use tokio::sync::{mpsc as async_mpsc, watch};
 use vl_core::{
-    Arena, CameraModel, Definition, DeviceState, Drive, EndReason, Experiment, HostMessage,
-    MapField, Priorities, Readiness, RobotModel, Summary,
+    Arena, CameraModel, Definition, DeviceState, Drive, EndReason, HostMessage, MapField,
+    Priorities, Readiness, RobotModel, Summary,
 };
 
 use crate::drivers::{Camera, Robot, Witness};
@@ -30,6 +30,7 @@ pub use camera::Watching;
 use camera::{CameraLoop, SIGHTINGS, first_look};
 pub(crate) use control::map_field;
 use control::{Control, Wiring};
+pub(crate) use run::Conduct;
 use vl_record::{Catalogue, Feed};
 
 /// The control period: the Khepera's speed-controller period.
@@ -121,7 +122,7 @@ pub(crate) enum LabRequest {
         /// The run's number, which its `Finished` carries back.
         run: u64,
         definition: Definition,
-        experiment: Experiment,
+        conduct: Conduct,
         /// The map's potential field for assisted teleoperation.
         field: Option<Arc<MapField>>,
         /// At the goal, turn in place to face this heading, rad, before

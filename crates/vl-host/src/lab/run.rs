@@ -6,8 +6,38 @@ use std::time::{Duration, Instant};
 
 use vl_core::{
     Definition, EndReason, Experiment, Follower, HeldBack, MapField, PathRecorder, Pose,
-    PoseSource, Summary, Surroundings, Vector, WheelSpeeds,
+    PoseSource, Summary, Surroundings, Vector, Visited, WaypointsVisited, WheelSpeeds,
 };
+
+/// What the control loop does in a run, from the experiment's components:
+/// follow the defined path, assist the operator (fields and force), end
+/// where the definition is reached (the goal, or every waypoint).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Conduct {
+    pub(crate) follows: bool,
+    pub(crate) assists: bool,
+    pub(crate) ends_at_goal: bool,
+}
+
+impl Conduct {
+    /// The drive back to the start pose after a run: follow a planned
+    /// path and stop at its end.
+    pub(crate) const BACK_TO_START: Conduct = Conduct {
+        follows: true,
+        assists: false,
+        ends_at_goal: true,
+    };
+}
+
+impl From<&Experiment> for Conduct {
+    fn from(experiment: &Experiment) -> Conduct {
+        Conduct {
+            follows: experiment.follows(),
+            assists: experiment.assists_the_operator(),
+            ends_at_goal: experiment.ends_at_goal(),
+        }
+    }
+}
 
 /// An assisted run's two sides: the velocity the operator asks for (robot
 /// frame), and the force last fed back to the stick.
@@ -86,7 +116,7 @@ impl PathProgress {
 pub(super) struct Run {
     pub(super) number: u64,
     pub(super) definition: Definition,
-    pub(super) experiment: Experiment,
+    pub(super) conduct: Conduct,
     /// The arena and the definition's virtual obstacles, for the safety layer.
     pub(super) surroundings: Surroundings,
     pub(super) started: Instant,
@@ -127,22 +157,24 @@ pub(super) struct Run {
     pub(super) held_back: Option<HeldBack>,
     /// What failed, when a fault ends the run.
     pub(super) fault: Option<String>,
+    /// The definition's waypoints visited so far, in order.
+    pub(super) visited: Visited,
 }
 
 impl Run {
-    /// Run `number` of `experiment` on `definition`, starting now, in
-    /// `surroundings` (the arena and the definition's virtual obstacles).
+    /// Run `number` conducted as `conduct` on `definition`, starting now,
+    /// in `surroundings` (the arena and the definition's virtual obstacles).
     pub(super) fn new(
         number: u64,
         definition: Definition,
-        experiment: Experiment,
+        conduct: Conduct,
         surroundings: Surroundings,
         field: Option<Arc<MapField>>,
         face: Option<f64>,
     ) -> Run {
         let now = Instant::now();
         let follower = definition
-            .host_follows(experiment)
+            .host_follows(conduct.follows)
             .then(|| Follower::for_definition(&definition))
             .flatten();
         Run {
@@ -152,7 +184,7 @@ impl Run {
             follower,
             commanded: false,
             definition,
-            experiment,
+            conduct,
             started: now,
             last_command: now,
             distance_mm: 0.0,
@@ -160,9 +192,7 @@ impl Run {
             touching: false,
             wheels: WheelSpeeds::default(),
             held: false,
-            assist: experiment
-                .assists_the_operator()
-                .then_some(Assist::default()),
+            assist: conduct.assists.then_some(Assist::default()),
             field,
             limited: false,
             closest_mm: f64::INFINITY,
@@ -172,6 +202,7 @@ impl Run {
             progress: PathProgress::new(now),
             held_back: None,
             fault: None,
+            visited: Visited::default(),
         }
     }
 
@@ -184,7 +215,11 @@ impl Run {
     ) -> Summary {
         Summary {
             reason,
-            reached_goal: self.definition.at_goal(pose.point()),
+            reached_goal: self.definition.reached(self.visited, pose.point()),
+            waypoints: (!self.definition.waypoints.is_empty()).then_some(WaypointsVisited {
+                visited: self.visited.0,
+                of: self.definition.waypoints.len(),
+            }),
             events,
             final_pose: pose,
             seconds: self.started.elapsed().as_secs_f64(),
@@ -268,10 +303,18 @@ mod tests {
         };
         let arena = vl_core::Arena::load("open").unwrap();
         let surroundings = Surroundings::new(&arena);
+        let shipped = |id| {
+            vl_core::Experiments::shipped()
+                .get(id)
+                .unwrap()
+                .experiment()
+                .clone()
+        };
+        let (navigation, teleoperation) = (shipped("navigation"), shipped("teleoperation"));
         let nav = Run::new(
             1,
             definition.clone(),
-            Experiment::Navigation,
+            Conduct::from(&navigation),
             surroundings.clone(),
             None,
             None,
@@ -281,7 +324,7 @@ mod tests {
         let tele = Run::new(
             2,
             definition,
-            Experiment::Teleoperation,
+            Conduct::from(&teleoperation),
             surroundings,
             None,
             None,

@@ -14,8 +14,8 @@ use serde::Serialize;
 use tokio::task::JoinSet;
 use tokio_tungstenite::tungstenite::Message;
 use vl_core::{
-    Arena, Drive, ErrorCode, Experiment, Feedback, GuestMessage, HostMessage, Named,
-    PROTOCOL_VERSION, Role, Secret, Wire, nearest_rank,
+    Arena, Drive, ErrorCode, Feedback, GuestMessage, HostMessage, PROTOCOL_VERSION, Role,
+    RunComponent, Secret, Wire, nearest_rank,
 };
 use vl_report::table::{Report, Table};
 
@@ -46,6 +46,8 @@ pub enum BenchError {
     Runtime(std::io::Error),
     #[error("cannot issue the cells' credentials: {0}")]
     Trust(String),
+    #[error("the Host offers no experiment driven by stick")]
+    NoStick,
 }
 
 /// Command → feedback of its event, ms, and what the observers got.
@@ -396,16 +398,21 @@ pub async fn operator_latency(
 }
 
 /// An operator on `url` (logged in with `password` to the bench's
-/// account, if given) with a teleoperation run started.
+/// account, if given) with a run started of the first experiment the Host
+/// offers that is driven by stick.
 async fn teleoperating(url: &str, password: Option<&str>) -> Result<Socket, BenchError> {
     let mut operator = connect(url).await?;
     say(&mut operator, &hello(Role::Operator, password)).await?;
-    until(&mut operator, "say hello", |m| {
-        matches!(m, HostMessage::Welcome { .. }).then_some(())
+    let experiments = until(&mut operator, "say hello", |m| match m {
+        HostMessage::Welcome { experiments, .. } => Some(experiments.clone()),
+        _ => None,
     })
     .await?;
+    let driven = experiments
+        .iter()
+        .find(|e| e.run.has(RunComponent::Teleoperate));
     let mount = GuestMessage::Mount {
-        experiment: Experiment::Teleoperation.id().to_owned(),
+        experiment: driven.ok_or(BenchError::NoStick)?.id.to_string(),
     };
     say(&mut operator, &mount).await?;
     until(&mut operator, "mount", |m| {

@@ -33,7 +33,7 @@ use std::time::Duration;
 use tokio::net::TcpListener;
 use tokio::sync::mpsc;
 use tracing::{debug, error, warn};
-use vl_core::{AccessNet, Experiment, Named, Supervisor, SupervisorError};
+use vl_core::{AccessNet, Experiment, Experiments, Supervisor, SupervisorError};
 
 use crate::accounts::audit::Audit;
 use crate::accounts::gate::{Gate, Observers};
@@ -58,8 +58,9 @@ pub struct HostConfig {
     pub audit: Audit,
     /// WebSocket over TLS only (`wss://`), with this certificate.
     pub tls: Option<Tls>,
-    /// What the lab offers, in the order Guests list it.
-    pub experiments: Vec<Experiment>,
+    /// What the lab offers, in the order Guests list it, each designed
+    /// and verified.
+    pub experiments: Experiments,
     /// An operator who sends no command for this long during a run loses
     /// the run and the role.
     pub lease: Duration,
@@ -105,9 +106,9 @@ impl HostConfig {
     pub fn supervisor(&self) -> Result<Supervisor, SupervisorError> {
         Ok(match &self.nets {
             Some(dir) => {
-                Supervisor::load(dir, &self.experiments)?.with_access(AccessNet::load(dir)?)
+                Supervisor::load(dir, &self.experiments.ids())?.with_access(AccessNet::load(dir)?)
             }
-            None => Supervisor::new(&self.experiments)?.with_access(AccessNet::new()?),
+            None => Supervisor::new(self.experiments.nets())?.with_access(AccessNet::new()?),
         })
     }
 }
@@ -120,7 +121,7 @@ impl Default for HostConfig {
             observers: Observers::default(),
             audit: Audit::default(),
             tls: None,
-            experiments: Experiment::ALL.to_vec(),
+            experiments: Experiments::shipped().clone(),
             lease: Duration::from_secs(30),
             slot: None,
             ping_timeout: Duration::from_secs(10),
@@ -171,7 +172,7 @@ pub(crate) async fn serve(listener: TcpListener, lab: Lab, config: HostConfig) {
             robot: lab.info.robot.clone(),
             camera: lab.info.camera,
         }),
-        experiments: config.experiments.clone().into(),
+        experiments: config.experiments.experiments().cloned().collect(),
     };
     let extended = extension::run_all(config.extensions.clone(), handle.clone());
     let hub = Hub::new(lab, config.clone(), supervisor, events).with_live(live);

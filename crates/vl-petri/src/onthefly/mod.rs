@@ -569,7 +569,7 @@ mod tests {
         /// on the return), the search reads what the stored graph says.
         #[test]
         fn lists_saved_or_made_again_read_the_same(net in net_of_many_transitions()) {
-            let limit = || Options { max_states: 2000, progress: None };
+            let limit = || Options { max_states: 2000, progress: None, deadline: None };
             let Ok(space) = explore(&net, limit()) else {
                 return Ok(());
             };

@@ -97,6 +97,7 @@ impl Report for Runs {
                 vl_report::table::utc(r.started_ms),
                 r.run.to_string(),
                 r.experiment
+                    .as_ref()
                     .map_or_else(|| "between runs".into(), |e| e.to_string()),
                 r.user.clone().unwrap_or_else(|| "anonymous".into()),
                 r.seconds.map_or_else(|| "-".into(), |s| format!("{s:.1}")),
@@ -373,7 +374,7 @@ impl Catalogue {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use vl_core::Experiment;
+    use vl_core::ExperimentId;
 
     const DAY_MS: u64 = 86_400_000;
 
@@ -393,7 +394,7 @@ mod tests {
                 let recorded = RecordedRun {
                     name: name.clone(),
                     run,
-                    experiment: Some(Experiment::Navigation),
+                    experiment: Some(ExperimentId::new("navigation").unwrap()),
                     started_ms,
                     user: owner.user.clone(),
                     ending: None,

@@ -114,7 +114,7 @@ impl Hub {
         HostMessage::Welcome {
             session,
             role,
-            experiments: self.config.experiments.iter().map(|e| e.info()).collect(),
+            experiments: self.config.experiments.experiments().cloned().collect(),
             resume,
             user,
             scene: Some(Box::new(self.scene())),
@@ -291,8 +291,8 @@ impl Hub {
 
     /// Whether runs of what is mounted and defined follow a path on the Host.
     fn host_follows(&self) -> bool {
-        match (self.experiment, &self.definition) {
-            (Some(experiment), Some(definition)) => definition.host_follows(experiment),
+        match (&self.experiment, &self.definition) {
+            (Some(experiment), Some(definition)) => definition.host_follows(experiment.follows()),
             _ => false,
         }
     }
@@ -316,7 +316,7 @@ impl Hub {
             self.happened(Action::Release);
         }
         self.seat(how, Seat::Operator);
-        self.kept = self.experiment.take().or(self.kept);
+        self.kept = self.experiment.take().or(self.kept.take());
         self.definition = None;
         self.cspace = None;
         self.field = None;

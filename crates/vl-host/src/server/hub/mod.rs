@@ -13,7 +13,7 @@ use tokio_tungstenite::tungstenite::Message;
 use tracing::{debug, info, warn};
 use vl_core::{
     AccessEvent, Action, CSpace, Definition, EndReason, ErrorCode, Experiment, GuestMessage,
-    HostMessage, MapField, MountedLab, Named, Readiness, Role, Stopper, Supervisor, Wire,
+    HostMessage, MapField, MountedLab, Readiness, Role, Stopper, Supervisor, Wire,
 };
 
 use super::HostConfig;
@@ -353,7 +353,7 @@ impl Hub {
         if self.supervisor.allows(Action::Finish) {
             self.happened(Action::Finish);
         }
-        summary.experiment = self.experiment.map(|e| e.to_string());
+        summary.experiment = self.experiment.as_ref().map(|e| e.id.to_string());
         summary.max_event_gap = self.max_event_gap;
         summary.sync_violations = self.sync_violations;
         summary.stopped_by = self
@@ -394,9 +394,10 @@ impl Hub {
             self.broadcast(&self.status());
         }
         // The next run starts elsewhere: the definition is tried again.
-        if let (Some(Experiment::Navigation), Some(definition)) =
-            (self.experiment, self.definition.clone())
-        {
+        if let (Some(true), Some(definition)) = (
+            self.experiment.as_ref().map(Experiment::forecasts),
+            self.definition.clone(),
+        ) {
             let definition = self.refit(definition);
             self.ask_forecast(&definition);
         }
@@ -470,8 +471,8 @@ impl Hub {
             return;
         };
         for fired in &state.fired {
-            info!(lab = fired.lab.id(), transition = %fired.transition, "fired");
-            let line = format!("{}: fired {}", fired.lab.id(), fired.transition);
+            info!(lab = %fired.lab, transition = %fired.transition, "fired");
+            let line = format!("{}: fired {}", fired.lab, fired.transition);
             self.record_log(Level::Info, line);
         }
         self.broadcast(&HostMessage::State(Box::new(state)));
@@ -512,9 +513,9 @@ impl Hub {
     }
 
     fn mounted(&self) -> Option<HostMessage> {
-        self.experiment.map(|experiment| {
+        self.experiment.as_ref().map(|experiment| {
             HostMessage::Mounted(Box::new(MountedLab {
-                experiment,
+                experiment: experiment.id.clone(),
                 scene: self.scene(),
             }))
         })

@@ -6,13 +6,13 @@ use std::time::Instant;
 use tracing::warn;
 use vl_core::{
     Action, Definition, DeviceState, Drive, EndReason, ErrorCode, Experiment, GuestMessage,
-    HostMessage, Named, Point, Readiness, Shape, Stopper, plan_route,
+    HostMessage, PLAN_MARGIN_MM, Point, Readiness, Shape, Stopper, plan_route_through,
 };
 
 use super::Hub;
 use super::fields::field_job;
 use crate::accounts::audit::AuditEntry;
-use crate::lab::LabRequest;
+use crate::lab::{Conduct, LabRequest};
 
 /// The least time between two plans for the operator.
 const PLAN_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
@@ -28,7 +28,7 @@ impl Hub {
         match message {
             GuestMessage::Mount { experiment } => self.mount(id, experiment),
             GuestMessage::Define { definition } => self.define(id, definition),
-            GuestMessage::Plan { goal } => self.plan(id, goal),
+            GuestMessage::Plan { goal, through } => self.plan(id, goal, &through),
             GuestMessage::Reset => self.ask_reset(id),
             GuestMessage::Start => self.start(id),
             GuestMessage::Stop => self.stop(id),
@@ -51,20 +51,16 @@ impl Hub {
 
     /// Mounts the experiment named `experiment`, if the lab offers it.
     fn mount(&mut self, id: u64, experiment: String) {
-        let offered = &self.config.experiments;
-        let Some(experiment) = Experiment::from_id(&experiment)
-            .ok()
-            .filter(|e| offered.contains(e))
-        else {
-            let ids: Vec<&str> = offered.iter().map(|e| e.id()).collect();
-            return self.refuse(
-                id,
-                ErrorCode::UnknownExperiment,
-                format!(
-                    "this Host has no experiment \"{experiment}\"; it offers {}",
-                    ids.join(", ")
-                ),
-            );
+        let experiment = match self.config.experiments.get(&experiment) {
+            Ok(offered) => offered.experiment().clone(),
+            Err(unknown) => {
+                let why = format!(
+                    "this Host has no experiment \"{}\"; it offers {}",
+                    unknown.name,
+                    unknown.known.join(", ")
+                );
+                return self.refuse(id, ErrorCode::UnknownExperiment, why);
+            }
         };
         if let Err(e) = self.put_up(experiment) {
             self.refuse(id, ErrorCode::NotAllowedNow, e.to_string());
@@ -83,7 +79,7 @@ impl Hub {
 
     /// Mounts `experiment` afresh: no definition yet, every client told.
     fn put_up(&mut self, experiment: Experiment) -> Result<(), vl_core::NotAllowed> {
-        self.supervisor.mount(experiment)?;
+        self.supervisor.mount(&experiment.id)?;
         self.kept = None;
         self.experiment = Some(experiment);
         self.definition = None;
@@ -104,6 +100,9 @@ impl Hub {
         if let Err(why) = definition.validate(&self.lab.info.arena, &self.lab.info.robot) {
             return self.refuse(id, ErrorCode::InvalidDefinition, why.to_string());
         }
+        if let Some(Err(why)) = self.experiment.as_ref().map(|e| e.admits(&definition)) {
+            return self.refuse(id, ErrorCode::InvalidDefinition, why.to_string());
+        }
         let size = definition.size() as f64;
         let wait = self.definitions.take(size);
         if !wait.is_zero() {
@@ -114,7 +113,7 @@ impl Hub {
             );
             return self.refuse(id, ErrorCode::NotAllowedNow, why);
         }
-        if self.experiment == Some(Experiment::Navigation)
+        if self.experiment.as_ref().is_some_and(Experiment::follows)
             && let Some(cspace) = &self.cspace
             && let Some(i) = definition
                 .path
@@ -135,19 +134,26 @@ impl Hub {
             definition: definition.clone(),
         });
         // The path was checked against the C-space above; the twin tries it.
-        if self.experiment == Some(Experiment::Navigation) {
+        let (plans, forecasts) = self
+            .experiment
+            .as_ref()
+            .map_or((false, false), |e| (e.plans(), e.forecasts()));
+        if plans {
             self.happened(Action::PathPlanned);
+        }
+        if forecasts {
             self.ask_forecast(&definition);
         }
         self.build_field(&definition.virtual_obstacles);
     }
 
-    /// Plans a path to `goal` from where the robot stands, for the
-    /// operator to define: when a definition may be made, at most one
-    /// plan every [`PLAN_EVERY`].
-    fn plan(&mut self, id: u64, goal: Point) {
-        if self.experiment != Some(Experiment::Navigation) {
-            let why = "paths are planned for the navigation experiment: mount it first";
+    /// Plans a path to `goal` from where the robot stands (through
+    /// `through` first), for the operator to define: when a definition may
+    /// be made, at most one plan every [`PLAN_EVERY`].
+    fn plan(&mut self, id: u64, goal: Point, through: &[Point]) {
+        if !self.experiment.as_ref().is_some_and(Experiment::plans) {
+            let why =
+                "paths are planned only in an experiment whose run plans one: mount one first";
             return self.refuse(id, ErrorCode::NotAllowedNow, why);
         }
         if !self.permitted(id, Action::Define) {
@@ -164,17 +170,32 @@ impl Hub {
         }
         let arena = &self.lab.info.arena;
         let inside = |v: f64, high: f64| v.is_finite() && (0.0..=high).contains(&v);
-        if !inside(goal.x_mm, arena.width_mm) || !inside(goal.y_mm, arena.height_mm) {
+        let bounds = self
+            .experiment
+            .as_ref()
+            .and_then(Experiment::waypoint_bounds);
+        let most = bounds.map_or(0, |(_, max)| max.saturating_sub(1));
+        if through.len() > most {
+            let why = format!("a plan here goes through at most {most} points before its goal");
+            return self.refuse(id, ErrorCode::InvalidDefinition, why);
+        }
+        if let Some(p) = through
+            .iter()
+            .chain([&goal])
+            .find(|p| !inside(p.x_mm, arena.width_mm) || !inside(p.y_mm, arena.height_mm))
+        {
             let why = format!(
-                "the goal ({}, {}) mm is outside the arena, {} by {} mm",
-                goal.x_mm, goal.y_mm, arena.width_mm, arena.height_mm
+                "the point ({}, {}) mm is outside the arena, {} by {} mm",
+                p.x_mm, p.y_mm, arena.width_mm, arena.height_mm
             );
             return self.refuse(id, ErrorCode::InvalidDefinition, why);
         }
         self.last_plan = Some(Instant::now());
         let start = self.next_start();
         let arena = &self.lab.info.arena;
-        match plan_route(arena, &[], &self.lab.info.robot, start, goal) {
+        let points: Vec<Point> = through.iter().copied().chain([goal]).collect();
+        let robot = &self.lab.info.robot;
+        match plan_route_through(arena, &[], robot, start, &points, PLAN_MARGIN_MM) {
             Ok(plan) => {
                 let path = plan.points();
                 self.send(id, HostMessage::Planned { goal, path });
@@ -212,7 +233,7 @@ impl Hub {
             );
         }
         if self.supervise(id, Action::Start)
-            && let Some(experiment) = self.experiment
+            && let Some(experiment) = self.experiment.clone()
         {
             self.last_event = 0;
             self.max_event_gap = 0;
@@ -228,19 +249,20 @@ impl Hub {
                     admitted: c.admitted.clone(),
                 });
             let user = self.user_of(id);
-            self.run_log.started(self.runs, experiment, user.clone());
+            self.run_log
+                .started(self.runs, experiment.id.clone(), user.clone());
             self.config.audit.record(
                 AuditEntry::new("run_started")
                     .connection(id)
                     .user(user.as_deref())
-                    .detail(format!("run {}: {experiment}", self.runs)),
+                    .detail(format!("run {}: {}", self.runs, experiment.id)),
             );
             let definition = self.definition.clone().unwrap_or_default();
-            self.begin_recording(id, experiment, &definition);
+            self.begin_recording(id, experiment.id.clone(), &definition);
             self.lab.request(LabRequest::Start {
                 run: self.runs,
                 definition,
-                experiment,
+                conduct: Conduct::from(&experiment),
                 field: self.field.clone(),
                 face: None,
             });
@@ -316,7 +338,11 @@ impl Hub {
     /// off the hub (`field_built` fires when it is ready; the lab's net
     /// keeps the operator from driving until then).
     fn build_field(&mut self, virtual_obstacles: &[Shape]) {
-        if self.experiment != Some(Experiment::Teleoperation) {
+        if !self
+            .experiment
+            .as_ref()
+            .is_some_and(Experiment::assists_the_operator)
+        {
             return;
         }
         if virtual_obstacles.is_empty() {

@@ -3,7 +3,7 @@
 
 use serde_json::json;
 use vl_core::{
-    Definition, Experiment, GuestMessage, HostMessage, MountedLab, RecordedRun, RecordingName,
+    Definition, ExperimentId, GuestMessage, HostMessage, MountedLab, RecordedRun, RecordingName,
     RecordingNote, Summary,
 };
 
@@ -24,7 +24,7 @@ impl Hub {
     pub(super) fn begin_recording(
         &mut self,
         id: u64,
-        experiment: Experiment,
+        experiment: ExperimentId,
         definition: &Definition,
     ) {
         let Some(catalogue) = &self.config.recordings else {
@@ -87,16 +87,23 @@ impl Hub {
     /// mount), the definition and the Host's settings.
     fn beginning(&self, run: RecordedRun, owner: Owner, definition: &Definition) -> Begin {
         let config = &self.config;
+        // Between runs, what is mounted (or the first offered) is the lab.
+        let experiment = run
+            .experiment
+            .clone()
+            .or_else(|| self.experiment.as_ref().map(|e| e.id.clone()))
+            .or_else(|| config.experiments.ids().into_iter().next())
+            .expect("a Host offers an experiment");
         Begin {
             run,
             owner,
             lab: MountedLab {
-                experiment: self.experiment.unwrap_or(config.experiments[0]),
+                experiment,
                 scene: self.scene(),
             },
             definition: definition.clone(),
             config: json!({
-                "experiments": config.experiments.iter().map(|e| e.to_string()).collect::<Vec<_>>(),
+                "experiments": config.experiments.ids(),
                 "lease_s": config.lease.as_secs_f64(),
                 "slot_s": config.slot.map(|s| s.as_secs_f64()),
                 "frames": format!("{:?}", config.frames),

@@ -4,13 +4,12 @@
 
 use tracing::{info, warn};
 use vl_core::{
-    Definition, EndReason, Experiment, Feedback, Goal, HostMessage, Pose, Readiness, plan_route,
-    wrap_angle,
+    Definition, EndReason, Feedback, Goal, HostMessage, Pose, Readiness, plan_route, wrap_angle,
 };
 
 use super::{Hub, ResetRoute};
 use crate::accounts::audit::AuditEntry;
-use crate::lab::LabRequest;
+use crate::lab::{Conduct, LabRequest};
 
 /// A robot this near the start pose, mm and rad, is back: no drive needed
 /// (and the drive back ends this near it).
@@ -98,7 +97,7 @@ impl Hub {
                 self.lab.request(LabRequest::Start {
                     run: self.runs,
                     definition,
-                    experiment: Experiment::Navigation,
+                    conduct: Conduct::BACK_TO_START,
                     field: None,
                     face: Some(self.lab.info.arena.start.theta_rad),
                 });

@@ -5,7 +5,7 @@
 use std::collections::VecDeque;
 use std::time::{Instant, SystemTime};
 
-use vl_core::{DeviceState, EndReason, Experiment, HostStatus, Person, RunRecord};
+use vl_core::{DeviceState, EndReason, ExperimentId, HostStatus, Person, RunRecord};
 
 use super::Hub;
 use crate::accounts::audit::AuditEntry;
@@ -29,7 +29,7 @@ fn unix_now() -> u64 {
 }
 
 impl RunLog {
-    pub(super) fn started(&mut self, run: u64, experiment: Experiment, user: Option<String>) {
+    pub(super) fn started(&mut self, run: u64, experiment: ExperimentId, user: Option<String>) {
         let now = unix_now();
         if now / DAY_S != self.day {
             (self.day, self.today) = (now / DAY_S, 0);
@@ -76,7 +76,7 @@ impl Hub {
             robot: devices.robot,
             camera: devices.camera,
             lab: self.readiness,
-            mounted: self.experiment,
+            mounted: self.experiment.as_ref().map(|e| e.id.clone()),
             run: self.run,
             operator: (self.operator.is_some() || self.away.is_some())
                 .then(|| person(self.operator, self.operator_user.clone())),

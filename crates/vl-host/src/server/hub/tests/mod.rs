@@ -387,8 +387,9 @@ async fn one_operator_at_a_time() {
 
 #[tokio::test]
 async fn only_offered_experiments_mount() {
+    let navigation = vl_core::ExperimentId::new("navigation").unwrap();
     let mut rig = HubRig::new(HostConfig {
-        experiments: vec![vl_core::Experiment::Navigation],
+        experiments: vl_core::Experiments::shipped().only(&[navigation]).unwrap(),
         reset: false,
         ..HostConfig::default()
     });
