@@ -2,18 +2,18 @@
 //! measure how it answers (`vl host bench`).
 
 use std::net::SocketAddr;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::ValueHint;
-use vl_core::{ExperimentId, Experiments, RobotModel};
+use vl_core::RobotModel;
 use vl_host::{CameraSource, Host, HostConfig, LabSpec, RobotSpec};
 
 use crate::access::AccessArgs;
 use crate::input::{SceneArgs, arena_from, load_calibration, load_robot_model};
 use crate::media::LinkArgs;
-use crate::named::ExperimentParser;
+use crate::named::{ExperimentChoice, ExperimentChoiceParser, offered};
 use crate::report::emit;
 use crate::{BadInput, bad_input, named};
 
@@ -307,66 +307,6 @@ fn recordings(args: &HostArgs) -> Result<Option<vl_record::Catalogue>> {
             vl_record::recordings_dir().map(|dir| dir.join("cells").join(cell.as_str()));
     }
     Ok(settings.catalogue().map_err(bad_input)?)
-}
-
-/// An experiment `--experiments` names: a shipped one (or a folder's) by
-/// id, or a folder.
-#[derive(Debug, Clone)]
-enum ExperimentChoice {
-    Id(ExperimentId),
-    Folder(PathBuf),
-}
-
-/// Parses a choice: a folder when it looks like a path or is a directory
-/// here, else an id (a shipped one, or a folder's); the shipped ones are
-/// listed in `--help`.
-#[derive(Clone, Copy)]
-struct ExperimentChoiceParser;
-
-impl clap::builder::TypedValueParser for ExperimentChoiceParser {
-    type Value = ExperimentChoice;
-
-    fn parse_ref(
-        &self,
-        cmd: &clap::Command,
-        arg: Option<&clap::Arg>,
-        value: &std::ffi::OsStr,
-    ) -> Result<ExperimentChoice, clap::Error> {
-        let text = value.to_string_lossy();
-        let path = Path::new(value);
-        if text.contains(std::path::MAIN_SEPARATOR) || text.starts_with('.') || path.is_dir() {
-            return Ok(ExperimentChoice::Folder(path.to_path_buf()));
-        }
-        ExperimentParser::AnyId
-            .parse_ref(cmd, arg, value)
-            .map(ExperimentChoice::Id)
-    }
-
-    fn possible_values(
-        &self,
-    ) -> Option<Box<dyn Iterator<Item = clap::builder::PossibleValue> + '_>> {
-        ExperimentParser::AnyId.possible_values()
-    }
-}
-
-/// What `--experiments` offers: the shipped experiments and its folders',
-/// each verified, then only the ids it names if it names any.
-fn offered(choices: &[ExperimentChoice]) -> Result<Experiments> {
-    let (mut ids, mut folders) = (Vec::new(), Vec::new());
-    for choice in choices {
-        match choice {
-            ExperimentChoice::Id(id) => ids.push(id.clone()),
-            ExperimentChoice::Folder(folder) => folders.push(folder.clone()),
-        }
-    }
-    let all = Experiments::shipped()
-        .with_folders(&folders)
-        .map_err(|e| BadInput(format!("--experiments: {e}")))?;
-    if ids.is_empty() {
-        return Ok(all);
-    }
-    all.only(&ids)
-        .map_err(|e| BadInput(format!("--experiments: {e}")).into())
 }
 
 /// The Host's configuration from its flags, checked before anything starts.

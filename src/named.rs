@@ -1,12 +1,18 @@
 //! `Named` values on a command line: clap's parser for them, which lists
 //! the ids in `--help` and, for an id that names nothing, the ids that do
-//! and what an old id is called now.
+//! and what an old id is called now; and experiments, by id or folder, and
+//! what a command's `--experiments` offers.
 
 use std::marker::PhantomData;
 
 use clap::builder::{PossibleValue, TypedValueParser};
 
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
 use vl_core::{ExperimentId, Experiments, Named};
+
+use crate::BadInput;
 
 /// Parses a [`Named`] value by its id, listing the ids in `--help` and in
 /// the error for one that names nothing.
@@ -111,4 +117,62 @@ fn unknown(
         );
     }
     error
+}
+
+/// An experiment `--experiments` names: a shipped one (or a folder's) by
+/// id, or a folder.
+#[derive(Debug, Clone)]
+pub(crate) enum ExperimentChoice {
+    Id(ExperimentId),
+    Folder(PathBuf),
+}
+
+/// Parses a choice: a folder when it looks like a path or is a directory
+/// here, else an id (a shipped one, or a folder's); the shipped ones are
+/// listed in `--help`.
+#[derive(Clone, Copy)]
+pub(crate) struct ExperimentChoiceParser;
+
+impl TypedValueParser for ExperimentChoiceParser {
+    type Value = ExperimentChoice;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> Result<ExperimentChoice, clap::Error> {
+        let text = value.to_string_lossy();
+        let path = Path::new(value);
+        if text.contains(std::path::MAIN_SEPARATOR) || text.starts_with('.') || path.is_dir() {
+            return Ok(ExperimentChoice::Folder(path.to_path_buf()));
+        }
+        ExperimentParser::AnyId
+            .parse_ref(cmd, arg, value)
+            .map(ExperimentChoice::Id)
+    }
+
+    fn possible_values(&self) -> Option<Box<dyn Iterator<Item = PossibleValue> + '_>> {
+        ExperimentParser::AnyId.possible_values()
+    }
+}
+
+/// What `--experiments` offers: the shipped experiments and its folders',
+/// each verified, then only the ids it names if it names any.
+pub(crate) fn offered(choices: &[ExperimentChoice]) -> Result<Experiments> {
+    let (mut ids, mut folders) = (Vec::new(), Vec::new());
+    for choice in choices {
+        match choice {
+            ExperimentChoice::Id(id) => ids.push(id.clone()),
+            ExperimentChoice::Folder(folder) => folders.push(folder.clone()),
+        }
+    }
+    let all = Experiments::shipped()
+        .with_folders(&folders)
+        .map_err(|e| BadInput(format!("--experiments: {e}")))?;
+    if ids.is_empty() {
+        return Ok(all);
+    }
+    all.only(&ids)
+        .map_err(|e| BadInput(format!("--experiments: {e}")).into())
 }

@@ -284,3 +284,26 @@ fn rust_files(dir: &Path, each: &mut dyn FnMut(&Path, &str)) {
         }
     }
 }
+
+/// `vl experiment run` takes any experiment by id: the waypoint lab (its
+/// points, when none are given, the fewest it visits along the way to the
+/// arena's goal) and a folder's, served beside the shipped ones.
+#[test]
+fn experiment_run_takes_a_folder_s_experiment_and_the_waypoint_lab() {
+    let root = scratch("experiments-run");
+    new_folder(&root.join("labs"), "ferry");
+    let labs = root.join("labs");
+    for args in [
+        vec!["experiment", "run", "tour", "--json"],
+        vec!["experiment", "run", "ferry", "--experiments", s(&labs), "--json"],
+    ] {
+        let report = common::vl_json(&args);
+        assert_eq!(report["all_succeeded"], true, "{args:?}: {report}");
+        let run = &report["runs"][0];
+        assert_eq!(run["experiment"], args[2], "{report}");
+    }
+    common::refused(
+        &["experiment", "run", "ferry"],
+        "unknown experiment 'ferry' (known: navigation, teleoperation, tour)",
+    );
+}

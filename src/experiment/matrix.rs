@@ -9,7 +9,9 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 use vl_campaign::{Matrix, cells_of, progress_line, run_all, write_report};
-use vl_core::{ExperimentId, Named};
+use vl_core::Named;
+
+use crate::named::{ExperimentChoice, ExperimentChoiceParser, offered};
 use vl_sim::{LinkModel, Profile};
 
 use crate::input::{load_arena, seconds};
@@ -21,14 +23,17 @@ pub(crate) struct ReportArgs {
     #[arg(long)]
     out: PathBuf,
     /// The experiments, comma-separated: each a cell per link (those
-    /// driven by stick two: paced by event and by time).
+    /// driven by stick two: paced by event and by time). Ids, and folders
+    /// whose experiments are served beside the shipped ones (all of them
+    /// measured when no id is named).
     #[arg(
         long,
         value_delimiter = ',',
-        value_parser = crate::named::ExperimentParser::Shipped,
-        default_value = "navigation,teleoperation"
+        value_parser = ExperimentChoiceParser,
+        default_value = "navigation,teleoperation",
+        value_hint = clap::ValueHint::AnyPath
     )]
-    experiments: Vec<ExperimentId>,
+    experiments: Vec<ExperimentChoice>,
     /// Seeds per cell (profile × experiment × pacing).
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(1..=100))]
     seeds: u64,
@@ -67,7 +72,8 @@ pub(crate) fn report(runtime: &tokio::runtime::Runtime, args: ReportArgs) -> Res
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let seeds = args.seed..args.seed + args.seeds;
-    let specs = cells_of(&args.experiments, &links, &arena, seeds, timeout);
+    let lab = offered(&args.experiments)?;
+    let specs = cells_of(&lab, &links, &arena, seeds, timeout);
     let total = specs.len();
     let started = Instant::now();
     eprintln!(

@@ -15,6 +15,7 @@ use vl_core::{Arena, ExperimentId};
 
 use crate::input::{SceneArgs, load_arena, seconds};
 use crate::named;
+use crate::named::{ExperimentChoice, ExperimentChoiceParser, ExperimentParser, offered};
 use crate::report::emit;
 
 #[derive(Subcommand)]
@@ -28,11 +29,16 @@ pub(crate) enum ExperimentCommand {
 
 #[derive(Args)]
 pub(crate) struct RunArgs {
-    /// navigation: the Host follows a path planned on the camera's map
-    /// (thesis ch. 5); teleoperation: a scripted operator steers toward
-    /// waypoints along it from the feedback it sees (thesis ch. 6).
-    #[arg(value_parser = crate::named::ExperimentParser::Shipped)]
+    /// The experiment, by id: in navigation the Host follows a path planned
+    /// on the camera's map (thesis ch. 5); in teleoperation a scripted
+    /// operator steers toward waypoints along it from the feedback it sees
+    /// (thesis ch. 6); a folder's (--experiments) as its run declares.
+    #[arg(value_parser = ExperimentParser::AnyId)]
     experiment: ExperimentId,
+    /// Experiment folders (or folders of them) the simulated Host serves
+    /// beside the shipped ones, comma-separated.
+    #[arg(long, value_delimiter = ',', value_parser = ExperimentChoiceParser, value_hint = clap::ValueHint::DirPath)]
+    experiments: Vec<ExperimentChoice>,
     /// Arenas, comma-separated: shipped names or JSON files; `all` for
     /// every shipped one.
     #[arg(long, value_delimiter = ',', default_value = "navigation")]
@@ -98,8 +104,13 @@ pub(crate) fn run(
     if let Some(dir) = &args.svg {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
+    let lab = offered(&args.experiments)?;
+    if let Err(unknown) = lab.get(args.experiment.as_str()) {
+        return Err(crate::BadInput(unknown.to_string()).into());
+    }
     let template = RunSpec {
         experiment: args.experiment.clone(),
+        lab,
         arena: Arena::navigation(),
         seed: args.seed,
         optics: args

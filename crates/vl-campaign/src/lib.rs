@@ -110,6 +110,10 @@ pub struct Legs {
 #[derive(Serialize, Clone, Debug)]
 pub struct MeasuredRun {
     pub experiment: ExperimentId,
+    /// Whether its experiment is driven by stick: its runs are paced by
+    /// the operator's events or by time, where the others' are the Host's.
+    #[serde(skip)]
+    pub by_stick: bool,
     pub arena: String,
     pub seed: u64,
     /// The link between Guest and Host; none for straight loopback.
@@ -154,15 +158,6 @@ impl MeasuredRun {
     }
 }
 
-/// Whether the shipped experiment `id` is driven by stick: its runs are
-/// paced by the operator's events or by time, where the others' are the
-/// Host's.
-pub(crate) fn by_stick(id: &ExperimentId) -> bool {
-    Experiments::shipped()
-        .get(id.as_str())
-        .is_ok_and(|o| o.experiment().run.has(RunComponent::Teleoperate))
-}
-
 pub fn spread(s: MeanMax) -> String {
     if s.count == 0 {
         "–".into()
@@ -175,6 +170,8 @@ pub fn spread(s: MeanMax) -> String {
 #[derive(Clone)]
 pub struct RunSpec {
     pub experiment: ExperimentId,
+    /// What the simulated Host offers, `experiment` among them.
+    pub lab: Experiments,
     pub arena: Arena,
     pub seed: u64,
     pub optics: Optics,
@@ -201,6 +198,7 @@ pub async fn run_one(spec: &RunSpec) -> Result<MeasuredRun, CampaignError> {
         ..SimLab::new(spec.arena.clone())
     };
     let config = HostConfig {
+        experiments: spec.lab.clone(),
         frames: spec.frames,
         compensate_latency: spec.compensate_latency,
         ..HostConfig::default()
@@ -248,8 +246,11 @@ pub async fn run_one(spec: &RunSpec) -> Result<MeasuredRun, CampaignError> {
         }
     });
     let path = report.path.as_ref();
+    let by_stick = (spec.lab.get(spec.experiment.as_str()))
+        .is_ok_and(|o| o.experiment().run.has(RunComponent::Teleoperate));
     Ok(MeasuredRun {
         experiment: spec.experiment.clone(),
+        by_stick,
         arena: spec.arena.name.clone(),
         seed: spec.seed,
         profile: spec.link.as_ref().map(|(name, _)| name.clone()),

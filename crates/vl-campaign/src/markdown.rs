@@ -34,7 +34,7 @@ pub fn write_report(dir: &Path, m: &Matrix, arena: &Arena) -> Result<(), Campaig
 }
 
 fn pacing_of(c: &MatrixCell) -> &'static str {
-    match (super::by_stick(&c.experiment), c.pacing) {
+    match (c.by_stick, c.pacing) {
         (false, _) => "host",
         (true, Pacing::Event) => "event",
         (true, Pacing::Time) => "time",
@@ -246,7 +246,7 @@ fn discussion(md: &mut String, m: &Matrix) {
     let time_lost: Vec<&MatrixCell> = m
         .cells
         .iter()
-        .filter(|c| super::by_stick(&c.experiment) && c.pacing == Pacing::Time)
+        .filter(|c| c.by_stick && c.pacing == Pacing::Time)
         .filter(|c| c.sync_violations > 0)
         .collect();
     let _ = writeln!(
@@ -319,7 +319,7 @@ fn tracking_by_pacing(m: &Matrix) -> (Table, Vec<&str>, Vec<&str>) {
     let teleop = |profile: &str, pacing: Pacing| {
         m.cells
             .iter()
-            .find(|c| super::by_stick(&c.experiment) && c.pacing == pacing && c.profile == profile)
+            .find(|c| c.by_stick && c.pacing == pacing && c.profile == profile)
     };
     let mut t = Table::columns(&[
         "profile",
@@ -335,7 +335,7 @@ fn tracking_by_pacing(m: &Matrix) -> (Table, Vec<&str>, Vec<&str>) {
         Interval::of(
             m.runs
                 .iter()
-                .filter(|r| super::by_stick(&r.experiment) && r.pacing == pacing)
+                .filter(|r| r.by_stick && r.pacing == pacing)
                 .filter(|r| r.profile.as_deref() == Some(profile) && r.succeeded())
                 .map(|r| r.commands as f64 / r.completion_s.max(1e-3)),
         )

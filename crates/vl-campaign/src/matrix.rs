@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use serde::Serialize;
-use vl_core::{Arena, ExperimentId};
+use vl_core::{Arena, ExperimentId, Experiments, RunComponent};
 use vl_host::{Delays, FramePolicy};
 use vl_sim::{LinkModel, Optics};
 
@@ -20,6 +20,9 @@ use vl_client::plots::{self, EVENT, Marks, TIME};
 #[derive(Serialize, Clone)]
 pub struct MatrixCell {
     pub experiment: ExperimentId,
+    /// Whether its experiment is driven by stick.
+    #[serde(skip)]
+    pub by_stick: bool,
     pub profile: String,
     pub pacing: Pacing,
     pub runs: usize,
@@ -155,7 +158,7 @@ impl Matrix {
     /// The first teleoperation run on `profile` paced so that succeeded.
     fn teleop(&self, profile: &str, pacing: Pacing) -> Option<&MeasuredRun> {
         self.runs.iter().find(|r| {
-            super::by_stick(&r.experiment)
+            r.by_stick
                 && r.profile.as_deref() == Some(profile)
                 && r.pacing == pacing
                 && r.succeeded()
@@ -183,6 +186,7 @@ fn cell(all: &[&MeasuredRun]) -> MatrixCell {
     rtts.sort_by(f64::total_cmp);
     MatrixCell {
         experiment: first.experiment.clone(),
+        by_stick: first.by_stick,
         profile: first.profile.clone().unwrap_or_default(),
         pacing: first.pacing,
         runs: all.len(),
@@ -219,23 +223,23 @@ fn mean(values: impl Iterator<Item = f64>) -> Option<f64> {
     (n > 0).then(|| sum / f64::from(n))
 }
 
-/// The cells of the matrix: each of `experiments`, those driven by stick
-/// paced by event and by time.
-fn cells(experiments: &[ExperimentId]) -> Vec<(ExperimentId, Pacing)> {
+/// The cells of the matrix: each experiment `lab` offers, those driven by
+/// stick paced by event and by time.
+fn cells(lab: &Experiments) -> Vec<(ExperimentId, Pacing)> {
     let mut cells = Vec::new();
-    for experiment in experiments {
-        cells.push((experiment.clone(), Pacing::Event));
-        if super::by_stick(experiment) {
-            cells.push((experiment.clone(), Pacing::Time));
+    for experiment in lab.experiments() {
+        cells.push((experiment.id.clone(), Pacing::Event));
+        if experiment.run.has(RunComponent::Teleoperate) {
+            cells.push((experiment.id.clone(), Pacing::Time));
         }
     }
     cells
 }
 
-/// The runs of every cell of `experiments` on every link, `seeds` seeds
-/// from `seed` each.
+/// The runs of every cell of the experiments `lab` offers on every link,
+/// `seeds` seeds from `seed` each.
 pub fn cells_of(
-    experiments: &[ExperimentId],
+    lab: &Experiments,
     links: &[(String, LinkModel)],
     arena: &Arena,
     seeds: std::ops::Range<u64>,
@@ -243,10 +247,11 @@ pub fn cells_of(
 ) -> Vec<RunSpec> {
     let mut specs = Vec::new();
     for link in links {
-        for (experiment, pacing) in cells(experiments) {
+        for (experiment, pacing) in cells(lab) {
             for seed in seeds.clone() {
                 specs.push(RunSpec {
                     experiment: experiment.clone(),
+                    lab: lab.clone(),
                     arena: arena.clone(),
                     seed,
                     optics: Optics {
@@ -314,9 +319,7 @@ pub(super) fn draw(
             .map(|p| {
                 m.cells
                     .iter()
-                    .find(|c| {
-                        super::by_stick(&c.experiment) && c.pacing == pacing && &c.profile == p
-                    })
+                    .find(|c| c.by_stick && c.pacing == pacing && &c.profile == p)
                     .and_then(pick)
                     .map(|i| (i.mean, i.low(), i.high()))
             })
@@ -472,6 +475,7 @@ pub(super) mod tests {
     ) -> MeasuredRun {
         MeasuredRun {
             experiment: ExperimentId::new(experiment).unwrap(),
+            by_stick: experiment == "teleoperation",
             arena: "open".into(),
             seed: 0,
             profile: Some(profile.into()),
