@@ -295,7 +295,14 @@ fn experiment_run_takes_a_folder_s_experiment_and_the_waypoint_lab() {
     let labs = root.join("labs");
     for args in [
         vec!["experiment", "run", "tour", "--json"],
-        vec!["experiment", "run", "ferry", "--experiments", s(&labs), "--json"],
+        vec![
+            "experiment",
+            "run",
+            "ferry",
+            "--experiments",
+            s(&labs),
+            "--json",
+        ],
     ] {
         let report = common::vl_json(&args);
         assert_eq!(report["all_succeeded"], true, "{args:?}: {report}");

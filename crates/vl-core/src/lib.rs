@@ -15,22 +15,25 @@
 //!
 //! Where things are:
 //!
-//! - `contract/` `protocol`, `frame`, `experiment`, `supervisor`: protocol v1's
-//!   messages and codec; camera frames on the wire (36-byte header); the
-//!   `Experiment`s a lab offers and the `Definition` a user gives, with its
-//!   validation; the session supervisor: the labs' controlled nets as `vl lab
-//!   nets` wrote them (`crates/vl-core/nets/<lab>/controlled.pnml`, built in), whose
+//! - `contract/` `protocol`, `frame`, `experiment`, `definition`, `supervisor`:
+//!   protocol v1's messages and codec; camera frames on the wire (36-byte
+//!   header); the `Experiment`s a lab offers as their folders declare them,
+//!   and the `Definition` a user gives, with its validation; the session
+//!   supervisor: each experiment's controlled net as its design gives it, whose
 //!   enabled transitions decide what may happen (mount, define, start, stop,
 //!   command, finish, release, and the lab's own cspace_built, path_planned,
 //!   field_built), telling a `NetState` (marking, enabled events, transitions
 //!   fired) and followed by the Guest
 //!
-//! - `design/` `pipeline`, `report`: the labs designed by their own nets:
-//!   each lab's statecharts (`crates/vl-core/nets/`, a `lab.toml` per lab
-//!   naming its charts, uncontrollable events and controllers), through
+//! - `design/` `pipeline`, `report`, `summary`, `offered`: the labs designed
+//!   by their own nets: each experiment folder (`assets/experiments/<id>/`,
+//!   its `experiment.toml` declaring the experiment and naming its charts,
+//!   uncontrollable events and controllers; the shared charts in
+//!   `crates/vl-core/nets/`), through
 //!   from-scxml → compose → the uncontrolled composition's bad interleavings
 //!   per rule → controllers → the controlled net checked and its parallel
-//!   places fused; the PNML, DOT and Markdown report `vl lab nets` writes
+//!   places fused; the PNML, DOT and Markdown report `vl lab nets` writes;
+//!   `Experiments`, those a lab offers, designed and verified
 //!
 //! - `model/` `robot`, `proximity`, `response_fit`, `khepera`, `camera`,
 //!   `lens`, `arena` (`shape`, `material`, `map`, `load`): poses, points,
@@ -113,7 +116,7 @@ pub use contract::cells::{CellInfo, CellName, CellStatus, GatewayStatus, NotACel
 pub use contract::definition::{Definition, DefinitionError, Goal, LOOKAHEAD_MM, Visited};
 pub use contract::experiment::{
     BadExperimentId, DefineKind, Experiment, ExperimentError, ExperimentId, Reach, RunComponent,
-    RunPlan, Success,
+    RunPlan, Setting, Success,
 };
 pub use contract::fingerprint::Fingerprint;
 pub use contract::forecast::{

@@ -105,7 +105,7 @@ pub struct Experiment {
 
 /// Something a user defines before a run, of a kind vl knows how to show,
 /// check, forecast and record.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum DefineKind {
     /// A point on the floor, clicked on the view.
@@ -121,6 +121,41 @@ pub enum DefineKind {
     Path,
     /// Obstacles that exist only in software, drawn on the view.
     Obstacles,
+    /// A number the user sets, from `min` to `max`: where the experiment
+    /// limits it, a definition that leaves it unset gets `max`.
+    Number {
+        setting: Setting,
+        min: f64,
+        max: f64,
+    },
+}
+
+/// The numbers a definition sets that an experiment may bound.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Setting {
+    /// The cap on wheel speed, mm/s.
+    MaxSpeedMmS,
+    /// How long a run may last, s.
+    TimeLimitS,
+}
+
+impl Setting {
+    fn of(self, definition: &mut Definition) -> &mut Option<f64> {
+        match self {
+            Setting::MaxSpeedMmS => &mut definition.max_speed_mm_s,
+            Setting::TimeLimitS => &mut definition.time_limit_s,
+        }
+    }
+}
+
+impl std::fmt::Display for Setting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Setting::MaxSpeedMmS => "the speed limit (mm/s)",
+            Setting::TimeLimitS => "the time limit (s)",
+        })
+    }
 }
 
 /// vl's components a run is composed of.
@@ -232,7 +267,7 @@ impl RunPlan {
 
 /// What is wrong with what an experiment declares, or with a definition
 /// of it.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ExperimentError {
     #[error("a run has exactly one of the components follow and teleoperate")]
     OneDrive,
@@ -257,6 +292,21 @@ pub enum ExperimentError {
     WaypointCount { min: usize, max: usize, n: usize },
     #[error("this experiment takes no waypoints")]
     NoWaypoints,
+    #[error("[[define]] number: {setting} from {min} to {max} is no range")]
+    NumberBounds {
+        setting: Setting,
+        min: f64,
+        max: f64,
+    },
+    #[error(
+        "this experiment allows {setting} from {min} to {max}, and the definition asks {value}"
+    )]
+    NumberOutside {
+        setting: Setting,
+        min: f64,
+        max: f64,
+        value: f64,
+    },
 }
 
 /// What counts as a run's success.
@@ -323,6 +373,13 @@ impl Experiment {
         {
             return Err(ExperimentError::WaypointBounds { min, max });
         }
+        for kind in &self.define {
+            if let DefineKind::Number { setting, min, max } = *kind
+                && !(min.is_finite() && max.is_finite() && 0.0 < min && min <= max)
+            {
+                return Err(ExperimentError::NumberBounds { setting, min, max });
+            }
+        }
         match self.success.reach {
             Reach::Waypoints if waypoints.is_none() => Err(ExperimentError::Success("waypoints")),
             Reach::Goal if !self.defines(DefineKind::Goal { required: false }) => {
@@ -341,10 +398,35 @@ impl Experiment {
         })
     }
 
+    /// `definition` within this experiment's numbers: each it bounds and
+    /// the definition leaves unset at its most; or why not, one outside.
+    pub fn limited(&self, mut definition: Definition) -> Result<Definition, ExperimentError> {
+        for kind in &self.define {
+            let DefineKind::Number { setting, min, max } = *kind else {
+                continue;
+            };
+            let value = setting.of(&mut definition);
+            match *value {
+                None => *value = Some(max),
+                Some(v) if (min..=max).contains(&v) => {}
+                Some(value) => {
+                    return Err(ExperimentError::NumberOutside {
+                        setting,
+                        min,
+                        max,
+                        value,
+                    });
+                }
+            }
+        }
+        self.admits(&definition)?;
+        Ok(definition)
+    }
+
     /// Why `definition` is not one of this experiment, if it is not: its
     /// waypoints, when it declares them, are as many as it allows, and
     /// none when it does not.
-    pub fn admits(&self, definition: &Definition) -> Result<(), ExperimentError> {
+    fn admits(&self, definition: &Definition) -> Result<(), ExperimentError> {
         let n = definition.waypoints.len();
         match self.waypoint_bounds() {
             Some((min, max)) if !(min..=max).contains(&n) => {
@@ -390,6 +472,58 @@ mod tests {
         for bad in ["\"Juggling\"", "\"\"", "\"💥\"", "\"a/b\""] {
             assert!(serde_json::from_str::<ExperimentId>(bad).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn numbers_are_kept_in_their_range_and_unset_ones_get_the_most() {
+        let tour = Experiment {
+            id: ExperimentId::new("visits").unwrap(),
+            title: "Visits".to_owned(),
+            help: String::new(),
+            define: vec![
+                DefineKind::Waypoints { min: 2, max: 8 },
+                DefineKind::Path,
+                DefineKind::Number {
+                    setting: Setting::TimeLimitS,
+                    min: 10.0,
+                    max: 120.0,
+                },
+            ],
+            run: RunPlan {
+                components: vec![RunComponent::Plan, RunComponent::Follow],
+            },
+            success: Success {
+                reach: Reach::Waypoints,
+            },
+        };
+        assert_eq!(tour.check(), Ok(()));
+        let two = vec![crate::Point::default(); 2];
+        let definition = Definition {
+            waypoints: two.clone(),
+            ..Definition::default()
+        };
+        let limited = tour.limited(definition.clone()).unwrap();
+        assert_eq!(limited.time_limit_s, Some(120.0));
+        let quick = Definition {
+            time_limit_s: Some(30.0),
+            ..definition.clone()
+        };
+        assert_eq!(tour.limited(quick).unwrap().time_limit_s, Some(30.0));
+        let long = Definition {
+            time_limit_s: Some(600.0),
+            ..definition
+        };
+        let e = tour.limited(long).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "this experiment allows the time limit (s) from 10 to 120, and the definition asks 600"
+        );
+        let none = Definition::default();
+        let e = tour.limited(none).unwrap_err().to_string();
+        assert!(
+            e.contains("visits 2 to 8 waypoints, and the definition has 0"),
+            "{e}"
+        );
     }
 
     #[test]

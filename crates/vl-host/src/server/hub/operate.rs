@@ -100,9 +100,13 @@ impl Hub {
         if let Err(why) = definition.validate(&self.lab.info.arena, &self.lab.info.robot) {
             return self.refuse(id, ErrorCode::InvalidDefinition, why.to_string());
         }
-        if let Some(Err(why)) = self.experiment.as_ref().map(|e| e.admits(&definition)) {
-            return self.refuse(id, ErrorCode::InvalidDefinition, why.to_string());
-        }
+        let definition = match self.experiment.as_ref().map(|e| e.limited(definition)) {
+            Some(Ok(definition)) => definition,
+            Some(Err(why)) => {
+                return self.refuse(id, ErrorCode::InvalidDefinition, why.to_string());
+            }
+            None => return,
+        };
         let size = definition.size() as f64;
         let wait = self.definitions.take(size);
         if !wait.is_zero() {
