@@ -5,7 +5,7 @@
 use thiserror::Error;
 use vl_core::{
     ArenaPlanError, CSpaceError, Definition, Goal, MountedLab, Plan, Point, Pose, Shape,
-    disc_cspace, plan_route_through, plan_route_with_margin,
+    disc_cspace, plan_route_through,
 };
 
 use crate::settings::Settings;
@@ -97,23 +97,7 @@ impl Route {
         virtual_obstacles: Vec<Shape>,
         settings: &Settings,
     ) -> Result<Route, ArenaPlanError> {
-        let plan = plan_route_with_margin(
-            &lab.scene.arena,
-            &virtual_obstacles,
-            &lab.scene.robot,
-            start,
-            goal.point(),
-            settings.margin_mm,
-        )?;
-        let definition = Definition {
-            goal: Some(goal),
-            path: plan.points(),
-            virtual_obstacles,
-            max_speed_mm_s: settings.max_speed_mm_s,
-            lookahead_mm: Some(settings.lookahead_mm),
-            ..Definition::default()
-        };
-        Ok(Route { definition, plan })
+        Route::through(lab, start, goal, &[], virtual_obstacles, settings)
     }
 
     /// Plans from `start` through `waypoints` in order, as
@@ -127,22 +111,40 @@ impl Route {
         virtual_obstacles: Vec<Shape>,
         settings: &Settings,
     ) -> Result<Route, ArenaPlanError> {
+        let Some(&last) = waypoints.last() else {
+            return Err(ArenaPlanError::NoPath(vl_core::NoPath::Disconnected));
+        };
+        let goal = Goal {
+            tolerance_mm,
+            ..Goal::at(last)
+        };
+        Route::through(lab, start, goal, waypoints, virtual_obstacles, settings)
+    }
+
+    /// The route from `start` through `waypoints` (none, or ending at the
+    /// goal) to `goal`.
+    fn through(
+        lab: &MountedLab,
+        start: Pose,
+        goal: Goal,
+        waypoints: &[Point],
+        virtual_obstacles: Vec<Shape>,
+        settings: &Settings,
+    ) -> Result<Route, ArenaPlanError> {
+        let points = match waypoints.is_empty() {
+            true => vec![goal.point()],
+            false => waypoints.to_vec(),
+        };
         let plan = plan_route_through(
             &lab.scene.arena,
             &virtual_obstacles,
             &lab.scene.robot,
             start,
-            waypoints,
+            &points,
             settings.margin_mm,
         )?;
-        let last = *waypoints
-            .last()
-            .expect("a plan through no point is refused above");
         let definition = Definition {
-            goal: Some(Goal {
-                tolerance_mm,
-                ..Goal::at(last)
-            }),
+            goal: Some(goal),
             waypoints: waypoints.to_vec(),
             path: plan.points(),
             virtual_obstacles,
