@@ -236,10 +236,11 @@ fn script(
     }
 }
 
-/// Prints the run's report; success means the robot reached its goal.
+/// Prints the run's report; success is the experiment's: the robot at its
+/// goal, or a run that ended by its time or a stop.
 fn finish(report: &RunReport, json: bool) -> Result<ExitCode> {
     emit(report, json)?;
-    if report.reached_goal {
+    if report.succeeded {
         Ok(ExitCode::SUCCESS)
     } else {
         eprintln!("vl: the robot did not reach the goal ({})", report.ending());

@@ -314,3 +314,70 @@ fn experiment_run_takes_a_folder_s_experiment_and_the_waypoint_lab() {
         "unknown experiment 'ferry' (known: navigation, teleoperation, tour)",
     );
 }
+
+/// A folder written from scratch, from the shared charts alone: a run that
+/// holds the robot still for at most two seconds. Its commands are refused,
+/// its unset time limit is the most it allows, and the robot does not move.
+#[test]
+fn a_run_that_holds_the_robot_still_is_composed_from_the_shared_charts() {
+    let labs = scratch("experiments-hold").join("labs");
+    let still = labs.join("still");
+    std::fs::create_dir_all(&still).unwrap();
+    std::fs::write(
+        still.join("experiment.toml"),
+        r#"title = "Hold still"
+help = "The robot stays where it is for the run."
+charts = ["mount", "define", "execute", "cspace"]
+uncontrollable = ["finish", "release", "cspace_built"]
+
+[[define]]
+kind = "number"
+setting = "time_limit_s"
+min = 0.5
+max = 2
+
+[run]
+components = ["hold"]
+
+[[controller]]
+why = "a run starts only on a mounted experiment"
+rule = "if mount.idle then not start"
+"#,
+    )
+    .unwrap();
+    let out = vl(&["lab", "check", s(&still)]);
+    assert!(out.status.success(), "{}", common::stdout(&out));
+    let (_host, url) = start_host(&["--camera", "sim", "--no-record", "--experiments", s(&labs)]);
+    let report = common::vl_json(&[
+        "guest",
+        "--connect",
+        &url,
+        "--headless",
+        "--json",
+        "--experiment",
+        "still",
+    ]);
+    let summary = &report["summary"];
+    assert_eq!(summary["reason"], "time_limit", "{summary}");
+    assert!(summary["seconds"].as_f64().unwrap() < 3.0, "{summary}");
+    assert!(summary["distance_mm"].as_f64().unwrap() < 1.0, "{summary}");
+    Runtime::new().unwrap().block_on(async {
+        let mut op = Peer::connect(&url).await;
+        op.hello("operator").await;
+        op.send(serde_json::json!({"type": "mount", "experiment": "still"}))
+            .await;
+        op.expect("mounted").await;
+        op.send(serde_json::json!({"type": "start"})).await;
+        op.expect("started").await;
+        op.send(serde_json::json!({"type": "command", "event": 1, "v": 100.0, "w": 0.0}))
+            .await;
+        let refused = op.expect("error").await;
+        assert!(
+            refused["message"]
+                .as_str()
+                .unwrap()
+                .contains("holds the robot still"),
+            "{refused}"
+        );
+    });
+}

@@ -10,8 +10,9 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 use thiserror::Error;
 use vl_core::{
-    ArenaPlanError, Definition, Drive, EndReason, ErrorCode, Experiment, ExperimentId, Goal,
-    GuestMessage, HeldBack, HostMessage, PathAnalysis, Point, Pose, PoseSource, Role, Summary,
+    ArenaPlanError, DefineKind, Definition, Drive, EndReason, ErrorCode, Experiment, ExperimentId,
+    Goal, GuestMessage, HeldBack, HostMessage, PathAnalysis, Point, Pose, PoseSource, Role,
+    Summary,
 };
 use vl_report::table::{Report as _, Table, yes};
 
@@ -71,6 +72,10 @@ impl Default for Script {
 /// What the scripted session achieved.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ScriptReport {
+    /// Whether the run ended as its experiment counts success: at its goal
+    /// (or every waypoint) for one that ends there, else by its time limit
+    /// or a stop.
+    pub succeeded: bool,
     pub reached_goal: bool,
     pub reason: EndReason,
     /// Why the safety layer would not let the run go on, when it would not.
@@ -163,10 +168,16 @@ pub async fn run_script(url: &str, script: &Script) -> Result<ScriptReport, Scri
         script.definition = Some(task.definition);
     }
     let (guest, definition, goal, experiment) = started(url, &script).await?;
-    match experiment.follows() {
+    // A run the Host steers, or holds still, is watched to its end.
+    let mut report = match experiment.follows() || experiment.holds() {
         true => follow_path(guest, definition, goal, &script).await,
         false => drive_by_stick(guest, definition, goal, &script).await,
-    }
+    }?;
+    report.succeeded = match experiment.ends_at_goal() {
+        true => report.reached_goal,
+        false => matches!(report.reason, EndReason::TimeLimit | EndReason::Stopped),
+    };
+    Ok(report)
 }
 
 /// Says on stderr that the Host does not answer or the link dropped,
@@ -266,6 +277,8 @@ impl Scripted {
         )
         .await?;
         let report = ScriptReport {
+            // Judged against the experiment by `run_script`.
+            succeeded: false,
             reached_goal: summary.reached_goal,
             reason: summary.reason,
             held_back: summary.held_back,
@@ -404,6 +417,10 @@ async fn started(
             let tolerance_mm = goal.tolerance_mm;
             Route::plan_through(&lab, start, &waypoints, tolerance_mm, Vec::new(), &settings)?
                 .definition
+        }
+        // Nothing to go to: the defaults, within the experiment's numbers.
+        (None, None) if !experiment.defines(DefineKind::Goal { required: false }) => {
+            Definition::default()
         }
         (None, None) => Route::plan(&lab, start, goal, Vec::new(), &settings)?.definition,
     };

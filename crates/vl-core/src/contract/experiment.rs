@@ -177,16 +177,20 @@ pub enum RunComponent {
     Assist,
     /// Feed the field's push back to the operator as a force.
     Force,
+    /// Hold the robot still for the run (a measurement, a demonstration):
+    /// no command drives it.
+    Hold,
 }
 
 impl RunComponent {
-    pub const ALL: [RunComponent; 6] = [
+    pub const ALL: [RunComponent; 7] = [
         RunComponent::Plan,
         RunComponent::Forecast,
         RunComponent::Follow,
         RunComponent::Teleoperate,
         RunComponent::Assist,
         RunComponent::Force,
+        RunComponent::Hold,
     ];
 
     /// Its name in `experiment.toml`.
@@ -198,6 +202,7 @@ impl RunComponent {
             RunComponent::Teleoperate => "teleoperate",
             RunComponent::Assist => "assist",
             RunComponent::Force => "force",
+            RunComponent::Hold => "hold",
         }
     }
 
@@ -209,7 +214,10 @@ impl RunComponent {
             RunComponent::Plan => Some("path_planned"),
             RunComponent::Forecast => Some("forecast_passed"),
             RunComponent::Assist => Some("field_built"),
-            RunComponent::Follow | RunComponent::Teleoperate | RunComponent::Force => None,
+            RunComponent::Follow
+            | RunComponent::Teleoperate
+            | RunComponent::Force
+            | RunComponent::Hold => None,
         }
     }
 }
@@ -235,7 +243,7 @@ impl RunPlan {
     /// Why these components do not make a run, if they do not.
     pub fn check(&self, define: &[DefineKind]) -> Result<(), ExperimentError> {
         use RunComponent as C;
-        let drives = [C::Follow, C::Teleoperate]
+        let drives = [C::Follow, C::Teleoperate, C::Hold]
             .into_iter()
             .filter(|&c| self.has(c))
             .count();
@@ -269,7 +277,7 @@ impl RunPlan {
 /// of it.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ExperimentError {
-    #[error("a run has exactly one of the components follow and teleoperate")]
+    #[error("a run has exactly one of the components follow, teleoperate and hold")]
     OneDrive,
     #[error("the component {needs} needs {what}")]
     Needs {
@@ -339,6 +347,11 @@ impl Experiment {
     /// Whether the lab follows the defined path by itself.
     pub fn follows(&self) -> bool {
         self.run.has(RunComponent::Follow)
+    }
+
+    /// Whether a run holds the robot still, taking no command.
+    pub fn holds(&self) -> bool {
+        self.run.has(RunComponent::Hold)
     }
 
     /// Whether the lab plans the path through the defined points.
@@ -463,7 +476,10 @@ mod tests {
         let known: Vec<String> = shipped.ids().iter().map(ToString::to_string).collect();
         assert_eq!(
             e.to_string(),
-            format!("unknown experiment 'juggling' (known: {})", known.join(", "))
+            format!(
+                "unknown experiment 'juggling' (known: {})",
+                known.join(", ")
+            )
         );
         assert!(known.starts_with(&["navigation".to_owned(), "teleoperation".to_owned()]));
         let e = shipped.get("mobile").unwrap_err();

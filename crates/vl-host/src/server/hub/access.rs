@@ -268,6 +268,10 @@ impl Hub {
         if !self.supervisor.allows(Action::Stop)
             || self.last_command.elapsed() < self.config.lease
             || self.host_follows()
+            || self
+                .experiment
+                .as_ref()
+                .is_some_and(vl_core::Experiment::holds)
         {
             return;
         }

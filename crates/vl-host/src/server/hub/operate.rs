@@ -236,6 +236,16 @@ impl Hub {
                 "the robot does not answer: a run can start when it is back",
             );
         }
+        // What runs: the definition in force (the defaults if none),
+        // within the experiment's numbers.
+        let defined = self.definition.clone().unwrap_or_default();
+        let definition = match self.experiment.as_ref().map(|e| e.limited(defined)) {
+            Some(Err(why)) => {
+                return self.refuse(id, ErrorCode::InvalidDefinition, why.to_string());
+            }
+            Some(Ok(definition)) => definition,
+            None => Definition::default(),
+        };
         if self.supervise(id, Action::Start)
             && let Some(experiment) = self.experiment.clone()
         {
@@ -261,7 +271,6 @@ impl Hub {
                     .user(user.as_deref())
                     .detail(format!("run {}: {}", self.runs, experiment.id)),
             );
-            let definition = self.definition.clone().unwrap_or_default();
             self.begin_recording(id, experiment.id.clone(), &definition);
             self.lab.request(LabRequest::Start {
                 run: self.runs,
@@ -299,6 +308,10 @@ impl Hub {
     fn command(&mut self, id: u64, event: u64, seen: Option<u64>, drive: Drive) {
         if !self.permitted(id, Action::Command) {
             return;
+        }
+        if self.experiment.as_ref().is_some_and(Experiment::holds) {
+            let why = "this experiment's run holds the robot still: no command drives it";
+            return self.refuse(id, ErrorCode::NotAllowedNow, why);
         }
         if event <= self.last_event {
             return self.refuse(
