@@ -158,9 +158,21 @@ impl std::fmt::Display for Setting {
     }
 }
 
-/// vl's components a run is composed of.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+/// vl's components a run is composed of, named in `experiment.toml` as
+/// in messages.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::IntoStaticStr,
+    schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
+#[strum(serialize_all = "snake_case")]
 pub enum RunComponent {
     /// Plan a path through the defined points on the C-space (the lab's
     /// net hears `path_planned`).
@@ -193,19 +205,6 @@ impl RunComponent {
         RunComponent::Hold,
     ];
 
-    /// Its name in `experiment.toml`.
-    pub fn name(self) -> &'static str {
-        match self {
-            RunComponent::Plan => "plan",
-            RunComponent::Forecast => "forecast",
-            RunComponent::Follow => "follow",
-            RunComponent::Teleoperate => "teleoperate",
-            RunComponent::Assist => "assist",
-            RunComponent::Force => "force",
-            RunComponent::Hold => "hold",
-        }
-    }
-
     /// The event the lab fires into the experiment's net when this
     /// component has done its part: the charts must have it, and only
     /// the experiments whose run has the component may.
@@ -224,7 +223,7 @@ impl RunComponent {
 
 impl std::fmt::Display for RunComponent {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
+        f.write_str(self.into())
     }
 }
 
