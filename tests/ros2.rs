@@ -185,13 +185,30 @@ async fn ada_watching(url: &str) -> (Peer, Value) {
 /// A watcher's emergency stop while ROS 2 drives is latched: Twists,
 /// even after a quiet second, start nothing and move nothing.
 async fn latched(python: &str, port: u16, url: &str) {
+    // Watching first: the stop is pressed once the robot has turned for
+    // half a second, however long Python takes to start on a busy machine.
+    let (mut watcher, _) = ada_watching(url).await;
     let driving = {
         let python = python.to_owned();
         // On the spot: the steps before left it by a wall, facing anywhere.
         std::thread::spawn(move || step(&python, port, &["turn", "3", "1.0"]))
     };
-    tokio::time::sleep(Duration::from_millis(1500)).await;
-    let (mut watcher, _) = ada_watching(url).await;
+    let turning = |f: &Value| {
+        let wheel = |side: &str| f["wheels"][side].as_f64().unwrap_or(0.0);
+        wheel("left_mm_s") * wheel("right_mm_s") < 0.0
+            && (wheel("left_mm_s") - wheel("right_mm_s")).abs() > 10.0
+    };
+    tokio::time::timeout(Duration::from_secs(20), async {
+        while !turning(
+            &watcher
+                .next_of("feedback", Duration::from_secs(20))
+                .await
+                .unwrap(),
+        ) {}
+    })
+    .await
+    .expect("the Twists turn the robot");
+    tokio::time::sleep(Duration::from_millis(500)).await;
     watcher
         .send(serde_json::json!({"type": "emergency_stop"}))
         .await;
