@@ -7,6 +7,7 @@
 mod access;
 #[cfg(feature = "host")]
 mod camera;
+mod controller;
 #[cfg(feature = "host")]
 mod experiment;
 mod flag_file;
@@ -121,6 +122,10 @@ enum Command {
     Vision(vision::VisionCommand),
     /// Plan a path on a top-view map: C-space, NF1, spline, clearance.
     Plan(plan::PlanArgs),
+    /// A user's own wheel controller (WebAssembly): check it, try it on
+    /// the lab's twin, time it.
+    #[command(subcommand)]
+    Controller(controller::ControllerCommand),
     /// Calibrate the overhead camera: its map from floor mm to pixels.
     #[command(subcommand)]
     #[cfg(feature = "host")]
@@ -274,6 +279,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Sim(command) => sim::run(command),
         Command::Vision(command) => vision::run(command),
         Command::Plan(args) => plan::run(args),
+        Command::Controller(command) => controller::run(command),
         Command::Record(command) => record::record(command),
         #[cfg(feature = "guest")]
         Command::Guest(args) => guest::guest(&runtime()?, args),

@@ -314,12 +314,14 @@ fn verdict() -> impl Strategy<Value = vl_core::ForecastVerdict> {
             num(),
         ),
         proptest::collection::vec(point(), 0..5),
+        proptest::option::of("[a-z ]{0,20}"),
     )
         .prop_map(
             |(
                 (seed, reached_goal, seconds, closest, end),
                 (collisions, first_contact, held_back_s, saturated_s, mean_error_mm),
                 path,
+                fault,
             )| vl_core::SeedRun {
                 seed,
                 reached_goal,
@@ -332,6 +334,7 @@ fn verdict() -> impl Strategy<Value = vl_core::ForecastVerdict> {
                 saturated_s,
                 mean_error_mm,
                 path,
+                fault,
             },
         );
     let limits =

@@ -77,6 +77,10 @@
 //!   the plan and a run as SVG; the planning benchmark (each stage, and the
 //!   whole plan timed as one job)
 //!
+//! - `controller`: a user's own wheel controller as interface version 1
+//!   sees it (its observation and command) and the `Controller` trait a
+//!   sandbox (`vl-sandbox`) implements
+//!
 //! - `safety`: the safety layer every wheel command passes on the Host:
 //!   `Surroundings` (exact signed clearance to walls, obstacles, virtual
 //!   obstacles, whose boxes are worked out once per run), `Safety::guard`
@@ -97,6 +101,7 @@
 //!   the binary's `named()` value parser lists the ids in `--help`
 
 mod contract;
+mod controller;
 mod design;
 mod images;
 mod model;
@@ -141,6 +146,10 @@ pub use contract::summary::{
 };
 pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use contract::transport::Io;
+pub use controller::{
+    ABI_VERSION, Answer, COMMAND_WORDS, Controller, ControllerFault, OBSERVATION_WORDS,
+    Observation, STEP_PERIOD_S,
+};
 pub use design::{
     CheckReport, Declared, DesignError, Designed, Experiments, FolderCheck, Interleaving,
     LabDesign, LabRow, NetsReport, Offered, Rule, RuleVerdict, UnknownExperiment, design,

@@ -101,6 +101,7 @@ fn forecast_timed() -> Result<(f64, f64), SimBenchError> {
         definition: &definition,
         seeds: &FORECAST_SEEDS,
         cancel: None,
+        pilot: crate::Pilot::Path,
     })?;
     let took = started.elapsed().as_secs_f64();
     let simulated: f64 = forecast.runs.iter().map(|r| r.seconds).sum();

@@ -12,8 +12,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use thiserror::Error;
 use vl_core::{
-    Arena, Closest, Definition, Follower, Forecast, Leash, Point, Pose, RobotModel, Safety,
-    SeedRun, Situation, Steer, Surroundings, Told, Visited,
+    Arena, Closest, Controller, ControllerFault, Definition, Follower, Forecast, Leash,
+    Observation, Point, Pose, RobotModel, STEP_PERIOD_S, Safety, SeedRun, Situation, Steer,
+    Surroundings, Told, Visited, WheelSpeeds,
 };
 
 use crate::world::{STEP_S, SimError, World};
@@ -43,6 +44,69 @@ pub struct Forecasting<'a> {
     pub seeds: &'a [u64],
     /// Set when the forecast is no longer wanted (a newer definition).
     pub cancel: Option<&'a AtomicBool>,
+    /// Who drives.
+    pub pilot: Pilot<'a>,
+}
+
+/// A fresh user's controller for each seed's run.
+pub type Controllers<'a> = &'a (dyn Fn() -> Result<Box<dyn Controller>, ControllerFault> + Sync);
+
+/// Who drives a forecast run.
+#[derive(Clone, Copy)]
+pub enum Pilot<'a> {
+    /// The lab's follower, along the definition's path.
+    Path,
+    /// A user's controller, stepped every `STEP_PERIOD_S` as the Host steps
+    /// it, until it says it is done or reaches the goal.
+    Controller(Controllers<'a>),
+}
+
+impl std::fmt::Debug for Pilot<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Pilot::Path => "Path",
+            Pilot::Controller(_) => "Controller",
+        })
+    }
+}
+
+/// A user's controller's runs last at most this long unless the
+/// definition says less, s.
+pub const CONTROLLER_S: f64 = 60.0;
+/// The controller's steps, in simulator steps.
+const CONTROLLER_EVERY_STEPS: u64 = (STEP_PERIOD_S / STEP_S + 0.5) as u64;
+
+/// What a driver does next.
+enum Next {
+    Drive(WheelSpeeds),
+    /// The follower is at the goal.
+    Arrived,
+    /// The controller says it is done.
+    Finished,
+    Stopped(ControllerFault),
+}
+
+impl Next {
+    /// How a run that ended so counts: the goal reached (a controller
+    /// done where no goal was asked), or the controller stopped, why.
+    fn end(self, out: &mut SeedRun, definition: &Definition) {
+        match self {
+            Next::Drive(_) => {}
+            Next::Arrived => out.reached_goal = true,
+            Next::Finished => out.reached_goal = definition.goal.is_none(),
+            Next::Stopped(fault) => out.fault = Some(fault.to_string()),
+        }
+    }
+}
+
+/// What drives one seed's run, as it goes.
+enum Driver {
+    Path(Follower),
+    Controller {
+        controller: Box<dyn Controller>,
+        /// Its last answer, held until the next step.
+        wheels: WheelSpeeds,
+    },
 }
 
 #[derive(Debug, Error, PartialEq)]
@@ -54,7 +118,85 @@ pub enum ForecastError {
     #[error("the forecast was cancelled")]
     Cancelled,
     #[error("{0}")]
+    Controller(#[from] ControllerFault),
+    #[error("{0}")]
     World(#[from] SimError),
+}
+
+impl Driver {
+    fn new(pilot: Pilot<'_>, definition: &Definition) -> Result<Driver, ForecastError> {
+        Ok(match pilot {
+            Pilot::Path => {
+                Driver::Path(Follower::for_definition(definition).ok_or(ForecastError::NoPath)?)
+            }
+            Pilot::Controller(controllers) => Driver::Controller {
+                controller: controllers()?,
+                wheels: WheelSpeeds::default(),
+            },
+        })
+    }
+
+    /// How long a run of `definition` may last, s: its own limit, or for
+    /// a path twice as long as following it should take.
+    fn limit_s(&self, definition: &Definition) -> f64 {
+        let unless = match self {
+            Driver::Path(follower) => {
+                2.0 * follower.expected_seconds(definition.max_speed_mm_s) + 5.0
+            }
+            Driver::Controller { .. } => CONTROLLER_S,
+        };
+        definition.time_limit_s.unwrap_or(unless).min(LONGEST_S)
+    }
+
+    /// How far `p` is from the path followed, mm (a controller has none).
+    fn off_path_mm(&self, p: Point) -> f64 {
+        match self {
+            Driver::Path(follower) => follower.distance_to_path(p),
+            Driver::Controller { .. } => 0.0,
+        }
+    }
+
+    /// What to ask of the wheels at `steps` into the run.
+    fn next(
+        &mut self,
+        robot: &RobotModel,
+        definition: &Definition,
+        world: &World,
+        proximity: &[u16],
+        steps: u64,
+    ) -> Next {
+        let pose = world.pose();
+        match self {
+            Driver::Path(follower) => match follower.step(robot, pose, proximity) {
+                Steer::Drive(asked) => Next::Drive(asked),
+                Steer::Arrived => Next::Arrived,
+            },
+            // Between its steps, its last answer holds, as on the Host.
+            Driver::Controller { wheels, .. } if !steps.is_multiple_of(CONTROLLER_EVERY_STEPS) => {
+                Next::Drive(*wheels)
+            }
+            Driver::Controller { controller, wheels } => {
+                let seen = Observation {
+                    t_s: world.time_s(),
+                    pose,
+                    uncertainty_mm: 0.0,
+                    wheels: world.wheels(),
+                    goal: definition.goal.map(|g| g.point()),
+                    proximity: Observation::proximity_of(proximity),
+                    period_s: STEP_PERIOD_S,
+                    speed_limit_mm_s: definition.speed_limit_mm_s(robot),
+                };
+                match controller.step(&seen) {
+                    Ok(answer) if answer.finished => Next::Finished,
+                    Ok(answer) => {
+                        *wheels = answer.wheels;
+                        Next::Drive(answer.wheels)
+                    }
+                    Err(fault) => Next::Stopped(fault),
+                }
+            }
+        }
+    }
 }
 
 /// Forecasts `what`: one run per seed.
@@ -88,17 +230,14 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
     let Forecasting {
         robot, definition, ..
     } = *what;
-    let mut follower = Follower::for_definition(definition).ok_or(ForecastError::NoPath)?;
+    let mut driver = Driver::new(what.pilot, definition)?;
     let arena = Arena {
         start: what.start,
         ..what.arena.clone()
     };
     let surroundings = Surroundings::new(&arena).with(&definition.virtual_obstacles);
     let mut world = World::new(arena, robot.clone(), seed)?;
-    let limit_s = definition
-        .time_limit_s
-        .unwrap_or(2.0 * follower.expected_seconds(definition.max_speed_mm_s) + 5.0)
-        .min(LONGEST_S);
+    let limit_s = driver.limit_s(definition);
     let safety = Safety::default();
     let room = |p: Point| surroundings.clearance(p) - robot.radius_mm;
     let closest = |p: Point| Closest {
@@ -122,6 +261,7 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
         saturated_s: 0.0,
         mean_error_mm: 0.0,
         path: vec![start],
+        fault: None,
     };
     let (mut error_sum, mut steps) = (0.0, 0u64);
     let mut visited = Visited::default();
@@ -141,9 +281,12 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
             out.reached_goal = true;
             break;
         }
-        let Steer::Drive(asked) = follower.step(robot, pose, &proximity) else {
-            out.reached_goal = true;
-            break;
+        let asked = match driver.next(robot, definition, &world, &proximity, steps) {
+            Next::Drive(asked) => asked,
+            ended => {
+                ended.end(&mut out, definition);
+                break;
+            }
         };
         let wanted = definition.capped(robot, asked);
         if wanted != asked {
@@ -173,7 +316,7 @@ fn run(what: &Forecasting<'_>, seed: u64) -> Result<SeedRun, ForecastError> {
         if out.first_contact.is_none() && world.collisions() > 0 {
             out.first_contact = Some(here);
         }
-        error_sum += follower.distance_to_path(here);
+        error_sum += driver.off_path_mm(here);
         if steps % PATH_EVERY_STEPS == 0 {
             out.path.push(here);
         }
@@ -217,6 +360,7 @@ mod tests {
             definition,
             seeds,
             cancel: None,
+            pilot: Pilot::Path,
         })
         .unwrap()
     }
@@ -282,6 +426,7 @@ mod tests {
             definition: &definition,
             seeds: &[1],
             cancel: None,
+            pilot: Pilot::Path,
         });
         assert_eq!(none, Err(ForecastError::NoPath));
     }

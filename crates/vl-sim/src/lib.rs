@@ -46,7 +46,9 @@ mod world;
 pub use bench::{FORECAST_SEEDS, SimBench, SimBenchError, bench};
 pub use camera::{Renderer, SimCalibration, calibrate, camera_for, render_target};
 pub use emulator::{Emulator, EmulatorError, PortSettings};
-pub use forecast::{ForecastError, Forecasting, LONGEST_S, forecast};
+pub use forecast::{
+    CONTROLLER_S, Controllers, ForecastError, Forecasting, LONGEST_S, Pilot, forecast,
+};
 pub use khepera::Khepera;
 pub use link::{
     Distribution, Expected, Link, LinkModel, LinkReport, LinkStats, Loss, Profile, measure,

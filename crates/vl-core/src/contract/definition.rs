@@ -184,6 +184,15 @@ impl Definition {
         }
     }
 
+    /// The fastest a wheel may turn in a run of it, mm/s: the robot's
+    /// limit, or the definition's cap if lower.
+    pub fn speed_limit_mm_s(&self, robot: &RobotModel) -> f64 {
+        self.max_speed_mm_s
+            .map_or(robot.max_wheel_speed_mm_s, |cap| {
+                cap.min(robot.max_wheel_speed_mm_s)
+            })
+    }
+
     /// Whether `p` is within the goal's tolerance.
     pub fn at_goal(&self, p: Point) -> bool {
         self.goal

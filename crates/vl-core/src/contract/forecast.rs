@@ -66,6 +66,9 @@ pub struct SeedRun {
     pub mean_error_mm: f64,
     /// Where the robot went, a point every `Forecast::path_every_s`.
     pub path: Vec<Point>,
+    /// What stopped a user's controller, if something did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fault: Option<String>,
 }
 
 /// A definition's forecast: one run per seed.
@@ -152,6 +155,13 @@ impl Forecast {
     pub fn judge(&self, limits: &ForecastLimits) -> Vec<ForecastRefusal> {
         let mut wrong = Vec::new();
         let seeds = self.runs.len();
+        if let Some(why) = self.runs.iter().find_map(|r| r.fault.clone()) {
+            wrong.push(ForecastRefusal::Stopped {
+                why,
+                seeds: self.runs.iter().filter(|r| r.fault.is_some()).count(),
+                of: seeds,
+            });
+        }
         if let Some(run) = self.runs.iter().find(|r| r.collisions > 0) {
             wrong.push(ForecastRefusal::Contact {
                 at: run.first_contact.unwrap_or(run.closest.at),
@@ -263,6 +273,13 @@ pub enum ForecastRefusal {
     TooClose { closest: Closest, limit_mm: f64 },
     /// The run would take longer than the lab allows.
     TooLong { seconds: f64, limit_s: f64 },
+    /// The user's controller would be stopped (a trap, its fuel, its
+    /// memory, speeds that are no numbers); why, on the first seed.
+    Stopped {
+        why: String,
+        seeds: usize,
+        of: usize,
+    },
 }
 
 impl ForecastRefusal {
@@ -272,7 +289,7 @@ impl ForecastRefusal {
             ForecastRefusal::Contact { at, .. } => Some(*at),
             ForecastRefusal::NoGoal { stops, .. } => Some(stops.at),
             ForecastRefusal::TooClose { closest, .. } => Some(closest.at),
-            ForecastRefusal::TooLong { .. } => None,
+            ForecastRefusal::TooLong { .. } | ForecastRefusal::Stopped { .. } => None,
         }
     }
 }
@@ -304,6 +321,9 @@ impl std::fmt::Display for ForecastRefusal {
                 f,
                 "the run would take {seconds:.1} s; this lab allows {limit_s:.0} s"
             ),
+            ForecastRefusal::Stopped { why, seeds, of } => {
+                write!(f, "{why} ({seeds} of {of} tries)")
+            }
         }
     }
 }

@@ -89,6 +89,7 @@ impl ForecastJob {
             definition: &self.definition,
             seeds: &seeds,
             cancel: Some(cancel),
+            pilot: vl_sim::Pilot::Path,
         })?;
         Ok(ForecastVerdict::new(forecast, self.settings.limits()))
     }
