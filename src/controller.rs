@@ -117,7 +117,7 @@ impl Checked {
     fn of(file: &std::path::Path, module: &Module) -> Checked {
         Checked {
             file: file.display().to_string(),
-            sha256: module.hash(),
+            sha256: module.hash().to_string(),
             bytes: module.len(),
             interface: vl_core::ABI_VERSION,
         }

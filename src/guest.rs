@@ -115,6 +115,11 @@ pub(crate) struct RunArgs {
     /// Save this run's definition as a task of this name.
     #[arg(long)]
     save_task: Option<vl_client::TaskName>,
+    /// Your own controller, a WebAssembly module (.wasm, or its text
+    /// format), for an experiment whose run it drives: sent to the Host,
+    /// tried on its twin, then run on the robot (docs/controllers.md).
+    #[arg(long, value_hint = clap::ValueHint::FilePath)]
+    controller: Option<std::path::PathBuf>,
 }
 
 /// A Guest error: an address that cannot be a Host's is the user's input.
@@ -144,7 +149,7 @@ pub(crate) fn guest(runtime: &tokio::runtime::Runtime, args: GuestArgs) -> Resul
         return Ok(ExitCode::SUCCESS);
     }
     if args.headless {
-        let script = script(&args.run, &args.experiment, args.login.login()?, !args.json);
+        let script = script(&args.run, &args.experiment, args.login.login()?, !args.json)?;
         if role == Role::Observer {
             let watched = interruptible(runtime, vl_client::watch(&args.connect, &script))?
                 .map_err(guest_error)?;
@@ -203,7 +208,7 @@ pub(crate) fn demo(runtime: &tokio::runtime::Runtime, args: DemoArgs) -> Result<
         );
     }
     if args.headless || !has_display {
-        let script = script(&args.run, &args.experiment, Login::default(), !args.json);
+        let script = script(&args.run, &args.experiment, Login::default(), !args.json)?;
         let report = interruptible(runtime, vl_client::run_script(&url, &script))??;
         return finish(&report, args.json);
     }
@@ -219,8 +224,12 @@ fn script(
     experiment: &Option<ExperimentId>,
     login: Login,
     progress: bool,
-) -> Script {
-    Script {
+) -> Result<Script> {
+    let controller = match &run.controller {
+        Some(file) => Some(read_controller(file)?),
+        None => None,
+    };
+    Ok(Script {
         experiment: experiment.clone(),
         goal: run.goal.map(vl_core::Goal::at),
         waypoints: run.waypoints.clone(),
@@ -232,8 +241,24 @@ fn script(
             task: run.task.clone(),
             save_task: run.save_task.clone(),
         },
+        controller,
         ..Script::default()
+    })
+}
+
+/// A controller's file, refused before it is read when it is too large.
+fn read_controller(file: &std::path::Path) -> Result<Vec<u8>> {
+    let named = |e: std::io::Error| BadInput(format!("--controller {}: {e}", file.display()));
+    let size = std::fs::metadata(file).map_err(named)?.len();
+    if size > vl_core::MAX_MODULE_BYTES as u64 {
+        return Err(BadInput(format!(
+            "--controller {}: {size} bytes; a controller may have at most {} (2 MiB)",
+            file.display(),
+            vl_core::MAX_MODULE_BYTES
+        ))
+        .into());
     }
+    Ok(std::fs::read(file).map_err(named)?)
 }
 
 /// Prints the run's report; success is the experiment's: the robot at its

@@ -82,7 +82,10 @@ fn definition() -> BoxedStrategy<Definition> {
         proptest::collection::vec(shape(), 0..3),
         proptest::option::of(num()),
         proptest::option::of(num()),
-        proptest::option::of(num()),
+        (
+            proptest::option::of(num()),
+            proptest::option::of(any::<[u8; 32]>().prop_map(vl_core::ModuleHash)),
+        ),
     )
         .prop_map(
             |(
@@ -91,7 +94,7 @@ fn definition() -> BoxedStrategy<Definition> {
                 virtual_obstacles,
                 max_speed_mm_s,
                 time_limit_s,
-                lookahead_mm,
+                (lookahead_mm, controller),
             )| {
                 Definition {
                     goal,
@@ -101,6 +104,7 @@ fn definition() -> BoxedStrategy<Definition> {
                     max_speed_mm_s,
                     time_limit_s,
                     lookahead_mm,
+                    controller,
                 }
             },
         )

@@ -49,6 +49,9 @@ pub struct Script {
     pub task: TaskChoice,
     /// The definition to run as it is (a task's), instead of planning one.
     pub definition: Option<Definition>,
+    /// The user's own controller (a WebAssembly module's file), for an
+    /// experiment whose run it drives.
+    pub controller: Option<Vec<u8>>,
 }
 
 impl Default for Script {
@@ -65,6 +68,7 @@ impl Default for Script {
             download_to: None,
             task: TaskChoice::default(),
             definition: None,
+            controller: None,
         }
     }
 }
@@ -138,6 +142,8 @@ pub enum ScriptError {
     NoGoal(ExperimentId),
     #[error("the Host offers no experiment")]
     NoExperiment,
+    #[error("the {0} experiment runs your own controller: give one (--controller FILE.wasm)")]
+    NoController(ExperimentId),
     #[error("no path to the goal")]
     NoPath(#[from] ArenaPlanError),
     #[error("the definition, tried on the lab's twin, is {0}")]
@@ -168,8 +174,9 @@ pub async fn run_script(url: &str, script: &Script) -> Result<ScriptReport, Scri
         script.definition = Some(task.definition);
     }
     let (guest, definition, goal, experiment) = started(url, &script).await?;
-    // A run the Host steers, or holds still, is watched to its end.
-    let mut report = match experiment.follows() || experiment.holds() {
+    // A run the Host steers (or the user's controller), or holds still,
+    // is watched to its end.
+    let mut report = match !experiment.takes_commands() || experiment.follows() {
         true => follow_path(guest, definition, goal, &script).await,
         false => drive_by_stick(guest, definition, goal, &script).await,
     }?;
@@ -405,8 +412,19 @@ async fn started(
         .await?;
     let start = guest.session.robot.as_ref().expect("seen").pose;
     let settings = Settings::default();
+    let controller = match (&script.controller, experiment.runs_a_controller()) {
+        (Some(file), true) => Some(sent_controller(&mut guest, file).await?),
+        (None, true) => return Err(ScriptError::NoController(experiment.id)),
+        (_, false) => None,
+    };
     let definition = match (&script.definition, experiment.waypoint_bounds()) {
         (Some(definition), _) => definition.clone(),
+        // The controller drives to the goal.
+        (None, _) if controller.is_some() => Definition {
+            goal: Some(goal),
+            controller,
+            ..Definition::default()
+        },
         // Without points given, the fewest it visits along the way to the
         // goal.
         (None, Some((min, _))) => {
@@ -450,6 +468,25 @@ async fn started(
     guest.connection.send(GuestMessage::Start);
     guest.until("start", ignore, |s| s.running).await?;
     Ok((guest, definition, goal, experiment))
+}
+
+/// Sends the controller's `file` and waits for the Host to take it: its hash.
+async fn sent_controller(
+    guest: &mut Scripted,
+    file: &[u8],
+) -> Result<vl_core::ModuleHash, ScriptError> {
+    let hash = vl_core::ModuleHash::of(file);
+    for part in crate::upload::controller_parts(file) {
+        guest.connection.send(part);
+    }
+    guest
+        .until(
+            "send the controller",
+            |_, _| {},
+            |s| s.controller == Some(hash),
+        )
+        .await?;
+    Ok(hash)
 }
 
 /// How long a run that ran out of time is given to report its end.

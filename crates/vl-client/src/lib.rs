@@ -54,6 +54,7 @@ mod session;
 mod settings;
 mod status;
 mod tasks;
+mod upload;
 mod watch;
 
 pub use client::{ClientError, Connection, GOODBYE_WAIT, Incoming, open};
@@ -70,4 +71,5 @@ pub use session::{
 pub use settings::{MARGIN_MM, MAX_SPEED_MM_S, Settings, SettingsError};
 pub use status::{StatusError, host_status};
 pub use tasks::{Task, TaskChoice, TaskError, TaskName, Tasks};
+pub use upload::controller_parts;
 pub use watch::{Watched, watch};

@@ -5,9 +5,11 @@
 //! runs. (The lab's session controllers, synthesised for its nets, are a
 //! different thing: see `design`.)
 
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
 use thiserror::Error;
 
-use crate::{Point, Pose, WheelSpeeds};
+use crate::{Point, Pose, SyntaxError, WheelSpeeds};
 
 /// The interface version a module says it speaks (`vl_abi`).
 pub const ABI_VERSION: i32 = 1;
@@ -19,6 +21,68 @@ pub const COMMAND_WORDS: usize = 2;
 /// A controller's steps come this often, s: 50 Hz, every other period of
 /// the Host's control loop.
 pub const STEP_PERIOD_S: f64 = 0.02;
+
+/// The largest module a user may hand in, bytes.
+pub const MAX_MODULE_BYTES: usize = 2 << 20;
+
+/// A module by the SHA-256 of its file: what a definition, a recording and
+/// a regrade name it by.
+#[derive(Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(try_from = "String", into = "String")]
+#[schemars(with = "String")]
+pub struct ModuleHash(pub [u8; 32]);
+
+impl ModuleHash {
+    pub fn of(file: &[u8]) -> ModuleHash {
+        ModuleHash(Sha256::digest(file).into())
+    }
+}
+
+/// 64 lowercase hex digits.
+impl std::fmt::Display for ModuleHash {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.iter().try_for_each(|b| write!(f, "{b:02x}"))
+    }
+}
+
+impl std::fmt::Debug for ModuleHash {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "ModuleHash({self})")
+    }
+}
+
+impl std::str::FromStr for ModuleHash {
+    type Err = SyntaxError;
+
+    fn from_str(text: &str) -> Result<ModuleHash, SyntaxError> {
+        let refused = || SyntaxError::Range {
+            got: text.to_owned(),
+            what: "a module's SHA-256: 64 hex digits".into(),
+        };
+        if text.len() != 64 || !text.is_ascii() {
+            return Err(refused());
+        }
+        let mut out = [0; 32];
+        for (i, byte) in out.iter_mut().enumerate() {
+            *byte = u8::from_str_radix(&text[2 * i..2 * i + 2], 16).map_err(|_| refused())?;
+        }
+        Ok(ModuleHash(out))
+    }
+}
+
+impl TryFrom<String> for ModuleHash {
+    type Error = SyntaxError;
+
+    fn try_from(text: String) -> Result<ModuleHash, SyntaxError> {
+        text.parse()
+    }
+}
+
+impl From<ModuleHash> for String {
+    fn from(hash: ModuleHash) -> String {
+        hash.to_string()
+    }
+}
 
 /// What a controller is told before each step.
 #[derive(Debug, Clone, PartialEq)]
@@ -108,6 +172,16 @@ pub trait Controller {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_module_hash_reads_back_as_written() {
+        let hash = ModuleHash::of(b"(module)");
+        let text = serde_json::to_string(&hash).unwrap();
+        assert_eq!(text.len(), 66);
+        assert_eq!(serde_json::from_str::<ModuleHash>(&text).unwrap(), hash);
+        assert!("xyz".parse::<ModuleHash>().is_err());
+        assert!("é".repeat(32).parse::<ModuleHash>().is_err());
+    }
 
     #[test]
     fn the_observation_is_laid_out_as_version_1_says() {

@@ -147,8 +147,8 @@ pub use contract::summary::{
 pub use contract::supervisor::{Action, Fired, NetState, NotAllowed, Supervisor, SupervisorError};
 pub use contract::transport::Io;
 pub use controller::{
-    ABI_VERSION, Answer, COMMAND_WORDS, Controller, ControllerFault, OBSERVATION_WORDS,
-    Observation, STEP_PERIOD_S,
+    ABI_VERSION, Answer, COMMAND_WORDS, Controller, ControllerFault, MAX_MODULE_BYTES, ModuleHash,
+    OBSERVATION_WORDS, Observation, STEP_PERIOD_S,
 };
 pub use design::{
     CheckReport, Declared, DesignError, Designed, Experiments, FolderCheck, Interleaving,

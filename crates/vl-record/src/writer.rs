@@ -44,6 +44,9 @@ pub struct Begin {
     pub owner: Owner,
     pub lab: MountedLab,
     pub definition: Definition,
+    /// The user's controller the run drives with, its file as sent (kept
+    /// so a replay or a regrade runs exactly it).
+    pub controller: Option<std::sync::Arc<[u8]>>,
     /// The Host's settings, kept with the run.
     pub config: serde_json::Value,
 }
@@ -425,24 +428,13 @@ impl RunFile {
             .into(),
         };
         writer.write_metadata(&metadata)?;
-        for (name, value) in [
-            (
-                "definition.json",
-                serde_json::to_vec_pretty(&begin.definition),
-            ),
-            (
-                "robot.json",
-                serde_json::to_vec_pretty(&begin.lab.scene.robot),
-            ),
-            ("lab.json", serde_json::to_vec_pretty(&begin.lab)),
-            ("config.json", serde_json::to_vec_pretty(&begin.config)),
-        ] {
+        for (name, media_type, data) in attachments(&begin) {
             writer.attach(&mcap::Attachment {
                 log_time: ns,
                 create_time: ns,
                 name: name.into(),
-                media_type: "application/json".into(),
-                data: value.expect("the lab's types serialise").into(),
+                media_type: media_type.into(),
+                data: data.into(),
             })?;
         }
         catalogue.write_entry(&begin.run, &begin.owner)?;
@@ -630,4 +622,42 @@ impl RunFile {
         }
         held
     }
+}
+
+/// What a run's file keeps beside its messages: the definition, the
+/// robot, the lab as mounted, the Host's settings, and the user's
+/// controller when one drives.
+fn attachments(begin: &Begin) -> Vec<(&'static str, &'static str, Vec<u8>)> {
+    let json =
+        |value: Result<Vec<u8>, serde_json::Error>| value.expect("the lab's types serialise");
+    let mut attached = vec![
+        (
+            "definition.json",
+            "application/json",
+            json(serde_json::to_vec_pretty(&begin.definition)),
+        ),
+        (
+            "robot.json",
+            "application/json",
+            json(serde_json::to_vec_pretty(&begin.lab.scene.robot)),
+        ),
+        (
+            "lab.json",
+            "application/json",
+            json(serde_json::to_vec_pretty(&begin.lab)),
+        ),
+        (
+            "config.json",
+            "application/json",
+            json(serde_json::to_vec_pretty(&begin.config)),
+        ),
+    ];
+    if let Some(file) = &begin.controller {
+        // Binary, or the text format as sent.
+        attached.push(match file.starts_with(b"\0asm") {
+            true => ("controller.wasm", "application/wasm", file.to_vec()),
+            false => ("controller.wat", "text/plain", file.to_vec()),
+        });
+    }
+    attached
 }

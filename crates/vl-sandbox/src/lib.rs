@@ -11,10 +11,10 @@
 
 use std::time::{Duration, Instant};
 
-use sha2::{Digest, Sha256};
 use thiserror::Error;
+pub use vl_core::MAX_MODULE_BYTES;
 use vl_core::{
-    ABI_VERSION, Answer, COMMAND_WORDS, Controller, ControllerFault, OBSERVATION_WORDS,
+    ABI_VERSION, Answer, COMMAND_WORDS, Controller, ControllerFault, ModuleHash, OBSERVATION_WORDS,
     Observation, WheelSpeeds,
 };
 use wasmi::{
@@ -22,8 +22,6 @@ use wasmi::{
     TrapCode, TypedFunc, ValType,
 };
 
-/// The largest module a user may hand in, bytes.
-pub const MAX_MODULE_BYTES: usize = 2 << 20;
 /// The module and its log may keep at most this many lines a second; more
 /// are counted, not kept.
 pub const LOG_LINES_PER_S: usize = 10;
@@ -93,7 +91,7 @@ pub enum LoadError {
 pub struct Module {
     engine: Engine,
     module: wasmi::Module,
-    hash: [u8; 32],
+    hash: ModuleHash,
     bytes: usize,
 }
 
@@ -179,15 +177,15 @@ impl Module {
         Ok(Module {
             engine,
             module,
-            hash: Sha256::digest(bytes).into(),
+            hash: ModuleHash::of(bytes),
             bytes: bytes.len(),
         })
     }
 
-    /// The SHA-256 of the file, 64 hex digits: what a recording and a
+    /// The SHA-256 of the file: what a definition, a recording and a
     /// regrade name the module by.
-    pub fn hash(&self) -> String {
-        self.hash.iter().map(|b| format!("{b:02x}")).collect()
+    pub fn hash(&self) -> ModuleHash {
+        self.hash
     }
 
     /// The file's size, bytes.
@@ -458,7 +456,8 @@ mod tests {
         let step = "(f64.store (i32.const 256) (f64.load (i32.const 8)))
                     (f64.store (i32.const 264) (f64.load (i32.const 144)))
                     (f64.gt (f64.load (i32.const 0)) (f64.const 1))";
-        let module = Module::load(module(step).as_bytes()).unwrap();
+        let module_text = module(step);
+        let module = Module::load(module_text.as_bytes()).unwrap();
         let mut running = module.start(Limits::TWIN).unwrap();
         let mut o = seen(0.5);
         o.pose.x_mm = 42.0;
@@ -470,7 +469,7 @@ mod tests {
         assert!(!answer.finished);
         assert!(running.step(&seen(2.0)).unwrap().finished);
         assert!(running.fuel_used() > 0 && running.fuel_used() < 100);
-        assert_eq!(module.hash().len(), 64);
+        assert_eq!(module.hash(), ModuleHash::of(module_text.as_bytes()));
     }
 
     #[test]

@@ -100,6 +100,8 @@ pub struct Session {
     pub definition: Option<Definition>,
     /// The definition tried on the lab's twin, once the Host has.
     pub forecast: Option<vl_core::ForecastVerdict>,
+    /// The controller of ours the Host took, by its hash.
+    pub controller: Option<vl_core::ModuleHash>,
     /// How many forecasts the Host has told: a new one is told by the count.
     pub forecasts: u64,
     pub running: bool,
@@ -195,6 +197,7 @@ impl Default for Session {
             session_id: None,
             experiments: Vec::new(),
             lab: None,
+            controller: None,
             definition: None,
             forecast: None,
             forecasts: 0,
@@ -304,6 +307,7 @@ impl Session {
                 self.errors.clear();
             }
             HostMessage::Forecast(verdict) => self.foreseen(*verdict),
+            HostMessage::ControllerTaken { sha256, .. } => self.controller = Some(sha256),
             HostMessage::State(state) => {
                 self.nets_agree = self.nets.follow(&state);
                 self.told = Some(*state);

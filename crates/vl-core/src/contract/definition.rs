@@ -60,6 +60,10 @@ pub struct Definition {
     /// shorter tracks tighter, longer cuts corners smoother).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lookahead_mm: Option<f64>,
+    /// The user's own controller the run drives with, by its hash: the
+    /// module sent before (`controller` messages).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub controller: Option<crate::ModuleHash>,
 }
 
 /// How many of a definition's waypoints a run has visited, in order.

@@ -128,6 +128,9 @@ pub enum DefineKind {
         min: f64,
         max: f64,
     },
+    /// The user's own wheel controller, a WebAssembly module
+    /// (`docs/controllers.md`), sent before the definition names it.
+    Controller,
 }
 
 /// The numbers a definition sets that an experiment may bound.
@@ -192,10 +195,13 @@ pub enum RunComponent {
     /// Hold the robot still for the run (a measurement, a demonstration):
     /// no command drives it.
     Hold,
+    /// The user's controller drives, stepped beside the control loop in
+    /// its sandbox, under the safety layer and the leash.
+    Controller,
 }
 
 impl RunComponent {
-    pub const ALL: [RunComponent; 7] = [
+    pub const ALL: [RunComponent; 8] = [
         RunComponent::Plan,
         RunComponent::Forecast,
         RunComponent::Follow,
@@ -203,6 +209,7 @@ impl RunComponent {
         RunComponent::Assist,
         RunComponent::Force,
         RunComponent::Hold,
+        RunComponent::Controller,
     ];
 
     /// The event the lab fires into the experiment's net when this
@@ -216,7 +223,8 @@ impl RunComponent {
             RunComponent::Follow
             | RunComponent::Teleoperate
             | RunComponent::Force
-            | RunComponent::Hold => None,
+            | RunComponent::Hold
+            | RunComponent::Controller => None,
         }
     }
 }
@@ -242,7 +250,7 @@ impl RunPlan {
     /// Why these components do not make a run, if they do not.
     pub fn check(&self, define: &[DefineKind]) -> Result<(), ExperimentError> {
         use RunComponent as C;
-        let drives = [C::Follow, C::Teleoperate, C::Hold]
+        let drives = [C::Follow, C::Teleoperate, C::Hold, C::Controller]
             .into_iter()
             .filter(|&c| self.has(c))
             .count();
@@ -251,7 +259,6 @@ impl RunPlan {
         }
         for (needs, what) in [
             (C::Plan, C::Follow),
-            (C::Forecast, C::Follow),
             (C::Assist, C::Teleoperate),
             (C::Force, C::Assist),
         ] {
@@ -260,8 +267,17 @@ impl RunPlan {
             }
         }
         let defines = |kind: fn(&DefineKind) -> bool| define.iter().any(kind);
+        if self.has(C::Forecast) && !self.has(C::Follow) && !self.has(C::Controller) {
+            return Err(ExperimentError::Needs {
+                needs: C::Forecast,
+                what: C::Follow,
+            });
+        }
         if self.has(C::Follow) && !defines(|d| matches!(d, DefineKind::Path)) {
             return Err(ExperimentError::NoPath);
+        }
+        if self.has(C::Controller) && !defines(|d| matches!(d, DefineKind::Controller)) {
+            return Err(ExperimentError::NoController);
         }
         let points =
             |d: &DefineKind| matches!(d, DefineKind::Goal { .. } | DefineKind::Waypoints { .. });
@@ -276,8 +292,12 @@ impl RunPlan {
 /// of it.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ExperimentError {
-    #[error("a run has exactly one of the components follow, teleoperate and hold")]
+    #[error("a run has exactly one of the components follow, teleoperate, hold and controller")]
     OneDrive,
+    #[error(
+        "the component controller needs a controller to define ([[define]] kind = \"controller\")"
+    )]
+    NoController,
     #[error("the component {needs} needs {what}")]
     Needs {
         needs: RunComponent,
@@ -346,6 +366,17 @@ impl Experiment {
     /// Whether the lab follows the defined path by itself.
     pub fn follows(&self) -> bool {
         self.run.has(RunComponent::Follow)
+    }
+
+    /// Whether the user's own controller drives a run.
+    pub fn runs_a_controller(&self) -> bool {
+        self.run.has(RunComponent::Controller)
+    }
+
+    /// Whether the operator's commands drive a run of it: not one that
+    /// holds the robot, nor one the user's controller drives.
+    pub fn takes_commands(&self) -> bool {
+        !self.holds() && !self.runs_a_controller()
     }
 
     /// Whether a run holds the robot still, taking no command.

@@ -270,6 +270,17 @@ pub enum GuestMessage {
         #[serde(flatten)]
         definition: Definition,
     },
+    /// Part of the operator's own controller (a WebAssembly module of at
+    /// most 2 MiB, binary or text): the file's bytes from `offset`, in
+    /// base64, of `total` bytes in all. Parts come in order, each within a
+    /// message's size; the first (offset 0) starts the file afresh. The
+    /// Host checks the whole file and answers `controller_taken`; a
+    /// definition then names it by its hash.
+    Controller {
+        offset: u64,
+        total: u64,
+        data: String,
+    },
     Start,
     Stop,
     /// Drive the robot back to the lab's start pose, as the Host does by
@@ -405,6 +416,12 @@ pub enum HostMessage {
         ended: Option<crate::EndReason>,
     },
     Mounted(Box<MountedLab>),
+    /// The operator's controller arrived whole and passed its checks: a
+    /// definition may name it by `sha256`.
+    ControllerTaken {
+        sha256: crate::ModuleHash,
+        bytes: u64,
+    },
     Defined {
         #[serde(flatten)]
         definition: Definition,

@@ -38,6 +38,8 @@ pub enum EndReason {
     SlotEnded,
     /// One of the lab's administrators ended the operator's turn.
     Kicked,
+    /// The user's controller said it was done (`vl_step` returned 1).
+    ControllerDone,
 }
 
 impl std::fmt::Display for EndReason {
@@ -54,6 +56,7 @@ impl std::fmt::Display for EndReason {
             EndReason::HeldBack => "held back by the safety layer",
             EndReason::SlotEnded => "the operator's slot ended",
             EndReason::Kicked => "ended by the lab's administrator",
+            EndReason::ControllerDone => "the controller said it was done",
         })
     }
 }

@@ -14,15 +14,16 @@ use tokio::sync::{mpsc as async_mpsc, watch};
 use tracing::{debug, info, warn};
 use vl_core::{
     CSpace, DeviceState, EndReason, Feedback, Fold, HeldBack, HostMessage, Leash, Localiser,
-    MapField, Pose, PoseSource, Priorities, RobotModel, Safety, Situation, Surroundings, Teleop,
-    Told, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
+    MapField, Observation, Pose, PoseSource, Priorities, RobotModel, STEP_PERIOD_S, Safety,
+    Situation, Surroundings, Teleop, Told, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
 };
 
 use super::camera::Sighting;
+use super::controller::{Beside, STALE, Stepped};
 use super::run::Run;
 use super::{Finished, LabInfo, LabRequest, LabStatus, Retry, TICK};
 use crate::drivers::{Robot, RobotError, RobotReading, Witness};
-use vl_record::{Feed, Recordable};
+use vl_record::{Feed, Level, Recordable};
 
 /// The shortest time between two control periods: a command acted on at
 /// once still waits this long after the last period.
@@ -270,10 +271,12 @@ impl Control {
                 conduct,
                 field,
                 face,
+                controller,
             } => {
                 self.event.store(0, Ordering::Relaxed);
                 let surroundings = self.surroundings.with(&definition.virtual_obstacles);
-                let started = Run::new(run, definition, conduct, surroundings, field, face);
+                let mut started = Run::new(run, *definition, conduct, surroundings, field, face);
+                started.controller = controller.map(Beside::spawn);
                 if started.follower.is_some() {
                     info!(run, "following the defined path from the camera's estimate");
                 }
@@ -328,8 +331,14 @@ impl Control {
             return;
         };
         let pose = *pose;
-        // A held run is as still as one whose commands went stale.
-        let stale = run.held || run.last_command.elapsed() > WATCHDOG;
+        // A held run is as still as one whose commands went stale; a
+        // controller's go stale within a few of its steps.
+        let watchdog = if run.controller.is_some() {
+            STALE
+        } else {
+            WATCHDOG
+        };
+        let stale = run.held || run.last_command.elapsed() > watchdog;
         let mut wanted = match &mut run.follower {
             _ if run.held => WheelSpeeds::default(),
             // At the goal the robot first stops where it is — at once, by the
@@ -488,6 +497,8 @@ impl Control {
             .unwrap_or(f64::INFINITY)
             .min(run.started.elapsed().as_secs_f64());
         let lost = self.sightings.is_some() && unseen_s > ROBOT_LOST_S;
+        let said = self.tend_controller(pose, &reading);
+        let Some(run) = self.run.as_mut() else { return };
         let facing = run
             .face
             .is_none_or(|face| wrap_angle(face - pose.theta_rad).abs() <= FACING_RAD);
@@ -499,6 +510,8 @@ impl Control {
             self.finish(EndReason::GoalReached);
         } else if timed_out {
             self.finish(EndReason::TimeLimit);
+        } else if let Some(reason) = said {
+            self.finish(reason);
         } else if lost {
             warn!("the camera has not seen the robot for {unseen_s:.1} s: stopping the run");
             self.finish(EndReason::RobotLost);
@@ -512,6 +525,60 @@ impl Control {
             // Re-applying every tick lets the watchdog and the safety layer act between commands.
             self.drive();
         }
+    }
+
+    /// Offers the run's controller its observation when a step is due and
+    /// takes what it said: its command (within the definition's cap), its
+    /// log, or the fault (or its being done) that ends the run.
+    fn tend_controller(&mut self, pose: Pose, reading: &RobotReading) -> Option<EndReason> {
+        let uncertainty_mm = self.uncertain_mm();
+        let robot = &self.info.robot;
+        let run = self.run.as_mut()?;
+        let beside = run.controller.as_mut()?;
+        let definition = &run.definition;
+        beside.offer(|| Observation {
+            t_s: run.started.elapsed().as_secs_f64(),
+            pose,
+            uncertainty_mm,
+            wheels: reading.wheels,
+            goal: definition.goal.map(|g| g.point()),
+            proximity: Observation::proximity_of(&reading.proximity),
+            period_s: STEP_PERIOD_S,
+            speed_limit_mm_s: definition.speed_limit_mm_s(robot),
+        });
+        for stepped in beside.said() {
+            match stepped {
+                Stepped::Answer {
+                    answer,
+                    logged,
+                    dropped,
+                } => {
+                    for line in logged {
+                        let line = format!("controller: {line}");
+                        self.record.send(Recordable::Log(Level::Info, line));
+                    }
+                    if dropped > 0 {
+                        let line = format!(
+                            "controller: {dropped} more lines not kept (at most {} a second)",
+                            vl_sandbox::LOG_LINES_PER_S
+                        );
+                        self.record.send(Recordable::Log(Level::Warning, line));
+                    }
+                    if answer.finished {
+                        return Some(EndReason::ControllerDone);
+                    }
+                    run.wheels = definition.capped(robot, answer.wheels);
+                    run.commanded = true;
+                    run.last_command = Instant::now();
+                }
+                Stepped::Fault(fault) => {
+                    warn!("{fault}: stopping the run");
+                    run.fault = Some(fault.to_string());
+                    return Some(EndReason::Fault);
+                }
+            }
+        }
+        None
     }
 
     /// The safety margin: the layer's own, widened by how far the robot

@@ -9,6 +9,7 @@
 
 mod camera;
 mod control;
+mod controller;
 mod run;
 
 use std::sync::Arc;
@@ -121,13 +122,15 @@ pub(crate) enum LabRequest {
     Start {
         /// The run's number, which its `Finished` carries back.
         run: u64,
-        definition: Definition,
+        definition: Box<Definition>,
         conduct: Conduct,
         /// The map's potential field for assisted teleoperation.
         field: Option<Arc<MapField>>,
         /// At the goal, turn in place to face this heading, rad, before
         /// the run ends (the drive back to the start pose).
         face: Option<f64>,
+        /// The user's controller, which drives the run.
+        controller: Option<Arc<vl_sandbox::Module>>,
     },
     Drive {
         event: u64,

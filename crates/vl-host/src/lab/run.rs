@@ -159,6 +159,8 @@ pub(super) struct Run {
     pub(super) fault: Option<String>,
     /// The definition's waypoints visited so far, in order.
     pub(super) visited: Visited,
+    /// The user's controller driving the run, on its thread.
+    pub(super) controller: Option<super::controller::Beside>,
 }
 
 impl Run {
@@ -203,6 +205,7 @@ impl Run {
             held_back: None,
             fault: None,
             visited: Visited::default(),
+            controller: None,
         }
     }
 

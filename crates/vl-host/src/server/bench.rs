@@ -629,6 +629,7 @@ fn forecaster(stop: Arc<AtomicBool>) -> std::thread::JoinHandle<u64> {
         robot: vl_core::RobotModel::khepera_ii(),
         definition: minute_run(),
         settings: ForecastSettings::default(),
+        controller: None,
     };
     std::thread::spawn(move || {
         let mut made = 0;

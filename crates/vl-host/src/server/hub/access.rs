@@ -271,7 +271,7 @@ impl Hub {
             || self
                 .experiment
                 .as_ref()
-                .is_some_and(vl_core::Experiment::holds)
+                .is_some_and(|e| !e.takes_commands())
         {
             return;
         }

@@ -71,6 +71,8 @@ pub(crate) struct ForecastJob {
     pub(crate) start: Pose,
     pub(crate) definition: Definition,
     pub(crate) settings: ForecastSettings,
+    /// The user's controller, which drives the run when there is one.
+    pub(crate) controller: Option<std::sync::Arc<vl_sandbox::Module>>,
 }
 
 impl ForecastJob {
@@ -82,6 +84,22 @@ impl ForecastJob {
         crate::priority::yield_to_control(FORECAST_NICE, "forecast");
         let seeds = 1..=u64::from(self.settings.forecast_seeds.clamp(1, MOST_SEEDS));
         let seeds: Vec<u64> = seeds.collect();
+        // Each seed's run gets a fresh instance, as each live run does.
+        let controllers = || -> Result<Box<dyn vl_core::Controller>, vl_core::ControllerFault> {
+            let module = self
+                .controller
+                .as_ref()
+                .expect("a pilot only with a controller");
+            match module.start(vl_sandbox::Limits::TWIN) {
+                Ok(instance) => Ok(Box::new(instance)),
+                Err(vl_sandbox::LoadError::Start(fault)) => Err(fault),
+                Err(other) => Err(vl_core::ControllerFault::Trapped(other.to_string())),
+            }
+        };
+        let pilot = match self.controller {
+            Some(_) => vl_sim::Pilot::Controller(&controllers),
+            None => vl_sim::Pilot::Path,
+        };
         let forecast = forecast(Forecasting {
             arena: &self.arena,
             robot: &self.robot,
@@ -89,7 +107,7 @@ impl ForecastJob {
             definition: &self.definition,
             seeds: &seeds,
             cancel: Some(cancel),
-            pilot: vl_sim::Pilot::Path,
+            pilot,
         })?;
         Ok(ForecastVerdict::new(forecast, self.settings.limits()))
     }
@@ -100,9 +118,15 @@ impl Hub {
     /// for an older definition is cancelled.
     pub(super) fn ask_forecast(&mut self, definition: &Definition) {
         self.verdict = None;
-        // Without a path the operator's own commands drive, guarded live
-        // by the safety layer as in teleoperation: nothing to foresee.
-        if definition.path.is_empty() {
+        let controller = self
+            .named_controller(definition)
+            .ok()
+            .flatten()
+            .map(|t| t.module);
+        // Without a path or a controller the operator's own commands drive,
+        // guarded live by the safety layer as in teleoperation: nothing to
+        // foresee.
+        if definition.path.is_empty() && controller.is_none() {
             self.forecasts.forget();
             return self.happened(Action::ForecastPassed);
         }
@@ -114,6 +138,7 @@ impl Hub {
             start,
             definition: definition.clone(),
             settings: self.config.forecast,
+            controller,
         };
         self.forecasts
             .ask(move |cancel: &AtomicBool| job.run(cancel));

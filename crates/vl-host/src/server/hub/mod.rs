@@ -27,6 +27,7 @@ use vl_record::Level;
 use worker::JobThread;
 
 mod access;
+mod controllers;
 mod ending;
 mod fields;
 mod forecasts;
@@ -209,6 +210,11 @@ pub(crate) struct Hub {
     driver: Option<super::events::RunDriver>,
     /// Where the lab's events are told.
     events: super::events::LabEvents,
+    /// The operator's own controller, checked, and one arriving in parts.
+    controller: Option<controllers::Taken>,
+    upload: Option<controllers::Upload>,
+    /// When a controller was last checked.
+    last_check: Option<Instant>,
 }
 
 impl Hub {
@@ -263,6 +269,9 @@ impl Hub {
             recording: None,
             driver: None,
             events,
+            controller: None,
+            upload: None,
+            last_check: None,
         }
     }
 

@@ -28,6 +28,11 @@ impl Hub {
         match message {
             GuestMessage::Mount { experiment } => self.mount(id, experiment),
             GuestMessage::Define { definition } => self.define(id, definition),
+            GuestMessage::Controller {
+                offset,
+                total,
+                data,
+            } => self.take_controller_part(id, offset, total, &data),
             GuestMessage::Plan { goal, through } => self.plan(id, goal, &through),
             GuestMessage::Reset => self.ask_reset(id),
             GuestMessage::Start => self.start(id),
@@ -131,6 +136,9 @@ impl Hub {
                     "path point {i} is inside the C-space's obstacles: the robot's body would touch an obstacle there"
                 ),
             );
+        }
+        if let Err(why) = self.named_controller(&definition) {
+            return self.refuse(id, ErrorCode::InvalidDefinition, why);
         }
         self.supervise(id, Action::Define);
         self.definition = Some(definition.clone());
@@ -246,6 +254,10 @@ impl Hub {
             Some(Ok(definition)) => definition,
             None => Definition::default(),
         };
+        let controller = match self.named_controller(&definition) {
+            Ok(taken) => taken,
+            Err(why) => return self.refuse(id, ErrorCode::InvalidDefinition, why),
+        };
         if self.supervise(id, Action::Start)
             && let Some(experiment) = self.experiment.clone()
         {
@@ -271,13 +283,15 @@ impl Hub {
                     .user(user.as_deref())
                     .detail(format!("run {}: {}", self.runs, experiment.id)),
             );
-            self.begin_recording(id, experiment.id.clone(), &definition);
+            let file = controller.as_ref().map(|t| t.file.clone());
+            self.begin_recording(id, experiment.id.clone(), &definition, file);
             self.lab.request(LabRequest::Start {
                 run: self.runs,
-                definition,
+                definition: Box::new(definition),
                 conduct: Conduct::from(&experiment),
                 field: self.field.clone(),
                 face: None,
+                controller: controller.map(|t| t.module),
             });
             self.broadcast(&HostMessage::Started { event: 0 });
         }
@@ -309,8 +323,12 @@ impl Hub {
         if !self.permitted(id, Action::Command) {
             return;
         }
-        if self.experiment.as_ref().is_some_and(Experiment::holds) {
-            let why = "this experiment's run holds the robot still: no command drives it";
+        if let Some(experiment) = self.experiment.as_ref().filter(|e| !e.takes_commands()) {
+            let why = if experiment.holds() {
+                "this experiment's run holds the robot still: no command drives it"
+            } else {
+                "your controller drives this experiment's run: no command does"
+            };
             return self.refuse(id, ErrorCode::NotAllowedNow, why);
         }
         if event <= self.last_event {

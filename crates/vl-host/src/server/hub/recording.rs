@@ -26,6 +26,7 @@ impl Hub {
         id: u64,
         experiment: ExperimentId,
         definition: &Definition,
+        controller: Option<std::sync::Arc<[u8]>>,
     ) {
         let Some(catalogue) = &self.config.recordings else {
             return;
@@ -43,11 +44,9 @@ impl Hub {
             bytes: 0,
         };
         let owner = catalogue.owner(user.as_deref(), id);
-        if let Some(name) = self
-            .lab
-            .record
-            .begin(self.beginning(run, owner, definition))
-        {
+        let mut beginning = self.beginning(run, owner, definition);
+        beginning.controller = controller;
+        if let Some(name) = self.lab.record.begin(beginning) {
             self.recording = Some(RunRecording {
                 name,
                 _frames: Watching::new(&self.lab.watchers),
@@ -102,6 +101,7 @@ impl Hub {
                 scene: self.scene(),
             },
             definition: definition.clone(),
+            controller: None,
             config: json!({
                 "experiments": config.experiments.ids(),
                 "lease_s": config.lease.as_secs_f64(),

@@ -96,10 +96,11 @@ impl Hub {
                     )));
                 self.lab.request(LabRequest::Start {
                     run: self.runs,
-                    definition,
+                    definition: Box::new(definition),
                     conduct: Conduct::BACK_TO_START,
                     field: None,
                     face: Some(self.lab.info.arena.start.theta_rad),
+                    controller: None,
                 });
             }
             Err(why) => {
