@@ -14,7 +14,7 @@ use vl_core::{
     Observation, Point, Pose, RobotModel, STEP_PERIOD_S, WheelSpeeds,
 };
 use vl_report::table::{Report, Table};
-use vl_sandbox::{Limits, MAX_MODULE_BYTES, Module};
+use vl_sandbox::{Budget, MAX_MODULE_BYTES, Module};
 use vl_sim::{FORECAST_SEEDS, Forecasting, Pilot, forecast};
 
 use crate::report::emit;
@@ -70,7 +70,7 @@ pub(crate) fn run(command: ControllerCommand) -> Result<ExitCode> {
     match command {
         ControllerCommand::Check { file, json } => {
             let module = load(&file)?;
-            module.start(Limits::TWIN).map_err(bad_input)?;
+            module.start(Budget::TWIN).map_err(bad_input)?;
             emit(&Checked::of(&file, &module), json)?;
             Ok(ExitCode::SUCCESS)
         }
@@ -190,7 +190,7 @@ fn forecast_module(args: ForecastArgs) -> Result<ExitCode> {
     let seeds: Vec<u64> = (1..=u64::from(args.seeds.clamp(1, 8))).collect();
     let robot = RobotModel::khepera_ii();
     let controllers = || -> Result<Box<dyn Controller>, ControllerFault> {
-        match module.start(Limits::TWIN) {
+        match module.start(Budget::TWIN) {
             Ok(instance) => Ok(Box::new(instance)),
             Err(vl_sandbox::LoadError::Start(fault)) => Err(fault),
             Err(e) => Err(ControllerFault::Trapped(e.to_string())),
@@ -266,7 +266,7 @@ impl Report for Bench {
             ),
             (
                 "fuel, most",
-                format!("{} of {} a step", self.fuel_most, Limits::LAB.fuel_per_step),
+                format!("{} of {} a step", self.fuel_most, Budget::LAB.fuel_per_step),
             ),
             (
                 "forecast",
@@ -290,7 +290,7 @@ fn bench(file: &std::path::Path, module: &Module, steps: u32) -> Result<Bench> {
     let arena = Arena::navigation();
     let robot = RobotModel::khepera_ii();
     let goal = arena.goal;
-    let mut instance = module.start(Limits::TWIN).map_err(bad_input)?;
+    let mut instance = module.start(Budget::TWIN).map_err(bad_input)?;
     // A robot circling the arena's middle: the observations vary.
     let seen = |i: u32| {
         let a = f64::from(i) * 0.01;
@@ -338,7 +338,7 @@ fn bench(file: &std::path::Path, module: &Module, steps: u32) -> Result<Bench> {
     peer.sort_by(f64::total_cmp);
     let controllers = || -> Result<Box<dyn Controller>, ControllerFault> {
         module
-            .start(Limits::TWIN)
+            .start(Budget::TWIN)
             .map(|i| Box::new(i) as Box<dyn Controller>)
             .map_err(|e| ControllerFault::Trapped(e.to_string()))
     };

@@ -132,11 +132,11 @@ fn addresses_that_cannot_be_a_host_get_a_hint() {
 fn an_unknown_experiment_is_refused_with_the_known_ones() {
     refused(
         &["demo", "--headless", "--experiment", "juggling"],
-        "invalid value 'juggling' for '--experiment <EXPERIMENT>'\n  [possible values: navigation, teleoperation, tour]",
+        "invalid value 'juggling' for '--experiment <EXPERIMENT>'\n  [possible values: navigation, teleoperation, tour, your-controller]",
     );
     let help = stdout(&vl(&["host", "--help"]));
     assert!(
-        help.contains("[possible values: navigation, teleoperation, tour]"),
+        help.contains("[possible values: navigation, teleoperation, tour, your-controller]"),
         "vl host --help names the experiments: {help}"
     );
 }

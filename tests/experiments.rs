@@ -63,7 +63,13 @@ fn the_tutorial_runs_as_written() {
                             start_vl_in(Some(&dir), &args, "vl host listening on ");
                         assert_eq!(
                             offered(&url),
-                            ["navigation", "teleoperation", "tour", "shuttle"],
+                            [
+                                "navigation",
+                                "teleoperation",
+                                "tour",
+                                "your-controller",
+                                "shuttle"
+                            ],
                             "the folder's beside the shipped"
                         );
                         host = Some((process, url));
@@ -132,7 +138,14 @@ fn a_host_serves_folders_beside_the_shipped_and_refuses_one_that_fails() {
     let (_host, url) = start_host(&["--camera", "none", "--experiments", s(&labs)]);
     assert_eq!(
         offered(&url),
-        ["navigation", "teleoperation", "tour", "ferry", "shuttle"]
+        [
+            "navigation",
+            "teleoperation",
+            "tour",
+            "your-controller",
+            "ferry",
+            "shuttle"
+        ]
     );
     // Ids named: only those, a folder's among them.
     let only = format!("{},shuttle,navigation", labs.display());
@@ -256,7 +269,7 @@ fn the_shipped_folders_pass_and_no_rust_names_the_waypoint_lab() {
         .unwrap()
         .map(|e| e.unwrap().path())
         .collect();
-    assert_eq!(shipped.len(), 3, "{shipped:?}");
+    assert_eq!(shipped.len(), 4, "{shipped:?}");
     let mut args = vec!["lab", "check", "--json"];
     args.extend(shipped.iter().map(|p| s(p)));
     let out = vl(&args);
@@ -311,7 +324,7 @@ fn experiment_run_takes_a_folder_s_experiment_and_the_waypoint_lab() {
     }
     common::refused(
         &["experiment", "run", "ferry"],
-        "unknown experiment 'ferry' (known: navigation, teleoperation, tour)",
+        "unknown experiment 'ferry' (known: navigation, teleoperation, tour, your-controller)",
     );
 }
 

@@ -13,6 +13,7 @@ mod camera_replay;
 mod cameras;
 mod class;
 mod cli;
+mod controllers;
 mod docs_drift;
 mod experiment_media;
 mod experiments;

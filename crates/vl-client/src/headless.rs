@@ -11,8 +11,8 @@ use serde::Serialize;
 use thiserror::Error;
 use vl_core::{
     ArenaPlanError, DefineKind, Definition, Drive, EndReason, ErrorCode, Experiment, ExperimentId,
-    Goal, GuestMessage, HeldBack, HostMessage, PathAnalysis, Point, Pose, PoseSource, Role,
-    Summary,
+    Goal, GuestMessage, HeldBack, HostMessage, ModuleHash, PathAnalysis, Point, Pose, PoseSource,
+    Role, Summary,
 };
 use vl_report::table::{Report as _, Table, yes};
 
@@ -49,8 +49,7 @@ pub struct Script {
     pub task: TaskChoice,
     /// The definition to run as it is (a task's), instead of planning one.
     pub definition: Option<Definition>,
-    /// The user's own controller (a WebAssembly module's file), for an
-    /// experiment whose run it drives.
+    /// The user's own controller (a WebAssembly module's file), if the run's.
     pub controller: Option<Vec<u8>>,
 }
 
@@ -187,29 +186,6 @@ pub async fn run_script(url: &str, script: &Script) -> Result<ScriptReport, Scri
     Ok(report)
 }
 
-/// Says on stderr that the Host does not answer or the link dropped,
-/// when progress is shown.
-fn tell(progress: bool, incoming: &Incoming) {
-    if !progress {
-        return;
-    }
-    match incoming {
-        Incoming::Reconnecting {
-            attempt,
-            reason,
-            wait,
-        } => eprintln!(
-            "link lost ({reason}): reconnecting in {:.2} s, attempt {attempt}",
-            wait.as_secs_f64()
-        ),
-        Incoming::Unreachable { attempt, wait, .. } => eprintln!(
-            "no Host answers yet: trying again in {:.2} s, attempt {attempt}",
-            wait.as_secs_f64()
-        ),
-        _ => {}
-    }
-}
-
 /// A Guest that waits for what it asked for.
 pub(crate) struct Scripted {
     pub(crate) connection: Connection,
@@ -259,7 +235,7 @@ impl Scripted {
                 }
                 Some(Incoming::Closed(reason)) => return Err(ScriptError::Closed { step, reason }),
                 Some(other) => {
-                    tell(self.progress, &other);
+                    other.tell(self.progress);
                     self.session.apply(other);
                 }
             }
@@ -471,11 +447,8 @@ async fn started(
 }
 
 /// Sends the controller's `file` and waits for the Host to take it: its hash.
-async fn sent_controller(
-    guest: &mut Scripted,
-    file: &[u8],
-) -> Result<vl_core::ModuleHash, ScriptError> {
-    let hash = vl_core::ModuleHash::of(file);
+async fn sent_controller(guest: &mut Scripted, file: &[u8]) -> Result<ModuleHash, ScriptError> {
+    let hash = ModuleHash::of(file);
     for part in crate::upload::controller_parts(file) {
         guest.connection.send(part);
     }
@@ -609,7 +582,7 @@ async fn drive_by_stick(
                 None => return Err(ScriptError::Closed { step: "drive", reason: "the connection task ended".into() }),
                 Some(Incoming::Closed(reason)) => return Err(ScriptError::Closed { step: "drive", reason }),
                 Some(other) => {
-                    tell(script.progress, &other);
+                    other.tell(script.progress);
                     guest.session.apply(other);
                 }
             },

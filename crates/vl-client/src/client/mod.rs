@@ -55,6 +55,36 @@ pub enum Incoming {
     Closed(String),
 }
 
+impl Incoming {
+    /// Says on stderr that the Host does not answer or the link dropped,
+    /// when `progress` is shown (a headless Guest's).
+    pub(crate) fn tell(&self, progress: bool) {
+        if let Some(trouble) = self.trouble().filter(|_| progress) {
+            eprintln!("{trouble}");
+        }
+    }
+
+    /// What a person is told of a link in trouble: the Host does not
+    /// answer yet, or the link dropped and is tried again.
+    pub fn trouble(&self) -> Option<String> {
+        match self {
+            Incoming::Reconnecting {
+                attempt,
+                reason,
+                wait,
+            } => Some(format!(
+                "link lost ({reason}): reconnecting in {:.2} s, attempt {attempt}",
+                wait.as_secs_f64()
+            )),
+            Incoming::Unreachable { attempt, wait, .. } => Some(format!(
+                "no Host answers yet: trying again in {:.2} s, attempt {attempt}",
+                wait.as_secs_f64()
+            )),
+            _ => None,
+        }
+    }
+}
+
 /// Why there is no connection to a Host.
 #[derive(Debug, Clone, Error, PartialEq, Eq)]
 pub enum ClientError {

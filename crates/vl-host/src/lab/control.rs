@@ -14,16 +14,16 @@ use tokio::sync::{mpsc as async_mpsc, watch};
 use tracing::{debug, info, warn};
 use vl_core::{
     CSpace, DeviceState, EndReason, Feedback, Fold, HeldBack, HostMessage, Leash, Localiser,
-    MapField, Observation, Pose, PoseSource, Priorities, RobotModel, STEP_PERIOD_S, Safety,
-    Situation, Surroundings, Teleop, Told, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
+    MapField, Pose, PoseSource, Priorities, RobotModel, Safety, Situation, Surroundings, Teleop,
+    Told, Uncertainty, Vector, WATCHDOG, WheelSpeeds, wrap_angle,
 };
 
 use super::camera::Sighting;
-use super::controller::{Beside, STALE, Stepped};
+use super::controller::{Beside, STALE};
 use super::run::Run;
 use super::{Finished, LabInfo, LabRequest, LabStatus, Retry, TICK};
 use crate::drivers::{Robot, RobotError, RobotReading, Witness};
-use vl_record::{Feed, Level, Recordable};
+use vl_record::{Feed, Recordable};
 
 /// The shortest time between two control periods: a command acted on at
 /// once still waits this long after the last period.
@@ -527,58 +527,16 @@ impl Control {
         }
     }
 
-    /// Offers the run's controller its observation when a step is due and
-    /// takes what it said: its command (within the definition's cap), its
-    /// log, or the fault (or its being done) that ends the run.
+    /// The run's controller, tended: see `Run::tend_controller`.
     fn tend_controller(&mut self, pose: Pose, reading: &RobotReading) -> Option<EndReason> {
         let uncertainty_mm = self.uncertain_mm();
-        let robot = &self.info.robot;
         let run = self.run.as_mut()?;
-        let beside = run.controller.as_mut()?;
-        let definition = &run.definition;
-        beside.offer(|| Observation {
-            t_s: run.started.elapsed().as_secs_f64(),
-            pose,
-            uncertainty_mm,
-            wheels: reading.wheels,
-            goal: definition.goal.map(|g| g.point()),
-            proximity: Observation::proximity_of(&reading.proximity),
-            period_s: STEP_PERIOD_S,
-            speed_limit_mm_s: definition.speed_limit_mm_s(robot),
-        });
-        for stepped in beside.said() {
-            match stepped {
-                Stepped::Answer {
-                    answer,
-                    logged,
-                    dropped,
-                } => {
-                    for line in logged {
-                        let line = format!("controller: {line}");
-                        self.record.send(Recordable::Log(Level::Info, line));
-                    }
-                    if dropped > 0 {
-                        let line = format!(
-                            "controller: {dropped} more lines not kept (at most {} a second)",
-                            vl_sandbox::LOG_LINES_PER_S
-                        );
-                        self.record.send(Recordable::Log(Level::Warning, line));
-                    }
-                    if answer.finished {
-                        return Some(EndReason::ControllerDone);
-                    }
-                    run.wheels = definition.capped(robot, answer.wheels);
-                    run.commanded = true;
-                    run.last_command = Instant::now();
-                }
-                Stepped::Fault(fault) => {
-                    warn!("{fault}: stopping the run");
-                    run.fault = Some(fault.to_string());
-                    return Some(EndReason::Fault);
-                }
-            }
-        }
-        None
+        run.tend_controller(
+            &self.info.robot,
+            (pose, uncertainty_mm),
+            reading,
+            &self.record,
+        )
     }
 
     /// The safety margin: the layer's own, widened by how far the robot

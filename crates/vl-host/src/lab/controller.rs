@@ -9,8 +9,15 @@ use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use vl_core::{Answer, Controller, ControllerFault, Observation, STEP_PERIOD_S};
-use vl_sandbox::{Limits, LoadError, Module};
+use tracing::warn;
+use vl_core::{
+    Answer, Controller, ControllerFault, EndReason, Observation, Pose, RobotModel, STEP_PERIOD_S,
+};
+use vl_record::{Feed, Level, Recordable};
+use vl_sandbox::{Budget, LoadError, Module};
+
+use super::run::Run;
+use crate::drivers::RobotReading;
 
 /// A controller's command is followed this long, then the robot stops
 /// until the next: three steps, so one late step costs nothing.
@@ -45,7 +52,7 @@ impl Beside {
         thread::Builder::new()
             .name("vl-controller".into())
             .spawn(move || {
-                let mut instance = match module.start(Limits::LAB) {
+                let mut instance = match module.start(Budget::LAB) {
                     Ok(instance) => instance,
                     Err(LoadError::Start(fault)) => {
                         let _ = said.send(Stepped::Fault(fault));
@@ -102,5 +109,65 @@ impl Beside {
     /// What the controller said since last asked.
     pub(super) fn said(&self) -> Vec<Stepped> {
         self.answers.try_iter().collect()
+    }
+}
+
+impl Run {
+    /// Offers the run's controller its observation when a step is due
+    /// (`at`: the estimate and how unsure it is) and takes what it said:
+    /// its command (within the definition's cap), its log (into the run's
+    /// record), or the fault (or its being done) that ends the run.
+    pub(super) fn tend_controller(
+        &mut self,
+        robot: &RobotModel,
+        at: (Pose, f64),
+        reading: &RobotReading,
+        record: &Feed,
+    ) -> Option<EndReason> {
+        let beside = self.controller.as_mut()?;
+        let definition = &self.definition;
+        let started = self.started;
+        beside.offer(|| Observation {
+            t_s: started.elapsed().as_secs_f64(),
+            pose: at.0,
+            uncertainty_mm: at.1,
+            wheels: reading.wheels,
+            goal: definition.goal.map(|g| g.point()),
+            proximity: Observation::proximity_of(&reading.proximity),
+            period_s: STEP_PERIOD_S,
+            speed_limit_mm_s: definition.speed_limit_mm_s(robot),
+        });
+        for stepped in beside.said() {
+            match stepped {
+                Stepped::Answer {
+                    answer,
+                    logged,
+                    dropped,
+                } => {
+                    for line in logged {
+                        record.send(Recordable::Log(Level::Info, format!("controller: {line}")));
+                    }
+                    if dropped > 0 {
+                        let line = format!(
+                            "controller: {dropped} more lines not kept (at most {} a second)",
+                            vl_sandbox::LOG_LINES_PER_S
+                        );
+                        record.send(Recordable::Log(Level::Warning, line));
+                    }
+                    if answer.finished {
+                        return Some(EndReason::ControllerDone);
+                    }
+                    self.wheels = self.definition.capped(robot, answer.wheels);
+                    self.commanded = true;
+                    self.last_command = Instant::now();
+                }
+                Stepped::Fault(fault) => {
+                    warn!("{fault}: stopping the run");
+                    self.fault = Some(fault.to_string());
+                    return Some(EndReason::Fault);
+                }
+            }
+        }
+        None
     }
 }

@@ -4,7 +4,6 @@
 //! its recording.
 
 use std::sync::Arc;
-use std::time::{Duration, Instant};
 
 use base64::Engine as _;
 use vl_core::{
@@ -14,9 +13,11 @@ use vl_sandbox::Module;
 
 use super::Hub;
 
-/// The least time between two whole modules checked: a check parses and
-/// validates up to 2 MiB.
-const CHECK_EVERY: Duration = Duration::from_secs(1);
+/// The bytes of modules the Host checks a second on average, and at once:
+/// a check parses and validates the whole file, so a flood of the largest
+/// would cost everyone; four of the largest go at once, then one a second.
+pub(super) const CHECKED_BYTES_PER_S: f64 = MAX_MODULE_BYTES as f64;
+pub(super) const CHECKED_BYTES_BURST: f64 = 4.0 * MAX_MODULE_BYTES as f64;
 
 /// A module that passed its checks, and its file as sent.
 #[derive(Clone)]
@@ -92,16 +93,16 @@ impl Hub {
         let Some(Upload { file, .. }) = self.upload.take() else {
             return;
         };
-        if let Some(last) = self.last_check
-            && last.elapsed() < CHECK_EVERY
-        {
+        let wait = self.checks.take(file.len() as f64);
+        if !wait.is_zero() {
+            self.checks.refund(file.len() as f64);
             let why = format!(
-                "one controller a second is checked: send it again in {:.1} s",
-                (CHECK_EVERY - last.elapsed()).as_secs_f64()
+                "the Host checks {} MiB of controllers a second: send it again in {:.1} s",
+                MAX_MODULE_BYTES >> 20,
+                wait.as_secs_f64()
             );
             return self.refuse(id, ErrorCode::NotAllowedNow, why);
         }
-        self.last_check = Some(Instant::now());
         match Module::load(&file) {
             Ok(module) => {
                 let taken = HostMessage::ControllerTaken {

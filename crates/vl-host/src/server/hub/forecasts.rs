@@ -90,7 +90,7 @@ impl ForecastJob {
                 .controller
                 .as_ref()
                 .expect("a pilot only with a controller");
-            match module.start(vl_sandbox::Limits::TWIN) {
+            match module.start(vl_sandbox::Budget::TWIN) {
                 Ok(instance) => Ok(Box::new(instance)),
                 Err(vl_sandbox::LoadError::Start(fault)) => Err(fault),
                 Err(other) => Err(vl_core::ControllerFault::Trapped(other.to_string())),

@@ -213,8 +213,8 @@ pub(crate) struct Hub {
     /// The operator's own controller, checked, and one arriving in parts.
     controller: Option<controllers::Taken>,
     upload: Option<controllers::Upload>,
-    /// When a controller was last checked.
-    last_check: Option<Instant>,
+    /// The bytes of controllers that may still be checked now.
+    checks: super::bucket::Bucket,
 }
 
 impl Hub {
@@ -271,7 +271,10 @@ impl Hub {
             events,
             controller: None,
             upload: None,
-            last_check: None,
+            checks: super::bucket::Bucket::new(
+                controllers::CHECKED_BYTES_PER_S,
+                controllers::CHECKED_BYTES_BURST,
+            ),
         }
     }
 
