@@ -1612,3 +1612,60 @@ fn the_robot_is_drawn_before_anything_is_mounted() {
         pixels_of(&image, robot)
     );
 }
+
+/// On the experiment a user's own controller drives, a module dropped on
+/// the window is sent; the Host takes it, Define names it with the goal,
+/// the twin tries it, and the run is the module's, to the goal.
+#[test]
+fn a_controller_dropped_on_the_window_drives_the_run() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let host = runtime
+        .block_on(Host::start_sim(
+            "127.0.0.1:0".parse().unwrap(),
+            SimLab::new(Arena::named("open").unwrap()),
+            HostConfig::default(),
+        ))
+        .unwrap();
+    let _entered = runtime.enter();
+    let mut harness = window(&host.url());
+    step_until(&mut harness, "be welcomed", |app| {
+        app.session().role.is_some()
+    });
+    harness.get_by_label("Run your own controller").click();
+    step_until(&mut harness, "mount", |app| app.session().lab.is_some());
+    let module = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples/controllers/go_to_goal.wat");
+    harness
+        .input_mut()
+        .dropped_files
+        .push(std::sync::Arc::new(Dropped(module)));
+    step_until(&mut harness, "the Host takes the controller", |app| {
+        app.session().controller.is_some()
+    });
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-controller.png"
+    ));
+    define_and_start(&mut harness);
+    step_until(&mut harness, "the run ends", |app| {
+        app.session().done.is_some()
+    });
+    let done = harness.state().session().done.clone().unwrap();
+    assert_eq!(done.reason, vl_core::EndReason::GoalReached, "{done:?}");
+    assert_eq!(done.collisions, 0, "{done:?}");
+}
+
+/// A file dropped on the window, as the windowing system hands it over.
+#[derive(Debug)]
+struct Dropped(std::path::PathBuf);
+
+impl egui::DroppedFile for Dropped {
+    fn path(&self) -> &std::path::Path {
+        &self.0
+    }
+
+    fn bytes(&self) -> Result<Vec<u8>, String> {
+        std::fs::read(&self.0).map_err(|e| e.to_string())
+    }
+}

@@ -6,6 +6,7 @@
 //! are the protocol's (checked against `docs/protocol.md` and the Host's
 //! types), and the Host judges them as any Guest's.
 
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 use futures_util::{SinkExt, StreamExt};
@@ -266,6 +267,75 @@ fn a_waypoint_run_is_defined_by_clicks_from_the_page() {
         summary["waypoints"],
         json!({"visited": 3, "of": 3}),
         "{summary}"
+    );
+    let errors = browser.errors();
+    assert!(errors.is_empty(), "the console had errors: {errors:#?}");
+}
+
+/// On an experiment the user's own controller drives, the page takes the
+/// module from a file picker, sends it in parts, and a click on the floor
+/// is its goal; the twin tries it, and the run is the module's.
+#[test]
+fn a_controller_is_sent_from_the_page_and_drives_to_the_clicked_goal() {
+    if !chromium::available() {
+        return;
+    }
+    let (_host, url) = start_host(&["--no-record", "--token", "lab-secret"]);
+    let mut browser = operating(&url, "your-controller", "define");
+    browser.expect(
+        "!document.getElementById('controller-hint').hidden && document.getElementById('goal-hint').hidden",
+        Duration::from_secs(5),
+    );
+    // The file as a user picks it: the shipped example in the text format.
+    let module = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/controllers/go_to_goal.wat"),
+    )
+    .unwrap();
+    browser.eval(&format!(
+        "const picked = new DataTransfer(); picked.items.add(new File([{}], 'go_to_goal.wat')); \
+         const input = document.getElementById('controller-file'); input.files = picked.files; \
+         input.dispatchEvent(new Event('change')); true",
+        json!(module)
+    ));
+    browser.expect(
+        "vl.controller && vl.controller.bytes > 1000",
+        Duration::from_secs(10),
+    );
+    let (x, y) = on_screen(
+        &mut browser,
+        Point {
+            x_mm: 200.0,
+            y_mm: 300.0,
+        },
+    );
+    browser.click_at(x, y);
+    browser.expect(
+        "vl.goal && !document.getElementById('define').disabled",
+        Duration::from_secs(5),
+    );
+    let dir = scratch("web-controller");
+    browser.screenshot(&dir.join("chosen.png"));
+    browser.click("#define");
+    browser.expect(
+        "vl.definition && vl.definition.controller === vl.controller.sha256 && vl.forecast && vl.state.enabled.includes('start')",
+        Duration::from_secs(30),
+    );
+    browser.click("#start");
+    browser.expect("vl.running", Duration::from_secs(10));
+    let words = browser.eval("document.getElementById('next').innerText");
+    assert_eq!(
+        words,
+        "Your controller drives: Stop ends the run, STOP halts it at once."
+    );
+    browser.expect("vl.summary", Duration::from_secs(60));
+    let summary = browser.eval("vl.summary");
+    assert_eq!(summary["reason"], "goal_reached", "{summary}");
+    assert_eq!(summary["collisions"], 0, "{summary}");
+    browser.screenshot(&dir.join("done.png"));
+    let sent = browser.eval("vl.sent");
+    assert!(
+        sent.as_array().unwrap().contains(&json!("controller")),
+        "{sent}"
     );
     let errors = browser.errors();
     assert!(errors.is_empty(), "the console had errors: {errors:#?}");

@@ -30,7 +30,7 @@ const ROLES = { operator: "driving", observer: "watching" };
 const vl = {
   socket: null, link: "connecting", role: null, session: null, resume: null,
   wanted: "observer", login: {}, user: null, lineAfterWelcome: false, experiments: [], lab: null, scene: null, state: null,
-  status: null, definition: null, forecast: null, planned: null, goal: null, waypoints: [],
+  status: null, definition: null, forecast: null, planned: null, goal: null, waypoints: [], controller: null,
   feedback: null, trail: [], running: false, lastEvent: 0, sentEvent: 0,
   lastCommandAt: 0, summary: null, error: null, rttMs: null,
   frame: null, frames: 0, image: null, keys: new Set(), stick: { v: 0, w: 0 },
@@ -159,6 +159,7 @@ function take(m) {
       break;
     case "mounted":
       vl.lab = m; vl.definition = null; vl.planned = null; vl.goal = null; vl.waypoints = [];
+      vl.controller = null; $("controller-file").value = "";
       vl.forecast = null; vl.trail = []; vl.summary = null;
       break;
     case "state": {
@@ -177,6 +178,7 @@ function take(m) {
       if (vl.waypoints.length && !(vl.goal && m.goal.x_mm === vl.goal.x_mm && m.goal.y_mm === vl.goal.y_mm)) break;
       vl.planned = m.path; vl.goal = m.goal; clearError(); break;
     case "defined": vl.definition = m; vl.planned = null; clearError(); break;
+    case "controller_taken": vl.controller = m; clearError(); break;
     case "forecast": vl.forecast = m; break;
     case "started":
       vl.running = true; vl.lastEvent = m.event; vl.sentEvent = m.event;
@@ -276,6 +278,8 @@ function stick() {
 // Sends the next command once the feedback of the last has come.
 function drive() {
   if (!vl.running || vl.role !== "operator") return;
+  // A run the user's controller drives, or one held still, takes none.
+  if (runs("controller") || runs("hold")) return;
   const following = vl.definition && vl.definition.path && vl.definition.path.length > 1;
   const s = stick();
   // A followed path needs no commands; a command takes over while they come.
@@ -422,11 +426,13 @@ function waypointBounds() {
 canvas.addEventListener("click", (e) => {
   const cam = camera();
   if (!cam || vl.role !== "operator" || !enabled("define")) return;
-  if (!runs("plan")) return;
+  if (!runs("plan") && !runs("controller")) return;
   const box = canvas.getBoundingClientRect();
   const c = (e.clientX - box.left) * (canvas.width / box.width);
   const r = (e.clientY - box.top) * (canvas.height / box.height);
   const p = VL.toArena(cam, c, r);
+  // The user's controller drives to the goal: nothing to plan.
+  if (!runs("plan")) { vl.goal = p; return render(); }
   const bounds = waypointBounds();
   if (!bounds) return planTo(p);
   if (vl.waypoints.length >= bounds.max) return;
@@ -539,13 +545,20 @@ function nextWords() {
   }
   if (!vl.lab) return "Next: mount an experiment below.";
   const navigation = runs("follow");
+  const controls = runs("controller");
   const bounds = waypointBounds();
   if (vl.running) {
+    if (controls) return "Your controller drives: Stop ends the run, STOP halts it at once.";
     return navigation ? "The robot follows the path: Stop ends the run, STOP halts it at once." :
       "Drive with the arrow keys or a gamepad: Stop ends the run, STOP halts it at once.";
   }
   if (vl.status && vl.status.lab === "getting_ready") return "Wait: the robot drives back to its start.";
-  const path = vl.definition && vl.definition.path && vl.definition.path.length > 1;
+  if (controls && !vl.definition) {
+    return !vl.controller ? "Next: choose your controller's file (below the view)." :
+      !vl.goal ? "Next: click the floor for its goal." : "Next: Define: the twin tries your controller first.";
+  }
+  const path = (vl.definition && vl.definition.path && vl.definition.path.length > 1) ||
+    (controls && vl.definition);
   if (navigation && !vl.definition && bounds && !vl.planned) {
     return `Next: click the floor for each point to visit, in order (${bounds.min} to ${bounds.max}).`;
   }
@@ -556,7 +569,8 @@ function nextWords() {
   if (!vl.definition) return "Next: Define the run (no path: you drive), then Start.";
   if (path && !vl.forecast) return "The lab's twin tries the definition first…";
   if (vl.forecast && vl.forecast.refusals && vl.forecast.refusals.length) {
-    return "Next: choose another goal: the twin refused this definition.";
+    return controls ? "Next: change your controller or its goal: the twin refused it (see why above)." :
+      "Next: choose another goal: the twin refused this definition.";
   }
   return enabled("start") ? "Next: Start the run." : "";
 }
@@ -631,7 +645,12 @@ function render() {
   text("waypoints-count", bounds ?
     `${vl.waypoints.length} of ${bounds.min} to ${bounds.max} points: click the floor for each, in order.` : "");
   $("plan").disabled = !enabled("define");
-  $("define").disabled = !(vl.planned && vl.goal && enabled("define"));
+  const controls = runs("controller");
+  show("controller-hint", operator && controls && !vl.running);
+  text("controller-taken", !vl.controller ? "none sent yet" :
+    `taken: ${vl.controller.bytes} bytes, SHA-256 ${vl.controller.sha256.slice(0, 12)}…` +
+    (vl.goal ? "" : "; now click the floor for its goal"));
+  $("define").disabled = !(controls ? vl.controller && vl.goal : vl.planned && vl.goal) || !enabled("define");
   $("start").disabled = !enabled("start") || (vl.status && vl.status.lab === "getting_ready");
   $("stop").disabled = !enabled("stop");
   show("keys", operator && runs("teleoperate"));
@@ -658,7 +677,9 @@ $("look").onclick = () => { vl.login = login(); rejoin("observer"); };
 $("line").onclick = () => send(vl.queue ? VL.guest.leave_queue() : VL.guest.queue());
 $("watch").onclick = () => rejoin("observer");
 $("define").onclick = () => {
-  if (vl.planned && vl.goal) {
+  if (runs("controller") && vl.controller && vl.goal) {
+    send(VL.guest.define(vl.goal, [], [], vl.controller.sha256));
+  } else if (vl.planned && vl.goal) {
     send(VL.guest.define(vl.goal, vl.planned, waypointBounds() ? vl.waypoints : []));
   }
 };
@@ -672,6 +693,20 @@ $("estop").onclick = () => {
     "STOP was not sent: the page has no link to the Host now (connecting again). " +
       "The Host holds the robot still while its operator's link is down.";
   vl.error = { code: "not_sent", at: performance.now(), message };
+  render();
+};
+// The user's controller: its file, read here and sent in parts.
+$("controller-file").onchange = async () => {
+  const file = $("controller-file").files[0];
+  if (!file) return;
+  vl.controller = null;
+  if (file.size > 2 * 1024 * 1024) {
+    vl.error = { code: "too_large", at: performance.now(),
+      message: `${file.name} is ${file.size} bytes: a controller may have at most 2 MiB` };
+    return render();
+  }
+  const bytes = new Uint8Array(await file.arrayBuffer());
+  for (const part of VL.guest.controller(bytes)) send(part);
   render();
 };
 $("clear-points").onclick = () => {

@@ -30,14 +30,32 @@ const VL = (() => {
       if (through && through.length) m.through = through.map(point);
       return m;
     },
-    define: (goal, path, waypoints) => {
+    // `controller`: the SHA-256 of the user's own controller, taken by
+    // the Host, for an experiment whose run it drives.
+    define: (goal, path, waypoints, controller) => {
       const m = {
         type: "define",
         goal: { x_mm: goal.x_mm, y_mm: goal.y_mm, tolerance_mm: 15.0 },
         path: path.map(point),
       };
       if (waypoints && waypoints.length) m.waypoints = waypoints.map(point);
+      if (controller) m.controller = controller;
       return m;
+    },
+    // The user's own controller, a file's bytes (a Uint8Array), in parts
+    // of 512 KiB, each within a message.
+    controller: (bytes) => {
+      const PART = 512 * 1024;
+      const parts = [];
+      for (let offset = 0; offset < bytes.length; offset += PART) {
+        const part = bytes.subarray(offset, offset + PART);
+        let binary = "";
+        for (let i = 0; i < part.length; i += 0x8000) {
+          binary += String.fromCharCode.apply(null, part.subarray(i, i + 0x8000));
+        }
+        parts.push({ type: "controller", offset, total: bytes.length, data: btoa(binary) });
+      }
+      return parts;
     },
     start: () => ({ type: "start" }),
     stop: () => ({ type: "stop" }),
@@ -66,6 +84,8 @@ const VL = (() => {
       guest.plan(goal, [{ x_mm: 300.0, y_mm: 200.0 }]),
       guest.define(goal, [{ x_mm: 100.0, y_mm: 120.0 }, goal]),
       guest.define(goal, [{ x_mm: 100.0, y_mm: 120.0 }, goal], [{ x_mm: 300.0, y_mm: 200.0 }, goal]),
+      guest.define(goal, [], [], "ab".repeat(32)),
+      ...guest.controller(new TextEncoder().encode("(module)")),
       guest.start(),
       guest.stop(),
       guest.emergency_stop(),

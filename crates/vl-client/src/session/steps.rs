@@ -47,8 +47,11 @@ impl Session {
             return Some("Next: mount an experiment.");
         }
         let navigation = self.mounted().is_some_and(Experiment::follows);
+        let controls = self.mounted().is_some_and(Experiment::runs_a_controller);
         if self.running {
-            return Some(if navigation {
+            return Some(if controls {
+                "Your controller drives: Stop ends the run, STOP halts the robot at once."
+            } else if navigation {
                 "Running: Stop ends the run, STOP halts the robot at once."
             } else {
                 "Drive with the stick or the arrow keys: Stop ends the run, STOP halts it at once."
@@ -62,7 +65,11 @@ impl Session {
             .and_then(Experiment::waypoint_bounds)
             .is_some();
         let Some(definition) = &self.definition else {
-            return Some(if visits {
+            return Some(if controls && self.controller.is_none() {
+                "Next: send your controller (drop its file on the window)."
+            } else if controls {
+                "Next: click the view for its goal, then Define."
+            } else if visits {
                 "Next: click the view for each point to visit, in order, then Define."
             } else if navigation {
                 "Next: click the view for a goal, then Define."
@@ -71,7 +78,12 @@ impl Session {
             });
         };
         match &self.forecast {
-            None if definition.path.len() > 1 => Some("The lab's twin tries the definition first…"),
+            None if definition.path.len() > 1 || controls => {
+                Some("The lab's twin tries the definition first…")
+            }
+            Some(f) if !f.passed() && controls => {
+                Some("Next: change your controller or its goal: the twin refused it.")
+            }
             Some(f) if !f.passed() => {
                 Some("Next: another goal or path: the twin refused this one.")
             }

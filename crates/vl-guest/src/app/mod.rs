@@ -23,6 +23,7 @@ use vl_client::Settings;
 use vl_client::{ClientError, Connection, Incoming, open};
 use vl_client::{LinkState, Session};
 
+mod controller;
 mod panels;
 mod preview;
 mod recordings;
@@ -132,6 +133,10 @@ pub struct GuestApp {
     downloads: Option<PathBuf>,
     download: Option<vl_client::Downloading>,
     recordings_note: Option<String>,
+    /// The user's controller's file, as typed or dropped, and what
+    /// sending it did.
+    controller_path: String,
+    controller_note: Option<String>,
 }
 
 impl GuestApp {
@@ -182,6 +187,8 @@ impl GuestApp {
             downloads: None,
             download: None,
             recordings_note: None,
+            controller_path: String::new(),
+            controller_note: None,
         }
     }
 
@@ -262,6 +269,7 @@ impl GuestApp {
     pub fn show(&mut self, ui: &mut egui::Ui) {
         self.pump();
         let ctx = ui.ctx().clone();
+        self.take_dropped(&ctx);
         self.drive(&ctx);
         if let Some(replay) = &mut self.replay {
             // A replay chosen in a lab's window goes back to the lab after.

@@ -246,6 +246,9 @@ impl GuestApp {
     fn define_panel(&mut self, ui: &mut egui::Ui, experiment: &Experiment) {
         ui.heading("Define");
         ui.label(&experiment.help);
+        if experiment.runs_a_controller() {
+            self.controller_row(ui);
+        }
         if let Some((min, max)) = self.waypoint_bounds() {
             ui.horizontal(|ui| {
                 ui.label(format!(
@@ -360,6 +363,12 @@ impl GuestApp {
     /// both. A run that follows needs the path; one driven by stick,
     /// without one, has the goal alone as a target to drive to by hand.
     fn define(&mut self) {
+        if self.runs_a_controller() {
+            if let Some(definition) = self.controller_definition() {
+                self.connection.send(GuestMessage::Define { definition });
+            }
+            return;
+        }
         let Some(lab) = &self.session.lab else { return };
         let start = self
             .session

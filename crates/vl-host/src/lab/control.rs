@@ -19,7 +19,7 @@ use vl_core::{
 };
 
 use super::camera::Sighting;
-use super::controller::{Beside, STALE};
+use super::controller::{self, Beside, STALE, Said};
 use super::run::Run;
 use super::{Finished, LabInfo, LabRequest, LabStatus, Retry, TICK};
 use crate::drivers::{Robot, RobotError, RobotReading, Witness};
@@ -527,16 +527,31 @@ impl Control {
         }
     }
 
-    /// The run's controller, tended: see `Run::tend_controller`.
+    /// Offers the run's controller its observation when a step is due and
+    /// takes what it said: its command (within the definition's cap), or
+    /// the fault (or its being done) that ends the run.
     fn tend_controller(&mut self, pose: Pose, reading: &RobotReading) -> Option<EndReason> {
-        let uncertainty_mm = self.uncertain_mm();
+        let at = (pose, self.uncertain_mm());
+        let robot = &self.info.robot;
         let run = self.run.as_mut()?;
-        run.tend_controller(
-            &self.info.robot,
-            (pose, uncertainty_mm),
-            reading,
-            &self.record,
-        )
+        let beside = run.controller.as_mut()?;
+        let (started, definition) = (run.started, &run.definition);
+        beside.offer(|| controller::observation(started, definition, robot, at, reading));
+        match beside.said(&self.record) {
+            Said::Nothing => None,
+            Said::Wheels(asked) => {
+                run.wheels = run.definition.capped(robot, asked);
+                run.commanded = true;
+                run.last_command = Instant::now();
+                None
+            }
+            Said::Done => Some(EndReason::ControllerDone),
+            Said::Fault(fault) => {
+                warn!("{fault}: stopping the run");
+                run.fault = Some(fault.to_string());
+                Some(EndReason::Fault)
+            }
+        }
     }
 
     /// The safety margin: the layer's own, widened by how far the robot

@@ -9,14 +9,13 @@ use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use tracing::warn;
 use vl_core::{
-    Answer, Controller, ControllerFault, EndReason, Observation, Pose, RobotModel, STEP_PERIOD_S,
+    Answer, Controller, ControllerFault, Definition, Observation, Pose, RobotModel, STEP_PERIOD_S,
+    WheelSpeeds,
 };
 use vl_record::{Feed, Level, Recordable};
 use vl_sandbox::{Budget, LoadError, Module};
 
-use super::run::Run;
 use crate::drivers::RobotReading;
 
 /// A controller's command is followed this long, then the robot stops
@@ -24,7 +23,7 @@ use crate::drivers::RobotReading;
 pub(super) const STALE: Duration = Duration::from_millis(60);
 
 /// What the controller's thread says after a step.
-pub(super) enum Stepped {
+enum Stepped {
     Answer {
         answer: Answer,
         /// The lines it logged (within its rate), and how many more it tried to.
@@ -106,38 +105,11 @@ impl Beside {
         }
     }
 
-    /// What the controller said since last asked.
-    pub(super) fn said(&self) -> Vec<Stepped> {
-        self.answers.try_iter().collect()
-    }
-}
-
-impl Run {
-    /// Offers the run's controller its observation when a step is due
-    /// (`at`: the estimate and how unsure it is) and takes what it said:
-    /// its command (within the definition's cap), its log (into the run's
-    /// record), or the fault (or its being done) that ends the run.
-    pub(super) fn tend_controller(
-        &mut self,
-        robot: &RobotModel,
-        at: (Pose, f64),
-        reading: &RobotReading,
-        record: &Feed,
-    ) -> Option<EndReason> {
-        let beside = self.controller.as_mut()?;
-        let definition = &self.definition;
-        let started = self.started;
-        beside.offer(|| Observation {
-            t_s: started.elapsed().as_secs_f64(),
-            pose: at.0,
-            uncertainty_mm: at.1,
-            wheels: reading.wheels,
-            goal: definition.goal.map(|g| g.point()),
-            proximity: Observation::proximity_of(&reading.proximity),
-            period_s: STEP_PERIOD_S,
-            speed_limit_mm_s: definition.speed_limit_mm_s(robot),
-        });
-        for stepped in beside.said() {
+    /// What the controller said since last asked, its log lines into the
+    /// run's `record`: its newest command, that it is done, or its fault.
+    pub(super) fn said(&self, record: &Feed) -> Said {
+        let mut said = Said::Nothing;
+        for stepped in self.answers.try_iter() {
             match stepped {
                 Stepped::Answer {
                     answer,
@@ -155,19 +127,44 @@ impl Run {
                         record.send(Recordable::Log(Level::Warning, line));
                     }
                     if answer.finished {
-                        return Some(EndReason::ControllerDone);
+                        return Said::Done;
                     }
-                    self.wheels = self.definition.capped(robot, answer.wheels);
-                    self.commanded = true;
-                    self.last_command = Instant::now();
+                    said = Said::Wheels(answer.wheels);
                 }
-                Stepped::Fault(fault) => {
-                    warn!("{fault}: stopping the run");
-                    self.fault = Some(fault.to_string());
-                    return Some(EndReason::Fault);
-                }
+                Stepped::Fault(fault) => return Said::Fault(fault),
             }
         }
-        None
+        said
+    }
+}
+
+/// What a controller's answers since last asked come to.
+pub(super) enum Said {
+    Nothing,
+    /// Its newest command, as it asked (the lab's limits still to apply).
+    Wheels(WheelSpeeds),
+    /// `vl_step` returned 1: the run ends.
+    Done,
+    Fault(ControllerFault),
+}
+
+/// What a controller is told: the run's time, the estimate `at` (and how
+/// unsure it is), the robot's `reading`, the definition's goal and limit.
+pub(super) fn observation(
+    started: Instant,
+    definition: &Definition,
+    robot: &RobotModel,
+    at: (Pose, f64),
+    reading: &RobotReading,
+) -> Observation {
+    Observation {
+        t_s: started.elapsed().as_secs_f64(),
+        pose: at.0,
+        uncertainty_mm: at.1,
+        wheels: reading.wheels,
+        goal: definition.goal.map(|g| g.point()),
+        proximity: Observation::proximity_of(&reading.proximity),
+        period_s: STEP_PERIOD_S,
+        speed_limit_mm_s: definition.speed_limit_mm_s(robot),
     }
 }
