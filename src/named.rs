@@ -7,11 +7,14 @@ use std::marker::PhantomData;
 
 use clap::builder::{PossibleValue, TypedValueParser};
 
+#[cfg(feature = "host")]
 use std::path::{Path, PathBuf};
 
+#[cfg(feature = "host")]
 use anyhow::Result;
 use vl_core::{ExperimentId, Experiments, Named};
 
+#[cfg(feature = "host")]
 use crate::BadInput;
 
 /// Parses a [`Named`] value by its id, listing the ids in `--help` and in
@@ -49,6 +52,7 @@ impl<T: Named + Send + Sync + Clone> TypedValueParser for NamedParser<T> {
 /// Host may offer from a folder (`AnyId`).
 #[derive(Clone, Copy)]
 pub(crate) enum ExperimentParser {
+    #[cfg(all(feature = "guest", feature = "host"))]
     Shipped,
     AnyId,
 }
@@ -121,6 +125,7 @@ fn unknown(
 
 /// An experiment `--experiments` names: a shipped one (or a folder's) by
 /// id, or a folder.
+#[cfg(feature = "host")]
 #[derive(Debug, Clone)]
 pub(crate) enum ExperimentChoice {
     Id(ExperimentId),
@@ -130,9 +135,11 @@ pub(crate) enum ExperimentChoice {
 /// Parses a choice: a folder when it looks like a path or is a directory
 /// here, else an id (a shipped one, or a folder's); the shipped ones are
 /// listed in `--help`.
+#[cfg(feature = "host")]
 #[derive(Clone, Copy)]
 pub(crate) struct ExperimentChoiceParser;
 
+#[cfg(feature = "host")]
 impl TypedValueParser for ExperimentChoiceParser {
     type Value = ExperimentChoice;
 
@@ -159,6 +166,7 @@ impl TypedValueParser for ExperimentChoiceParser {
 
 /// What `--experiments` offers: the shipped experiments and its folders',
 /// each verified, then only the ids it names if it names any.
+#[cfg(feature = "host")]
 pub(crate) fn offered(choices: &[ExperimentChoice]) -> Result<Experiments> {
     let (mut ids, mut folders) = (Vec::new(), Vec::new());
     for choice in choices {
