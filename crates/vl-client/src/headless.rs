@@ -76,8 +76,7 @@ impl Default for Script {
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ScriptReport {
     /// Whether the run ended as its experiment counts success: at its goal
-    /// (or every waypoint) for one that ends there, else by its time limit
-    /// or a stop.
+    /// (or every waypoint) for one that ends there, else by time or a stop.
     pub succeeded: bool,
     pub reached_goal: bool,
     pub reason: EndReason,
@@ -362,7 +361,9 @@ async fn started(
     guest.connection.send(GuestMessage::Mount {
         experiment: asked.to_string(),
     });
-    guest.until("mount", ignore, |s| s.lab.is_some()).await?;
+    // The last operator's experiment may still be mounted: wait for ours.
+    let ours = |s: &Session| s.lab.as_ref().is_some_and(|l| l.experiment == asked);
+    guest.until("mount", ignore, ours).await?;
     let lab = guest.session.lab.clone().expect("mounted");
     let experiment = guest
         .session
