@@ -579,8 +579,10 @@ mod tests {
             assert_eq!(wire["type"], message.kind());
             assert!(GuestMessage::TYPES.contains(&message.kind()));
         }
-        assert_eq!(GuestMessage::TYPES.len(), 18);
-        assert!(HostMessage::TYPES.contains(&"feedback") && HostMessage::TYPES.len() == 17);
+        assert_eq!(GuestMessage::TYPES.len(), 19);
+        assert!(HostMessage::TYPES.contains(&"feedback") && HostMessage::TYPES.len() == 18);
+        assert!(GuestMessage::TYPES.contains(&"controller"));
+        assert!(HostMessage::TYPES.contains(&"controller_taken"));
         assert!(GuestMessage::TYPES.contains(&"plan") && HostMessage::TYPES.contains(&"planned"));
         assert!(GuestMessage::TYPES.contains(&"download") && HostMessage::TYPES.contains(&"done"));
         assert!(GuestMessage::TYPES.contains(&"leave_queue"));
