@@ -281,12 +281,13 @@ async fn the_socket_holds_a_controller_to_its_bounds() {
     refused(&mut operator, no_such, "not the one sent").await;
 
     // Go to the goal on the twin (its estimate is certain there), trap on
-    // the robot (where it never is).
+    // the robot (where it never is) a second into the run: long enough for
+    // a stick's command to be refused while it runs.
     let text = std::fs::read_to_string(example("go_to_goal.wat"))
         .unwrap()
         .replace(
             "    (f64.store (i32.const 256) (f64.const 0))\n    (f64.store (i32.const 264) (f64.const 0))\n",
-            "    (if (f64.gt (f64.load (i32.const 32)) (f64.const 0)) (then unreachable))\n    (f64.store (i32.const 256) (f64.const 0))\n    (f64.store (i32.const 264) (f64.const 0))\n",
+            "    (if (i32.and (f64.gt (f64.load (i32.const 32)) (f64.const 0)) (f64.gt (f64.load (i32.const 0)) (f64.const 1))) (then unreachable))\n    (f64.store (i32.const 256) (f64.const 0))\n    (f64.store (i32.const 264) (f64.const 0))\n",
         );
     assert!(text.contains("then unreachable"));
     operator

@@ -322,10 +322,9 @@ fn a_controller_is_sent_from_the_page_and_drives_to_the_clicked_goal() {
     );
     browser.click("#start");
     browser.expect("vl.running", Duration::from_secs(10));
-    let words = browser.eval("document.getElementById('next').innerText");
-    assert_eq!(
-        words,
-        "Your controller drives: Stop ends the run, STOP halts it at once."
+    browser.expect(
+        "document.getElementById('next').innerText === 'Your controller drives: Stop ends the run, STOP halts it at once.'",
+        Duration::from_secs(2),
     );
     browser.expect("vl.summary", Duration::from_secs(60));
     let summary = browser.eval("vl.summary");
