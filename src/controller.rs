@@ -10,11 +10,11 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use serde::Serialize;
 use vl_core::{
-    Arena, Controller, ControllerFault, Definition, ForecastLimits, ForecastVerdict, Goal,
-    Observation, Point, Pose, RobotModel, STEP_PERIOD_S, WheelSpeeds,
+    Arena, Controller, Definition, ForecastLimits, ForecastVerdict, Goal, Observation, Point, Pose,
+    RobotModel, STEP_PERIOD_S, WheelSpeeds,
 };
 use vl_report::table::{Report, Table};
-use vl_sandbox::{Budget, MAX_MODULE_BYTES, Module};
+use vl_sandbox::{Budget, Module};
 use vl_sim::{FORECAST_SEEDS, Forecasting, Pilot, forecast};
 
 use crate::report::emit;
@@ -85,22 +85,7 @@ pub(crate) fn run(command: ControllerCommand) -> Result<ExitCode> {
 
 /// Reads and checks a module, its faults the user's to fix.
 fn load(file: &std::path::Path) -> Result<Module> {
-    let size = std::fs::metadata(file)
-        .with_context(|| format!("reading {}", file.display()))?
-        .len();
-    // Refused before it is read: a huge file costs nothing.
-    if size > MAX_MODULE_BYTES as u64 {
-        return Err(BadInput(format!(
-            "{}: {}",
-            file.display(),
-            vl_sandbox::LoadError::TooLarge {
-                got: size as usize,
-                max: MAX_MODULE_BYTES
-            }
-        ))
-        .into());
-    }
-    let bytes = std::fs::read(file).with_context(|| format!("reading {}", file.display()))?;
+    let bytes = vl_client::read_controller(file).map_err(bad_input)?;
     Module::load(&bytes).map_err(|e| BadInput(format!("{}: {e}", file.display())).into())
 }
 
@@ -189,13 +174,7 @@ fn forecast_module(args: ForecastArgs) -> Result<ExitCode> {
     };
     let seeds: Vec<u64> = (1..=u64::from(args.seeds.clamp(1, 8))).collect();
     let robot = RobotModel::khepera_ii();
-    let controllers = || -> Result<Box<dyn Controller>, ControllerFault> {
-        match module.start(Budget::TWIN) {
-            Ok(instance) => Ok(Box::new(instance)),
-            Err(vl_sandbox::LoadError::Start(fault)) => Err(fault),
-            Err(e) => Err(ControllerFault::Trapped(e.to_string())),
-        }
-    };
+    let controllers = module.controllers(Budget::TWIN);
     let began = Instant::now();
     let foreseen = forecast(Forecasting {
         arena: &arena,
@@ -336,12 +315,7 @@ fn bench(file: &std::path::Path, module: &Module, steps: u32) -> Result<Bench> {
         peer.push(began.elapsed().as_secs_f64() * 1e6);
     }
     peer.sort_by(f64::total_cmp);
-    let controllers = || -> Result<Box<dyn Controller>, ControllerFault> {
-        module
-            .start(Budget::TWIN)
-            .map(|i| Box::new(i) as Box<dyn Controller>)
-            .map_err(|e| ControllerFault::Trapped(e.to_string()))
-    };
+    let controllers = module.controllers(Budget::TWIN);
     let definition = Definition {
         goal: goal.map(Goal::at),
         time_limit_s: Some(vl_sim::CONTROLLER_S),

@@ -226,7 +226,9 @@ fn script(
     progress: bool,
 ) -> Result<Script> {
     let controller = match &run.controller {
-        Some(file) => Some(read_controller(file)?),
+        Some(file) => Some(
+            vl_client::read_controller(file).map_err(|e| BadInput(format!("--controller {e}")))?,
+        ),
         None => None,
     };
     Ok(Script {
@@ -244,21 +246,6 @@ fn script(
         controller,
         ..Script::default()
     })
-}
-
-/// A controller's file, refused before it is read when it is too large.
-fn read_controller(file: &std::path::Path) -> Result<Vec<u8>> {
-    let named = |e: std::io::Error| BadInput(format!("--controller {}: {e}", file.display()));
-    let size = std::fs::metadata(file).map_err(named)?.len();
-    if size > vl_core::MAX_MODULE_BYTES as u64 {
-        return Err(BadInput(format!(
-            "--controller {}: {size} bytes; a controller may have at most {} (2 MiB)",
-            file.display(),
-            vl_core::MAX_MODULE_BYTES
-        ))
-        .into());
-    }
-    Ok(std::fs::read(file).map_err(named)?)
 }
 
 /// Prints the run's report; success is the experiment's: the robot at its

@@ -65,21 +65,8 @@ fn forecast(file: &Path, args: &[&str]) -> (Option<i32>, Value) {
 /// A headless operator's run of `file` on the lab at `url`: its exit code
 /// and what it said on stderr.
 fn refused_run(url: &str, file: &Path, goal: &str) -> (Option<i32>, String) {
-    let out = vl(&[
-        "guest",
-        "--connect",
-        url,
-        "--headless",
-        "--json",
-        "--timeout",
-        "60",
-        "--experiment",
-        "your-controller",
-        "--goal",
-        goal,
-        "--controller",
-        s(file),
-    ]);
+    let extra = ["--experiment", "your-controller", "--goal", goal];
+    let out = common::headless(url, 60, &[&extra[..], &["--controller", s(file)]].concat());
     (out.status.code(), common::stderr(&out))
 }
 

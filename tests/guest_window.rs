@@ -114,14 +114,20 @@ fn with_mounting_window(camera: bool, test: impl FnOnce(&mut Harness<'_, GuestAp
 /// (with or without its camera), with the experiment titled `experiment`
 /// being mounted.
 fn with_window_on(camera: bool, experiment: &str, test: impl FnOnce(&mut Harness<'_, GuestApp>)) {
+    let lab = SimLab {
+        camera: camera.then(SimCamera::default),
+        ..SimLab::new(Arena::navigation())
+    };
+    with_window_in(lab, experiment, test);
+}
+
+/// The same on the simulated `lab`.
+fn with_window_in(lab: SimLab, experiment: &str, test: impl FnOnce(&mut Harness<'_, GuestApp>)) {
     let runtime = tokio::runtime::Runtime::new().unwrap();
     let host = runtime
         .block_on(Host::start_sim(
             "127.0.0.1:0".parse().unwrap(),
-            SimLab {
-                camera: camera.then(SimCamera::default),
-                ..SimLab::new(Arena::navigation())
-            },
+            lab,
             HostConfig::default(),
         ))
         .unwrap();
@@ -1618,28 +1624,19 @@ fn the_robot_is_drawn_before_anything_is_mounted() {
 /// the twin tries it, and the run is the module's, to the goal.
 #[test]
 fn a_controller_dropped_on_the_window_drives_the_run() {
-    let runtime = tokio::runtime::Runtime::new().unwrap();
-    let host = runtime
-        .block_on(Host::start_sim(
-            "127.0.0.1:0".parse().unwrap(),
-            SimLab::new(Arena::named("open").unwrap()),
-            HostConfig::default(),
-        ))
-        .unwrap();
-    let _entered = runtime.enter();
-    let mut harness = window(&host.url());
-    step_until(&mut harness, "be welcomed", |app| {
-        app.session().role.is_some()
-    });
-    harness.get_by_label("Run your own controller").click();
-    step_until(&mut harness, "mount", |app| app.session().lab.is_some());
+    let lab = SimLab::new(Arena::named("open").unwrap());
+    with_window_in(lab, "Run your own controller", dropped_controller);
+}
+
+fn dropped_controller(harness: &mut Harness<'_, GuestApp>) {
+    step_until(harness, "mount", |app| app.session().lab.is_some());
     let module = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("examples/controllers/go_to_goal.wat");
     harness
         .input_mut()
         .dropped_files
         .push(std::sync::Arc::new(Dropped(module)));
-    step_until(&mut harness, "the Host takes the controller", |app| {
+    step_until(harness, "the Host takes the controller", |app| {
         app.session().controller.is_some()
     });
     let image = harness.render().expect("the window renders");
@@ -1647,10 +1644,8 @@ fn a_controller_dropped_on_the_window_drives_the_run() {
         env!("CARGO_TARGET_TMPDIR"),
         "/guest-window-controller.png"
     ));
-    define_and_start(&mut harness);
-    step_until(&mut harness, "the run ends", |app| {
-        app.session().done.is_some()
-    });
+    define_and_start(harness);
+    step_until(harness, "the run ends", |app| app.session().done.is_some());
     let done = harness.state().session().done.clone().unwrap();
     assert_eq!(done.reason, vl_core::EndReason::GoalReached, "{done:?}");
     assert_eq!(done.collisions, 0, "{done:?}");

@@ -60,28 +60,30 @@ pub(crate) fn vl_json(args: &[&str]) -> serde_json::Value {
 /// A headless operator's whole run on `url` (given up after `timeout_s`)
 /// as its JSON report, whether or not it reached the goal.
 pub(crate) fn headless_run(url: &str, timeout_s: u32, extra: &[&str]) -> serde_json::Value {
-    let timeout = timeout_s.to_string();
-    let args = [
-        &[
-            "guest",
-            "--connect",
-            url,
-            "--headless",
-            "--json",
-            "--timeout",
-            &timeout,
-        ],
-        extra,
-    ]
-    .concat();
-    let out = vl(&args);
+    let out = headless(url, timeout_s, extra);
     serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
         panic!(
-            "vl {args:?} printed no report ({e}): {}{}",
+            "vl guest --headless {extra:?} printed no report ({e}): {}{}",
             stdout(&out),
             stderr(&out)
         )
     })
+}
+
+/// `vl guest --headless --json` on `url` (given up after `timeout_s`)
+/// with `extra` arguments, as it ended.
+pub(crate) fn headless(url: &str, timeout_s: u32, extra: &[&str]) -> Output {
+    let timeout = timeout_s.to_string();
+    let args = [
+        "guest",
+        "--connect",
+        url,
+        "--headless",
+        "--json",
+        "--timeout",
+        &timeout,
+    ];
+    vl(&[&args, extra].concat())
 }
 
 /// Runs `vl ARGS…`, which must refuse with exit code 2 and say `needle`.

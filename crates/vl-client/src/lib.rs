@@ -71,5 +71,5 @@ pub use session::{
 pub use settings::{MARGIN_MM, MAX_SPEED_MM_S, Settings, SettingsError};
 pub use status::{StatusError, host_status};
 pub use tasks::{Task, TaskChoice, TaskError, TaskName, Tasks};
-pub use upload::controller_parts;
+pub use upload::{ControllerFileError, controller_parts, read_controller};
 pub use watch::{Watched, watch};

@@ -1,8 +1,37 @@
-//! The user's own controller sent to the Host: its file in parts, each
-//! well within a message's size, in order.
+//! The user's own controller sent to the Host: its file read (refused
+//! unread when too large), then sent in parts, each well within a
+//! message's size, in order.
+
+use std::path::Path;
 
 use base64::Engine as _;
-use vl_core::GuestMessage;
+use vl_core::{GuestMessage, MAX_MODULE_BYTES};
+
+/// Why a controller's file was not read.
+#[derive(Debug, thiserror::Error)]
+pub enum ControllerFileError {
+    #[error("{path}: {size} bytes; a controller may have at most {MAX_MODULE_BYTES} (2 MiB)")]
+    TooLarge { path: String, size: u64 },
+    #[error("{path}: {why}")]
+    Unreadable { path: String, why: std::io::Error },
+}
+
+/// A controller's file, refused before it is read when it is larger than
+/// a controller may be: a huge file costs nothing.
+pub fn read_controller(path: &Path) -> Result<Vec<u8>, ControllerFileError> {
+    let unreadable = |why| ControllerFileError::Unreadable {
+        path: path.display().to_string(),
+        why,
+    };
+    let size = std::fs::metadata(path).map_err(unreadable)?.len();
+    if size > MAX_MODULE_BYTES as u64 {
+        return Err(ControllerFileError::TooLarge {
+            path: path.display().to_string(),
+            size,
+        });
+    }
+    std::fs::read(path).map_err(unreadable)
+}
 
 /// The file's bytes a part carries: 512 KiB, some 700 KB of base64.
 const PART_BYTES: usize = 512 << 10;

@@ -6,10 +6,9 @@
 //! different thing: see `design`.)
 
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 use thiserror::Error;
 
-use crate::{Point, Pose, SyntaxError, WheelSpeeds};
+use crate::{Fingerprint, Point, Pose, SyntaxError, WheelSpeeds};
 
 /// The interface version a module says it speaks (`vl_abi`).
 pub const ABI_VERSION: i32 = 1;
@@ -32,16 +31,17 @@ pub const MAX_MODULE_BYTES: usize = 2 << 20;
 #[schemars(with = "String")]
 pub struct ModuleHash(pub [u8; 32]);
 
+/// The same digest, hex and parsing as a certificate's fingerprint.
 impl ModuleHash {
     pub fn of(file: &[u8]) -> ModuleHash {
-        ModuleHash(Sha256::digest(file).into())
+        ModuleHash(Fingerprint::of(file).0)
     }
 }
 
 /// 64 lowercase hex digits.
 impl std::fmt::Display for ModuleHash {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        self.0.iter().try_for_each(|b| write!(f, "{b:02x}"))
+        Fingerprint(self.0).fmt(f)
     }
 }
 
@@ -55,18 +55,7 @@ impl std::str::FromStr for ModuleHash {
     type Err = SyntaxError;
 
     fn from_str(text: &str) -> Result<ModuleHash, SyntaxError> {
-        let refused = || SyntaxError::Range {
-            got: text.to_owned(),
-            what: "a module's SHA-256: 64 hex digits".into(),
-        };
-        if text.len() != 64 || !text.is_ascii() {
-            return Err(refused());
-        }
-        let mut out = [0; 32];
-        for (i, byte) in out.iter_mut().enumerate() {
-            *byte = u8::from_str_radix(&text[2 * i..2 * i + 2], 16).map_err(|_| refused())?;
-        }
-        Ok(ModuleHash(out))
+        text.parse().map(|Fingerprint(digest)| ModuleHash(digest))
     }
 }
 

@@ -12,10 +12,9 @@
 use std::time::{Duration, Instant};
 
 use thiserror::Error;
-pub use vl_core::MAX_MODULE_BYTES;
 use vl_core::{
-    ABI_VERSION, Answer, COMMAND_WORDS, Controller, ControllerFault, ModuleHash, OBSERVATION_WORDS,
-    Observation, WheelSpeeds,
+    ABI_VERSION, Answer, COMMAND_WORDS, Controller, ControllerFault, MAX_MODULE_BYTES, ModuleHash,
+    OBSERVATION_WORDS, Observation, WheelSpeeds,
 };
 use wasmi::{
     Caller, Config, Engine, ExternType, Linker, Memory, Store, StoreLimits, StoreLimitsBuilder,
@@ -86,6 +85,17 @@ pub enum LoadError {
     },
     #[error("the module could not start: {0}")]
     Start(ControllerFault),
+}
+
+/// A module that does not start is the run's fault: `vl_init`'s own, or
+/// what kept it from starting, in words.
+impl From<LoadError> for ControllerFault {
+    fn from(e: LoadError) -> ControllerFault {
+        match e {
+            LoadError::Start(fault) => fault,
+            other => ControllerFault::Trapped(other.to_string()),
+        }
+    }
 }
 
 /// A module checked to be a controller the lab may run.
@@ -198,6 +208,15 @@ impl Module {
     /// Whether the file was empty (it never is once loaded).
     pub fn is_empty(&self) -> bool {
         self.bytes == 0
+    }
+
+    /// A fresh controller at each call, within `budget`: what the twin's
+    /// forecast starts for each seed.
+    pub fn controllers(
+        &self,
+        budget: Budget,
+    ) -> impl Fn() -> Result<Box<dyn Controller>, ControllerFault> + Sync + '_ {
+        move || Ok(Box::new(self.start(budget)?) as Box<dyn Controller>)
     }
 
     /// A fresh instance for one run: instantiated, `vl_init` called, its
@@ -361,7 +380,11 @@ impl Controller for Instance {
         let budget = self.limits.fuel_per_step;
         let cap = self.limits.memory_bytes;
         self.store.data_mut().now_s = seen.t_s;
-        let words: Vec<u8> = seen.words().iter().flat_map(|w| w.to_le_bytes()).collect();
+        // Laid out on the stack: nothing is allocated on the control loop's rate.
+        let mut words = [0u8; OBSERVATION_WORDS * 8];
+        for (bytes, word) in words.chunks_exact_mut(8).zip(seen.words()) {
+            bytes.copy_from_slice(&word.to_le_bytes());
+        }
         self.memory
             .write(&mut self.store, self.observation, &words)
             .map_err(|e| ControllerFault::Trapped(e.to_string()))?;

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use vl_core::{Definition, Experiment, MAX_MODULE_BYTES};
+use vl_core::{Definition, Experiment};
 
 use super::GuestApp;
 
@@ -59,22 +59,14 @@ impl GuestApp {
     /// Reads the file (refused unread when it is too large) and sends it
     /// to the Host in parts.
     fn send_controller(&mut self, path: &Path) {
-        let read = std::fs::metadata(path).and_then(|m| match m.len() {
-            size if size > MAX_MODULE_BYTES as u64 => Ok(Err(size)),
-            _ => std::fs::read(path).map(Ok),
-        });
-        self.controller_note = Some(match read {
-            Ok(Ok(file)) => {
+        self.controller_note = Some(match vl_client::read_controller(path) {
+            Ok(file) => {
                 for part in vl_client::controller_parts(&file) {
                     self.connection.send(part);
                 }
                 format!("sent {} bytes: the Host checks it", file.len())
             }
-            Ok(Err(size)) => format!(
-                "Not sent: {} is {size} bytes; a controller may have at most {MAX_MODULE_BYTES} (2 MiB)",
-                path.display()
-            ),
-            Err(e) => format!("Not sent: {}: {e}", path.display()),
+            Err(e) => format!("Not sent: {e}"),
         });
     }
 

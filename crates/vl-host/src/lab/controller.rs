@@ -14,7 +14,7 @@ use vl_core::{
     WheelSpeeds,
 };
 use vl_record::{Feed, Level, Recordable};
-use vl_sandbox::{Budget, LoadError, Module};
+use vl_sandbox::{Budget, Module};
 
 use crate::drivers::RobotReading;
 
@@ -53,13 +53,8 @@ impl Beside {
             .spawn(move || {
                 let mut instance = match module.start(Budget::LAB) {
                     Ok(instance) => instance,
-                    Err(LoadError::Start(fault)) => {
-                        let _ = said.send(Stepped::Fault(fault));
-                        return;
-                    }
-                    Err(other) => {
-                        let _ =
-                            said.send(Stepped::Fault(ControllerFault::Trapped(other.to_string())));
+                    Err(e) => {
+                        let _ = said.send(Stepped::Fault(e.into()));
                         return;
                     }
                 };

@@ -85,19 +85,10 @@ impl ForecastJob {
         let seeds = 1..=u64::from(self.settings.forecast_seeds.clamp(1, MOST_SEEDS));
         let seeds: Vec<u64> = seeds.collect();
         // Each seed's run gets a fresh instance, as each live run does.
-        let controllers = || -> Result<Box<dyn vl_core::Controller>, vl_core::ControllerFault> {
-            let module = self
-                .controller
-                .as_ref()
-                .expect("a pilot only with a controller");
-            match module.start(vl_sandbox::Budget::TWIN) {
-                Ok(instance) => Ok(Box::new(instance)),
-                Err(vl_sandbox::LoadError::Start(fault)) => Err(fault),
-                Err(other) => Err(vl_core::ControllerFault::Trapped(other.to_string())),
-            }
-        };
-        let pilot = match self.controller {
-            Some(_) => vl_sim::Pilot::Controller(&controllers),
+        let controllers =
+            (self.controller.as_ref()).map(|m| m.controllers(vl_sandbox::Budget::TWIN));
+        let pilot = match &controllers {
+            Some(controllers) => vl_sim::Pilot::Controller(controllers),
             None => vl_sim::Pilot::Path,
         };
         let forecast = forecast(Forecasting {
