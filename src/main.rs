@@ -31,6 +31,7 @@ mod options;
 mod petri;
 mod plan;
 mod record;
+mod regrade;
 mod report;
 mod shipped;
 mod sim;

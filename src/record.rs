@@ -92,6 +92,19 @@ enum RecordCommand {
         #[arg(long, value_hint = FilePath)]
         out: Option<PathBuf>,
     },
+    /// Grades a run again by its experiment's rubric; a run a user's
+    /// controller drove is also run again on the lab's twin, with exactly
+    /// the module the file keeps.
+    Regrade {
+        #[arg(value_hint = FilePath)]
+        file: PathBuf,
+        /// Seeds of the twin's noise to rerun the controller with (1–8).
+        #[arg(long, default_value_t = vl_sim::FORECAST_SEEDS.len() as u32)]
+        seeds: u32,
+        /// Experiment folders, for a run of one vl does not ship.
+        #[arg(long, value_hint = DirPath)]
+        experiments: Vec<PathBuf>,
+    },
 }
 
 fn bad(e: RecordError) -> BadInput {
@@ -122,6 +135,18 @@ pub(crate) fn record(args: RecordArgs) -> Result<ExitCode> {
                 &vl_record::repair(&file, out.as_deref()).map_err(bad)?,
                 json,
             )?;
+        }
+        RecordCommand::Regrade {
+            file,
+            seeds,
+            experiments,
+        } => {
+            let regraded = crate::regrade::regrade(&crate::regrade::Regrading {
+                file: &file,
+                seeds,
+                folders: &experiments,
+            })?;
+            emit(&regraded, json)?;
         }
     }
     Ok(ExitCode::SUCCESS)

@@ -140,7 +140,7 @@ pub use contract::protocol::{
 pub use contract::recording::{
     PART_BYTES, PartError, PartHeader, RecordedRun, RecordingName, RecordingNameError,
 };
-pub use contract::rubric::{Grade, GradeLine, Rubric, RubricError};
+pub use contract::rubric::{Grade, GradeLine, Measured, Rubric, RubricError};
 pub use contract::summary::{
     EndReason, EndedByOther, HeldBack, RecordingNote, Stopper, Summary, WaypointsVisited,
 };

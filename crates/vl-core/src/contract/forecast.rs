@@ -7,7 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::navigation::analysis::distance_to_polyline;
-use crate::{Point, Summary};
+use crate::{EndReason, Measured, Point, Summary};
 use vl_report::table::{Report, Table};
 
 /// What a closest approach was to.
@@ -107,6 +107,31 @@ impl std::fmt::Display for Spread {
             write!(f, "{:.1}", self.mean)
         } else {
             write!(f, "{:.1} ({:.1}–{:.1})", self.mean, self.least, self.most)
+        }
+    }
+}
+
+impl SeedRun {
+    /// The run's measures for a rubric, as a live run's would be: `tracked`
+    /// when it followed a defined path, `limit_s` its time limit. The gap
+    /// to a forecast is not measured: this is the forecast.
+    pub fn measured(&self, tracked: bool, limit_s: f64) -> Measured {
+        let reason = match (self.reached_goal, &self.fault) {
+            (true, _) => EndReason::GoalReached,
+            (false, Some(_)) => EndReason::Fault,
+            // Within a simulator step of the limit: the limit ended it.
+            (false, None) if self.seconds >= limit_s - 0.01 => EndReason::TimeLimit,
+            (false, None) => EndReason::ControllerDone,
+        };
+        Measured {
+            reached_goal: self.reached_goal,
+            reason,
+            collisions: self.collisions,
+            waypoints: None,
+            tracking_mm: tracked.then_some(self.mean_error_mm),
+            seconds: self.seconds,
+            forecast_gap_mm: None,
+            distance_mm: self.path.windows(2).map(|w| w[0].distance(w[1])).sum(),
         }
     }
 }

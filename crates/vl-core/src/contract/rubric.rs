@@ -6,7 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::Summary;
+use crate::{EndReason, Summary, WaypointsVisited};
 
 /// Points per criterion and what earns them in full. A measure earns its
 /// points in full up to its bound and nothing from twice the bound, linearly
@@ -99,6 +99,40 @@ impl Grade {
     }
 }
 
+/// What a rubric grades a run by.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Measured {
+    pub reached_goal: bool,
+    /// Why the run ended, said when the goal was not reached.
+    pub reason: EndReason,
+    pub collisions: u64,
+    pub waypoints: Option<WaypointsVisited>,
+    /// Mean distance of the estimated path to the planned one, mm.
+    pub tracking_mm: Option<f64>,
+    pub seconds: f64,
+    /// Mean distance of the path to its forecast's, mm.
+    pub forecast_gap_mm: Option<f64>,
+    pub distance_mm: f64,
+}
+
+impl Measured {
+    /// A finished run's measures, from its summary.
+    pub fn of(summary: &Summary) -> Measured {
+        Measured {
+            reached_goal: summary.reached_goal,
+            reason: summary.reason,
+            collisions: summary.collisions,
+            waypoints: summary.waypoints,
+            tracking_mm: (summary.path.as_ref())
+                .and_then(|p| p.tracking_error_mm)
+                .map(|e| e.mean),
+            seconds: summary.seconds,
+            forecast_gap_mm: summary.forecast.as_ref().map(|g| g.path_mean_mm),
+            distance_mm: summary.distance_mm,
+        }
+    }
+}
+
 /// `points` for `value` within `bound`, none from twice it, linear between.
 fn within(points: f64, value: f64, bound: f64) -> f64 {
     if !value.is_finite() {
@@ -154,26 +188,31 @@ impl Rubric {
     /// How `summary`'s run earned its points. A measure the run did not
     /// have (no plan to track, no forecast) earns none and says so.
     pub fn grade(&self, summary: &Summary) -> Grade {
+        self.grade_measured(&Measured::of(summary))
+    }
+
+    /// How a run with these measures earned its points: a live run's, or
+    /// a rerun's on the twin (`vl record regrade`).
+    pub fn grade_measured(&self, run: &Measured) -> Grade {
         let mut lines = vec![
             GradeLine {
                 criterion: "goal",
-                measured: if summary.reached_goal {
+                measured: if run.reached_goal {
                     "reached".into()
                 } else {
-                    format!("not reached ({})", summary.reason)
+                    format!("not reached ({})", run.reason)
                 },
-                points: if summary.reached_goal { self.goal } else { 0.0 },
+                points: if run.reached_goal { self.goal } else { 0.0 },
                 of: self.goal,
             },
             GradeLine {
                 criterion: "collisions",
-                measured: summary.collisions.to_string(),
-                points: (self.no_collisions - self.per_collision * summary.collisions as f64)
-                    .max(0.0),
+                measured: run.collisions.to_string(),
+                points: (self.no_collisions - self.per_collision * run.collisions as f64).max(0.0),
                 of: self.no_collisions,
             },
         ];
-        let visited = summary.waypoints.map(|w| (w.visited, w.of));
+        let visited = run.waypoints.map(|w| (w.visited, w.of));
         if self.waypoints > 0.0 {
             lines.push(GradeLine {
                 criterion: "waypoints",
@@ -184,18 +223,19 @@ impl Rubric {
                 of: self.waypoints,
             });
         }
-        let tracking = summary
-            .path
-            .as_ref()
-            .and_then(|p| p.tracking_error_mm)
-            .map(|e| e.mean);
-        lines.push(self.measure("tracking", tracking, self.tracking, self.tracking_mm, "mm"));
-        lines.push(self.measure("time", Some(summary.seconds), self.time, self.time_s, "s"));
-        let gap = summary.forecast.as_ref().map(|g| g.path_mean_mm);
+        lines.push(self.measure(
+            "tracking",
+            run.tracking_mm,
+            self.tracking,
+            self.tracking_mm,
+            "mm",
+        ));
+        lines.push(self.measure("time", Some(run.seconds), self.time, self.time_s, "s"));
+        let gap = run.forecast_gap_mm;
         lines.push(self.measure("forecast", gap, self.forecast, self.forecast_mm, "mm"));
         // Points only for a run that went somewhere: standing still is
         // neither quick nor on the path.
-        if !summary.reached_goal && summary.distance_mm < 1.0 {
+        if !run.reached_goal && run.distance_mm < 1.0 {
             for line in lines.iter_mut().filter(|l| l.criterion != "collisions") {
                 line.points = 0.0;
             }
@@ -370,5 +410,65 @@ mod tests {
         assert_eq!(grade.maximum, 140.0);
         let plain = Rubric::default().grade(&run);
         assert!(plain.lines.iter().all(|l| l.criterion != "waypoints"));
+    }
+
+    /// A twin's rerun is graded as a live run of the same measures, its
+    /// ending told from the run: the goal, a fault, the limit, or the
+    /// controller's own "done" short of it.
+    #[test]
+    fn a_twin_s_rerun_is_graded_as_a_run_with_its_measures() {
+        use crate::{Closest, Nearest, Point, SeedRun};
+        let at = Point {
+            x_mm: 0.0,
+            y_mm: 0.0,
+        };
+        let closest = Closest {
+            mm: 40.0,
+            at,
+            to: Nearest::Wall,
+        };
+        let run = |reached_goal, seconds, fault: Option<&str>| SeedRun {
+            seed: 1,
+            reached_goal,
+            seconds,
+            closest,
+            end: closest,
+            collisions: 0,
+            first_contact: None,
+            held_back_s: 0.0,
+            saturated_s: 0.0,
+            mean_error_mm: 3.0,
+            path: vec![
+                at,
+                Point {
+                    x_mm: 300.0,
+                    y_mm: 400.0,
+                },
+            ],
+            fault: fault.map(str::to_owned),
+        };
+        let reached = run(true, 30.0, None).measured(false, 60.0);
+        assert_eq!(reached.reason, EndReason::GoalReached);
+        assert_eq!(reached.distance_mm, 500.0);
+        assert_eq!(reached.tracking_mm, None);
+        let live = summary(true, 0, 30.0, 500.0);
+        assert_eq!(
+            Rubric::default().grade_measured(&reached),
+            Rubric::default().grade(&live)
+        );
+        for (seconds, fault, reason) in [
+            (12.0, Some("it trapped"), EndReason::Fault),
+            (60.0, None, EndReason::TimeLimit),
+            (12.0, None, EndReason::ControllerDone),
+        ] {
+            assert_eq!(
+                run(false, seconds, fault).measured(false, 60.0).reason,
+                reason
+            );
+        }
+        assert_eq!(
+            run(true, 30.0, None).measured(true, 60.0).tracking_mm,
+            Some(3.0)
+        );
     }
 }
