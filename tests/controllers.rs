@@ -38,6 +38,38 @@ fn built_c(dir: &Path) -> Option<PathBuf> {
     }
 }
 
+/// The Rust example, built as docs/controllers.md says with rustup's
+/// `wasm32-unknown-unknown` target; none (said why) where it is missing.
+fn built_rust(dir: &Path) -> Option<PathBuf> {
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let built = Command::new(cargo)
+        .args([
+            "build",
+            "--release",
+            "--quiet",
+            "--target",
+            "wasm32-unknown-unknown",
+        ])
+        .args(["--target-dir", s(dir)])
+        .current_dir(example("rust"))
+        .env_remove("RUSTFLAGS")
+        .output()
+        .expect("cargo runs");
+    if !built.status.success() {
+        let said = common::stderr(&built);
+        assert!(
+            said.contains("wasm32-unknown-unknown"),
+            "the Rust example does not build: {said}"
+        );
+        common::missing(
+            "rustup's wasm32-unknown-unknown target",
+            "rustup target add wasm32-unknown-unknown",
+        );
+        return None;
+    }
+    Some(dir.join("wasm32-unknown-unknown/release/go_to_goal.wasm"))
+}
+
 /// A module in the text format whose `vl_step` runs `step` (leaving an
 /// i32), its observation at 0 and its command at 256, written to `dir`.
 fn module(dir: &Path, name: &str, step: &str) -> PathBuf {
@@ -93,6 +125,21 @@ fn the_text_format_example_is_tried_on_the_twin_before_it_may_run() {
     assert!(runs.iter().all(|r| r["collisions"] == 0), "{blocked}");
 }
 
+/// The Rust example builds as its docs say and, like the text format's (it
+/// does not go round obstacles either), reaches the goal in the open.
+#[test]
+fn the_rust_example_builds_as_documented_and_reaches_the_goal() {
+    let Some(wasm) = built_rust(&scratch("controller-rust")) else {
+        return;
+    };
+    let (code, open) = forecast(&wasm, &["--arena", "open", "--seeds", "3"]);
+    assert_eq!(code, Some(0), "{open}");
+    for run in open["forecast"]["runs"].as_array().unwrap() {
+        assert_eq!(run["reached_goal"], true, "{run}");
+        assert_eq!(run["collisions"], 0, "{run}");
+    }
+}
+
 #[test]
 fn the_c_example_reaches_the_goal_on_the_simulated_lab_and_the_emulated_khepera() {
     let dir = scratch("controller-c");
@@ -130,6 +177,31 @@ fn the_c_example_reaches_the_goal_on_the_simulated_lab_and_the_emulated_khepera(
             .unwrap()
             .contains(&json!("controller.wasm")),
         "{info}"
+    );
+    // A regrade grades the run by the experiment's rubric and runs that
+    // module again on the twin, from where the run began.
+    let regraded = common::vl_json(&["record", "regrade", file, "--seeds", "3", "--json"]);
+    assert_eq!(regraded["experiment"], "your-controller", "{regraded}");
+    assert!(
+        regraded["recorded"]["given"].as_f64().unwrap() >= 70.0,
+        "the goal without contact earns most: {regraded}"
+    );
+    let rerun = &regraded["rerun"];
+    assert_eq!(rerun["sha256"], foreseen["module"]["sha256"], "{regraded}");
+    assert_eq!(rerun["seeds"].as_array().unwrap().len(), 3, "{regraded}");
+    assert_eq!(rerun["reproduces"], true, "{regraded}");
+    for seed in rerun["seeds"].as_array().unwrap() {
+        assert_eq!(seed["collisions"], 0, "{regraded}");
+        let grade = seed["grade"]["given"].as_f64().unwrap();
+        assert!(grade >= 70.0, "{regraded}");
+    }
+    // A file that is not a run is refused, naming it.
+    let wrong = vl(&["record", "regrade", s(&wasm)]);
+    assert_eq!(wrong.status.code(), Some(2), "{}", common::stderr(&wrong));
+    assert!(
+        common::stderr(&wrong).contains("go_to_goal.wasm"),
+        "{}",
+        common::stderr(&wrong)
     );
 
     let (_emulator, device) = start_emulator(&["--arena", "navigation"]);
