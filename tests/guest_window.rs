@@ -1639,11 +1639,29 @@ fn dropped_controller(harness: &mut Harness<'_, GuestApp>) {
     step_until(harness, "the Host takes the controller", |app| {
         app.session().controller.is_some()
     });
-    let image = harness.render().expect("the window renders");
-    let _ = image.save(concat!(
-        env!("CARGO_TARGET_TMPDIR"),
-        "/guest-window-controller.png"
-    ));
+    harness.step();
+    // The module drives, not the stick; "sent" gives way to "taken".
+    assert!(harness.query_by_label_contains("Drag the stick").is_none());
+    harness.get_by_label_contains("Your controller drives this experiment's run");
+    harness.get_by_label_contains("your controller: taken");
+    assert!(
+        harness
+            .query_by_label_contains("the Host checks it")
+            .is_none()
+    );
+    // At a small and a large window's size, for a look (the test's own
+    // size last).
+    let size = harness.ctx.content_rect().size();
+    for (w, h) in [(800.0, 600.0), (1600.0, 1000.0), (size.x, size.y)] {
+        harness.set_size(egui::Vec2::new(w, h));
+        harness.step();
+        let image = harness.render().expect("the window renders");
+        let _ = image.save(format!(
+            "{}/guest-window-controller-{w}.png",
+            env!("CARGO_TARGET_TMPDIR")
+        ));
+        harness.get_by_label("Send");
+    }
     define_and_start(harness);
     step_until(harness, "the run ends", |app| app.session().done.is_some());
     let done = harness.state().session().done.clone().unwrap();

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use vl_core::{Definition, Experiment};
+use vl_core::{Definition, Experiment, ModuleHash};
 
 use super::GuestApp;
 
@@ -15,6 +15,14 @@ impl GuestApp {
         self.session
             .mounted()
             .is_some_and(Experiment::runs_a_controller)
+    }
+
+    /// Whether the mounted experiment's run takes the operator's commands
+    /// (none mounted yet: the stick is shown).
+    pub(super) fn takes_commands(&self) -> bool {
+        self.session
+            .mounted()
+            .is_none_or(Experiment::takes_commands)
     }
 
     /// The controller's row: what the Host took, and a path to send.
@@ -42,8 +50,14 @@ impl GuestApp {
                 self.send_controller(&path);
             }
         });
-        if let Some(note) = &self.controller_note {
-            ui.label(note);
+        // "Sent" until the Host answers for that file; its refusal is
+        // the session's error.
+        match &self.controller_note {
+            Some(ControllerNote::Sent { hash, .. }) if self.session.controller == Some(*hash) => {}
+            Some(note) => {
+                ui.label(note.to_string());
+            }
+            None => {}
         }
     }
 
@@ -64,9 +78,12 @@ impl GuestApp {
                 for part in vl_client::controller_parts(&file) {
                     self.connection.send(part);
                 }
-                format!("sent {} bytes: the Host checks it", file.len())
+                ControllerNote::Sent {
+                    bytes: file.len(),
+                    hash: ModuleHash::of(&file),
+                }
             }
-            Err(e) => format!("Not sent: {e}"),
+            Err(e) => ControllerNote::NotSent(e.to_string()),
         });
     }
 
@@ -84,5 +101,22 @@ impl GuestApp {
             virtual_obstacles: self.virtual_obstacles.clone(),
             ..Definition::default()
         })
+    }
+}
+
+/// What became of the last file the user sent.
+pub(super) enum ControllerNote {
+    Sent { bytes: usize, hash: ModuleHash },
+    NotSent(String),
+}
+
+impl std::fmt::Display for ControllerNote {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ControllerNote::Sent { bytes, .. } => {
+                write!(f, "sent {bytes} bytes: the Host checks it")
+            }
+            ControllerNote::NotSent(why) => write!(f, "Not sent: {why}"),
+        }
     }
 }

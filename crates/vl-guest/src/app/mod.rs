@@ -136,7 +136,7 @@ pub struct GuestApp {
     /// The user's controller's file, as typed or dropped, and what
     /// sending it did.
     controller_path: String,
-    controller_note: Option<String>,
+    controller_note: Option<controller::ControllerNote>,
 }
 
 impl GuestApp {
@@ -294,8 +294,15 @@ impl GuestApp {
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
             });
-        if self.session.is_operator() {
+        if self.session.is_operator() && self.takes_commands() {
             egui::Panel::bottom("joystick").show(ui, |ui| self.joystick(ui));
+        } else if self.session.is_operator() {
+            egui::Panel::bottom("no stick").show(ui, |ui| {
+                ui.label(match self.runs_a_controller() {
+                    true => "Your controller drives this experiment's run, not the stick. STOP (Space) stops it.",
+                    false => "This experiment holds the robot still: nothing to drive. STOP (Space) is for everyone.",
+                });
+            });
         } else if self.session.role.is_some() && self.replay.is_none() {
             egui::Panel::bottom("watching").show(ui, |ui| {
                 ui.label(
@@ -407,7 +414,9 @@ impl GuestApp {
         if stop || pad.is_some_and(|(_, pressed)| pressed) {
             self.emergency_stop();
         }
-        if !self.session.is_operator() {
+        // Nothing but the emergency stop drives a run that takes no
+        // command: the user's controller's, or one holding the robot.
+        if !self.session.is_operator() || !self.takes_commands() {
             return;
         }
         let by_pad = pad.map(|(input, _)| input.drive()).unwrap_or_default();
