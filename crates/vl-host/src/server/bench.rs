@@ -89,8 +89,8 @@ pub struct WhileForecasting {
 }
 
 /// The operator's round trips while wrong passwords pour in from one
-/// address, [`GUESSES_PER_S`] a second, until [`GUESSES`] have been tried,
-/// [`FLOODS`] times, each flood followed by a quiet round of as many
+/// address, [`GUESSES_PER_S`] a second, until [`GUESSES`] have been tried
+/// (fewer for fewer commands), [`FLOODS`] times, each flood followed by a quiet round of as many
 /// commands. The first round's trips run faster than a run's later ones,
 /// so the floods are compared with the quiet rounds between them, and
 /// the rounds are pooled: a p99 of two rounds' few thousand trips moved
@@ -510,8 +510,11 @@ async fn guessing(
 ) -> Result<Guessing, BenchError> {
     let answers = Arc::new(Answers::default());
     let (mut flooded, mut quiet) = (Vec::new(), Vec::new());
+    // A flood no longer than its round's commands (at most 50 a second,
+    // one per control period) would take without it: a short bench is short.
+    let guesses = GUESSES.min(2 * commands as u64);
     for _ in 0..FLOODS {
-        let pour = flood(url, answers.clone())?;
+        let pour = flood(url, answers.clone(), guesses)?;
         let took = time_commands(operator, *event, commands, || !pour.is_finished()).await?;
         *event += took.len() as u64;
         flooded.extend(took);
@@ -542,12 +545,16 @@ async fn guessing(
     })
 }
 
-/// [`GUESSES`] wrong passwords from one address, [`GUESSES_PER_S`] a
+/// `guesses` wrong passwords from one address, [`GUESSES_PER_S`] a
 /// second, on a thread of their own at the lowest priority: on a real lab
 /// their side of each connection is another machine's work, so here it
 /// takes only what the Host leaves, and what is measured is the Host's
 /// own cost of the flood.
-fn flood(url: &str, answers: Arc<Answers>) -> Result<std::thread::JoinHandle<()>, BenchError> {
+fn flood(
+    url: &str,
+    answers: Arc<Answers>,
+    guesses: u64,
+) -> Result<std::thread::JoinHandle<()>, BenchError> {
     let url = url.to_owned();
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -558,7 +565,7 @@ fn flood(url: &str, answers: Arc<Answers>) -> Result<std::thread::JoinHandle<()>
         runtime.block_on(async move {
             let mut tries = JoinSet::new();
             let mut every = tokio::time::interval(Duration::from_secs_f64(1.0 / GUESSES_PER_S));
-            for _ in 0..GUESSES {
+            for _ in 0..guesses {
                 every.tick().await;
                 tries.spawn(guess(url.clone(), answers.clone()));
             }
