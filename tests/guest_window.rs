@@ -1669,6 +1669,50 @@ fn dropped_controller(harness: &mut Harness<'_, GuestApp>) {
     assert_eq!(done.collisions, 0, "{done:?}");
 }
 
+/// The window's file picker: opened by Choose… in the folder typed, it
+/// lists the modules (not the C source beside them), and the one chosen is
+/// sent and taken.
+#[test]
+fn a_controller_chosen_in_the_file_picker_is_taken() {
+    let lab = SimLab::new(Arena::named("open").unwrap());
+    with_window_in(lab, "Run your own controller", chosen_controller);
+}
+
+fn chosen_controller(harness: &mut Harness<'_, GuestApp>) {
+    step_until(harness, "mount", |app| app.session().lab.is_some());
+    let folder = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/controllers");
+    harness
+        .get_by_role(egui::accesskit::Role::TextInput)
+        .focus();
+    harness.step();
+    harness
+        .get_by_role(egui::accesskit::Role::TextInput)
+        .type_text(&folder.display().to_string());
+    harness.step();
+    harness.get_by_label("Choose…").click();
+    for _ in 0..4 {
+        harness.step();
+    }
+    harness.get_by_label_contains("go_to_goal.wat").click();
+    harness.step();
+    assert!(harness.query_by_label_contains("go_to_goal.c").is_none());
+    let image = harness.render().expect("the window renders");
+    let _ = image.save(concat!(
+        env!("CARGO_TARGET_TMPDIR"),
+        "/guest-window-controller-picker.png"
+    ));
+    harness.get_by_label("Open").click();
+    step_until(harness, "the Host takes the chosen controller", |app| {
+        app.session().controller.is_some()
+    });
+    harness.step();
+    assert!(
+        harness.query_by_label("Open").is_none(),
+        "the picker closed"
+    );
+    harness.get_by_label_contains("your controller: taken");
+}
+
 /// A file dropped on the window, as the windowing system hands it over.
 #[derive(Debug)]
 struct Dropped(std::path::PathBuf);

@@ -66,7 +66,7 @@ impl Session {
             .is_some();
         let Some(definition) = &self.definition else {
             return Some(if controls && self.controller.is_none() {
-                "Next: send your controller (drop its file on the window)."
+                "Next: send your controller: Choose… its file, or drop it on the window."
             } else if controls {
                 "Next: click the view for its goal, then Define."
             } else if visits {

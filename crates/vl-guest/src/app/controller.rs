@@ -36,9 +36,13 @@ impl GuestApp {
         };
         ui.label(taken);
         ui.horizontal(|ui| {
+            if ui.button("Choose…").clicked() {
+                add_symbol_fonts(ui.ctx());
+                self.choose_controller();
+            }
             ui.add(
                 egui::TextEdit::singleline(&mut self.controller_path)
-                    .hint_text("drop a .wasm or .wat file here, or type its path")
+                    .hint_text("or drop a .wasm or .wat file here, or type its path")
                     .desired_width(ui.available_width() - 60.0),
             )
             .on_hover_text("a WebAssembly module: docs/controllers.md");
@@ -58,6 +62,48 @@ impl GuestApp {
                 ui.label(note.to_string());
             }
             None => {}
+        }
+    }
+
+    /// Opens the file picker on WebAssembly modules (binary or text) and
+    /// folders, in the folder typed or the last file's.
+    fn choose_controller(&mut self) {
+        let filter = Box::new(|path: &Path| {
+            path.extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("wasm") || e.eq_ignore_ascii_case("wat"))
+        });
+        let mut dialog = egui_file::FileDialog::open_file()
+            .title("Your controller: a .wasm or .wat file")
+            .show_files_filter(filter)
+            .show_new_folder(false)
+            .show_rename(false);
+        let typed = Path::new(self.controller_path.trim());
+        let folder = match typed.is_dir() {
+            true => Some(typed),
+            false => typed.parent().filter(|f| f.is_dir()),
+        };
+        if let Some(folder) = folder {
+            dialog = dialog.initial_path(folder);
+        }
+        dialog.open();
+        self.controller_picker = Some(dialog);
+    }
+
+    /// The file picker while it is open: the file chosen is sent.
+    pub(super) fn show_controller_picker(&mut self, ctx: &egui::Context) {
+        let Some(dialog) = &mut self.controller_picker else {
+            return;
+        };
+        let chosen = match dialog.show(ctx).selected() {
+            true => dialog.path().map(Path::to_path_buf),
+            false => None,
+        };
+        if !dialog.visible() {
+            self.controller_picker = None;
+        }
+        if let Some(path) = chosen {
+            self.controller_path = path.display().to_string();
+            self.send_controller(&path);
         }
     }
 
@@ -101,6 +147,28 @@ impl GuestApp {
             virtual_obstacles: self.virtual_obstacles.clone(),
             ..Definition::default()
         })
+    }
+}
+
+/// egui's emoji fonts as the last fallbacks, for the picker's folder and
+/// file symbols; in use from the next frame, the picker's first.
+fn add_symbol_fonts(ctx: &egui::Context) {
+    use egui::epaint::text::{FontInsert, FontPriority, InsertFontFamily};
+    for (name, data) in [
+        ("emoji-icon-font", epaint_default_fonts::EMOJI_ICON),
+        (
+            "NotoEmoji-Regular",
+            epaint_default_fonts::NOTO_EMOJI_REGULAR,
+        ),
+    ] {
+        ctx.add_font(FontInsert::new(
+            name,
+            egui::FontData::from_static(data),
+            vec![InsertFontFamily {
+                family: egui::FontFamily::Proportional,
+                priority: FontPriority::Lowest,
+            }],
+        ));
     }
 }
 

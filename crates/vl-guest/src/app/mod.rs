@@ -137,6 +137,8 @@ pub struct GuestApp {
     /// sending it did.
     controller_path: String,
     controller_note: Option<controller::ControllerNote>,
+    /// The controller's file picker, while it is open.
+    controller_picker: Option<egui_file::FileDialog>,
 }
 
 impl GuestApp {
@@ -189,6 +191,7 @@ impl GuestApp {
             recordings_note: None,
             controller_path: String::new(),
             controller_note: None,
+            controller_picker: None,
         }
     }
 
@@ -270,6 +273,7 @@ impl GuestApp {
         self.pump();
         let ctx = ui.ctx().clone();
         self.take_dropped(&ctx);
+        self.show_controller_picker(&ctx);
         self.drive(&ctx);
         if let Some(replay) = &mut self.replay {
             // A replay chosen in a lab's window goes back to the lab after.
