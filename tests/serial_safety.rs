@@ -275,8 +275,11 @@ async fn full_speed_at_walls_boxes_and_polygons_never_touches_at_any_baud() {
                 seen.into_polygon_mm,
                 seen.stop
             );
-            // It went all the way to what it was driven at.
-            assert!(seen.moved_mm() > 80.0, "the robot drove: {seen:?}");
+            // It was driven at what it faces, so that touching nothing
+            // means something: more than a body's length. (A burst's
+            // commands run out after 80–90 mm, how far depending on when
+            // the rate limit let them through: 79.5 mm was seen once.)
+            assert!(seen.moved_mm() > 60.0, "the robot drove: {seen:?}");
             if seen.contacts > 0 || seen.into_polygon_mm > 0.0 || seen.stop > Some(bound) {
                 failures.push(format!(
                     "{baud} baud, {} from {}, {pattern:?}: {seen:?}",
