@@ -98,8 +98,9 @@ enum RecordCommand {
     Regrade {
         #[arg(value_hint = FilePath)]
         file: PathBuf,
-        /// Seeds of the twin's noise to rerun the controller with (1–8).
-        #[arg(long, default_value_t = vl_sim::FORECAST_SEEDS.len() as u32)]
+        /// Seeds of the twin's noise to rerun the controller with (1 to 8).
+        #[arg(long, default_value_t = vl_sim::FORECAST_SEEDS.len() as u32,
+              value_parser = clap::value_parser!(u32).range(1..=8))]
         seeds: u32,
         /// Experiment folders, for a run of one vl does not ship.
         #[arg(long, value_hint = DirPath)]
