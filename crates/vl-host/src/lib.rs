@@ -130,8 +130,8 @@ pub use priority::raise_for_control as raise_priority;
 pub use secret::secret;
 pub use server::admission::Ticket;
 pub use server::bench::{
-    BenchError, GatewayBench, GatewayCost, Guessing, OperatorLatency, WatchersBench, WatchersCost,
-    operator_latency,
+    AgainstQuiet, BenchError, GatewayBench, GatewayCost, Guessing, OperatorLatency, WatchersBench,
+    WatchersCost, operator_latency,
 };
 pub use server::bucket::Bucket;
 pub use server::events::{LabEvent, LabEvents, LiveEvent, LiveEvents, RunDriver, RunEnded};

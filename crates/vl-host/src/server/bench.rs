@@ -80,14 +80,41 @@ pub struct OperatorLatency {
 /// quiet round after each such round.
 #[derive(Debug, Clone, Serialize)]
 pub struct WhileForecasting {
+    #[serde(flatten)]
+    pub timed: AgainstQuiet,
+    /// Forecasts made while the commands were timed.
+    pub forecasts: u64,
+}
+
+/// Round trips timed under some load, pooled over its rounds, against the
+/// quiet rounds between them.
+#[derive(Debug, Clone, Serialize)]
+pub struct AgainstQuiet {
+    /// Commands timed under the load.
     pub commands: usize,
     pub p50_ms: f64,
     pub p99_ms: f64,
+    /// The quiet rounds after each loaded one.
     pub quiet_p50_ms: f64,
     pub quiet_p99_ms: f64,
+    /// The loaded rounds' p99 over the quiet rounds'.
     pub p99_ratio: f64,
-    /// Forecasts made while the commands were timed.
-    pub forecasts: u64,
+}
+
+impl AgainstQuiet {
+    fn of(mut loaded: Vec<f64>, mut quiet: Vec<f64>) -> AgainstQuiet {
+        loaded.sort_by(f64::total_cmp);
+        quiet.sort_by(f64::total_cmp);
+        let q = |took: &[f64], p| nearest_rank(took, p).unwrap_or(f64::NAN);
+        AgainstQuiet {
+            commands: loaded.len(),
+            p50_ms: q(&loaded, 0.5),
+            p99_ms: q(&loaded, 0.99),
+            quiet_p50_ms: q(&quiet, 0.5),
+            quiet_p99_ms: q(&quiet, 0.99),
+            p99_ratio: q(&loaded, 0.99) / q(&quiet, 0.99),
+        }
+    }
 }
 
 /// Rounds of load (floods of wrong passwords, forecasts), each followed
@@ -461,16 +488,8 @@ async fn forecasting(
         *event += took.len() as u64;
         quiet.extend(took);
     }
-    busy.sort_by(f64::total_cmp);
-    quiet.sort_by(f64::total_cmp);
-    let q = |took: &[f64], p| nearest_rank(took, p).unwrap_or(f64::NAN);
     Ok(WhileForecasting {
-        commands: busy.len(),
-        p50_ms: q(&busy, 0.5),
-        p99_ms: q(&busy, 0.99),
-        quiet_p50_ms: q(&quiet, 0.5),
-        quiet_p99_ms: q(&quiet, 0.99),
-        p99_ratio: q(&busy, 0.99) / q(&quiet, 0.99),
+        timed: AgainstQuiet::of(busy, quiet),
         forecasts,
     })
 }
@@ -516,6 +535,7 @@ fn forecaster(stop: Arc<AtomicBool>) -> std::thread::JoinHandle<u64> {
 impl Report for OperatorLatency {
     fn table(&self) -> Table {
         let g = &self.under_guessing;
+        let (t, f) = (&g.timed, &self.while_forecasting);
         Table::pairs([
             ("observers reading", self.observers.to_string()),
             ("commands timed", self.commands.to_string()),
@@ -535,14 +555,14 @@ impl Report for OperatorLatency {
                 "p99 under guessing",
                 format!(
                     "{:.2} ms (p50 {:.2} ms) over {} commands in {FLOODS} floods: {:.2}× the quiet rounds'",
-                    g.p99_ms, g.p50_ms, g.commands, g.p99_ratio
+                    t.p99_ms, t.p50_ms, t.commands, t.p99_ratio
                 ),
             ),
             (
                 "p99 in the quiet rounds",
                 format!(
                     "{:.2} ms (p50 {:.2} ms), one after each flood",
-                    g.quiet_p99_ms, g.quiet_p50_ms
+                    t.quiet_p99_ms, t.quiet_p50_ms
                 ),
             ),
             (
@@ -556,12 +576,12 @@ impl Report for OperatorLatency {
                 "p99 while forecasting",
                 format!(
                     "{:.2} ms (p50 {:.2} ms) over {} commands, {} forecasts of a minute's run made meanwhile: {:.2}× the quiet round's {:.2} ms",
-                    self.while_forecasting.p99_ms,
-                    self.while_forecasting.p50_ms,
-                    self.while_forecasting.commands,
-                    self.while_forecasting.forecasts,
-                    self.while_forecasting.p99_ratio,
-                    self.while_forecasting.quiet_p99_ms
+                    f.timed.p99_ms,
+                    f.timed.p50_ms,
+                    f.timed.commands,
+                    f.forecasts,
+                    f.timed.p99_ratio,
+                    f.timed.quiet_p99_ms
                 ),
             ),
         ])

@@ -8,9 +8,9 @@ use std::time::Duration;
 
 use serde::Serialize;
 use tokio::task::JoinSet;
-use vl_core::{ErrorCode, HostMessage, Role, nearest_rank};
+use vl_core::{ErrorCode, HostMessage, Role};
 
-use super::{BenchError, FLOODS, Socket, connect, hello, say, time_commands, until};
+use super::{AgainstQuiet, BenchError, FLOODS, Socket, connect, hello, say, time_commands, until};
 
 /// The operator's round trips while wrong passwords pour in from one
 /// address, [`GUESSES_PER_S`] a second, until [`GUESSES`] have been tried
@@ -22,15 +22,9 @@ use super::{BenchError, FLOODS, Socket, connect, hello, say, time_commands, unti
 /// machine.
 #[derive(Debug, Clone, Serialize)]
 pub struct Guessing {
-    /// Commands timed during the floods.
-    pub commands: usize,
-    pub p50_ms: f64,
-    pub p99_ms: f64,
-    /// The quiet rounds after each flood.
-    pub quiet_p50_ms: f64,
-    pub quiet_p99_ms: f64,
-    /// The floods' p99 over the quiet rounds'.
-    pub p99_ratio: f64,
+    /// The floods' round trips against the quiet rounds'.
+    #[serde(flatten)]
+    pub timed: AgainstQuiet,
     /// Guesses sent, and how the Host answered them: checked and refused
     /// (`unauthorized`), refused unchecked (`too_many_attempts`), or not at
     /// all (pushed out by the next before it was answered).
@@ -87,8 +81,8 @@ pub(super) async fn guessing(
 ) -> Result<Guessing, BenchError> {
     let answers = Arc::new(Answers::default());
     let (mut flooded, mut quiet) = (Vec::new(), Vec::new());
-    // A flood no longer than its round's commands (at most 50 a second,
-    // one per control period) would take without it: a short bench is short.
+    // Two guesses per command timed, at most GUESSES: a short bench
+    // (README's test times 50 commands) floods for a second, not ten.
     let guesses = GUESSES.min(2 * commands as u64);
     for _ in 0..FLOODS {
         let pour = flood(url, answers.clone(), guesses)?;
@@ -99,9 +93,6 @@ pub(super) async fn guessing(
         *event += took.len() as u64;
         quiet.extend(took);
     }
-    flooded.sort_by(f64::total_cmp);
-    quiet.sort_by(f64::total_cmp);
-    let q = |took: &[f64], p| nearest_rank(took, p).unwrap_or(f64::NAN);
     let load = |n: &AtomicU64| n.load(Ordering::Relaxed);
     let (sent, checked, limited) = (
         load(&answers.sent),
@@ -109,12 +100,7 @@ pub(super) async fn guessing(
         load(&answers.limited),
     );
     Ok(Guessing {
-        commands: flooded.len(),
-        p50_ms: q(&flooded, 0.5),
-        p99_ms: q(&flooded, 0.99),
-        quiet_p50_ms: q(&quiet, 0.5),
-        quiet_p99_ms: q(&quiet, 0.99),
-        p99_ratio: q(&flooded, 0.99) / q(&quiet, 0.99),
+        timed: AgainstQuiet::of(flooded, quiet),
         sent,
         checked,
         limited,
