@@ -9,12 +9,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use serde::Serialize;
-use serde::de::DeserializeOwned;
-use vl_core::{
-    Definition, Experiments, ForecastLimits, ForecastVerdict, Grade, HostMessage, MountedLab, Pose,
-    Rubric, Summary,
-};
-use vl_record::{Recording, Replayed};
+use vl_core::{Experiments, ForecastLimits, ForecastVerdict, Grade, Pose, Rubric, Summary};
+use vl_record::Recording;
 use vl_report::table::{Report, Table};
 use vl_sandbox::{Budget, Module};
 use vl_sim::{Forecasting, Pilot, forecast};
@@ -69,10 +65,9 @@ struct RerunSeed {
 
 pub(crate) fn regrade(what: &Regrading<'_>) -> Result<Regraded> {
     let file = what.file;
-    let said = |e: &dyn std::fmt::Display| BadInput(format!("{}: {e}", file.display()));
     let recording = Recording::open(file).map_err(bad_input)?;
     let summary = recording.summary().ok_or_else(|| {
-        said(&"the run has no ending to grade (a Host that crashed left it: `vl record repair` keeps what it has, but a run that never ended has no grade)")
+        BadInput(format!("{}: the run has no ending to grade (a Host that crashed left it: `vl record repair` keeps what it has, but a run that never ended has no grade)", file.display()))
     })?;
     let experiments = Experiments::shipped()
         .with_folders(what.folders)
@@ -81,7 +76,7 @@ pub(crate) fn regrade(what: &Regrading<'_>) -> Result<Regraded> {
         .and_then(|id| experiments.get(id).ok())
         .and_then(|e| e.declared.rubric);
     let rubric = declared.unwrap_or_default();
-    let rerun = match controller_of(&recording) {
+    let rerun = match recording.controller() {
         None => None,
         Some(module) => Some(rerun(&recording, module, &summary, &rubric, what.seeds)?),
     };
@@ -97,25 +92,6 @@ pub(crate) fn regrade(what: &Regrading<'_>) -> Result<Regraded> {
     })
 }
 
-/// The recorded controller's file, if a user's controller drove the run.
-fn controller_of(recording: &Recording) -> Option<&[u8]> {
-    ["controller.wasm", "controller.wat"]
-        .iter()
-        .find_map(|name| recording.attachments.get(*name))
-        .map(Vec::as_slice)
-}
-
-fn attached<T: DeserializeOwned>(recording: &Recording, name: &str) -> Result<T> {
-    let bytes = recording.attachments.get(name).ok_or_else(|| {
-        BadInput(format!(
-            "{}: it has no {name}, which a Host records with every run",
-            recording.path.display()
-        ))
-    })?;
-    serde_json::from_slice(bytes)
-        .map_err(|e| BadInput(format!("{}: its {name}: {e}", recording.path.display())).into())
-}
-
 /// Runs the recorded module on the twin from the run's first pose.
 fn rerun(
     recording: &Recording,
@@ -124,8 +100,8 @@ fn rerun(
     rubric: &Rubric,
     seeds: u32,
 ) -> Result<Rerun> {
-    let definition: Definition = attached(recording, "definition.json")?;
-    let lab: MountedLab = attached(recording, "lab.json")?;
+    let definition = recording.definition().map_err(bad_input)?;
+    let lab = recording.lab().map_err(bad_input)?;
     let module = Module::load(file).map_err(bad_input)?;
     if definition.controller != Some(module.hash()) {
         return Err(BadInput(format!(
@@ -178,20 +154,13 @@ fn rerun(
 
 /// The Host's first estimate of the robot in the run's file.
 fn first_pose(recording: &Recording) -> Result<Pose> {
-    let replayed = recording.replay().map_err(bad_input)?;
-    replayed
-        .into_iter()
-        .find_map(|(_, item)| match item {
-            Replayed::Message(HostMessage::Feedback(f)) => Some(f.pose),
-            _ => None,
-        })
-        .ok_or_else(|| {
-            BadInput(format!(
-                "{}: it holds no feedback, so where the run began is unknown",
-                recording.path.display()
-            ))
-            .into()
-        })
+    let feedback = recording.first_feedback().ok_or_else(|| {
+        BadInput(format!(
+            "{}: it holds no feedback, so where the run began is unknown",
+            recording.path.display()
+        ))
+    })?;
+    Ok(feedback.pose)
 }
 
 impl Report for Regraded {

@@ -25,6 +25,18 @@ mod schemas;
 mod views;
 mod writer;
 
+/// The names of the files a run's recording keeps beside its messages:
+/// written by `writer`, read back by `reader`.
+mod attached {
+    pub(crate) const DEFINITION: &str = "definition.json";
+    pub(crate) const ROBOT: &str = "robot.json";
+    pub(crate) const LAB: &str = "lab.json";
+    pub(crate) const CONFIG: &str = "config.json";
+    /// The user's controller as sent: binary, or the text format.
+    pub(crate) const CONTROLLER_WASM: &str = "controller.wasm";
+    pub(crate) const CONTROLLER_WAT: &str = "controller.wat";
+}
+
 pub use catalogue::now_ms;
 pub use catalogue::{Catalogue, Owner, RecordSettings, Runs, data_dir, recordings_dir};
 pub use export::{Exported, export};

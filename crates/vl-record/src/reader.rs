@@ -8,10 +8,14 @@ use std::path::{Path, PathBuf};
 use mcap::records::MessageHeader;
 use serde::Serialize;
 use thiserror::Error;
-use vl_core::{FrameHeader, HostMessage, ImageFormat, RecordingName, Summary, Wire};
+use vl_core::{
+    Definition, Feedback, FrameHeader, HostMessage, ImageFormat, MountedLab, RecordingName,
+    Summary, Wire,
+};
 use vl_report::table::{Report, Table};
 
 use super::Topic;
+use crate::attached;
 use crate::records::{Damage, Record, records};
 use tracing::debug;
 
@@ -42,6 +46,8 @@ pub enum RecordError {
         "the recordings folder reached its limit (--keep-gb): this run's file may grow to {0} bytes and no further"
     )]
     FolderFull(u64),
+    #[error("{file}: {why}")]
+    Attachment { file: PathBuf, why: String },
 }
 
 impl RecordError {
@@ -221,6 +227,48 @@ impl Recording {
                 Some((m.log_ns, value["ms"].as_f64()?))
             })
             .collect()
+    }
+
+    /// The definition the run was started with.
+    pub fn definition(&self) -> Result<Definition, RecordError> {
+        self.attached_json(attached::DEFINITION)
+    }
+
+    /// The lab as mounted for the run: its arena, robot and camera.
+    pub fn lab(&self) -> Result<MountedLab, RecordError> {
+        self.attached_json(attached::LAB)
+    }
+
+    /// The user's controller that drove the run, its file as sent.
+    pub fn controller(&self) -> Option<&[u8]> {
+        [attached::CONTROLLER_WASM, attached::CONTROLLER_WAT]
+            .iter()
+            .find_map(|name| self.attachments.get(*name))
+            .map(Vec::as_slice)
+    }
+
+    fn attached_json<T: serde::de::DeserializeOwned>(&self, name: &str) -> Result<T, RecordError> {
+        let why = |why: String| RecordError::Attachment {
+            file: self.path.clone(),
+            why,
+        };
+        let bytes = (self.attachments.get(name)).ok_or_else(|| {
+            why(format!(
+                "it has no {name}, which a Host records with every run"
+            ))
+        })?;
+        serde_json::from_slice(bytes).map_err(|e| why(format!("its {name}: {e}")))
+    }
+
+    /// The run's first feedback, as its Guests were sent it: where the
+    /// Host had the robot when the run began.
+    pub fn first_feedback(&self) -> Option<Feedback> {
+        self.on(Topic::Feedback.name()).find_map(|m| {
+            match HostMessage::decode(std::str::from_utf8(&m.data).ok()?).ok()? {
+                HostMessage::Feedback(feedback) => Some(feedback),
+                _ => None,
+            }
+        })
     }
 
     /// The run's summary, as its Guests were sent it.

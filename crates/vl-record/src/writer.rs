@@ -12,6 +12,8 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use bytes::Bytes;
 use mcap::records::{MessageHeader, Metadata};
 use tracing::warn;
+
+use crate::attached;
 use vl_core::{
     Definition, GuestMessage, HostMessage, MountedLab, Pose, RecordedRun, RecordingName, Wire,
 };
@@ -632,22 +634,22 @@ fn attachments(begin: &Begin) -> Vec<(&'static str, &'static str, Vec<u8>)> {
         |value: Result<Vec<u8>, serde_json::Error>| value.expect("the lab's types serialise");
     let mut attached = vec![
         (
-            "definition.json",
+            attached::DEFINITION,
             "application/json",
             json(serde_json::to_vec_pretty(&begin.definition)),
         ),
         (
-            "robot.json",
+            attached::ROBOT,
             "application/json",
             json(serde_json::to_vec_pretty(&begin.lab.scene.robot)),
         ),
         (
-            "lab.json",
+            attached::LAB,
             "application/json",
             json(serde_json::to_vec_pretty(&begin.lab)),
         ),
         (
-            "config.json",
+            attached::CONFIG,
             "application/json",
             json(serde_json::to_vec_pretty(&begin.config)),
         ),
@@ -655,8 +657,8 @@ fn attachments(begin: &Begin) -> Vec<(&'static str, &'static str, Vec<u8>)> {
     if let Some(file) = &begin.controller {
         // Binary, or the text format as sent.
         attached.push(match file.starts_with(b"\0asm") {
-            true => ("controller.wasm", "application/wasm", file.to_vec()),
-            false => ("controller.wat", "text/plain", file.to_vec()),
+            true => (attached::CONTROLLER_WASM, "application/wasm", file.to_vec()),
+            false => (attached::CONTROLLER_WAT, "text/plain", file.to_vec()),
         });
     }
     attached
