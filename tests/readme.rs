@@ -145,8 +145,9 @@ fn for_test(args: &mut Vec<String>, ports: &[(String, String)], link: &str) {
         }
         // Every arena through the realistic camera: tests/camera_follow.rs.
         Some("experiment") if args.get(1).map(String::as_str) == Some("run") => {
-            for arg in args.iter_mut().filter(|a| *a == "all") {
-                *arg = "open".into();
+            let arena = args.iter().position(|a| a == "--arena").map(|i| i + 1);
+            if let Some(all) = arena.filter(|&i| args.get(i).is_some_and(|a| a == "all")) {
+                args[all] = "open".into();
             }
         }
         _ => {}

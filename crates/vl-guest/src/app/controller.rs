@@ -1,6 +1,6 @@
 //! The user's own controller in the window (issue 58): on an experiment
-//! whose run it drives, a file dropped on the window (or its path typed)
-//! is sent to the Host, which checks it and answers its hash; Define then
+//! whose run it drives, a file chosen in the picker, dropped on the window
+//! or its path typed is sent to the Host, which checks it and answers its hash; Define then
 //! names it, with the goal clicked on the view.
 
 use std::path::{Path, PathBuf};
@@ -102,7 +102,6 @@ impl GuestApp {
             self.controller_picker = None;
         }
         if let Some(path) = chosen {
-            self.controller_path = path.display().to_string();
             self.send_controller(&path);
         }
     }
@@ -111,14 +110,14 @@ impl GuestApp {
     pub(super) fn take_dropped(&mut self, ctx: &egui::Context) {
         let dropped = ctx.input(|i| i.raw.dropped_files.first().map(|f| f.path().to_path_buf()));
         if let Some(path) = dropped.filter(|_| self.runs_a_controller()) {
-            self.controller_path = path.display().to_string();
             self.send_controller(&path);
         }
     }
 
     /// Reads the file (refused unread when it is too large) and sends it
-    /// to the Host in parts.
+    /// to the Host in parts; its path stays in the row, to send again.
     fn send_controller(&mut self, path: &Path) {
+        self.controller_path = path.display().to_string();
         self.controller_note = Some(match vl_client::read_controller(path) {
             Ok(file) => {
                 for part in vl_client::controller_parts(&file) {
